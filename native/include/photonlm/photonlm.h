@@ -1,0 +1,190 @@
+/*
+ * photonlm: photon-lightmap global illumination baker, C API (plain C99).
+ *
+ * Conventions
+ * - Every function that can fail returns a plm_status. On failure, a message
+ *   saying what was wrong and where (mesh name, triangle or vertex index) is
+ *   kept per thread and read with plm_last_error() on the same thread.
+ * - Handles are opaque. Buffers are owned by the caller; the library copies
+ *   what it keeps, so arrays may be freed right after a call returns.
+ * - Units follow Blender/Cycles: metres, linear RGB, radiance in W m^-2 sr^-1.
+ * - A lightmap texel holds irradiance / pi (diffuse lighting without albedo),
+ *   exactly what Cycles bakes with type DIFFUSE, DIRECT+INDIRECT, no COLOR.
+ * - Lightmap rows are in UV order: row 0 covers v in [0, 1/height), i.e.
+ *   bottom row first (the order of Blender's Image.pixels). EXR files are
+ *   written top row first, as image files are.
+ */
+#ifndef PHOTONLM_PHOTONLM_H
+#define PHOTONLM_PHOTONLM_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#if defined(_WIN32)
+#  if defined(PHOTONLM_BUILDING)
+#    define PLM_API __declspec(dllexport)
+#  else
+#    define PLM_API __declspec(dllimport)
+#  endif
+#else
+#  define PLM_API __attribute__((visibility("default")))
+#endif
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define PLM_VERSION_MAJOR 0
+#define PLM_VERSION_MINOR 1
+#define PLM_VERSION_PATCH 0
+
+typedef enum plm_status {
+  PLM_OK = 0,
+  PLM_ERROR_INVALID_ARGUMENT = 1, /* a NULL pointer, a bad size, NaN/Inf... */
+  PLM_ERROR_INVALID_SCENE = 2,    /* the scene cannot be baked as it is */
+  PLM_ERROR_OUT_OF_MEMORY = 3,
+  PLM_ERROR_IO = 4,               /* a file could not be written */
+  PLM_ERROR_CANCELLED = 5,        /* the progress callback asked to stop */
+  PLM_ERROR_INTERNAL = 6          /* a bug: please report the message */
+} plm_status;
+
+typedef struct plm_scene plm_scene;   /* what the user described */
+typedef struct plm_result plm_result; /* the lightmaps of one bake */
+
+/* Library version as "major.minor.patch". */
+PLM_API const char* plm_version(void);
+/* Short name of a status code ("PLM_ERROR_IO"). */
+PLM_API const char* plm_status_string(plm_status status);
+/* Message of the last failed call on this thread ("" if none). */
+PLM_API const char* plm_last_error(void);
+
+/* ---- Scene --------------------------------------------------------------- */
+
+PLM_API plm_status plm_scene_create(plm_scene** out_scene);
+PLM_API void plm_scene_release(plm_scene* scene); /* NULL is fine */
+
+/* A Lambertian material. albedo in [0, 1] per channel (values above 1 are an
+ * error: they create energy); emission is radiance (Cycles: colour x strength),
+ * emitted from both sides of the surface as Cycles does. name may be NULL. */
+PLM_API plm_status plm_scene_add_material(plm_scene* scene, const char* name,
+                                          const float albedo[3], const float emission[3],
+                                          uint32_t* out_material_id);
+
+/* A triangle mesh in world space.
+ *   positions      vertex_count * 3 floats (x, y, z)
+ *   indices        triangle_count * 3 vertex indices
+ *   lightmap_uv    triangle_count * 3 * 2 floats: the (u, v) of each corner
+ *                  (face-varying, like Blender loops). May be NULL only when
+ *                  the mesh has no lightmap (width = height = 0).
+ *   material_ids   triangle_count material ids, or NULL for material 0.
+ *   lightmap_width/height  texels; 0 x 0 means the mesh is geometry only
+ *                  (it blocks and reflects light but gets no lightmap).
+ * Errors name the mesh and the first bad vertex/triangle index. Degenerate
+ * triangles (zero area) are legal: they are skipped and reported as a warning
+ * on the bake result. */
+PLM_API plm_status plm_scene_add_mesh(plm_scene* scene, const char* name,
+                                      const float* positions, uint32_t vertex_count,
+                                      const uint32_t* indices, uint32_t triangle_count,
+                                      const float* lightmap_uv, const uint32_t* material_ids,
+                                      uint32_t lightmap_width, uint32_t lightmap_height,
+                                      uint32_t* out_mesh_id);
+
+typedef enum plm_light_type {
+  PLM_LIGHT_POINT = 0,
+  PLM_LIGHT_SPOT = 1,
+  PLM_LIGHT_SUN = 2,
+  PLM_LIGHT_AREA_RECT = 3, /* Blender area light, shape SQUARE or RECTANGLE */
+  PLM_LIGHT_AREA_DISK = 4  /* Blender area light, shape DISK or ELLIPSE */
+} plm_light_type;
+
+/* A light, described as Blender describes it. The light's frame is the
+ * object-to-world matrix (row-major, translation in the last column); lights
+ * shine along their local -Z axis. Scale in the matrix scales area lights. */
+typedef struct plm_light {
+  int32_t type;          /* plm_light_type */
+  float color[3];        /* linear RGB */
+  float power;           /* W for point, spot, area; irradiance W/m^2 for sun */
+  float matrix[16];      /* object to world, row-major */
+  float radius;          /* point/spot: Blender shadow_soft_size (m) */
+  float angle;           /* sun: angular diameter (radians) */
+  float size_x, size_y;  /* area: Blender size and size_y (m); disk: diameters */
+  float spot_size;       /* spot: full cone angle (radians) */
+  float spot_blend;      /* spot: 0..1 */
+} plm_light;
+
+/* Fills a light with Blender's defaults for its type (white, 1000 W or
+ * 1 W/m^2 for the sun, identity matrix, radius 0.1, angle 0.00918, size 1,
+ * spot 45 degrees, blend 0.15). */
+PLM_API void plm_light_default(plm_light* light, plm_light_type type);
+PLM_API plm_status plm_scene_add_light(plm_scene* scene, const char* name, const plm_light* light,
+                                       uint32_t* out_light_id);
+
+/* Uniform world radiance over the whole sphere (Cycles background colour x
+ * strength). Default black. */
+PLM_API plm_status plm_scene_set_world(plm_scene* scene, const float radiance[3]);
+
+/* ---- Bake ---------------------------------------------------------------- */
+
+typedef struct plm_bake_settings {
+  uint64_t photon_count;   /* photons emitted from all lights together */
+  uint32_t max_bounces;    /* diffuse bounces after the first hit; 0 = direct only */
+  uint32_t seed;           /* results are a function of seed only, not of threads */
+  uint32_t thread_count;   /* 0 = all cores */
+  uint32_t dilation;       /* texels filled around UV islands */
+} plm_bake_settings;
+
+/* photon_count 1,000,000, max_bounces 1024, seed 0, threads 0, dilation 8. */
+PLM_API void plm_bake_settings_default(plm_bake_settings* settings);
+
+/* Called from the thread that called plm_bake, at least every few tenths of a
+ * second. fraction is the estimated fraction done in [0, 1]; stage names what
+ * is running. Return 0 to cancel: plm_bake then returns PLM_ERROR_CANCELLED
+ * promptly and produces no result. */
+typedef int (*plm_progress_fn)(void* user_data, double fraction, const char* stage);
+
+PLM_API plm_status plm_bake(plm_scene* scene, const plm_bake_settings* settings,
+                            plm_progress_fn progress, void* user_data, plm_result** out_result);
+PLM_API void plm_result_release(plm_result* result); /* NULL is fine */
+
+typedef struct plm_bake_stats {
+  uint64_t photons_emitted;
+  uint64_t photon_hits;      /* hits stored into lightmaps */
+  uint64_t rays_traced;
+  uint64_t paths_truncated;  /* paths stopped by max_bounces */
+  double emitted_power;      /* W, sum over RGB channels / 3 */
+  double seconds_setup;
+  double seconds_trace;
+  double seconds_total;
+} plm_bake_stats;
+
+PLM_API plm_status plm_result_stats(const plm_result* result, plm_bake_stats* out_stats);
+
+/* Warnings about the scene or the bake (degenerate triangles skipped, no
+ * lights, overlapping UVs...). The string lives as long as the result. */
+PLM_API uint32_t plm_result_warning_count(const plm_result* result);
+PLM_API const char* plm_result_warning(const plm_result* result, uint32_t index);
+
+PLM_API plm_status plm_result_lightmap_size(const plm_result* result, uint32_t mesh_id,
+                                            uint32_t* out_width, uint32_t* out_height);
+
+/* Copies one lightmap into caller-owned buffers (any may be NULL):
+ *   rgb       width * height * 3 floats, irradiance / pi
+ *   error     width * height floats: standard error of the texel's mean RGB
+ *   hits      width * height floats: photon hits recorded in the texel
+ *   coverage  width * height floats: fraction of the texel covered by the
+ *             mesh's UV islands (0 for dilated texels)
+ * Rows bottom first (see top of file). */
+PLM_API plm_status plm_result_copy_lightmap(const plm_result* result, uint32_t mesh_id,
+                                            float* rgb, float* error, float* hits,
+                                            float* coverage);
+
+/* Writes one lightmap as an OpenEXR file with channels R, G, B, error, hits.
+ * The file appears atomically (written to a temporary name, then renamed). */
+PLM_API plm_status plm_result_write_exr(const plm_result* result, uint32_t mesh_id,
+                                        const char* path);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* PHOTONLM_PHOTONLM_H */
