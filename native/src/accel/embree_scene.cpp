@@ -1,0 +1,61 @@
+#include "accel/embree_scene.h"
+
+#include "util/error.h"
+
+namespace plm {
+namespace {
+
+void on_embree_error(void* user, RTCError code, const char* message) {
+  auto* first = static_cast<std::string*>(user);
+  if (first->empty()) first->assign("Embree error " + std::to_string(int(code)) + ": " + (message ? message : ""));
+}
+
+}  // namespace
+
+EmbreeScene::EmbreeScene(const Scene& scene, unsigned thread_count) {
+  try {
+    build(scene, thread_count);
+  } catch (...) {
+    release();
+    throw;
+  }
+}
+
+void EmbreeScene::build(const Scene& scene, unsigned thread_count) {
+  const std::string config = thread_count ? "threads=" + std::to_string(thread_count) : "";
+  device_ = rtcNewDevice(config.c_str());
+  if (!device_) fail(PLM_ERROR_INTERNAL, "cannot create the Embree device (error ", int(rtcGetDeviceError(nullptr)), ")");
+  rtcSetDeviceErrorFunction(device_, on_embree_error, &error_);
+  scene_ = rtcNewScene(device_);
+  rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_HIGH);
+  // Rays skip the triangle they leave through a context filter (see transport/bake.cpp).
+  rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
+  for (size_t id = 0; id < scene.meshes.size(); ++id) {
+    const Mesh& mesh = scene.meshes[id];
+    RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+    rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, mesh.positions.data(), 0,
+                               sizeof(Vec3), mesh.vertex_count);
+    rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, mesh.indices.data(), 0,
+                               3 * sizeof(uint32_t), mesh.triangle_count());
+    rtcCommitGeometry(g);
+    rtcAttachGeometryByID(scene_, g, static_cast<unsigned>(id));
+    rtcReleaseGeometry(g);
+  }
+  rtcCommitScene(scene_);
+  if (!error_.empty()) fail(PLM_ERROR_INTERNAL, "building the ray-tracing scene failed: ", error_);
+  RTCBounds b;
+  rtcGetSceneBounds(scene_, &b);
+  lo_ = {b.lower_x, b.lower_y, b.lower_z};
+  hi_ = {b.upper_x, b.upper_y, b.upper_z};
+}
+
+EmbreeScene::~EmbreeScene() { release(); }
+
+void EmbreeScene::release() {
+  if (scene_) rtcReleaseScene(scene_);
+  if (device_) rtcReleaseDevice(device_);
+  scene_ = nullptr;
+  device_ = nullptr;
+}
+
+}  // namespace plm

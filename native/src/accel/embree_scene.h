@@ -1,0 +1,36 @@
+// Owns the Embree device and scene built over the user's meshes. Vertex and
+// index buffers are shared with the Scene, not copied; geometry id = mesh id.
+#pragma once
+
+#include <embree3/rtcore.h>
+
+#include <string>
+
+#include "scene/scene.h"
+#include "util/math.h"
+
+namespace plm {
+
+class EmbreeScene {
+ public:
+  // thread_count 0 = all cores. Throws plm::Error if Embree fails.
+  EmbreeScene(const Scene& scene, unsigned thread_count);
+  ~EmbreeScene();
+  EmbreeScene(const EmbreeScene&) = delete;
+  EmbreeScene& operator=(const EmbreeScene&) = delete;
+
+  RTCScene handle() const { return scene_; }
+  Vec3 bounds_min() const { return lo_; }
+  Vec3 bounds_max() const { return hi_; }
+
+ private:
+  void build(const Scene& scene, unsigned thread_count);
+  void release();
+
+  RTCDevice device_ = nullptr;
+  RTCScene scene_ = nullptr;
+  Vec3 lo_, hi_;
+  std::string error_;  // first error reported by Embree's callback
+};
+
+}  // namespace plm

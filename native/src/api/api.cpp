@@ -1,0 +1,213 @@
+// The C API: every entry point catches every exception and turns it into a
+// status code plus a per-thread message; nothing escapes into the host.
+#include <cstring>
+#include <new>
+#include <string>
+
+#include "io/exr.h"
+#include "photonlm/photonlm.h"
+#include "scene/scene.h"
+#include "transport/bake.h"
+#include "util/error.h"
+
+struct plm_scene {
+  plm::Scene scene;
+};
+
+struct plm_result {
+  plm::BakeOutput output;
+};
+
+namespace {
+
+thread_local std::string t_last_error;
+
+plm_status set_error(plm_status status, const std::string& message) {
+  t_last_error = message;
+  return status;
+}
+
+// Runs f, mapping exceptions to status codes and messages.
+template <typename F>
+plm_status guarded(const char* function, F&& f) {
+  try {
+    f();
+    return PLM_OK;
+  } catch (const plm::Error& e) {
+    return set_error(e.status(), e.what());
+  } catch (const std::bad_alloc&) {
+    return set_error(PLM_ERROR_OUT_OF_MEMORY, std::string(function) + ": out of memory");
+  } catch (const std::exception& e) {
+    return set_error(PLM_ERROR_INTERNAL, std::string(function) + ": internal error: " + e.what());
+  } catch (...) {
+    return set_error(PLM_ERROR_INTERNAL, std::string(function) + ": unknown internal error");
+  }
+}
+
+void require(const void* p, const char* function, const char* what) {
+  if (!p) plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": ", what, " must not be NULL");
+}
+
+const plm::LightmapImage& lightmap_of(const plm_result* r, uint32_t mesh_id, const char* function) {
+  require(r, function, "result");
+  const auto& maps = r->output.lightmaps;
+  if (mesh_id >= maps.size())
+    plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": mesh id ", mesh_id, " is out of range (the scene has ",
+              maps.size(), " meshes)");
+  if (maps[mesh_id].width == 0)
+    plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": mesh ", mesh_id, " has no lightmap");
+  return maps[mesh_id];
+}
+
+}  // namespace
+
+extern "C" {
+
+const char* plm_version(void) { return "0.1.0"; }
+
+const char* plm_status_string(plm_status status) {
+  switch (status) {
+    case PLM_OK: return "PLM_OK";
+    case PLM_ERROR_INVALID_ARGUMENT: return "PLM_ERROR_INVALID_ARGUMENT";
+    case PLM_ERROR_INVALID_SCENE: return "PLM_ERROR_INVALID_SCENE";
+    case PLM_ERROR_OUT_OF_MEMORY: return "PLM_ERROR_OUT_OF_MEMORY";
+    case PLM_ERROR_IO: return "PLM_ERROR_IO";
+    case PLM_ERROR_CANCELLED: return "PLM_ERROR_CANCELLED";
+    case PLM_ERROR_INTERNAL: return "PLM_ERROR_INTERNAL";
+  }
+  return "PLM_ERROR_UNKNOWN";
+}
+
+const char* plm_last_error(void) { return t_last_error.c_str(); }
+
+plm_status plm_scene_create(plm_scene** out_scene) {
+  return guarded("plm_scene_create", [&] {
+    require(out_scene, "plm_scene_create", "out_scene");
+    *out_scene = nullptr;
+    *out_scene = new plm_scene();
+  });
+}
+
+void plm_scene_release(plm_scene* scene) { delete scene; }
+
+plm_status plm_scene_add_material(plm_scene* scene, const char* name, const float albedo[3],
+                                  const float emission[3], uint32_t* out_material_id) {
+  return guarded("plm_scene_add_material", [&] {
+    require(scene, "plm_scene_add_material", "scene");
+    const uint32_t id = scene->scene.add_material(name, albedo, emission);
+    if (out_material_id) *out_material_id = id;
+  });
+}
+
+plm_status plm_scene_add_mesh(plm_scene* scene, const char* name, const float* positions, uint32_t vertex_count,
+                              const uint32_t* indices, uint32_t triangle_count, const float* lightmap_uv,
+                              const uint32_t* material_ids, uint32_t lightmap_width, uint32_t lightmap_height,
+                              uint32_t* out_mesh_id) {
+  return guarded("plm_scene_add_mesh", [&] {
+    require(scene, "plm_scene_add_mesh", "scene");
+    const uint32_t id = scene->scene.add_mesh(name, positions, vertex_count, indices, triangle_count, lightmap_uv,
+                                              material_ids, lightmap_width, lightmap_height);
+    if (out_mesh_id) *out_mesh_id = id;
+  });
+}
+
+void plm_light_default(plm_light* light, plm_light_type type) {
+  if (light) *light = plm::default_light(type);
+}
+
+plm_status plm_scene_add_light(plm_scene* scene, const char* name, const plm_light* light, uint32_t* out_light_id) {
+  return guarded("plm_scene_add_light", [&] {
+    require(scene, "plm_scene_add_light", "scene");
+    require(light, "plm_scene_add_light", "light");
+    const uint32_t id = scene->scene.add_light(name, *light);
+    if (out_light_id) *out_light_id = id;
+  });
+}
+
+plm_status plm_scene_set_world(plm_scene* scene, const float radiance[3]) {
+  return guarded("plm_scene_set_world", [&] {
+    require(scene, "plm_scene_set_world", "scene");
+    scene->scene.set_world(radiance);
+  });
+}
+
+void plm_bake_settings_default(plm_bake_settings* settings) {
+  if (settings) *settings = plm::default_settings();
+}
+
+plm_status plm_bake(plm_scene* scene, const plm_bake_settings* settings, plm_progress_fn progress, void* user_data,
+                    plm_result** out_result) {
+  return guarded("plm_bake", [&] {
+    require(scene, "plm_bake", "scene");
+    require(out_result, "plm_bake", "out_result");
+    *out_result = nullptr;
+    const plm_bake_settings s = settings ? *settings : plm::default_settings();
+    plm::ProgressFn fn;
+    if (progress) fn = [&](double f, const char* stage) { return progress(user_data, f, stage) != 0; };
+    auto* result = new plm_result();
+    try {
+      result->output = plm::bake(scene->scene, s, fn);
+    } catch (...) {
+      delete result;
+      throw;
+    }
+    *out_result = result;
+  });
+}
+
+void plm_result_release(plm_result* result) { delete result; }
+
+plm_status plm_result_stats(const plm_result* result, plm_bake_stats* out_stats) {
+  return guarded("plm_result_stats", [&] {
+    require(result, "plm_result_stats", "result");
+    require(out_stats, "plm_result_stats", "out_stats");
+    *out_stats = result->output.stats;
+  });
+}
+
+uint32_t plm_result_warning_count(const plm_result* result) {
+  return result ? static_cast<uint32_t>(result->output.warnings.size()) : 0u;
+}
+
+const char* plm_result_warning(const plm_result* result, uint32_t index) {
+  if (!result || index >= result->output.warnings.size()) return "";
+  return result->output.warnings[index].c_str();
+}
+
+plm_status plm_result_lightmap_size(const plm_result* result, uint32_t mesh_id, uint32_t* out_width,
+                                    uint32_t* out_height) {
+  return guarded("plm_result_lightmap_size", [&] {
+    const plm::LightmapImage& img = lightmap_of(result, mesh_id, "plm_result_lightmap_size");
+    if (out_width) *out_width = img.width;
+    if (out_height) *out_height = img.height;
+  });
+}
+
+plm_status plm_result_copy_lightmap(const plm_result* result, uint32_t mesh_id, float* rgb, float* error,
+                                    float* hits, float* coverage) {
+  return guarded("plm_result_copy_lightmap", [&] {
+    const plm::LightmapImage& img = lightmap_of(result, mesh_id, "plm_result_copy_lightmap");
+    const size_t n = size_t(img.width) * img.height;
+    if (rgb) std::memcpy(rgb, img.rgb.data(), 3 * n * sizeof(float));
+    if (error) std::memcpy(error, img.error.data(), n * sizeof(float));
+    if (hits) std::memcpy(hits, img.hits.data(), n * sizeof(float));
+    if (coverage) std::memcpy(coverage, img.coverage.data(), n * sizeof(float));
+  });
+}
+
+plm_status plm_result_write_exr(const plm_result* result, uint32_t mesh_id, const char* path) {
+  return guarded("plm_result_write_exr", [&] {
+    const plm::LightmapImage& img = lightmap_of(result, mesh_id, "plm_result_write_exr");
+    require(path, "plm_result_write_exr", "path");
+    const size_t n = size_t(img.width) * img.height;
+    std::vector<float> pixels(5 * n);
+    for (size_t t = 0; t < n; ++t) {
+      for (int c = 0; c < 3; ++c) pixels[5 * t + c] = img.rgb[3 * t + c];
+      pixels[5 * t + 3] = img.error[t];
+      pixels[5 * t + 4] = img.hits[t];
+    }
+    plm::write_exr_atomic(path, img.width, img.height, {"R", "G", "B", "error", "hits"}, pixels.data());
+  });
+}
+
+}  // extern "C"

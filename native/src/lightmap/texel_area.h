@@ -1,0 +1,36 @@
+// Exact texel areas: every triangle is clipped against the texel grid in UV
+// space; the UV area it covers in a texel, times the triangle's ratio of world
+// area to UV area, is the world area that texel receives photons over.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "scene/scene.h"
+
+namespace plm {
+
+struct TexelAreas {
+  std::vector<double> area;      // world area per texel (m^2), rows bottom first
+  std::vector<float> coverage;   // covered fraction of each texel (> 1 where UVs overlap)
+  uint32_t zero_uv_triangles = 0;   // world area > 0 but no UV area: light not recorded
+  uint32_t first_zero_uv_triangle = 0;
+  uint32_t outside_triangles = 0;   // partly or wholly outside the [0,1] UV square
+  uint32_t first_outside_triangle = 0;
+  uint32_t overlapping_texels = 0;  // coverage above 1: UV islands overlap
+  uint32_t first_overlapping_texel = 0;
+};
+
+// Area of a polygon given as (x, y) pairs.
+double polygon_area(const double* xy, int n);
+
+// Area of triangle (x0,y0)-(x1,y1)-(x2,y2), in texel units, inside each texel
+// of a width x height grid; calls add(texel index, area) for every touched texel.
+template <typename Add>
+void clip_triangle_to_grid(const double tri[6], uint32_t width, uint32_t height, Add&& add);
+
+TexelAreas compute_texel_areas(const Mesh& mesh);
+
+}  // namespace plm
+
+#include "lightmap/texel_area_impl.h"

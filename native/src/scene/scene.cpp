@@ -1,0 +1,161 @@
+#include "scene/scene.h"
+
+#include <cmath>
+#include <cstring>
+
+#include "util/error.h"
+
+namespace plm {
+namespace {
+
+std::string quoted_or(const char* name, const char* kind, size_t index) {
+  if (name && *name) return std::string("'") + name + "'";
+  return std::string(kind) + " " + std::to_string(index);
+}
+
+void check_rgb(const float* v, const char* what, const std::string& owner, float max_value) {
+  for (int c = 0; c < 3; ++c) {
+    if (!std::isfinite(v[c]) || v[c] < 0.0f || v[c] > max_value)
+      fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": ", what, "[", c, "] = ", v[c], " is not in [0, ",
+           max_value, "]");
+  }
+}
+
+}  // namespace
+
+uint32_t Scene::add_material(const char* name, const float albedo[3], const float emission[3]) {
+  const std::string owner = "material " + quoted_or(name, "#", materials.size());
+  if (!albedo || !emission) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": albedo and emission must not be NULL");
+  check_rgb(albedo, "albedo", owner, 1.0f);
+  check_rgb(emission, "emission", owner, 1e30f);
+  materials.push_back({name ? name : "", {albedo[0], albedo[1], albedo[2]}, {emission[0], emission[1], emission[2]}});
+  return static_cast<uint32_t>(materials.size() - 1);
+}
+
+uint32_t Scene::add_mesh(const char* name, const float* positions, uint32_t vertex_count,
+                         const uint32_t* indices, uint32_t triangle_count, const float* uv,
+                         const uint32_t* material_ids, uint32_t width, uint32_t height) {
+  const std::string owner = "mesh " + quoted_or(name, "#", meshes.size());
+  if (vertex_count == 0 || triangle_count == 0)
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": has ", vertex_count, " vertices and ", triangle_count,
+         " triangles; both must be > 0");
+  if (!positions || !indices) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": positions and indices must not be NULL");
+  if ((width == 0) != (height == 0))
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": lightmap size ", width, " x ", height,
+         " is invalid (both 0 for no lightmap, or both > 0)");
+  if (width > 16384 || height > 16384)
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": lightmap size ", width, " x ", height, " exceeds 16384");
+  if (width > 0 && !uv)
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": has a ", width, " x ", height,
+         " lightmap but no lightmap UVs (pass UVs, or size 0 x 0 for geometry only)");
+
+  Mesh mesh;
+  mesh.name = name && *name ? name : "#" + std::to_string(meshes.size());
+  mesh.vertex_count = vertex_count;
+  mesh.positions.resize(size_t(vertex_count) + 1);
+  for (uint32_t i = 0; i < vertex_count; ++i) {
+    const Vec3 p{positions[3 * i], positions[3 * i + 1], positions[3 * i + 2]};
+    if (!is_finite(p))
+      fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": vertex ", i, " has a non-finite position (", p.x, ", ", p.y,
+           ", ", p.z, ")");
+    mesh.positions[i] = p;
+  }
+  mesh.indices.assign(indices, indices + size_t(triangle_count) * 3);
+  for (size_t k = 0; k < mesh.indices.size(); ++k) {
+    if (mesh.indices[k] >= vertex_count)
+      fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": triangle ", k / 3, " corner ", k % 3, " uses vertex ",
+           mesh.indices[k], " but the mesh has ", vertex_count, " vertices");
+  }
+  if (width > 0) {
+    mesh.uv.assign(uv, uv + size_t(triangle_count) * 6);
+    for (size_t k = 0; k < mesh.uv.size(); ++k) {
+      if (!std::isfinite(mesh.uv[k]))
+        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": triangle ", k / 6, " corner ", (k % 6) / 2,
+             " has a non-finite lightmap UV");
+    }
+  }
+  if (material_ids) {
+    mesh.material_ids.assign(material_ids, material_ids + triangle_count);
+    for (uint32_t t = 0; t < triangle_count; ++t) {
+      if (mesh.material_ids[t] >= materials.size())
+        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": triangle ", t, " uses material ", mesh.material_ids[t],
+             " but the scene has ", materials.size(), " materials (add materials before meshes)");
+    }
+  } else {
+    mesh.material_ids.assign(triangle_count, 0u);
+  }
+  mesh.lightmap_width = width;
+  mesh.lightmap_height = height;
+  meshes.push_back(std::move(mesh));
+  return static_cast<uint32_t>(meshes.size() - 1);
+}
+
+plm_light default_light(plm_light_type type) {
+  plm_light l;
+  std::memset(&l, 0, sizeof(l));
+  l.type = type;
+  l.color[0] = l.color[1] = l.color[2] = 1.0f;
+  l.power = type == PLM_LIGHT_SUN ? 1.0f : 1000.0f;
+  for (int i = 0; i < 4; ++i) l.matrix[5 * i] = 1.0f;
+  l.radius = 0.1f;
+  l.angle = 0.00918043f;  // Blender's default sun angle, 0.526 degrees
+  l.size_x = l.size_y = 1.0f;
+  l.spot_size = 45.0f * kPi / 180.0f;
+  l.spot_blend = 0.15f;
+  return l;
+}
+
+uint32_t Scene::add_light(const char* name, const plm_light& l) {
+  const std::string owner = "light " + quoted_or(name, "#", lights.size());
+  if (l.type < PLM_LIGHT_POINT || l.type > PLM_LIGHT_AREA_DISK)
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": unknown light type ", l.type);
+  check_rgb(l.color, "color", owner, 1e30f);
+  if (!std::isfinite(l.power) || l.power < 0.0f)
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": power ", l.power, " must be finite and >= 0");
+  for (int i = 0; i < 16; ++i) {
+    if (!std::isfinite(l.matrix[i])) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": matrix element ", i, " is not finite");
+  }
+  Transform m;
+  std::memcpy(m.m, l.matrix, sizeof(m.m));
+  switch (l.type) {
+    case PLM_LIGHT_POINT:
+    case PLM_LIGHT_SPOT:
+      if (!std::isfinite(l.radius) || l.radius < 0.0f)
+        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": radius ", l.radius, " must be finite and >= 0");
+      if (l.type == PLM_LIGHT_SPOT) {
+        if (!(l.spot_size > 0.0f && l.spot_size <= kPi))
+          fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": spot_size ", l.spot_size, " must be in (0, pi] radians");
+        if (!(l.spot_blend >= 0.0f && l.spot_blend <= 1.0f))
+          fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": spot_blend ", l.spot_blend, " must be in [0, 1]");
+        if (length(m.vector({0, 0, 1})) <= 0.0f)
+          fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": matrix has no direction (zero scale)");
+      }
+      break;
+    case PLM_LIGHT_SUN:
+      if (!(l.angle >= 0.0f && l.angle < kPi))
+        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": angle ", l.angle, " must be in [0, pi) radians");
+      if (length(m.vector({0, 0, 1})) <= 0.0f)
+        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": matrix has no direction (zero scale)");
+      break;
+    case PLM_LIGHT_AREA_RECT:
+    case PLM_LIGHT_AREA_DISK: {
+      if (!(l.size_x > 0.0f && l.size_y > 0.0f) || !std::isfinite(l.size_x) || !std::isfinite(l.size_y))
+        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": area light size ", l.size_x, " x ", l.size_y,
+             " must be > 0 (a zero-area light emits nothing)");
+      const Vec3 n = cross(m.vector({l.size_x, 0, 0}), m.vector({0, l.size_y, 0}));
+      if (!(length(n) > 0.0f))
+        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": the matrix scales the area light to zero area");
+      break;
+    }
+  }
+  lights.push_back({name && *name ? name : "#" + std::to_string(lights.size()), l});
+  return static_cast<uint32_t>(lights.size() - 1);
+}
+
+void Scene::set_world(const float radiance[3]) {
+  if (!radiance) fail(PLM_ERROR_INVALID_ARGUMENT, "world: radiance must not be NULL");
+  check_rgb(radiance, "radiance", "world", 1e30f);
+  world = {radiance[0], radiance[1], radiance[2]};
+}
+
+}  // namespace plm

@@ -1,0 +1,58 @@
+// What the user described: materials, triangle meshes with lightmap UVs,
+// lights and the world. Everything is validated on the way in, so the bake
+// only sees legal data; degenerate triangles are kept and counted.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "photonlm/photonlm.h"
+#include "util/math.h"
+
+namespace plm {
+
+struct Material {
+  std::string name;
+  Vec3 albedo;
+  Vec3 emission;  // radiance, both sides
+};
+
+struct Mesh {
+  std::string name;
+  // One padding element at the end: Embree reads 16 bytes at the last vertex.
+  std::vector<Vec3> positions;
+  uint32_t vertex_count = 0;
+  std::vector<uint32_t> indices;  // 3 per triangle
+  std::vector<float> uv;          // 6 per triangle, empty when no lightmap
+  std::vector<uint32_t> material_ids;  // 1 per triangle
+  uint32_t lightmap_width = 0, lightmap_height = 0;
+
+  uint32_t triangle_count() const { return static_cast<uint32_t>(indices.size() / 3); }
+  bool has_lightmap() const { return lightmap_width > 0; }
+  Vec3 vertex(uint32_t tri, int corner) const { return positions[indices[3 * tri + corner]]; }
+};
+
+struct Light {
+  std::string name;
+  plm_light desc;
+};
+
+struct Scene {
+  std::vector<Material> materials;
+  std::vector<Mesh> meshes;
+  std::vector<Light> lights;
+  Vec3 world{0, 0, 0};
+
+  uint32_t add_material(const char* name, const float albedo[3], const float emission[3]);
+  uint32_t add_mesh(const char* name, const float* positions, uint32_t vertex_count,
+                    const uint32_t* indices, uint32_t triangle_count, const float* uv,
+                    const uint32_t* material_ids, uint32_t width, uint32_t height);
+  uint32_t add_light(const char* name, const plm_light& light);
+  void set_world(const float radiance[3]);
+};
+
+// Blender's defaults for a light of the given type.
+plm_light default_light(plm_light_type type);
+
+}  // namespace plm

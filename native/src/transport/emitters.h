@@ -1,0 +1,43 @@
+// Everything that emits light, flattened for photon emission: Blender lights,
+// emissive triangles and the world. A closed set dispatched on a tag.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "scene/scene.h"
+#include "util/math.h"
+
+namespace plm {
+
+enum class EmitterKind : uint8_t { Point, Spot, Sun, AreaRect, AreaDisk, Triangle, World };
+
+struct Emitter {
+  EmitterKind kind;
+  Vec3 flux;        // total emitted RGB flux (W)
+  Vec3 scale;       // per-sample RGB weight before angular factors (see sample_emitter)
+  Vec3 origin;      // point/spot/area centre, triangle vertex 0, scene centre for sun/world
+  Vec3 axis_u, axis_v;  // area: half extents; triangle: edges; sun/world: frame
+  Vec3 normal;      // area/triangle: emitting side; spot: cone axis; sun: travel direction
+  float radius = 0;     // point/spot: light radius; sun/world: radius of the scene's bounding sphere
+  float cos_half = 1;   // spot: cos(spot_size / 2); sun: cos(angle / 2)
+  float spot_smooth = 0;
+};
+
+struct EmitterSample {
+  Vec3 origin, direction;
+  Vec3 weight;  // flux carried by the sample, before dividing by the sample count and pick probability
+};
+
+// Cycles' spot falloff for a unit direction at cosine c from the axis.
+float spot_attenuation(float c, float cos_half, float spot_smooth);
+
+// Flattens lights, emissive triangles and the world. scene_center/radius
+// bound all geometry (sun and world photons start on a disk around them).
+std::vector<Emitter> build_emitters(const Scene& scene, Vec3 scene_center, float scene_radius);
+
+// Samples an origin and a direction from four uniform numbers in [0, 1).
+EmitterSample sample_emitter(const Emitter& e, const float u[4]);
+
+}  // namespace plm

@@ -1,0 +1,98 @@
+// Small vector math for the engine: float vectors for geometry, double for sums.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+
+namespace plm {
+
+constexpr float kPi = 3.14159265358979323846f;
+constexpr double kPiD = 3.14159265358979323846;
+
+struct Vec3 {
+  float x = 0, y = 0, z = 0;
+  Vec3() = default;
+  constexpr Vec3(float x_, float y_, float z_) : x(x_), y(y_), z(z_) {}
+  float operator[](int i) const { return i == 0 ? x : (i == 1 ? y : z); }
+  float& operator[](int i) { return i == 0 ? x : (i == 1 ? y : z); }
+};
+
+inline Vec3 operator+(Vec3 a, Vec3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+inline Vec3 operator-(Vec3 a, Vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+inline Vec3 operator-(Vec3 a) { return {-a.x, -a.y, -a.z}; }
+inline Vec3 operator*(Vec3 a, float s) { return {a.x * s, a.y * s, a.z * s}; }
+inline Vec3 operator*(float s, Vec3 a) { return a * s; }
+inline Vec3 operator*(Vec3 a, Vec3 b) { return {a.x * b.x, a.y * b.y, a.z * b.z}; }
+inline Vec3 operator/(Vec3 a, float s) { return a * (1.0f / s); }
+inline Vec3& operator+=(Vec3& a, Vec3 b) { return a = a + b; }
+inline Vec3& operator*=(Vec3& a, Vec3 b) { return a = a * b; }
+inline Vec3& operator*=(Vec3& a, float s) { return a = a * s; }
+inline float dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline Vec3 cross(Vec3 a, Vec3 b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+inline float length(Vec3 a) { return std::sqrt(dot(a, a)); }
+inline Vec3 normalize(Vec3 a) { return a / length(a); }
+inline float max_component(Vec3 a) { return std::fmax(a.x, std::fmax(a.y, a.z)); }
+inline float max_abs_component(Vec3 a) {
+  return std::fmax(std::fabs(a.x), std::fmax(std::fabs(a.y), std::fabs(a.z)));
+}
+inline float average(Vec3 a) { return (a.x + a.y + a.z) * (1.0f / 3.0f); }
+inline bool is_finite(Vec3 a) { return std::isfinite(a.x) && std::isfinite(a.y) && std::isfinite(a.z); }
+
+// An orthonormal frame around a unit normal n (Duff et al. 2017, branchless).
+inline void make_frame(Vec3 n, Vec3& t, Vec3& b) {
+  const float sign = std::copysign(1.0f, n.z);
+  const float a = -1.0f / (sign + n.z);
+  const float c = n.x * n.y * a;
+  t = {1.0f + sign * n.x * n.x * a, sign * c, -sign * n.x};
+  b = {c, sign + n.y * n.y * a, -n.y};
+}
+
+// Cosine-weighted direction about the +Z axis from two uniform numbers.
+inline Vec3 cosine_hemisphere(float u1, float u2) {
+  const float r = std::sqrt(u1);
+  const float phi = 2.0f * kPi * u2;
+  return {r * std::cos(phi), r * std::sin(phi), std::sqrt(std::fmax(0.0f, 1.0f - u1))};
+}
+
+inline Vec3 uniform_sphere(float u1, float u2) {
+  const float z = 1.0f - 2.0f * u1;
+  const float r = std::sqrt(std::fmax(0.0f, 1.0f - z * z));
+  const float phi = 2.0f * kPi * u2;
+  return {r * std::cos(phi), r * std::sin(phi), z};
+}
+
+// Uniform point in the unit disk (concentric mapping keeps strata compact).
+inline void concentric_disk(float u1, float u2, float& x, float& y) {
+  const float a = 2.0f * u1 - 1.0f, b = 2.0f * u2 - 1.0f;
+  if (a == 0.0f && b == 0.0f) {
+    x = y = 0.0f;
+    return;
+  }
+  float r, phi;
+  if (std::fabs(a) > std::fabs(b)) {
+    r = a;
+    phi = (kPi / 4.0f) * (b / a);
+  } else {
+    r = b;
+    phi = (kPi / 2.0f) - (kPi / 4.0f) * (a / b);
+  }
+  x = r * std::cos(phi);
+  y = r * std::sin(phi);
+}
+
+// Row-major 4x4 affine transform (object to world), as Blender's matrix_world.
+struct Transform {
+  float m[16];
+  Vec3 point(Vec3 p) const {
+    return {m[0] * p.x + m[1] * p.y + m[2] * p.z + m[3], m[4] * p.x + m[5] * p.y + m[6] * p.z + m[7],
+            m[8] * p.x + m[9] * p.y + m[10] * p.z + m[11]};
+  }
+  Vec3 vector(Vec3 v) const {
+    return {m[0] * v.x + m[1] * v.y + m[2] * v.z, m[4] * v.x + m[5] * v.y + m[6] * v.z,
+            m[8] * v.x + m[9] * v.y + m[10] * v.z};
+  }
+};
+
+}  // namespace plm

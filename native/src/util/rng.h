@@ -1,0 +1,40 @@
+// Counter-based random numbers: a photon's stream is a pure function of
+// (seed, photon index), so results never depend on how work is split.
+#pragma once
+
+#include <cstdint>
+
+namespace plm {
+
+inline uint64_t splitmix64(uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
+// PCG32 (O'Neill): small state, good statistics, fast.
+class Rng {
+ public:
+  Rng(uint64_t seed, uint64_t stream) {
+    state_ = 0;
+    inc_ = (splitmix64(stream ^ 0xDA3E39CB94B95BDBull) << 1u) | 1u;
+    next_u32();
+    state_ += splitmix64(seed);
+    next_u32();
+  }
+  uint32_t next_u32() {
+    const uint64_t old = state_;
+    state_ = old * 6364136223846793005ull + inc_;
+    const uint32_t xorshifted = static_cast<uint32_t>(((old >> 18u) ^ old) >> 27u);
+    const uint32_t rot = static_cast<uint32_t>(old >> 59u);
+    return (xorshifted >> rot) | (xorshifted << ((32u - rot) & 31u));
+  }
+  // Uniform in [0, 1).
+  float next_float() { return static_cast<float>(next_u32() >> 8) * (1.0f / 16777216.0f); }
+
+ private:
+  uint64_t state_, inc_;
+};
+
+}  // namespace plm
