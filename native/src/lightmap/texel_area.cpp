@@ -3,10 +3,12 @@
 namespace plm {
 
 double polygon_area(const double* xy, int n) {
+  // Relative to the first vertex: tiny polygons far from (0, 0) keep their digits.
   double twice = 0.0;
-  for (int i = 0; i < n; ++i) {
-    const int j = (i + 1) % n;
-    twice += xy[2 * i] * xy[2 * j + 1] - xy[2 * j] * xy[2 * i + 1];
+  for (int i = 1; i + 1 < n; ++i) {
+    const double ax = xy[2 * i] - xy[0], ay = xy[2 * i + 1] - xy[1];
+    const double bx = xy[2 * i + 2] - xy[0], by = xy[2 * i + 3] - xy[1];
+    twice += ax * by - bx * ay;
   }
   return 0.5 * std::fabs(twice);
 }

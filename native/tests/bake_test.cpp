@@ -1,0 +1,374 @@
+// Bakes through the C API checked against analytic answers.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <OpenImageIO/imageio.h>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <dirent.h>
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include "demo_scenes.h"
+
+namespace {
+
+using plm_demo::SceneBuilder;
+using plm_demo::V3;
+
+struct Lightmap {
+  uint32_t w = 0, h = 0;
+  std::vector<float> rgb, error, hits, coverage;
+  float value(size_t t) const { return (rgb[3 * t] + rgb[3 * t + 1] + rgb[3 * t + 2]) / 3.0f; }
+};
+
+struct Baked {
+  plm_result* r = nullptr;
+  ~Baked() { plm_result_release(r); }
+  Lightmap get(uint32_t mesh) const {
+    Lightmap m;
+    EXPECT_EQ(plm_result_lightmap_size(r, mesh, &m.w, &m.h), PLM_OK) << plm_last_error();
+    const size_t n = size_t(m.w) * m.h;
+    m.rgb.resize(3 * n);
+    m.error.resize(n);
+    m.hits.resize(n);
+    m.coverage.resize(n);
+    EXPECT_EQ(plm_result_copy_lightmap(r, mesh, m.rgb.data(), m.error.data(), m.hits.data(), m.coverage.data()),
+              PLM_OK);
+    return m;
+  }
+  plm_bake_stats stats() const {
+    plm_bake_stats s;
+    plm_result_stats(r, &s);
+    return s;
+  }
+  bool warned(const char* needle) const {
+    for (uint32_t i = 0; i < plm_result_warning_count(r); ++i)
+      if (std::strstr(plm_result_warning(r, i), needle)) return true;
+    return false;
+  }
+};
+
+plm_bake_settings settings(uint64_t photons, uint32_t max_bounces = 1024) {
+  plm_bake_settings s;
+  plm_bake_settings_default(&s);
+  s.photon_count = photons;
+  s.max_bounces = max_bounces;
+  return s;
+}
+
+void bake(SceneBuilder& b, const plm_bake_settings& s, Baked& out) {
+  ASSERT_TRUE(b.ok()) << b.error;
+  ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &out.r), PLM_OK) << plm_last_error();
+}
+
+// Flux recorded on a lightmap: sum of value * pi * texel area (world area = coverage * area per texel).
+double recorded_flux(const Lightmap& m, double world_area_per_texel) {
+  double sum = 0.0;
+  for (size_t t = 0; t < m.coverage.size(); ++t)
+    if (m.coverage[t] > 0) sum += m.value(t) * M_PI * m.coverage[t] * world_area_per_texel;
+  return sum;
+}
+
+// Furnace: closed box, uniform emission E and albedo rho: radiosity E / (1 - rho) everywhere.
+void expect_furnace(float rho, V3 center, float size, uint64_t photons) {
+  SceneBuilder b;
+  const uint32_t m = b.material("furnace", {rho, rho, rho}, {1, 1, 1});
+  b.box("furnace", center, {size, size, size}, 0.0f, m, 12, true);
+  Baked r;
+  bake(b, settings(photons), r);
+  const Lightmap lm = r.get(0);
+  const double exact = 1.0 / (1.0 - rho);
+  double sum = 0, wsum = 0, z2 = 0;
+  int n = 0;
+  for (size_t t = 0; t < lm.coverage.size(); ++t) {
+    if (lm.coverage[t] < 0.999f) continue;
+    sum += lm.value(t);
+    wsum += 1;
+    const double z = (lm.value(t) - exact) / lm.error[t];
+    z2 += z * z;
+    ++n;
+  }
+  EXPECT_NEAR(sum / wsum, exact, 0.01 * exact) << "rho " << rho << " size " << size;
+  // The reported standard error matches the real spread (z-scores of unit variance).
+  EXPECT_GT(z2 / n, 0.5);
+  EXPECT_LT(z2 / n, 2.0);
+}
+
+TEST(Bake, FurnaceAlbedoHalf) { expect_furnace(0.5f, {0, 0, 0}, 2.0f, 2000000); }
+TEST(Bake, FurnaceAlbedoPointNine) { expect_furnace(0.9f, {0, 0, 0}, 2.0f, 1000000); }
+TEST(Bake, FurnaceTinyScale) { expect_furnace(0.5f, {0, 0, 0}, 1e-4f, 1000000); }
+TEST(Bake, FurnaceHugeScale) { expect_furnace(0.5f, {0, 0, 0}, 1e4f, 1000000); }
+// 1e5 m out, float positions are 0.008 m apart: a 20 m room keeps texel-exact hits.
+TEST(Bake, FurnaceFarFromOrigin) { expect_furnace(0.5f, {1e5f, -1e5f, 1e5f}, 20.0f, 1000000); }
+
+TEST(Bake, AlbedoOneStopsAtMaxBouncesAndWarns) {
+  SceneBuilder b;
+  const uint32_t m = b.material("mirror", {1, 1, 1}, {1, 1, 1});
+  b.box("closed", {0, 0, 0}, {2, 2, 2}, 0.0f, m, 4, true);
+  Baked r;
+  bake(b, settings(20000, 16), r);
+  // Emission leaves both sides: the half emitted outwards escapes, the rest is trapped.
+  EXPECT_NEAR(double(r.stats().paths_truncated), 10000.0, 400.0);
+  EXPECT_TRUE(r.warned("max_bounces"));
+  // 17 hits per photon, each carrying the full flux: value = 17 * E (E = 1).
+  const Lightmap lm = r.get(0);
+  double sum = 0, n = 0;
+  for (size_t t = 0; t < lm.coverage.size(); ++t)
+    if (lm.coverage[t] > 0.999f) {
+      sum += lm.value(t);
+      n += 1;
+    }
+  EXPECT_NEAR(sum / n, 17.0, 0.5);
+}
+
+// Closed black box: every photon is absorbed at its first hit, so the flux
+// recorded over all six faces is exactly the light's flux.
+double black_box_flux(const plm_light& light) {
+  SceneBuilder b;
+  const uint32_t m = b.material("black", {0, 0, 0});
+  b.box("closed", {0, 0, 0}, {2, 2, 2}, 0.0f, m, 8, true);
+  b.light(light, "light");
+  Baked r;
+  bake(b, settings(200000), r);
+  // Each face 2 x 2 m over (8 - 2 margin) ^ 2 covered texels of a 24 x 16 map.
+  return recorded_flux(r.get(0), 4.0 / 36.0);
+}
+
+TEST(Bake, LightPowerMatchesCyclesUnits) {
+  plm_light l;
+  plm_light_default(&l, PLM_LIGHT_POINT);
+  l.power = 100.0f;
+  EXPECT_NEAR(black_box_flux(l), 100.0, 0.01);  // point: P
+  plm_light_default(&l, PLM_LIGHT_AREA_RECT);
+  l.power = 100.0f;
+  l.size_x = 0.3f;
+  l.size_y = 0.7f;
+  EXPECT_NEAR(black_box_flux(l), 25.0 * M_PI, 0.01);  // area: pi P / 4
+  plm_light_default(&l, PLM_LIGHT_AREA_DISK);
+  l.power = 100.0f;
+  EXPECT_NEAR(black_box_flux(l), 25.0 * M_PI, 0.01);
+  plm_light_default(&l, PLM_LIGHT_SPOT);
+  l.power = 100.0f;
+  l.spot_blend = 0.0f;
+  l.spot_size = 1.0f;
+  // Intensity P/(4 pi) cos(a) inside the cone: flux P sin^2(half angle) / 4.
+  EXPECT_NEAR(black_box_flux(l), 25.0 * std::pow(std::sin(0.5), 2.0), 0.02);
+}
+
+TEST(Bake, EmissiveTriangleEmitsFromBothSides) {
+  SceneBuilder b;
+  const uint32_t black = b.material("black", {0, 0, 0});
+  const uint32_t glow = b.material("glow", {0, 0, 0}, {2, 2, 2});
+  b.box("closed", {0, 0, 0}, {2, 2, 2}, 0.0f, black, 8, true);
+  b.quad("panel", {-0.25f, -0.25f, 0}, {0.5f, 0, 0}, {0, 0.5f, 0}, glow, 0);
+  Baked r;
+  bake(b, settings(200000), r);
+  EXPECT_NEAR(recorded_flux(r.get(0), 4.0 / 36.0), 2.0 * M_PI * 2.0 * 0.25, 1e-3);  // 2 pi L A
+}
+
+// A square plane of side 20 at z = 0, lightmap res x res; returns its lightmap.
+Lightmap lit_plane(const plm_light& light, uint32_t res, uint64_t photons, const float* world = nullptr) {
+  SceneBuilder b;
+  const uint32_t m = b.material("black", {0, 0, 0});
+  b.quad("plane", {-10, -10, 0}, {20, 0, 0}, {0, 20, 0}, m, res);
+  if (light.power > 0) b.light(light, "light");
+  if (world) {
+    EXPECT_EQ(plm_scene_set_world(b.scene, world), PLM_OK);
+  }
+  Baked r;
+  bake(b, settings(photons), r);
+  return r.get(0);
+}
+
+TEST(Bake, PointLightOverPlaneIsInverseSquareCosine) {
+  plm_light l;
+  plm_light_default(&l, PLM_LIGHT_POINT);
+  l.power = 1000.0f;
+  l.radius = 0.0f;
+  l.matrix[11] = 2.0f;  // 2 m above the plane centre
+  const uint32_t res = 20;
+  const Lightmap lm = lit_plane(l, res, 4000000);
+  // Texel (i, j) covers [i - 10, i - 9] x [j - 10, j - 9]; average E / pi over it numerically.
+  double worst = 0.0;
+  for (uint32_t j = 6; j < 14; ++j) {
+    for (uint32_t i = 6; i < 14; ++i) {
+      double avg = 0.0;
+      const int k = 16;
+      for (int a = 0; a < k; ++a)
+        for (int c = 0; c < k; ++c) {
+          const double x = i - 10.0 + (a + 0.5) / k, y = j - 10.0 + (c + 0.5) / k, d2 = x * x + y * y + 4.0;
+          avg += 1000.0 / (4 * M_PI) * 2.0 / std::pow(d2, 1.5) / M_PI;
+        }
+      avg /= k * k;
+      const size_t t = j * res + i;
+      const double z = (lm.value(t) - avg) / lm.error[t];
+      worst = std::max(worst, std::fabs(z));
+      EXPECT_NEAR(lm.value(t), avg, 0.05 * avg) << "texel " << i << "," << j;
+      EXPECT_LT(lm.error[t], 0.02 * avg);
+    }
+  }
+  EXPECT_LT(worst, 5.0);
+}
+
+TEST(Bake, SunOverPlaneIsStrengthCosineOverPi) {
+  plm_light l;
+  plm_light_default(&l, PLM_LIGHT_SUN);
+  l.power = 3.0f;
+  // Tilt the sun 60 degrees from the zenith about the x axis (shines along -Z of its frame).
+  const float a = float(M_PI / 3.0);
+  l.matrix[5] = std::cos(a);
+  l.matrix[6] = -std::sin(a);
+  l.matrix[9] = std::sin(a);
+  l.matrix[10] = std::cos(a);
+  const Lightmap lm = lit_plane(l, 8, 1000000);
+  const double exact = 3.0 * 0.5 / M_PI;
+  for (size_t t = 0; t < lm.coverage.size(); ++t) EXPECT_NEAR(lm.value(t), exact, 0.03 * exact) << "texel " << t;
+}
+
+TEST(Bake, WorldLightOnOpenPlaneIsItsRadiance) {
+  plm_light none;
+  plm_light_default(&none, PLM_LIGHT_POINT);
+  none.power = 0.0f;
+  const float world[3] = {0.5f, 0.25f, 1.0f};
+  const Lightmap lm = lit_plane(none, 4, 2000000, world);
+  for (size_t t = 0; t < lm.coverage.size(); ++t) {
+    EXPECT_NEAR(lm.rgb[3 * t], 0.5, 0.02) << "texel " << t;
+    EXPECT_NEAR(lm.rgb[3 * t + 1], 0.25, 0.01);
+    EXPECT_NEAR(lm.rgb[3 * t + 2], 1.0, 0.04);
+  }
+}
+
+TEST(Bake, SameSeedSameResultWhateverTheThreads) {
+  SceneBuilder b;
+  plm_demo::build_cornell(b, 16);
+  plm_bake_settings s = settings(100000);
+  s.thread_count = 1;
+  Baked one, two, other;
+  bake(b, s, one);
+  s.thread_count = 2;
+  bake(b, s, two);
+  s.seed = 1;
+  bake(b, s, other);
+  for (uint32_t m = 0; m < 7; ++m) {
+    const Lightmap a = one.get(m), c = two.get(m), d = other.get(m);
+    EXPECT_EQ(a.rgb, c.rgb) << "mesh " << m;
+    EXPECT_EQ(a.error, c.error);
+    EXPECT_NE(a.rgb, d.rgb);
+  }
+}
+
+TEST(Bake, CancelReturnsPromptlyWithoutResult) {
+  SceneBuilder b;
+  plm_demo::build_cornell(b, 16);
+  plm_bake_settings s = settings(uint64_t(1) << 36);  // hours of work
+  int calls = 0;
+  plm_progress_fn stop_at_third = [](void* user, double, const char*) { return ++*static_cast<int*>(user) < 3 ? 1 : 0; };
+  plm_result* r = reinterpret_cast<plm_result*>(1);
+  EXPECT_EQ(plm_bake(b.scene, &s, stop_at_third, &calls, &r), PLM_ERROR_CANCELLED);
+  EXPECT_EQ(r, nullptr);
+  EXPECT_EQ(calls, 3);
+  EXPECT_NE(std::string(plm_last_error()).find("cancel"), std::string::npos);
+}
+
+TEST(Bake, NoLightsWarnsAndGivesBlack) {
+  SceneBuilder b;
+  const uint32_t m = b.material("white", {0.8f, 0.8f, 0.8f});
+  b.quad("plane", {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, m, 4);
+  Baked r;
+  bake(b, settings(1000), r);
+  EXPECT_TRUE(r.warned("no lights"));
+  const Lightmap lm = r.get(0);
+  for (float v : lm.rgb) EXPECT_EQ(v, 0.0f);
+}
+
+TEST(Api, BadInputNamesWhatAndWhere) {
+  plm_scene* s = nullptr;
+  ASSERT_EQ(plm_scene_create(&s), PLM_OK);
+  const float albedo[3] = {0.5f, 0.5f, 0.5f}, black[3] = {0, 0, 0};
+  ASSERT_EQ(plm_scene_add_material(s, "grey", albedo, black, nullptr), PLM_OK);
+  const float nan = std::nanf("");
+  const float pos[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, nan, 0};
+  const uint32_t idx[6] = {0, 1, 2, 0, 2, 3};
+  const float uv[12] = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
+  EXPECT_EQ(plm_scene_add_mesh(s, "wall", pos, 4, idx, 2, uv, nullptr, 4, 4, nullptr), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(plm_last_error()).find("mesh 'wall': vertex 3"), std::string::npos) << plm_last_error();
+
+  const float good[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+  const uint32_t bad_idx[6] = {0, 1, 2, 0, 2, 7};
+  EXPECT_EQ(plm_scene_add_mesh(s, "floor", good, 4, bad_idx, 2, uv, nullptr, 4, 4, nullptr), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(plm_last_error()).find("triangle 1 corner 2 uses vertex 7"), std::string::npos) << plm_last_error();
+  EXPECT_EQ(plm_scene_add_mesh(s, "floor", good, 4, idx, 2, nullptr, nullptr, 4, 4, nullptr), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(plm_last_error()).find("no lightmap UVs"), std::string::npos) << plm_last_error();
+  const uint32_t mats[2] = {0, 5};
+  EXPECT_EQ(plm_scene_add_mesh(s, "floor", good, 4, idx, 2, uv, mats, 4, 4, nullptr), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(plm_last_error()).find("triangle 1 uses material 5"), std::string::npos) << plm_last_error();
+
+  plm_light l;
+  plm_light_default(&l, PLM_LIGHT_AREA_RECT);
+  l.size_x = 0.0f;
+  EXPECT_EQ(plm_scene_add_light(s, "lamp", &l, nullptr), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(plm_last_error()).find("light 'lamp'"), std::string::npos) << plm_last_error();
+  plm_light_default(&l, PLM_LIGHT_SPOT);
+  l.spot_size = -1.0f;
+  EXPECT_EQ(plm_scene_add_light(s, "spot", &l, nullptr), PLM_ERROR_INVALID_ARGUMENT);
+  const float too_bright[3] = {1.5f, 0.5f, 0.5f};
+  EXPECT_EQ(plm_scene_add_material(s, "hot", too_bright, black, nullptr), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(plm_last_error()).find("albedo[0]"), std::string::npos);
+
+  plm_result* r = nullptr;
+  EXPECT_EQ(plm_bake(s, nullptr, nullptr, nullptr, &r), PLM_ERROR_INVALID_SCENE);  // no meshes were accepted
+  EXPECT_NE(std::string(plm_last_error()).find("no meshes"), std::string::npos);
+  EXPECT_EQ(plm_bake(nullptr, nullptr, nullptr, nullptr, &r), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(plm_scene_add_mesh(s, "geometry", good, 4, idx, 2, nullptr, nullptr, 0, 0, nullptr), PLM_OK);
+  EXPECT_EQ(plm_bake(s, nullptr, nullptr, nullptr, &r), PLM_ERROR_INVALID_SCENE);
+  EXPECT_NE(std::string(plm_last_error()).find("no mesh has a lightmap"), std::string::npos);
+  plm_scene_release(s);
+}
+
+std::vector<std::string> list_dir(const std::string& dir) {
+  std::vector<std::string> names;
+  if (DIR* d = opendir(dir.c_str())) {
+    while (dirent* e = readdir(d))
+      if (e->d_name[0] != '.') names.push_back(e->d_name);
+    closedir(d);
+  }
+  return names;
+}
+
+TEST(Api, ExrIsWrittenAtomicallyAndReadsBack) {
+  SceneBuilder b;
+  plm_demo::build_cornell(b, 8);
+  Baked r;
+  bake(b, settings(20000), r);
+  char tmpl[] = "/tmp/photonlm_exr_XXXXXX";
+  const std::string dir = mkdtemp(tmpl);
+  const std::string path = dir + "/floor.exr";
+  ASSERT_EQ(plm_result_write_exr(r.r, 0, path.c_str()), PLM_OK) << plm_last_error();
+  EXPECT_EQ(list_dir(dir), std::vector<std::string>{"floor.exr"});  // no temporary left
+  auto in = OIIO::ImageInput::open(path);
+  ASSERT_TRUE(in);
+  const OIIO::ImageSpec& spec = in->spec();
+  ASSERT_EQ(spec.nchannels, 5);
+  EXPECT_EQ(spec.channelnames[3], "error");
+  EXPECT_EQ(spec.channelnames[4], "hits");
+  std::vector<float> px(size_t(spec.width) * spec.height * 5);
+  ASSERT_TRUE(in->read_image(0, 0, 0, 5, OIIO::TypeDesc::FLOAT, px.data()));
+  const Lightmap lm = r.get(0);
+  for (uint32_t y = 0; y < lm.h; ++y)  // file row 0 = top = lightmap row h - 1
+    for (uint32_t x = 0; x < lm.w; ++x) {
+      const size_t f = (size_t(lm.h - 1 - y) * lm.w + x) * 5, t = size_t(y) * lm.w + x;
+      EXPECT_EQ(px[f], lm.rgb[3 * t]);
+      EXPECT_EQ(px[f + 4], lm.hits[t]);
+    }
+  in->close();
+  EXPECT_EQ(plm_result_write_exr(r.r, 0, (dir + "/missing/x.exr").c_str()), PLM_ERROR_IO);
+  EXPECT_NE(std::string(plm_last_error()).find("missing/x.exr"), std::string::npos);
+  EXPECT_EQ(list_dir(dir), std::vector<std::string>{"floor.exr"});
+  std::remove(path.c_str());
+  rmdir(dir.c_str());
+}
+
+}  // namespace
