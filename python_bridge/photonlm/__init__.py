@@ -1,0 +1,319 @@
+"""photonlm: Python bridge to the photon-lightmap GI baker (ctypes + numpy, no compiled extension).
+
+    import photonlm
+    with photonlm.Scene() as scene:
+        mat = scene.add_material(albedo=(0.8, 0.8, 0.8))
+        mesh = scene.add_mesh("floor", positions, triangles, lightmap_uv=uv, resolution=256)
+        scene.add_light("SUN", power=3.0, matrix=sun.matrix_world)
+        with scene.bake(photons=2_000_000) as result:
+            lm = result.lightmap(mesh)         # lm.rgb is (h, w, 3), row 0 = v near 0
+            result.write_exr(mesh, "floor.exr")
+
+The library is found through $PHOTONLM_LIBRARY (full path) or next to this file.
+Units and conventions are those of native/include/photonlm/photonlm.h (Cycles' units;
+a lightmap texel holds irradiance / pi). Arrays are passed to C without copies when
+they already have the right dtype and are C-contiguous.
+"""
+import collections
+import ctypes
+import operator
+import os
+
+import numpy as np
+
+from . import _lib
+from ._lib import LibraryNotFoundError, library_path
+
+__all__ = ["version", "PhotonlmError", "BakeCancelled", "LibraryNotFoundError", "Scene", "Result",
+           "Lightmap", "library_path"]
+
+_C = _lib.lib
+_OK = 0
+_CANCELLED = 5
+_LIGHT_TYPES = {"POINT": 0, "SPOT": 1, "SUN": 2, "AREA_RECT": 3, "AREA_DISK": 4}
+
+
+class PhotonlmError(Exception):
+    """A photonlm call failed. .status is the C status name, .message the engine's message."""
+
+    def __init__(self, message, status="PLM_ERROR_INTERNAL"):
+        super().__init__(message)
+        self.message = message
+        self.status = status
+
+    def __str__(self):
+        return "%s (%s)" % (self.message, self.status)
+
+
+class BakeCancelled(PhotonlmError):
+    """The bake was cancelled by the progress callback."""
+
+
+def _check(status):
+    """Raise the matching exception for a non-OK status; reads plm_last_error on this thread."""
+    if status == _OK:
+        return
+    message = (_C.plm_last_error() or b"").decode("utf-8", "replace")
+    name = (_C.plm_status_string(status) or b"PLM_ERROR_%d" % status).decode("ascii", "replace")
+    raise (BakeCancelled if status == _CANCELLED else PhotonlmError)(message or name, name)
+
+
+def version():
+    """Version of the loaded native library, "major.minor.patch"."""
+    return _C.plm_version().decode("ascii")
+
+
+def _uint(x, what, bits=32):
+    try:
+        v = operator.index(x)
+    except TypeError:
+        v = int(x)
+        if v != x:
+            raise ValueError("%s must be an integer, got %r" % (what, x)) from None
+    if not 0 <= v < (1 << bits):
+        raise ValueError("%s must be in [0, 2^%d), got %d" % (what, bits, v))
+    return v
+
+
+def _rgb(x, what):
+    a = np.asarray(x, dtype=np.float32)
+    if a.ndim == 0:
+        a = np.repeat(a, 3)
+    if a.shape != (3,):
+        raise ValueError("%s must be 3 floats (RGB) or one float, got shape %s" % (what, a.shape))
+    return np.ascontiguousarray(a)
+
+
+def _indices(x, what):
+    """Any integer array -> contiguous uint32 (no copy if it already is); negatives are an error."""
+    a = np.asarray(x)
+    if a.size == 0:
+        return np.ascontiguousarray(a, dtype=np.uint32)
+    if a.dtype.kind not in "iu":
+        raise ValueError("%s must be an integer array, got dtype %s" % (what, a.dtype))
+    if a.dtype.kind == "i" and a.min() < 0:
+        bad = np.argwhere(a < 0)[0]
+        raise ValueError("%s must not be negative: %s[%s] = %d"
+                         % (what, what, ", ".join(map(str, bad)), a[tuple(bad)]))
+    if a.dtype.itemsize > 4 and a.max() > 0xFFFFFFFF:
+        raise ValueError("%s has values above 2^32 - 1" % what)
+    return np.ascontiguousarray(a, dtype=np.uint32)
+
+
+def _ptr(a, ctype):
+    return None if a is None else a.ctypes.data_as(ctypes.POINTER(ctype))
+
+
+def _name(name):
+    return None if name is None else str(name).encode("utf-8")
+
+
+class _Handle:
+    _release = None
+
+    def __init__(self, handle):
+        self._handle = handle
+
+    @property
+    def _h(self):
+        if not self._handle:
+            raise ValueError("%s is closed" % type(self).__name__)
+        return self._handle
+
+    def close(self):
+        """Release the native object; further use raises ValueError. Safe to call twice."""
+        handle, self._handle = getattr(self, "_handle", None), None
+        if handle:
+            getattr(_C, self._release)(handle)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:
+            pass
+
+
+class Scene(_Handle):
+    """A scene to bake: materials, world-space triangle meshes, lights and a world colour."""
+    _release = "plm_scene_release"
+
+    def __init__(self):
+        handle = _lib.ScenePtr()
+        _check(_C.plm_scene_create(ctypes.byref(handle)))
+        super().__init__(handle)
+
+    def add_material(self, albedo, emission=(0.0, 0.0, 0.0), name=None):
+        """Add a Lambertian material; albedo in [0, 1] RGB, emission is radiance (both sides).
+        Returns the material id (the first one is 0, used by meshes without material_ids)."""
+        albedo, emission = _rgb(albedo, "albedo"), _rgb(emission, "emission")
+        out = ctypes.c_uint32()
+        _check(_C.plm_scene_add_material(self._h, _name(name), _ptr(albedo, ctypes.c_float),
+                                         _ptr(emission, ctypes.c_float), ctypes.byref(out)))
+        return out.value
+
+    def add_mesh(self, name, positions, triangles, lightmap_uv=None, material_ids=None, resolution=0):
+        """Add a world-space triangle mesh and return its id.
+
+        positions (V, 3) float32; triangles (T, 3) vertex indices (any integer dtype);
+        lightmap_uv (T, 3, 2) or (3T, 2) float32, one (u, v) per triangle corner;
+        material_ids (T,) or None (material 0); resolution n (n x n texels) or (width, height),
+        0 = geometry only (lightmap_uv may then be None).
+        """
+        pos = np.ascontiguousarray(positions, dtype=np.float32)
+        if pos.ndim != 2 or pos.shape[1] != 3:
+            raise ValueError("positions of mesh %r must have shape (V, 3), got %s" % (name, pos.shape))
+        tri = _indices(triangles, "triangles")
+        if tri.ndim != 2 or tri.shape[1] != 3:
+            raise ValueError("triangles of mesh %r must have shape (T, 3), got %s" % (name, tri.shape))
+        t = tri.shape[0]
+        uv = None
+        if lightmap_uv is not None:
+            uv = np.ascontiguousarray(lightmap_uv, dtype=np.float32)
+            if uv.shape not in ((t, 3, 2), (3 * t, 2)):
+                raise ValueError("lightmap_uv of mesh %r must have shape (T, 3, 2) or (3T, 2) with "
+                                 "T = %d triangles, got %s" % (name, t, uv.shape))
+        mats = None
+        if material_ids is not None:
+            mats = _indices(material_ids, "material_ids")
+            if mats.shape != (t,):
+                raise ValueError("material_ids of mesh %r must have shape (T,) with T = %d triangles, "
+                                 "got %s" % (name, t, mats.shape))
+        if np.ndim(resolution) == 0:
+            width = height = _uint(resolution, "resolution")
+        else:
+            if len(resolution) != 2:
+                raise ValueError("resolution must be n or (width, height), got %r" % (resolution,))
+            width, height = (_uint(r, "resolution") for r in resolution)
+        out = ctypes.c_uint32()
+        _check(_C.plm_scene_add_mesh(
+            self._h, _name(name), _ptr(pos, ctypes.c_float), _uint(pos.shape[0], "vertex count"),
+            _ptr(tri, ctypes.c_uint32), _uint(t, "triangle count"), _ptr(uv, ctypes.c_float),
+            _ptr(mats, ctypes.c_uint32), width, height, ctypes.byref(out)))
+        return out.value
+
+    def add_light(self, type, *, name=None, color=None, power=None, matrix=None, radius=None,
+                  angle=None, size=None, size_y=None, spot_size=None, spot_blend=None):
+        """Add a Blender-style light and return its id.
+
+        type: 'POINT', 'SPOT', 'SUN', 'AREA_RECT' or 'AREA_DISK'. Fields left None keep
+        Blender's defaults (plm_light_default). power is W (sun: irradiance W/m^2); matrix is
+        the 4x4 object-to-world matrix (numpy or mathutils.Matrix); lights shine along local -Z.
+        size_y defaults to size (square / circle) when only size is given.
+        """
+        try:
+            kind = _LIGHT_TYPES[str(type).upper()]
+        except KeyError:
+            raise ValueError("light type must be one of %s, got %r" % (", ".join(_LIGHT_TYPES), type)) from None
+        light = _lib.plm_light()
+        _C.plm_light_default(ctypes.byref(light), kind)
+        if color is not None:
+            light.color = (ctypes.c_float * 3)(*_rgb(color, "color").tolist())
+        if matrix is not None:
+            m = np.array(matrix, dtype=np.float32)
+            if m.shape != (4, 4):
+                raise ValueError("matrix must be 4x4, got shape %s" % (m.shape,))
+            light.matrix = (ctypes.c_float * 16)(*m.ravel().tolist())
+        if size is not None and size_y is None:
+            size_y = size
+        for field, value in (("power", power), ("radius", radius), ("angle", angle), ("size_x", size),
+                             ("size_y", size_y), ("spot_size", spot_size), ("spot_blend", spot_blend)):
+            if value is not None:
+                setattr(light, field, float(value))
+        out = ctypes.c_uint32()
+        _check(_C.plm_scene_add_light(self._h, _name(name), ctypes.byref(light), ctypes.byref(out)))
+        return out.value
+
+    def set_world(self, radiance):
+        """Uniform world radiance (RGB, Cycles background colour x strength) over the whole sphere."""
+        rad = _rgb(radiance, "radiance")
+        _check(_C.plm_scene_set_world(self._h, _ptr(rad, ctypes.c_float)))
+
+    def bake(self, photons=1_000_000, max_bounces=1024, seed=0, threads=0, dilation=8, progress=None):
+        """Bake all lightmaps and return a Result. The GIL is released while the engine runs.
+
+        progress: optional callable(fraction, stage) called from this thread every few tenths
+        of a second; returning False cancels (BakeCancelled). An exception raised in it cancels
+        the bake and is re-raised here (so is Ctrl-C).
+        """
+        settings = _lib.plm_bake_settings()
+        _C.plm_bake_settings_default(ctypes.byref(settings))
+        settings.photon_count = _uint(photons, "photons", 64)
+        settings.max_bounces = _uint(max_bounces, "max_bounces")
+        settings.seed = _uint(seed, "seed")
+        settings.thread_count = _uint(threads, "threads")
+        settings.dilation = _uint(dilation, "dilation")
+        raised = []
+
+        def on_progress(_user_data, fraction, stage):
+            try:
+                if progress is not None:
+                    keep = progress(float(fraction), (stage or b"").decode("utf-8", "replace"))
+                    if keep is not None and not keep:
+                        return 0
+                return 1
+            except BaseException as e:  # KeyboardInterrupt too: cancel, re-raise after plm_bake
+                raised.append(e)
+                return 0
+
+        callback = _lib.progress_fn(on_progress)  # referenced until plm_bake returns
+        out = _lib.ResultPtr()
+        status = _C.plm_bake(self._h, ctypes.byref(settings), callback, None, ctypes.byref(out))
+        if raised:
+            if status == _OK:
+                _C.plm_result_release(out)
+            raise raised[0]
+        _check(status)
+        return Result(out)
+
+
+Lightmap = collections.namedtuple("Lightmap", "rgb error hits coverage")
+Lightmap.__doc__ = """One mesh's lightmap as float32 arrays, row 0 = bottom (v near 0):
+rgb (h, w, 3) irradiance/pi; error (h, w) standard error of the texel's mean RGB;
+hits (h, w) photon hits; coverage (h, w) fraction of the texel inside UV islands."""
+
+_STAT_KEYS = ("photons_emitted", "photon_hits", "rays_traced", "paths_truncated", "emitted_power",
+              "seconds_setup", "seconds_trace", "seconds_total")
+
+
+class Result(_Handle):
+    """The lightmaps, statistics and warnings of one bake."""
+    _release = "plm_result_release"
+
+    @property
+    def stats(self):
+        """dict: photons_emitted, photon_hits, rays_traced, paths_truncated, emitted_power (W),
+        seconds_setup, seconds_trace, seconds_total."""
+        s = _lib.plm_bake_stats()
+        _check(_C.plm_result_stats(self._h, ctypes.byref(s)))
+        return {k: getattr(s, k) for k in _STAT_KEYS}
+
+    @property
+    def warnings(self):
+        """list of warning strings about the scene or the bake."""
+        h = self._h
+        return [(_C.plm_result_warning(h, i) or b"").decode("utf-8", "replace")
+                for i in range(_C.plm_result_warning_count(h))]
+
+    def lightmap_size(self, mesh_id):
+        """(width, height) of a mesh's lightmap; PhotonlmError for a geometry-only mesh."""
+        w, h = ctypes.c_uint32(), ctypes.c_uint32()
+        _check(_C.plm_result_lightmap_size(self._h, _uint(mesh_id, "mesh_id"), ctypes.byref(w),
+                                           ctypes.byref(h)))
+        return w.value, h.value
+
+    def lightmap(self, mesh_id):
+        """Copy a mesh's lightmap into new numpy arrays (a Lightmap)."""
+        w, h = self.lightmap_size(mesh_id)
+        lm = Lightmap(np.empty((h, w, 3), np.float32), *(np.empty((h, w), np.float32) for _ in range(3)))
+        _check(_C.plm_result_copy_lightmap(self._h, mesh_id, *(_ptr(a, ctypes.c_float) for a in lm)))
+        return lm
+
+    def write_exr(self, mesh_id, path):
+        """Write a mesh's lightmap as OpenEXR (R, G, B, error, hits), atomically."""
+        _check(_C.plm_result_write_exr(self._h, _uint(mesh_id, "mesh_id"), os.fsencode(os.fspath(path))))

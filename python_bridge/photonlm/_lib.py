@@ -1,0 +1,128 @@
+"""Loads libphotonlm and declares the C API (native/include/photonlm/photonlm.h) for ctypes.
+
+Every function gets its argtypes/restype here, once. Handles are pointers to
+distinct opaque structures, so passing a result where a scene is expected is
+a ctypes.ArgumentError instead of a crash.
+"""
+import ctypes
+import glob
+import os
+import sys
+from ctypes import POINTER, c_char_p, c_double, c_float, c_int, c_int32, c_uint32, c_uint64, c_void_p
+
+__all__ = ["LibraryNotFoundError", "lib", "library_path"]
+
+
+class LibraryNotFoundError(OSError):
+    """libphotonlm could not be found or loaded."""
+
+
+_LIB_NAME = {"win32": "photonlm.dll", "darwin": "libphotonlm.dylib"}.get(sys.platform, "libphotonlm.so")
+
+
+def _find_library():
+    env = os.environ.get("PHOTONLM_LIBRARY")
+    here = os.path.dirname(os.path.abspath(__file__))
+    beside = os.path.join(here, _LIB_NAME)
+    # A versioned file (libphotonlm.so.0.1.0) next to the package is accepted too.
+    candidates = ([env] if env else []) + [beside] + sorted(glob.glob(beside + ".*"))
+    errors = []
+    for path in candidates:
+        if not os.path.isfile(path):
+            continue
+        try:
+            return path, ctypes.CDLL(path)
+        except OSError as e:
+            errors.append("%s: %s" % (path, e))
+    raise LibraryNotFoundError(
+        "photonlm: cannot load the native library. Looked at $PHOTONLM_LIBRARY (%s) and at %s%s"
+        % (repr(env) if env else "not set", beside, "; " + "; ".join(errors) if errors else ""))
+
+
+class Scene_(ctypes.Structure):
+    """Opaque plm_scene."""
+
+
+class Result_(ctypes.Structure):
+    """Opaque plm_result."""
+
+
+ScenePtr = POINTER(Scene_)
+ResultPtr = POINTER(Result_)
+FloatPtr = POINTER(c_float)
+UInt32Ptr = POINTER(c_uint32)
+
+
+class plm_light(ctypes.Structure):
+    _fields_ = [
+        ("type", c_int32),
+        ("color", c_float * 3),
+        ("power", c_float),
+        ("matrix", c_float * 16),
+        ("radius", c_float),
+        ("angle", c_float),
+        ("size_x", c_float),
+        ("size_y", c_float),
+        ("spot_size", c_float),
+        ("spot_blend", c_float),
+    ]
+
+
+class plm_bake_settings(ctypes.Structure):
+    _fields_ = [
+        ("photon_count", c_uint64),
+        ("max_bounces", c_uint32),
+        ("seed", c_uint32),
+        ("thread_count", c_uint32),
+        ("dilation", c_uint32),
+    ]
+
+
+class plm_bake_stats(ctypes.Structure):
+    _fields_ = [
+        ("photons_emitted", c_uint64),
+        ("photon_hits", c_uint64),
+        ("rays_traced", c_uint64),
+        ("paths_truncated", c_uint64),
+        ("emitted_power", c_double),
+        ("seconds_setup", c_double),
+        ("seconds_trace", c_double),
+        ("seconds_total", c_double),
+    ]
+
+
+# plm_status is a C enum: int-sized on every ABI we target.
+status_t = c_int
+progress_fn = ctypes.CFUNCTYPE(c_int, c_void_p, c_double, c_char_p)
+
+library_path, lib = _find_library()
+
+_SIGNATURES = {
+    "plm_version": (c_char_p, []),
+    "plm_status_string": (c_char_p, [status_t]),
+    "plm_last_error": (c_char_p, []),
+    "plm_scene_create": (status_t, [POINTER(ScenePtr)]),
+    "plm_scene_release": (None, [ScenePtr]),
+    "plm_scene_add_material": (status_t, [ScenePtr, c_char_p, FloatPtr, FloatPtr, UInt32Ptr]),
+    "plm_scene_add_mesh": (status_t, [ScenePtr, c_char_p, FloatPtr, c_uint32, UInt32Ptr, c_uint32,
+                                      FloatPtr, UInt32Ptr, c_uint32, c_uint32, UInt32Ptr]),
+    "plm_light_default": (None, [POINTER(plm_light), c_int]),
+    "plm_scene_add_light": (status_t, [ScenePtr, c_char_p, POINTER(plm_light), UInt32Ptr]),
+    "plm_scene_set_world": (status_t, [ScenePtr, FloatPtr]),
+    "plm_bake_settings_default": (None, [POINTER(plm_bake_settings)]),
+    "plm_bake": (status_t, [ScenePtr, POINTER(plm_bake_settings), progress_fn, c_void_p,
+                            POINTER(ResultPtr)]),
+    "plm_result_release": (None, [ResultPtr]),
+    "plm_result_stats": (status_t, [ResultPtr, POINTER(plm_bake_stats)]),
+    "plm_result_warning_count": (c_uint32, [ResultPtr]),
+    "plm_result_warning": (c_char_p, [ResultPtr, c_uint32]),
+    "plm_result_lightmap_size": (status_t, [ResultPtr, c_uint32, UInt32Ptr, UInt32Ptr]),
+    "plm_result_copy_lightmap": (status_t, [ResultPtr, c_uint32, FloatPtr, FloatPtr, FloatPtr,
+                                            FloatPtr]),
+    "plm_result_write_exr": (status_t, [ResultPtr, c_uint32, c_char_p]),
+}
+
+for _name, (_restype, _argtypes) in _SIGNATURES.items():
+    _f = getattr(lib, _name)
+    _f.restype = _restype
+    _f.argtypes = _argtypes
