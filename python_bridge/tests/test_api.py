@@ -1,6 +1,5 @@
 """The bridge's contract: types match the C header, bad input is refused with useful messages."""
 import ctypes
-import math
 import os
 import re
 import shutil
@@ -12,7 +11,7 @@ import pytest
 
 import photonlm
 from photonlm import _lib
-from scenes import QUAD_TRIANGLES, QUAD_UV, box_faces, clip_area, plane, translation
+from scenes import clip_area, plane, translation
 
 HEADER = os.path.join(os.path.dirname(__file__), "..", "..", "native", "include", "photonlm", "photonlm.h")
 

@@ -76,7 +76,9 @@ PLM_API plm_status plm_scene_add_material(plm_scene* scene, const char* name,
  *   lightmap_uv    triangle_count * 3 * 2 floats: the (u, v) of each corner
  *                  (face-varying, like Blender loops). May be NULL only when
  *                  the mesh has no lightmap (width = height = 0).
- *   material_ids   triangle_count material ids, or NULL for material 0.
+ *   material_ids   triangle_count material ids (materials must be added
+ *                  first), or NULL for material 0 (a grey 0.8 material if
+ *                  the scene has none).
  *   lightmap_width/height  texels; 0 x 0 means the mesh is geometry only
  *                  (it blocks and reflects light but gets no lightmap).
  * Errors name the mesh and the first bad vertex/triangle index. Degenerate
@@ -108,7 +110,9 @@ typedef struct plm_light {
   float radius;          /* point/spot: Blender shadow_soft_size (m) */
   float angle;           /* sun: angular diameter (radians) */
   float size_x, size_y;  /* area: Blender size and size_y (m); disk: diameters */
-  float spot_size;       /* spot: full cone angle (radians) */
+  float spot_size;       /* spot: full cone angle (radians); as in Cycles 3.4 the
+                            intensity inside the cone is P/(4 pi) * cos(angle
+                            from the axis), smoothstepped over the blend zone */
   float spot_blend;      /* spot: 0..1 */
 } plm_light;
 

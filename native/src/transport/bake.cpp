@@ -330,7 +330,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
       const double dt = seconds_since(t_group);
       if (dt < 0.1) group = std::min<uint64_t>(group * 2, 1024);
       else if (dt > 0.4 && group > threads) group = std::max<uint64_t>(threads, group / 2);
-      report(0.05 + 0.9 * double(first) / double(batch_count), "tracing photons");
+      report(std::min(0.95, 0.05 + 0.9 * double(first) / double(batch_count)), "tracing photons");
     }
     if (truncated_flux > 1e-4 * emitted)
       out.warnings.push_back(std::to_string(out.stats.paths_truncated) + " photon paths reached max_bounces (" +
