@@ -228,6 +228,36 @@ TEST(Bake, SunOverPlaneIsStrengthCosineOverPi) {
   for (size_t t = 0; t < lm.coverage.size(); ++t) EXPECT_NEAR(lm.value(t), exact, 0.03 * exact) << "texel " << t;
 }
 
+// UV islands that barely touch neighbouring texels must not turn single
+// photon hits into bright dots: every texel stays near the exact value.
+TEST(Bake, BarelyCoveredTexelsShowNoOutliers) {
+  SceneBuilder b;
+  const uint32_t m = b.material("black", {0, 0, 0});
+  // A 1 x 1 quad whose UV square starts 1e-3 texels before a texel edge and ends 1e-3 after one.
+  const uint32_t res = 16;
+  const float lo = (2.0f - 1e-3f) / res, hi = (14.0f + 1e-3f) / res;
+  const float pos[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+  const uint32_t idx[6] = {0, 1, 2, 0, 2, 3};
+  const float uv[12] = {lo, lo, hi, lo, hi, hi, lo, lo, hi, hi, lo, hi};
+  ASSERT_EQ(plm_scene_add_mesh(b.scene, "quad", pos, 4, idx, 2, uv, nullptr, res, res, nullptr), PLM_OK);
+  (void)m;
+  plm_light l;
+  plm_light_default(&l, PLM_LIGHT_SUN);
+  l.power = 2.0f;
+  b.light(l, "sun");
+  Baked r;
+  bake(b, settings(400000), r);
+  const Lightmap lm = r.get(0);
+  const double exact = 2.0 / M_PI;
+  int slivers = 0;
+  for (size_t t = 0; t < lm.coverage.size(); ++t) {
+    if (lm.coverage[t] <= 0.0f) continue;
+    slivers += lm.coverage[t] < 0.01f;
+    EXPECT_NEAR(lm.value(t), exact, 0.1 * exact) << "texel " << t << " coverage " << lm.coverage[t];
+  }
+  EXPECT_GT(slivers, 40);  // the case really has barely covered texels
+}
+
 TEST(Bake, WorldLightOnOpenPlaneIsItsRadiance) {
   plm_light none;
   plm_light_default(&none, PLM_LIGHT_POINT);

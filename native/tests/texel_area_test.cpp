@@ -11,7 +11,7 @@ namespace {
 
 double grid_total(const double tri[6], uint32_t w, uint32_t h) {
   double total = 0.0;
-  clip_triangle_to_grid(tri, w, h, [&](uint32_t, double a) { total += a; });
+  clip_triangle_to_grid(tri, w, h, [&](uint32_t, double a, double, double) { total += a; });
   return total;
 }
 
@@ -74,6 +74,37 @@ TEST(TexelArea, ReportsOverlapZeroUvAndOutside) {
   m.uv = {0, 0, 1.5f, 0, 1, 1, 0, 0, 1, 1, 0, 1, 0, 0, 1, 0, 1, 1};
   a = compute_texel_areas(m);
   EXPECT_EQ(a.outside_triangles, 1u);
+}
+
+// Two quads side by side in UV, each with a sliver reaching into the other's
+// texels: the slivers merge into their own quad's texels, never across.
+TEST(TexelArea, SparseTexelsMergeOnlyWithinTheirSurface) {
+  Mesh m;
+  // Quad A at z = 0 (UV x in [0, 0.501]), quad B at z = 5 facing the same way (UV x in [0.501, 1]).
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 5}, {1, 0, 5}, {1, 1, 5}, {0, 1, 5}, {}};
+  m.vertex_count = 8;
+  m.indices = {0, 1, 2, 0, 2, 3, 4, 5, 6, 4, 6, 7};
+  const float s = 0.501f;
+  m.uv = {0, 0, s, 0, s, 1, 0, 0, s, 1, 0, 1, s, 0, 1, 0, 1, 1, s, 0, 1, 1, s, 1};
+  m.lightmap_width = 4;
+  m.lightmap_height = 4;
+  const TexelAreas a = compute_texel_areas(m);
+  const std::vector<uint32_t> shown = merge_sparse_texels(a, 4, 4);
+  for (uint32_t y = 0; y < 4; ++y) {
+    const uint32_t t = y * 4 + 2;  // texel 2 holds a sliver of A (0.004 wide) and most of B
+    EXPECT_EQ(shown[t], t);         // well covered: not merged
+    EXPECT_EQ(shown[y * 4 + 1], y * 4 + 1);
+  }
+  // A sliver-only texel: move A's right edge to 0.2505 so texel 1 holds 0.002 of A.
+  const float r = 0.2505f;
+  m.uv = {0, 0, r, 0, r, 1, 0, 0, r, 1, 0, 1, 0.6f, 0, 1, 0, 1, 1, 0.6f, 0, 1, 1, 0.6f, 1};
+  const TexelAreas b = compute_texel_areas(m);
+  const std::vector<uint32_t> shown_b = merge_sparse_texels(b, 4, 4);
+  for (uint32_t y = 0; y < 4; ++y) {
+    EXPECT_LT(b.coverage[y * 4 + 1], 0.01f);
+    EXPECT_EQ(shown_b[y * 4 + 1] % 4, 0u) << "row " << y;  // into A's texel 0, not B's texel 2
+    EXPECT_EQ(shown_b[y * 4 + 2], y * 4 + 2u);  // B's partly covered texel (0.6) stays itself
+  }
 }
 
 TEST(Dilate, FillsRingsFromFilledNeighbours) {

@@ -19,6 +19,7 @@ TexelAreas compute_texel_areas(const Mesh& mesh) {
   out.area.assign(size_t(w) * h, 0.0);
   out.coverage.assign(size_t(w) * h, 0.0f);
   std::vector<double> cover(size_t(w) * h, 0.0);
+  std::vector<double> where(3 * size_t(w) * h, 0.0), facing(3 * size_t(w) * h, 0.0);
   for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
     const Vec3 p0 = mesh.vertex(t, 0), p1 = mesh.vertex(t, 1), p2 = mesh.vertex(t, 2);
     // World area in double: sliver triangles lose everything in float.
@@ -43,16 +44,70 @@ TexelAreas compute_texel_areas(const Mesh& mesh) {
       continue;
     }
     const double scale = world_area / uv_area;
-    clip_triangle_to_grid(tri, w, h, [&](uint32_t texel, double a) {
-      out.area[texel] += a * scale;
+    const double n[3] = {cx / (2 * world_area), cy / (2 * world_area), cz / (2 * world_area)};
+    // Barycentric coordinates of a UV point, to place each piece in the world.
+    const double d = (tri[2] - tri[0]) * (tri[5] - tri[1]) - (tri[4] - tri[0]) * (tri[3] - tri[1]);
+    clip_triangle_to_grid(tri, w, h, [&](uint32_t texel, double a, double x, double y) {
+      const double wa = a * scale;
+      out.area[texel] += wa;
       cover[texel] += a;
+      const double b1 = ((x - tri[0]) * (tri[5] - tri[1]) - (tri[4] - tri[0]) * (y - tri[1])) / d;
+      const double b2 = ((tri[2] - tri[0]) * (y - tri[1]) - (x - tri[0]) * (tri[3] - tri[1])) / d;
+      for (int c = 0; c < 3; ++c) {
+        where[3 * size_t(texel) + c] += wa * (double(p0[c]) + b1 * e1[c] + b2 * e2[c]);
+        facing[3 * size_t(texel) + c] += wa * n[c];
+      }
     });
   }
+  out.position.resize(cover.size());
+  out.normal.resize(cover.size());
   for (size_t i = 0; i < cover.size(); ++i) {
     out.coverage[i] = static_cast<float>(cover[i]);
+    if (out.area[i] > 0.0) {
+      const double* p = &where[3 * i];
+      const double* f = &facing[3 * i];
+      const double len = std::sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
+      out.position[i] = Vec3(float(p[0] / out.area[i]), float(p[1] / out.area[i]), float(p[2] / out.area[i]));
+      if (len > 0.0) out.normal[i] = Vec3(float(f[0] / len), float(f[1] / len), float(f[2] / len));
+    }
     if (cover[i] > 1.0 + 1e-4 && out.overlapping_texels++ == 0) out.first_overlapping_texel = uint32_t(i);
   }
   return out;
+}
+
+std::vector<uint32_t> merge_sparse_texels(const TexelAreas& areas, uint32_t width, uint32_t height,
+                                          float min_coverage) {
+  const size_t n = size_t(width) * height;
+  std::vector<uint32_t> target(n);
+  double total_area = 0.0, total_cover = 0.0;
+  for (size_t t = 0; t < n; ++t) {
+    target[t] = uint32_t(t);
+    total_area += areas.area[t];
+    total_cover += areas.coverage[t];
+  }
+  if (!(total_cover > 0.0)) return target;
+  const float texel_width = float(std::sqrt(total_area / total_cover));
+  const float reach2 = (2.5f * texel_width) * (2.5f * texel_width);
+  for (uint32_t y = 0; y < height; ++y) {
+    for (uint32_t x = 0; x < width; ++x) {
+      const uint32_t t = y * width + x;
+      if (!(areas.area[t] > 0.0) || areas.coverage[t] >= min_coverage) continue;
+      float best = min_coverage;
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int64_t nx = int64_t(x) + dx, ny = int64_t(y) + dy;
+          if (nx < 0 || ny < 0 || nx >= width || ny >= height || (dx == 0 && dy == 0)) continue;
+          const uint32_t m = uint32_t(ny) * width + uint32_t(nx);
+          if (areas.coverage[m] < best) continue;
+          const Vec3 gap = areas.position[m] - areas.position[t];
+          if (dot(areas.normal[m], areas.normal[t]) < 0.9f || dot(gap, gap) > reach2) continue;
+          best = areas.coverage[m];
+          target[t] = m;
+        }
+      }
+    }
+  }
+  return target;
 }
 
 }  // namespace plm

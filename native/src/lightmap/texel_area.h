@@ -13,6 +13,8 @@ namespace plm {
 struct TexelAreas {
   std::vector<double> area;      // world area per texel (m^2), rows bottom first
   std::vector<float> coverage;   // covered fraction of each texel (> 1 where UVs overlap)
+  std::vector<Vec3> position;    // world position inside the texel's covered surface
+  std::vector<Vec3> normal;      // area-weighted unit normal of that surface
   uint32_t zero_uv_triangles = 0;   // world area > 0 but no UV area: light not recorded
   uint32_t first_zero_uv_triangle = 0;
   uint32_t outside_triangles = 0;   // partly or wholly outside the [0,1] UV square
@@ -25,11 +27,21 @@ struct TexelAreas {
 double polygon_area(const double* xy, int n);
 
 // Area of triangle (x0,y0)-(x1,y1)-(x2,y2), in texel units, inside each texel
-// of a width x height grid; calls add(texel index, area) for every touched texel.
+// of a width x height grid; calls add(texel index, area, x, y) for every
+// touched texel, (x, y) a point inside the piece.
 template <typename Add>
 void clip_triangle_to_grid(const double tri[6], uint32_t width, uint32_t height, Add&& add);
 
 TexelAreas compute_texel_areas(const Mesh& mesh);
+
+// Texels barely touched by a UV island (coverage below min_coverage) collect
+// so few photons that single hits make bright dots. Each such texel is merged
+// with its best-covered 8-neighbour that continues the same surface (normals
+// within ~25 degrees, positions within 2.5 texel widths); both then show the
+// pooled value. Returns, per texel, the texel whose sums it shows (itself if
+// not merged); merge targets are never merged themselves.
+std::vector<uint32_t> merge_sparse_texels(const TexelAreas& areas, uint32_t width, uint32_t height,
+                                          float min_coverage = 0.25f);
 
 }  // namespace plm
 

@@ -63,7 +63,15 @@ void clip_triangle_to_grid(const double tri[6], uint32_t width, uint32_t height,
       m = clip_polygon(cell_a, m, 0, double(col + 1), 1.0, cell);    // x <= col + 1
       if (m < 3) continue;
       const double a = polygon_area(cell, m);
-      if (a > 0.0) add(static_cast<uint32_t>(row * int64_t(width) + col), a);
+      if (a > 0.0) {
+        // Vertex average: inside the convex piece, good enough to locate it in the world.
+        double cx = 0.0, cy = 0.0;
+        for (int i = 0; i < m; ++i) {
+          cx += cell[2 * i];
+          cy += cell[2 * i + 1];
+        }
+        add(static_cast<uint32_t>(row * int64_t(width) + col), a, cx / m, cy / m);
+      }
     }
   }
 }

@@ -349,18 +349,30 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
     img.width = mesh.lightmap_width;
     img.height = mesh.lightmap_height;
     const size_t n = size_t(img.width) * img.height;
+    // Pool the sums of barely covered texels with their neighbour's (see merge_sparse_texels).
+    const size_t g0 = views[i].texel_offset;
+    std::vector<double> pooled(5 * n);  // R, G, B, squared sum, area
+    for (size_t t = 0; t < n; ++t) {
+      for (int c = 0; c < 3; ++c) pooled[5 * t + c] = sum[3 * (g0 + t) + c];
+      pooled[5 * t + 3] = sum_sq[g0 + t];
+      pooled[5 * t + 4] = areas[i].area[t];
+    }
+    const std::vector<uint32_t> shown = merge_sparse_texels(areas[i], img.width, img.height);
+    for (size_t t = 0; t < n; ++t) {
+      if (shown[t] == t) continue;
+      for (int k = 0; k < 5; ++k) pooled[5 * size_t(shown[t]) + k] += pooled[5 * t + k];
+    }
     std::vector<float> values(4 * n, 0.0f);  // R, G, B, error: dilated together
     std::vector<uint8_t> filled(n, 0);
     img.hits.assign(n, 0.0f);
     img.coverage = areas[i].coverage;
     for (size_t t = 0; t < n; ++t) {
-      const double a = areas[i].area[t];
-      if (!(a > 0.0)) continue;
-      const size_t g = views[i].texel_offset + t;
-      const double scale = 1.0 / (a * kPiD);
-      for (int c = 0; c < 3; ++c) values[4 * t + c] = float(sum[3 * g + c] * scale);
-      values[4 * t + 3] = float(std::sqrt(sum_sq[g]) * scale);
-      img.hits[t] = float(hit_count[g]);
+      if (!(areas[i].area[t] > 0.0)) continue;
+      const double* p = &pooled[5 * size_t(shown[t])];
+      const double scale = 1.0 / (p[4] * kPiD);
+      for (int c = 0; c < 3; ++c) values[4 * t + c] = float(p[c] * scale);
+      values[4 * t + 3] = float(std::sqrt(p[3]) * scale);
+      img.hits[t] = float(hit_count[g0 + t]);
       filled[t] = 1;
     }
     dilate(values, 4, filled, img.width, img.height, settings.dilation);
