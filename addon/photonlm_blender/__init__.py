@@ -1,0 +1,50 @@
+"""PhotonLM: photon-lightmap global illumination baker for Blender.
+
+The add-on is thin: it exports the evaluated scene (meshes, materials, lights,
+world colour) as numpy arrays to the `photonlm` bridge, runs the native bake on
+a worker thread, writes one EXR lightmap per object and wires the lightmaps
+into the objects' materials behind a preview toggle. No transport math lives
+in Python.
+
+Modules
+    bridge      finds and imports the `photonlm` package (beside the add-on when installed)
+    properties  scene / object settings and the last bake's statistics
+    uvmaps      creates missing `lightmap` UV maps without disturbing other UV maps
+    export      Blender scene -> photonlm.Scene (numpy, foreach_get)
+    materials   reads Blender materials; wires lightmaps into node trees, preview toggle
+    bake        one bake job: prepare (main thread) / run (any thread) / finish (main thread)
+    operators   bpy.ops.photonlm.bake (modal with progress bar, or synchronous)
+    panel       Render Properties > PhotonLM Lightmaps
+"""
+
+bl_info = {
+    "name": "PhotonLM Lightmaps",
+    "author": "photonlm contributors",
+    "version": (0, 1, 0),
+    "blender": (3, 4, 0),
+    "location": "Properties > Render > PhotonLM Lightmaps",
+    "description": "Bakes global illumination lightmaps with photon tracing",
+    "category": "Render",
+}
+
+if "bpy" in locals():  # re-running register() after a reload in the same session
+    import importlib
+    for _name in ("bridge", "properties", "uvmaps", "export", "materials", "bake", "operators", "panel"):
+        if _name in locals():
+            importlib.reload(locals()[_name])
+
+import bpy  # noqa: E402  (after the reload block)
+
+from . import bridge, properties, uvmaps, export, materials, bake, operators, panel  # noqa: E402,F401
+
+_MODULES = (properties, operators, panel)
+
+
+def register():
+    for module in _MODULES:
+        module.register()
+
+
+def unregister():
+    for module in reversed(_MODULES):
+        module.unregister()

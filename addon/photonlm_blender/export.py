@@ -1,0 +1,333 @@
+"""Blender scene -> photonlm.Scene.
+
+Runs on the main thread. Meshes come from the evaluated depsgraph (modifiers applied)
+through foreach_get into numpy; nothing loops over vertices in Python.
+
+What is exported
+- Mesh objects that are visible (visible_get) and renderable (not hide_render): with
+  object.photonlm.enabled they get a lightmap (UV map `lightmap`, resolution from
+  object.photonlm.resolution or the scene's texel density); otherwise, and for instances
+  (particles, collection instances) and curve/text/metaball objects, they are geometry
+  only: they block and reflect light but get no lightmap.
+- Lights: point, spot, sun, area (square/rectangle -> AREA_RECT, disk/ellipse -> AREA_DISK)
+  with colour, power, world matrix, soft size, sun angle, area size, spot size/blend.
+- World: Background colour x strength (a uniform radiance), or world.color without nodes.
+"""
+import contextlib
+import re
+
+import numpy as np
+
+from . import materials, properties, uvmaps
+
+GEOMETRY_TYPES = {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT'}
+
+
+class Reports:
+    """Messages for the user, collected during a bake: (level, text) with level INFO/WARNING/ERROR."""
+
+    def __init__(self):
+        self.items = []
+
+    def add(self, level, text):
+        self.items.append((level, text))
+        print("PhotonLM %s: %s" % (level.lower(), text))
+
+    def info(self, text):
+        self.add('INFO', text)
+
+    def warning(self, text):
+        self.add('WARNING', text)
+
+    def error(self, text):
+        self.add('ERROR', text)
+
+    def texts(self, level=None):
+        return [t for (l, t) in self.items if level is None or l == level]
+
+
+class BakedObject:
+    """One object that gets a lightmap."""
+
+    def __init__(self, obj, mesh_id, width, height, material_names):
+        self.object_name = obj.name
+        self.mesh_id = mesh_id
+        self.width = width
+        self.height = height
+        self.material_names = material_names  # names of the materials on its slots (may repeat)
+
+
+@contextlib.contextmanager
+def evaluated_mesh(obj, depsgraph):
+    """The evaluated mesh of obj (modifiers applied) with loop triangles; freed on exit."""
+    obj_eval = obj.evaluated_get(depsgraph)
+    mesh = obj_eval.to_mesh()
+    try:
+        if mesh is not None:
+            mesh.calc_loop_triangles()
+        yield obj_eval, mesh
+    finally:
+        obj_eval.to_mesh_clear()
+
+
+def mesh_arrays(mesh, matrix_world, want_uv):
+    """World-space positions (V,3) f32, triangles (T,3) u32, material indices (T,) i32 and the
+    lightmap UV per triangle corner (T,3,2) f32 (None if not wanted or missing)."""
+    nv, nt = len(mesh.vertices), len(mesh.loop_triangles)
+    co = np.empty(nv * 3, np.float32)
+    mesh.vertices.foreach_get("co", co)
+    m = np.array(matrix_world, dtype=np.float64)
+    pos = (co.reshape(nv, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
+    tris = np.empty(nt * 3, np.int32)
+    mesh.loop_triangles.foreach_get("vertices", tris)
+    mat_index = np.empty(nt, np.int32)
+    mesh.loop_triangles.foreach_get("material_index", mat_index)
+    uv = None
+    layer = mesh.uv_layers.get(uvmaps.LIGHTMAP_UV)
+    if want_uv and layer is not None:
+        loops = np.empty(nt * 3, np.int32)
+        mesh.loop_triangles.foreach_get("loops", loops)
+        loop_uv = np.empty(len(mesh.loops) * 2, np.float32)
+        layer.data.foreach_get("uv", loop_uv)
+        uv = loop_uv.reshape(-1, 2)[loops].reshape(nt, 3, 2)
+    return pos, tris.reshape(nt, 3).astype(np.uint32), mat_index, uv
+
+
+def surface_area(pos, tris):
+    if len(tris) == 0:
+        return 0.0
+    p = pos.astype(np.float64)
+    a, b, c = p[tris[:, 0]], p[tris[:, 1]], p[tris[:, 2]]
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    return float(np.nansum(area[np.isfinite(area)]))
+
+
+def object_resolution(obj, area, density):
+    if obj.photonlm.resolution > 0:
+        return int(obj.photonlm.resolution)
+    return properties.resolution_from_area(area, density)
+
+
+def safe_file_name(name):
+    """An object name as a portable file name (no path separators or reserved characters)."""
+    s = re.sub(r'[^A-Za-z0-9._-]+', "_", name).strip("._")
+    return s or "object"
+
+
+def is_renderable(obj, view_layer):
+    return obj.visible_get(view_layer=view_layer) and not obj.hide_render
+
+
+def lightmap_objects(context):
+    """Original objects that get a lightmap, sorted by name."""
+    vl = context.view_layer
+    return sorted((o for o in vl.objects if o.type == 'MESH' and o.photonlm.enabled and is_renderable(o, vl)),
+                  key=lambda o: o.name)
+
+
+def ensure_lightmap_uvs(context, objects, reports):
+    """Create missing `lightmap` UV maps. Returns [(mesh, layer name)] of the maps created."""
+    created = []
+    density = context.scene.photonlm.texel_density
+    depsgraph = context.evaluated_depsgraph_get()
+    missing = [o for o in objects if not uvmaps.has_lightmap_uv(o.data)]
+    done_meshes = set()
+    for obj in missing:
+        if obj.data.name in done_meshes:
+            continue
+        if obj.data.library is not None or getattr(obj.data, "override_library", None) is not None:
+            reports.warning("object '%s': mesh '%s' is linked from a library and has no '%s' UV map: "
+                            "baked as geometry only" % (obj.name, obj.data.name, uvmaps.LIGHTMAP_UV))
+            continue
+        with evaluated_mesh(obj, depsgraph) as (obj_eval, mesh):
+            area = 0.0
+            if mesh is not None:
+                pos, tris, _, _ = mesh_arrays(mesh, obj_eval.matrix_world, False)
+                area = surface_area(pos, tris)
+        res = object_resolution(obj, area, density)
+        try:
+            name = uvmaps.create_lightmap_uv(context, obj, res)
+        except Exception as e:  # noqa: BLE001 -- an add-on must not take Blender down
+            reports.warning("object '%s': could not create a lightmap UV map (%s): baked as geometry only"
+                            % (obj.name, e))
+            continue
+        created.append((obj.data, name))
+        done_meshes.add(obj.data.name)
+        reports.info("object '%s': created UV map '%s' (Smart UV Project)" % (obj.name, name))
+    if created:
+        context.view_layer.update()
+    return created
+
+
+class SceneExport:
+    """The bridge scene plus what the bake needs to bring results back."""
+
+    def __init__(self, plm_scene):
+        self.scene = plm_scene
+        self.baked = []             # BakedObject
+        self.material_ids = {}      # material key -> engine id
+        self.material_info = {}     # material key -> MaterialInfo
+        self.geometry_only = 0
+        self.lights = 0
+
+
+def _material_key(mat):
+    return mat.name_full if mat is not None else None
+
+
+def export_scene(context, photonlm, reports):
+    """Build a photonlm.Scene from the current view layer. Must run on the main thread.
+
+    A mesh the engine rejects (NaN coordinates, bad indices...) is reported and skipped.
+    Returns a SceneExport; the caller closes .scene.
+    """
+    scene = context.scene
+    view_layer = context.view_layer
+    depsgraph = context.evaluated_depsgraph_get()
+    density = scene.photonlm.texel_density
+    plm = photonlm.Scene()
+    export = SceneExport(plm)
+    try:
+        default_id = _add_material(export, plm, None, reports)
+        bake_names = {o.name for o in lightmap_objects(context)}
+        for inst in depsgraph.object_instances:
+            obj_eval = inst.object
+            orig = obj_eval.original
+            parent = inst.parent.original if inst.is_instance and inst.parent else orig
+            if not is_renderable(parent, view_layer):
+                continue
+            if obj_eval.type == 'LIGHT':
+                if _add_light(plm, obj_eval, inst.matrix_world, reports):
+                    export.lights += 1
+                continue
+            if obj_eval.type not in GEOMETRY_TYPES:
+                continue
+            with_lightmap = (not inst.is_instance) and orig.name in bake_names
+            _add_object(export, plm, orig, obj_eval, inst.matrix_world.copy(), inst.is_instance,
+                        with_lightmap, density, default_id, reports)
+        _set_world(plm, scene.world, reports)
+    except BaseException:
+        plm.close()
+        raise
+    return export
+
+
+def _add_material(export, plm, mat, reports):
+    key = _material_key(mat)
+    if key in export.material_ids:
+        return export.material_ids[key]
+    info = materials.read_material(mat)
+    for note in info.notes:
+        reports.warning(note)
+    mid = plm.add_material(info.albedo, info.emission, name=info.name)
+    export.material_ids[key] = mid
+    export.material_info[key] = info
+    return mid
+
+
+def _object_materials(obj_eval, mesh):
+    slots = [s.material for s in obj_eval.material_slots]
+    if not slots and mesh is not None:
+        slots = list(mesh.materials)
+    return slots
+
+
+def _add_object(export, plm, orig, obj_eval, matrix, is_instance, with_lightmap, density, default_id,
+                reports):
+    name = orig.name if not is_instance else "%s (instance %d)" % (orig.name, export.geometry_only)
+    try:
+        mesh = obj_eval.to_mesh()
+    except RuntimeError as e:
+        reports.warning("object '%s': no mesh (%s): skipped" % (orig.name, e))
+        return
+    try:
+        if mesh is None:
+            return
+        mesh.calc_loop_triangles()
+        if len(mesh.loop_triangles) == 0:
+            return
+        pos, tris, mat_index, uv = mesh_arrays(mesh, matrix, with_lightmap)
+        mats = _object_materials(obj_eval, mesh)
+        slot_ids = np.array([_add_material(export, plm, m, reports) if m is not None else default_id
+                             for m in mats] or [default_id], dtype=np.uint32)
+        mat_ids = slot_ids[np.clip(mat_index, 0, len(slot_ids) - 1)]
+    finally:
+        obj_eval.to_mesh_clear()
+    if with_lightmap and uv is None:
+        reports.warning("object '%s': its evaluated mesh has no '%s' UV map (a modifier removed it?): "
+                        "baked as geometry only" % (orig.name, uvmaps.LIGHTMAP_UV))
+        with_lightmap = False
+    resolution = 0
+    if with_lightmap:
+        resolution = object_resolution(orig, surface_area(pos, tris), density)
+    try:
+        mesh_id = plm.add_mesh(name, pos, tris, lightmap_uv=uv if with_lightmap else None,
+                               material_ids=mat_ids, resolution=resolution)
+    except Exception as e:  # the engine names the mesh and the first bad index
+        reports.warning("object '%s' skipped: %s" % (orig.name, getattr(e, "message", e)))
+        return
+    if with_lightmap:
+        export.baked.append(BakedObject(orig, mesh_id, resolution, resolution,
+                                        [(m.name if m is not None else None) for m in mats]))
+    else:
+        export.geometry_only += 1
+
+
+def _add_light(plm, obj_eval, matrix, reports):
+    light = obj_eval.data
+    color = tuple(light.color)
+    power = float(light.energy)
+    if power <= 0.0 or max(color) <= 0.0:
+        return False
+    if light.use_nodes:
+        reports.warning("light '%s': light nodes are ignored (colour and power come from the light's "
+                        "settings)" % obj_eval.name)
+    m = [list(row) for row in matrix]
+    kw = dict(name=obj_eval.name, color=color, power=power, matrix=m)
+    t = light.type
+    try:
+        if t == 'POINT':
+            plm.add_light('POINT', radius=light.shadow_soft_size, **kw)
+        elif t == 'SPOT':
+            plm.add_light('SPOT', radius=light.shadow_soft_size, spot_size=light.spot_size,
+                          spot_blend=light.spot_blend, **kw)
+        elif t == 'SUN':
+            plm.add_light('SUN', angle=light.angle, **kw)
+        elif t == 'AREA':
+            shape = light.shape
+            sy = light.size_y if shape in ('RECTANGLE', 'ELLIPSE') else light.size
+            plm.add_light('AREA_RECT' if shape in ('SQUARE', 'RECTANGLE') else 'AREA_DISK',
+                          size=light.size, size_y=sy, **kw)
+        else:
+            reports.warning("light '%s': type %s is not supported: skipped" % (obj_eval.name, t))
+            return False
+    except Exception as e:
+        reports.warning("light '%s' skipped: %s" % (obj_eval.name, getattr(e, "message", e)))
+        return False
+    return True
+
+
+def _set_world(plm, world, reports):
+    if world is None:
+        return
+    radiance = tuple(world.color)
+    if world.use_nodes and world.node_tree is not None:
+        radiance = (0.0, 0.0, 0.0)
+        out = world.node_tree.get_output_node('CYCLES')
+        node = materials._follow(out.inputs['Surface']) if out is not None else None
+        if node is None:
+            pass
+        elif node.bl_idname == 'ShaderNodeBackground':
+            col, strength = node.inputs['Color'], node.inputs['Strength']
+            if col.is_linked or strength.is_linked:
+                reports.warning("world '%s': the Background input is linked (sky or HDRI?): "
+                                "using its unlinked colour x strength as a uniform world" % world.name)
+            s = float(strength.default_value)
+            radiance = tuple(float(c) * s for c in col.default_value[:3])
+        else:
+            reports.warning("world '%s': surface '%s' is not a Background node: using the world's "
+                            "viewport colour" % (world.name, node.bl_label))
+            radiance = tuple(world.color)
+    radiance = tuple(max(c, 0.0) for c in radiance)
+    if max(radiance) > 0.0:
+        plm.set_world(radiance)

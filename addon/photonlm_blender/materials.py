@@ -1,0 +1,335 @@
+"""Materials: what the engine needs from a Blender material, and the lightmap preview wiring.
+
+Reading (for the bake). The material's active Material Output (Cycles' choice: an output
+whose target is CYCLES wins over ALL, the active one wins among equals) is followed
+through its Surface link (reroutes are skipped):
+    Principled BSDF  albedo = Base Color x (1 - Metallic) x (1 - Transmission),
+                     emission = Emission x Emission Strength
+    Diffuse BSDF     albedo = Color
+    Emission         albedo = 0, emission = Color x Strength
+A linked (textured) Base Color, any other shader, a group or nothing linked gives a grey
+0.8 albedo and a report naming the material. A linked Emission/Strength counts as no
+emission (also reported). A material without nodes uses its viewport colour
+(material.diffuse_color). Albedos above 1 are clamped (they would create energy).
+
+Wiring (for the preview). Baking adds, to every material of a baked object, nodes
+tagged node["photonlm"] = role inside a frame labelled "PhotonLM Lightmap":
+    UV Map ('lightmap') -> Image Texture (<object>_lightmap) -> MixRGB Multiply (Fac 1,
+    with the base colour: its default value, or a link from the socket that feeds the
+    BSDF's colour input) -> Emission (Strength 1) -> Add Shader (+ Emission of the
+    original emission colour x strength) -> a NEW Material Output.
+The preview toggle only switches which Material Output is active; the original nodes and
+links are never changed, and switching the preview off re-activates the original output
+(its name is kept in the node tree's ID property "photonlm_original_output"). Baking
+again reuses the tagged nodes.
+
+A material used by several baked objects can show only one lightmap: it is wired to the
+first of those objects (by name) and the bake reports the others. Give each object its
+own material (or a single-user copy) to preview all of them. Materials whose outputs are
+engine specific (target EEVEE / CYCLES) get a preview output for the scene's render
+engine only (reported).
+"""
+import bpy
+
+TAG = "photonlm"
+ORIGINAL_OUTPUT_KEY = "photonlm_original_output"
+FALLBACK_ALBEDO = (0.8, 0.8, 0.8)
+LIGHTMAP_UV = "lightmap"
+
+
+class MaterialInfo:
+    """What the bake uses from one material, and where its colours come from (for the preview)."""
+
+    def __init__(self, name):
+        self.name = name
+        self.albedo = FALLBACK_ALBEDO
+        self.emission = (0.0, 0.0, 0.0)
+        self.notes = []            # reports about approximations
+        self.color_socket = None   # the BSDF input giving the base colour (NodeSocket) or None
+        self.emission_color_socket = None
+        self.emission_strength_socket = None
+        self.emission_strength_default = 1.0
+
+
+def _is_ours(node):
+    return node.get(TAG) is not None
+
+
+def _output_nodes(tree, include_ours=False):
+    return [n for n in tree.nodes if n.bl_idname == 'ShaderNodeOutputMaterial'
+            and (include_ours or not _is_ours(n))]
+
+
+def original_output(tree, target='CYCLES'):
+    """The Material Output the material uses without the preview, chosen as Blender chooses
+    (exact target before ALL, the active one among equals). While the preview is on, the
+    output remembered in ORIGINAL_OUTPUT_KEY counts as the active one."""
+    outputs = _output_nodes(tree)
+    if not outputs:
+        return None
+    ours_active = any(n.is_active_output for n in _output_nodes(tree, True) if _is_ours(n))
+    remembered = tree.get(ORIGINAL_OUTPUT_KEY)
+
+    def active(n):
+        return (n.name == remembered) if (ours_active and remembered) else n.is_active_output
+
+    best = None
+    for n in outputs:
+        if n.target == 'ALL':
+            if best is None or (best.target == 'ALL' and active(n) and not active(best)):
+                best = n
+        elif n.target == target:
+            if best is None or best.target == 'ALL' or (active(n) and not active(best)):
+                best = n
+    return best
+
+
+def _follow(socket):
+    """The node feeding an input socket, skipping reroutes and muted links; None if unlinked."""
+    seen = 0
+    while socket is not None and socket.is_linked and seen < 64:
+        link = socket.links[0]
+        if link.is_muted or not link.is_valid:
+            return None
+        node = link.from_node
+        if node.bl_idname == 'NodeReroute':
+            socket = node.inputs[0]
+            seen += 1
+            continue
+        return node
+    return None
+
+
+def _color(socket):
+    return tuple(float(c) for c in socket.default_value[:3])
+
+
+def read_material(mat):
+    """MaterialInfo for a Blender material (None -> the default grey material)."""
+    info = MaterialInfo(mat.name if mat else "PhotonLM default")
+    if mat is None:
+        return info
+    if not mat.use_nodes or mat.node_tree is None:
+        info.albedo = tuple(float(c) for c in mat.diffuse_color[:3])
+        info.notes.append("material '%s' does not use nodes: baked with its viewport colour" % mat.name)
+        return _clamp(info)
+    out = original_output(mat.node_tree)
+    shader = _follow(out.inputs['Surface']) if out is not None else None
+    if shader is None:
+        info.notes.append("material '%s' has no shader on its Material Output: baked as grey 0.8" % mat.name)
+        return info
+    kind = shader.bl_idname
+    if kind == 'ShaderNodeBsdfPrincipled':
+        base = shader.inputs['Base Color']
+        info.color_socket = base
+        if base.is_linked:
+            info.notes.append("material '%s': Base Color is linked (texture?): baked as grey 0.8" % mat.name)
+        else:
+            factor = 1.0
+            for name in ('Metallic', 'Transmission'):
+                s = shader.inputs[name]
+                if not s.is_linked:
+                    factor *= 1.0 - min(max(float(s.default_value), 0.0), 1.0)
+            info.albedo = tuple(c * factor for c in _color(base))
+        _read_emission(info, mat, shader.inputs['Emission'], shader.inputs['Emission Strength'])
+    elif kind == 'ShaderNodeBsdfDiffuse':
+        col = shader.inputs['Color']
+        info.color_socket = col
+        if col.is_linked:
+            info.notes.append("material '%s': Color is linked (texture?): baked as grey 0.8" % mat.name)
+        else:
+            info.albedo = _color(col)
+    elif kind == 'ShaderNodeEmission':
+        info.albedo = (0.0, 0.0, 0.0)
+        _read_emission(info, mat, shader.inputs['Color'], shader.inputs['Strength'])
+    else:
+        info.notes.append("material '%s': shader '%s' (%s) is not supported: baked as grey 0.8"
+                          % (mat.name, shader.name, shader.bl_label))
+    return _clamp(info)
+
+
+def _read_emission(info, mat, color, strength):
+    info.emission_color_socket = color
+    info.emission_strength_socket = strength
+    if color.is_linked or strength.is_linked:
+        info.notes.append("material '%s': emission is linked (texture?): baked without emission" % mat.name)
+        return
+    s = float(strength.default_value)
+    info.emission = tuple(max(c * s, 0.0) for c in _color(color))
+
+
+def _clamp(info):
+    if any(c > 1.0 for c in info.albedo) or any(c < 0.0 for c in info.albedo):
+        info.notes.append("material '%s': albedo %s clamped to [0, 1]"
+                          % (info.name, tuple(round(c, 3) for c in info.albedo)))
+        info.albedo = tuple(min(max(c, 0.0), 1.0) for c in info.albedo)
+    return info
+
+
+# ---- preview wiring ------------------------------------------------------------------------
+
+def _node(tree, role, idname, frame=None):
+    for n in tree.nodes:
+        if n.get(TAG) == role:
+            if n.bl_idname == idname:
+                return n
+            tree.nodes.remove(n)  # a node of the wrong kind carries our tag: replace it
+            break
+    n = tree.nodes.new(idname)
+    n[TAG] = role
+    n.name = "PhotonLM " + role
+    n.label = "PhotonLM " + role.replace("_", " ")
+    if frame is not None:
+        n.parent = frame
+    return n
+
+
+def _feed(tree, target, source_socket, default):
+    """Make `target` take what `source_socket` takes: the same link, or its default value."""
+    for link in list(target.links):
+        tree.links.remove(link)
+    if source_socket is not None and source_socket.is_linked:
+        link = source_socket.links[0]
+        tree.links.new(link.from_socket, target)
+    elif source_socket is not None:
+        value = source_socket.default_value
+        try:
+            target.default_value = value
+        except (TypeError, ValueError):  # colour -> colour only; keep the fallback otherwise
+            target.default_value = default
+    else:
+        target.default_value = default
+
+
+def wire_material(mat, image, render_engine):
+    """Add (or update) the preview nodes of `mat` for lightmap `image`. Returns report strings.
+    The active output is not changed here (see set_preview)."""
+    notes = []
+    if mat is None:
+        return notes
+    if not mat.use_nodes or mat.node_tree is None:
+        return ["material '%s' does not use nodes: no lightmap preview" % mat.name]
+    tree = mat.node_tree
+    info = read_material(mat)
+    orig = original_output(tree)
+    _remember_active(tree)
+
+    frame = _node(tree, "frame", 'NodeFrame')
+    frame.label = "PhotonLM Lightmap"
+    x0 = (orig.location.x if orig else 0.0) + 300.0
+    y0 = (orig.location.y if orig else 0.0) - 400.0
+    uv = _node(tree, "uv", 'ShaderNodeUVMap', frame)
+    tex = _node(tree, "image", 'ShaderNodeTexImage', frame)
+    mul = _node(tree, "multiply", 'ShaderNodeMixRGB', frame)
+    emit = _node(tree, "emission", 'ShaderNodeEmission', frame)
+    emit0 = _node(tree, "emission_original", 'ShaderNodeEmission', frame)
+    add = _node(tree, "add", 'ShaderNodeAddShader', frame)
+    out = _node(tree, "output", 'ShaderNodeOutputMaterial', frame)
+    for i, n in enumerate((uv, tex, mul, emit, add, out)):
+        n.location = (x0 + 260.0 * i, y0)
+    emit0.location = (x0 + 260.0 * 3, y0 - 180.0)
+
+    uv.uv_map = LIGHTMAP_UV
+    tex.image = image
+    tex.interpolation = 'Linear'
+    tex.extension = 'EXTEND'
+    mul.blend_type = 'MULTIPLY'
+    mul.use_clamp = False
+    mul.inputs['Fac'].default_value = 1.0
+    links = tree.links
+    links.new(uv.outputs['UV'], tex.inputs['Vector'])
+    for link in list(mul.inputs['Color1'].links):
+        links.remove(link)
+    if info.color_socket is not None and info.color_socket.is_linked:
+        _feed(tree, mul.inputs['Color1'], info.color_socket, (0.8, 0.8, 0.8, 1.0))
+    else:
+        mul.inputs['Color1'].default_value = tuple(info.albedo) + (1.0,)
+    links.new(tex.outputs['Color'], mul.inputs['Color2'])
+    links.new(mul.outputs['Color'], emit.inputs['Color'])
+    emit.inputs['Strength'].default_value = 1.0
+    # The original emission: the same links or values as the shader's emission inputs.
+    _feed(tree, emit0.inputs['Color'], info.emission_color_socket, (0.0, 0.0, 0.0, 1.0))
+    _feed(tree, emit0.inputs['Strength'], info.emission_strength_socket, 0.0)
+    if info.emission_color_socket is None:
+        emit0.inputs['Strength'].default_value = 0.0
+    links.new(emit.outputs['Emission'], add.inputs[0])
+    links.new(emit0.outputs['Emission'], add.inputs[1])
+    links.new(add.outputs['Shader'], out.inputs['Surface'])
+    for link in list(out.inputs['Volume'].links) + list(out.inputs['Displacement'].links):
+        links.remove(link)
+
+    targets = {n.target for n in _output_nodes(tree)}
+    if targets - {'ALL'}:
+        engine = 'CYCLES' if render_engine == 'CYCLES' else 'EEVEE'
+        out.target = engine
+        notes.append("material '%s' has engine-specific outputs: the lightmap preview shows in %s only"
+                     % (mat.name, engine.title()))
+    else:
+        out.target = 'ALL'
+    return notes
+
+
+def _remember_active(tree):
+    """Remember which original Material Output carries the active flag (unless ours has it)."""
+    if any(_is_ours(n) and n.is_active_output for n in _output_nodes(tree, True)):
+        return
+    flagged = [n for n in _output_nodes(tree) if n.is_active_output]
+    if flagged:
+        tree[ORIGINAL_OUTPUT_KEY] = flagged[0].name
+    elif ORIGINAL_OUTPUT_KEY not in tree:
+        orig = original_output(tree)
+        if orig is not None:
+            tree[ORIGINAL_OUTPUT_KEY] = orig.name
+
+
+def is_wired(mat):
+    return (mat is not None and mat.use_nodes and mat.node_tree is not None
+            and any(n.get(TAG) == "output" for n in mat.node_tree.nodes))
+
+
+def set_preview(mat, on):
+    """Activate the preview output (on) or the original output (off) of a wired material."""
+    if not is_wired(mat):
+        return
+    tree = mat.node_tree
+    ours = next(n for n in tree.nodes if n.get(TAG) == "output")
+    if on:
+        if ours.is_active_output:
+            return
+        _remember_active(tree)
+        for n in _output_nodes(tree, True):
+            if n != ours and n.is_active_output:
+                n.is_active_output = False
+        ours.is_active_output = True
+    else:
+        name = tree.get(ORIGINAL_OUTPUT_KEY)
+        orig = tree.nodes.get(name) if name else None
+        if orig is None or _is_ours(orig):
+            candidates = _output_nodes(tree)
+            orig = candidates[0] if candidates else None
+        ours.is_active_output = False
+        if orig is not None:
+            orig.is_active_output = True
+
+
+def set_preview_all(on):
+    for mat in bpy.data.materials:
+        set_preview(mat, on)
+
+
+def remove_wiring(mat):
+    """Remove the preview nodes from a material and re-activate its original output."""
+    if mat is None or mat.node_tree is None:
+        return False
+    set_preview(mat, False)
+    tree = mat.node_tree
+    ours = [n for n in tree.nodes if _is_ours(n)]
+    for n in ours:
+        if n.bl_idname != 'NodeFrame':
+            tree.nodes.remove(n)
+    for n in ours:
+        if n.bl_idname == 'NodeFrame':
+            tree.nodes.remove(n)
+    if ORIGINAL_OUTPUT_KEY in tree:
+        del tree[ORIGINAL_OUTPUT_KEY]
+    return bool(ours)

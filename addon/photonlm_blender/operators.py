@@ -1,0 +1,172 @@
+"""Operators: bake (modal with a progress bar when invoked, synchronous when executed by a
+script or `blender -b`) and removing the preview nodes."""
+import threading
+import time
+
+import bpy
+
+from . import bake, materials
+
+_running = None  # the operator instance of the bake in progress (one at a time)
+
+
+def _report_all(op, reports):
+    """Send the job's reports to the operator (the info editor / console)."""
+    for level, text in reports.items:
+        op.report({level if level in ('INFO', 'WARNING', 'ERROR') else 'INFO'}, text)
+
+
+class PHOTONLM_OT_bake(bpy.types.Operator):
+    """Bake photon lightmaps (global illumination) for the visible mesh objects"""
+    bl_idname = "photonlm.bake"
+    bl_label = "Bake Lightmaps"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context):
+        if _running is not None:
+            cls.poll_message_set("A lightmap bake is already running")
+            return False
+        if context.mode != 'OBJECT':
+            cls.poll_message_set("Switch to Object Mode to bake lightmaps")
+            return False
+        return True
+
+    def _prepare(self, context):
+        try:
+            return bake.BakeJob(context)
+        except (bake.BakeError, RuntimeError) as e:
+            self.report({'ERROR'}, str(e))
+        except Exception as e:  # noqa: BLE001 -- never take Blender down
+            self.report({'ERROR'}, "PhotonLM: could not export the scene: %s" % e)
+        return None
+
+    def _conclude(self, context, job):
+        """Finish or abort a job whose run() has returned; returns the operator result."""
+        if job.cancelled or job.error:
+            job.abort(context)
+            _report_all(self, job.reports)
+            if job.error:
+                self.report({'ERROR'}, job.error)
+            else:
+                self.report({'WARNING'}, "Lightmap bake cancelled")
+            return {'CANCELLED'}
+        try:
+            last = job.finish(context)
+        except Exception as e:  # noqa: BLE001
+            job.abort(context)
+            _report_all(self, job.reports)
+            self.report({'ERROR'}, "PhotonLM: could not store the lightmaps: %s" % (getattr(e, "message", None) or e))
+            return {'CANCELLED'}
+        _report_all(self, job.reports)
+        s = last["stats"]
+        self.report({'INFO'}, "Baked %d lightmaps: %s photons in %.2f s (%.2f M photons/s), %d warnings"
+                    % (len(last["objects"]), "{:,}".format(int(s["photons_emitted"])), s["seconds_total"],
+                       s["photons_per_second"] / 1e6, len(last["warnings"])))
+        return {'FINISHED'}
+
+    def execute(self, context):
+        job = self._prepare(context)
+        if job is None:
+            return {'CANCELLED'}
+        job.run(progress=None)
+        return self._conclude(context, job)
+
+    # ---- modal ---------------------------------------------------------------------------
+    def invoke(self, context, event):
+        global _running
+        if context.window_manager is None or not context.window_manager.windows:
+            return self.execute(context)
+        job = self._prepare(context)
+        if job is None:
+            return {'CANCELLED'}
+        self._job = job
+        self._fraction = 0.0
+        self._stage = "starting"
+        self._cancel = threading.Event()
+        self._thread = threading.Thread(target=job.run, args=(self._progress,), name="photonlm-bake",
+                                        daemon=True)
+        self._t0 = time.perf_counter()
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.1, window=context.window)
+        wm.progress_begin(0, 1000)
+        wm.modal_handler_add(self)
+        _running = self
+        self._thread.start()
+        return {'RUNNING_MODAL'}
+
+    def _progress(self, fraction, stage):
+        """Called by the engine on the worker thread: store, never touch bpy."""
+        self._fraction = fraction
+        self._stage = stage
+        return not self._cancel.is_set()
+
+    def modal(self, context, event):
+        if event.type == 'ESC' and event.value == 'PRESS':
+            self._cancel.set()
+            return {'RUNNING_MODAL'}
+        if event.type != 'TIMER':
+            return {'PASS_THROUGH'}
+        wm = context.window_manager
+        if self._thread.is_alive():
+            wm.progress_update(int(1000 * min(max(self._fraction, 0.0), 1.0)))
+            text = "PhotonLM: %s %d%% (%.1f s)%s" % (
+                self._stage, round(100 * self._fraction), time.perf_counter() - self._t0,
+                " - cancelling" if self._cancel.is_set() else " - Esc to cancel")
+            if context.workspace is not None:
+                context.workspace.status_text_set(text)
+            return {'RUNNING_MODAL'}
+        return self._end(context)
+
+    def _end(self, context):
+        global _running
+        self._thread.join()
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        _running = None
+        result = self._conclude(context, self._job)
+        for area in context.screen.areas if context.screen else ():
+            area.tag_redraw()
+        return result
+
+    def cancel(self, context):
+        # Blender ends the modal operator (file load, quit): stop the engine and clean up.
+        global _running
+        self._cancel.set()
+        self._thread.join()
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        self._job.abort(context)
+        _running = None
+
+
+class PHOTONLM_OT_remove_preview(bpy.types.Operator):
+    """Remove the PhotonLM lightmap preview nodes from all materials (the lightmap images and
+    files are kept)"""
+    bl_idname = "photonlm.remove_preview"
+    bl_label = "Remove Preview Nodes"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    def execute(self, context):
+        n = sum(1 for mat in bpy.data.materials if materials.remove_wiring(mat))
+        self.report({'INFO'}, "Removed the lightmap preview from %d materials" % n)
+        return {'FINISHED'}
+
+
+_CLASSES = (PHOTONLM_OT_bake, PHOTONLM_OT_remove_preview)
+
+
+def register():
+    for cls in _CLASSES:
+        bpy.utils.register_class(cls)
+
+
+def unregister():
+    for cls in reversed(_CLASSES):
+        bpy.utils.unregister_class(cls)

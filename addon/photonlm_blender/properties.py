@@ -1,0 +1,109 @@
+"""Settings: scene.photonlm (bake settings, preview toggle, last bake's statistics) and
+object.photonlm (per-object lightmap resolution).
+
+Lightmap resolution of an object (object.photonlm.resolution = 0, the default):
+    n = clamp(next_power_of_two(sqrt(A) * density), 16, 4096)
+where A is the object's world-space surface area (modifiers and scale applied) in m^2 and
+density is scene.photonlm.texel_density in texels per metre. The lightmap is n x n. UV
+packing leaves some space unused, so the real density on the surface is somewhat lower.
+"""
+import math
+
+import bpy
+from bpy.props import BoolProperty, IntProperty, PointerProperty, StringProperty
+
+STATS_KEY = "photonlm_last_bake"  # ID property on the scene: the last bake's statistics
+
+
+def resolution_from_area(area, density):
+    """Lightmap side length for a surface of `area` m^2 at `density` texels per metre."""
+    want = math.sqrt(max(area, 0.0)) * max(density, 0.0)
+    n = 1 << max(0, math.ceil(math.log2(want))) if want > 1.0 else 1
+    return int(min(max(n, 16), 4096))
+
+
+def _stat_getter(key, fmt):
+    def get(self):
+        stats = self.id_data.get(STATS_KEY)
+        if not stats or key not in stats:
+            return ""
+        try:
+            return fmt(stats[key])
+        except (TypeError, ValueError):
+            return str(stats[key])
+    return get
+
+
+def _fmt_count(x):
+    return "{:,}".format(int(x))
+
+
+def _fmt_seconds(x):
+    return "%.2f s" % float(x)
+
+
+def _fmt_rate(x):
+    x = float(x)
+    if x >= 1e6:
+        return "%.2f M photons/s" % (x / 1e6)
+    return "%.0f k photons/s" % (x / 1e3)
+
+
+def _preview_update(self, context):
+    from . import materials
+    materials.set_preview_all(bool(self.preview))
+
+
+class PhotonlmSceneSettings(bpy.types.PropertyGroup):
+    photons: IntProperty(
+        name="Photons", description="Photons emitted from all lights together; more photons, less noise "
+        "(noise falls as 1/sqrt(photons))", default=2_000_000, min=1000, soft_max=200_000_000)
+    texel_density: IntProperty(
+        name="Texel Density", description="Lightmap texels per metre for objects whose resolution is Auto "
+        "(n = clamp(next power of two of sqrt(surface area) x density, 16, 4096))",
+        default=32, min=1, soft_max=1024, subtype='NONE')
+    output_dir: StringProperty(
+        name="Output", description="Folder for the EXR lightmaps (<object>_lightmap.exr). A relative path "
+        "(//) is relative to the .blend file; for an unsaved file it is a temporary folder",
+        default="//lightmaps/", subtype='DIR_PATH')
+    max_bounces: IntProperty(
+        name="Max Bounces", description="Diffuse bounces after the first hit; 0 bakes direct light only",
+        default=1024, min=0, soft_max=1024)
+    seed: IntProperty(name="Seed", description="Random seed; the result depends on the seed only, "
+                      "not on the number of threads", default=0, min=0)
+    preview: BoolProperty(
+        name="Preview Lightmaps", description="Show the baked lightmaps in the materials of the baked "
+        "objects (switches to a separate Material Output; the original nodes stay untouched)",
+        default=False, update=_preview_update)
+    # Read-only statistics of the last bake (stored in the scene's ID property STATS_KEY).
+    last_photons: StringProperty(name="Photons", get=_stat_getter("photons_emitted", _fmt_count))
+    last_time: StringProperty(name="Time", get=_stat_getter("seconds_total", _fmt_seconds))
+    last_rate: StringProperty(name="Speed", get=_stat_getter("photons_per_second", _fmt_rate))
+    last_warnings: StringProperty(name="Warnings", get=_stat_getter("warning_count", _fmt_count))
+    last_objects: StringProperty(name="Objects", get=_stat_getter("objects", _fmt_count))
+
+
+class PhotonlmObjectSettings(bpy.types.PropertyGroup):
+    enabled: BoolProperty(
+        name="Bake Lightmap", description="Give this object a lightmap. When off the object still blocks "
+        "and reflects light but gets no lightmap", default=True)
+    resolution: IntProperty(
+        name="Resolution", description="Lightmap width and height in texels; 0 = Auto from the scene's "
+        "texel density and the object's surface area", default=0, min=0, max=16384, soft_max=4096)
+
+
+_CLASSES = (PhotonlmSceneSettings, PhotonlmObjectSettings)
+
+
+def register():
+    for cls in _CLASSES:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.photonlm = PointerProperty(type=PhotonlmSceneSettings)
+    bpy.types.Object.photonlm = PointerProperty(type=PhotonlmObjectSettings)
+
+
+def unregister():
+    del bpy.types.Object.photonlm
+    del bpy.types.Scene.photonlm
+    for cls in reversed(_CLASSES):
+        bpy.utils.unregister_class(cls)

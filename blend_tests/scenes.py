@@ -1,0 +1,357 @@
+"""Scene builders and helpers shared by the headless Blender tests and scripts/demo_bake.py.
+
+Everything is built from scratch in Python (no .blend files). Lightmap UVs are laid out
+explicitly (texel-aligned rectangles, uniform texel density inside each object), so the
+layout is the same in every Blender process and no texel straddles two faces.
+"""
+import math
+import os
+import sys
+import time
+
+import bpy
+import numpy as np
+from mathutils import Vector
+
+
+def setup_paths():
+    """Put $PHOTONLM_SOURCE_DIR/addon and /python_bridge on sys.path, register the add-on."""
+    src = os.environ.get("PHOTONLM_SOURCE_DIR") or os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    for sub in ("addon", "python_bridge"):
+        p = os.path.join(src, sub)
+        if p not in sys.path:
+            sys.path.insert(0, p)
+    import photonlm_blender
+    if not hasattr(bpy.types.Scene, "photonlm"):
+        photonlm_blender.register()
+    return photonlm_blender
+
+
+def out_dir(name):
+    base = os.environ.get("PHOTONLM_TEST_OUT") or os.path.join("/tmp", "photonlm_test_out")
+    d = os.path.join(base, name)
+    os.makedirs(d, exist_ok=True)
+    return d
+
+
+def clear_scene():
+    """Remove every object, mesh, material, light, image and world; set a black world."""
+    for coll in (bpy.data.objects, bpy.data.meshes, bpy.data.materials, bpy.data.lights,
+                 bpy.data.images, bpy.data.cameras, bpy.data.worlds):
+        for item in list(coll):
+            coll.remove(item)
+    scene = bpy.context.scene
+    world = bpy.data.worlds.new("World")
+    world.use_nodes = True
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0, 0, 0, 1)
+    scene.world = world
+    return scene
+
+
+# ---- materials --------------------------------------------------------------------------------
+
+def diffuse_material(name, color, principled=False):
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    nt = mat.node_tree
+    nodes = nt.nodes
+    out = nodes["Material Output"]
+    if principled:
+        bsdf = nodes["Principled BSDF"]
+        bsdf.inputs["Base Color"].default_value = tuple(color) + (1.0,)
+        bsdf.inputs["Specular"].default_value = 0.0
+        bsdf.inputs["Roughness"].default_value = 1.0
+    else:
+        nodes.remove(nodes["Principled BSDF"])
+        bsdf = nodes.new("ShaderNodeBsdfDiffuse")
+        bsdf.inputs["Color"].default_value = tuple(color) + (1.0,)
+        bsdf.inputs["Roughness"].default_value = 0.0
+        nt.links.new(bsdf.outputs[0], out.inputs["Surface"])
+    bsdf.location = (-300, 0)
+    return mat
+
+
+def emission_material(name, color, strength):
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    nt = mat.node_tree
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Color"].default_value = tuple(color) + (1.0,)
+    em.inputs["Strength"].default_value = strength
+    nt.links.new(em.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    return mat
+
+
+# ---- meshes with fixed lightmap UVs ----------------------------------------------------------------
+
+def quads_object(name, quads, material, resolution):
+    """A mesh object from quads [(p0, p1, p2, p3, uv_rect)], uv_rect = (u0, v0, u1, v1) in [0, 1].
+    Corners are counter-clockwise seen from the front (normal = (p1-p0) x (p3-p0)). The UV map
+    'lightmap' maps p0->(u0,v0), p1->(u1,v0), p2->(u1,v1), p3->(u0,v1); a second map 'UVMap'
+    holds the same values (a stand-in for the artist's texture UVs)."""
+    verts, faces, uvs = [], [], []
+    for (p0, p1, p2, p3, (u0, v0, u1, v1)) in quads:
+        base = len(verts)
+        verts += [tuple(p0), tuple(p1), tuple(p2), tuple(p3)]
+        faces.append((base, base + 1, base + 2, base + 3))
+        uvs += [(u0, v0), (u1, v0), (u1, v1), (u0, v1)]
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata(verts, [], faces)
+    mesh.update()
+    tex = mesh.uv_layers.new(name="UVMap")
+    lm = mesh.uv_layers.new(name="lightmap")
+    flat = np.array(uvs, np.float32).ravel()
+    tex.data.foreach_set("uv", flat)
+    lm.data.foreach_set("uv", flat)
+    mesh.uv_layers.active = tex
+    tex.active_render = True
+    if material is not None:
+        mesh.materials.append(material)
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    obj.photonlm.resolution = resolution
+    return obj
+
+
+def plane(name, material, size=2.0, z=0.0, resolution=16):
+    h = size / 2
+    return quads_object(name, [((-h, -h, z), (h, -h, z), (h, h, z), (-h, h, z), (0, 0, 1, 1))],
+                        material, resolution)
+
+
+def box_quads(center, half_x, half_y, height, angle, texel, res):
+    """Five faces (no bottom) of a box standing on z=0, rotated by `angle` about z, with a
+    texel-aligned lightmap layout of uniform density (`texel` metres per texel, res x res map).
+    Sides are laid out in a row, the top above the first side."""
+    c, s = math.cos(angle), math.sin(angle)
+
+    def world(p):
+        return (center[0] + c * p[0] - s * p[1], center[1] + s * p[0] + c * p[1], p[2])
+
+    hx, hy, h = half_x, half_y, height
+    faces = [  # p0, u edge, v edge (u x v = outward normal)
+        ((hx, -hy, 0), (0, 2 * hy, 0), (0, 0, h)),
+        ((hx, hy, 0), (-2 * hx, 0, 0), (0, 0, h)),
+        ((-hx, hy, 0), (0, -2 * hy, 0), (0, 0, h)),
+        ((-hx, -hy, 0), (2 * hx, 0, 0), (0, 0, h)),
+        ((-hx, -hy, h), (2 * hx, 0, 0), (0, 2 * hy, 0)),
+    ]
+    quads = []
+    x = 1
+    for i, (p0, u, v) in enumerate(faces):
+        nu = round(math.sqrt(sum(a * a for a in u)) / texel)
+        nv = round(math.sqrt(sum(a * a for a in v)) / texel)
+        if i < 4:
+            cx, cy = x, 1
+            x += nu + 1
+        else:
+            cx, cy = 1, 1 + round(h / texel) + 1
+        assert cx + nu <= res and cy + nv <= res, "box layout does not fit"
+        p0v, uv_, vv = Vector(p0), Vector(u), Vector(v)
+        pts = [p0v, p0v + uv_, p0v + uv_ + vv, p0v + vv]
+        quads.append(tuple(world(p) for p in pts) + ((cx / res, cy / res, (cx + nu) / res, (cy + nv) / res),))
+    return quads
+
+
+# ---- Cornell box ----------------------------------------------------------------------------------
+
+CORNELL_OBJECTS = ("floor", "ceiling", "back", "left", "right", "short_box", "tall_box")
+CORNELL_ALBEDO = {"white": (0.73, 0.73, 0.73), "red": (0.63, 0.065, 0.05), "green": (0.14, 0.45, 0.09)}
+
+
+def cornell_box(resolution=32, light_power=40.0):
+    """A 2 m Cornell box (x, y in [-1, 1], z in [0, 2], open towards -y), a 0.5 m square area
+    light under the ceiling, two boxes. Every object has its own Diffuse BSDF material and a
+    fixed, texel-aligned lightmap layout. Returns {name: object} plus 'light'."""
+    objs = {}
+
+    def mat(name, kind):
+        return diffuse_material(name, CORNELL_ALBEDO[kind])
+
+    walls = {
+        "floor": (((-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)), "white"),
+        "ceiling": (((-1, -1, 2), (-1, 1, 2), (1, 1, 2), (1, -1, 2)), "white"),
+        "back": (((-1, 1, 0), (1, 1, 0), (1, 1, 2), (-1, 1, 2)), "white"),
+        "left": (((-1, -1, 0), (-1, 1, 0), (-1, 1, 2), (-1, -1, 2)), "red"),
+        "right": (((1, 1, 0), (1, -1, 0), (1, -1, 2), (1, 1, 2)), "green"),
+    }
+    for name, (pts, kind) in walls.items():
+        objs[name] = quads_object(name, [pts + ((0, 0, 1, 1),)], mat("mat_" + name, kind), resolution)
+    texel = 3.2 / resolution  # 0.1 m at 32 x 32: the box layouts fit with room to spare
+    objs["short_box"] = quads_object(
+        "short_box", box_quads((0.35, -0.3), 0.3, 0.3, 0.6, math.radians(-17), texel, resolution),
+        mat("mat_short_box", "white"), resolution)
+    objs["tall_box"] = quads_object(
+        "tall_box", box_quads((-0.35, 0.35), 0.3, 0.3, 1.2, math.radians(20), texel, resolution),
+        mat("mat_tall_box", "white"), resolution)
+    light_data = bpy.data.lights.new("ceiling_light", 'AREA')
+    light_data.shape = 'SQUARE'
+    light_data.size = 0.5
+    light_data.energy = light_power
+    light = bpy.data.objects.new("ceiling_light", light_data)
+    light.location = (0.0, 0.0, 1.98)
+    bpy.context.scene.collection.objects.link(light)
+    objs["light"] = light
+    return objs
+
+
+def cornell_camera():
+    cam_data = bpy.data.cameras.new("camera")
+    cam_data.lens = 38.0
+    cam = bpy.data.objects.new("camera", cam_data)
+    cam.location = (0.0, -3.9, 1.0)
+    cam.rotation_euler = (math.radians(90), 0, 0)
+    bpy.context.scene.collection.objects.link(cam)
+    bpy.context.scene.camera = cam
+    return cam
+
+
+# ---- lights --------------------------------------------------------------------------------------------
+
+def add_light(name, kind, location, rotation=(0, 0, 0), **settings):
+    data = bpy.data.lights.new(name, kind)
+    for k, v in settings.items():
+        setattr(data, k, v)
+    obj = bpy.data.objects.new(name, data)
+    obj.location = location
+    obj.rotation_euler = rotation
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def set_world_color(color, strength=1.0):
+    bg = bpy.context.scene.world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = tuple(color) + (1.0,)
+    bg.inputs["Strength"].default_value = strength
+
+
+# ---- baking -------------------------------------------------------------------------------------------------
+
+def photonlm_bake(photons, max_bounces, seed=1):
+    """Bake with the add-on's operator (the path an artist uses). Returns photonlm_blender.bake.LAST."""
+    from photonlm_blender import bake
+    s = bpy.context.scene.photonlm
+    s.photons = photons
+    s.max_bounces = max_bounces
+    s.seed = seed
+    t0 = time.perf_counter()
+    res = bpy.ops.photonlm.bake()
+    wall = time.perf_counter() - t0
+    if res != {'FINISHED'}:
+        raise RuntimeError("photonlm bake returned %s" % res)
+    last = bake.LAST
+    last["wall_seconds"] = wall
+    return last
+
+
+def cycles_bake(objects, resolution, pass_filter, samples, bounces=32):
+    """Cycles DIFFUSE bake (no COLOR: irradiance / pi) of each object's single material into a
+    float image through the 'lightmap' UV map. Returns ({name: (h, w, 3) array}, seconds)."""
+    scene = bpy.context.scene
+    scene.render.engine = 'CYCLES'
+    scene.cycles.device = 'CPU'
+    scene.cycles.samples = samples
+    scene.cycles.use_adaptive_sampling = False
+    scene.cycles.use_denoising = False
+    scene.cycles.max_bounces = bounces
+    scene.cycles.diffuse_bounces = bounces
+    scene.cycles.glossy_bounces = bounces
+    scene.cycles.transmission_bounces = bounces
+    scene.cycles.sample_clamp_direct = 0.0
+    scene.cycles.sample_clamp_indirect = 0.0
+    scene.cycles.seed = 0
+    # A box filter one texel wide: each texel is the average over its area, as in photonlm.
+    # (Cycles' default Blackman-Harris 1.5 px filter blurs sharp edges across texels.)
+    scene.cycles.pixel_filter_type = 'BOX'
+    scene.cycles.filter_width = 1.0
+    scene.render.bake.margin = 0
+    images, nodes = {}, []
+    for obj in objects:
+        img = bpy.data.images.new("cycles_" + obj.name, resolution, resolution, alpha=True, float_buffer=True)
+        images[obj.name] = img
+        for slot in obj.material_slots:
+            nt = slot.material.node_tree
+            node = nt.nodes.new("ShaderNodeTexImage")
+            node.image = img
+            node.select = True
+            nt.nodes.active = node
+            nodes.append((nt, node))
+    vl = bpy.context.view_layer
+    vl.update()  # creates the view layer bases of newly linked objects (else: "No valid selected objects")
+    names = {o.name for o in objects}
+    for o in vl.objects:
+        o.select_set(o.name in names)
+    vl.objects.active = objects[0]
+    vl.update()
+    t0 = time.perf_counter()
+    bpy.ops.object.bake(type='DIFFUSE', pass_filter=set(pass_filter), use_clear=True, margin=0,
+                        uv_layer="lightmap", target='IMAGE_TEXTURES')
+    seconds = time.perf_counter() - t0
+    for nt, node in nodes:
+        nt.nodes.remove(node)
+    out = {}
+    for name, img in images.items():
+        px = np.empty(resolution * resolution * 4, np.float32)
+        img.pixels.foreach_get(px)
+        out[name] = px.reshape(resolution, resolution, 4)[..., :3].copy()
+        bpy.data.images.remove(img)
+    for o in vl.objects:
+        o.select_set(False)
+    return out, seconds
+
+
+def mean_relative_error(ours, ref, mask):
+    """mean(|ours - ref|) / mean(ref) over the texels in mask, all channels together."""
+    a, b = ours[mask], ref[mask]
+    return float(np.mean(np.abs(a - b)) / max(np.mean(b), 1e-30))
+
+
+class Checks:
+    """Collects pass/fail lines; raise at the end so Blender exits non-zero."""
+
+    def __init__(self, name):
+        self.name = name
+        self.failed = []
+        self.count = 0
+
+    def check(self, ok, text):
+        self.count += 1
+        print("[%s] %s: %s" % ("PASS" if ok else "FAIL", self.name, text), flush=True)
+        if not ok:
+            self.failed.append(text)
+        return ok
+
+    def finish(self):
+        print("%s: %d checks, %d failed" % (self.name, self.count, len(self.failed)), flush=True)
+        if self.failed:
+            raise AssertionError("%s FAILED: %s" % (self.name, "; ".join(self.failed)))
+
+
+def layout_coverage(obj, res, sub=8):
+    """Fraction of each texel of a res x res map covered by obj's 'lightmap' UV triangles
+    (supersampled sub x sub per texel; exact for texel-aligned layouts). Row 0 = v near 0."""
+    mesh = obj.data
+    mesh.calc_loop_triangles()
+    nt = len(mesh.loop_triangles)
+    loops = np.empty(nt * 3, np.int32)
+    mesh.loop_triangles.foreach_get("loops", loops)
+    uv = np.empty(len(mesh.loops) * 2, np.float32)
+    mesh.uv_layers["lightmap"].data.foreach_get("uv", uv)
+    tri = uv.reshape(-1, 2)[loops].reshape(nt, 3, 2).astype(np.float64)
+    g = (np.arange(res * sub) + 0.5) / (res * sub)
+    U, V = np.meshgrid(g, g)
+    inside = np.zeros(U.shape, bool)
+    for a, b, c in tri:
+        def edge(p, q):
+            return (q[0] - p[0]) * (V - p[1]) - (q[1] - p[1]) * (U - p[0])
+        e0, e1, e2 = edge(a, b), edge(b, c), edge(c, a)
+        inside |= ((e0 >= 0) & (e1 >= 0) & (e2 >= 0)) | ((e0 <= 0) & (e1 <= 0) & (e2 <= 0))
+    return inside.reshape(res, sub, res, sub).mean(axis=(1, 3))
+
+
+def coverage_weighted_mean(rgb, coverage):
+    """Per-object mean of a lightmap, weighted by texel coverage: with a uniform texel density
+    inside the object this is the area-weighted mean of irradiance / pi over its surface."""
+    w = coverage[..., None]
+    return (rgb * w).sum(axis=(0, 1)) / max(float(coverage.sum()), 1e-30)

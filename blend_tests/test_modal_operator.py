@@ -1,0 +1,143 @@
+"""The interactive path: bpy.ops.photonlm.bake('INVOKE_DEFAULT') runs as a modal operator with a
+worker thread, a progress bar and Esc to cancel. That needs a window, which `blender -b` has
+not, so this script (started by CTest with -b) re-runs itself in a windowed Blender under
+xvfb-run and checks what the child reports. Without xvfb-run it prints SKIP and passes.
+
+In the window: a modal bake of the Cornell box must finish with the lightmaps and statistics
+while Blender keeps processing events (timer ticks during the bake); a second modal bake
+cancelled after one second (the Esc handler's flag) must stop promptly and leave the images,
+files and statistics of the first bake untouched.
+"""
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import scenes  # noqa: E402
+
+import bpy  # noqa: E402
+import numpy as np  # noqa: E402
+
+RESULT_NAME = "modal_result.json"
+
+
+def parent():
+    checks = scenes.Checks("modal_operator")
+    xvfb = shutil.which("xvfb-run")
+    if xvfb is None:
+        print("SKIP modal_operator: xvfb-run not found (the modal path needs a window)")
+        return
+    out = scenes.out_dir("modal")
+    result_path = os.path.join(out, RESULT_NAME)
+    if os.path.exists(result_path):
+        os.remove(result_path)
+    env = dict(os.environ, PHOTONLM_MODAL_CHILD="1", PHOTONLM_MODAL_RESULT=result_path)
+    cmd = [xvfb, "-a", "-s", "-screen 0 1280x800x24", bpy.app.binary_path, "--factory-startup",
+           "--python", os.path.abspath(__file__)]
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=600)
+    text = proc.stdout.decode("utf-8", "replace")
+    print("\n".join(l for l in text.splitlines() if "PhotonLM" in l or "CHILD" in l))
+    if not checks.check(os.path.exists(result_path), "windowed Blender ran (%.1f s, exit %d)"
+                        % (time.perf_counter() - t0, proc.returncode)):
+        print(text[-4000:])
+        checks.finish()
+    with open(result_path) as f:
+        r = json.load(f)
+    checks.check(r["invoke"] == ["RUNNING_MODAL"], "invoke starts a modal operator (%s)" % r["invoke"])
+    checks.check(r["ticks"] >= 3, "Blender kept running during the bake (%d timer ticks)" % r["ticks"])
+    checks.check(r["objects"] == sorted(scenes.CORNELL_OBJECTS), "modal bake produced the 7 lightmaps")
+    checks.check(r["images_match"], "modal bake: images equal the engine's lightmaps")
+    checks.check(r["stats_time"].endswith(" s"), "statistics updated (%s)" % r["stats_time"])
+    checks.check(r["invoke2"] == ["RUNNING_MODAL"], "second modal bake started")
+    checks.check(r["cancel_seconds"] < 3.0, "cancel stops the bake promptly (%.2f s after the request)"
+                 % r["cancel_seconds"])
+    checks.check(r["unchanged_after_cancel"], "cancel leaves images, files and statistics untouched")
+    checks.finish()
+
+
+def child():
+    from photonlm_blender import bake, operators
+    scenes.setup_paths()
+    scenes.clear_scene()
+    scenes.cornell_box()
+    scene = bpy.context.scene
+    scene.photonlm.photons = 10_000_000
+    res = {"ticks": 0}
+    state = {"phase": "start"}
+
+    def win_ctx():
+        win = bpy.context.window_manager.windows[0]
+        area = next(a for a in win.screen.areas if a.type == 'VIEW_3D')
+        return dict(window=win, screen=win.screen, area=area)
+
+    def snapshot():
+        imgs = {}
+        for name, o in bake.LAST.get("objects", {}).items():
+            img = bpy.data.images[name + "_lightmap"]
+            px = np.empty(img.size[0] * img.size[1] * 4, np.float32)
+            img.pixels.foreach_get(px)
+            imgs[name] = (px.tobytes(), os.path.getmtime(o["path"]))
+        return imgs, scene.photonlm.last_photons, scene.photonlm.last_time
+
+    def finish():
+        with open(os.environ["PHOTONLM_MODAL_RESULT"], "w") as f:
+            json.dump(res, f)
+        bpy.ops.wm.quit_blender()
+
+    def tick():
+        phase = state["phase"]
+        if phase == "start":
+            with bpy.context.temp_override(**win_ctx()):
+                res["invoke"] = sorted(bpy.ops.photonlm.bake('INVOKE_DEFAULT'))
+            state["phase"] = "first"
+            return 0.1
+        if phase == "first":
+            if operators._running is not None:
+                res["ticks"] += 1
+                return 0.1
+            res["objects"] = sorted(bake.LAST.get("objects", {}))
+            ok = True
+            for name, o in bake.LAST.get("objects", {}).items():
+                img = bpy.data.images[name + "_lightmap"]
+                px = np.empty(img.size[0] * img.size[1] * 4, np.float32)
+                img.pixels.foreach_get(px)
+                ok &= np.array_equal(px.reshape(img.size[1], img.size[0], 4)[..., :3], o["rgb"])
+            res["images_match"] = bool(ok)
+            res["stats_time"] = scene.photonlm.last_time
+            state["before"] = snapshot()
+            scene.photonlm.photons = 2_000_000_000
+            with bpy.context.temp_override(**win_ctx()):
+                res["invoke2"] = sorted(bpy.ops.photonlm.bake('INVOKE_DEFAULT'))
+            state["phase"] = "second"
+            state["t_start"] = time.perf_counter()
+            return 0.1
+        if phase == "second":
+            op = operators._running
+            if op is not None and "t_cancel" not in state and time.perf_counter() - state["t_start"] > 1.0:
+                op._cancel.set()  # what the Esc key does
+                state["t_cancel"] = time.perf_counter()
+            if op is not None:
+                if time.perf_counter() - state["t_start"] > 120:
+                    res["cancel_seconds"] = 1e9
+                    res["unchanged_after_cancel"] = False
+                    finish()
+                    return None
+                return 0.05
+            res["cancel_seconds"] = time.perf_counter() - state.get("t_cancel", state["t_start"])
+            res["unchanged_after_cancel"] = snapshot() == state["before"]
+            finish()
+            return None
+        return None
+
+    bpy.app.timers.register(tick, first_interval=1.0)
+    print("CHILD started", flush=True)
+
+
+if os.environ.get("PHOTONLM_MODAL_CHILD"):
+    child()
+else:
+    parent()

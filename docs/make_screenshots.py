@@ -1,0 +1,297 @@
+"""Screenshots for docs/user-guide.md, taken in a real Blender window.
+
+Builds a Cornell box, bakes it with the PhotonLM add-on (bpy.ops.photonlm.bake), then,
+once the UI is drawn, shows Render Properties > PhotonLM Lightmaps and the baked box in
+the viewport and saves into docs/images/:
+
+    window.png                the whole Blender window: panel and baked box
+    panel.png                 the Properties editor with the PhotonLM Lightmaps panel
+    viewport_preview_on.png   the viewport, Material Preview, Preview Lightmaps on
+    viewport_preview_off.png  the same view with Preview Lightmaps off (Eevee, no GI)
+
+Run (needs an X display; Xvfb is enough):
+
+    PHOTONLM_LIBRARY=/path/to/build/lib/libphotonlm.so PHOTONLM_SOURCE_DIR=/path/to/repo \\
+    xvfb-run -a -s "-screen 0 1600x1000x24" \\
+        blender --factory-startup --python docs/make_screenshots.py
+
+Exits non-zero with a message if the add-on cannot be imported, the bake fails or a
+screenshot cannot be written.
+"""
+import math
+import os
+import sys
+import time
+
+import bpy
+
+PHOTONS = int(os.environ.get("PHOTONLM_DOC_PHOTONS", 20_000_000))
+WIDEN = 260  # pixels added to the Properties editor's width
+SHADER_WAIT = float(os.environ.get("PHOTONLM_DOC_WAIT", 20.0))  # seconds for Eevee to compile shaders
+
+
+def fail(message):
+    print("make_screenshots: ERROR: %s" % message, file=sys.stderr, flush=True)
+    os._exit(1)
+
+
+def source_dir():
+    src = os.environ.get("PHOTONLM_SOURCE_DIR")
+    if src:
+        return os.path.abspath(src)
+    try:
+        return os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    except NameError:
+        return os.getcwd()
+
+
+SRC = source_dir()
+try:  # docs/images beside this script
+    IMAGES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "images")
+except NameError:
+    IMAGES = os.path.join(SRC, "docs", "images")
+
+
+def register_addon():
+    for sub in ("addon", "python_bridge"):
+        p = os.path.join(SRC, sub)
+        if p not in sys.path:
+            sys.path.insert(0, p)
+    try:
+        import photonlm_blender
+    except Exception as e:  # noqa: BLE001
+        fail("cannot import the add-on photonlm_blender from %s/addon: %s" % (SRC, e))
+    if not hasattr(bpy.types.Scene, "photonlm"):
+        photonlm_blender.register()
+    from photonlm_blender import bridge
+    try:
+        bridge.get()
+    except RuntimeError as e:
+        fail(str(e))
+    return photonlm_blender
+
+
+# ---- the scene ---------------------------------------------------------------------------------
+
+def principled(name, color):
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = tuple(color) + (1.0,)
+    bsdf.inputs["Roughness"].default_value = 0.9
+    bsdf.inputs["Specular"].default_value = 0.1
+    mat.diffuse_color = tuple(color) + (1.0,)
+    return mat
+
+
+def mesh_object(name, verts, faces, material):
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata(verts, [], faces)
+    mesh.update()
+    mesh.uv_layers.new(name="UVMap")  # the artist's texture UVs: the bake leaves them alone
+    mesh.materials.append(material)
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def box(name, center, half, height, angle, material):
+    c, s = math.cos(angle), math.sin(angle)
+    verts = []
+    for z in (0.0, height):
+        for (x, y) in ((-half, -half), (half, -half), (half, half), (-half, half)):
+            verts.append((center[0] + c * x - s * y, center[1] + s * x + c * y, z))
+    faces = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
+    return mesh_object(name, verts, faces, material)
+
+
+def cornell_box():
+    """A 2 m Cornell box (x, y in [-1, 1], z in [0, 2], open towards -y); each wall and box is
+    its own object with its own Principled material and no lightmap UV map yet."""
+    for coll in (bpy.data.objects, bpy.data.meshes, bpy.data.materials, bpy.data.lights,
+                 bpy.data.cameras):
+        for item in list(coll):
+            coll.remove(item)
+    scene = bpy.context.scene
+    world = scene.world or bpy.data.worlds.new("World")
+    scene.world = world
+    world.use_nodes = True
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0, 0, 0, 1)
+    world.color = (0, 0, 0)
+    white, red, green = (0.73, 0.73, 0.73), (0.63, 0.065, 0.05), (0.14, 0.45, 0.09)
+    walls = {
+        "Floor": ([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], white),
+        "Ceiling": ([(-1, -1, 2), (-1, 1, 2), (1, 1, 2), (1, -1, 2)], white),
+        "Back": ([(-1, 1, 0), (1, 1, 0), (1, 1, 2), (-1, 1, 2)], white),
+        "Left": ([(-1, -1, 0), (-1, 1, 0), (-1, 1, 2), (-1, -1, 2)], red),
+        "Right": ([(1, 1, 0), (1, -1, 0), (1, -1, 2), (1, 1, 2)], green),
+    }
+    for name, (verts, color) in walls.items():
+        mesh_object(name, verts, [(0, 1, 2, 3)], principled(name + " Paint", color))
+    box("Short Box", (0.35, -0.3), 0.3, 0.6, math.radians(-17), principled("Short Box Paint", white))
+    box("Tall Box", (-0.35, 0.35), 0.3, 1.2, math.radians(20), principled("Tall Box Paint", white))
+    light = bpy.data.lights.new("Ceiling Light", 'AREA')
+    light.shape = 'SQUARE'
+    light.size = 0.5
+    light.energy = 40.0  # W, as in Cycles
+    obj = bpy.data.objects.new("Ceiling Light", light)
+    obj.location = (0.0, 0.0, 1.98)
+    scene.collection.objects.link(obj)
+    bpy.context.view_layer.update()
+
+
+def bake():
+    settings = bpy.context.scene.photonlm
+    settings.photons = PHOTONS
+    t0 = time.perf_counter()
+    try:
+        result = bpy.ops.photonlm.bake()
+    except RuntimeError as e:  # an ERROR report of the operator
+        fail("bake failed: %s" % e)
+    if result != {'FINISHED'}:
+        fail("bake returned %s" % result)
+    from photonlm_blender import bake as bake_module
+    last = bake_module.LAST
+    print("make_screenshots: baked %d objects, %s photons in %.1f s (wall %.1f s), output %s"
+          % (len(last["objects"]), "{:,}".format(int(last["stats"]["photons_emitted"])),
+             last["stats"]["seconds_total"], time.perf_counter() - t0, last["output_dir"]), flush=True)
+    for level, text in last["reports"]:
+        print("make_screenshots: report %s: %s" % (level, text), flush=True)
+    missing = [o.name for o in bpy.data.objects if o.type == 'MESH' and o.name + "_lightmap" not in bpy.data.images]
+    if missing:
+        fail("no lightmap image for %s" % ", ".join(missing))
+
+
+# ---- the UI ------------------------------------------------------------------------------------
+
+def biggest_area(screen, kind):
+    areas = [a for a in screen.areas if a.type == kind]
+    return max(areas, key=lambda a: a.width * a.height) if areas else None
+
+
+def window_region(area):
+    return next(r for r in area.regions if r.type == 'WINDOW')
+
+
+def setup_ui():
+    """Render tab in the Properties editor, the viewport looking into the box."""
+    win = bpy.context.window_manager.windows[0]
+    screen = win.screen
+    view3d = biggest_area(screen, 'VIEW_3D')
+    props = biggest_area(screen, 'PROPERTIES')
+    if view3d is None or props is None:
+        fail("no 3D viewport or Properties editor in the window")
+    # The Active Object sub-panel shows the floor's lightmap.
+    vl = bpy.context.view_layer
+    for o in vl.objects:
+        o.select_set(False)
+    floor = bpy.data.objects["Floor"]
+    floor.select_set(True)
+    vl.objects.active = floor
+
+    props.spaces.active.context = 'RENDER'
+
+    space = view3d.spaces.active
+    space.shading.type = 'MATERIAL'
+    space.shading.use_scene_lights = True
+    space.shading.use_scene_world = True
+    space.overlay.show_overlays = False
+    space.show_gizmo = False
+    space.lens = 60.0
+    r3d = space.region_3d
+    r3d.view_perspective = 'PERSP'
+    r3d.view_location = (0.0, 0.0, 1.0)
+    r3d.view_rotation = (0.7071068, 0.7071068, 0.0, 0.0)  # looking along +y, z up
+    r3d.view_distance = 3.5
+    for area in screen.areas:
+        area.tag_redraw()
+    return win, screen, view3d, props
+
+
+def widen(win, screen, props):
+    """Move the edge between the viewport and the Properties editor WIDEN pixels to the left,
+    so that the panel's labels are not cut off. screen.area_move runs only while the mouse
+    is over no region: the cursor is warped onto the edge first (one step earlier)."""
+    x, y = props.x - 1, props.y + props.height // 2
+    with bpy.context.temp_override(window=win, screen=screen):
+        try:
+            bpy.ops.screen.area_move(x=x, y=y, delta=-WIDEN)
+            return True
+        except RuntimeError as e:
+            print("make_screenshots: could not widen the Properties editor: %s" % e, flush=True)
+            return False
+
+
+def scroll_to_bottom(win, screen, props):
+    region = window_region(props)
+    with bpy.context.temp_override(window=win, screen=screen, area=props, region=region):
+        for _ in range(40):
+            bpy.ops.view2d.scroll_down(deltax=0, deltay=100)
+
+
+def shot(win, screen, area, name):
+    path = os.path.join(IMAGES, name)
+    if area is None:
+        with bpy.context.temp_override(window=win, screen=screen, area=biggest_area(screen, 'VIEW_3D')):
+            bpy.ops.screen.screenshot(filepath=path, check_existing=False)
+    else:
+        with bpy.context.temp_override(window=win, screen=screen, area=area, region=window_region(area)):
+            bpy.ops.screen.screenshot_area(filepath=path, check_existing=False)
+    if not os.path.isfile(path):
+        fail("screenshot %s was not written" % path)
+    print("make_screenshots: wrote %s" % path, flush=True)
+
+
+def steps():
+    """Generator of the UI steps; yields the seconds to wait before the next step."""
+    win, screen, view3d, props = setup_ui()
+    win.cursor_warp(props.x - 1, props.y + props.height // 2)
+    yield 0.5
+    widen(win, screen, props)
+    # Park the cursor over the empty part of the outliner: no tooltip in the screenshots.
+    outliner = biggest_area(screen, 'OUTLINER')
+    if outliner is not None:
+        win.cursor_warp(outliner.x + outliner.width // 2, outliner.y + 10)
+    yield 1.0
+    scroll_to_bottom(win, screen, props)
+    bpy.context.scene.photonlm.preview = True
+    yield SHADER_WAIT
+    shot(win, screen, None, "window.png")
+    shot(win, screen, props, "panel.png")
+    shot(win, screen, view3d, "viewport_preview_on.png")
+    bpy.context.scene.photonlm.preview = False
+    yield SHADER_WAIT
+    shot(win, screen, view3d, "viewport_preview_off.png")
+    yield 0.5
+    bpy.ops.wm.quit_blender()
+
+
+_steps = None
+
+
+def tick():
+    global _steps
+    try:
+        if _steps is None:
+            _steps = steps()
+        return next(_steps)
+    except StopIteration:
+        return None
+    except Exception as e:  # noqa: BLE001
+        import traceback
+        traceback.print_exc()
+        fail("screenshot step failed: %s" % e)
+
+
+def main():
+    if bpy.app.background:
+        fail("run with a window (xvfb-run blender --python ...), not with -b")
+    bpy.context.preferences.view.show_splash = False
+    register_addon()
+    os.makedirs(IMAGES, exist_ok=True)
+    cornell_box()
+    bake()
+    bpy.app.timers.register(tick, first_interval=2.0)
+
+
+main()
