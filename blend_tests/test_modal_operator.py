@@ -38,15 +38,18 @@ def parent():
     cmd = [xvfb, "-a", "-s", "-screen 0 1280x800x24", bpy.app.binary_path, "--factory-startup",
            "--python", os.path.abspath(__file__)]
     t0 = time.perf_counter()
-    proc = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=600)
-    text = proc.stdout.decode("utf-8", "replace")
+    try:
+        proc = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=300)
+        text, code = proc.stdout.decode("utf-8", "replace"), proc.returncode
+    except subprocess.TimeoutExpired as e:
+        text, code = (e.stdout or b"").decode("utf-8", "replace"), -1
     print("\n".join(l for l in text.splitlines() if "PhotonLM" in l or "CHILD" in l))
-    if not checks.check(os.path.exists(result_path), "windowed Blender ran (%.1f s, exit %d)"
-                        % (time.perf_counter() - t0, proc.returncode)):
+    ran = os.path.exists(result_path)
+    r = json.load(open(result_path)) if ran else {}
+    if not checks.check(ran and "error" not in r, "windowed Blender ran (%.1f s, exit %d) %s"
+                        % (time.perf_counter() - t0, code, r.get("error", ""))):
         print(text[-4000:])
         checks.finish()
-    with open(result_path) as f:
-        r = json.load(f)
     checks.check(r["invoke"] == ["RUNNING_MODAL"], "invoke starts a modal operator (%s)" % r["invoke"])
     checks.check(r["ticks"] >= 3, "Blender kept running during the bake (%d timer ticks)" % r["ticks"])
     checks.check(r["objects"] == sorted(scenes.CORNELL_OBJECTS), "modal bake produced the 7 lightmaps")
@@ -60,8 +63,18 @@ def parent():
 
 
 def child():
-    from photonlm_blender import bake, operators
-    scenes.setup_paths()
+    try:
+        scenes.setup_paths()
+        from photonlm_blender import bake, operators  # noqa: F401
+    except Exception as e:  # noqa: BLE001 -- report to the parent and quit, never hang
+        with open(os.environ["PHOTONLM_MODAL_RESULT"], "w") as f:
+            json.dump({"error": "child set-up failed: %s" % e}, f)
+        bpy.ops.wm.quit_blender()
+        return
+    _child(bake, operators)
+
+
+def _child(bake, operators):
     scenes.clear_scene()
     scenes.cornell_box()
     scene = bpy.context.scene
@@ -89,6 +102,14 @@ def child():
         bpy.ops.wm.quit_blender()
 
     def tick():
+        try:
+            return step()
+        except Exception as e:  # noqa: BLE001 -- report to the parent and quit, never hang
+            res["error"] = "child failed: %r" % e
+            finish()
+            return None
+
+    def step():
         phase = state["phase"]
         if phase == "start":
             with bpy.context.temp_override(**win_ctx()):

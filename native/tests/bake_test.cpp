@@ -141,6 +141,7 @@ TEST(Bake, LightPowerMatchesCyclesUnits) {
   plm_light l;
   plm_light_default(&l, PLM_LIGHT_POINT);
   l.power = 100.0f;
+  l.radius = 0.0f;
   EXPECT_NEAR(black_box_flux(l), 100.0, 0.01);  // point: P
   plm_light_default(&l, PLM_LIGHT_AREA_RECT);
   l.power = 100.0f;
@@ -152,6 +153,7 @@ TEST(Bake, LightPowerMatchesCyclesUnits) {
   EXPECT_NEAR(black_box_flux(l), 25.0 * M_PI, 0.01);
   plm_light_default(&l, PLM_LIGHT_SPOT);
   l.power = 100.0f;
+  l.radius = 0.0f;
   l.spot_blend = 0.0f;
   l.spot_size = 1.0f;
   // Intensity P/(4 pi) cos(a) inside the cone: flux P sin^2(half angle) / 4.
@@ -211,6 +213,31 @@ TEST(Bake, PointLightOverPlaneIsInverseSquareCosine) {
     }
   }
   EXPECT_LT(worst, 5.0);
+}
+
+// Cycles 3.4 models a point light of radius r as a disk facing the receiver:
+// irradiance I cos / (d^2 + r^2), I = P / (4 pi), at distance d from the centre.
+TEST(Bake, PointLightRadiusFollowsCyclesDiskModel) {
+  plm_light l;
+  plm_light_default(&l, PLM_LIGHT_POINT);
+  l.power = 1000.0f;
+  l.radius = 0.5f;
+  l.matrix[11] = 1.0f;
+  const uint32_t res = 20;
+  const Lightmap lm = lit_plane(l, res, 4000000);
+  for (uint32_t j = 9; j <= 10; ++j) {
+    for (uint32_t i = 9; i <= 10; ++i) {
+      double avg = 0.0;
+      const int k = 16;
+      for (int a = 0; a < k; ++a)
+        for (int c = 0; c < k; ++c) {
+          const double x = i - 10.0 + (a + 0.5) / k, y = j - 10.0 + (c + 0.5) / k, d2 = x * x + y * y + 1.0;
+          avg += 1000.0 / (4 * M_PI) * (1.0 / std::sqrt(d2)) / (d2 + 0.25) / M_PI;
+        }
+      avg /= k * k;
+      EXPECT_NEAR(lm.value(j * res + i), avg, 0.03 * avg) << "texel " << i << "," << j;
+    }
+  }
 }
 
 TEST(Bake, SunOverPlaneIsStrengthCosineOverPi) {

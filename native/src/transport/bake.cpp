@@ -141,6 +141,11 @@ class Tracer {
       const float bu = rh.hit.u, bv = rh.hit.v, bw = 1.0f - bu - bv;
       const Vec3 p0 = mesh.vertex(tri, 0), p1 = mesh.vertex(tri, 1), p2 = mesh.vertex(tri, 2);
       const Vec3 hit = p0 * bw + p1 * bu + p2 * bv;
+      if (depth == 0 && s.radius2 > 0.0f) {
+        const Vec3 to_hit = hit - s.center;
+        const float d2 = dot(to_hit, to_hit);
+        flux *= d2 / (d2 + s.radius2);
+      }
       Vec3 normal = normalize(cross(p1 - p0, p2 - p0));
       const bool front = dot(dir, normal) < 0.0f;
       if (!front) normal = -normal;  // the side the photon arrived on

@@ -147,8 +147,11 @@ EmitterSample sample_emitter(const Emitter& e, const float u[4]) {
         s.direction = t * (sn * std::cos(phi)) + b * (sn * std::sin(phi)) + e.normal * c;
         s.weight = e.scale * spot_attenuation(c, e.cos_half, e.spot_smooth);
       }
-      // A sphere light looks like a disk of its radius from every direction.
+      // Start on the disk of the light's radius across the direction (soft
+      // shadows); the distance falloff of the disk is applied at the first hit.
       s.origin = e.origin;
+      s.center = e.origin;
+      s.radius2 = e.radius * e.radius;
       if (e.radius > 0.0f) {
         float dx, dy;
         concentric_disk(u[2], u[3], dx, dy);

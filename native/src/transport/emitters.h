@@ -28,6 +28,11 @@ struct Emitter {
 struct EmitterSample {
   Vec3 origin, direction;
   Vec3 weight;  // flux carried by the sample, before dividing by the sample count and pick probability
+  // Point/spot lights of radius r (Cycles 3.4): a disk of radius r facing the
+  // receiver, which receives I cos / (d^2 + r^2) at distance d from the centre.
+  // The first hit scales the flux by d^2 / (d^2 + r^2); 0 = no scaling.
+  float radius2 = 0.0f;
+  Vec3 center;
 };
 
 // Cycles' spot falloff for a unit direction at cosine c from the axis.
