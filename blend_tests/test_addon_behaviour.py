@@ -148,8 +148,11 @@ def main():
     checks.check(ok, "register() / unregister() twice without errors")
     checks.check(bpy.types.Scene.bl_rna.properties.get("photonlm") is not None
                  and getattr(bpy.types, "PHOTONLM_PT_lightmaps", None) is not None, "settings and panel registered")
-    checks.check(bpy.context.scene.photonlm.photons == 2_000_000 and bpy.context.scene.photonlm.texel_density == 32
-                 and bpy.context.scene.photonlm.output_dir == "//lightmaps/", "defaults: 2,000,000 photons, 32 texels/m, //lightmaps/")
+    sp = bpy.context.scene.photonlm
+    checks.check(sp.photons == 50_000_000 and abs(sp.target_error - 0.02) < 1e-9 and sp.time_budget == 0.0
+                 and sp.direct_samples == 64 and sp.texel_density == 32 and sp.output_dir == "//lightmaps/",
+                 "defaults: target error 2%, no time budget, at most 50,000,000 photons, 64 direct samples, "
+                 "32 texels/m, //lightmaps/")
 
     # -- nothing to bake: a reported error, not a crash -----------------------------------------------
     scenes.clear_scene()
@@ -169,6 +172,15 @@ def main():
     last = scenes.photonlm_bake(PHOTONS, 8, seed=2)
     reports = [t for (_, t) in last["reports"]]
     print("reports:\n  " + "\n  ".join(reports))
+
+    # -- Reached error and time, readable by scripts ---------------------------------------------------
+    stored = bpy.context.scene.get("photonlm_last_bake", {})
+    err = float(stored.get("error_estimate", -1.0))
+    checks.check(0.0 < err < 1.0 and abs(err - last["stats"]["error_estimate"]) < 1e-12
+                 and bpy.context.scene.photonlm.last_error == "%.2f %%" % (100 * err)
+                 and float(stored.get("seconds_total", 0)) > 0.0,
+                 "reached error (%s) and time (%s) readable from the scene after the bake"
+                 % (bpy.context.scene.photonlm.last_error, bpy.context.scene.photonlm.last_time))
 
     # -- UV maps ---------------------------------------------------------------------------------------
     data, active, render = uv_state(cube.data)

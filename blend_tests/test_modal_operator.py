@@ -131,6 +131,7 @@ def _child(bake, operators):
             res["stats_time"] = scene.photonlm.last_time
             state["before"] = snapshot()
             scene.photonlm.photons = 2_000_000_000
+            scene.photonlm.target_error = 0.0  # exactly that many photons: long enough to cancel
             with bpy.context.temp_override(**win_ctx()):
                 res["invoke2"] = sorted(bpy.ops.photonlm.bake('INVOKE_DEFAULT'))
             state["phase"] = "second"

@@ -49,7 +49,9 @@ class BakeJob:
         self.photonlm = bridge.get()           # RuntimeError with a readable message if missing
         settings = context.scene.photonlm
         self.settings = dict(photons=int(settings.photons), max_bounces=int(settings.max_bounces),
-                             seed=int(settings.seed))
+                             seed=int(settings.seed), target_error=float(settings.target_error),
+                             time_budget=float(settings.time_budget),
+                             direct_samples=int(settings.direct_samples))
         self.scene_name = context.scene.name
         self.result = None
         self.export = None
@@ -137,7 +139,9 @@ class BakeJob:
             photons_emitted=int(stats["photons_emitted"]), seconds_total=float(stats["seconds_total"]),
             seconds_export=float(self.seconds_export), photons_per_second=float(photons_per_second),
             warning_count=len(warnings), objects=len(self.export.baked),
-            photon_hits=int(stats["photon_hits"]), rays_traced=int(stats["rays_traced"]))
+            photon_hits=int(stats["photon_hits"]), rays_traced=int(stats["rays_traced"]),
+            error_estimate=float(stats["error_estimate"]), error_median=float(stats["error_median"]),
+            error_p95=float(stats["error_p95"]), direct_samples=int(stats["direct_samples"]))
         LAST.clear()
         LAST.update(stats=dict(stats, seconds_export=self.seconds_export,
                                photons_per_second=photons_per_second),

@@ -18,7 +18,10 @@ class PHOTONLM_PT_lightmaps(bpy.types.Panel):
         settings = context.scene.photonlm
 
         col = layout.column()
+        col.prop(settings, "target_error")
+        col.prop(settings, "time_budget")
         col.prop(settings, "photons")
+        col.prop(settings, "direct_samples")
         col.prop(settings, "max_bounces")
         col.prop(settings, "texel_density")
         col.prop(settings, "seed")
@@ -39,7 +42,7 @@ class PHOTONLM_PT_lightmaps(bpy.types.Panel):
             box = layout.box()
             box.label(text="Last Bake", icon='INFO')
             col = box.column(align=True)
-            for label, prop in (("Objects", "last_objects"), ("Photons", "last_photons"), ("Time", "last_time"),
+            for label, prop in (("Objects", "last_objects"), ("Photons", "last_photons"), ("Time", "last_time"), ("Error", "last_error"),
                                 ("Speed", "last_rate"), ("Warnings", "last_warnings")):
                 split = col.split(factor=0.4)
                 split.alignment = 'RIGHT'

@@ -10,7 +10,7 @@ packing leaves some space unused, so the real density on the surface is somewhat
 import math
 
 import bpy
-from bpy.props import BoolProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import BoolProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
 STATS_KEY = "photonlm_last_bake"  # ID property on the scene: the last bake's statistics
 
@@ -42,6 +42,10 @@ def _fmt_seconds(x):
     return "%.2f s" % float(x)
 
 
+def _fmt_percent(x):
+    return "%.2f %%" % (100.0 * float(x))
+
+
 def _fmt_rate(x):
     x = float(x)
     if x >= 1e6:
@@ -55,9 +59,22 @@ def _preview_update(self, context):
 
 
 class PhotonlmSceneSettings(bpy.types.PropertyGroup):
+    target_error: FloatProperty(
+        name="Target Error", description="Relative noise to reach (0.02 = 2%): photons are traced and "
+        "noisy texels get more direct-light samples until the estimated relative RMS error over all "
+        "texels is this low, the time budget is spent or Max Photons are traced. 0 = trace exactly "
+        "Max Photons", default=0.02, min=0.0, max=0.5, soft_min=0.002, precision=3, step=0.1)
+    time_budget: FloatProperty(
+        name="Time Budget", description="Seconds the bake may take; 0 = no limit", default=0.0, min=0.0,
+        soft_max=3600.0, unit='TIME_ABSOLUTE')
     photons: IntProperty(
-        name="Photons", description="Photons emitted from all lights together; more photons, less noise "
-        "(noise falls as 1/sqrt(photons))", default=2_000_000, min=1000, soft_max=200_000_000)
+        name="Max Photons", description="Photons emitted from all lights together: the cap with a target "
+        "error or time budget, the exact count without (noise falls as 1/sqrt(photons)); 0 = no cap",
+        default=50_000_000, min=0, soft_max=1_000_000_000)
+    direct_samples: IntProperty(
+        name="Direct Samples", description="Shadow-ray points per texel for direct light (more are added "
+        "to noisy texels when a target error is set); 0 = photons carry direct light too",
+        default=64, min=0, max=65536, soft_max=1024)
     texel_density: IntProperty(
         name="Texel Density", description="Lightmap texels per metre for objects whose resolution is Auto "
         "(n = clamp(next power of two of sqrt(surface area) x density, 16, 4096))",
@@ -78,6 +95,7 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
     # Read-only statistics of the last bake (stored in the scene's ID property STATS_KEY).
     last_photons: StringProperty(name="Photons", get=_stat_getter("photons_emitted", _fmt_count))
     last_time: StringProperty(name="Time", get=_stat_getter("seconds_total", _fmt_seconds))
+    last_error: StringProperty(name="Error", get=_stat_getter("error_estimate", _fmt_percent))
     last_rate: StringProperty(name="Speed", get=_stat_getter("photons_per_second", _fmt_rate))
     last_warnings: StringProperty(name="Warnings", get=_stat_getter("warning_count", _fmt_count))
     last_objects: StringProperty(name="Objects", get=_stat_getter("objects", _fmt_count))

@@ -234,8 +234,14 @@ class Scene(_Handle):
         rad = _rgb(radiance, "radiance")
         _check(_C.plm_scene_set_world(self._h, _ptr(rad, ctypes.c_float)))
 
-    def bake(self, photons=1_000_000, max_bounces=1024, seed=0, threads=0, dilation=8, progress=None):
+    def bake(self, photons=1_000_000, max_bounces=1024, seed=0, threads=0, dilation=8, progress=None,
+             target_error=0.0, time_budget=0.0, direct_samples=64):
         """Bake all lightmaps and return a Result. The GIL is released while the engine runs.
+
+        Two passes: direct light from direct_samples shadow-ray points per texel (0 = photons
+        carry direct light too), indirect light from photons. With target_error (relative RMS
+        error, e.g. 0.02) or time_budget (seconds) set, photons are traced until the estimated
+        error reaches the target or the time is spent; photons is then the cap (0 = none).
 
         progress: optional callable(fraction, stage) called from this thread every few tenths
         of a second; returning False cancels (BakeCancelled). An exception raised in it cancels
@@ -248,6 +254,12 @@ class Scene(_Handle):
         settings.seed = _uint(seed, "seed")
         settings.thread_count = _uint(threads, "threads")
         settings.dilation = _uint(dilation, "dilation")
+        settings.direct_samples = _uint(direct_samples, "direct_samples")
+        for name, value in (("target_error", target_error), ("time_budget", time_budget)):
+            value = float(value)
+            if not value >= 0.0:
+                raise ValueError("%s must be a number >= 0, got %r" % (name, value))
+            setattr(settings, name, value)
         raised = []
 
         def on_progress(_user_data, fraction, stage):
@@ -278,7 +290,8 @@ rgb (h, w, 3) irradiance/pi; error (h, w) standard error of the texel's mean RGB
 hits (h, w) photon hits; coverage (h, w) fraction of the texel inside UV islands."""
 
 _STAT_KEYS = ("photons_emitted", "photon_hits", "rays_traced", "paths_truncated", "emitted_power",
-              "seconds_setup", "seconds_trace", "seconds_total")
+              "seconds_setup", "seconds_trace", "seconds_total", "direct_samples", "seconds_direct",
+              "error_estimate", "error_direct", "error_median", "error_p95")
 
 
 class Result(_Handle):

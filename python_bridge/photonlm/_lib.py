@@ -75,6 +75,10 @@ class plm_bake_settings(ctypes.Structure):
         ("seed", c_uint32),
         ("thread_count", c_uint32),
         ("dilation", c_uint32),
+        ("target_error", c_double),
+        ("time_budget", c_double),
+        ("direct_samples", c_uint32),
+        ("reserved", c_uint32),
     ]
 
 
@@ -88,6 +92,12 @@ class plm_bake_stats(ctypes.Structure):
         ("seconds_setup", c_double),
         ("seconds_trace", c_double),
         ("seconds_total", c_double),
+        ("direct_samples", c_uint64),
+        ("seconds_direct", c_double),
+        ("error_estimate", c_double),
+        ("error_direct", c_double),
+        ("error_median", c_double),
+        ("error_p95", c_double),
     ]
 
 

@@ -224,7 +224,7 @@ def test_result_arrays_and_coverage():
         mesh = scene.add_mesh("tri", pos, [[0, 1, 2]], uv_tri[None], resolution=(width, height))
         geo = scene.add_mesh("geo", pos + np.float32([0, 0, -1]), [[0, 1, 2]])
         scene.add_light("SUN", power=1.0)
-        with scene.bake(photons=20_000, dilation=0) as result:
+        with scene.bake(photons=20_000, dilation=0, direct_samples=0) as result:  # photons only: every covered texel records hits
             assert result.lightmap_size(mesh) == (width, height)
             lm = result.lightmap(mesh)
             # A geometry-only mesh has no lightmap: the engine refuses to report one.
@@ -263,7 +263,8 @@ def test_stats_keys():
         with scene.bake(photons=5000) as result:
             stats = result.stats
     assert set(stats) == {"photons_emitted", "photon_hits", "rays_traced", "paths_truncated", "emitted_power",
-                          "seconds_setup", "seconds_trace", "seconds_total"}
+                          "seconds_setup", "seconds_trace", "seconds_total", "direct_samples", "seconds_direct",
+                          "error_estimate", "error_direct", "error_median", "error_p95"}
     assert stats["photons_emitted"] == 5000
     assert stats["rays_traced"] >= stats["photons_emitted"]
     assert 0 <= stats["seconds_setup"] <= stats["seconds_total"] and 0 <= stats["seconds_trace"] <= stats["seconds_total"]

@@ -53,7 +53,8 @@ def test_point_light_over_plane():
         pos, tri, uv = plane(2.0)
         mesh = scene.add_mesh("floor", pos, tri, uv, resolution=res)
         scene.add_light("POINT", power=power, radius=0.0, matrix=translation(lx, ly, h))
-        with scene.bake(photons=15_000_000, max_bounces=0, seed=3) as result:
+        # Photons only (direct_samples=0): tests the photon estimator and its error channel.
+        with scene.bake(photons=15_000_000, max_bounces=0, seed=3, direct_samples=0) as result:
             lm = result.lightmap(mesh)
             stats = result.stats
 

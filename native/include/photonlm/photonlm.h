@@ -129,15 +129,30 @@ PLM_API plm_status plm_scene_set_world(plm_scene* scene, const float radiance[3]
 
 /* ---- Bake ---------------------------------------------------------------- */
 
+/* Two passes, as in thesis 3.5.2: direct light is computed per texel with
+ * shadow rays from stratified points inside the texel (direct_samples > 0),
+ * and photons record only what arrives after their first bounce (indirect
+ * light). With direct_samples = 0, photons carry direct light too.
+ *
+ * Quality: with target_error and time_budget both 0 the bake traces exactly
+ * photon_count photons. Otherwise it traces photons in batches until the
+ * estimated relative error (see plm_bake_stats.error_estimate) is at most
+ * target_error, or time_budget seconds have passed, or photon_count photons
+ * are traced (0 = no cap), whichever comes first. */
 typedef struct plm_bake_settings {
-  uint64_t photon_count;   /* photons emitted from all lights together */
-  uint32_t max_bounces;    /* diffuse bounces after the first hit; 0 = direct only */
-  uint32_t seed;           /* results are a function of seed only, not of threads */
-  uint32_t thread_count;   /* 0 = all cores */
-  uint32_t dilation;       /* texels filled around UV islands */
+  uint64_t photon_count;    /* photons (the cap when a target or budget is set; 0 = none) */
+  uint32_t max_bounces;     /* diffuse bounces after the first hit; 0 = direct only */
+  uint32_t seed;            /* results are a function of seed only, not of threads */
+  uint32_t thread_count;    /* 0 = all cores */
+  uint32_t dilation;        /* texels filled around UV islands */
+  double target_error;      /* relative RMS error to reach, e.g. 0.02; 0 = none */
+  double time_budget;       /* seconds for the whole bake; 0 = none */
+  uint32_t direct_samples;  /* shadow-ray points per texel and round; 0 = photons only */
+  uint32_t reserved;        /* must be 0 */
 } plm_bake_settings;
 
-/* photon_count 1,000,000, max_bounces 1024, seed 0, threads 0, dilation 8. */
+/* photon_count 1,000,000, max_bounces 1024, seed 0, threads 0, dilation 8,
+ * no target error, no time budget, direct_samples 64. */
 PLM_API void plm_bake_settings_default(plm_bake_settings* settings);
 
 /* Called from the thread that called plm_bake, at least every few tenths of a
@@ -153,12 +168,19 @@ PLM_API void plm_result_release(plm_result* result); /* NULL is fine */
 typedef struct plm_bake_stats {
   uint64_t photons_emitted;
   uint64_t photon_hits;      /* hits stored into lightmaps */
-  uint64_t rays_traced;
+  uint64_t rays_traced;      /* photon rays */
   uint64_t paths_truncated;  /* paths stopped by max_bounces */
   double emitted_power;      /* W, sum over RGB channels / 3 */
   double seconds_setup;
-  double seconds_trace;
+  double seconds_trace;      /* photon pass */
   double seconds_total;
+  uint64_t direct_samples;   /* shadow-ray samples of the direct pass */
+  double seconds_direct;
+  double error_estimate;     /* estimated relative RMS error over all covered texels:
+                                sqrt(mean of squared standard errors) / mean value */
+  double error_direct;       /* the part of error_estimate due to the direct pass */
+  double error_median;       /* median over covered texels of (standard error / value) */
+  double error_p95;          /* its 95th percentile */
 } plm_bake_stats;
 
 PLM_API plm_status plm_result_stats(const plm_result* result, plm_bake_stats* out_stats);

@@ -1,5 +1,8 @@
 #include "lightmap/texel_area.h"
 
+#include <algorithm>
+#include <utility>
+
 namespace plm {
 
 double polygon_area(const double* xy, int n) {
@@ -20,6 +23,7 @@ TexelAreas compute_texel_areas(const Mesh& mesh) {
   out.coverage.assign(size_t(w) * h, 0.0f);
   std::vector<double> cover(size_t(w) * h, 0.0);
   std::vector<double> where(3 * size_t(w) * h, 0.0), facing(3 * size_t(w) * h, 0.0);
+  std::vector<std::pair<uint32_t, uint32_t>> touches;  // (texel, triangle)
   for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
     const Vec3 p0 = mesh.vertex(t, 0), p1 = mesh.vertex(t, 1), p2 = mesh.vertex(t, 2);
     // World area in double: sliver triangles lose everything in float.
@@ -49,6 +53,7 @@ TexelAreas compute_texel_areas(const Mesh& mesh) {
     const double d = (tri[2] - tri[0]) * (tri[5] - tri[1]) - (tri[4] - tri[0]) * (tri[3] - tri[1]);
     clip_triangle_to_grid(tri, w, h, [&](uint32_t texel, double a, double x, double y) {
       const double wa = a * scale;
+      touches.emplace_back(texel, t);
       out.area[texel] += wa;
       cover[texel] += a;
       const double b1 = ((x - tri[0]) * (tri[5] - tri[1]) - (tri[4] - tri[0]) * (y - tri[1])) / d;
@@ -59,6 +64,14 @@ TexelAreas compute_texel_areas(const Mesh& mesh) {
       }
     });
   }
+  std::sort(touches.begin(), touches.end());
+  out.tri_begin.assign(cover.size() + 1, 0);
+  out.tri_ids.resize(touches.size());
+  for (size_t k = 0; k < touches.size(); ++k) {
+    ++out.tri_begin[touches[k].first + 1];
+    out.tri_ids[k] = touches[k].second;
+  }
+  for (size_t i = 0; i < cover.size(); ++i) out.tri_begin[i + 1] += out.tri_begin[i];
   out.position.resize(cover.size());
   out.normal.resize(cover.size());
   for (size_t i = 0; i < cover.size(); ++i) {

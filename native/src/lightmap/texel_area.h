@@ -15,6 +15,9 @@ struct TexelAreas {
   std::vector<float> coverage;   // covered fraction of each texel (> 1 where UVs overlap)
   std::vector<Vec3> position;    // world position inside the texel's covered surface
   std::vector<Vec3> normal;      // area-weighted unit normal of that surface
+  // Triangles touching each texel (CSR): tri_ids[tri_begin[t] .. tri_begin[t + 1]).
+  std::vector<uint32_t> tri_begin;
+  std::vector<uint32_t> tri_ids;
   uint32_t zero_uv_triangles = 0;   // world area > 0 but no UV area: light not recorded
   uint32_t first_zero_uv_triangle = 0;
   uint32_t outside_triangles = 0;   // partly or wholly outside the [0,1] UV square

@@ -13,7 +13,9 @@
 #include "accel/embree_scene.h"
 #include "lightmap/dilate.h"
 #include "lightmap/texel_area.h"
+#include "transport/direct.h"
 #include "transport/emitters.h"
+#include "transport/tracing.h"
 #include "util/error.h"
 #include "util/rng.h"
 
@@ -27,12 +29,14 @@ double seconds_since(Clock::time_point t0) {
 }
 
 // Photons are traced in fixed batches; a batch's hits are merged in batch
-// order, so sums are identical whatever the thread count.
+// order, so sums are identical whatever the thread count. The error target
+// is checked at fixed batch counts, so where a bake stops is deterministic too.
 constexpr uint32_t kBatchPhotons = 4096;
+constexpr uint64_t kCheckBatches = 16;
 
 struct Hit {
   uint32_t texel;  // global texel index over all lightmaps
-  float r, g, b;
+  float r, g, b;   // flux / pick probability; divided by the photon count at the end
 };
 
 struct BatchOutput {
@@ -42,41 +46,15 @@ struct BatchOutput {
   double truncated_flux = 0.0;
 };
 
-// Read-only data the hot loop needs, flattened at set-up.
-struct MeshView {
-  const Mesh* mesh;
-  uint64_t texel_offset;     // into the global texel arrays
-  const double* texel_area;  // world area per texel, null without lightmap
-};
-
-struct TraceContext {
-  RTCIntersectContext context;  // first member: Embree hands back this pointer
-  unsigned skip_geom = RTC_INVALID_GEOMETRY_ID;
-  unsigned skip_prim = RTC_INVALID_GEOMETRY_ID;
-};
-
-// A ray never hits the flat triangle it leaves: rejecting that one triangle
-// removes self-intersection at any angle, so the origin offset can stay tiny.
-void skip_origin_triangle(const RTCFilterFunctionNArguments* args) {
-  const auto* tc = reinterpret_cast<const TraceContext*>(args->context);
-  for (unsigned i = 0; i < args->N; ++i) {
-    if (args->valid[i] == 0) continue;
-    if (RTCHitN_geomID(args->hit, args->N, i) == tc->skip_geom &&
-        RTCHitN_primID(args->hit, args->N, i) == tc->skip_prim)
-      args->valid[i] = 0;
-  }
-}
-
-class Tracer {
+class PhotonTracer {
  public:
-  Tracer(const Scene& scene, RTCScene rtc, const std::vector<MeshView>& views, const std::vector<Emitter>& emitters,
-         const plm_bake_settings& settings, float scene_extent)
+  PhotonTracer(const Scene& scene, RTCScene rtc, const std::vector<MeshView>& views,
+               const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent,
+               uint32_t first_recorded_depth)
       : scene_(scene), rtc_(rtc), views_(views), emitters_(emitters), settings_(settings),
-        offset_scale_(1e-6f * scene_extent) {
+        offset_scale_(1e-6f * scene_extent), first_recorded_(first_recorded_depth) {
     double total = 0.0;
     for (const Emitter& e : emitters) total += average(e.flux);
-    cdf_.reserve(emitters.size());
-    pick_.reserve(emitters.size());
     double running = 0.0;
     for (const Emitter& e : emitters) {
       running += average(e.flux);
@@ -84,6 +62,7 @@ class Tracer {
       pick_.push_back(float(average(e.flux) / total));
     }
     cdf_.back() = 1.0;
+    pick_offset_ = double(Rng(settings.seed, ~0ull).next_float());
     default_material_.albedo = {0.8f, 0.8f, 0.8f};
   }
 
@@ -101,34 +80,21 @@ class Tracer {
 
   void trace_photon(uint64_t index, BatchOutput& out) const {
     Rng rng(settings_.seed, index);
-    const double n = double(settings_.photon_count);
-    // Jittered stratification of the light choice over the photon index.
-    const double u_pick = (double(index) + rng.next_float()) / n;
+    // The light choice follows a rotated van der Corput sequence: stratified for any photon count.
+    double u_pick = radical_inverse2(index) + pick_offset_;
+    if (u_pick >= 1.0) u_pick -= 1.0;
     const size_t k = std::min<size_t>(std::upper_bound(cdf_.begin(), cdf_.end(), u_pick) - cdf_.begin(),
                                       emitters_.size() - 1);
     const float u[4] = {rng.next_float(), rng.next_float(), rng.next_float(), rng.next_float()};
     const EmitterSample s = sample_emitter(emitters_[k], u);
-    Vec3 flux = s.weight * float(1.0 / (n * pick_[k]));
+    Vec3 flux = s.weight * (1.0f / pick_[k]);
     if (max_component(flux) <= 0.0f) return;
 
     TraceContext tc;
-    rtcInitIntersectContext(&tc.context);
-    tc.context.filter = skip_origin_triangle;
     Vec3 org = s.origin, dir = s.direction;
     for (uint32_t depth = 0;; ++depth) {
       RTCRayHit rh;
-      rh.ray.org_x = org.x;
-      rh.ray.org_y = org.y;
-      rh.ray.org_z = org.z;
-      rh.ray.dir_x = dir.x;
-      rh.ray.dir_y = dir.y;
-      rh.ray.dir_z = dir.z;
-      rh.ray.tnear = 0.0f;
-      rh.ray.tfar = std::numeric_limits<float>::infinity();
-      rh.ray.time = 0.0f;
-      rh.ray.mask = 0xFFFFFFFFu;
-      rh.ray.id = 0;
-      rh.ray.flags = 0;
+      rh.ray = make_ray(org, dir, std::numeric_limits<float>::infinity());
       rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
       rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
       rtcIntersect1(rtc_, &tc.context, &rh);
@@ -150,7 +116,7 @@ class Tracer {
       const bool front = dot(dir, normal) < 0.0f;
       if (!front) normal = -normal;  // the side the photon arrived on
 
-      if (front && view.texel_area) {
+      if (front && view.texel_area && depth >= first_recorded_) {
         const float* uv = &mesh.uv[6 * size_t(tri)];
         const float tu = bw * uv[0] + bu * uv[2] + bv * uv[4];
         const float tv = bw * uv[1] + bu * uv[3] + bv * uv[5];
@@ -178,7 +144,7 @@ class Tracer {
       Vec3 t, b;
       make_frame(normal, t, b);
       dir = t * local.x + b * local.y + normal * local.z;
-      org = hit + normal * (offset_scale_ + 2.5e-7f * max_abs_component(hit));
+      org = offset_origin(hit, normal, offset_scale_);
       tc.skip_geom = rh.hit.geomID;
       tc.skip_prim = tri;
     }
@@ -190,10 +156,30 @@ class Tracer {
   const std::vector<Emitter>& emitters_;
   plm_bake_settings settings_;
   float offset_scale_;
+  uint32_t first_recorded_;
   std::vector<double> cdf_;
   std::vector<float> pick_;
+  double pick_offset_ = 0.0;
   Material default_material_;
 };
+
+// Runs work(first, count) over [0, total) in groups that take about 0.2 s, so
+// that after(done) -- progress, cancel, steering -- runs several times a
+// second on the calling thread. after returns false to stop early.
+template <typename Work, typename After>
+void run_in_groups(tbb::task_arena& arena, uint64_t total, uint64_t granule, Work&& work, After&& after) {
+  uint64_t group = granule;
+  for (uint64_t first = 0; first < total;) {
+    const uint64_t n = std::min(group, total - first);
+    const auto t0 = Clock::now();
+    arena.execute([&] { work(first, n); });
+    first += n;
+    const double dt = seconds_since(t0);
+    if (dt < 0.1) group = std::min<uint64_t>(group * 2, granule * 1024);
+    else if (dt > 0.4 && group > granule) group = std::max<uint64_t>(granule, group / 2);
+    if (!after(first)) return;
+  }
+}
 
 std::string mesh_label(const Mesh& m) { return "mesh '" + m.name + "'"; }
 
@@ -225,9 +211,18 @@ void add_mesh_warnings(const Mesh& mesh, const TexelAreas* areas, std::vector<st
 }
 
 void validate(const Scene& scene, const plm_bake_settings& s) {
-  if (s.photon_count == 0) fail(PLM_ERROR_INVALID_ARGUMENT, "settings: photon_count must be > 0");
+  const bool steered = s.target_error > 0.0 || s.time_budget > 0.0;
+  if (s.photon_count == 0 && !steered)
+    fail(PLM_ERROR_INVALID_ARGUMENT, "settings: photon_count must be > 0 unless target_error or time_budget is set");
   if (s.photon_count > (uint64_t(1) << 40))
     fail(PLM_ERROR_INVALID_ARGUMENT, "settings: photon_count ", s.photon_count, " exceeds the limit 2^40");
+  if (!(s.target_error >= 0.0 && s.target_error < 1.0))
+    fail(PLM_ERROR_INVALID_ARGUMENT, "settings: target_error ", s.target_error, " must be in [0, 1) (e.g. 0.02 for 2%)");
+  if (!(s.time_budget >= 0.0 && s.time_budget < 1e7))
+    fail(PLM_ERROR_INVALID_ARGUMENT, "settings: time_budget ", s.time_budget, " must be a number of seconds >= 0");
+  if (s.direct_samples > 65536)
+    fail(PLM_ERROR_INVALID_ARGUMENT, "settings: direct_samples ", s.direct_samples, " exceeds 65536");
+  if (s.reserved != 0) fail(PLM_ERROR_INVALID_ARGUMENT, "settings: reserved must be 0");
   if (s.dilation > 4096) fail(PLM_ERROR_INVALID_ARGUMENT, "settings: dilation ", s.dilation, " exceeds 4096 texels");
   if (scene.meshes.empty()) fail(PLM_ERROR_INVALID_SCENE, "the scene has no meshes: nothing to bake");
   uint64_t texels = 0;
@@ -236,6 +231,82 @@ void validate(const Scene& scene, const plm_bake_settings& s) {
     fail(PLM_ERROR_INVALID_SCENE, "no mesh has a lightmap: give at least one mesh a lightmap size and UVs");
   if (texels >= (uint64_t(1) << 31))
     fail(PLM_ERROR_INVALID_SCENE, "the lightmaps hold ", texels, " texels together; the limit is 2^31");
+}
+
+// The texels that hold a value, and where their sums live.
+struct CoveredTexel {
+  uint32_t mesh, texel;  // local texel of that mesh
+  uint64_t global;       // index into the global photon accumulators
+  double area;           // world area
+};
+
+// Estimated error over all covered texels: per texel, the direct pass's
+// variance plus the photon estimate's (sum of squared hit fluxes, with one
+// phantom average hit so that texels with few hits do not look exact).
+struct ErrorEstimate {
+  double relative = 0.0;  // sqrt(mean variance) / mean value
+  double direct = 0.0;    // the same with the direct variance alone
+  double mean_value = 0.0;
+};
+
+class Accumulators {
+ public:
+  Accumulators(uint64_t texels) : sum(3 * texels, 0.0), sum_sq(texels, 0.0), hits(texels, 0) {}
+  std::vector<double> sum, sum_sq;  // photon flux / pick probability (not yet divided by the count)
+  std::vector<uint32_t> hits;
+  double total_sq = 0.0;
+  uint64_t total_hits = 0;
+
+  void merge(const BatchOutput& bo) {
+    for (const Hit& h : bo.hits) {
+      sum[3 * size_t(h.texel)] += h.r;
+      sum[3 * size_t(h.texel) + 1] += h.g;
+      sum[3 * size_t(h.texel) + 2] += h.b;
+      const double a = (double(h.r) + h.g + h.b) / 3.0;
+      sum_sq[h.texel] += a * a;
+      total_sq += a * a;
+      ++hits[h.texel];
+    }
+    total_hits += bo.hits.size();
+  }
+};
+
+ErrorEstimate estimate_error(const std::vector<CoveredTexel>& covered, const std::vector<DirectSums>& direct,
+                             const Accumulators& acc, uint64_t photons, std::vector<double>* per_texel = nullptr) {
+  ErrorEstimate out;
+  if (covered.empty()) return out;
+  const double n = double(std::max<uint64_t>(photons, 1));
+  const double phantom = acc.total_hits ? acc.total_sq / double(acc.total_hits) : 0.0;
+  double var_sum = 0.0, var_direct = 0.0, value_sum = 0.0;
+  if (per_texel) per_texel->clear();
+  for (size_t i = 0; i < covered.size(); ++i) {
+    const CoveredTexel& c = covered[i];
+    const double scale = 1.0 / (c.area * kPiD * n);
+    double value = (acc.sum[3 * c.global] + acc.sum[3 * c.global + 1] + acc.sum[3 * c.global + 2]) / 3.0 * scale;
+    double var = photons ? (acc.sum_sq[c.global] + phantom) * scale * scale : 0.0;
+    if (!direct.empty()) {
+      value += direct[i].mean();
+      var_direct += direct[i].variance_of_mean();
+      var += direct[i].variance_of_mean();
+    }
+    value_sum += value;
+    var_sum += var;
+    if (per_texel && value > 0.0) per_texel->push_back(std::sqrt(var) / value);
+  }
+  const double m = double(covered.size());
+  out.mean_value = value_sum / m;
+  if (out.mean_value > 0.0) {
+    out.relative = std::sqrt(var_sum / m) / out.mean_value;
+    out.direct = std::sqrt(var_direct / m) / out.mean_value;
+  }
+  return out;
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  const size_t k = std::min(v.size() - 1, size_t(q * double(v.size())));
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[k];
 }
 
 }  // namespace
@@ -247,6 +318,10 @@ plm_bake_settings default_settings() {
   s.seed = 0;
   s.thread_count = 0;
   s.dilation = 8;
+  s.target_error = 0.0;
+  s.time_budget = 0.0;
+  s.direct_samples = 64;
+  s.reserved = 0;
   return s;
 }
 
@@ -254,7 +329,10 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
   const auto t_start = Clock::now();
   validate(scene, settings);
   auto report = [&](double fraction, const char* stage) {
-    if (progress && !progress(fraction, stage)) fail(PLM_ERROR_CANCELLED, "the bake was cancelled");
+    if (progress && !progress(std::min(1.0, fraction), stage)) fail(PLM_ERROR_CANCELLED, "the bake was cancelled");
+  };
+  auto over_budget = [&](double share) {
+    return settings.time_budget > 0.0 && seconds_since(t_start) >= share * settings.time_budget;
   };
   report(0.0, "building the ray-tracing scene");
 
@@ -272,6 +350,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
   report(0.02, "computing texel areas");
   std::vector<TexelAreas> areas(scene.meshes.size());
   std::vector<MeshView> views(scene.meshes.size());
+  std::vector<CoveredTexel> covered;
   uint64_t texel_count = 0;
   for (size_t i = 0; i < scene.meshes.size(); ++i) {
     const Mesh& mesh = scene.meshes[i];
@@ -279,7 +358,10 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
     if (mesh.has_lightmap()) {
       areas[i] = compute_texel_areas(mesh);
       views[i].texel_area = areas[i].area.data();
-      texel_count += uint64_t(mesh.lightmap_width) * mesh.lightmap_height;
+      const uint32_t n = mesh.lightmap_width * mesh.lightmap_height;
+      for (uint32_t t = 0; t < n; ++t)
+        if (areas[i].area[t] > 0.0) covered.push_back({uint32_t(i), t, texel_count + t, areas[i].area[t]});
+      texel_count += n;
     }
     add_mesh_warnings(mesh, mesh.has_lightmap() ? &areas[i] : nullptr, out.warnings);
   }
@@ -288,64 +370,135 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
   double emitted = 0.0;
   for (const Emitter& e : emitters) emitted += average(e.flux);
   out.stats.seconds_setup = seconds_since(t_start);
-
-  // Global accumulators in double: millions of small contributions stay exact.
-  std::vector<double> sum(3 * texel_count, 0.0), sum_sq(texel_count, 0.0);
-  std::vector<uint32_t> hit_count(texel_count, 0);
-  const auto t_trace = Clock::now();
-  if (emitters.empty()) {
+  if (emitters.empty())
     out.warnings.push_back("the scene has no lights, no emissive materials and no world light: every lightmap is black");
-  } else {
-    out.stats.emitted_power = emitted;
-    out.stats.photons_emitted = settings.photon_count;
-    Tracer tracer(scene, accel.handle(), views, emitters, settings, extent);
-    const uint64_t batch_count = (settings.photon_count + kBatchPhotons - 1) / kBatchPhotons;
-    std::vector<BatchOutput> batches;
-    tbb::task_arena arena(static_cast<int>(threads));
-    uint64_t group = threads;  // batches per group, tuned so progress comes every ~0.2 s
-    double truncated_flux = 0.0;
-    for (uint64_t first = 0; first < batch_count;) {
-      const uint64_t n = std::min(group, batch_count - first);
-      if (batches.size() < n) batches.resize(n);
-      const auto t_group = Clock::now();
-      arena.execute([&] {
-        tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n, 1), [&](const tbb::blocked_range<uint64_t>& r) {
-          for (uint64_t b = r.begin(); b < r.end(); ++b) {
-            const uint64_t p0 = (first + b) * kBatchPhotons;
-            tracer.trace_batch(p0, std::min<uint64_t>(kBatchPhotons, settings.photon_count - p0), batches[b]);
-          }
-        });
-      });
-      for (uint64_t b = 0; b < n; ++b) {  // merge in batch order
-        const BatchOutput& bo = batches[b];
-        for (const Hit& h : bo.hits) {
-          sum[3 * size_t(h.texel)] += h.r;
-          sum[3 * size_t(h.texel) + 1] += h.g;
-          sum[3 * size_t(h.texel) + 2] += h.b;
-          const double a = (double(h.r) + h.g + h.b) / 3.0;
-          sum_sq[h.texel] += a * a;
-          ++hit_count[h.texel];
-        }
-        out.stats.photon_hits += bo.hits.size();
-        out.stats.rays_traced += bo.rays;
-        out.stats.paths_truncated += bo.truncated;
-        truncated_flux += bo.truncated_flux;
+  out.stats.emitted_power = emitted;
+
+  tbb::task_arena arena(static_cast<int>(threads));
+  const bool two_pass = settings.direct_samples > 0 && !emitters.empty();
+  const bool photon_pass = !emitters.empty() && (!two_pass || settings.max_bounces > 0);
+  const double direct_end = photon_pass ? 0.35 : 0.95;
+
+  // ---- Direct pass --------------------------------------------------------
+  std::vector<DirectSums> direct;
+  const auto t_direct = Clock::now();
+  if (two_pass) {
+    direct.resize(covered.size());
+    DirectPass pass(accel.handle(), views, areas, emitters, settings.seed, extent);
+    std::vector<uint32_t> todo(covered.size());
+    for (uint32_t i = 0; i < todo.size(); ++i) todo[i] = i;
+    const uint32_t max_rounds = 6;
+    for (uint32_t round = 0; round < max_rounds && !todo.empty(); ++round) {
+      const uint32_t samples = settings.direct_samples << std::min(round, 8u);
+      const double r0 = 0.05 + (direct_end - 0.05) * round / max_rounds;
+      const double r1 = 0.05 + (direct_end - 0.05) * (round + 1) / max_rounds;
+      run_in_groups(
+          arena, todo.size(), 64,
+          [&](uint64_t first, uint64_t n) {
+            tbb::parallel_for(tbb::blocked_range<uint64_t>(first, first + n, 16), [&](const auto& r) {
+              for (uint64_t k = r.begin(); k < r.end(); ++k) {
+                const CoveredTexel& c = covered[todo[k]];
+                pass.sample_texel(c.mesh, c.texel, round, samples, direct[todo[k]]);
+              }
+            });
+          },
+          [&](uint64_t done) {
+            report(r0 + (r1 - r0) * double(done) / double(todo.size()), "direct light");
+            return true;
+          });
+      // Next round: texels without two samples yet, and with a target, texels
+      // whose direct error exceeds half the target (relative to the mean value).
+      double mean = 0.0;
+      for (const DirectSums& d : direct) mean += d.mean();
+      mean /= double(std::max<size_t>(direct.size(), 1));
+      const double limit = 0.5 * settings.target_error * mean;
+      std::vector<uint32_t> next;
+      for (uint32_t i : todo) {
+        const bool noisy = settings.target_error > 0.0 && std::sqrt(direct[i].variance_of_mean()) > limit;
+        if (direct[i].count < 2 || noisy) next.push_back(i);
       }
-      first += n;
-      const double dt = seconds_since(t_group);
-      if (dt < 0.1) group = std::min<uint64_t>(group * 2, 1024);
-      else if (dt > 0.4 && group > threads) group = std::max<uint64_t>(threads, group / 2);
-      report(std::min(0.95, 0.05 + 0.9 * double(first) / double(batch_count)), "tracing photons");
+      todo.swap(next);
+      if (over_budget(photon_pass ? 0.3 : 0.95)) break;
     }
-    if (truncated_flux > 1e-4 * emitted)
+    for (const DirectSums& d : direct) out.stats.direct_samples += d.count;
+  }
+  out.stats.seconds_direct = seconds_since(t_direct);
+
+  // ---- Photon pass ----------------------------------------------------------
+  Accumulators acc(texel_count);
+  uint64_t photons = 0;
+  const auto t_trace = Clock::now();
+  if (photon_pass) {
+    const bool steered = settings.target_error > 0.0 || settings.time_budget > 0.0;
+    const uint64_t cap = settings.photon_count ? settings.photon_count : (uint64_t(1) << 40);
+    const uint64_t batch_count = (cap + kBatchPhotons - 1) / kBatchPhotons;
+    PhotonTracer tracer(scene, accel.handle(), views, emitters, settings, extent, two_pass ? 1u : 0u);
+    std::vector<BatchOutput> batches;
+    double truncated_flux = 0.0;
+    uint64_t merged = 0, next_check = kCheckBatches;
+    bool done = false;
+    run_in_groups(
+        arena, batch_count, threads,
+        [&](uint64_t first, uint64_t n) {
+          if (batches.size() < n) batches.resize(n);
+          tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n, 1), [&](const tbb::blocked_range<uint64_t>& r) {
+            for (uint64_t b = r.begin(); b < r.end(); ++b) {
+              const uint64_t p0 = (first + b) * kBatchPhotons;
+              tracer.trace_batch(p0, std::min<uint64_t>(kBatchPhotons, cap - p0), batches[b]);
+            }
+          });
+        },
+        [&](uint64_t end) {
+          // Merge in batch order; with a target, check it at fixed batch counts.
+          double fraction = double(end) / double(batch_count);
+          for (uint64_t b = merged; b < end && !done; ++b) {
+            const BatchOutput& bo = batches[b - merged];
+            acc.merge(bo);
+            out.stats.rays_traced += bo.rays;
+            out.stats.paths_truncated += bo.truncated;
+            truncated_flux += bo.truncated_flux;
+            photons = std::min(cap, (b + 1) * kBatchPhotons);
+            if (settings.target_error > 0.0 && b + 1 == next_check) {
+              next_check = std::max(next_check + kCheckBatches, (next_check * 5 / 4) / kCheckBatches * kCheckBatches);
+              const double err = estimate_error(covered, direct, acc, photons).relative;
+              fraction = std::max(fraction, std::min(1.0, std::pow(settings.target_error / std::max(err, 1e-12), 2.0)));
+              done = err <= settings.target_error;
+            }
+          }
+          merged = end;
+          if (settings.time_budget > 0.0)
+            fraction = std::max(fraction, seconds_since(t_start) / settings.time_budget);
+          done = done || over_budget(0.97);
+          report(direct_end + (0.95 - direct_end) * std::min(fraction, 1.0), steered ? "tracing photons to the target" : "tracing photons");
+          return !done;
+        });
+    out.stats.photons_emitted = photons;
+    out.stats.photon_hits = acc.total_hits;
+    if (truncated_flux > 1e-4 * emitted * double(photons))
       out.warnings.push_back(std::to_string(out.stats.paths_truncated) + " photon paths reached max_bounces (" +
                              std::to_string(settings.max_bounces) + ") and were stopped, losing " +
-                             std::to_string(100.0 * truncated_flux / emitted) +
+                             std::to_string(100.0 * truncated_flux / (emitted * double(photons))) +
                              "% of the emitted power; raise max_bounces for albedos near 1");
   }
   out.stats.seconds_trace = seconds_since(t_trace);
 
+  std::vector<double> per_texel;
+  const ErrorEstimate err = estimate_error(covered, direct, acc, photons, &per_texel);
+  out.stats.error_estimate = err.relative;
+  out.stats.error_direct = err.direct;
+  out.stats.error_median = percentile(per_texel, 0.5);
+  out.stats.error_p95 = percentile(per_texel, 0.95);
+  if (settings.target_error > 0.0 && err.relative > settings.target_error)
+    out.warnings.push_back("the target error " + std::to_string(100.0 * settings.target_error) +
+                           "% was not reached (estimated " + std::to_string(100.0 * err.relative) + "% after " +
+                           std::to_string(photons) + " photons" + (over_budget(0.97) ? ", time budget spent" : "") +
+                           "); lower the lightmap resolution or allow more time");
+
+  // ---- Lightmaps ------------------------------------------------------------
   report(0.95, "writing lightmaps");
+  std::vector<int64_t> covered_index(texel_count, -1);
+  for (size_t i = 0; i < covered.size(); ++i) covered_index[covered[i].global] = int64_t(i);
+  const double inv_photons = photons ? 1.0 / double(photons) : 0.0;
   out.lightmaps.resize(scene.meshes.size());
   for (size_t i = 0; i < scene.meshes.size(); ++i) {
     const Mesh& mesh = scene.meshes[i];
@@ -354,13 +507,24 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
     img.width = mesh.lightmap_width;
     img.height = mesh.lightmap_height;
     const size_t n = size_t(img.width) * img.height;
-    // Pool the sums of barely covered texels with their neighbour's (see merge_sparse_texels).
+    // Everything as flux over area so that barely covered texels can be pooled
+    // with their neighbour's (see merge_sparse_texels): R, G, B, variance, area.
     const size_t g0 = views[i].texel_offset;
-    std::vector<double> pooled(5 * n);  // R, G, B, squared sum, area
+    std::vector<double> pooled(5 * n, 0.0);
     for (size_t t = 0; t < n; ++t) {
-      for (int c = 0; c < 3; ++c) pooled[5 * t + c] = sum[3 * (g0 + t) + c];
-      pooled[5 * t + 3] = sum_sq[g0 + t];
-      pooled[5 * t + 4] = areas[i].area[t];
+      const double a = areas[i].area[t];
+      if (!(a > 0.0)) continue;
+      const double to_value = 1.0 / (a * kPiD);
+      double* p = &pooled[5 * t];
+      for (int c = 0; c < 3; ++c) p[c] = acc.sum[3 * (g0 + t) + c] * inv_photons;
+      p[3] = acc.sum_sq[g0 + t] * inv_photons * inv_photons;
+      p[4] = a;
+      const int64_t ci = covered_index[g0 + t];
+      if (!direct.empty() && ci >= 0) {
+        const DirectSums& d = direct[size_t(ci)];
+        for (int c = 0; c < 3; ++c) p[c] += d.count ? d.rgb[c] / d.count / to_value : 0.0;
+        p[3] += d.variance_of_mean() / (to_value * to_value);
+      }
     }
     const std::vector<uint32_t> shown = merge_sparse_texels(areas[i], img.width, img.height);
     for (size_t t = 0; t < n; ++t) {
@@ -377,7 +541,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
       const double scale = 1.0 / (p[4] * kPiD);
       for (int c = 0; c < 3; ++c) values[4 * t + c] = float(p[c] * scale);
       values[4 * t + 3] = float(std::sqrt(p[3]) * scale);
-      img.hits[t] = float(hit_count[g0 + t]);
+      img.hits[t] = float(acc.hits[g0 + t]);
       filled[t] = 1;
     }
     dilate(values, 4, filled, img.width, img.height, settings.dilation);

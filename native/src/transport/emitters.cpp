@@ -1,6 +1,7 @@
 #include "transport/emitters.h"
 
 #include <cstring>
+#include <limits>
 
 namespace plm {
 
@@ -46,6 +47,7 @@ Emitter light_emitter(const Light& light) {
       e.radius = l.radius;
       e.flux = color * l.power;
       e.scale = e.flux;
+      e.radiance = color * (l.power / (4.0f * kPi));
       break;
     case PLM_LIGHT_SPOT: {
       e.kind = EmitterKind::Spot;
@@ -54,6 +56,7 @@ Emitter light_emitter(const Light& light) {
       e.cos_half = std::cos(0.5f * l.spot_size);
       e.spot_smooth = (1.0f - e.cos_half) * l.spot_blend;
       const Vec3 intensity = color * (l.power / (4.0f * kPi));
+      e.radiance = intensity;
       // Directions are drawn uniformly inside the cone and weighted by the falloff.
       e.scale = intensity * (2.0f * kPi * (1.0f - e.cos_half));
       e.flux = intensity * float(spot_solid_angle_integral(e.cos_half, e.spot_smooth));
@@ -68,6 +71,8 @@ Emitter light_emitter(const Light& light) {
       // Cycles: radiance P / (4 A), one-sided, so the flux pi L A = pi P / 4 whatever the size.
       e.flux = color * (kPi * l.power / 4.0f);
       e.scale = e.flux;
+      e.area = length(cross(e.axis_u, e.axis_v)) * (e.kind == EmitterKind::AreaRect ? 4.0f : kPi);
+      e.radiance = e.flux / (kPi * e.area);
       break;
     }
     case PLM_LIGHT_SUN:
@@ -94,10 +99,12 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
       const Vec3 color{light.desc.color[0], light.desc.color[1], light.desc.color[2]};
       e.flux = color * (light.desc.power * disk_area);
       e.scale = e.flux;
+      e.radiance = color * light.desc.power;
     }
     if (max_component(e.flux) > 0.0f) out.push_back(e);
   }
-  for (const Mesh& mesh : scene.meshes) {
+  for (uint32_t mesh_id = 0; mesh_id < scene.meshes.size(); ++mesh_id) {
+    const Mesh& mesh = scene.meshes[mesh_id];
     for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
       const Vec3 emission = scene.materials.empty() ? Vec3{} : scene.materials[mesh.material_ids[t]].emission;
       if (max_component(emission) <= 0.0f) continue;
@@ -113,6 +120,10 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
       // Both sides emit radiance L: flux 2 pi L A.
       e.flux = emission * (2.0f * kPi * area);
       e.scale = e.flux;
+      e.radiance = emission;
+      e.area = area;
+      e.mesh = mesh_id;
+      e.triangle = t;
       out.push_back(e);
     }
   }
@@ -124,6 +135,7 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
     e.radius = radius;
     e.flux = scene.world * (4.0f * kPi * disk_area);
     e.scale = e.flux;
+    e.radiance = scene.world;
     out.push_back(e);
   }
   return out;
@@ -213,5 +225,98 @@ EmitterSample sample_emitter(const Emitter& e, const float u[4]) {
   return s;
 }
 
-}  // namespace plm
+namespace {
 
+// Direction uniform in the cone of half-angle acos(cos_half) around axis.
+Vec3 sample_cone(Vec3 axis, float cos_half, float u0, float u1) {
+  const float c = 1.0f - u0 * (1.0f - cos_half);
+  const float sn = std::sqrt(std::fmax(0.0f, 1.0f - c * c));
+  const float phi = 2.0f * kPi * u1;
+  Vec3 t, b;
+  make_frame(axis, t, b);
+  return t * (sn * std::cos(phi)) + b * (sn * std::sin(phi)) + axis * c;
+}
+
+// Irradiance from a point q on an emitting surface of radiance L and area A
+// (density 1/A), with emitter normal nl (two_sided: either side emits).
+DirectSample from_surface_point(Vec3 q, Vec3 nl, bool two_sided, Vec3 L, float A, Vec3 p, Vec3 n) {
+  DirectSample s{{0, 0, 0}, {0, 0, 1}, 0.0f};
+  const Vec3 v = q - p;
+  const float d2 = dot(v, v);
+  if (!(d2 > 0.0f)) return s;
+  const float d = std::sqrt(d2);
+  s.dir = v / d;
+  s.distance = d;
+  float cos_l = -dot(nl, s.dir);
+  if (two_sided) cos_l = std::fabs(cos_l);
+  const float cos_s = dot(n, s.dir);
+  if (cos_l > 0.0f && cos_s > 0.0f) s.irradiance = L * (cos_l * cos_s * A / d2);
+  return s;
+}
+
+}  // namespace
+
+DirectSample sample_direct(const Emitter& e, Vec3 p, Vec3 n, const float u[3]) {
+  DirectSample s{{0, 0, 0}, {0, 0, 1}, std::numeric_limits<float>::infinity()};
+  switch (e.kind) {
+    case EmitterKind::Point:
+    case EmitterKind::Spot: {
+      // Cycles 3.4: a disk of radius r facing p: I cos / (d^2 + r^2), soft shadows from the disk.
+      const Vec3 v = e.origin - p;
+      const float d2 = dot(v, v);
+      if (!(d2 > 0.0f)) return s;
+      const Vec3 w = v / std::sqrt(d2);
+      const float cos_s = dot(n, w);
+      if (cos_s <= 0.0f) return s;
+      Vec3 target = e.origin;
+      if (e.radius > 0.0f) {
+        float dx, dy;
+        concentric_disk(u[0], u[1], dx, dy);
+        Vec3 t, b;
+        make_frame(w, t, b);
+        target += (t * dx + b * dy) * e.radius;
+      }
+      const Vec3 to = target - p;
+      s.distance = length(to);
+      s.dir = to / s.distance;
+      // As Cycles, the spot cone is taken from the sampled point of the disk.
+      float att = 1.0f;
+      if (e.kind == EmitterKind::Spot) att = spot_attenuation(-dot(s.dir, e.normal), e.cos_half, e.spot_smooth);
+      if (att <= 0.0f) return s;
+      s.irradiance = e.radiance * (att * cos_s / (d2 + e.radius * e.radius));
+      return s;
+    }
+    case EmitterKind::Sun: {
+      const Vec3 travel = e.cos_half < 1.0f ? sample_cone(e.normal, e.cos_half, u[0], u[1]) : e.normal;
+      s.dir = -travel;
+      const float cos_s = dot(n, s.dir);
+      if (cos_s > 0.0f) s.irradiance = e.radiance * cos_s;
+      return s;
+    }
+    case EmitterKind::World: {
+      const Vec3 local = cosine_hemisphere(u[0], u[1]);
+      Vec3 t, b;
+      make_frame(n, t, b);
+      s.dir = t * local.x + b * local.y + n * local.z;
+      s.irradiance = e.radiance * kPi;  // cosine-weighted: L cos / (cos / pi)
+      return s;
+    }
+    case EmitterKind::AreaRect:
+    case EmitterKind::AreaDisk: {
+      float x = 2.0f * u[0] - 1.0f, y = 2.0f * u[1] - 1.0f;
+      if (e.kind == EmitterKind::AreaDisk) concentric_disk(u[0], u[1], x, y);
+      return from_surface_point(e.origin + e.axis_u * x + e.axis_v * y, e.normal, false, e.radiance, e.area, p, n);
+    }
+    case EmitterKind::Triangle: {
+      float a = u[0], b = u[1];
+      if (a + b > 1.0f) {
+        a = 1.0f - a;
+        b = 1.0f - b;
+      }
+      return from_surface_point(e.origin + e.axis_u * a + e.axis_v * b, e.normal, true, e.radiance, e.area, p, n);
+    }
+  }
+  return s;
+}
+
+}  // namespace plm

@@ -23,6 +23,11 @@ struct Emitter {
   float radius = 0;     // point/spot: light radius; sun/world: radius of the scene's bounding sphere
   float cos_half = 1;   // spot: cos(spot_size / 2); sun: cos(angle / 2)
   float spot_smooth = 0;
+  // For direct lighting: intensity (point/spot, W/sr), irradiance (sun),
+  // radiance (area, triangle, world); and the emitting area (area, triangle).
+  Vec3 radiance;
+  float area = 0;
+  uint32_t mesh = 0, triangle = 0;  // Triangle: where it is in the scene
 };
 
 struct EmitterSample {
@@ -44,5 +49,15 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 scene_center, float
 
 // Samples an origin and a direction from four uniform numbers in [0, 1).
 EmitterSample sample_emitter(const Emitter& e, const float u[4]);
+
+// Direct light at surface point p with unit normal n (the side it faces):
+// an unbiased sample of the irradiance this emitter gives p if the shadow ray
+// (p towards dir, up to distance; infinite for sun and world) is unblocked.
+struct DirectSample {
+  Vec3 irradiance;
+  Vec3 dir;
+  float distance;
+};
+DirectSample sample_direct(const Emitter& e, Vec3 p, Vec3 n, const float u[3]);
 
 }  // namespace plm

@@ -13,6 +13,18 @@ inline uint64_t splitmix64(uint64_t x) {
   return x ^ (x >> 31);
 }
 
+// Van der Corput radical inverse in base 2 of i, in [0, 1): every prefix of
+// the sequence is stratified, whatever its length.
+inline double radical_inverse2(uint64_t i) {
+  i = (i << 32) | (i >> 32);
+  i = ((i & 0x0000FFFF0000FFFFull) << 16) | ((i & 0xFFFF0000FFFF0000ull) >> 16);
+  i = ((i & 0x00FF00FF00FF00FFull) << 8) | ((i & 0xFF00FF00FF00FF00ull) >> 8);
+  i = ((i & 0x0F0F0F0F0F0F0F0Full) << 4) | ((i & 0xF0F0F0F0F0F0F0F0ull) >> 4);
+  i = ((i & 0x3333333333333333ull) << 2) | ((i & 0xCCCCCCCCCCCCCCCCull) >> 2);
+  i = ((i & 0x5555555555555555ull) << 1) | ((i & 0xAAAAAAAAAAAAAAAAull) >> 1);
+  return double(i >> 11) * (1.0 / 9007199254740992.0);
+}
+
 // PCG32 (O'Neill): small state, good statistics, fast.
 class Rng {
  public:

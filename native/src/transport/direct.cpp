@@ -1,0 +1,149 @@
+#include "transport/direct.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "util/rng.h"
+
+namespace plm {
+
+double DirectSums::variance_of_mean() const {
+  if (count == 0) return 0.0;
+  const double m = mean();
+  if (paired == 0) return m * m;
+  // Stratified samples: neighbouring strata differ by noise plus a little
+  // gradient, so sum (a - b)^2 over pairs bounds the sum of the samples'
+  // variances (Var(a) + Var(b) + (mean difference)^2) without counting the
+  // texel's smooth variation as noise, as a plain sample variance would.
+  return pair_sq * (double(count) / double(paired)) / (double(count) * double(count));
+}
+
+DirectPass::DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<TexelAreas>& areas,
+                       const std::vector<Emitter>& emitters, uint32_t seed, float scene_extent)
+    : rtc_(rtc), views_(views), areas_(areas), emitters_(emitters), seed_(seed),
+      offset_scale_(1e-6f * scene_extent) {
+  double total = 0.0;
+  for (const Emitter& e : emitters) total += average(e.flux);
+  double running = 0.0;
+  for (const Emitter& e : emitters) {
+    running += average(e.flux);
+    cdf_.push_back(running / total);
+    pick_.push_back(float(average(e.flux) / total));
+  }
+  if (!cdf_.empty()) cdf_.back() = 1.0;
+  triangle_emitter_.resize(views.size());
+  for (size_t k = 0; k < emitters.size(); ++k) {
+    if (emitters[k].kind != EmitterKind::Triangle) continue;
+    std::vector<int32_t>& map = triangle_emitter_[emitters[k].mesh];
+    if (map.empty()) map.assign(views[emitters[k].mesh].mesh->triangle_count(), -1);
+    map[emitters[k].triangle] = int32_t(k);
+    has_triangle_emitters_ = true;
+  }
+}
+
+// The surface point at texel coordinates (x, y) (texel units), if a triangle covers it.
+bool DirectPass::surface_point(uint32_t mesh_id, uint32_t texel, float x, float y, Vec3& p, Vec3& n,
+                               uint32_t& tri) const {
+  const Mesh& mesh = *views_[mesh_id].mesh;
+  const TexelAreas& ta = areas_[mesh_id];
+  const float w = float(mesh.lightmap_width), h = float(mesh.lightmap_height);
+  for (uint32_t k = ta.tri_begin[texel]; k < ta.tri_begin[texel + 1]; ++k) {
+    const uint32_t t = ta.tri_ids[k];
+    const float* uv = &mesh.uv[6 * size_t(t)];
+    const float ax = uv[0] * w, ay = uv[1] * h;
+    const float e1x = uv[2] * w - ax, e1y = uv[3] * h - ay, e2x = uv[4] * w - ax, e2y = uv[5] * h - ay;
+    const float det = e1x * e2y - e2x * e1y;
+    if (det == 0.0f) continue;
+    const float qx = x - ax, qy = y - ay;
+    const float b1 = (qx * e2y - e2x * qy) / det, b2 = (e1x * qy - qx * e1y) / det;
+    const float eps = -1e-6f;
+    if (b1 < eps || b2 < eps || b1 + b2 > 1.0f - eps) continue;
+    const Vec3 p0 = mesh.vertex(t, 0), p1 = mesh.vertex(t, 1), p2 = mesh.vertex(t, 2);
+    p = p0 + (p1 - p0) * b1 + (p2 - p0) * b2;
+    n = normalize(cross(p1 - p0, p2 - p0));
+    tri = t;
+    return true;
+  }
+  return false;
+}
+
+void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
+                              DirectSums& sums) const {
+  if (emitters_.empty()) return;
+  const Mesh& mesh = *views_[mesh_id].mesh;
+  const uint64_t global = views_[mesh_id].texel_offset + texel;
+  Rng rng(seed_ ^ 0x9E3779B9u, (global << 8) | (round & 0xFF));
+  const uint32_t m = std::max(1u, uint32_t(std::ceil(std::sqrt(double(samples)))));
+  const uint32_t n = m * m;
+  const float x0 = float(texel % mesh.lightmap_width), y0 = float(texel / mesh.lightmap_width);
+  TraceContext tc;
+  tc.skip_geom = mesh_id;
+  uint32_t previous = ~0u;  // the last accepted stratum, and its value
+  double previous_value = 0.0;
+  for (uint32_t j = 0; j < n; ++j) {
+    const float x = x0 + (float(j % m) + rng.next_float()) / float(m);
+    const float y = y0 + (float(j / m) + rng.next_float()) / float(m);
+    Vec3 p, normal;
+    uint32_t tri;
+    const float u_pick = (float(j) + rng.next_float()) / float(n);
+    const float u[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
+    if (!surface_point(mesh_id, texel, x, y, p, normal, tri)) continue;  // outside the islands
+    const size_t k = std::min<size_t>(std::upper_bound(cdf_.begin(), cdf_.end(), double(u_pick)) - cdf_.begin(),
+                                      emitters_.size() - 1);
+    const Emitter& em = emitters_[k];
+    const DirectSample ds = sample_direct(em, p, normal, u);
+    const Vec3 origin = offset_origin(p, normal, offset_scale_);
+    tc.skip_prim = tri;
+    tc.target_geom = em.kind == EmitterKind::Triangle ? em.mesh : RTC_INVALID_GEOMETRY_ID;
+    tc.target_prim = em.kind == EmitterKind::Triangle ? em.triangle : RTC_INVALID_GEOMETRY_ID;
+    Vec3 e{0, 0, 0};
+    if (max_component(ds.irradiance) > 0.0f) {
+      const float tfar = std::isinf(ds.distance) ? ds.distance : ds.distance * (1.0f - 1e-4f);
+      if (!occluded(rtc_, tc, origin, ds.dir, tfar)) {
+        float weight = 1.0f;
+        if (em.kind == EmitterKind::Triangle) {  // balance heuristic against cosine sampling
+          const float cos_l = std::fabs(dot(em.normal, ds.dir)), cos_s = dot(normal, ds.dir);
+          const float p_light = pick_[k] * ds.distance * ds.distance / (cos_l * em.area);
+          weight = p_light / (p_light + cos_s / kPi);
+        }
+        e = ds.irradiance * (weight / (kPi * pick_[k]));
+      }
+    }
+    if (has_triangle_emitters_) {
+      const Vec3 local = cosine_hemisphere(rng.next_float(), rng.next_float());
+      Vec3 t, b;
+      make_frame(normal, t, b);
+      const Vec3 dir = t * local.x + b * local.y + normal * local.z;
+      tc.target_geom = tc.target_prim = RTC_INVALID_GEOMETRY_ID;
+      RTCRayHit rh;
+      rh.ray = make_ray(origin, dir, std::numeric_limits<float>::infinity());
+      rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+      rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+      rtcIntersect1(rtc_, &tc.context, &rh);
+      if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+        const std::vector<int32_t>& map = triangle_emitter_[rh.hit.geomID];
+        const int32_t hit_emitter = map.empty() ? -1 : map[rh.hit.primID];
+        if (hit_emitter >= 0) {
+          const Emitter& he = emitters_[size_t(hit_emitter)];
+          const float cos_l = std::fabs(dot(he.normal, dir)), cos_s = local.z;
+          const float p_light = pick_[size_t(hit_emitter)] * rh.ray.tfar * rh.ray.tfar / (cos_l * he.area);
+          const float p_cos = cos_s / kPi;
+          // Irradiance estimate L cos / p_cos = pi L, weighted; stored as irradiance / pi.
+          if (cos_l > 0.0f && p_cos > 0.0f) e += he.radiance * (p_cos / (p_light + p_cos));
+        }
+      }
+    }
+    for (int c = 0; c < 3; ++c) sums.rgb[c] += e[c];
+    const double a = (double(e.x) + e.y + e.z) / 3.0;
+    if (j % 2 == 1 && previous == j - 1) {  // strata 2i and 2i + 1 are neighbours
+      sums.pair_sq += (a - previous_value) * (a - previous_value);
+      sums.paired += 2;
+    }
+    previous = j;
+    previous_value = a;
+    ++sums.count;
+  }
+}
+
+}  // namespace plm

@@ -1,0 +1,54 @@
+// The direct pass (thesis 3.5.2, two-pass use of lightmaps): each texel's
+// direct light is estimated from stratified points inside the part of the
+// texel its triangles cover, one shadow ray per point towards a light chosen
+// in proportion to power. Rounds can be added to texels that stay noisy.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "lightmap/texel_area.h"
+#include "transport/emitters.h"
+#include "transport/tracing.h"
+
+namespace plm {
+
+// Per covered texel: sums of (irradiance / pi) samples.
+struct DirectSums {
+  double rgb[3] = {0, 0, 0};
+  double pair_sq = 0;   // sum over neighbouring stratum pairs of squared mean-RGB differences
+  uint32_t paired = 0;  // samples in those pairs
+  uint32_t count = 0;
+  double mean() const { return count ? (rgb[0] + rgb[1] + rgb[2]) / (3.0 * count) : 0.0; }
+  // Squared standard error of the mean; with no pair yet, 100% uncertain.
+  double variance_of_mean() const;
+};
+
+class DirectPass {
+ public:
+  DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<TexelAreas>& areas,
+             const std::vector<Emitter>& emitters, uint32_t seed, float scene_extent);
+
+  // Adds `samples` (rounded up to a square) stratified samples of round `round`
+  // to texel `texel` of mesh `mesh`. Thread-safe for distinct texels.
+  void sample_texel(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums) const;
+
+ private:
+  bool surface_point(uint32_t mesh, uint32_t texel, float x, float y, Vec3& p, Vec3& n, uint32_t& tri) const;
+
+  RTCScene rtc_;
+  const std::vector<MeshView>& views_;
+  const std::vector<TexelAreas>& areas_;
+  const std::vector<Emitter>& emitters_;
+  std::vector<double> cdf_;
+  std::vector<float> pick_;
+  // Emissive triangles are also found by cosine-sampled rays, combined with
+  // light sampling by multiple importance sampling (balance heuristic): near
+  // a large emitter light sampling alone has a heavy-tailed 1/d^2 variance.
+  std::vector<std::vector<int32_t>> triangle_emitter_;  // [mesh][triangle] -> emitter or -1
+  bool has_triangle_emitters_ = false;
+  uint32_t seed_;
+  float offset_scale_;
+};
+
+}  // namespace plm

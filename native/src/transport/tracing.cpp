@@ -1,0 +1,27 @@
+#include "transport/tracing.h"
+
+namespace plm {
+namespace {
+
+// A ray never hits the flat triangle it leaves: rejecting that one triangle
+// removes self-intersection at any angle, so the origin offset can stay tiny.
+// A shadow ray towards a point on an emitting triangle likewise ignores that
+// triangle, which float rounding far from the origin could otherwise hit.
+void skip_origin_triangle(const RTCFilterFunctionNArguments* args) {
+  const auto* tc = reinterpret_cast<const TraceContext*>(args->context);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] == 0) continue;
+    const unsigned geom = RTCHitN_geomID(args->hit, args->N, i), prim = RTCHitN_primID(args->hit, args->N, i);
+    if ((geom == tc->skip_geom && prim == tc->skip_prim) || (geom == tc->target_geom && prim == tc->target_prim))
+      args->valid[i] = 0;
+  }
+}
+
+}  // namespace
+
+TraceContext::TraceContext() {
+  rtcInitIntersectContext(&context);
+  context.filter = skip_origin_triangle;
+}
+
+}  // namespace plm

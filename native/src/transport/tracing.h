@@ -1,0 +1,61 @@
+// What the photon pass and the direct pass share: the per-mesh view of the
+// flat arrays, the ray context that skips the triangle a ray leaves, and the
+// origin offset.
+#pragma once
+
+#include <embree3/rtcore.h>
+
+#include <cstdint>
+#include <limits>
+
+#include "scene/scene.h"
+#include "util/math.h"
+
+namespace plm {
+
+// Read-only data the hot loops need, flattened at set-up.
+struct MeshView {
+  const Mesh* mesh;
+  uint64_t texel_offset;     // into the global texel arrays
+  const double* texel_area;  // world area per texel, null without lightmap
+};
+
+struct TraceContext {
+  RTCIntersectContext context;  // first member: Embree hands back this pointer
+  unsigned skip_geom = RTC_INVALID_GEOMETRY_ID;  // the triangle the ray leaves
+  unsigned skip_prim = RTC_INVALID_GEOMETRY_ID;
+  unsigned target_geom = RTC_INVALID_GEOMETRY_ID;  // the emitting triangle a shadow ray aims at
+  unsigned target_prim = RTC_INVALID_GEOMETRY_ID;
+  TraceContext();
+};
+
+// Ray origin just off the surface at p on the side of unit normal n.
+inline Vec3 offset_origin(Vec3 p, Vec3 n, float offset_scale) {
+  return p + n * (offset_scale + 2.5e-7f * max_abs_component(p));
+}
+
+inline RTCRay make_ray(Vec3 org, Vec3 dir, float tfar) {
+  RTCRay r;
+  r.org_x = org.x;
+  r.org_y = org.y;
+  r.org_z = org.z;
+  r.dir_x = dir.x;
+  r.dir_y = dir.y;
+  r.dir_z = dir.z;
+  r.tnear = 0.0f;
+  r.tfar = tfar;
+  r.time = 0.0f;
+  r.mask = 0xFFFFFFFFu;
+  r.id = 0;
+  r.flags = 0;
+  return r;
+}
+
+// True if anything lies between org and org + dir * tfar (tfar may be infinite).
+inline bool occluded(RTCScene scene, TraceContext& tc, Vec3 org, Vec3 dir, float tfar) {
+  RTCRay r = make_ray(org, dir, tfar);
+  rtcOccluded1(scene, &tc.context, &r);
+  return r.tfar < 0.0f;
+}
+
+}  // namespace plm
