@@ -5,6 +5,7 @@
 #include <random>
 
 #include "lightmap/dilate.h"
+#include "lightmap/reconstruct.h"
 
 namespace plm {
 namespace {
@@ -76,35 +77,70 @@ TEST(TexelArea, ReportsOverlapZeroUvAndOutside) {
   EXPECT_EQ(a.outside_triangles, 1u);
 }
 
-// Two quads side by side in UV, each with a sliver reaching into the other's
-// texels: the slivers merge into their own quad's texels, never across.
-TEST(TexelArea, SparseTexelsMergeOnlyWithinTheirSurface) {
+// Two quads side by side in UV but 5 m apart in the world: the barely
+// covered texels pool with their own quad's texels, never across.
+TEST(Reconstruct, PoolsOnlyWithinTheSameSurface) {
   Mesh m;
-  // Quad A at z = 0 (UV x in [0, 0.501]), quad B at z = 5 facing the same way (UV x in [0.501, 1]).
   m.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 5}, {1, 0, 5}, {1, 1, 5}, {0, 1, 5}, {}};
   m.vertex_count = 8;
   m.indices = {0, 1, 2, 0, 2, 3, 4, 5, 6, 4, 6, 7};
-  const float s = 0.501f;
-  m.uv = {0, 0, s, 0, s, 1, 0, 0, s, 1, 0, 1, s, 0, 1, 0, 1, 1, s, 0, 1, 1, s, 1};
-  m.lightmap_width = 4;
-  m.lightmap_height = 4;
-  const TexelAreas a = compute_texel_areas(m);
-  const std::vector<uint32_t> shown = merge_sparse_texels(a, 4, 4);
-  for (uint32_t y = 0; y < 4; ++y) {
-    const uint32_t t = y * 4 + 2;  // texel 2 holds a sliver of A (0.004 wide) and most of B
-    EXPECT_EQ(shown[t], t);         // well covered: not merged
-    EXPECT_EQ(shown[y * 4 + 1], y * 4 + 1);
-  }
-  // A sliver-only texel: move A's right edge to 0.2505 so texel 1 holds 0.002 of A.
+  // Quad A covers UV x in [0, 0.2505] (texel 1 holds a 0.002 sliver), B covers [0.6, 1].
   const float r = 0.2505f;
   m.uv = {0, 0, r, 0, r, 1, 0, 0, r, 1, 0, 1, 0.6f, 0, 1, 0, 1, 1, 0.6f, 0, 1, 1, 0.6f, 1};
-  const TexelAreas b = compute_texel_areas(m);
-  const std::vector<uint32_t> shown_b = merge_sparse_texels(b, 4, 4);
-  for (uint32_t y = 0; y < 4; ++y) {
-    EXPECT_LT(b.coverage[y * 4 + 1], 0.01f);
-    EXPECT_EQ(shown_b[y * 4 + 1] % 4, 0u) << "row " << y;  // into A's texel 0, not B's texel 2
-    EXPECT_EQ(shown_b[y * 4 + 2], y * 4 + 2u);  // B's partly covered texel (0.6) stays itself
+  m.lightmap_width = m.lightmap_height = 4;
+  const TexelAreas a = compute_texel_areas(m);
+  // Exact photon sums: flux density 1 on A (per unit area), 100 on B.
+  std::vector<double> flux(3 * 16, 0.0), sq(16, 0.0);
+  std::vector<uint32_t> hits(16, 0);
+  for (uint32_t t = 0; t < 16; ++t) {
+    const bool on_b = t % 4 >= 2;
+    for (int c = 0; c < 3; ++c) flux[3 * t + c] = (on_b ? 100.0 : 1.0) * a.area[t] * kPiD;
   }
+  ReconstructParams params;
+  std::vector<double> value, mse;
+  // Noise-free sums: any pooling only adds bias, so the lightmap keeps radius 0...
+  EXPECT_EQ(reconstruct_indirect(a, 4, 4, {flux.data(), sq.data(), hits.data()}, params, value, mse), 0u);
+  for (uint32_t y = 0; y < 4; ++y) {
+    EXPECT_LT(a.coverage[y * 4 + 1], 0.01f);
+    EXPECT_NEAR(value[3 * (y * 4 + 1)], 1.0, 1e-9);    // ...the sliver pools with A only (not 100)
+    EXPECT_NEAR(value[3 * (y * 4 + 2)], 100.0, 1e-9);  // B stays B
+    EXPECT_NEAR(value[3 * (y * 4 + 0)], 1.0, 1e-9);
+  }
+}
+
+// The radius follows the estimated error: noisy sums of a flat field pool
+// widely; exact sums of a steep field stay unpooled.
+TEST(Reconstruct, ChoosesTheRadiusWithTheLeastEstimatedError) {
+  Mesh m;
+  m.positions = {{0, 0, 0}, {16, 0, 0}, {16, 16, 0}, {0, 16, 0}, {}};
+  m.vertex_count = 4;
+  m.indices = {0, 1, 2, 0, 2, 3};
+  m.uv = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
+  m.lightmap_width = m.lightmap_height = 16;
+  const TexelAreas a = compute_texel_areas(m);
+  std::vector<double> flux(3 * 256), sq(256);
+  std::vector<uint32_t> hits(256);
+  std::mt19937 gen(3);
+  std::poisson_distribution<int> poisson(4.0);
+  for (uint32_t t = 0; t < 256; ++t) {  // flat field, about 4 hits of flux 1 per texel
+    hits[t] = uint32_t(poisson(gen));
+    for (int c = 0; c < 3; ++c) flux[3 * t + c] = hits[t];
+    sq[t] = hits[t];
+  }
+  ReconstructParams params;
+  std::vector<double> value, mse;
+  EXPECT_EQ(reconstruct_indirect(a, 16, 16, {flux.data(), sq.data(), hits.data()}, params, value, mse), 2u);
+  double err = 0.0;  // the pooled values are close to the truth, 4 / pi
+  for (uint32_t y = 2; y < 14; ++y)
+    for (uint32_t x = 2; x < 14; ++x) err = std::max(err, std::fabs(value[3 * (y * 16 + x)] - 4.0 / kPiD));
+  EXPECT_LT(err, 0.5 * 4.0 / kPiD);
+  for (uint32_t t = 0; t < 256; ++t) {  // steep exact field: 1000 hits, value grows 10x per texel
+    const double v = std::pow(10.0, (t % 16) / 4.0);
+    for (int c = 0; c < 3; ++c) flux[3 * t + c] = v * kPiD;
+    hits[t] = 1000;
+    sq[t] = v * v * kPiD * kPiD / 1000.0;
+  }
+  EXPECT_EQ(reconstruct_indirect(a, 16, 16, {flux.data(), sq.data(), hits.data()}, params, value, mse), 0u);
 }
 
 TEST(Dilate, FillsRingsFromFilledNeighbours) {

@@ -235,13 +235,15 @@ class Scene(_Handle):
         _check(_C.plm_scene_set_world(self._h, _ptr(rad, ctypes.c_float)))
 
     def bake(self, photons=1_000_000, max_bounces=1024, seed=0, threads=0, dilation=8, progress=None,
-             target_error=0.0, time_budget=0.0, direct_samples=64):
+             target_error=0.0, time_budget=0.0, direct_samples=64, filter_radius=2):
         """Bake all lightmaps and return a Result. The GIL is released while the engine runs.
 
         Two passes: direct light from direct_samples shadow-ray points per texel (0 = photons
         carry direct light too), indirect light from photons. With target_error (relative RMS
         error, e.g. 0.02) or time_budget (seconds) set, photons are traced until the estimated
         error reaches the target or the time is spent; photons is then the cap (0 = none).
+        filter_radius: largest radius in texels over which a texel's photon estimate pools
+        neighbours on the same surface until it holds enough hits (0 = each texel alone).
 
         progress: optional callable(fraction, stage) called from this thread every few tenths
         of a second; returning False cancels (BakeCancelled). An exception raised in it cancels
@@ -255,6 +257,7 @@ class Scene(_Handle):
         settings.thread_count = _uint(threads, "threads")
         settings.dilation = _uint(dilation, "dilation")
         settings.direct_samples = _uint(direct_samples, "direct_samples")
+        settings.filter_radius = _uint(filter_radius, "filter_radius")
         for name, value in (("target_error", target_error), ("time_budget", time_budget)):
             value = float(value)
             if not value >= 0.0:

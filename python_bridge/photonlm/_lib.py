@@ -78,7 +78,7 @@ class plm_bake_settings(ctypes.Structure):
         ("target_error", c_double),
         ("time_budget", c_double),
         ("direct_samples", c_uint32),
-        ("reserved", c_uint32),
+        ("filter_radius", c_uint32),
     ]
 
 

@@ -148,11 +148,12 @@ typedef struct plm_bake_settings {
   double target_error;      /* relative RMS error to reach, e.g. 0.02; 0 = none */
   double time_budget;       /* seconds for the whole bake; 0 = none */
   uint32_t direct_samples;  /* shadow-ray points per texel and round; 0 = photons only */
-  uint32_t reserved;        /* must be 0 */
+  uint32_t filter_radius;   /* largest radius (texels) over which a texel's photon estimate pools
+                               same-surface neighbours until it holds enough hits; 0 = none */
 } plm_bake_settings;
 
 /* photon_count 1,000,000, max_bounces 1024, seed 0, threads 0, dilation 8,
- * no target error, no time budget, direct_samples 64. */
+ * no target error, no time budget, direct_samples 64, filter_radius 2. */
 PLM_API void plm_bake_settings_default(plm_bake_settings* settings);
 
 /* Called from the thread that called plm_bake, at least every few tenths of a

@@ -88,39 +88,4 @@ TexelAreas compute_texel_areas(const Mesh& mesh) {
   return out;
 }
 
-std::vector<uint32_t> merge_sparse_texels(const TexelAreas& areas, uint32_t width, uint32_t height,
-                                          float min_coverage) {
-  const size_t n = size_t(width) * height;
-  std::vector<uint32_t> target(n);
-  double total_area = 0.0, total_cover = 0.0;
-  for (size_t t = 0; t < n; ++t) {
-    target[t] = uint32_t(t);
-    total_area += areas.area[t];
-    total_cover += areas.coverage[t];
-  }
-  if (!(total_cover > 0.0)) return target;
-  const float texel_width = float(std::sqrt(total_area / total_cover));
-  const float reach2 = (2.5f * texel_width) * (2.5f * texel_width);
-  for (uint32_t y = 0; y < height; ++y) {
-    for (uint32_t x = 0; x < width; ++x) {
-      const uint32_t t = y * width + x;
-      if (!(areas.area[t] > 0.0) || areas.coverage[t] >= min_coverage) continue;
-      float best = min_coverage;
-      for (int dy = -1; dy <= 1; ++dy) {
-        for (int dx = -1; dx <= 1; ++dx) {
-          const int64_t nx = int64_t(x) + dx, ny = int64_t(y) + dy;
-          if (nx < 0 || ny < 0 || nx >= width || ny >= height || (dx == 0 && dy == 0)) continue;
-          const uint32_t m = uint32_t(ny) * width + uint32_t(nx);
-          if (areas.coverage[m] < best) continue;
-          const Vec3 gap = areas.position[m] - areas.position[t];
-          if (dot(areas.normal[m], areas.normal[t]) < 0.9f || dot(gap, gap) > reach2) continue;
-          best = areas.coverage[m];
-          target[t] = m;
-        }
-      }
-    }
-  }
-  return target;
-}
-
 }  // namespace plm

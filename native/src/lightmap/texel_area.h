@@ -37,14 +37,6 @@ void clip_triangle_to_grid(const double tri[6], uint32_t width, uint32_t height,
 
 TexelAreas compute_texel_areas(const Mesh& mesh);
 
-// Texels barely touched by a UV island (coverage below min_coverage) collect
-// so few photons that single hits make bright dots. Each such texel is merged
-// with its best-covered 8-neighbour that continues the same surface (normals
-// within ~25 degrees, positions within 2.5 texel widths); both then show the
-// pooled value. Returns, per texel, the texel whose sums it shows (itself if
-// not merged); merge targets are never merged themselves.
-std::vector<uint32_t> merge_sparse_texels(const TexelAreas& areas, uint32_t width, uint32_t height,
-                                          float min_coverage = 0.25f);
 
 }  // namespace plm
 

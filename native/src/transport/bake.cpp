@@ -12,6 +12,7 @@
 
 #include "accel/embree_scene.h"
 #include "lightmap/dilate.h"
+#include "lightmap/reconstruct.h"
 #include "lightmap/texel_area.h"
 #include "transport/direct.h"
 #include "transport/emitters.h"
@@ -222,7 +223,7 @@ void validate(const Scene& scene, const plm_bake_settings& s) {
     fail(PLM_ERROR_INVALID_ARGUMENT, "settings: time_budget ", s.time_budget, " must be a number of seconds >= 0");
   if (s.direct_samples > 65536)
     fail(PLM_ERROR_INVALID_ARGUMENT, "settings: direct_samples ", s.direct_samples, " exceeds 65536");
-  if (s.reserved != 0) fail(PLM_ERROR_INVALID_ARGUMENT, "settings: reserved must be 0");
+  if (s.filter_radius > 64) fail(PLM_ERROR_INVALID_ARGUMENT, "settings: filter_radius ", s.filter_radius, " exceeds 64 texels");
   if (s.dilation > 4096) fail(PLM_ERROR_INVALID_ARGUMENT, "settings: dilation ", s.dilation, " exceeds 4096 texels");
   if (scene.meshes.empty()) fail(PLM_ERROR_INVALID_SCENE, "the scene has no meshes: nothing to bake");
   uint64_t texels = 0;
@@ -240,19 +241,11 @@ struct CoveredTexel {
   double area;           // world area
 };
 
-// Estimated error over all covered texels: per texel, the direct pass's
-// variance plus the photon estimate's (sum of squared hit fluxes, with one
-// phantom average hit so that texels with few hits do not look exact).
-struct ErrorEstimate {
-  double relative = 0.0;  // sqrt(mean variance) / mean value
-  double direct = 0.0;    // the same with the direct variance alone
-  double mean_value = 0.0;
-};
-
+// Photon sums per texel over all lightmaps, merged batch by batch in order.
 class Accumulators {
  public:
-  Accumulators(uint64_t texels) : sum(3 * texels, 0.0), sum_sq(texels, 0.0), hits(texels, 0) {}
-  std::vector<double> sum, sum_sq;  // photon flux / pick probability (not yet divided by the count)
+  explicit Accumulators(uint64_t texels) : sum(3 * texels, 0.0), sum_sq(texels, 0.0), hits(texels, 0) {}
+  std::vector<double> sum, sum_sq;  // flux / pick probability (not yet divided by the photon count)
   std::vector<uint32_t> hits;
   double total_sq = 0.0;
   uint64_t total_hits = 0;
@@ -271,33 +264,72 @@ class Accumulators {
   }
 };
 
-ErrorEstimate estimate_error(const std::vector<CoveredTexel>& covered, const std::vector<DirectSums>& direct,
-                             const Accumulators& acc, uint64_t photons, std::vector<double>* per_texel = nullptr) {
-  ErrorEstimate out;
-  if (covered.empty()) return out;
-  const double n = double(std::max<uint64_t>(photons, 1));
-  const double phantom = acc.total_hits ? acc.total_sq / double(acc.total_hits) : 0.0;
-  double var_sum = 0.0, var_direct = 0.0, value_sum = 0.0;
-  if (per_texel) per_texel->clear();
-  for (size_t i = 0; i < covered.size(); ++i) {
-    const CoveredTexel& c = covered[i];
-    const double scale = 1.0 / (c.area * kPiD * n);
-    double value = (acc.sum[3 * c.global] + acc.sum[3 * c.global + 1] + acc.sum[3 * c.global + 2]) / 3.0 * scale;
-    double var = photons ? (acc.sum_sq[c.global] + phantom) * scale * scale : 0.0;
-    if (!direct.empty()) {
-      value += direct[i].mean();
-      var_direct += direct[i].variance_of_mean();
-      var += direct[i].variance_of_mean();
+// Everything the final estimate of a texel needs, shared by the error checks
+// during the bake and the final images.
+struct Estimator {
+  const std::vector<TexelAreas>& areas;
+  const std::vector<MeshView>& views;
+  const std::vector<size_t>& covered_begin;  // per mesh: index of its first covered texel
+  const std::vector<DirectSums>& direct;     // per covered texel, or empty
+  const Accumulators& acc;
+  uint32_t filter_radius;
+
+  // Per texel: irradiance / pi (3 values) and its estimated mean squared error.
+  void texels(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance) const {
+    const Mesh& mesh = *views[i].mesh;
+    const size_t g0 = views[i].texel_offset;
+    ReconstructParams params;
+    params.max_radius = filter_radius;
+    params.photons = double(std::max<uint64_t>(photons, 1));
+    params.phantom_sq = acc.total_hits ? acc.total_sq / double(acc.total_hits) : 0.0;
+    if (photons > 0) {
+      reconstruct_indirect(areas[i], mesh.lightmap_width, mesh.lightmap_height,
+                           {&acc.sum[3 * g0], &acc.sum_sq[g0], &acc.hits[g0]}, params, value3, variance);
+    } else {
+      value3.assign(3 * size_t(mesh.lightmap_width) * mesh.lightmap_height, 0.0);
+      variance.assign(size_t(mesh.lightmap_width) * mesh.lightmap_height, 0.0);
     }
-    value_sum += value;
-    var_sum += var;
-    if (per_texel && value > 0.0) per_texel->push_back(std::sqrt(var) / value);
+    if (direct.empty()) return;
+    size_t k = covered_begin[i];
+    for (size_t t = 0; t < variance.size(); ++t) {
+      if (!(areas[i].area[t] > 0.0)) continue;
+      const DirectSums& d = direct[k++];
+      if (d.count)
+        for (int c = 0; c < 3; ++c) value3[3 * t + c] += d.rgb[c] / d.count;
+      variance[t] += d.variance_of_mean();
+    }
   }
-  const double m = double(covered.size());
-  out.mean_value = value_sum / m;
-  if (out.mean_value > 0.0) {
-    out.relative = std::sqrt(var_sum / m) / out.mean_value;
-    out.direct = std::sqrt(var_direct / m) / out.mean_value;
+};
+
+// Estimated error over all covered texels: sqrt(mean variance) / mean value,
+// texels weighted equally; per-texel relative errors on request.
+struct ErrorEstimate {
+  double relative = 0.0;
+  double direct = 0.0;  // the same with the direct variance alone
+};
+
+ErrorEstimate estimate_error(const Estimator& est, uint64_t photons, std::vector<double>* per_texel = nullptr) {
+  ErrorEstimate out;
+  double var_sum = 0.0, value_sum = 0.0, var_direct = 0.0, count = 0.0;
+  std::vector<double> value3, variance;
+  if (per_texel) per_texel->clear();
+  for (size_t i = 0; i < est.views.size(); ++i) {
+    if (!est.views[i].texel_area) continue;
+    est.texels(i, photons, value3, variance);
+    for (size_t t = 0; t < variance.size(); ++t) {
+      if (!(est.areas[i].area[t] > 0.0)) continue;
+      const double v = (value3[3 * t] + value3[3 * t + 1] + value3[3 * t + 2]) / 3.0;
+      value_sum += v;
+      var_sum += variance[t];
+      count += 1.0;
+      if (per_texel && v > 0.0) per_texel->push_back(std::sqrt(variance[t]) / v);
+    }
+  }
+  for (const DirectSums& d : est.direct) var_direct += d.variance_of_mean();
+  if (count > 0.0 && value_sum > 0.0) {
+    const double mean = value_sum / count;
+    out.relative = std::sqrt(var_sum / count) / mean;
+    out.direct = std::sqrt(var_direct / count) / mean;
   }
   return out;
 }
@@ -321,7 +353,7 @@ plm_bake_settings default_settings() {
   s.target_error = 0.0;
   s.time_budget = 0.0;
   s.direct_samples = 64;
-  s.reserved = 0;
+  s.filter_radius = 2;
   return s;
 }
 
@@ -351,10 +383,12 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
   std::vector<TexelAreas> areas(scene.meshes.size());
   std::vector<MeshView> views(scene.meshes.size());
   std::vector<CoveredTexel> covered;
+  std::vector<size_t> covered_begin(scene.meshes.size(), 0);
   uint64_t texel_count = 0;
   for (size_t i = 0; i < scene.meshes.size(); ++i) {
     const Mesh& mesh = scene.meshes[i];
     views[i] = {&mesh, texel_count, nullptr};
+    covered_begin[i] = covered.size();
     if (mesh.has_lightmap()) {
       areas[i] = compute_texel_areas(mesh);
       views[i].texel_area = areas[i].area.data();
@@ -426,6 +460,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
 
   // ---- Photon pass ----------------------------------------------------------
   Accumulators acc(texel_count);
+  const Estimator estimator{areas, views, covered_begin, direct, acc, settings.filter_radius};
   uint64_t photons = 0;
   const auto t_trace = Clock::now();
   if (photon_pass) {
@@ -460,7 +495,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
             photons = std::min(cap, (b + 1) * kBatchPhotons);
             if (settings.target_error > 0.0 && b + 1 == next_check) {
               next_check = std::max(next_check + kCheckBatches, (next_check * 5 / 4) / kCheckBatches * kCheckBatches);
-              const double err = estimate_error(covered, direct, acc, photons).relative;
+              const double err = estimate_error(estimator, photons).relative;
               fraction = std::max(fraction, std::min(1.0, std::pow(settings.target_error / std::max(err, 1e-12), 2.0)));
               done = err <= settings.target_error;
             }
@@ -483,7 +518,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
   out.stats.seconds_trace = seconds_since(t_trace);
 
   std::vector<double> per_texel;
-  const ErrorEstimate err = estimate_error(covered, direct, acc, photons, &per_texel);
+  const ErrorEstimate err = estimate_error(estimator, photons, &per_texel);
   out.stats.error_estimate = err.relative;
   out.stats.error_direct = err.direct;
   out.stats.error_median = percentile(per_texel, 0.5);
@@ -496,10 +531,8 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
 
   // ---- Lightmaps ------------------------------------------------------------
   report(0.95, "writing lightmaps");
-  std::vector<int64_t> covered_index(texel_count, -1);
-  for (size_t i = 0; i < covered.size(); ++i) covered_index[covered[i].global] = int64_t(i);
-  const double inv_photons = photons ? 1.0 / double(photons) : 0.0;
   out.lightmaps.resize(scene.meshes.size());
+  std::vector<double> value3, variance;
   for (size_t i = 0; i < scene.meshes.size(); ++i) {
     const Mesh& mesh = scene.meshes[i];
     if (!mesh.has_lightmap()) continue;
@@ -507,41 +540,16 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
     img.width = mesh.lightmap_width;
     img.height = mesh.lightmap_height;
     const size_t n = size_t(img.width) * img.height;
-    // Everything as flux over area so that barely covered texels can be pooled
-    // with their neighbour's (see merge_sparse_texels): R, G, B, variance, area.
-    const size_t g0 = views[i].texel_offset;
-    std::vector<double> pooled(5 * n, 0.0);
-    for (size_t t = 0; t < n; ++t) {
-      const double a = areas[i].area[t];
-      if (!(a > 0.0)) continue;
-      const double to_value = 1.0 / (a * kPiD);
-      double* p = &pooled[5 * t];
-      for (int c = 0; c < 3; ++c) p[c] = acc.sum[3 * (g0 + t) + c] * inv_photons;
-      p[3] = acc.sum_sq[g0 + t] * inv_photons * inv_photons;
-      p[4] = a;
-      const int64_t ci = covered_index[g0 + t];
-      if (!direct.empty() && ci >= 0) {
-        const DirectSums& d = direct[size_t(ci)];
-        for (int c = 0; c < 3; ++c) p[c] += d.count ? d.rgb[c] / d.count / to_value : 0.0;
-        p[3] += d.variance_of_mean() / (to_value * to_value);
-      }
-    }
-    const std::vector<uint32_t> shown = merge_sparse_texels(areas[i], img.width, img.height);
-    for (size_t t = 0; t < n; ++t) {
-      if (shown[t] == t) continue;
-      for (int k = 0; k < 5; ++k) pooled[5 * size_t(shown[t]) + k] += pooled[5 * t + k];
-    }
+    estimator.texels(i, photons, value3, variance);
     std::vector<float> values(4 * n, 0.0f);  // R, G, B, error: dilated together
     std::vector<uint8_t> filled(n, 0);
     img.hits.assign(n, 0.0f);
     img.coverage = areas[i].coverage;
     for (size_t t = 0; t < n; ++t) {
       if (!(areas[i].area[t] > 0.0)) continue;
-      const double* p = &pooled[5 * size_t(shown[t])];
-      const double scale = 1.0 / (p[4] * kPiD);
-      for (int c = 0; c < 3; ++c) values[4 * t + c] = float(p[c] * scale);
-      values[4 * t + 3] = float(std::sqrt(p[3]) * scale);
-      img.hits[t] = float(acc.hits[g0 + t]);
+      for (int c = 0; c < 3; ++c) values[4 * t + c] = float(value3[3 * t + c]);
+      values[4 * t + 3] = float(std::sqrt(variance[t]));
+      img.hits[t] = float(acc.hits[views[i].texel_offset + t]);
       filled[t] = 1;
     }
     dilate(values, 4, filled, img.width, img.height, settings.dilation);

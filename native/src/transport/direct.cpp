@@ -68,6 +68,80 @@ bool DirectPass::surface_point(uint32_t mesh_id, uint32_t texel, float x, float 
   return false;
 }
 
+// A point uniform over the part of texel (tx, ty) that the mesh covers:
+// clip each touching triangle to the texel square, pick a piece by area, then
+// a fan triangle of it by area, then a uniform point. For barely covered
+// texels, where stratified points in the square would almost all miss.
+bool DirectPass::point_in_pieces(uint32_t mesh_id, uint32_t texel, const float u[3], Vec3& p, Vec3& n,
+                                 uint32_t& tri) const {
+  const Mesh& mesh = *views_[mesh_id].mesh;
+  const TexelAreas& ta = areas_[mesh_id];
+  const double w = mesh.lightmap_width, h = mesh.lightmap_height;
+  const double tx = texel % mesh.lightmap_width, ty = texel / mesh.lightmap_width;
+  double pieces[16][2 * detail::kMaxPolygon];
+  int sizes[16];
+  double piece_area[16];
+  uint32_t piece_tri[16];
+  int count = 0;
+  double total = 0.0;
+  for (uint32_t k = ta.tri_begin[texel]; k < ta.tri_begin[texel + 1] && count < 16; ++k) {
+    const uint32_t t = ta.tri_ids[k];
+    const float* uv = &mesh.uv[6 * size_t(t)];
+    const double corners[6] = {uv[0] * w, uv[1] * h, uv[2] * w, uv[3] * h, uv[4] * w, uv[5] * h};
+    double a[2 * detail::kMaxPolygon], b[2 * detail::kMaxPolygon];
+    int m = detail::clip_polygon(corners, 3, 0, tx, -1.0, a);
+    m = detail::clip_polygon(a, m, 0, tx + 1.0, 1.0, b);
+    m = detail::clip_polygon(b, m, 1, ty, -1.0, a);
+    m = detail::clip_polygon(a, m, 1, ty + 1.0, 1.0, pieces[count]);
+    if (m < 3) continue;
+    const double area = polygon_area(pieces[count], m);
+    if (!(area > 0.0)) continue;
+    sizes[count] = m;
+    piece_area[count] = area;
+    piece_tri[count] = t;
+    total += area;
+    ++count;
+  }
+  if (count == 0) return false;
+  double pick = u[0] * total;
+  int c = 0;
+  while (c + 1 < count && pick > piece_area[c]) pick -= piece_area[c++];
+  const double* poly = pieces[c];
+  // Fan triangle (0, i, i + 1) chosen by area, reusing the remainder of the pick.
+  double fan_pick = pick;
+  int i = 1;
+  double fan[6];
+  for (;; ++i) {
+    fan[0] = poly[0], fan[1] = poly[1], fan[2] = poly[2 * i], fan[3] = poly[2 * i + 1];
+    fan[4] = poly[2 * i + 2], fan[5] = poly[2 * i + 3];
+    const double a = polygon_area(fan, 3);
+    if (i + 2 >= sizes[c] || fan_pick <= a) break;
+    fan_pick -= a;
+  }
+  double s = u[1], t = u[2];
+  if (s + t > 1.0) {
+    s = 1.0 - s;
+    t = 1.0 - t;
+  }
+  const float x = float(fan[0] + s * (fan[2] - fan[0]) + t * (fan[4] - fan[0]));
+  const float y = float(fan[1] + s * (fan[3] - fan[1]) + t * (fan[5] - fan[1]));
+  // Barycentric coordinates in the chosen triangle, clamped against rounding.
+  const uint32_t tt = piece_tri[c];
+  const float* uv = &mesh.uv[6 * size_t(tt)];
+  const float ax = uv[0] * float(w), ay = uv[1] * float(h);
+  const float e1x = uv[2] * float(w) - ax, e1y = uv[3] * float(h) - ay;
+  const float e2x = uv[4] * float(w) - ax, e2y = uv[5] * float(h) - ay;
+  const float det = e1x * e2y - e2x * e1y;
+  float b1 = ((x - ax) * e2y - e2x * (y - ay)) / det, b2 = (e1x * (y - ay) - (x - ax) * e1y) / det;
+  b1 = std::clamp(b1, 0.0f, 1.0f);
+  b2 = std::clamp(b2, 0.0f, 1.0f - b1);
+  const Vec3 p0 = mesh.vertex(tt, 0), p1 = mesh.vertex(tt, 1), p2 = mesh.vertex(tt, 2);
+  p = p0 + (p1 - p0) * b1 + (p2 - p0) * b2;
+  n = normalize(cross(p1 - p0, p2 - p0));
+  tri = tt;
+  return true;
+}
+
 void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
                               DirectSums& sums) const {
   if (emitters_.empty()) return;
@@ -79,6 +153,8 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   const float x0 = float(texel % mesh.lightmap_width), y0 = float(texel / mesh.lightmap_width);
   TraceContext tc;
   tc.skip_geom = mesh_id;
+  // Barely covered texels sample their covered pieces directly (no strata).
+  const bool sparse = areas_[mesh_id].coverage[texel] < 0.5f;
   uint32_t previous = ~0u;  // the last accepted stratum, and its value
   double previous_value = 0.0;
   for (uint32_t j = 0; j < n; ++j) {
@@ -88,7 +164,12 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
     uint32_t tri;
     const float u_pick = (float(j) + rng.next_float()) / float(n);
     const float u[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
-    if (!surface_point(mesh_id, texel, x, y, p, normal, tri)) continue;  // outside the islands
+    if (sparse) {
+      const float v[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
+      if (!point_in_pieces(mesh_id, texel, v, p, normal, tri)) continue;
+    } else if (!surface_point(mesh_id, texel, x, y, p, normal, tri)) {
+      continue;  // outside the islands
+    }
     const size_t k = std::min<size_t>(std::upper_bound(cdf_.begin(), cdf_.end(), double(u_pick)) - cdf_.begin(),
                                       emitters_.size() - 1);
     const Emitter& em = emitters_[k];

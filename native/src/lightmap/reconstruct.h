@@ -1,0 +1,46 @@
+// Reconstruction of the photon (indirect) part of a lightmap. A texel's
+// estimate may pool the photon sums of the neighbouring texels that continue
+// the same surface (never other islands or across creases) within a square of
+// radius r. Pooling trades variance for bias, and both are estimated:
+//   variance  from the squared hit fluxes of the pooled region;
+//   bias^2    from the change against the texel's own estimate,
+//             (v_r - v_0)^2 - (var_0 - var_r): unbiased for the squared bias.
+// Each lightmap gets the radius with the smallest estimated mean squared
+// error over its texels (averaged over thousands of texels, the choice is not
+// fooled by noise), and each texel reports sqrt(variance + bias^2) as its
+// error, so the bake's error estimate and steering stay honest.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "lightmap/texel_area.h"
+
+namespace plm {
+
+struct PhotonSums {
+  const double* flux;    // 3 per texel: sum of hit flux (not yet divided by the photon count)
+  const double* sq;      // 1 per texel: sum of squared mean-RGB hit flux
+  const uint32_t* hits;  // 1 per texel
+};
+
+struct ReconstructParams {
+  uint32_t max_radius = 2;     // texels; 0 = each texel alone (barely covered ones still pool)
+  double photons = 1.0;        // photons traced: sums are divided by it
+  double phantom_sq = 0.0;     // squared flux of one average hit, added to every variance so
+                               // that texels with few hits do not look exact
+  float min_coverage = 0.25f;  // texels below it always pool with their neighbours (radius >= 1)
+};
+
+// True if texel b continues texel a's surface: normals within ~25 degrees,
+// world positions within `reach` (m).
+bool same_surface(const TexelAreas& ta, uint32_t a, uint32_t b, float reach);
+
+// Writes per texel the indirect irradiance / pi (3 values) and its estimated
+// mean squared error (variance + squared bias); texels without area get 0.
+// Returns the radius chosen for the lightmap.
+uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t height, const PhotonSums& sums,
+                              const ReconstructParams& params, std::vector<double>& value3,
+                              std::vector<double>& mse);
+
+}  // namespace plm
