@@ -442,3 +442,68 @@ TEST(Api, ExrIsWrittenAtomicallyAndReadsBack) {
 }
 
 }  // namespace
+
+namespace {
+
+// Accumulation is in double: 17.6 million equal hits on one texel still sum
+// exactly (a float sum would stall at 2^24 hits, 16% short).
+TEST(Bake, MillionsOfHitsOnOneTexelLoseNothing) {
+  SceneBuilder b;
+  const uint32_t m = b.material("black", {0, 0, 0});
+  b.quad("plane", {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, m, 1);
+  plm_light sun;
+  plm_light_default(&sun, PLM_LIGHT_SUN);
+  sun.power = 1.0f;
+  sun.angle = 0.0f;
+  b.light(sun, "sun");
+  Baked r;
+  bake(b, raw_photons(28000000, 0), r);  // 63% land on the plane
+  const Lightmap lm = r.get(0);
+  EXPECT_GT(lm.hits[0], 16777216.0f);
+  EXPECT_NEAR(lm.value(0), 1.0 / M_PI, 1e-4 / M_PI);
+}
+
+// With a target error the bake stops once the estimate reaches it, and the
+// estimate is honest: the measured error against the exact furnace answer is
+// within a factor 1.5 of the reported one.
+TEST(Bake, TargetErrorIsReachedAndHonest) {
+  for (double target : {0.04, 0.02}) {
+    SceneBuilder b;
+    const float rho = 0.6f;
+    const uint32_t m = b.material("furnace", {rho, rho, rho}, {1, 1, 1});
+    b.box("furnace", {0, 0, 0}, {2, 2, 2}, 0.0f, m, 12, true);
+    plm_bake_settings s = settings(0);
+    s.target_error = target;
+    Baked r;
+    bake(b, s, r);
+    const plm_bake_stats st = r.stats();
+    EXPECT_LE(st.error_estimate, target);
+    // It stopped at the first check where the target was met (checks every 16 batches or more).
+    EXPECT_TRUE(st.photons_emitted == 16 * 4096 || st.error_estimate > 0.5 * target) << st.photons_emitted;
+    const Lightmap lm = r.get(0);
+    const double exact = 1.0 / (1.0 - rho);
+    double sq = 0.0, n = 0.0;
+    for (size_t t = 0; t < lm.coverage.size(); ++t) {
+      if (lm.coverage[t] <= 0.0f) continue;
+      sq += (lm.value(t) - exact) * (lm.value(t) - exact);
+      n += 1.0;
+    }
+    const double measured = std::sqrt(sq / n) / exact;
+    EXPECT_LT(measured, 1.5 * st.error_estimate) << "target " << target;
+    EXPECT_GT(measured, st.error_estimate / 1.5) << "target " << target;
+  }
+}
+
+TEST(Bake, TimeBudgetStopsTheBake) {
+  SceneBuilder b;
+  plm_demo::build_cornell(b, 16);
+  plm_bake_settings s = settings(0);
+  s.time_budget = 0.5;
+  Baked r;
+  bake(b, s, r);
+  const plm_bake_stats st = r.stats();
+  EXPECT_LT(st.seconds_total, 1.5);  // generous: noisy machines
+  EXPECT_GT(st.photons_emitted, 0u);
+}
+
+}  // namespace

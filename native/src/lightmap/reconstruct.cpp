@@ -72,46 +72,46 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
     const double k = to_value / p.area;
     return (p.sq + params.phantom_sq) * k * k;
   };
+  // Unbiased estimate of a pooled texel's squared bias; noisy, negative at
+  // times: only sums over many texels are used.
   auto bias_sq = [&](const Pooled& p, double v0, double var0) {
     const double d = mean_value(p) - v0;
-    return std::max(0.0, d * d - std::max(0.0, var0 - variance(p)));
+    return d * d - std::max(0.0, var0 - variance(p));
   };
   auto is_sparse = [&](size_t t) { return ta.coverage[t] < params.min_coverage; };
 
   // Pass 1: the estimated mean squared error of the whole lightmap per radius.
-  double total_mse[kMaxRadius + 1] = {};
-  if (r_max > 0) {
-    for (uint32_t t = 0; t < n; ++t) {
-      if (!(ta.area[t] > 0.0) || is_sparse(t)) continue;
-      double v0 = 0.0, var0 = 0.0;
-      pool_rings(ta, width, height, sums, t, r_max, texel_width, [&](uint32_t r, const Pooled& p) {
-        if (r == 0) {
-          v0 = mean_value(p);
-          var0 = variance(p);
-        }
-        total_mse[r] += variance(p) + bias_sq(p, v0, var0);
-      });
-    }
-  }
-  uint32_t chosen = 0;
-  for (uint32_t r = 1; r <= r_max; ++r)
-    if (total_mse[r] < total_mse[chosen]) chosen = r;
-
-  // Pass 2: every texel at the chosen radius (barely covered ones at least 1).
+  double total_var[kMaxRadius + 1] = {}, total_bias[kMaxRadius + 1] = {};
+  double counted = 0.0;
   for (uint32_t t = 0; t < n; ++t) {
-    if (!(ta.area[t] > 0.0)) continue;
-    const uint32_t r_t = is_sparse(t) ? std::max(chosen, 1u) : chosen;
+    if (!(ta.area[t] > 0.0) || is_sparse(t)) continue;
+    counted += 1.0;
     double v0 = 0.0, var0 = 0.0;
-    pool_rings(ta, width, height, sums, t, r_t, texel_width, [&](uint32_t r, const Pooled& p) {
+    pool_rings(ta, width, height, sums, t, r_max, texel_width, [&](uint32_t r, const Pooled& p) {
       if (r == 0) {
         v0 = mean_value(p);
         var0 = variance(p);
       }
+      total_var[r] += variance(p);
+      total_bias[r] += bias_sq(p, v0, var0);
+    });
+  }
+  uint32_t chosen = 0;
+  auto total_mse = [&](uint32_t r) { return total_var[r] + std::max(0.0, total_bias[r]); };
+  for (uint32_t r = 1; r <= r_max; ++r)
+    if (total_mse(r) < total_mse(chosen)) chosen = r;
+  const double mean_bias_sq = counted > 0.0 ? std::max(0.0, total_bias[chosen]) / counted : 0.0;
+
+  // Pass 2: every texel at the chosen radius (barely covered ones at least 1);
+  // its error: its own variance plus the lightmap's mean squared bias.
+  for (uint32_t t = 0; t < n; ++t) {
+    if (!(ta.area[t] > 0.0)) continue;
+    const uint32_t r_t = is_sparse(t) ? std::max(chosen, 1u) : chosen;
+    pool_rings(ta, width, height, sums, t, r_t, texel_width, [&](uint32_t r, const Pooled& p) {
       if (r != r_t) return;
       const double k = to_value / p.area;
       for (int c = 0; c < 3; ++c) value3[3 * size_t(t) + c] = p.flux[c] * k;
-      // A barely covered texel's own estimate is too noisy to measure bias against.
-      mse[t] = variance(p) + (is_sparse(t) ? 0.0 : bias_sq(p, v0, var0));
+      mse[t] = variance(p) + mean_bias_sq;
     });
   }
   return chosen;

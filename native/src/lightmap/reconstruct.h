@@ -4,11 +4,13 @@
 // radius r. Pooling trades variance for bias, and both are estimated:
 //   variance  from the squared hit fluxes of the pooled region;
 //   bias^2    from the change against the texel's own estimate,
-//             (v_r - v_0)^2 - (var_0 - var_r): unbiased for the squared bias.
+//             (v_r - v_0)^2 - (var_0 - var_r): unbiased for the squared bias,
+//             but noisy, so only its mean over a lightmap is used.
 // Each lightmap gets the radius with the smallest estimated mean squared
-// error over its texels (averaged over thousands of texels, the choice is not
-// fooled by noise), and each texel reports sqrt(variance + bias^2) as its
-// error, so the bake's error estimate and steering stay honest.
+// error over its texels (averaged over many texels, the choice is not fooled
+// by noise), and each texel reports sqrt(its variance + the lightmap's mean
+// squared bias) as its error, so the bake's error estimate and steering stay
+// honest.
 #pragma once
 
 #include <cstdint>

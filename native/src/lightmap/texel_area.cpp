@@ -75,6 +75,13 @@ TexelAreas compute_texel_areas(const Mesh& mesh) {
   out.position.resize(cover.size());
   out.normal.resize(cover.size());
   for (size_t i = 0; i < cover.size(); ++i) {
+    // Slivers below 0.1% of a texel come from UV rounding at island borders:
+    // such texels are left to dilation instead of being estimated on a
+    // sliver that may lie exactly on another face's edge.
+    if (cover[i] < kMinCoverage) {
+      cover[i] = 0.0;
+      out.area[i] = 0.0;
+    }
     out.coverage[i] = static_cast<float>(cover[i]);
     if (out.area[i] > 0.0) {
       const double* p = &where[3 * i];

@@ -10,6 +10,9 @@
 
 namespace plm {
 
+// Texels covered less than this are treated as empty (see compute_texel_areas).
+constexpr double kMinCoverage = 1e-3;
+
 struct TexelAreas {
   std::vector<double> area;      // world area per texel (m^2), rows bottom first
   std::vector<float> coverage;   // covered fraction of each texel (> 1 where UVs overlap)
