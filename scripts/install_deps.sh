@@ -2,7 +2,8 @@
 # Installs the Debian 12 packages photonlm needs, only if some are missing.
 set -euo pipefail
 packages=(cmake g++ make libembree-dev libopenimageio-dev openimageio-tools libtbb-dev
-          libgtest-dev libbenchmark-dev python3-numpy python3-pytest python3-matplotlib blender xvfb)
+          libgtest-dev libbenchmark-dev python3-numpy python3-pytest python3-matplotlib blender xvfb
+          clang libclang-rt-14-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

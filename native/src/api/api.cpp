@@ -4,19 +4,13 @@
 #include <new>
 #include <string>
 
+#include "api/handles.h"
 #include "io/exr.h"
 #include "photonlm/photonlm.h"
 #include "scene/scene.h"
 #include "transport/bake.h"
 #include "util/error.h"
 
-struct plm_scene {
-  plm::Scene scene;
-};
-
-struct plm_result {
-  plm::BakeOutput output;
-};
 
 namespace {
 

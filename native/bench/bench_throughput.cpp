@@ -1,0 +1,120 @@
+// Photon-pass throughput against raw Embree on statistically the same rays.
+//   build/bin/photonlm_bench_throughput
+// 1. The engine bakes the Cornell box, photons only, one thread: rays/s of the
+//    photon pass (emission, intersection, deposit, bounce, merge).
+// 2. The same emitters and bounce rules generate the same number of rays,
+//    recorded; then Embree alone casts them (rtcIntersect1, one thread).
+// The ratio is the share of raw ray-casting speed the photon pass keeps.
+#include <benchmark/benchmark.h>
+
+#include <chrono>
+#include <limits>
+#include <vector>
+
+#include "accel/embree_scene.h"
+#include "api/handles.h"
+#include "demo_scenes.h"
+#include "transport/emitters.h"
+#include "transport/tracing.h"
+#include "util/rng.h"
+
+namespace {
+
+struct Recorded {
+  std::vector<plm::Vec3> org, dir;
+};
+
+// Photon paths as the engine traces them (light choice by power, cosine
+// bounces, Russian roulette on albedo), recording every ray.
+Recorded record_rays(const plm::Scene& scene, const plm::EmbreeScene& accel, uint64_t rays_wanted) {
+  using namespace plm;
+  const Vec3 lo = accel.bounds_min(), hi = accel.bounds_max();
+  const std::vector<Emitter> emitters = build_emitters(scene, (lo + hi) * 0.5f, 0.5f * length(hi - lo) * 1.01f);
+  std::vector<double> cdf;
+  double total = 0.0;
+  for (const Emitter& e : emitters) cdf.push_back(total += average(e.flux));
+  Recorded out;
+  TraceContext tc;
+  for (uint64_t i = 0; out.org.size() < rays_wanted; ++i) {
+    Rng rng(7, i);
+    const double u_pick = rng.next_float() * total;
+    size_t k = 0;
+    while (k + 1 < cdf.size() && cdf[k] < u_pick) ++k;
+    const float u[4] = {rng.next_float(), rng.next_float(), rng.next_float(), rng.next_float()};
+    const EmitterSample s = sample_emitter(emitters[k], u);
+    Vec3 org = s.origin, dir = s.direction;
+    tc.skip_geom = tc.skip_prim = RTC_INVALID_GEOMETRY_ID;
+    while (out.org.size() < rays_wanted) {
+      out.org.push_back(org);
+      out.dir.push_back(dir);
+      RTCRayHit rh;
+      rh.ray = make_ray(org, dir, std::numeric_limits<float>::infinity());
+      rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+      rtcIntersect1(accel.handle(), &tc.context, &rh);
+      if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) break;
+      const Mesh& mesh = scene.meshes[rh.hit.geomID];
+      const uint32_t tri = rh.hit.primID;
+      const Vec3 p0 = mesh.vertex(tri, 0), p1 = mesh.vertex(tri, 1), p2 = mesh.vertex(tri, 2);
+      const Vec3 hit = p0 * (1.0f - rh.hit.u - rh.hit.v) + p1 * rh.hit.u + p2 * rh.hit.v;
+      Vec3 n = normalize(cross(p1 - p0, p2 - p0));
+      if (dot(n, dir) > 0.0f) n = -n;
+      const float q = max_component(scene.materials[mesh.material_ids[tri]].albedo);
+      if (rng.next_float() >= q) break;
+      const Vec3 local = cosine_hemisphere(rng.next_float(), rng.next_float());
+      Vec3 t, b;
+      make_frame(n, t, b);
+      dir = t * local.x + b * local.y + n * local.z;
+      org = offset_origin(hit, n, 1e-6f * length(hi - lo));
+      tc.skip_geom = rh.hit.geomID;
+      tc.skip_prim = tri;
+    }
+  }
+  return out;
+}
+
+void BM_PhotonPassVersusRawEmbree(benchmark::State& state) {
+  plm_demo::SceneBuilder b;
+  plm_demo::build_cornell(b, 32);
+  plm_bake_settings s;
+  plm_bake_settings_default(&s);
+  s.photon_count = uint64_t(state.range(0));
+  s.thread_count = 1;
+  s.direct_samples = 0;  // every ray is a photon ray
+  s.filter_radius = 0;
+  double engine_rate = 0.0, raw_rate = 0.0;
+  for (auto _ : state) {
+    plm_result* r = nullptr;
+    if (plm_bake(b.scene, &s, nullptr, nullptr, &r) != PLM_OK) {
+      state.SkipWithError(plm_last_error());
+      return;
+    }
+    const plm_bake_stats st = r->output.stats;
+    engine_rate = double(st.rays_traced) / st.seconds_trace;
+    plm_result_release(r);
+
+    const plm::Scene& scene = b.scene->scene;
+    plm::EmbreeScene accel(scene, 1);
+    const Recorded rays = record_rays(scene, accel, st.rays_traced);
+    plm::TraceContext tc;
+    const auto t0 = std::chrono::steady_clock::now();
+    uint64_t hits = 0;
+    for (size_t i = 0; i < rays.org.size(); ++i) {
+      RTCRayHit rh;
+      rh.ray = plm::make_ray(rays.org[i], rays.dir[i], std::numeric_limits<float>::infinity());
+      rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+      rtcIntersect1(accel.handle(), &tc.context, &rh);
+      hits += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+    }
+    const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    benchmark::DoNotOptimize(hits);
+    raw_rate = double(rays.org.size()) / dt;
+  }
+  state.counters["engine_Mrays_per_s"] = engine_rate * 1e-6;
+  state.counters["raw_embree_Mrays_per_s"] = raw_rate * 1e-6;
+  state.counters["engine_share_pct"] = 100.0 * engine_rate / raw_rate;
+}
+BENCHMARK(BM_PhotonPassVersusRawEmbree)->Arg(2000000)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
+
+}  // namespace
+
+BENCHMARK_MAIN();
