@@ -945,12 +945,12 @@ bool finite_or_rejected(SceneBuilder& b, std::string& why) {
   return true;
 }
 
-// ENGINE BUG (issue 7, found by this suite): a light with colour 1e30 and power
+// Was an engine bug (issue 7, found by this suite), fixed: a light with colour 1e30 and power
 // 1e30, both accepted by plm_scene_add_light, has a flux of 1e60 that overflows
 // float to inf; the light-choice table becomes inf / inf = NaN and every texel
 // of the bake is NaN, with status PLM_OK and no warning. Expected: rejected at
 // add_light/plm_bake, or finite texels.
-TEST(HardCases, DISABLED_OverflowingLightFluxIsRejectedOrFinite) {
+TEST(HardCases, OverflowingLightFluxIsRejectedOrFinite) {
   SceneBuilder b;
   const uint32_t grey = b.material("grey", {0.5f, 0.5f, 0.5f});
   b.quad("floor", {-1, -1, 0}, {2, 0, 0}, {0, 2, 0}, grey, 4);
@@ -962,7 +962,7 @@ TEST(HardCases, DISABLED_OverflowingLightFluxIsRejectedOrFinite) {
   EXPECT_TRUE(finite_or_rejected(b, why)) << why;
 }
 
-// ENGINE BUG (issue 7, found by this suite): a floor quad of side 2e18 m
+// Was an engine bug (issue 7, found by this suite), fixed: a floor quad of side 2e18 m
 // (finite positions, accepted by plm_scene_add_mesh) under a sun ABORTS the
 // process: Debian's Embree is built with assertions and aborts in
 // bvh_intersector1.cpp:59 "Assertion `ray.valid()' failed", because sun
@@ -972,17 +972,26 @@ TEST(HardCases, DISABLED_OverflowingLightFluxIsRejectedOrFinite) {
 // the mesh and vertex, or a finite bake. (At 2e19 and 2e20 the bake is
 // rejected, but with the misleading "the scene has no triangle with a non-zero
 // area": the areas overflow float.)
-TEST(HardCases, DISABLED_HugeCoordinatesAreRejectedOrFinite) {
+TEST(HardCases, HugeCoordinatesAreRejectedOrFinite) {
   SceneBuilder b;
   const uint32_t grey = b.material("grey", {0.5f, 0.5f, 0.5f});
   b.quad("floor", {-1e18f, -1e18f, 0}, {2e18f, 0, 0}, {0, 2e18f, 0}, grey, 4);
   b.light(sun(1.0f, 0.3), "sun");
-  ASSERT_TRUE(b.ok()) << b.error;
+  // Now rejected when the mesh is added, naming the mesh and the vertex.
+  EXPECT_FALSE(b.ok());
+  EXPECT_NE(b.error.find("mesh 'floor': vertex 0"), std::string::npos) << b.error;
+  EXPECT_NE(b.error.find("beyond the engine's range"), std::string::npos) << b.error;
+  // Up to the limit, a bake stays finite.
+  SceneBuilder c;
+  const uint32_t g = c.material("grey", {0.5f, 0.5f, 0.5f});
+  c.quad("floor", {-1e11f, -1e11f, 0}, {2e11f, 0, 0}, {0, 2e11f, 0}, g, 4);
+  c.light(sun(1.0f, 0.3), "sun");
+  ASSERT_TRUE(c.ok()) << c.error;
   std::string why;
-  EXPECT_TRUE(finite_or_rejected(b, why)) << why;
+  EXPECT_TRUE(finite_or_rejected(c, why)) << why;
 }
 
-// ENGINE BUG (issue 7, found by fuzz_scene_api): a quad whose second edge is
+// Was an engine bug (issue 7, found by fuzz_scene_api), fixed: a quad whose second edge is
 // denormal-small (0, 0, 2.8e-45) has a world area > 0 in double, so its texels
 // get an area, but its float normal is 0 / 0 = NaN. Under a world light (a sun
 // or point light does not trigger it) the direct pass then casts
@@ -990,7 +999,7 @@ TEST(HardCases, DISABLED_HugeCoordinatesAreRejectedOrFinite) {
 // ("Assertion `ray.valid()' failed", bvh_intersector1.cpp:145). Expected: the
 // triangle treated as degenerate (skipped, warned with its index) or any
 // finite bake; never an abort.
-TEST(HardCases, DISABLED_NearlyDegenerateTriangleDoesNotAbort) {
+TEST(HardCases, NearlyDegenerateTriangleDoesNotAbort) {
   SceneBuilder b;
   const uint32_t grey = b.material("grey", {0.8f, 0.8f, 0.8f});
   b.quad("sliver", {-1, -1, 0}, {2, 0, 0}, {0, 0, 2.8026e-45f}, grey, 8);

@@ -26,6 +26,7 @@ TexelAreas compute_texel_areas(const Mesh& mesh) {
   std::vector<std::pair<uint32_t, uint32_t>> touches;  // (texel, triangle)
   for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
     const Vec3 p0 = mesh.vertex(t, 0), p1 = mesh.vertex(t, 1), p2 = mesh.vertex(t, 2);
+    if (degenerate_triangle(p0, p1, p2)) continue;  // never shaded: counted as degenerate
     // World area in double: sliver triangles lose everything in float.
     const double e1[3] = {double(p1.x) - p0.x, double(p1.y) - p0.y, double(p1.z) - p0.z};
     const double e2[3] = {double(p2.x) - p0.x, double(p2.y) - p0.y, double(p2.z) - p0.z};

@@ -58,6 +58,9 @@ uint32_t Scene::add_mesh(const char* name, const float* positions, uint32_t vert
     if (!is_finite(p))
       fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": vertex ", i, " has a non-finite position (", p.x, ", ", p.y,
            ", ", p.z, ")");
+    if (max_abs_component(p) > kMaxCoordinate)
+      fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": vertex ", i, " at (", p.x, ", ", p.y, ", ", p.z,
+           ") is beyond the engine's range of +-", kMaxCoordinate, " m");
     mesh.positions[i] = p;
   }
   mesh.indices.assign(indices, indices + size_t(triangle_count) * 3);
@@ -114,6 +117,9 @@ uint32_t Scene::add_light(const char* name, const plm_light& l) {
     fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": power ", l.power, " must be finite and >= 0");
   for (int i = 0; i < 16; ++i) {
     if (!std::isfinite(l.matrix[i])) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": matrix element ", i, " is not finite");
+    if (std::fabs(l.matrix[i]) > kMaxCoordinate)
+      fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": matrix element ", i, " = ", l.matrix[i],
+           " is beyond the engine's range of +-", kMaxCoordinate);
   }
   Transform m;
   std::memcpy(m.m, l.matrix, sizeof(m.m));

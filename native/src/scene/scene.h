@@ -12,6 +12,10 @@
 
 namespace plm {
 
+// Coordinates beyond this (m) are rejected: photons start up to a few scene
+// radii out, and Embree accepts ray origins only up to ~1.8e18.
+constexpr float kMaxCoordinate = 1e12f;
+
 struct Material {
   std::string name;
   Vec3 albedo;

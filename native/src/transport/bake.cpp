@@ -113,6 +113,7 @@ class PhotonTracer {
         const float d2 = dot(to_hit, to_hit);
         flux *= d2 / (d2 + s.radius2);
       }
+      if (degenerate_triangle(p0, p1, p2)) return;  // no trustworthy normal: the photon stops
       Vec3 normal = normalize(cross(p1 - p0, p2 - p0));
       const bool front = dot(dir, normal) < 0.0f;
       if (!front) normal = -normal;  // the side the photon arrived on
@@ -187,13 +188,11 @@ std::string mesh_label(const Mesh& m) { return "mesh '" + m.name + "'"; }
 void add_mesh_warnings(const Mesh& mesh, const TexelAreas* areas, std::vector<std::string>& warnings) {
   uint32_t degenerate = 0, first = 0;
   for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
-    const Vec3 p0 = mesh.vertex(t, 0);
-    const Vec3 c = cross(mesh.vertex(t, 1) - p0, mesh.vertex(t, 2) - p0);
-    if (!(length(c) > 0.0f) && degenerate++ == 0) first = t;
+    if (degenerate_triangle(mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2)) && degenerate++ == 0) first = t;
   }
   const std::string m = mesh_label(mesh);
   if (degenerate)
-    warnings.push_back(m + ": " + std::to_string(degenerate) + " degenerate (zero-area) triangles are ignored (first: triangle " +
+    warnings.push_back(m + ": " + std::to_string(degenerate) + " degenerate (zero-area or needle) triangles are ignored (first: triangle " +
                        std::to_string(first) + ")");
   if (!areas) return;
   if (areas->zero_uv_triangles)
@@ -403,6 +402,9 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
   const std::vector<Emitter> emitters = build_emitters(scene, center, radius);
   double emitted = 0.0;
   for (const Emitter& e : emitters) emitted += average(e.flux);
+  if (!std::isfinite(emitted) || emitted > 1e30)
+    fail(PLM_ERROR_INVALID_SCENE, "the lights emit ", emitted, " W together, beyond the engine's range "
+         "(1e30 W): check light powers, colours and emission strengths");
   out.stats.seconds_setup = seconds_since(t_start);
   if (emitters.empty())
     out.warnings.push_back("the scene has no lights, no emissive materials and no world light: every lightmap is black");

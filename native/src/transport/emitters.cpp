@@ -108,6 +108,7 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
     for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
       const Vec3 emission = scene.materials.empty() ? Vec3{} : scene.materials[mesh.material_ids[t]].emission;
       if (max_component(emission) <= 0.0f) continue;
+      if (degenerate_triangle(mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2))) continue;
       Emitter e{};
       e.kind = EmitterKind::Triangle;
       e.origin = mesh.vertex(t, 0);

@@ -82,6 +82,15 @@ inline void concentric_disk(float u1, float u2, float& x, float& y) {
   y = r * std::sin(phi);
 }
 
+// A triangle whose float normal cannot be trusted: zero or tiny area against
+// its edge lengths (angles below ~1e-10 rad), or non-finite. Such triangles
+// are skipped everywhere (texel areas, emission, bounces) and counted.
+inline bool degenerate_triangle(Vec3 p0, Vec3 p1, Vec3 p2) {
+  const Vec3 e1 = p1 - p0, e2 = p2 - p0;
+  const float c = length(cross(e1, e2));
+  return !(c > 1e-10f * (dot(e1, e1) + dot(e2, e2))) || !std::isfinite(c);
+}
+
 // Row-major 4x4 affine transform (object to world), as Blender's matrix_world.
 struct Transform {
   float m[16];
