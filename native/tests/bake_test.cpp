@@ -507,3 +507,44 @@ TEST(Bake, TimeBudgetStopsTheBake) {
 }
 
 }  // namespace
+
+namespace {
+
+// Found by the fuzzer: an area light 4e27 m wide put photon origins beyond
+// Embree's range (an assertion abort). Sizes beyond the coordinate range are
+// rejected, also when the matrix's scale makes them so.
+TEST(Api, OversizedLightsAreRejected) {
+  SceneBuilder b;
+  plm_light l;
+  plm_light_default(&l, PLM_LIGHT_AREA_RECT);
+  l.size_x = 4.1e27f;
+  EXPECT_EQ(plm_scene_add_light(b.scene, "panel", &l, nullptr), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(plm_last_error()).find("light 'panel': area light size"), std::string::npos)
+      << plm_last_error();
+  plm_light_default(&l, PLM_LIGHT_AREA_DISK);
+  l.size_x = l.size_y = 1e6f;
+  l.matrix[0] = l.matrix[5] = 1e7f;
+  EXPECT_EQ(plm_scene_add_light(b.scene, "scaled", &l, nullptr), PLM_ERROR_INVALID_ARGUMENT);
+  plm_light_default(&l, PLM_LIGHT_POINT);
+  l.radius = 1e20f;
+  EXPECT_EQ(plm_scene_add_light(b.scene, "bulb", &l, nullptr), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(plm_last_error()).find("radius"), std::string::npos);
+}
+
+}  // namespace
+
+namespace {
+
+// Found by the fuzzer: a UV of 1.8e31 overflowed the texel index cast.
+TEST(Api, FarOutUvsAreRejected) {
+  SceneBuilder b;
+  const float pos[9] = {0, 0, 0, 1, 0, 0, 1, 1, 0};
+  const uint32_t idx[3] = {0, 1, 2};
+  const float uv[6] = {0, 0, 6.8e22f, 1.8e31f, 1, 1};
+  EXPECT_EQ(plm_scene_add_mesh(b.scene, "wild", pos, 3, idx, 1, uv, nullptr, 4, 4, nullptr),
+            PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(plm_last_error()).find("mesh 'wild': triangle 0 corner 1"), std::string::npos)
+      << plm_last_error();
+}
+
+}  // namespace

@@ -75,6 +75,10 @@ uint32_t Scene::add_mesh(const char* name, const float* positions, uint32_t vert
       if (!std::isfinite(mesh.uv[k]))
         fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": triangle ", k / 6, " corner ", (k % 6) / 2,
              " has a non-finite lightmap UV");
+      // Outside [0, 1] is legal (warned at bake time); beyond +-1e4 is surely broken.
+      if (std::fabs(mesh.uv[k]) > 1e4f)
+        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": triangle ", k / 6, " corner ", (k % 6) / 2,
+             " has the lightmap UV coordinate ", mesh.uv[k], ", far outside the [0, 1] square");
     }
   }
   if (material_ids) {
@@ -126,8 +130,8 @@ uint32_t Scene::add_light(const char* name, const plm_light& l) {
   switch (l.type) {
     case PLM_LIGHT_POINT:
     case PLM_LIGHT_SPOT:
-      if (!std::isfinite(l.radius) || l.radius < 0.0f)
-        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": radius ", l.radius, " must be finite and >= 0");
+      if (!std::isfinite(l.radius) || l.radius < 0.0f || l.radius > kMaxCoordinate)
+        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": radius ", l.radius, " must be in [0, ", kMaxCoordinate, "] m");
       if (l.type == PLM_LIGHT_SPOT) {
         if (!(l.spot_size > 0.0f && l.spot_size <= kPi))
           fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": spot_size ", l.spot_size, " must be in (0, pi] radians");
@@ -151,6 +155,10 @@ uint32_t Scene::add_light(const char* name, const plm_light& l) {
       const Vec3 n = cross(m.vector({l.size_x, 0, 0}), m.vector({0, l.size_y, 0}));
       if (!(length(n) > 0.0f))
         fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": the matrix scales the area light to zero area");
+      if (!(max_abs_component(m.vector({l.size_x, 0, 0})) <= kMaxCoordinate &&
+            max_abs_component(m.vector({0, l.size_y, 0})) <= kMaxCoordinate))
+        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": area light size ", l.size_x, " x ", l.size_y,
+             " (after the matrix's scale) is beyond the engine's range of ", kMaxCoordinate, " m");
       break;
     }
   }
