@@ -143,6 +143,41 @@ TEST(Reconstruct, ChoosesTheRadiusWithTheLeastEstimatedError) {
   EXPECT_EQ(reconstruct_indirect(a, 16, 16, {flux.data(), sq.data(), hits.data()}, params, value, mse), 0u);
 }
 
+// With the direct light as a guide, pooling stops at a contact shadow: a
+// noisy lit half next to a dark half (no light at all) leaks nothing into it.
+TEST(Reconstruct, GuideStopsPoolingAtShadowEdges) {
+  Mesh m;
+  m.positions = {{0, 0, 0}, {16, 0, 0}, {16, 16, 0}, {0, 16, 0}, {}};
+  m.vertex_count = 4;
+  m.indices = {0, 1, 2, 0, 2, 3};
+  m.uv = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
+  m.lightmap_width = m.lightmap_height = 16;
+  const TexelAreas a = compute_texel_areas(m);
+  std::vector<double> flux(3 * 256, 0.0), sq(256, 0.0), guide(256, 0.0);
+  std::vector<uint32_t> hits(256, 0);
+  std::mt19937 gen(5);
+  std::poisson_distribution<int> poisson(4.0);
+  for (uint32_t t = 0; t < 256; ++t) {
+    if (t % 16 >= 8) continue;  // right half: in the box's contact shadow
+    guide[t] = 1.0;
+    hits[t] = uint32_t(poisson(gen));
+    for (int c = 0; c < 3; ++c) flux[3 * t + c] = hits[t];
+    sq[t] = hits[t];
+  }
+  ReconstructParams params;
+  params.guide = guide.data();
+  std::vector<double> value, mse;
+  EXPECT_GT(reconstruct_indirect(a, 16, 16, {flux.data(), sq.data(), hits.data()}, params, value, mse), 0u);
+  for (uint32_t t = 0; t < 256; ++t) {
+    if (t % 16 >= 8) {
+      EXPECT_EQ(value[3 * t], 0.0) << "texel " << t;
+    }
+  }
+  params.guide = nullptr;  // without the guide the edge blurs
+  reconstruct_indirect(a, 16, 16, {flux.data(), sq.data(), hits.data()}, params, value, mse);
+  EXPECT_GT(value[3 * (5 * 16 + 8)], 0.0);
+}
+
 TEST(Dilate, FillsRingsFromFilledNeighbours) {
   std::vector<float> v(5 * 5, 0.0f);
   std::vector<uint8_t> filled(25, 0);

@@ -24,7 +24,7 @@ struct Pooled {
 // r_max; calls at(r, pooled) after each radius.
 template <typename At>
 void pool_rings(const TexelAreas& ta, uint32_t width, uint32_t height, const PhotonSums& s, uint32_t t,
-                uint32_t r_max, float texel_width, At&& at) {
+                uint32_t r_max, float texel_width, const double* guide, double guide_floor, At&& at) {
   const uint32_t x = t % width, y = t / width;
   Pooled p;
   for (int c = 0; c < 3; ++c) p.flux[c] = s.flux[3 * size_t(t) + c];
@@ -40,6 +40,7 @@ void pool_rings(const TexelAreas& ta, uint32_t width, uint32_t height, const Pho
         if (xx < 0 || xx >= int64_t(width)) continue;
         const uint32_t m = uint32_t(yy) * width + uint32_t(xx);
         if (!same_surface(ta, t, m, reach)) continue;
+        if (guide && std::fabs(guide[m] - guide[t]) > 0.5 * std::max(guide[m], guide[t]) + guide_floor) continue;
         for (int c = 0; c < 3; ++c) p.flux[c] += s.flux[3 * size_t(m) + c];
         p.sq += s.sq[m];
         p.area += ta.area[m];
@@ -66,6 +67,13 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
   const float texel_width = float(std::sqrt(total_area / total_cover));
   const double to_value = 1.0 / (kPiD * params.photons);
   const uint32_t r_max = std::min(params.max_radius, kMaxRadius);
+  double guide_floor = 0.0;  // guide differences below 5% of its mean always pool
+  if (params.guide) {
+    double sum = 0.0, count = 0.0;
+    for (size_t t = 0; t < n; ++t)
+      if (ta.area[t] > 0.0) sum += params.guide[t], count += 1.0;
+    guide_floor = count > 0.0 ? 0.05 * sum / count : 0.0;
+  }
 
   auto mean_value = [&](const Pooled& p) { return (p.flux[0] + p.flux[1] + p.flux[2]) / 3.0 * to_value / p.area; };
   auto variance = [&](const Pooled& p) {
@@ -87,7 +95,7 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
     if (!(ta.area[t] > 0.0) || is_sparse(t)) continue;
     counted += 1.0;
     double v0 = 0.0, var0 = 0.0;
-    pool_rings(ta, width, height, sums, t, r_max, texel_width, [&](uint32_t r, const Pooled& p) {
+    pool_rings(ta, width, height, sums, t, r_max, texel_width, params.guide, guide_floor, [&](uint32_t r, const Pooled& p) {
       if (r == 0) {
         v0 = mean_value(p);
         var0 = variance(p);
@@ -107,7 +115,7 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
   for (uint32_t t = 0; t < n; ++t) {
     if (!(ta.area[t] > 0.0)) continue;
     const uint32_t r_t = is_sparse(t) ? std::max(chosen, 1u) : chosen;
-    pool_rings(ta, width, height, sums, t, r_t, texel_width, [&](uint32_t r, const Pooled& p) {
+    pool_rings(ta, width, height, sums, t, r_t, texel_width, params.guide, guide_floor, [&](uint32_t r, const Pooled& p) {
       if (r != r_t) return;
       const double k = to_value / p.area;
       for (int c = 0; c < 3; ++c) value3[3 * size_t(t) + c] = p.flux[c] * k;

@@ -6,6 +6,9 @@
 //   bias^2    from the change against the texel's own estimate,
 //             (v_r - v_0)^2 - (var_0 - var_r): unbiased for the squared bias,
 //             but noisy, so only its mean over a lightmap is used.
+// With a guide (the direct light), texels also pool only with neighbours of
+// similar direct light: contact shadows and shadow edges, where indirect light
+// changes too, are not blurred across.
 // Each lightmap gets the radius with the smallest estimated mean squared
 // error over its texels (averaged over many texels, the choice is not fooled
 // by noise), and each texel reports sqrt(its variance + the lightmap's mean
@@ -32,6 +35,10 @@ struct ReconstructParams {
   double phantom_sq = 0.0;     // squared flux of one average hit, added to every variance so
                                // that texels with few hits do not look exact
   float min_coverage = 0.25f;  // texels below it always pool with their neighbours (radius >= 1)
+  // Optional guide per texel (the direct light): texels pool only with
+  // neighbours of similar guide, so indirect light does not leak across the
+  // contact shadows and shadow edges that the direct light shows.
+  const double* guide = nullptr;
 };
 
 // True if texel b continues texel a's surface: normals within ~25 degrees,

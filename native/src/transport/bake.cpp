@@ -107,14 +107,14 @@ class PhotonTracer {
       const uint32_t tri = rh.hit.primID;
       const float bu = rh.hit.u, bv = rh.hit.v, bw = 1.0f - bu - bv;
       const Vec3 p0 = mesh.vertex(tri, 0), p1 = mesh.vertex(tri, 1), p2 = mesh.vertex(tri, 2);
+      Vec3 normal = view.normals[tri];
+      if (normal.x == 0.0f && normal.y == 0.0f && normal.z == 0.0f) return;  // degenerate: the photon stops
       const Vec3 hit = p0 * bw + p1 * bu + p2 * bv;
       if (depth == 0 && s.radius2 > 0.0f) {
         const Vec3 to_hit = hit - s.center;
         const float d2 = dot(to_hit, to_hit);
         flux *= d2 / (d2 + s.radius2);
       }
-      if (degenerate_triangle(p0, p1, p2)) return;  // no trustworthy normal: the photon stops
-      Vec3 normal = normalize(cross(p1 - p0, p2 - p0));
       const bool front = dot(dir, normal) < 0.0f;
       if (!front) normal = -normal;  // the side the photon arrived on
 
@@ -272,6 +272,7 @@ struct Estimator {
   const std::vector<DirectSums>& direct;     // per covered texel, or empty
   const Accumulators& acc;
   uint32_t filter_radius;
+  double direct_typical;                     // RMS of all direct samples (see DirectSums)
 
   // Per texel: irradiance / pi (3 values) and its estimated mean squared error.
   void texels(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance) const {
@@ -281,6 +282,14 @@ struct Estimator {
     params.max_radius = filter_radius;
     params.photons = double(std::max<uint64_t>(photons, 1));
     params.phantom_sq = acc.total_hits ? acc.total_sq / double(acc.total_hits) : 0.0;
+    std::vector<double> guide;
+    if (!direct.empty()) {  // the direct light guides the reconstruction
+      guide.assign(areas[i].area.size(), 0.0);
+      size_t k = covered_begin[i];
+      for (size_t t = 0; t < guide.size(); ++t)
+        if (areas[i].area[t] > 0.0) guide[t] = direct[k++].mean();
+      params.guide = guide.data();
+    }
     if (photons > 0) {
       reconstruct_indirect(areas[i], mesh.lightmap_width, mesh.lightmap_height,
                            {&acc.sum[3 * g0], &acc.sum_sq[g0], &acc.hits[g0]}, params, value3, variance);
@@ -295,7 +304,7 @@ struct Estimator {
       const DirectSums& d = direct[k++];
       if (d.count)
         for (int c = 0; c < 3; ++c) value3[3 * t + c] += d.rgb[c] / d.count;
-      variance[t] += d.variance_of_mean();
+      variance[t] += d.variance_of_mean(direct_typical);
     }
   }
 };
@@ -324,7 +333,7 @@ ErrorEstimate estimate_error(const Estimator& est, uint64_t photons, std::vector
       if (per_texel && v > 0.0) per_texel->push_back(std::sqrt(variance[t]) / v);
     }
   }
-  for (const DirectSums& d : est.direct) var_direct += d.variance_of_mean();
+  for (const DirectSums& d : est.direct) var_direct += d.variance_of_mean(est.direct_typical);
   if (count > 0.0 && value_sum > 0.0) {
     const double mean = value_sum / count;
     out.relative = std::sqrt(var_sum / count) / mean;
@@ -381,12 +390,14 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
   report(0.02, "computing texel areas");
   std::vector<TexelAreas> areas(scene.meshes.size());
   std::vector<MeshView> views(scene.meshes.size());
+  std::vector<std::vector<Vec3>> normals(scene.meshes.size());
   std::vector<CoveredTexel> covered;
   std::vector<size_t> covered_begin(scene.meshes.size(), 0);
   uint64_t texel_count = 0;
   for (size_t i = 0; i < scene.meshes.size(); ++i) {
     const Mesh& mesh = scene.meshes[i];
-    views[i] = {&mesh, texel_count, nullptr};
+    normals[i] = triangle_normals(mesh);
+    views[i] = {&mesh, texel_count, nullptr, normals[i].data()};
     covered_begin[i] = covered.size();
     if (mesh.has_lightmap()) {
       areas[i] = compute_texel_areas(mesh);
@@ -417,6 +428,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
 
   // ---- Direct pass --------------------------------------------------------
   std::vector<DirectSums> direct;
+  double direct_typical = 0.0;
   const auto t_direct = Clock::now();
   if (two_pass) {
     direct.resize(covered.size());
@@ -444,13 +456,19 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
           });
       // Next round: texels without two samples yet, and with a target, texels
       // whose direct error exceeds half the target (relative to the mean value).
-      double mean = 0.0;
-      for (const DirectSums& d : direct) mean += d.mean();
+      double mean = 0.0, all_sq = 0.0, all_count = 0.0;
+      for (const DirectSums& d : direct) {
+        mean += d.mean();
+        all_sq += d.sum_sq;
+        all_count += d.count;
+      }
       mean /= double(std::max<size_t>(direct.size(), 1));
+      direct_typical = all_count > 0.0 ? std::sqrt(all_sq / all_count) : 0.0;
       const double limit = 0.5 * settings.target_error * mean;
       std::vector<uint32_t> next;
       for (uint32_t i : todo) {
-        const bool noisy = settings.target_error > 0.0 && std::sqrt(direct[i].variance_of_mean()) > limit;
+        const bool noisy =
+            settings.target_error > 0.0 && std::sqrt(direct[i].variance_of_mean(direct_typical)) > limit;
         if (direct[i].count < 2 || noisy) next.push_back(i);
       }
       todo.swap(next);
@@ -462,7 +480,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
 
   // ---- Photon pass ----------------------------------------------------------
   Accumulators acc(texel_count);
-  const Estimator estimator{areas, views, covered_begin, direct, acc, settings.filter_radius};
+  const Estimator estimator{areas, views, covered_begin, direct, acc, settings.filter_radius, direct_typical};
   uint64_t photons = 0;
   const auto t_trace = Clock::now();
   if (photon_pass) {

@@ -8,15 +8,16 @@
 
 namespace plm {
 
-double DirectSums::variance_of_mean() const {
-  if (count == 0) return 0.0;
+double DirectSums::variance_of_mean(double typical) const {
+  if (count == 0) return typical * typical;
   const double m = mean();
-  if (paired == 0) return m * m;
+  if (paired == 0) return std::max(m * m, typical * typical);
   // Stratified samples: neighbouring strata differ by noise plus a little
   // gradient, so sum (a - b)^2 over pairs bounds the sum of the samples'
   // variances (Var(a) + Var(b) + (mean difference)^2) without counting the
   // texel's smooth variation as noise, as a plain sample variance would.
-  return pair_sq * (double(count) / double(paired)) / (double(count) * double(count));
+  const double n = double(count);
+  return (pair_sq * (n / double(paired)) + (typical - m) * (typical - m)) / (n * n);
 }
 
 DirectPass::DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<TexelAreas>& areas,
@@ -61,7 +62,7 @@ bool DirectPass::surface_point(uint32_t mesh_id, uint32_t texel, float x, float 
     if (b1 < eps || b2 < eps || b1 + b2 > 1.0f - eps) continue;
     const Vec3 p0 = mesh.vertex(t, 0), p1 = mesh.vertex(t, 1), p2 = mesh.vertex(t, 2);
     p = p0 + (p1 - p0) * b1 + (p2 - p0) * b2;
-    n = normalize(cross(p1 - p0, p2 - p0));
+    n = views_[mesh_id].normals[t];
     tri = t;
     return true;
   }
@@ -137,7 +138,7 @@ bool DirectPass::point_in_pieces(uint32_t mesh_id, uint32_t texel, const float u
   b2 = std::clamp(b2, 0.0f, 1.0f - b1);
   const Vec3 p0 = mesh.vertex(tt, 0), p1 = mesh.vertex(tt, 1), p2 = mesh.vertex(tt, 2);
   p = p0 + (p1 - p0) * b1 + (p2 - p0) * b2;
-  n = normalize(cross(p1 - p0, p2 - p0));
+  n = views_[mesh_id].normals[tt];
   tri = tt;
   return true;
 }
@@ -155,6 +156,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   tc.skip_geom = mesh_id;
   // Barely covered texels sample their covered pieces directly (no strata).
   const bool sparse = areas_[mesh_id].coverage[texel] < 0.5f;
+  const uint32_t pick_key = rng.next_u32();
   uint32_t previous = ~0u;  // the last accepted stratum, and its value
   double previous_value = 0.0;
   for (uint32_t j = 0; j < n; ++j) {
@@ -162,7 +164,10 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
     const float y = y0 + (float(j / m) + rng.next_float()) / float(m);
     Vec3 p, normal;
     uint32_t tri;
-    const float u_pick = (float(j) + rng.next_float()) / float(n);
+    // The light choice is stratified over the texel's samples too, but through
+    // a permutation: tied to j it would follow the strata's rows, so each light
+    // would be sampled in one band of the texel only (a shifted shadow).
+    const float u_pick = (float(permute(j, n, pick_key)) + rng.next_float()) / float(n);
     const float u[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
     if (sparse) {
       const float v[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
@@ -217,6 +222,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
     }
     for (int c = 0; c < 3; ++c) sums.rgb[c] += e[c];
     const double a = (double(e.x) + e.y + e.z) / 3.0;
+    sums.sum_sq += a * a;
     if (j % 2 == 1 && previous == j - 1) {  // strata 2i and 2i + 1 are neighbours
       sums.pair_sq += (a - previous_value) * (a - previous_value);
       sums.paired += 2;

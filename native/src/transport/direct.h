@@ -16,12 +16,16 @@ namespace plm {
 // Per covered texel: sums of (irradiance / pi) samples.
 struct DirectSums {
   double rgb[3] = {0, 0, 0};
+  double sum_sq = 0;    // sum of squared mean-RGB samples
   double pair_sq = 0;   // sum over neighbouring stratum pairs of squared mean-RGB differences
   uint32_t paired = 0;  // samples in those pairs
   uint32_t count = 0;
   double mean() const { return count ? (rgb[0] + rgb[1] + rgb[2]) / (3.0 * count) : 0.0; }
-  // Squared standard error of the mean; with no pair yet, 100% uncertain.
-  double variance_of_mean() const;
+  // Squared standard error of the mean. typical: the RMS of all samples of
+  // all texels; it enters as one phantom sample, so that a texel whose samples
+  // all missed a rarely visible light (the sky through a window) does not
+  // look exact. With no pair yet, 100% uncertain.
+  double variance_of_mean(double typical) const;
 };
 
 class DirectPass {

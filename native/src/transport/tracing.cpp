@@ -19,6 +19,15 @@ void skip_origin_triangle(const RTCFilterFunctionNArguments* args) {
 
 }  // namespace
 
+std::vector<Vec3> triangle_normals(const Mesh& mesh) {
+  std::vector<Vec3> normals(mesh.triangle_count());
+  for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
+    const Vec3 p0 = mesh.vertex(t, 0), p1 = mesh.vertex(t, 1), p2 = mesh.vertex(t, 2);
+    if (!degenerate_triangle(p0, p1, p2)) normals[t] = normalize(cross(p1 - p0, p2 - p0));
+  }
+  return normals;
+}
+
 TraceContext::TraceContext() {
   rtcInitIntersectContext(&context);
   context.filter = skip_origin_triangle;

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <limits>
+#include <vector>
 
 #include "scene/scene.h"
 #include "util/math.h"
@@ -18,7 +19,11 @@ struct MeshView {
   const Mesh* mesh;
   uint64_t texel_offset;     // into the global texel arrays
   const double* texel_area;  // world area per texel, null without lightmap
+  const Vec3* normals;       // unit geometric normal per triangle; (0, 0, 0) if degenerate
 };
+
+// Unit normals of a mesh's triangles, (0, 0, 0) for degenerate ones.
+std::vector<Vec3> triangle_normals(const Mesh& mesh);
 
 struct TraceContext {
   RTCIntersectContext context;  // first member: Embree hands back this pointer

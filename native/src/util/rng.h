@@ -25,6 +25,39 @@ inline double radical_inverse2(uint64_t i) {
   return double(i >> 11) * (1.0 / 9007199254740992.0);
 }
 
+// A pseudo-random permutation of [0, n) keyed by key (Kensler 2013: a hash
+// that is a bijection on the next power of two, cycle-walked into range).
+inline uint32_t permute(uint32_t i, uint32_t n, uint32_t key) {
+  if (n <= 1) return 0;
+  uint32_t w = n - 1;
+  w |= w >> 1;
+  w |= w >> 2;
+  w |= w >> 4;
+  w |= w >> 8;
+  w |= w >> 16;
+  do {
+    i ^= key;
+    i *= 0xe170893du;
+    i ^= key >> 16;
+    i ^= (i & w) >> 4;
+    i ^= key >> 8;
+    i *= 0x0929eb3fu;
+    i ^= key >> 23;
+    i ^= (i & w) >> 1;
+    i *= 1 | key >> 27;
+    i *= 0x6935fa69u;
+    i ^= (i & w) >> 11;
+    i *= 0x74dcb303u;
+    i ^= (i & w) >> 2;
+    i *= 0x9e501cc3u;
+    i ^= (i & w) >> 2;
+    i *= 0xc860a3dfu;
+    i &= w;
+    i ^= i >> 5;
+  } while (i >= n);
+  return (i + key) % n;
+}
+
 // PCG32 (O'Neill): small state, good statistics, fast.
 class Rng {
  public:
