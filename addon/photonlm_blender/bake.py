@@ -140,7 +140,8 @@ class BakeJob:
             seconds_export=float(self.seconds_export), photons_per_second=float(photons_per_second),
             warning_count=len(warnings), objects=len(self.export.baked),
             photon_hits=int(stats["photon_hits"]), rays_traced=int(stats["rays_traced"]),
-            error_estimate=float(stats["error_estimate"]), error_median=float(stats["error_median"]),
+            error_estimate=float(stats["error_estimate"]), error_direct=float(stats["error_direct"]),
+            error_median=float(stats["error_median"]),
             error_p95=float(stats["error_p95"]), direct_samples=int(stats["direct_samples"]))
         LAST.clear()
         LAST.update(stats=dict(stats, seconds_export=self.seconds_export,

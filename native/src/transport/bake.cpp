@@ -435,7 +435,10 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
     DirectPass pass(accel.handle(), views, areas, emitters, settings.seed, extent);
     std::vector<uint32_t> todo(covered.size());
     for (uint32_t i = 0; i < todo.size(); ++i) todo[i] = i;
-    const uint32_t max_rounds = 6;
+    // Round r adds direct_samples * 2^min(r, 8) samples to the texels still
+    // above the limit: texels that see a light rarely (the sky through a
+    // window) need thousands.
+    const uint32_t max_rounds = 16;
     for (uint32_t round = 0; round < max_rounds && !todo.empty(); ++round) {
       const uint32_t samples = settings.direct_samples << std::min(round, 8u);
       const double r0 = 0.05 + (direct_end - 0.05) * round / max_rounds;
@@ -472,7 +475,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
         if (direct[i].count < 2 || noisy) next.push_back(i);
       }
       todo.swap(next);
-      if (over_budget(photon_pass ? 0.3 : 0.95)) break;
+      if (over_budget(photon_pass ? 0.5 : 0.95)) break;
     }
     for (const DirectSums& d : direct) out.stats.direct_samples += d.count;
   }
@@ -515,9 +518,14 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
             photons = std::min(cap, (b + 1) * kBatchPhotons);
             if (settings.target_error > 0.0 && b + 1 == next_check) {
               next_check = std::max(next_check + kCheckBatches, (next_check * 5 / 4) / kCheckBatches * kCheckBatches);
-              const double err = estimate_error(estimator, photons).relative;
+              const ErrorEstimate e = estimate_error(estimator, photons);
+              const double err = e.relative;
+              // Photons cannot lower the direct part: once theirs is under half
+              // the target, more photons would not reach a target the direct
+              // pass missed (its warning says so).
+              const double photon_err = std::sqrt(std::max(0.0, err * err - e.direct * e.direct));
               fraction = std::max(fraction, std::min(1.0, std::pow(settings.target_error / std::max(err, 1e-12), 2.0)));
-              done = err <= settings.target_error;
+              done = err <= settings.target_error || photon_err <= 0.5 * settings.target_error;
             }
           }
           merged = end;
