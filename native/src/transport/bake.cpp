@@ -53,16 +53,7 @@ class PhotonTracer {
                const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent,
                uint32_t first_recorded_depth)
       : scene_(scene), rtc_(rtc), views_(views), emitters_(emitters), settings_(settings),
-        offset_scale_(1e-6f * scene_extent), first_recorded_(first_recorded_depth) {
-    double total = 0.0;
-    for (const Emitter& e : emitters) total += average(e.flux);
-    double running = 0.0;
-    for (const Emitter& e : emitters) {
-      running += average(e.flux);
-      cdf_.push_back(running / total);
-      pick_.push_back(float(average(e.flux) / total));
-    }
-    cdf_.back() = 1.0;
+        offset_scale_(1e-6f * scene_extent), first_recorded_(first_recorded_depth), table_(emitters) {
     pick_offset_ = double(Rng(settings.seed, ~0ull).next_float());
     default_material_.albedo = {0.8f, 0.8f, 0.8f};
   }
@@ -84,11 +75,10 @@ class PhotonTracer {
     // The light choice follows a rotated van der Corput sequence: stratified for any photon count.
     double u_pick = radical_inverse2(index) + pick_offset_;
     if (u_pick >= 1.0) u_pick -= 1.0;
-    const size_t k = std::min<size_t>(std::upper_bound(cdf_.begin(), cdf_.end(), u_pick) - cdf_.begin(),
-                                      emitters_.size() - 1);
+    const size_t k = table_.choose(u_pick);
     const float u[4] = {rng.next_float(), rng.next_float(), rng.next_float(), rng.next_float()};
     const EmitterSample s = sample_emitter(emitters_[k], u);
-    Vec3 flux = s.weight * (1.0f / pick_[k]);
+    Vec3 flux = s.weight * (1.0f / table_.probability(k));
     if (max_component(flux) <= 0.0f) return;
 
     TraceContext tc;
@@ -159,8 +149,7 @@ class PhotonTracer {
   plm_bake_settings settings_;
   float offset_scale_;
   uint32_t first_recorded_;
-  std::vector<double> cdf_;
-  std::vector<float> pick_;
+  EmitterTable table_;
   double pick_offset_ = 0.0;
   Material default_material_;
 };
@@ -457,21 +446,26 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
             report(r0 + (r1 - r0) * double(done) / double(todo.size()), "direct light");
             return true;
           });
-      // Next round: texels without two samples yet, and with a target, texels
-      // whose direct error exceeds half the target (relative to the mean value).
-      double mean = 0.0, all_sq = 0.0, all_count = 0.0;
+      // Next round: texels without two samples yet; and with a target, while
+      // the direct part's RMS error is above 0.7 x target (leaving the rest of
+      // the error budget to the photons), the texels of above-average
+      // variance: the RMS falls fastest there, and shadow-edge texels are not
+      // driven to the target one by one.
+      double mean = 0.0, all_sq = 0.0, all_count = 0.0, mean_var = 0.0;
       for (const DirectSums& d : direct) {
         mean += d.mean();
         all_sq += d.sum_sq;
         all_count += d.count;
       }
-      mean /= double(std::max<size_t>(direct.size(), 1));
+      const double texels = double(std::max<size_t>(direct.size(), 1));
+      mean /= texels;
       direct_typical = all_count > 0.0 ? std::sqrt(all_sq / all_count) : 0.0;
-      const double limit = 0.5 * settings.target_error * mean;
+      for (const DirectSums& d : direct) mean_var += d.variance_of_mean(direct_typical);
+      mean_var /= texels;
+      const bool refine = settings.target_error > 0.0 && std::sqrt(mean_var) > 0.7 * settings.target_error * mean;
       std::vector<uint32_t> next;
-      for (uint32_t i : todo) {
-        const bool noisy =
-            settings.target_error > 0.0 && std::sqrt(direct[i].variance_of_mean(direct_typical)) > limit;
+      for (uint32_t i = 0; i < direct.size(); ++i) {
+        const bool noisy = refine && direct[i].variance_of_mean(direct_typical) > mean_var;
         if (direct[i].count < 2 || noisy) next.push_back(i);
       }
       todo.swap(next);

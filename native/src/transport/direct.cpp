@@ -23,16 +23,7 @@ double DirectSums::variance_of_mean(double typical) const {
 DirectPass::DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<TexelAreas>& areas,
                        const std::vector<Emitter>& emitters, uint32_t seed, float scene_extent)
     : rtc_(rtc), views_(views), areas_(areas), emitters_(emitters), seed_(seed),
-      offset_scale_(1e-6f * scene_extent) {
-  double total = 0.0;
-  for (const Emitter& e : emitters) total += average(e.flux);
-  double running = 0.0;
-  for (const Emitter& e : emitters) {
-    running += average(e.flux);
-    cdf_.push_back(running / total);
-    pick_.push_back(float(average(e.flux) / total));
-  }
-  if (!cdf_.empty()) cdf_.back() = 1.0;
+      offset_scale_(1e-6f * scene_extent), table_(emitters) {
   triangle_emitter_.resize(views.size());
   for (size_t k = 0; k < emitters.size(); ++k) {
     if (emitters[k].kind != EmitterKind::Triangle) continue;
@@ -175,8 +166,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
     } else if (!surface_point(mesh_id, texel, x, y, p, normal, tri)) {
       continue;  // outside the islands
     }
-    const size_t k = std::min<size_t>(std::upper_bound(cdf_.begin(), cdf_.end(), double(u_pick)) - cdf_.begin(),
-                                      emitters_.size() - 1);
+    const size_t k = table_.choose(u_pick);
     const Emitter& em = emitters_[k];
     const DirectSample ds = sample_direct(em, p, normal, u);
     const Vec3 origin = offset_origin(p, normal, offset_scale_);
@@ -190,10 +180,10 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
         float weight = 1.0f;
         if (em.kind == EmitterKind::Triangle) {  // balance heuristic against cosine sampling
           const float cos_l = std::fabs(dot(em.normal, ds.dir)), cos_s = dot(normal, ds.dir);
-          const float p_light = pick_[k] * ds.distance * ds.distance / (cos_l * em.area);
+          const float p_light = table_.probability(k) * ds.distance * ds.distance / (cos_l * em.area);
           weight = p_light / (p_light + cos_s / kPi);
         }
-        e = ds.irradiance * (weight / (kPi * pick_[k]));
+        e = ds.irradiance * (weight / (kPi * table_.probability(k)));
       }
     }
     if (has_triangle_emitters_) {
@@ -213,7 +203,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
         if (hit_emitter >= 0) {
           const Emitter& he = emitters_[size_t(hit_emitter)];
           const float cos_l = std::fabs(dot(he.normal, dir)), cos_s = local.z;
-          const float p_light = pick_[size_t(hit_emitter)] * rh.ray.tfar * rh.ray.tfar / (cos_l * he.area);
+          const float p_light = table_.probability(size_t(hit_emitter)) * rh.ray.tfar * rh.ray.tfar / (cos_l * he.area);
           const float p_cos = cos_s / kPi;
           // Irradiance estimate L cos / p_cos = pi L, weighted; stored as irradiance / pi.
           if (cos_l > 0.0f && p_cos > 0.0f) e += he.radiance * (p_cos / (p_light + p_cos));

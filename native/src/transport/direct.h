@@ -45,8 +45,6 @@ class DirectPass {
   const std::vector<MeshView>& views_;
   const std::vector<TexelAreas>& areas_;
   const std::vector<Emitter>& emitters_;
-  std::vector<double> cdf_;
-  std::vector<float> pick_;
   // Emissive triangles are also found by cosine-sampled rays, combined with
   // light sampling by multiple importance sampling (balance heuristic): near
   // a large emitter light sampling alone has a heavy-tailed 1/d^2 variance.
@@ -54,6 +52,7 @@ class DirectPass {
   bool has_triangle_emitters_ = false;
   uint32_t seed_;
   float offset_scale_;
+  EmitterTable table_;
 };
 
 }  // namespace plm

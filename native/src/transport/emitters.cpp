@@ -86,6 +86,18 @@ Emitter light_emitter(const Light& light) {
 
 }  // namespace
 
+EmitterTable::EmitterTable(const std::vector<Emitter>& emitters) {
+  double total = 0.0;
+  for (const Emitter& e : emitters) total += average(e.flux);
+  double running = 0.0;
+  for (const Emitter& e : emitters) {
+    running += average(e.flux);
+    cdf_.push_back(running / total);
+    pick_.push_back(float(average(e.flux) / total));
+  }
+  if (!cdf_.empty()) cdf_.back() = 1.0;
+}
+
 std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radius) {
   std::vector<Emitter> out;
   const float disk_area = kPi * radius * radius;

@@ -2,6 +2,7 @@
 // emissive triangles and the world. A closed set dispatched on a tag.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -46,6 +47,21 @@ float spot_attenuation(float c, float cos_half, float spot_smooth);
 // Flattens lights, emissive triangles and the world. scene_center/radius
 // bound all geometry (sun and world photons start on a disk around them).
 std::vector<Emitter> build_emitters(const Scene& scene, Vec3 scene_center, float scene_radius);
+
+// Chooses emitters in proportion to their power (mean RGB flux).
+class EmitterTable {
+ public:
+  explicit EmitterTable(const std::vector<Emitter>& emitters);
+  // The emitter for a uniform number u in [0, 1).
+  size_t choose(double u) const {
+    return std::min<size_t>(std::upper_bound(cdf_.begin(), cdf_.end(), u) - cdf_.begin(), cdf_.size() - 1);
+  }
+  float probability(size_t k) const { return pick_[k]; }
+
+ private:
+  std::vector<double> cdf_;
+  std::vector<float> pick_;
+};
 
 // Samples an origin and a direction from four uniform numbers in [0, 1).
 EmitterSample sample_emitter(const Emitter& e, const float u[4]);
