@@ -12,44 +12,15 @@
 #include <vector>
 
 #include "demo_scenes.h"
+#include "test_support.h"
 
 namespace {
 
 using plm_demo::SceneBuilder;
 using plm_demo::V3;
 
-struct Lightmap {
-  uint32_t w = 0, h = 0;
-  std::vector<float> rgb, error, hits, coverage;
-  float value(size_t t) const { return (rgb[3 * t] + rgb[3 * t + 1] + rgb[3 * t + 2]) / 3.0f; }
-};
-
-struct Baked {
-  plm_result* r = nullptr;
-  ~Baked() { plm_result_release(r); }
-  Lightmap get(uint32_t mesh) const {
-    Lightmap m;
-    EXPECT_EQ(plm_result_lightmap_size(r, mesh, &m.w, &m.h), PLM_OK) << plm_last_error();
-    const size_t n = size_t(m.w) * m.h;
-    m.rgb.resize(3 * n);
-    m.error.resize(n);
-    m.hits.resize(n);
-    m.coverage.resize(n);
-    EXPECT_EQ(plm_result_copy_lightmap(r, mesh, m.rgb.data(), m.error.data(), m.hits.data(), m.coverage.data()),
-              PLM_OK);
-    return m;
-  }
-  plm_bake_stats stats() const {
-    plm_bake_stats s;
-    plm_result_stats(r, &s);
-    return s;
-  }
-  bool warned(const char* needle) const {
-    for (uint32_t i = 0; i < plm_result_warning_count(r); ++i)
-      if (std::strstr(plm_result_warning(r, i), needle)) return true;
-    return false;
-  }
-};
+using Lightmap = plm_test::Map;
+using Baked = plm_test::BakeResult;
 
 plm_bake_settings settings(uint64_t photons, uint32_t max_bounces = 1024, uint32_t direct_samples = 16,
                            uint32_t filter_radius = 3) {
@@ -87,7 +58,7 @@ void expect_furnace(float rho, V3 center, float size, uint64_t photons) {
   b.box("furnace", center, {size, size, size}, 0.0f, m, 12, true);
   Baked r;
   bake(b, settings(photons), r);
-  const Lightmap lm = r.get(0);
+  const Lightmap lm = r.map(0);
   const double exact = 1.0 / (1.0 - rho);
   double sum = 0, wsum = 0, z2 = 0;
   int n = 0;
@@ -120,9 +91,9 @@ TEST(Bake, AlbedoOneStopsAtMaxBouncesAndWarns) {
   bake(b, settings(20000, 16), r);
   // Emission leaves both sides: the half emitted outwards escapes, the rest is trapped.
   EXPECT_NEAR(double(r.stats().paths_truncated), 10000.0, 400.0);
-  EXPECT_TRUE(r.warned("max_bounces"));
+  EXPECT_TRUE(!r.warning("max_bounces").empty());
   // 17 hits per photon, each carrying the full flux: value = 17 * E (E = 1).
-  const Lightmap lm = r.get(0);
+  const Lightmap lm = r.map(0);
   double sum = 0, n = 0;
   for (size_t t = 0; t < lm.coverage.size(); ++t)
     if (lm.coverage[t] > 0.999f) {
@@ -142,7 +113,7 @@ double black_box_flux(const plm_light& light) {
   Baked r;
   bake(b, raw_photons(200000), r);
   // Each face 2 x 2 m over (8 - 2 margin) ^ 2 covered texels of a 24 x 16 map.
-  return recorded_flux(r.get(0), 4.0 / 36.0);
+  return recorded_flux(r.map(0), 4.0 / 36.0);
 }
 
 TEST(Bake, LightPowerMatchesCyclesUnits) {
@@ -176,7 +147,7 @@ TEST(Bake, EmissiveTriangleEmitsFromBothSides) {
   b.quad("panel", {-0.25f, -0.25f, 0}, {0.5f, 0, 0}, {0, 0.5f, 0}, glow, 0);
   Baked r;
   bake(b, raw_photons(200000), r);
-  EXPECT_NEAR(recorded_flux(r.get(0), 4.0 / 36.0), 2.0 * M_PI * 2.0 * 0.25, 1e-3);  // 2 pi L A
+  EXPECT_NEAR(recorded_flux(r.map(0), 4.0 / 36.0), 2.0 * M_PI * 2.0 * 0.25, 1e-3);  // 2 pi L A
 }
 
 // A square plane of side 20 at z = 0, lightmap res x res; returns its lightmap.
@@ -190,7 +161,7 @@ Lightmap lit_plane(const plm_light& light, uint32_t res, uint64_t photons, const
   }
   Baked r;
   bake(b, settings(photons, 1024, 64), r);
-  return r.get(0);
+  return r.map(0);
 }
 
 TEST(Bake, PointLightOverPlaneIsInverseSquareCosine) {
@@ -287,7 +258,7 @@ TEST(Bake, BarelyCoveredTexelsShowNoOutliers) {
   b.light(l, "sun");
   Baked r;
   bake(b, settings(400000), r);
-  const Lightmap lm = r.get(0);
+  const Lightmap lm = r.map(0);
   const double exact = 2.0 / M_PI;
   int slivers = 0;
   for (size_t t = 0; t < lm.coverage.size(); ++t) {
@@ -323,7 +294,7 @@ TEST(Bake, SameSeedSameResultWhateverTheThreads) {
   s.seed = 1;
   bake(b, s, other);
   for (uint32_t m = 0; m < 7; ++m) {
-    const Lightmap a = one.get(m), c = two.get(m), d = other.get(m);
+    const Lightmap a = one.map(m), c = two.map(m), d = other.map(m);
     EXPECT_EQ(a.rgb, c.rgb) << "mesh " << m;
     EXPECT_EQ(a.error, c.error);
     EXPECT_NE(a.rgb, d.rgb);
@@ -349,8 +320,8 @@ TEST(Bake, NoLightsWarnsAndGivesBlack) {
   b.quad("plane", {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, m, 4);
   Baked r;
   bake(b, settings(1000), r);
-  EXPECT_TRUE(r.warned("no lights"));
-  const Lightmap lm = r.get(0);
+  EXPECT_TRUE(!r.warning("no lights").empty());
+  const Lightmap lm = r.map(0);
   for (float v : lm.rgb) EXPECT_EQ(v, 0.0f);
 }
 
@@ -426,7 +397,7 @@ TEST(Api, ExrIsWrittenAtomicallyAndReadsBack) {
   EXPECT_EQ(spec.channelnames[4], "hits");
   std::vector<float> px(size_t(spec.width) * spec.height * 5);
   ASSERT_TRUE(in->read_image(0, 0, 0, 5, OIIO::TypeDesc::FLOAT, px.data()));
-  const Lightmap lm = r.get(0);
+  const Lightmap lm = r.map(0);
   for (uint32_t y = 0; y < lm.h; ++y)  // file row 0 = top = lightmap row h - 1
     for (uint32_t x = 0; x < lm.w; ++x) {
       const size_t f = (size_t(lm.h - 1 - y) * lm.w + x) * 5, t = size_t(y) * lm.w + x;
@@ -458,7 +429,7 @@ TEST(Bake, MillionsOfHitsOnOneTexelLoseNothing) {
   b.light(sun, "sun");
   Baked r;
   bake(b, raw_photons(28000000, 0), r);  // 63% land on the plane
-  const Lightmap lm = r.get(0);
+  const Lightmap lm = r.map(0);
   EXPECT_GT(lm.hits[0], 16777216.0f);
   EXPECT_NEAR(lm.value(0), 1.0 / M_PI, 1e-4 / M_PI);
 }
@@ -480,7 +451,7 @@ TEST(Bake, TargetErrorIsReachedAndHonest) {
     EXPECT_LE(st.error_estimate, target);
     // It stopped at the first check where the target was met (checks every 16 batches or more).
     EXPECT_TRUE(st.photons_emitted == 16 * 4096 || st.error_estimate > 0.5 * target) << st.photons_emitted;
-    const Lightmap lm = r.get(0);
+    const Lightmap lm = r.map(0);
     const double exact = 1.0 / (1.0 - rho);
     double sq = 0.0, n = 0.0;
     for (size_t t = 0; t < lm.coverage.size(); ++t) {

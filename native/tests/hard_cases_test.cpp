@@ -16,55 +16,16 @@
 #include <vector>
 
 #include "demo_scenes.h"
+#include "test_support.h"
 
 namespace {
 
 using plm_demo::SceneBuilder;
 using plm_demo::V3;
+using plm_test::BakeResult;
+using plm_test::Map;
 
 // ---- small helpers (this file only) ----------------------------------------
-
-struct Map {
-  uint32_t w = 0, h = 0;
-  std::vector<float> rgb, error, hits, coverage;
-  double value(size_t t) const { return (double(rgb[3 * t]) + rgb[3 * t + 1] + rgb[3 * t + 2]) / 3.0; }
-};
-
-struct Result {
-  plm_result* r = nullptr;
-  Result() = default;
-  Result(const Result&) = delete;
-  Result& operator=(const Result&) = delete;
-  ~Result() { plm_result_release(r); }
-  Map map(uint32_t mesh) const {
-    Map m;
-    EXPECT_EQ(plm_result_lightmap_size(r, mesh, &m.w, &m.h), PLM_OK) << plm_last_error();
-    const size_t n = size_t(m.w) * m.h;
-    m.rgb.resize(3 * n);
-    m.error.resize(n);
-    m.hits.resize(n);
-    m.coverage.resize(n);
-    EXPECT_EQ(plm_result_copy_lightmap(r, mesh, m.rgb.data(), m.error.data(), m.hits.data(), m.coverage.data()), PLM_OK)
-        << plm_last_error();
-    return m;
-  }
-  plm_bake_stats stats() const {
-    plm_bake_stats s{};
-    EXPECT_EQ(plm_result_stats(r, &s), PLM_OK);
-    return s;
-  }
-  // The first warning containing needle, or "".
-  std::string warning(const char* needle) const {
-    for (uint32_t i = 0; i < plm_result_warning_count(r); ++i)
-      if (std::strstr(plm_result_warning(r, i), needle)) return plm_result_warning(r, i);
-    return "";
-  }
-  std::string all_warnings() const {
-    std::string s;
-    for (uint32_t i = 0; i < plm_result_warning_count(r); ++i) s += std::string(plm_result_warning(r, i)) + "\n";
-    return s;
-  }
-};
 
 // The two ways a bake computes direct light: the default direct pass (shadow
 // rays from points inside each texel, photons add the indirect part, pooled
@@ -87,7 +48,7 @@ plm_bake_settings settings(uint64_t photons, uint32_t max_bounces = 1024, Mode m
   return s;
 }
 
-void bake(SceneBuilder& b, const plm_bake_settings& s, Result& out) {
+void bake(SceneBuilder& b, const plm_bake_settings& s, BakeResult& out) {
   ASSERT_TRUE(b.ok()) << b.error;
   ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &out.r), PLM_OK) << plm_last_error();
 }
@@ -222,7 +183,7 @@ TEST(HardCases, GrazingSunOverPlaneHasNoSpeckles) {
     b.quad("plane", {-10, -10, 0}, {20, 0, 0}, {0, 20, 0}, white, 4);
     const double theta = 89.5 * M_PI / 180.0, S = 100.0;
     b.light(sun(float(S), theta), "sun");
-    Result r;
+    BakeResult r;
     bake(b, settings(2000000, 1024, mode), r);
     const double exact = S * std::cos(theta) / M_PI;
     const Agreement a = agree_const(r.map(0), exact);
@@ -250,7 +211,7 @@ TEST(HardCases, BoxFacesUnderGrazingSunAreExact) {
     b.box("box", {0, 0, 0}, {2, 2, 2}, 0.0f, white, r_face);
     const double theta = 89.5 * M_PI / 180.0, S = 10.0;
     b.light(sun(float(S), theta), "sun");
-    Result r;
+    BakeResult r;
     bake(b, settings(2000000, 1024, mode), r);
     const Map m = r.map(0);
     // Faces in atlas order: +z, -z, +x, -x, +y, -y; face f in cell (f % 3, f / 3).
@@ -297,7 +258,7 @@ void expect_black_box_conserves(V3 center, float size, const plm_light& light, d
       }
       b.light(l, "light");
     }
-    Result r;
+    BakeResult r;
     const uint64_t photons = 100000;
     bake(b, settings(photons, 1024, mode), r);
     const double texel_area = double(size) * size / 36.0;
@@ -367,7 +328,7 @@ TEST(HardCases, DegenerateTrianglesAreSkippedAndReported) {
         << plm_last_error();
     const double S = 2.0;
     b.light(sun(float(S), 0.0), "sun");
-    Result r;
+    BakeResult r;
     bake(b, settings(400000, 1024, mode), r);
     const std::string w = r.warning("degenerate");
     EXPECT_TRUE(contains(w, "mesh 'quad'")) << r.all_warnings();
@@ -411,7 +372,7 @@ TEST(HardCases, SliverFanBakesLikeAQuad) {
         << plm_last_error();
     const double S = 2.0, theta = M_PI / 6;
     b.light(sun(float(S), theta), "sun");
-    Result r;
+    BakeResult r;
     bake(b, settings(400000, 1024, mode), r);
     EXPECT_EQ(plm_result_warning_count(r.r), 0u) << r.all_warnings();
     const Agreement a = agree_const(r.map(0), S * std::cos(theta) / M_PI);
@@ -442,7 +403,7 @@ TEST(HardCases, TexelsFarSmallerThanTheTriangle) {
     ASSERT_EQ(plm_scene_add_mesh(b.scene, "tri", pos, 3, idx, 1, uv, nullptr, 512, 512, nullptr), PLM_OK);
     const double S = 2.0, theta = M_PI / 6, exact = S * std::cos(theta) / M_PI;
     b.light(sun(float(S), theta), "sun");
-    Result r;
+    BakeResult r;
     bake(b, settings(8000000, 0, mode), r);
     const Map m = r.map(0);
     double n = 0, sum_dev = 0, sum_dev2 = 0, sum_err2 = 0, max_dev = 0;
@@ -483,7 +444,7 @@ TEST(HardCases, TrianglesFarSmallerThanATexel) {
     b.quad("fine", {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, black, 4, 200);
     const double S = 2.0, theta = M_PI / 6;
     b.light(sun(float(S), theta), "sun");
-    Result r;
+    BakeResult r;
     bake(b, settings(1000000, 1024, mode), r);
     const Agreement a = agree_const(r.map(0), S * std::cos(theta) / M_PI);
     report(name(mode), a, S * std::cos(theta) / M_PI);
@@ -510,7 +471,7 @@ Furnace furnace(float rho, uint32_t max_bounces, uint64_t photons, Mode mode) {
   SceneBuilder b;
   const uint32_t m = b.material("furnace", {rho, rho, rho}, {1, 1, 1});
   b.box("furnace", {0, 0, 0}, {2, 2, 2}, 0.0f, m, 4, true);
-  Result r;
+  BakeResult r;
   Furnace f;
   bake(b, settings(photons, max_bounces, mode), r);
   if (!r.r) return f;
@@ -591,7 +552,7 @@ TEST(HardCases, LightInsideClosedBoxLeaksNothing) {
       b.quad("floor", {-5, -5, 0}, {10, 0, 0}, {0, 10, 0}, grey, 16);
       b.box("box", {0.3f, -0.2f, 1.0f}, {1, 1, 1}, 0.4f, grey, 4, inward);
       b.light(point(100, {0.35f, -0.1f, 1.1f}), "inside");
-      Result r;
+      BakeResult r;
       bake(b, settings(200000, 1024, mode), r);
       const Map floor = r.map(0);
       double sum = 0, hits = 0;
@@ -626,7 +587,7 @@ TEST(HardCases, OverlappingUvsAreReported) {
     ASSERT_EQ(plm_scene_add_mesh(b.scene, "twins", pos, 6, idx, 4, uv, nullptr, 4, 4, nullptr), PLM_OK);
     const double S = 2.0;
     b.light(sun(float(S), 0.0), "sun");
-    Result r;
+    BakeResult r;
     bake(b, settings(400000, 1024, mode), r);
     const std::string w = r.warning("overlap");
     EXPECT_TRUE(contains(w, "mesh 'twins'")) << r.all_warnings();
@@ -655,7 +616,7 @@ TEST(HardCases, ThousandLightsEqualOne) {
       const uint32_t black = b.material("black", {0, 0, 0});
       b.quad("plane", {-2, -2, 0}, {4, 0, 0}, {0, 4, 0}, black, 8);
       for (int i = 0; i < count; ++i) b.light(point(float(P / count), {0, 0, float(h)}), "bulb");
-      Result r;
+      BakeResult r;
       bake(b, settings(400000, 1024, mode), r);
       const Map m = r.map(0);
       const Agreement a = agree(m, [&](size_t t) {
@@ -691,7 +652,7 @@ TEST(HardCases, OneTriangleScene) {
     ASSERT_EQ(plm_scene_add_mesh(b.scene, "only", pos, 3, idx, 1, uv, nullptr, 1, 1, nullptr), PLM_OK);
     const double S = 2.0;
     b.light(sun(float(S), 0.0), "sun");
-    Result r;
+    BakeResult r;
     bake(b, settings(200000, 1024, mode), r);
     const Map m = r.map(0);
     EXPECT_NEAR(m.coverage[0], 0.5f, 1e-6f);
@@ -724,7 +685,7 @@ TEST(HardCases, NoLightsWarnsAndIsBlack) {
   const float black[3] = {0, 0, 0};
   ASSERT_EQ(plm_scene_set_world(b.scene, black), PLM_OK);
   b.light(point(0.0f, {0, 0, 3}), "off");  // a light of power 0 emits nothing
-  Result r;
+  BakeResult r;
   bake(b, settings(1000), r);
   EXPECT_NE(r.warning("no lights"), "") << r.all_warnings();
   EXPECT_EQ(r.stats().photons_emitted, 0u);
@@ -837,7 +798,7 @@ TEST_F(BadInput, NonFiniteLightOrWorldIsRejected) {
   const float uv[12] = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
   ASSERT_EQ(plm_scene_add_mesh(s, "ok", pos, 4, idx, 2, uv, nullptr, 2, 2, nullptr), PLM_OK);
   const plm_bake_settings st = settings(1000);
-  Result r;
+  BakeResult r;
   ASSERT_EQ(plm_bake(s, &st, nullptr, nullptr, &r.r), PLM_OK) << plm_last_error();
   EXPECT_NE(r.warning("no lights"), "");
 }
@@ -912,7 +873,7 @@ TEST_F(BadInput, MismatchedSizesAreRejected) {
   const plm_bake_settings st = settings(1000);
   EXPECT_EQ(plm_bake(s, &st, nullptr, nullptr, &r), PLM_ERROR_INVALID_SCENE);
   EXPECT_TRUE(contains(plm_last_error(), "no meshes")) << plm_last_error();
-  // Result queries with bad ids.
+  // BakeResult queries with bad ids.
   EXPECT_EQ(plm_result_lightmap_size(nullptr, 0, nullptr, nullptr), PLM_ERROR_INVALID_ARGUMENT);
   EXPECT_EQ(plm_result_warning_count(nullptr), 0u);
   EXPECT_STREQ(plm_result_warning(nullptr, 3), "");
@@ -929,7 +890,7 @@ bool finite_or_rejected(SceneBuilder& b, std::string& why) {
     why = plm_last_error();
     return st == PLM_ERROR_INVALID_ARGUMENT || st == PLM_ERROR_INVALID_SCENE;
   }
-  Result res;
+  BakeResult res;
   res.r = r;
   const Map m = res.map(0);
   for (size_t i = 0; i < m.rgb.size(); ++i)

@@ -1,0 +1,56 @@
+// Helpers shared by the C API tests: a baked result and its lightmaps.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "photonlm/photonlm.h"
+
+namespace plm_test {
+
+struct Map {
+  uint32_t w = 0, h = 0;
+  std::vector<float> rgb, error, hits, coverage;
+  double value(size_t t) const { return (double(rgb[3 * t]) + rgb[3 * t + 1] + rgb[3 * t + 2]) / 3.0; }
+};
+
+struct BakeResult {
+  plm_result* r = nullptr;
+  BakeResult() = default;
+  BakeResult(const BakeResult&) = delete;
+  BakeResult& operator=(const BakeResult&) = delete;
+  ~BakeResult() { plm_result_release(r); }
+  Map map(uint32_t mesh) const {
+    Map m;
+    EXPECT_EQ(plm_result_lightmap_size(r, mesh, &m.w, &m.h), PLM_OK) << plm_last_error();
+    const size_t n = size_t(m.w) * m.h;
+    m.rgb.resize(3 * n);
+    m.error.resize(n);
+    m.hits.resize(n);
+    m.coverage.resize(n);
+    EXPECT_EQ(plm_result_copy_lightmap(r, mesh, m.rgb.data(), m.error.data(), m.hits.data(), m.coverage.data()), PLM_OK)
+        << plm_last_error();
+    return m;
+  }
+  plm_bake_stats stats() const {
+    plm_bake_stats s{};
+    EXPECT_EQ(plm_result_stats(r, &s), PLM_OK);
+    return s;
+  }
+  // The first warning containing needle, or "".
+  std::string warning(const char* needle) const {
+    for (uint32_t i = 0; i < plm_result_warning_count(r); ++i)
+      if (std::strstr(plm_result_warning(r, i), needle)) return plm_result_warning(r, i);
+    return "";
+  }
+  std::string all_warnings() const {
+    std::string s;
+    for (uint32_t i = 0; i < plm_result_warning_count(r); ++i) s += std::string(plm_result_warning(r, i)) + "\n";
+    return s;
+  }
+};
+
+}  // namespace plm_test
