@@ -79,6 +79,7 @@ def _child(bake, operators):
     scenes.cornell_box()
     scene = bpy.context.scene
     scene.photonlm.photons = 10_000_000
+    scene.photonlm.target_error = 0.0  # exactly that many photons: a bake long enough to watch
     res = {"ticks": 0}
     state = {"phase": "start"}
 
