@@ -222,6 +222,17 @@ def widen(win, screen, props):
             return False
 
 
+def heighten(win, screen, props, pixels):
+    """Move the edge between the Outliner and the Properties editor up, so the whole panel fits
+    (the cursor must sit on that edge: see widen)."""
+    x, y = props.x + props.width // 2, props.y + props.height
+    with bpy.context.temp_override(window=win, screen=screen):
+        try:
+            bpy.ops.screen.area_move(x=x, y=y, delta=pixels)
+        except RuntimeError as e:
+            print("make_screenshots: could not heighten the Properties editor: %s" % e, flush=True)
+
+
 def scroll_to_bottom(win, screen, props):
     region = window_region(props)
     with bpy.context.temp_override(window=win, screen=screen, area=props, region=region):
@@ -248,10 +259,14 @@ def steps():
     win.cursor_warp(props.x - 1, props.y + props.height // 2)
     yield 0.5
     widen(win, screen, props)
+    win.cursor_warp(props.x + props.width // 2, props.y + props.height)
+    yield 0.5
+    heighten(win, screen, props, 120)
+    yield 0.5
     # Park the cursor over the empty part of the outliner: no tooltip in the screenshots.
     outliner = biggest_area(screen, 'OUTLINER')
     if outliner is not None:
-        win.cursor_warp(outliner.x + outliner.width // 2, outliner.y + 10)
+        win.cursor_warp(outliner.x + outliner.width // 2, outliner.y + outliner.height // 2)
     yield 1.0
     scroll_to_bottom(win, screen, props)
     bpy.context.scene.photonlm.preview = True
