@@ -47,7 +47,8 @@ def furnace_scene(rho, res=16):
 def measure(rho, photons, seed=0):
     scene, mesh = furnace_scene(rho)
     t0 = time.perf_counter()
-    with scene.bake(photons=photons, seed=seed) as result:
+    # The raw photon estimator: photons carry direct light too, no pooling.
+    with scene.bake(photons=photons, seed=seed, direct_samples=0, filter_radius=0) as result:
         seconds = time.perf_counter() - t0
         lm = result.lightmap(mesh)
         stats = result.stats
