@@ -222,11 +222,9 @@ void validate(const Scene& scene, const plm_bake_settings& s) {
     fail(PLM_ERROR_INVALID_SCENE, "the lightmaps hold ", texels, " texels together; the limit is 2^31");
 }
 
-// The texels that hold a value, and where their sums live.
+// A texel that holds a value (area > 0): the direct pass works through these.
 struct CoveredTexel {
   uint32_t mesh, texel;  // local texel of that mesh
-  uint64_t global;       // index into the global photon accumulators
-  double area;           // world area
 };
 
 // Photon sums per texel over all lightmaps, merged batch by batch in order.
@@ -393,7 +391,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
       views[i].texel_area = areas[i].area.data();
       const uint32_t n = mesh.lightmap_width * mesh.lightmap_height;
       for (uint32_t t = 0; t < n; ++t)
-        if (areas[i].area[t] > 0.0) covered.push_back({uint32_t(i), t, texel_count + t, areas[i].area[t]});
+        if (areas[i].area[t] > 0.0) covered.push_back({uint32_t(i), t});
       texel_count += n;
     }
     add_mesh_warnings(mesh, mesh.has_lightmap() ? &areas[i] : nullptr, out.warnings);
