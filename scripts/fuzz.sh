@@ -9,6 +9,13 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds="${1:-60}"
+# PHOTONLM_FUZZ_RUNS=N: a fixed number of inputs from a fixed seed instead of a time limit, so
+# that the run (and so the test command) is the same every time.
+if [ -n "${PHOTONLM_FUZZ_RUNS:-}" ]; then
+  limit=(-runs="$PHOTONLM_FUZZ_RUNS" -seed=1)
+else
+  limit=(-max_total_time="$seconds")
+fi
 command -v clang++ > /dev/null || scripts/install_deps.sh
 export CC=clang CXX=clang++
 cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPHOTONLM_SANITIZE=ON -DPHOTONLM_FUZZ=ON \
@@ -21,11 +28,15 @@ export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1"
 for fuzzer in scene_api; do
   work="build-fuzz/corpus/$fuzzer"
+  if [ -n "${PHOTONLM_FUZZ_RUNS:-}" ]; then  # a fixed run starts from the committed seeds only
+    work="build-fuzz/corpus-fixed/$fuzzer"
+    rm -rf "$work"
+  fi
   mkdir -p "$work" build-fuzz/artifacts
-  echo "fuzz.sh: fuzz_$fuzzer for ${seconds}s"
+  echo "fuzz.sh: fuzz_$fuzzer (${limit[*]})"
   log="build-fuzz/fuzz_$fuzzer.log"
   set +e
-  build-fuzz/bin/fuzz_"$fuzzer" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -max_len=4096 \
+  build-fuzz/bin/fuzz_"$fuzzer" "${limit[@]}" -timeout=10 -rss_limit_mb=2048 -max_len=4096 \
     -print_final_stats=1 -artifact_prefix=build-fuzz/artifacts/ "$work" "native/fuzz/corpus/$fuzzer" > "$log" 2>&1
   status=$?
   set -e

@@ -519,3 +519,37 @@ TEST(Api, FarOutUvsAreRejected) {
 }
 
 }  // namespace
+
+namespace {
+
+// Found by the fuzzer: an emission of 1.4e-45 (denormal) gave a triangle a
+// flux that underflowed to 0; the light-choice table became 0 / 0 and the
+// lightmap NaN. Emitters without flux are now left out.
+TEST(Bake, DenormalEmissionIsNoLight) {
+  SceneBuilder b;
+  const uint32_t m = b.material("faint", {0.5f, 0.5f, 0.5f}, {0, 0, 1.4013e-45f});
+  b.quad("quad", {0, 0, 0}, {1e-2f, 0, 0}, {0, 1e-2f, 0}, m, 2);
+  Baked r;
+  bake(b, settings(1000, 16, 0), r);
+  EXPECT_FALSE(r.warning("no lights").empty());
+  for (float v : r.map(0).rgb) EXPECT_EQ(v, 0.0f);
+}
+
+}  // namespace
+
+namespace {
+
+// Found by the fuzzer: a 1.1e-5 m wide emissive quad made the MIS weights
+// inf / inf (cos * area underflowed): NaN texels. Weights are now ratios
+// that stay finite.
+TEST(Bake, NeedleEmitterGivesFiniteLight) {
+  SceneBuilder b;
+  const uint32_t glow = b.material("glow", {0, 0, 0}, {0, 0, 0.5f});
+  b.quad("needle", {0, -3.25f, 3.875f}, {0.29913f, 0.4f, 0.99f}, {9.32746e-41f, 0, 1.10269e-05f}, glow, 8);
+  Baked r;
+  bake(b, settings(46, 10, 3), r);
+  for (float v : r.map(0).rgb) EXPECT_TRUE(std::isfinite(v) && v >= 0.0f);
+  for (float v : r.map(0).error) EXPECT_TRUE(std::isfinite(v) && v >= 0.0f);
+}
+
+}  // namespace

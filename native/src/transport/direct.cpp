@@ -8,6 +8,20 @@
 
 namespace plm {
 
+namespace {
+
+// p_cos / p_light for the balance heuristic, as a finite ratio: cosine
+// sampling's density cos_s / pi against light sampling's pick * d^2 /
+// (cos_l * area). Written this way round, needle-thin emitters (cos_l * area
+// underflowing to 0) give 0 instead of inf / inf = NaN weights.
+float cos_weight_ratio(float cos_s, float cos_l_area, float pick, float distance) {
+  const float r = (cos_s / kPi) * cos_l_area / (pick * distance * distance);
+  if (!(r > 0.0f)) return 0.0f;  // 0 or NaN
+  return std::fmin(r, 1e30f);
+}
+
+}  // namespace
+
 double DirectSums::variance_of_mean(double typical) const {
   if (count == 0) return typical * typical;
   const double m = mean();
@@ -180,8 +194,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
         float weight = 1.0f;
         if (em.kind == EmitterKind::Triangle) {  // balance heuristic against cosine sampling
           const float cos_l = std::fabs(dot(em.normal, ds.dir)), cos_s = dot(normal, ds.dir);
-          const float p_light = table_.probability(k) * ds.distance * ds.distance / (cos_l * em.area);
-          weight = p_light / (p_light + cos_s / kPi);
+          weight = 1.0f / (1.0f + cos_weight_ratio(cos_s, cos_l * em.area, table_.probability(k), ds.distance));
         }
         e = ds.irradiance * (weight / (kPi * table_.probability(k)));
       }
@@ -203,10 +216,9 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
         if (hit_emitter >= 0) {
           const Emitter& he = emitters_[size_t(hit_emitter)];
           const float cos_l = std::fabs(dot(he.normal, dir)), cos_s = local.z;
-          const float p_light = table_.probability(size_t(hit_emitter)) * rh.ray.tfar * rh.ray.tfar / (cos_l * he.area);
-          const float p_cos = cos_s / kPi;
           // Irradiance estimate L cos / p_cos = pi L, weighted; stored as irradiance / pi.
-          if (cos_l > 0.0f && p_cos > 0.0f) e += he.radiance * (p_cos / (p_light + p_cos));
+          const float r = cos_weight_ratio(cos_s, cos_l * he.area, table_.probability(size_t(hit_emitter)), rh.ray.tfar);
+          if (cos_l > 0.0f && cos_s > 0.0f && r > 0.0f) e += he.radiance * (r / (1.0f + r));
         }
       }
     }

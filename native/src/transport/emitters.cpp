@@ -113,7 +113,7 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
       e.scale = e.flux;
       e.radiance = color * light.desc.power;
     }
-    if (max_component(e.flux) > 0.0f) out.push_back(e);
+    if (average(e.flux) > 0.0f) out.push_back(e);
   }
   for (uint32_t mesh_id = 0; mesh_id < scene.meshes.size(); ++mesh_id) {
     const Mesh& mesh = scene.meshes[mesh_id];
@@ -137,7 +137,7 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
       e.area = area;
       e.mesh = mesh_id;
       e.triangle = t;
-      out.push_back(e);
+      if (average(e.flux) > 0.0f) out.push_back(e);  // denormal emission can underflow to 0
     }
   }
   if (max_component(scene.world) > 0.0f) {
@@ -149,7 +149,7 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
     e.flux = scene.world * (4.0f * kPi * disk_area);
     e.scale = e.flux;
     e.radiance = scene.world;
-    out.push_back(e);
+    if (average(e.flux) > 0.0f) out.push_back(e);
   }
   return out;
 }
