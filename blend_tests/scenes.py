@@ -247,31 +247,35 @@ def photonlm_bake(photons, max_bounces, seed=1, target_error=0.02):
     return last
 
 
-def cycles_bake(objects, resolution, pass_filter, samples, bounces=32):
+def cycles_bake(objects, resolution, pass_filter, samples, bounces=32, seed=0, supersample=1):
     """Cycles DIFFUSE bake (no COLOR: irradiance / pi) of each object's single material into a
-    float image through the 'lightmap' UV map. Returns ({name: (h, w, 3) array}, seconds)."""
+    float image through the 'lightmap' UV map. resolution: texels per side, or None for each
+    object's photonlm.resolution. supersample = k bakes k x k texels per lightmap texel and
+    box-averages them (a texel-average reference: a Cycles bake texel is the value at the texel
+    centre, not the average over it, at hard edges). Returns ({name: (h, w, 3)}, seconds)."""
     scene = bpy.context.scene
     scene.render.engine = 'CYCLES'
-    scene.cycles.device = 'CPU'
-    scene.cycles.samples = samples
-    scene.cycles.use_adaptive_sampling = False
-    scene.cycles.use_denoising = False
-    scene.cycles.max_bounces = bounces
-    scene.cycles.diffuse_bounces = bounces
-    scene.cycles.glossy_bounces = bounces
-    scene.cycles.transmission_bounces = bounces
-    scene.cycles.sample_clamp_direct = 0.0
-    scene.cycles.sample_clamp_indirect = 0.0
-    scene.cycles.seed = 0
-    # A box filter one texel wide: each texel is the average over its area, as in photonlm.
-    # (Cycles' default Blackman-Harris 1.5 px filter blurs sharp edges across texels.)
-    scene.cycles.pixel_filter_type = 'BOX'
-    scene.cycles.filter_width = 1.0
+    c = scene.cycles
+    c.device = 'CPU'
+    c.samples = samples
+    c.use_adaptive_sampling = False
+    c.use_denoising = False
+    for k in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces"):
+        setattr(c, k, bounces)
+    c.sample_clamp_direct = 0.0
+    c.sample_clamp_indirect = 0.0
+    c.seed = seed
+    c.use_animated_seed = False
+    # A box filter one texel wide (Cycles' default Blackman-Harris 1.5 px filter blurs sharp
+    # edges across texels).
+    c.pixel_filter_type = 'BOX'
+    c.filter_width = 1.0
     scene.render.bake.margin = 0
     images, nodes = {}, []
     for obj in objects:
-        img = bpy.data.images.new("cycles_" + obj.name, resolution, resolution, alpha=True, float_buffer=True)
-        images[obj.name] = img
+        res = (resolution or obj.photonlm.resolution) * supersample
+        img = bpy.data.images.new("cycles_" + obj.name, res, res, alpha=True, float_buffer=True)
+        images[obj.name] = (img, res)
         for slot in obj.material_slots:
             nt = slot.material.node_tree
             node = nt.nodes.new("ShaderNodeTexImage")
@@ -293,10 +297,13 @@ def cycles_bake(objects, resolution, pass_filter, samples, bounces=32):
     for nt, node in nodes:
         nt.nodes.remove(node)
     out = {}
-    for name, img in images.items():
-        px = np.empty(resolution * resolution * 4, np.float32)
+    for name, (img, res) in images.items():
+        px = np.empty(res * res * 4, np.float32)
         img.pixels.foreach_get(px)
-        out[name] = px.reshape(resolution, resolution, 4)[..., :3].copy()
+        rgb = px.reshape(res, res, 4)[..., :3]
+        r = res // supersample
+        out[name] = rgb.copy() if supersample == 1 else \
+            rgb.astype(np.float64).reshape(r, supersample, r, supersample, 3).mean(axis=(1, 3))
         bpy.data.images.remove(img)
     for o in vl.objects:
         o.select_set(False)

@@ -118,63 +118,11 @@ SCENES = {"cornell": build_cornell, "open": build_open, "interior": build_interi
 
 # ---- bakes ---------------------------------------------------------------------------------------
 
-def cycles_bake(objects, samples, seed, pass_filter=("DIRECT", "INDIRECT"), supersample=1):
-    """scenes.cycles_bake with a seed: DIFFUSE DIRECT+INDIRECT, 32 bounces, no clamp, box filter.
-    supersample = k bakes k x k texels per lightmap texel and averages them (a texel-average
-    reference: a Cycles texel is not the average over its area at hard edges).
-    Returns ({name: (h, w, 3)}, operator wall seconds)."""
-    scene = bpy.context.scene
-    c = scene.cycles
-    scene.render.engine = 'CYCLES'
-    c.device = 'CPU'
-    c.samples = samples
-    c.use_adaptive_sampling = False
-    c.use_denoising = False
-    for k in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces"):
-        setattr(c, k, 32)
-    c.sample_clamp_direct = 0.0
-    c.sample_clamp_indirect = 0.0
-    c.seed = seed
-    c.use_animated_seed = False
-    c.pixel_filter_type = 'BOX'
-    c.filter_width = 1.0
-    scene.render.bake.margin = 0
-    images, nodes = {}, []
-    for obj in objects:
-        res = obj.photonlm.resolution * supersample
-        img = bpy.data.images.new("cycles_" + obj.name, res, res, alpha=True, float_buffer=True)
-        images[obj.name] = (img, res)
-        for slot in obj.material_slots:
-            nt = slot.material.node_tree
-            node = nt.nodes.new("ShaderNodeTexImage")
-            node.image = img
-            node.select = True
-            nt.nodes.active = node
-            nodes.append((nt, node))
-    vl = bpy.context.view_layer
-    vl.update()
-    names = {o.name for o in objects}
-    for o in vl.objects:
-        o.select_set(o.name in names)
-    vl.objects.active = objects[0]
-    vl.update()
-    t0 = time.perf_counter()
-    bpy.ops.object.bake(type='DIFFUSE', pass_filter=set(pass_filter), use_clear=True, margin=0,
-                        uv_layer="lightmap", target='IMAGE_TEXTURES')
-    seconds = time.perf_counter() - t0
-    for nt, node in nodes:
-        nt.nodes.remove(node)
-    out = {}
-    for name, (img, res) in images.items():
-        px = np.empty(res * res * 4, np.float32)
-        img.pixels.foreach_get(px)
-        a = px.reshape(res, res, 4)[..., :3].astype(np.float64)
-        r = res // supersample
-        out[name] = a.reshape(r, supersample, r, supersample, 3).mean(axis=(1, 3))
-        bpy.data.images.remove(img)
-    for o in vl.objects:
-        o.select_set(False)
-    return out, seconds
+def cycles_bake(objects, samples, seed, supersample=1):
+    """scenes.cycles_bake at each object's resolution: DIFFUSE DIRECT+INDIRECT, 32 bounces, no
+    clamp, box filter, the given seed. Returns ({name: (h, w, 3)}, operator wall seconds)."""
+    return scenes.cycles_bake(objects, None, ("DIRECT", "INDIRECT"), samples, bounces=32, seed=seed,
+                              supersample=supersample)
 
 
 _CAPTURED_ERRORS = {}
