@@ -729,7 +729,7 @@ TEST_F(BadInput, NonFiniteMeshDataIsRejectedWithItsIndex) {
       uv[k] = bad;
       const std::string where = "triangle " + std::to_string(k / 6) + " corner " + std::to_string((k % 6) / 2);
       rejected(plm_scene_add_mesh(s, nullptr, pos, 4, idx, 2, uv, nullptr, 4, 4, nullptr),
-               {"mesh # 0", where.c_str(), "lightmap UV"});
+               {"mesh '#0'", where.c_str(), "lightmap UV"});
     }
   }
 }
@@ -746,7 +746,7 @@ TEST_F(BadInput, NonFiniteMaterialIsRejectedWithItsChannel) {
       albedo[c] = 0.5f;
       emission[c] = bad;
       const std::string ech = "emission[" + std::to_string(c) + "]";
-      rejected(plm_scene_add_material(s, nullptr, albedo, emission, nullptr), {"material # 0", ech.c_str()});
+      rejected(plm_scene_add_material(s, nullptr, albedo, emission, nullptr), {"material '#0'", ech.c_str()});
     }
   }
 }
@@ -789,7 +789,7 @@ TEST_F(BadInput, NonFiniteLightOrWorldIsRejected) {
       plm_light l;
       plm_light_default(&l, f.type);
       l.*f.field = bad;
-      rejected(plm_scene_add_light(s, nullptr, &l, nullptr), {"light # 0", f.name});
+      rejected(plm_scene_add_light(s, nullptr, &l, nullptr), {"light '#0'", f.name});
     }
   }
   // Nothing bad was kept: the scene still has no light and a black world.

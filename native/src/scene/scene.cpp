@@ -8,9 +8,10 @@
 namespace plm {
 namespace {
 
-std::string quoted_or(const char* name, const char* kind, size_t index) {
-  if (name && *name) return std::string("'") + name + "'";
-  return std::string(kind) + " " + std::to_string(index);
+// How errors and warnings name an object: 'name', or '#index' when unnamed
+// (the same name the scene keeps for it).
+std::string quoted_or(const char* name, size_t index) {
+  return std::string("'") + (name && *name ? std::string(name) : "#" + std::to_string(index)) + "'";
 }
 
 void check_rgb(const float* v, const char* what, const std::string& owner, float max_value) {
@@ -24,7 +25,7 @@ void check_rgb(const float* v, const char* what, const std::string& owner, float
 }  // namespace
 
 uint32_t Scene::add_material(const char* name, const float albedo[3], const float emission[3]) {
-  const std::string owner = "material " + quoted_or(name, "#", materials.size());
+  const std::string owner = "material " + quoted_or(name, materials.size());
   if (!albedo || !emission) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": albedo and emission must not be NULL");
   check_rgb(albedo, "albedo", owner, 1.0f);
   check_rgb(emission, "emission", owner, 1e30f);
@@ -35,7 +36,7 @@ uint32_t Scene::add_material(const char* name, const float albedo[3], const floa
 uint32_t Scene::add_mesh(const char* name, const float* positions, uint32_t vertex_count,
                          const uint32_t* indices, uint32_t triangle_count, const float* uv,
                          const uint32_t* material_ids, uint32_t width, uint32_t height) {
-  const std::string owner = "mesh " + quoted_or(name, "#", meshes.size());
+  const std::string owner = "mesh " + quoted_or(name, meshes.size());
   if (vertex_count == 0 || triangle_count == 0)
     fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": has ", vertex_count, " vertices and ", triangle_count,
          " triangles; both must be > 0");
@@ -113,7 +114,7 @@ plm_light default_light(plm_light_type type) {
 }
 
 uint32_t Scene::add_light(const char* name, const plm_light& l) {
-  const std::string owner = "light " + quoted_or(name, "#", lights.size());
+  const std::string owner = "light " + quoted_or(name, lights.size());
   if (l.type < PLM_LIGHT_POINT || l.type > PLM_LIGHT_AREA_DISK)
     fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": unknown light type ", l.type);
   check_rgb(l.color, "color", owner, 1e30f);
