@@ -228,15 +228,18 @@ def set_world_color(color, strength=1.0):
 
 # ---- baking -------------------------------------------------------------------------------------------------
 
-def photonlm_bake(photons, max_bounces, seed=1, target_error=0.02):
-    """Bake with the add-on's operator (the path an artist uses). Returns photonlm_blender.bake.LAST.
-    photons is the cap when target_error > 0 (the add-on's default 0.02), the exact count at 0."""
+def photonlm_bake(photons, max_bounces, seed=1, target_error=0.02, **settings):
+    """Bake with the add-on's operator (the path an artist uses). Returns photonlm_blender.bake.LAST
+    with the operator's wall time added. photons is the cap when target_error > 0 (the add-on's
+    default 0.02), the exact count at 0; settings: other scene.photonlm settings to set first."""
     from photonlm_blender import bake
     s = bpy.context.scene.photonlm
     s.photons = photons
     s.target_error = target_error
     s.max_bounces = max_bounces
     s.seed = seed
+    for key, value in settings.items():
+        setattr(s, key, value)
     t0 = time.perf_counter()
     res = bpy.ops.photonlm.bake()
     wall = time.perf_counter() - t0

@@ -146,22 +146,11 @@ def _hook_bridge():
 
 def photonlm_bake(out_dir, target_error=0.0, time_budget=0.0, photons=0, seed=1, direct_samples=64,
                   max_bounces=1024):
-    from photonlm_blender import bake, properties
-    s = bpy.context.scene.photonlm
-    s.target_error = target_error
-    s.time_budget = time_budget
-    s.photons = photons
-    s.direct_samples = direct_samples
-    s.max_bounces = max_bounces
-    s.seed = seed
-    s.output_dir = out_dir
+    from photonlm_blender import properties
     _CAPTURED_ERRORS.clear()
-    t0 = time.perf_counter()
-    res = bpy.ops.photonlm.bake()
-    wall = time.perf_counter() - t0
-    if res != {'FINISHED'}:
-        raise RuntimeError("photonlm bake returned %s" % res)
-    last = bake.LAST
+    last = scenes.photonlm_bake(photons, max_bounces, seed=seed, target_error=target_error,
+                                time_budget=time_budget, direct_samples=direct_samples, output_dir=out_dir)
+    wall = last["wall_seconds"]
     stats = dict(bpy.context.scene[properties.STATS_KEY])
     maps, errs = {}, {}
     for name, o in last["objects"].items():

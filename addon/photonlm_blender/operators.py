@@ -118,7 +118,8 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
             return {'RUNNING_MODAL'}
         return self._end(context)
 
-    def _end(self, context):
+    def _stop_ui(self, context):
+        """Wait for the worker, then remove the timer, progress bar and status text."""
         global _running
         self._thread.join()
         wm = context.window_manager
@@ -127,6 +128,9 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
         if context.workspace is not None:
             context.workspace.status_text_set(None)
         _running = None
+
+    def _end(self, context):
+        self._stop_ui(context)
         result = self._conclude(context, self._job)
         for area in context.screen.areas if context.screen else ():
             area.tag_redraw()
@@ -134,16 +138,9 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
 
     def cancel(self, context):
         # Blender ends the modal operator (file load, quit): stop the engine and clean up.
-        global _running
         self._cancel.set()
-        self._thread.join()
-        wm = context.window_manager
-        wm.event_timer_remove(self._timer)
-        wm.progress_end()
-        if context.workspace is not None:
-            context.workspace.status_text_set(None)
+        self._stop_ui(context)
         self._job.abort(context)
-        _running = None
 
 
 class PHOTONLM_OT_remove_preview(bpy.types.Operator):
