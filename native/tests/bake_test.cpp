@@ -151,7 +151,8 @@ TEST(Bake, EmissiveTriangleEmitsFromBothSides) {
 }
 
 // A square plane of side 20 at z = 0, lightmap res x res; returns its lightmap.
-Lightmap lit_plane(const plm_light& light, uint32_t res, uint64_t photons, const float* world = nullptr) {
+Lightmap lit_plane(const plm_light& light, uint32_t res, uint64_t photons, const float* world = nullptr,
+                   uint32_t texel_value = PLM_TEXEL_CENTER) {
   SceneBuilder b;
   const uint32_t m = b.material("black", {0, 0, 0});
   b.quad("plane", {-10, -10, 0}, {20, 0, 0}, {0, 20, 0}, m, res);
@@ -160,8 +161,22 @@ Lightmap lit_plane(const plm_light& light, uint32_t res, uint64_t photons, const
     EXPECT_EQ(plm_scene_set_world(b.scene, world), PLM_OK);
   }
   Baked r;
-  bake(b, settings(photons, 1024, 64), r);
+  plm_bake_settings s = settings(photons, 1024, 64);
+  s.texel_value = texel_value;
+  bake(b, s, r);
   return r.map(0);
+}
+
+// The exact value f(x, y) of texel (i, j) of a 20 x 20 m plane at res 20:
+// at the texel centre, or averaged over the texel (16 x 16 midpoints).
+template <typename F>
+double texel_truth(F&& f, uint32_t i, uint32_t j, uint32_t texel_value) {
+  if (texel_value == PLM_TEXEL_CENTER) return f(i - 9.5, j - 9.5);
+  double avg = 0.0;
+  const int k = 16;
+  for (int a = 0; a < k; ++a)
+    for (int c = 0; c < k; ++c) avg += f(i - 10.0 + (a + 0.5) / k, j - 10.0 + (c + 0.5) / k);
+  return avg / (k * k);
 }
 
 TEST(Bake, PointLightOverPlaneIsInverseSquareCosine) {
@@ -171,32 +186,30 @@ TEST(Bake, PointLightOverPlaneIsInverseSquareCosine) {
   l.radius = 0.0f;
   l.matrix[11] = 2.0f;  // 2 m above the plane centre
   const uint32_t res = 20;
-  const Lightmap lm = lit_plane(l, res, 4000000);
-  // Texel (i, j) covers [i - 10, i - 9] x [j - 10, j - 9]; average E / pi over it numerically.
-  double worst = 0.0, z2 = 0.0;
-  for (uint32_t j = 6; j < 14; ++j) {
-    for (uint32_t i = 6; i < 14; ++i) {
-      double avg = 0.0;
-      const int k = 16;
-      for (int a = 0; a < k; ++a)
-        for (int c = 0; c < k; ++c) {
-          const double x = i - 10.0 + (a + 0.5) / k, y = j - 10.0 + (c + 0.5) / k, d2 = x * x + y * y + 4.0;
-          avg += 1000.0 / (4 * M_PI) * 2.0 / std::pow(d2, 1.5) / M_PI;
-        }
-      avg /= k * k;
-      const size_t t = j * res + i;
-      // Direct light from 64 stratified shadow-ray points per texel.
-      const double deviation = lm.value(t) - avg;
-      worst = std::max(worst, std::fabs(deviation) / avg);
-      z2 += deviation * deviation / (double(lm.error[t]) * lm.error[t]);
-      EXPECT_NEAR(lm.value(t), avg, 0.02 * avg) << "texel " << i << "," << j;
+  auto exact = [](double x, double y) {
+    const double d2 = x * x + y * y + 4.0;
+    return 1000.0 / (4 * M_PI) * 2.0 / std::pow(d2, 1.5) / M_PI;
+  };
+  for (const uint32_t mode : {PLM_TEXEL_CENTER, PLM_TEXEL_AREA}) {
+    SCOPED_TRACE(mode == PLM_TEXEL_CENTER ? "texel centre" : "texel average");
+    const Lightmap lm = lit_plane(l, res, 4000000, nullptr, mode);
+    double worst = 0.0, z2 = 0.0;
+    for (uint32_t j = 6; j < 14; ++j) {
+      for (uint32_t i = 6; i < 14; ++i) {
+        const double truth = texel_truth(exact, i, j, mode);
+        const size_t t = j * res + i;
+        const double deviation = lm.value(t) - truth;
+        worst = std::max(worst, std::fabs(deviation) / truth);
+        z2 += deviation * deviation / (double(lm.error[t]) * lm.error[t]);
+        EXPECT_NEAR(lm.value(t), truth, 0.02 * truth) << "texel " << i << "," << j;
+      }
     }
+    EXPECT_LT(worst, 0.02);
+    // The reported error is the right size: deviations of unit variance or less
+    // (it may over-estimate: it counts part of the texel's gradient as noise).
+    EXPECT_LT(z2 / 64.0, 2.0);
+    if (mode == PLM_TEXEL_AREA) EXPECT_GT(z2 / 64.0, 0.1);  // at the centre a point light is noise-free
   }
-  EXPECT_LT(worst, 0.02);
-  // The reported error is the right size: deviations of unit variance or less
-  // (it may over-estimate: it counts part of the texel's gradient as noise).
-  EXPECT_LT(z2 / 64.0, 2.0);
-  EXPECT_GT(z2 / 64.0, 0.1);
 }
 
 // Cycles 3.4 models a point light of radius r as a disk facing the receiver:
@@ -208,18 +221,46 @@ TEST(Bake, PointLightRadiusFollowsCyclesDiskModel) {
   l.radius = 0.5f;
   l.matrix[11] = 1.0f;
   const uint32_t res = 20;
-  const Lightmap lm = lit_plane(l, res, 4000000);
-  for (uint32_t j = 9; j <= 10; ++j) {
-    for (uint32_t i = 9; i <= 10; ++i) {
-      double avg = 0.0;
-      const int k = 16;
-      for (int a = 0; a < k; ++a)
-        for (int c = 0; c < k; ++c) {
-          const double x = i - 10.0 + (a + 0.5) / k, y = j - 10.0 + (c + 0.5) / k, d2 = x * x + y * y + 1.0;
-          avg += 1000.0 / (4 * M_PI) * (1.0 / std::sqrt(d2)) / (d2 + 0.25) / M_PI;
-        }
-      avg /= k * k;
-      EXPECT_NEAR(lm.value(j * res + i), avg, 0.03 * avg) << "texel " << i << "," << j;
+  auto exact = [](double x, double y) {
+    const double d2 = x * x + y * y + 1.0;
+    return 1000.0 / (4 * M_PI) * (1.0 / std::sqrt(d2)) / (d2 + 0.25) / M_PI;
+  };
+  for (const uint32_t mode : {PLM_TEXEL_CENTER, PLM_TEXEL_AREA}) {
+    const Lightmap lm = lit_plane(l, res, 4000000, nullptr, mode);
+    for (uint32_t j = 9; j <= 10; ++j)
+      for (uint32_t i = 9; i <= 10; ++i) {
+        const double truth = texel_truth(exact, i, j, mode);
+        EXPECT_NEAR(lm.value(j * res + i), truth, 0.03 * truth) << "texel " << i << "," << j << " mode " << mode;
+      }
+  }
+}
+
+// A plane lit by the sun straight from above, shadowed for x < 3.3 m by a roof:
+// the shadow edge runs 0.3 texel into a column of 1 m texels. At the texel
+// centre (3.5 m, lit) the value is exact, as Cycles bakes it; the texel
+// average is the lit fraction 0.7.
+TEST(Bake, ShadowEdgeInsideATexel) {
+  for (const uint32_t mode : {PLM_TEXEL_CENTER, PLM_TEXEL_AREA}) {
+    SceneBuilder b;
+    const uint32_t black = b.material("black", {0, 0, 0});
+    b.quad("plane", {0, 0, 0}, {8, 0, 0}, {0, 8, 0}, black, 8);  // 1 m texels
+    b.quad("roof", {-20, -20, 2}, {0, 40, 0}, {23.3f, 0, 0}, black, 0);
+    plm_light sun;
+    plm_light_default(&sun, PLM_LIGHT_SUN);
+    sun.power = 2.0f;
+    sun.angle = 0.0f;  // identity matrix: travels along -z
+    b.light(sun, "sun");
+    plm_bake_settings s = settings(1000, 0, 64);
+    s.texel_value = mode;
+    Baked r;
+    bake(b, s, r);
+    const Lightmap lm = r.map(0);
+    for (uint32_t j = 1; j < 7; ++j) {
+      const double lit = 2.0 / M_PI;
+      EXPECT_NEAR(lm.value(j * 8 + 2), 0.0, 1e-6) << "fully shadowed texel, row " << j;
+      EXPECT_NEAR(lm.value(j * 8 + 4), lit, 1e-5) << "fully lit texel, row " << j;
+      const double edge = mode == PLM_TEXEL_CENTER ? lit : 0.7 * lit;
+      EXPECT_NEAR(lm.value(j * 8 + 3), edge, mode == PLM_TEXEL_CENTER ? 1e-5 : 0.05 * lit) << "edge texel, row " << j;
     }
   }
 }

@@ -36,9 +36,12 @@ enum class Mode { DirectPass, PhotonsOnly };
 const Mode kModes[] = {Mode::DirectPass, Mode::PhotonsOnly};
 const char* name(Mode m) { return m == Mode::DirectPass ? "direct pass" : "photons only"; }
 
+// Texel averages: the hard cases' exact answers (and conservation of flux)
+// are averages over texels; texel-centre values are tested in bake_test.cpp.
 plm_bake_settings settings(uint64_t photons, uint32_t max_bounces = 1024, Mode mode = Mode::DirectPass) {
   plm_bake_settings s;
   plm_bake_settings_default(&s);
+  s.texel_value = PLM_TEXEL_AREA;
   s.photon_count = photons;
   s.max_bounces = max_bounces;
   if (mode == Mode::PhotonsOnly) {

@@ -75,6 +75,13 @@ def _uint(x, what, bits=32):
     return v
 
 
+def _choice(x, what, names):
+    """The index of x in names (the C enum's order)."""
+    if x not in names:
+        raise ValueError("%s must be one of %s, got %r" % (what, ", ".join(map(repr, names)), x))
+    return names.index(x)
+
+
 def _rgb(x, what):
     a = np.asarray(x, dtype=np.float32)
     if a.ndim == 0:
@@ -235,7 +242,8 @@ class Scene(_Handle):
         _check(_C.plm_scene_set_world(self._h, _ptr(rad, ctypes.c_float)))
 
     def bake(self, photons=1_000_000, max_bounces=1024, seed=0, threads=0, dilation=8, progress=None,
-             target_error=0.0, time_budget=0.0, direct_samples=64, filter_radius=2):
+             target_error=0.0, time_budget=0.0, direct_samples=64, filter_radius=2,
+             texel_value="CENTER", sampler="DEFAULT"):
         """Bake all lightmaps and return a Result. The GIL is released while the engine runs.
 
         Two passes: direct light from direct_samples shadow-ray points per texel (0 = photons
@@ -244,6 +252,9 @@ class Scene(_Handle):
         error reaches the target or the time is spent; photons is then the cap (0 = none).
         filter_radius: largest radius in texels over which a texel's photon estimate pools
         neighbours on the same surface until it holds enough hits (0 = each texel alone).
+        texel_value: "CENTER" (direct light at the texel centre, as Cycles bakes) or "AREA"
+        (averaged over the texel: anti-aliased shadow edges). sampler: "DEFAULT" (Owen-scrambled
+        Sobol points for the direct pass, pseudo-random photons), "RANDOM" or "SOBOL" (everywhere).
 
         progress: optional callable(fraction, stage) called from this thread every few tenths
         of a second; returning False cancels (BakeCancelled). An exception raised in it cancels
@@ -258,6 +269,8 @@ class Scene(_Handle):
         settings.dilation = _uint(dilation, "dilation")
         settings.direct_samples = _uint(direct_samples, "direct_samples")
         settings.filter_radius = _uint(filter_radius, "filter_radius")
+        settings.texel_value = _choice(texel_value, "texel_value", ("CENTER", "AREA"))
+        settings.sampler = _choice(sampler, "sampler", ("DEFAULT", "RANDOM", "SOBOL"))
         for name, value in (("target_error", target_error), ("time_budget", time_budget)):
             value = float(value)
             if not value >= 0.0:

@@ -79,6 +79,8 @@ class plm_bake_settings(ctypes.Structure):
         ("time_budget", c_double),
         ("direct_samples", c_uint32),
         ("filter_radius", c_uint32),
+        ("texel_value", c_uint32),
+        ("sampler", c_uint32),
     ]
 
 

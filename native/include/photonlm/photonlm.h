@@ -139,6 +139,19 @@ PLM_API plm_status plm_scene_set_world(plm_scene* scene, const float radiance[3]
  * estimated relative error (see plm_bake_stats.error_estimate) is at most
  * target_error, or time_budget seconds have passed, or photon_count photons
  * are traced (0 = no cap), whichever comes first. */
+/* What a texel's value is. */
+typedef enum plm_texel_value {
+  PLM_TEXEL_CENTER = 0, /* the value at the texel centre, as Cycles bakes (sharp, matches Cycles) */
+  PLM_TEXEL_AREA = 1    /* the average over the texel's covered area (anti-aliased shadows) */
+} plm_texel_value;
+
+/* How sample points are drawn (docs/benchmarks.md compares them). */
+typedef enum plm_sampler {
+  PLM_SAMPLER_DEFAULT = 0, /* Sobol where it lowers the error (direct pass), pseudo-random photons */
+  PLM_SAMPLER_RANDOM = 1,  /* pseudo-random numbers everywhere */
+  PLM_SAMPLER_SOBOL = 2    /* Owen-scrambled Sobol points everywhere, photon paths too */
+} plm_sampler;
+
 typedef struct plm_bake_settings {
   uint64_t photon_count;    /* photons (the cap when a target or budget is set; 0 = none) */
   uint32_t max_bounces;     /* diffuse bounces after the first hit; 0 = direct only */
@@ -150,10 +163,14 @@ typedef struct plm_bake_settings {
   uint32_t direct_samples;  /* shadow-ray points per texel and round; 0 = photons only */
   uint32_t filter_radius;   /* largest radius (texels) over which a texel's photon estimate pools
                                same-surface neighbours until it holds enough hits; 0 = none */
+  uint32_t texel_value;     /* plm_texel_value: the direct light at the texel centre or averaged
+                               over the texel (partly covered texels are always averaged) */
+  uint32_t sampler;         /* plm_sampler */
 } plm_bake_settings;
 
 /* photon_count 1,000,000, max_bounces 1024, seed 0, threads 0, dilation 8,
- * no target error, no time budget, direct_samples 64, filter_radius 2. */
+ * no target error, no time budget, direct_samples 64, filter_radius 2,
+ * PLM_TEXEL_CENTER, PLM_SAMPLER_DEFAULT. */
 PLM_API void plm_bake_settings_default(plm_bake_settings* settings);
 
 /* Called from the thread that called plm_bake, at least every few tenths of a

@@ -19,6 +19,7 @@
 #include "transport/tracing.h"
 #include "util/error.h"
 #include "util/rng.h"
+#include "util/sobol.h"
 
 namespace plm {
 namespace {
@@ -70,13 +71,52 @@ class PhotonTracer {
     return scene_.materials.empty() ? default_material_ : scene_.materials[mesh.material_ids[tri]];
   }
 
+  // A photon's random numbers: group 0 = light choice + emission, group
+  // 1 + depth = that bounce. Sobol points are keyed per batch of kBatchPhotons
+  // (aligned), so batches are independent replicates for the error estimate.
+  // By default (measured: Sobol paths do not lower texel errors, see
+  // docs/benchmarks.md) the light choice follows a rotated van der Corput
+  // sequence, stratified for any photon count, and the rest is pseudo-random.
+  class PhotonSampler {
+   public:
+    PhotonSampler(uint64_t index, const plm_bake_settings& s, double pick_offset)
+        : rng_(s.seed, index), global_(index), index_(uint32_t(index % kBatchPhotons)),
+          key_(uint32_t(splitmix64((uint64_t(s.seed) << 32) ^ (index / kBatchPhotons)))), mode_(s.sampler),
+          pick_offset_(pick_offset) {}
+    // pick, then the four numbers of sample_emitter.
+    void emission(float& pick, float u[4]) {
+      if (mode_ == PLM_SAMPLER_SOBOL) {
+        sobol_group(index_, key_, 0, 4, u);
+        sobol_group(index_, key_ ^ 0x5bd1e995u, 0, 1, &pick);
+        return;
+      }
+      if (mode_ == PLM_SAMPLER_RANDOM) {
+        pick = rng_.next_float();
+      } else {
+        const double p = radical_inverse2(global_) + pick_offset_;
+        pick = float(p >= 1.0 ? p - 1.0 : p);
+        if (pick >= 1.0f) pick = 0.0f;  // float rounding
+      }
+      for (int d = 0; d < 4; ++d) u[d] = rng_.next_float();
+    }
+    // Two numbers for the direction, one for Russian roulette.
+    void bounce(uint32_t depth, float u[3]) {
+      if (mode_ == PLM_SAMPLER_SOBOL) return sobol_group(index_, key_, 1 + depth, 3, u);
+      for (int d = 0; d < 3; ++d) u[d] = rng_.next_float();
+    }
+
+   private:
+    Rng rng_;
+    uint64_t global_;
+    uint32_t index_, key_, mode_;
+    double pick_offset_;
+  };
+
   void trace_photon(uint64_t index, BatchOutput& out) const {
-    Rng rng(settings_.seed, index);
-    // The light choice follows a rotated van der Corput sequence: stratified for any photon count.
-    double u_pick = radical_inverse2(index) + pick_offset_;
-    if (u_pick >= 1.0) u_pick -= 1.0;
+    PhotonSampler sampler(index, settings_, pick_offset_);
+    float u_pick, u[4];
+    sampler.emission(u_pick, u);
     const size_t k = table_.choose(u_pick);
-    const float u[4] = {rng.next_float(), rng.next_float(), rng.next_float(), rng.next_float()};
     const EmitterSample s = sample_emitter(emitters_[k], u);
     Vec3 flux = s.weight * (1.0f / table_.probability(k));
     if (max_component(flux) <= 0.0f) return;
@@ -129,10 +169,12 @@ class PhotonTracer {
         out.truncated_flux += average(flux * albedo);
         return;
       }
-      if (rng.next_float() >= q) return;  // Russian roulette
+      float v[3];
+      sampler.bounce(depth, v);
+      if (v[2] >= q) return;  // Russian roulette
       flux *= albedo / q;
 
-      const Vec3 local = cosine_hemisphere(rng.next_float(), rng.next_float());
+      const Vec3 local = cosine_hemisphere(v[0], v[1]);
       Vec3 t, b;
       make_frame(normal, t, b);
       dir = t * local.x + b * local.y + normal * local.z;
@@ -212,6 +254,10 @@ void validate(const Scene& scene, const plm_bake_settings& s) {
   if (s.direct_samples > 65536)
     fail(PLM_ERROR_INVALID_ARGUMENT, "settings: direct_samples ", s.direct_samples, " exceeds 65536");
   if (s.filter_radius > 64) fail(PLM_ERROR_INVALID_ARGUMENT, "settings: filter_radius ", s.filter_radius, " exceeds 64 texels");
+  if (s.texel_value > PLM_TEXEL_AREA)
+    fail(PLM_ERROR_INVALID_ARGUMENT, "settings: texel_value ", s.texel_value, " is not PLM_TEXEL_CENTER (0) or PLM_TEXEL_AREA (1)");
+  if (s.sampler > PLM_SAMPLER_SOBOL)
+    fail(PLM_ERROR_INVALID_ARGUMENT, "settings: sampler ", s.sampler, " is not PLM_SAMPLER_DEFAULT (0), _RANDOM (1) or _SOBOL (2)");
   if (s.dilation > 4096) fail(PLM_ERROR_INVALID_ARGUMENT, "settings: dilation ", s.dilation, " exceeds 4096 texels");
   if (scene.meshes.empty()) fail(PLM_ERROR_INVALID_SCENE, "the scene has no meshes: nothing to bake");
   uint64_t texels = 0;
@@ -226,6 +272,41 @@ void validate(const Scene& scene, const plm_bake_settings& s) {
 struct CoveredTexel {
   uint32_t mesh, texel;  // local texel of that mesh
 };
+
+// Sobol points make the direct pass's pair-difference variance conservative
+// (a pair straddles the strata of the light choice). The true variance is
+// measured on a quarter of the texels (at most 1024) spread over all lightmaps by one more,
+// independent round (a Sobol key of its own): for two independent means a, b,
+// E[(a - b)^2] = Var a + Var b. Returns true / pair-difference variance; the
+// extra samples join those texels' sums.
+double calibrate_direct(tbb::task_arena& arena, const DirectPass& pass, const std::vector<CoveredTexel>& covered,
+                        std::vector<DirectSums>& direct, uint32_t samples) {
+  constexpr uint32_t kCalibrationRound = 0xFF;  // a key no refinement round uses
+  const size_t step = std::max<size_t>(4, covered.size() / 1024);
+  const size_t m = covered.size() / step;
+  std::vector<DirectSums> extra(m);
+  arena.execute([&] {
+    tbb::parallel_for(size_t(0), m, [&](size_t k) {
+      const CoveredTexel& c = covered[k * step];
+      pass.sample_texel(c.mesh, c.texel, kCalibrationRound, samples, extra[k]);
+    });
+  });
+  double measured = 0.0, estimated = 0.0;
+  size_t used = 0;
+  for (size_t k = 0; k < m; ++k) {
+    DirectSums& a = direct[k * step];
+    const DirectSums& b = extra[k];
+    if (a.paired && b.paired) {
+      const double d = a.mean() - b.mean();
+      measured += d * d;
+      estimated += a.pair_variance_of_mean() + b.pair_variance_of_mean();
+      ++used;
+    }
+    a.add(b);
+  }
+  if (used < 32 || !(estimated > 0.0)) return 1.0;
+  return std::clamp(measured / estimated, 1e-4, 4.0);
+}
 
 // Photon sums per texel over all lightmaps, merged batch by batch in order.
 class Accumulators {
@@ -259,7 +340,7 @@ struct Estimator {
   const std::vector<DirectSums>& direct;     // per covered texel, or empty
   const Accumulators& acc;
   uint32_t filter_radius;
-  double direct_typical;                     // RMS of all direct samples (see DirectSums)
+  DirectNoise direct_noise;
 
   // Per texel: irradiance / pi (3 values) and its estimated mean squared error.
   void texels(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance) const {
@@ -291,7 +372,7 @@ struct Estimator {
       const DirectSums& d = direct[k++];
       if (d.count)
         for (int c = 0; c < 3; ++c) value3[3 * t + c] += d.rgb[c] / d.count;
-      variance[t] += d.variance_of_mean(direct_typical);
+      variance[t] += d.variance_of_mean(direct_noise);
     }
   }
 };
@@ -320,7 +401,7 @@ ErrorEstimate estimate_error(const Estimator& est, uint64_t photons, std::vector
       if (per_texel && v > 0.0) per_texel->push_back(std::sqrt(variance[t]) / v);
     }
   }
-  for (const DirectSums& d : est.direct) var_direct += d.variance_of_mean(est.direct_typical);
+  for (const DirectSums& d : est.direct) var_direct += d.variance_of_mean(est.direct_noise);
   if (count > 0.0 && value_sum > 0.0) {
     const double mean = value_sum / count;
     out.relative = std::sqrt(var_sum / count) / mean;
@@ -349,6 +430,8 @@ plm_bake_settings default_settings() {
   s.time_budget = 0.0;
   s.direct_samples = 64;
   s.filter_radius = 2;
+  s.texel_value = PLM_TEXEL_CENTER;
+  s.sampler = PLM_SAMPLER_DEFAULT;
   return s;
 }
 
@@ -415,11 +498,11 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
 
   // ---- Direct pass --------------------------------------------------------
   std::vector<DirectSums> direct;
-  double direct_typical = 0.0;
+  DirectNoise direct_noise;
   const auto t_direct = Clock::now();
   if (two_pass) {
     direct.resize(covered.size());
-    DirectPass pass(accel.handle(), views, areas, emitters, settings.seed, extent);
+    DirectPass pass(accel.handle(), views, areas, emitters, settings, extent);
     std::vector<uint32_t> todo(covered.size());
     for (uint32_t i = 0; i < todo.size(); ++i) todo[i] = i;
     // Round r adds direct_samples * 2^min(r, 8) samples to the texels still
@@ -457,13 +540,14 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
       }
       const double texels = double(std::max<size_t>(direct.size(), 1));
       mean /= texels;
-      direct_typical = all_count > 0.0 ? std::sqrt(all_sq / all_count) : 0.0;
-      for (const DirectSums& d : direct) mean_var += d.variance_of_mean(direct_typical);
+      direct_noise.typical = all_count > 0.0 ? std::sqrt(all_sq / all_count) : 0.0;
+      if (round == 0 && settings.sampler != PLM_SAMPLER_RANDOM) direct_noise.scale = calibrate_direct(arena, pass, covered, direct, samples);
+      for (const DirectSums& d : direct) mean_var += d.variance_of_mean(direct_noise);
       mean_var /= texels;
       const bool refine = settings.target_error > 0.0 && std::sqrt(mean_var) > 0.7 * settings.target_error * mean;
       std::vector<uint32_t> next;
       for (uint32_t i = 0; i < direct.size(); ++i) {
-        const bool noisy = refine && direct[i].variance_of_mean(direct_typical) > mean_var;
+        const bool noisy = refine && direct[i].variance_of_mean(direct_noise) > mean_var;
         if (direct[i].count < 2 || noisy) next.push_back(i);
       }
       todo.swap(next);
@@ -475,7 +559,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
 
   // ---- Photon pass ----------------------------------------------------------
   Accumulators acc(texel_count);
-  const Estimator estimator{areas, views, covered_begin, direct, acc, settings.filter_radius, direct_typical};
+  const Estimator estimator{areas, views, covered_begin, direct, acc, settings.filter_radius, direct_noise};
   uint64_t photons = 0;
   const auto t_trace = Clock::now();
   if (photon_pass) {

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "util/rng.h"
+#include "util/sobol.h"
 
 namespace plm {
 
@@ -22,7 +23,22 @@ float cos_weight_ratio(float cos_s, float cos_l_area, float pick, float distance
 
 }  // namespace
 
-double DirectSums::variance_of_mean(double typical) const {
+double DirectSums::pair_variance_of_mean() const {
+  if (paired == 0) return 0.0;
+  const double n = double(count);
+  return pair_sq * (n / double(paired)) / (n * n);
+}
+
+void DirectSums::add(const DirectSums& o) {
+  for (int c = 0; c < 3; ++c) rgb[c] += o.rgb[c];
+  sum_sq += o.sum_sq;
+  pair_sq += o.pair_sq;
+  paired += o.paired;
+  count += o.count;
+}
+
+double DirectSums::variance_of_mean(const DirectNoise& noise) const {
+  const double typical = noise.typical;
   if (count == 0) return typical * typical;
   const double m = mean();
   if (paired == 0) return std::max(m * m, typical * typical);
@@ -31,12 +47,13 @@ double DirectSums::variance_of_mean(double typical) const {
   // variances (Var(a) + Var(b) + (mean difference)^2) without counting the
   // texel's smooth variation as noise, as a plain sample variance would.
   const double n = double(count);
-  return (pair_sq * (n / double(paired)) + (typical - m) * (typical - m)) / (n * n);
+  return noise.scale * (pair_sq * (n / double(paired)) + (typical - m) * (typical - m)) / (n * n);
 }
 
 DirectPass::DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<TexelAreas>& areas,
-                       const std::vector<Emitter>& emitters, uint32_t seed, float scene_extent)
-    : rtc_(rtc), views_(views), areas_(areas), emitters_(emitters), seed_(seed),
+                       const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent)
+    : rtc_(rtc), views_(views), areas_(areas), emitters_(emitters), seed_(settings.seed),
+      centre_(settings.texel_value == PLM_TEXEL_CENTER), sobol_(settings.sampler != PLM_SAMPLER_RANDOM),
       offset_scale_(1e-6f * scene_extent), table_(emitters) {
   triangle_emitter_.resize(views.size());
   for (size_t k = 0; k < emitters.size(); ++k) {
@@ -159,9 +176,16 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   const float x0 = float(texel % mesh.lightmap_width), y0 = float(texel / mesh.lightmap_width);
   TraceContext tc;
   tc.skip_geom = mesh_id;
-  // Barely covered texels sample their covered pieces directly (no strata).
-  const bool sparse = areas_[mesh_id].coverage[texel] < 0.5f;
+  // Texel-centre values: every sample at the centre, if a triangle covers it
+  // (as Cycles bakes: its texel is the value at the centre). Otherwise the
+  // samples spread over the covered part, barely covered texels sampling
+  // their covered pieces directly (no strata).
+  Vec3 centre_p, centre_n;
+  uint32_t centre_tri = 0;
+  const bool at_centre = centre_ && surface_point(mesh_id, texel, x0 + 0.5f, y0 + 0.5f, centre_p, centre_n, centre_tri);
+  const bool sparse = !at_centre && areas_[mesh_id].coverage[texel] < 0.5f;
   const uint32_t pick_key = rng.next_u32();
+  const uint32_t sobol_key = rng.next_u32();
   uint32_t previous = ~0u;  // the last accepted stratum, and its value
   double previous_value = 0.0;
   for (uint32_t j = 0; j < n; ++j) {
@@ -169,14 +193,28 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
     const float y = y0 + (float(j / m) + rng.next_float()) / float(m);
     Vec3 p, normal;
     uint32_t tri;
-    // The light choice is stratified over the texel's samples too, but through
-    // a permutation: tied to j it would follow the strata's rows, so each light
-    // would be sampled in one band of the texel only (a shifted shadow).
-    const float u_pick = (float(permute(j, n, pick_key)) + rng.next_float()) / float(n);
-    const float u[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
-    if (sparse) {
-      const float v[3] = {rng.next_float(), rng.next_float(), rng.next_float()};
-      if (!point_in_pieces(mesh_id, texel, v, p, normal, tri)) continue;
+    // Light choice and light sample: a 4D Sobol point per sample (random
+    // otherwise, with the choice stratified through a permutation: tied to j
+    // it would follow the strata's rows, so each light would be sampled in
+    // one band of the texel only -- a shifted shadow). Sobol's index shuffle
+    // does the same.
+    float u_pick, u[3], v[2], w[3];  // v: cosine direction (MIS), w: point in sparse texels
+    if (sobol_) {
+      float g[4];
+      sobol_group(j, sobol_key, 0, 4, g);
+      u_pick = g[0], u[0] = g[1], u[1] = g[2], u[2] = g[3];
+      sobol_group(j, sobol_key, 1, 2, v);
+      sobol_group(j, sobol_key, 2, 3, w);
+    } else {
+      u_pick = (float(permute(j, n, pick_key)) + rng.next_float()) / float(n);
+      for (float& r : u) r = rng.next_float();
+      for (float& r : v) r = rng.next_float();
+      for (float& r : w) r = rng.next_float();
+    }
+    if (at_centre) {
+      p = centre_p, normal = centre_n, tri = centre_tri;
+    } else if (sparse) {
+      if (!point_in_pieces(mesh_id, texel, w, p, normal, tri)) continue;
     } else if (!surface_point(mesh_id, texel, x, y, p, normal, tri)) {
       continue;  // outside the islands
     }
@@ -200,7 +238,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       }
     }
     if (has_triangle_emitters_) {
-      const Vec3 local = cosine_hemisphere(rng.next_float(), rng.next_float());
+      const Vec3 local = cosine_hemisphere(v[0], v[1]);
       Vec3 t, b;
       make_frame(normal, t, b);
       const Vec3 dir = t * local.x + b * local.y + normal * local.z;

@@ -13,6 +13,13 @@
 
 namespace plm {
 
+// What the texels' direct variances need beyond their own sums.
+struct DirectNoise {
+  double typical = 0.0;  // RMS of all direct samples of all texels (the phantom sample, see below)
+  double scale = 1.0;    // true / pair-difference variance, measured with independent replicates:
+                         // below 1 for Sobol points, whose pairs differ more than their means vary
+};
+
 // Per covered texel: sums of (irradiance / pi) samples.
 struct DirectSums {
   double rgb[3] = {0, 0, 0};
@@ -21,17 +28,20 @@ struct DirectSums {
   uint32_t paired = 0;  // samples in those pairs
   uint32_t count = 0;
   double mean() const { return count ? (rgb[0] + rgb[1] + rgb[2]) / (3.0 * count) : 0.0; }
-  // Squared standard error of the mean. typical: the RMS of all samples of
-  // all texels; it enters as one phantom sample, so that a texel whose samples
-  // all missed a rarely visible light (the sky through a window) does not
-  // look exact. With no pair yet, 100% uncertain.
-  double variance_of_mean(double typical) const;
+  // Squared standard error of the mean. noise.typical enters as one phantom
+  // sample, so that a texel whose samples all missed a rarely visible light
+  // (the sky through a window) does not look exact. With no pair yet, 100%
+  // uncertain.
+  double variance_of_mean(const DirectNoise& noise) const;
+  // The same from the stratum pairs alone (0 without pairs), unscaled.
+  double pair_variance_of_mean() const;
+  void add(const DirectSums& o);
 };
 
 class DirectPass {
  public:
   DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<TexelAreas>& areas,
-             const std::vector<Emitter>& emitters, uint32_t seed, float scene_extent);
+             const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent);
 
   // Adds `samples` (rounded up to a square) stratified samples of round `round`
   // to texel `texel` of mesh `mesh`. Thread-safe for distinct texels.
@@ -51,6 +61,8 @@ class DirectPass {
   std::vector<std::vector<int32_t>> triangle_emitter_;  // [mesh][triangle] -> emitter or -1
   bool has_triangle_emitters_ = false;
   uint32_t seed_;
+  bool centre_;  // fully covered texels: every sample at the texel centre (PLM_TEXEL_CENTER)
+  bool sobol_;
   float offset_scale_;
   EmitterTable table_;
 };

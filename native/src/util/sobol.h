@@ -1,0 +1,90 @@
+// Owen-scrambled Sobol points (low discrepancy with an unbiased, randomised
+// estimate), after Burley 2020, "Practical Hash-based Owen Scrambling":
+// a path draws its numbers in groups of up to four dimensions; each group is
+// a 4D Sobol point whose index is shuffled and whose coordinates are
+// scrambled with keys of their own, so groups do not correlate with each
+// other while each group stays a well-stratified net.
+//
+// Randomisation makes every set of points keyed alike an independent replicate:
+// photon batch b uses key hash(seed, b), so batches stay independent and the
+// spread of their means still measures the error.
+#pragma once
+
+#include <array>
+#include <cstdint>
+
+#include "util/rng.h"
+
+namespace plm {
+
+namespace sobol_detail {
+
+inline uint32_t reverse_bits(uint32_t x) {
+  x = (x << 16) | (x >> 16);
+  x = ((x & 0x00FF00FFu) << 8) | ((x & 0xFF00FF00u) >> 8);
+  x = ((x & 0x0F0F0F0Fu) << 4) | ((x & 0xF0F0F0F0u) >> 4);
+  x = ((x & 0x33333333u) << 2) | ((x & 0xCCCCCCCCu) >> 2);
+  return ((x & 0x55555555u) << 1) | ((x & 0xAAAAAAAAu) >> 1);
+}
+
+// Direction numbers of Sobol dimensions 2-4 (Joe & Kuo 2008: degree s,
+// coefficients a, initial m_k); dimension 1 is the van der Corput sequence.
+constexpr std::array<uint32_t, 32> directions(uint32_t s, uint32_t a, std::array<uint32_t, 3> m) {
+  std::array<uint32_t, 32> v{};
+  for (uint32_t k = 0; k < 32; ++k) {
+    if (k < s) {
+      v[k] = m[k] << (31 - k);
+    } else {
+      uint32_t x = v[k - s] ^ (v[k - s] >> s);
+      for (uint32_t j = 1; j < s; ++j)
+        if ((a >> (s - 1 - j)) & 1u) x ^= v[k - j];
+      v[k] = x;
+    }
+  }
+  return v;
+}
+
+constexpr std::array<std::array<uint32_t, 32>, 3> kDirections = {
+    directions(1, 0, {1, 0, 0}), directions(2, 1, {1, 3, 0}), directions(3, 1, {1, 3, 1})};
+
+// Sobol coordinate `dim` (0-3) of point `index`, as a 32-bit fraction.
+inline uint32_t sobol(uint32_t index, int dim) {
+  if (dim == 0) return reverse_bits(index);
+  uint32_t x = 0;
+  const std::array<uint32_t, 32>& v = kDirections[dim - 1];
+  for (int k = 0; index; index >>= 1, ++k)
+    if (index & 1u) x ^= v[k];
+  return x;
+}
+
+// Nested uniform scrambling (an Owen scramble) of a 32-bit fraction: each bit
+// is flipped by a hash of the bits above it (Vegdahl's Laine-Karras-style hash
+// on the reversed bits).
+inline uint32_t owen_scramble(uint32_t x, uint32_t key) {
+  x = reverse_bits(x);
+  x ^= x * 0x3d20adeau;
+  x += key;
+  x *= (key >> 16) | 1u;
+  x ^= x * 0x05526c56u;
+  x ^= x * 0x53a22864u;
+  return reverse_bits(x);
+}
+
+inline uint32_t hash(uint32_t a, uint32_t b) { return uint32_t(splitmix64((uint64_t(a) << 32) | b)); }
+
+inline float to_float(uint32_t x) { return float(x >> 8) * (1.0f / 16777216.0f); }
+
+}  // namespace sobol_detail
+
+// Up to four dimensions of point `index` of the Sobol set keyed by `key`,
+// group `group` of the path. Within one key, points 0 .. 2^m - 1 of a group
+// form a scrambled (t, m, 4)-net; the index shuffle keeps that (an Owen
+// scramble of the index maps each aligned block of 2^m indices onto one).
+inline void sobol_group(uint32_t index, uint32_t key, uint32_t group, int dims, float* out) {
+  using namespace sobol_detail;
+  const uint32_t group_key = hash(key, group);
+  const uint32_t i = owen_scramble(index, group_key);
+  for (int d = 0; d < dims; ++d) out[d] = to_float(owen_scramble(sobol(i, d), hash(group_key, uint32_t(d) + 1)));
+}
+
+}  // namespace plm

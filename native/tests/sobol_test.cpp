@@ -1,0 +1,71 @@
+// Owen-scrambled Sobol points (util/sobol.h): the stratification that makes
+// them worth using, checked on the points themselves.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "util/sobol.h"
+
+namespace {
+
+// Every dimension of the first 2^m points of a group puts exactly one point in
+// each interval [k / 2^m, (k + 1) / 2^m), whatever the key and group.
+TEST(Sobol, EachDimensionIsStratified) {
+  const uint32_t m = 10, n = 1u << m;
+  for (uint32_t key : {0u, 12345u, 0xdeadbeefu}) {
+    for (uint32_t group : {0u, 1u, 7u}) {
+      std::vector<int> count[4];
+      for (auto& c : count) c.assign(n, 0);
+      for (uint32_t i = 0; i < n; ++i) {
+        float u[4];
+        plm::sobol_group(i, key, group, 4, u);
+        for (int d = 0; d < 4; ++d) {
+          ASSERT_GE(u[d], 0.0f);
+          ASSERT_LT(u[d], 1.0f);
+          ++count[d][uint32_t(u[d] * float(n))];
+        }
+      }
+      for (int d = 0; d < 4; ++d)
+        for (uint32_t k = 0; k < n; ++k) ASSERT_EQ(count[d][k], 1) << "dim " << d << " interval " << k;
+    }
+  }
+}
+
+// Dimensions 0 and 1 form a (0, m, 2)-net: every elementary box of area 2^-m
+// (2^a x 2^(m - a) cells) holds exactly one of the first 2^m points.
+TEST(Sobol, FirstTwoDimensionsFormANet) {
+  const uint32_t m = 8, n = 1u << m;
+  std::vector<float> x(n), y(n);
+  for (uint32_t i = 0; i < n; ++i) {
+    float u[2];
+    plm::sobol_group(i, 777u, 3, 2, u);
+    x[i] = u[0], y[i] = u[1];
+  }
+  for (uint32_t a = 0; a <= m; ++a) {
+    const uint32_t cx = 1u << a, cy = 1u << (m - a);
+    std::vector<int> count(n, 0);
+    for (uint32_t i = 0; i < n; ++i) ++count[uint32_t(x[i] * cx) * cy + uint32_t(y[i] * cy)];
+    for (uint32_t k = 0; k < n; ++k) ASSERT_EQ(count[k], 1) << "boxes " << cx << " x " << cy;
+  }
+}
+
+// Different keys give different (independent) point sets; the same key the same.
+TEST(Sobol, KeysRandomiseDeterministically) {
+  float a[4], b[4], c[4];
+  plm::sobol_group(5, 1, 0, 4, a);
+  plm::sobol_group(5, 1, 0, 4, b);
+  plm::sobol_group(5, 2, 0, 4, c);
+  for (int d = 0; d < 4; ++d) EXPECT_EQ(a[d], b[d]);
+  EXPECT_TRUE(a[0] != c[0] || a[1] != c[1] || a[2] != c[2] || a[3] != c[3]);
+  // Over many keys, a point's coordinate is uniform: its mean is 1/2.
+  double sum = 0.0;
+  for (uint32_t key = 0; key < 20000; ++key) {
+    float u[4];
+    plm::sobol_group(3, key, 0, 4, u);
+    sum += u[2];
+  }
+  EXPECT_NEAR(sum / 20000.0, 0.5, 4.0 * 0.2887 / std::sqrt(20000.0));
+}
+
+}  // namespace
