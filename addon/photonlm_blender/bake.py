@@ -51,7 +51,8 @@ class BakeJob:
         self.settings = dict(photons=int(settings.photons), max_bounces=int(settings.max_bounces),
                              seed=int(settings.seed), target_error=float(settings.target_error),
                              time_budget=float(settings.time_budget),
-                             direct_samples=int(settings.direct_samples))
+                             direct_samples=int(settings.direct_samples),
+                             texel_value=settings.texel_value)
         self.scene_name = context.scene.name
         self.result = None
         self.export = None

@@ -22,6 +22,7 @@ class PHOTONLM_PT_lightmaps(bpy.types.Panel):
         col.prop(settings, "time_budget")
         col.prop(settings, "photons")
         col.prop(settings, "direct_samples")
+        col.prop(settings, "texel_value")
         col.prop(settings, "max_bounces")
         col.prop(settings, "texel_density")
         col.prop(settings, "seed")

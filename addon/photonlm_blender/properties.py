@@ -10,7 +10,7 @@ packing leaves some space unused, so the real density on the surface is somewhat
 import math
 
 import bpy
-from bpy.props import BoolProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
 STATS_KEY = "photonlm_last_bake"  # ID property on the scene: the last bake's statistics
 
@@ -75,6 +75,12 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
         name="Direct Samples", description="Shadow-ray points per texel for direct light (more are added "
         "to noisy texels when a target error is set); 0 = photons carry direct light too",
         default=64, min=0, max=65536, soft_max=1024)
+    texel_value: EnumProperty(
+        name="Texel Value", description="What a lightmap texel holds",
+        items=[('CENTER', "Centre", "Direct light at the texel centre, as Cycles bakes (sharp shadow edges)"),
+               ('AREA', "Average", "Direct light averaged over the texel (anti-aliased shadow edges; "
+                "edge texels need more samples)")],
+        default='CENTER')
     texel_density: IntProperty(
         name="Texel Density", description="Lightmap texels per metre for objects whose resolution is Auto "
         "(n = clamp(next power of two of sqrt(surface area) x density, 16, 4096))",
