@@ -77,10 +77,10 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
         default=64, min=0, max=65536, soft_max=1024)
     texel_value: EnumProperty(
         name="Texel Value", description="What a lightmap texel holds",
-        items=[('CENTER', "Centre", "Direct light at the texel centre, as Cycles bakes (sharp shadow edges)"),
-               ('AREA', "Average", "Direct light averaged over the texel (anti-aliased shadow edges; "
-                "edge texels need more samples)")],
-        default='CENTER')
+        items=[('CYCLES', "Like Cycles", "Direct light averaged over the texel's central half, as a "
+                "Cycles bake converges to (sharper shadow edges)"),
+               ('AREA', "Texel Average", "Direct light averaged over the whole texel (smoother shadow edges)")],
+        default='CYCLES')
     texel_density: IntProperty(
         name="Texel Density", description="Lightmap texels per metre for objects whose resolution is Auto "
         "(n = clamp(next power of two of sqrt(surface area) x density, 16, 4096))",

@@ -152,7 +152,7 @@ TEST(Bake, EmissiveTriangleEmitsFromBothSides) {
 
 // A square plane of side 20 at z = 0, lightmap res x res; returns its lightmap.
 Lightmap lit_plane(const plm_light& light, uint32_t res, uint64_t photons, const float* world = nullptr,
-                   uint32_t texel_value = PLM_TEXEL_CENTER) {
+                   uint32_t texel_value = PLM_TEXEL_CYCLES) {
   SceneBuilder b;
   const uint32_t m = b.material("black", {0, 0, 0});
   b.quad("plane", {-10, -10, 0}, {20, 0, 0}, {0, 20, 0}, m, res);
@@ -167,15 +167,15 @@ Lightmap lit_plane(const plm_light& light, uint32_t res, uint64_t photons, const
   return r.map(0);
 }
 
-// The exact value f(x, y) of texel (i, j) of a 20 x 20 m plane at res 20:
-// at the texel centre, or averaged over the texel (16 x 16 midpoints).
+// The exact value f(x, y) of texel (i, j) of a 20 x 20 m plane at res 20,
+// averaged (16 x 16 midpoints) over the texel or over its central half.
 template <typename F>
 double texel_truth(F&& f, uint32_t i, uint32_t j, uint32_t texel_value) {
-  if (texel_value == PLM_TEXEL_CENTER) return f(i - 9.5, j - 9.5);
+  const double lo = texel_value == PLM_TEXEL_CYCLES ? 0.25 : 0.0, w = 1.0 - 2.0 * lo;
   double avg = 0.0;
   const int k = 16;
   for (int a = 0; a < k; ++a)
-    for (int c = 0; c < k; ++c) avg += f(i - 10.0 + (a + 0.5) / k, j - 10.0 + (c + 0.5) / k);
+    for (int c = 0; c < k; ++c) avg += f(i - 10.0 + lo + w * (a + 0.5) / k, j - 10.0 + lo + w * (c + 0.5) / k);
   return avg / (k * k);
 }
 
@@ -190,8 +190,8 @@ TEST(Bake, PointLightOverPlaneIsInverseSquareCosine) {
     const double d2 = x * x + y * y + 4.0;
     return 1000.0 / (4 * M_PI) * 2.0 / std::pow(d2, 1.5) / M_PI;
   };
-  for (const uint32_t mode : {PLM_TEXEL_CENTER, PLM_TEXEL_AREA}) {
-    SCOPED_TRACE(mode == PLM_TEXEL_CENTER ? "texel centre" : "texel average");
+  for (const uint32_t mode : {PLM_TEXEL_CYCLES, PLM_TEXEL_AREA}) {
+    SCOPED_TRACE(mode == PLM_TEXEL_CYCLES ? "central half" : "texel average");
     const Lightmap lm = lit_plane(l, res, 4000000, nullptr, mode);
     double worst = 0.0, z2 = 0.0;
     for (uint32_t j = 6; j < 14; ++j) {
@@ -208,7 +208,7 @@ TEST(Bake, PointLightOverPlaneIsInverseSquareCosine) {
     // The reported error is the right size: deviations of unit variance or less
     // (it may over-estimate: it counts part of the texel's gradient as noise).
     EXPECT_LT(z2 / 64.0, 2.0);
-    if (mode == PLM_TEXEL_AREA) EXPECT_GT(z2 / 64.0, 0.1);  // at the centre a point light is noise-free
+    EXPECT_GT(z2 / 64.0, 0.1);
   }
 }
 
@@ -225,7 +225,7 @@ TEST(Bake, PointLightRadiusFollowsCyclesDiskModel) {
     const double d2 = x * x + y * y + 1.0;
     return 1000.0 / (4 * M_PI) * (1.0 / std::sqrt(d2)) / (d2 + 0.25) / M_PI;
   };
-  for (const uint32_t mode : {PLM_TEXEL_CENTER, PLM_TEXEL_AREA}) {
+  for (const uint32_t mode : {PLM_TEXEL_CYCLES, PLM_TEXEL_AREA}) {
     const Lightmap lm = lit_plane(l, res, 4000000, nullptr, mode);
     for (uint32_t j = 9; j <= 10; ++j)
       for (uint32_t i = 9; i <= 10; ++i) {
@@ -236,11 +236,11 @@ TEST(Bake, PointLightRadiusFollowsCyclesDiskModel) {
 }
 
 // A plane lit by the sun straight from above, shadowed for x < 3.3 m by a roof:
-// the shadow edge runs 0.3 texel into a column of 1 m texels. At the texel
-// centre (3.5 m, lit) the value is exact, as Cycles bakes it; the texel
-// average is the lit fraction 0.7.
+// the shadow edge runs 0.3 texel into a column of 1 m texels. Lit fraction of
+// the texel's central half [3.25, 3.75] (as Cycles bakes): 0.9; of the whole
+// texel: 0.7.
 TEST(Bake, ShadowEdgeInsideATexel) {
-  for (const uint32_t mode : {PLM_TEXEL_CENTER, PLM_TEXEL_AREA}) {
+  for (const uint32_t mode : {PLM_TEXEL_CYCLES, PLM_TEXEL_AREA}) {
     SceneBuilder b;
     const uint32_t black = b.material("black", {0, 0, 0});
     b.quad("plane", {0, 0, 0}, {8, 0, 0}, {0, 8, 0}, black, 8);  // 1 m texels
@@ -259,8 +259,8 @@ TEST(Bake, ShadowEdgeInsideATexel) {
       const double lit = 2.0 / M_PI;
       EXPECT_NEAR(lm.value(j * 8 + 2), 0.0, 1e-6) << "fully shadowed texel, row " << j;
       EXPECT_NEAR(lm.value(j * 8 + 4), lit, 1e-5) << "fully lit texel, row " << j;
-      const double edge = mode == PLM_TEXEL_CENTER ? lit : 0.7 * lit;
-      EXPECT_NEAR(lm.value(j * 8 + 3), edge, mode == PLM_TEXEL_CENTER ? 1e-5 : 0.05 * lit) << "edge texel, row " << j;
+      const double edge = (mode == PLM_TEXEL_CYCLES ? 0.9 : 0.7) * lit;
+      EXPECT_NEAR(lm.value(j * 8 + 3), edge, 0.03 * lit) << "edge texel, row " << j;
     }
   }
 }

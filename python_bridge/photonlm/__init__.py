@@ -243,7 +243,7 @@ class Scene(_Handle):
 
     def bake(self, photons=1_000_000, max_bounces=1024, seed=0, threads=0, dilation=8, progress=None,
              target_error=0.0, time_budget=0.0, direct_samples=64, filter_radius=2,
-             texel_value="CENTER", sampler="DEFAULT"):
+             texel_value="CYCLES", sampler="DEFAULT"):
         """Bake all lightmaps and return a Result. The GIL is released while the engine runs.
 
         Two passes: direct light from direct_samples shadow-ray points per texel (0 = photons
@@ -252,8 +252,8 @@ class Scene(_Handle):
         error reaches the target or the time is spent; photons is then the cap (0 = none).
         filter_radius: largest radius in texels over which a texel's photon estimate pools
         neighbours on the same surface until it holds enough hits (0 = each texel alone).
-        texel_value: "CENTER" (direct light at the texel centre, as Cycles bakes) or "AREA"
-        (averaged over the texel: anti-aliased shadow edges). sampler: "DEFAULT" (Owen-scrambled
+        texel_value: "CYCLES" (direct light averaged over the texel's central 0.5 x 0.5 square,
+        what Cycles 3.4 bakes converge to) or "AREA" (over the whole texel: smoother edges). sampler: "DEFAULT" (Owen-scrambled
         Sobol points for the direct pass, pseudo-random photons), "RANDOM" or "SOBOL" (everywhere).
 
         progress: optional callable(fraction, stage) called from this thread every few tenths
@@ -269,7 +269,7 @@ class Scene(_Handle):
         settings.dilation = _uint(dilation, "dilation")
         settings.direct_samples = _uint(direct_samples, "direct_samples")
         settings.filter_radius = _uint(filter_radius, "filter_radius")
-        settings.texel_value = _choice(texel_value, "texel_value", ("CENTER", "AREA"))
+        settings.texel_value = _choice(texel_value, "texel_value", ("CYCLES", "AREA"))
         settings.sampler = _choice(sampler, "sampler", ("DEFAULT", "RANDOM", "SOBOL"))
         for name, value in (("target_error", target_error), ("time_budget", time_budget)):
             value = float(value)

@@ -42,10 +42,14 @@ def rotation_x(theta):
     return m
 
 
-def texel_average(f, x0, x1, y0, y1, width, height, sub=8):
-    """Average of f(x, y) over each texel of a (height, width) grid on [x0,x1] x [y0,y1], row 0 at y0."""
-    xs = x0 + (np.arange(width * sub) + 0.5) * (x1 - x0) / (width * sub)
-    ys = y0 + (np.arange(height * sub) + 0.5) * (y1 - y0) / (height * sub)
+def texel_average(f, x0, x1, y0, y1, width, height, sub=8, window=1.0):
+    """Average of f(x, y) over each texel of a (height, width) grid on [x0,x1] x [y0,y1], row 0 at y0;
+    window < 1: over the texel's central window x window part only."""
+    def coords(lo, hi, n):
+        k = np.arange(n * sub)
+        frac = 0.5 - window / 2 + window * ((k % sub) + 0.5) / sub
+        return lo + (k // sub + frac) * (hi - lo) / n
+    xs, ys = coords(x0, x1, width), coords(y0, y1, height)
     v = f(xs[None, :], ys[:, None])
     return v.reshape(height, sub, width, sub).mean(axis=(1, 3))
 

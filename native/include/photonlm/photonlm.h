@@ -141,8 +141,10 @@ PLM_API plm_status plm_scene_set_world(plm_scene* scene, const float radiance[3]
  * are traced (0 = no cap), whichever comes first. */
 /* What a texel's value is. */
 typedef enum plm_texel_value {
-  PLM_TEXEL_CENTER = 0, /* the value at the texel centre, as Cycles bakes (sharp, matches Cycles) */
-  PLM_TEXEL_AREA = 1    /* the average over the texel's covered area (anti-aliased shadows) */
+  PLM_TEXEL_CYCLES = 0, /* the average over the texel's central 0.5 x 0.5 texel square: what a
+                           Cycles 3.4 bake converges to (it jitters its sample point by a quarter
+                           texel around the centre, whatever its pixel filter) */
+  PLM_TEXEL_AREA = 1    /* the average over the texel's whole covered area (smoother shadow edges) */
 } plm_texel_value;
 
 /* How sample points are drawn (docs/benchmarks.md compares them). */
@@ -163,14 +165,14 @@ typedef struct plm_bake_settings {
   uint32_t direct_samples;  /* shadow-ray points per texel and round; 0 = photons only */
   uint32_t filter_radius;   /* largest radius (texels) over which a texel's photon estimate pools
                                same-surface neighbours until it holds enough hits; 0 = none */
-  uint32_t texel_value;     /* plm_texel_value: the direct light at the texel centre or averaged
-                               over the texel (partly covered texels are always averaged) */
+  uint32_t texel_value;     /* plm_texel_value (texels less than half covered, or whose centre is
+                               not covered, are always averaged over their covered area) */
   uint32_t sampler;         /* plm_sampler */
 } plm_bake_settings;
 
 /* photon_count 1,000,000, max_bounces 1024, seed 0, threads 0, dilation 8,
  * no target error, no time budget, direct_samples 64, filter_radius 2,
- * PLM_TEXEL_CENTER, PLM_SAMPLER_DEFAULT. */
+ * PLM_TEXEL_CYCLES, PLM_SAMPLER_DEFAULT. */
 PLM_API void plm_bake_settings_default(plm_bake_settings* settings);
 
 /* Called from the thread that called plm_bake, at least every few tenths of a

@@ -255,7 +255,7 @@ void validate(const Scene& scene, const plm_bake_settings& s) {
     fail(PLM_ERROR_INVALID_ARGUMENT, "settings: direct_samples ", s.direct_samples, " exceeds 65536");
   if (s.filter_radius > 64) fail(PLM_ERROR_INVALID_ARGUMENT, "settings: filter_radius ", s.filter_radius, " exceeds 64 texels");
   if (s.texel_value > PLM_TEXEL_AREA)
-    fail(PLM_ERROR_INVALID_ARGUMENT, "settings: texel_value ", s.texel_value, " is not PLM_TEXEL_CENTER (0) or PLM_TEXEL_AREA (1)");
+    fail(PLM_ERROR_INVALID_ARGUMENT, "settings: texel_value ", s.texel_value, " is not PLM_TEXEL_CYCLES (0) or PLM_TEXEL_AREA (1)");
   if (s.sampler > PLM_SAMPLER_SOBOL)
     fail(PLM_ERROR_INVALID_ARGUMENT, "settings: sampler ", s.sampler, " is not PLM_SAMPLER_DEFAULT (0), _RANDOM (1) or _SOBOL (2)");
   if (s.dilation > 4096) fail(PLM_ERROR_INVALID_ARGUMENT, "settings: dilation ", s.dilation, " exceeds 4096 texels");
@@ -430,7 +430,7 @@ plm_bake_settings default_settings() {
   s.time_budget = 0.0;
   s.direct_samples = 64;
   s.filter_radius = 2;
-  s.texel_value = PLM_TEXEL_CENTER;
+  s.texel_value = PLM_TEXEL_CYCLES;
   s.sampler = PLM_SAMPLER_DEFAULT;
   return s;
 }

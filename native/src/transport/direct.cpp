@@ -53,7 +53,7 @@ double DirectSums::variance_of_mean(const DirectNoise& noise) const {
 DirectPass::DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<TexelAreas>& areas,
                        const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent)
     : rtc_(rtc), views_(views), areas_(areas), emitters_(emitters), seed_(settings.seed),
-      centre_(settings.texel_value == PLM_TEXEL_CENTER), sobol_(settings.sampler != PLM_SAMPLER_RANDOM),
+      cycles_window_(settings.texel_value == PLM_TEXEL_CYCLES), sobol_(settings.sampler != PLM_SAMPLER_RANDOM),
       offset_scale_(1e-6f * scene_extent), table_(emitters) {
   triangle_emitter_.resize(views.size());
   for (size_t k = 0; k < emitters.size(); ++k) {
@@ -176,21 +176,23 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   const float x0 = float(texel % mesh.lightmap_width), y0 = float(texel / mesh.lightmap_width);
   TraceContext tc;
   tc.skip_geom = mesh_id;
-  // Texel-centre values: every sample at the centre, if a triangle covers it
-  // (as Cycles bakes: its texel is the value at the centre). Otherwise the
-  // samples spread over the covered part, barely covered texels sampling
-  // their covered pieces directly (no strata).
-  Vec3 centre_p, centre_n;
-  uint32_t centre_tri = 0;
-  const bool at_centre = centre_ && surface_point(mesh_id, texel, x0 + 0.5f, y0 + 0.5f, centre_p, centre_n, centre_tri);
-  const bool sparse = !at_centre && areas_[mesh_id].coverage[texel] < 0.5f;
+  // The strata cover the texel, or with PLM_TEXEL_CYCLES its central half
+  // (x and y within a quarter texel of the centre), if a triangle covers the
+  // centre. Barely covered texels sample their covered pieces directly.
+  Vec3 unused_p, unused_n;
+  uint32_t unused_tri;
+  const bool window = cycles_window_ && areas_[mesh_id].coverage[texel] >= 0.5f &&
+                      surface_point(mesh_id, texel, x0 + 0.5f, y0 + 0.5f, unused_p, unused_n, unused_tri);
+  const float origin_x = window ? x0 + 0.25f : x0, origin_y = window ? y0 + 0.25f : y0;
+  const float side = window ? 0.5f / float(m) : 1.0f / float(m);
+  const bool sparse = !window && areas_[mesh_id].coverage[texel] < 0.5f;
   const uint32_t pick_key = rng.next_u32();
   const uint32_t sobol_key = rng.next_u32();
   uint32_t previous = ~0u;  // the last accepted stratum, and its value
   double previous_value = 0.0;
   for (uint32_t j = 0; j < n; ++j) {
-    const float x = x0 + (float(j % m) + rng.next_float()) / float(m);
-    const float y = y0 + (float(j / m) + rng.next_float()) / float(m);
+    const float x = origin_x + (float(j % m) + rng.next_float()) * side;
+    const float y = origin_y + (float(j / m) + rng.next_float()) * side;
     Vec3 p, normal;
     uint32_t tri;
     // Light choice and light sample: a 4D Sobol point per sample (random
@@ -211,9 +213,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       for (float& r : v) r = rng.next_float();
       for (float& r : w) r = rng.next_float();
     }
-    if (at_centre) {
-      p = centre_p, normal = centre_n, tri = centre_tri;
-    } else if (sparse) {
+    if (sparse) {
       if (!point_in_pieces(mesh_id, texel, w, p, normal, tri)) continue;
     } else if (!surface_point(mesh_id, texel, x, y, p, normal, tri)) {
       continue;  // outside the islands

@@ -61,7 +61,7 @@ class DirectPass {
   std::vector<std::vector<int32_t>> triangle_emitter_;  // [mesh][triangle] -> emitter or -1
   bool has_triangle_emitters_ = false;
   uint32_t seed_;
-  bool centre_;  // fully covered texels: every sample at the texel centre (PLM_TEXEL_CENTER)
+  bool cycles_window_;  // sample the texel's central half (PLM_TEXEL_CYCLES), not all of it
   bool sobol_;
   float offset_scale_;
   EmitterTable table_;
