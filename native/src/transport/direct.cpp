@@ -188,6 +188,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   const bool sparse = !window && areas_[mesh_id].coverage[texel] < 0.5f;
   const uint32_t pick_key = rng.next_u32();
   const uint32_t sobol_key = rng.next_u32();
+  const SobolGroup light_dims(sobol_key, 0), mis_dims(sobol_key, 1), piece_dims(sobol_key, 2);
   uint32_t previous = ~0u;  // the last accepted stratum, and its value
   double previous_value = 0.0;
   for (uint32_t j = 0; j < n; ++j) {
@@ -203,15 +204,15 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
     float u_pick, u[3], v[2], w[3];  // v: cosine direction (MIS), w: point in sparse texels
     if (sobol_) {
       float g[4];
-      sobol_group(j, sobol_key, 0, 4, g);
+      light_dims.point(j, 4, g);
       u_pick = g[0], u[0] = g[1], u[1] = g[2], u[2] = g[3];
-      sobol_group(j, sobol_key, 1, 2, v);
-      sobol_group(j, sobol_key, 2, 3, w);
+      if (has_triangle_emitters_) mis_dims.point(j, 2, v);
+      if (sparse) piece_dims.point(j, 3, w);
     } else {
       u_pick = (float(permute(j, n, pick_key)) + rng.next_float()) / float(n);
       for (float& r : u) r = rng.next_float();
       for (float& r : v) r = rng.next_float();
-      for (float& r : w) r = rng.next_float();
+      for (float& r : w) r = rng.next_float();  // drawn always: streams stay as they were
     }
     if (sparse) {
       if (!point_in_pieces(mesh_id, texel, w, p, normal, tri)) continue;

@@ -76,15 +76,31 @@ inline float to_float(uint32_t x) { return float(x >> 8) * (1.0f / 16777216.0f);
 
 }  // namespace sobol_detail
 
-// Up to four dimensions of point `index` of the Sobol set keyed by `key`,
-// group `group` of the path. Within one key, points 0 .. 2^m - 1 of a group
-// form a scrambled (t, m, 4)-net; the index shuffle keeps that (an Owen
-// scramble of the index maps each aligned block of 2^m indices onto one).
+// One group of up to four dimensions of the Sobol set keyed by `key`: its
+// scrambling keys, hashed once so that drawing many points of a group is cheap.
+// Within one key, points 0 .. 2^m - 1 of a group form a scrambled
+// (t, m, 4)-net; the index shuffle keeps that (an Owen scramble of the index
+// maps each aligned block of 2^m indices onto one).
+class SobolGroup {
+ public:
+  SobolGroup(uint32_t key, uint32_t group) {
+    using sobol_detail::hash;
+    index_key_ = hash(key, group);
+    for (uint32_t d = 0; d < 4; ++d) dim_key_[d] = hash(index_key_, d + 1);
+  }
+  void point(uint32_t index, int dims, float* out) const {
+    using namespace sobol_detail;
+    const uint32_t i = owen_scramble(index, index_key_);
+    for (int d = 0; d < dims; ++d) out[d] = to_float(owen_scramble(sobol(i, d), dim_key_[d]));
+  }
+
+ private:
+  uint32_t index_key_, dim_key_[4];
+};
+
+// Point `index` of group `group` of the set keyed by `key` (dims <= 4).
 inline void sobol_group(uint32_t index, uint32_t key, uint32_t group, int dims, float* out) {
-  using namespace sobol_detail;
-  const uint32_t group_key = hash(key, group);
-  const uint32_t i = owen_scramble(index, group_key);
-  for (int d = 0; d < dims; ++d) out[d] = to_float(owen_scramble(sobol(i, d), hash(group_key, uint32_t(d) + 1)));
+  SobolGroup(key, group).point(index, dims, out);
 }
 
 }  // namespace plm
