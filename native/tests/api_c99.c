@@ -6,5 +6,7 @@ int plm_c99_check(void) {
   plm_light l;
   plm_bake_settings_default(&s);
   plm_light_default(&l, PLM_LIGHT_POINT);
-  return (int)s.max_bounces + l.type;
+  plm_ol_stats os;
+  os.resolution = 0;
+  return (int)s.max_bounces + l.type + (int)os.resolution;
 }

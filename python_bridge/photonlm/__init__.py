@@ -25,7 +25,7 @@ from . import _lib
 from ._lib import LibraryNotFoundError, library_path
 
 __all__ = ["version", "PhotonlmError", "BakeCancelled", "LibraryNotFoundError", "Scene", "Result",
-           "Lightmap", "library_path"]
+           "Lightmap", "OrientationLightmap", "library_path"]
 
 _C = _lib.lib
 _OK = 0
@@ -236,6 +236,20 @@ class Scene(_Handle):
         _check(_C.plm_scene_add_light(self._h, _name(name), ctypes.byref(light), ctypes.byref(out)))
         return out.value
 
+    def add_ol_group(self, name=None, resolution=0):
+        """Add an orientation-lightmap group and return its id (0, 1, ...).
+
+        Its meshes share one map over surface normals (resolution x resolution bins of an
+        equal-area octahedral map; 0 = automatic, 16) instead of per-texel lightmaps."""
+        out = ctypes.c_uint32()
+        _check(_C.plm_scene_add_ol_group(self._h, _name(name), _uint(resolution, "resolution"),
+                                         ctypes.byref(out)))
+        return out.value
+
+    def set_mesh_ol_group(self, mesh, group):
+        """Put a mesh added without a lightmap (resolution 0) into an OL group."""
+        _check(_C.plm_scene_set_mesh_ol_group(self._h, _uint(mesh, "mesh"), _uint(group, "group")))
+
     def set_world(self, radiance):
         """Uniform world radiance (RGB, Cycles background colour x strength) over the whole sphere."""
         rad = _rgb(radiance, "radiance")
@@ -300,6 +314,12 @@ class Scene(_Handle):
         return Result(out)
 
 
+OrientationLightmap = collections.namedtuple("OrientationLightmap", "rgb error resolution area hits")
+OrientationLightmap.__doc__ = """One OL group's map as float32 arrays over the octahedral square,
+row = v bin, column = u bin (photonlm.h): rgb (N, N, 3) irradiance/pi; error (N, N) standard
+error of the bin's mean RGB; resolution N; area (N, N) covered surface area per bin (m^2);
+hits (N, N) photon hits."""
+
 Lightmap = collections.namedtuple("Lightmap", "rgb error hits coverage")
 Lightmap.__doc__ = """One mesh's lightmap as float32 arrays, row 0 = bottom (v near 0):
 rgb (h, w, 3) irradiance/pi; error (h, w) standard error of the texel's mean RGB;
@@ -342,6 +362,30 @@ class Result(_Handle):
         lm = Lightmap(np.empty((h, w, 3), np.float32), *(np.empty((h, w), np.float32) for _ in range(3)))
         _check(_C.plm_result_copy_lightmap(self._h, mesh_id, *(_ptr(a, ctypes.c_float) for a in lm)))
         return lm
+
+    def orientation_lightmap(self, group):
+        """Copy an OL group's map into new numpy arrays (an OrientationLightmap)."""
+        group = _uint(group, "group")
+        rgb, err, area, hits = (_lib.FloatPtr() for _ in range(4))
+        n = ctypes.c_uint32()
+        _check(_C.plm_result_ol(self._h, group, ctypes.byref(rgb), ctypes.byref(err), ctypes.byref(n)))
+        _check(_C.plm_result_ol_bins(self._h, group, ctypes.byref(area), ctypes.byref(hits)))
+        n = n.value
+
+        def copy(ptr, shape):
+            return np.ctypeslib.as_array(ptr, shape=shape).copy()
+        return OrientationLightmap(copy(rgb, (n, n, 3)), copy(err, (n, n)), n, copy(area, (n, n)),
+                                   copy(hits, (n, n)))
+
+    def ol_stats(self, group):
+        """dict: resolution, mesh_count, hits, area (m^2), flux (W recorded), orphan_flux (W)."""
+        s = _lib.plm_ol_stats()
+        _check(_C.plm_result_ol_stats(self._h, _uint(group, "group"), ctypes.byref(s)))
+        return {k: getattr(s, k) for k, _ in s._fields_}
+
+    def write_ol_exr(self, group, path):
+        """Write an OL group's map as OpenEXR (R, G, B, area, error, hits), atomically."""
+        _check(_C.plm_result_write_ol_exr(self._h, _uint(group, "group"), os.fsencode(os.fspath(path))))
 
     def write_exr(self, mesh_id, path):
         """Write a mesh's lightmap as OpenEXR (R, G, B, error, hits), atomically."""

@@ -103,6 +103,17 @@ class plm_bake_stats(ctypes.Structure):
     ]
 
 
+class plm_ol_stats(ctypes.Structure):
+    _fields_ = [
+        ("resolution", c_uint32),
+        ("mesh_count", c_uint32),
+        ("hits", c_uint64),
+        ("area", c_double),
+        ("flux", c_double),
+        ("orphan_flux", c_double),
+    ]
+
+
 # plm_status is a C enum: int-sized on every ABI we target.
 status_t = c_int
 progress_fn = ctypes.CFUNCTYPE(c_int, c_void_p, c_double, c_char_p)
@@ -132,6 +143,12 @@ _SIGNATURES = {
     "plm_result_copy_lightmap": (status_t, [ResultPtr, c_uint32, FloatPtr, FloatPtr, FloatPtr,
                                             FloatPtr]),
     "plm_result_write_exr": (status_t, [ResultPtr, c_uint32, c_char_p]),
+    "plm_scene_add_ol_group": (status_t, [ScenePtr, c_char_p, c_uint32, UInt32Ptr]),
+    "plm_scene_set_mesh_ol_group": (status_t, [ScenePtr, c_uint32, c_uint32]),
+    "plm_result_ol": (status_t, [ResultPtr, c_uint32, POINTER(FloatPtr), POINTER(FloatPtr), UInt32Ptr]),
+    "plm_result_ol_bins": (status_t, [ResultPtr, c_uint32, POINTER(FloatPtr), POINTER(FloatPtr)]),
+    "plm_result_ol_stats": (status_t, [ResultPtr, c_uint32, POINTER(plm_ol_stats)]),
+    "plm_result_write_ol_exr": (status_t, [ResultPtr, c_uint32, c_char_p]),
 }
 
 for _name, (_restype, _argtypes) in _SIGNATURES.items():

@@ -187,7 +187,7 @@ PLM_API void plm_result_release(plm_result* result); /* NULL is fine */
 
 typedef struct plm_bake_stats {
   uint64_t photons_emitted;
-  uint64_t photon_hits;      /* hits stored into lightmaps */
+  uint64_t photon_hits;      /* hits stored into lightmaps and orientation lightmaps */
   uint64_t rays_traced;      /* photon rays */
   uint64_t paths_truncated;  /* paths stopped by max_bounces */
   double emitted_power;      /* W, sum over RGB channels / 3 */
@@ -228,6 +228,70 @@ PLM_API plm_status plm_result_copy_lightmap(const plm_result* result, uint32_t m
  * The file appears atomically (written to a temporary name, then renamed). */
 PLM_API plm_status plm_result_write_exr(const plm_result* result, uint32_t mesh_id,
                                         const char* path);
+
+/* ---- Orientation lightmaps (OL) -------------------------------------------
+ *
+ * An OL group stores the light of its meshes by surface normal instead of by
+ * UV texel (thesis 6.2): one map over the sphere of directions, in N x N bins
+ * of an equal-area octahedral map (bin = row * N + column; column along u,
+ * row along v, row 0 at v near 0; a unit normal n maps to (u, v) as in
+ * Clarberg 2008 / pbrt-v4's EqualSphereToSquare with the +z hemisphere in the
+ * inner diamond). Every point of the group whose normal falls in a bin shows
+ * that bin's value: flux recorded there / (pi * area of the group's surface
+ * whose normal falls in the bin) = irradiance / pi, like a texel. Such meshes
+ * need no UVs; light still bounces off their real geometry.
+ *
+ * Recording: photons record hits on the front side of an OL mesh's triangles
+ * (the side their winding faces, as lightmaps do), by the triangle's
+ * geometric normal. OL meshes get no per-texel direct pass: their direct
+ * light comes from the photons, at every depth, whatever direct_samples is
+ * (direct_samples still drives the lightmapped meshes). The error of a bin is
+ * the spread of 16 independent photon groups (photon batches of 4096 taken
+ * round robin). target_error is measured over lightmap texels only; OLs do
+ * not steer when a bake stops. */
+
+/* Adds an empty OL group and returns its index in out_group (0, 1, ...).
+ * resolution: bins per side, 1..1024, or 0 = automatic (16 x 16). name may be
+ * NULL. A group that ends up with no meshes gives a warning at bake time and
+ * a black map. */
+PLM_API plm_status plm_scene_add_ol_group(plm_scene* scene, const char* name, uint32_t resolution,
+                                          uint32_t* out_group);
+
+/* Puts a mesh into an OL group (a later call moves it to another group). The
+ * mesh must have no lightmap (added with size 0 x 0): a mesh gets a lightmap
+ * or an OL, not both. Errors name the mesh and the group. */
+PLM_API plm_status plm_scene_set_mesh_ol_group(plm_scene* scene, uint32_t mesh, uint32_t group);
+
+/* Reads one OL of a result. The pointers stay valid as long as the result;
+ * any output may be NULL.
+ *   rgb         resolution^2 * 3 floats, irradiance / pi (0 in bins whose
+ *               area is 0: no surface of the group has that normal)
+ *   error       resolution^2 floats: standard error of the bin's mean RGB
+ *   resolution  bins per side */
+PLM_API plm_status plm_result_ol(const plm_result* result, uint32_t group, const float** rgb,
+                                 const float** error, uint32_t* resolution);
+
+/* Per-bin covered area (m^2; exact sums of triangle areas) and photon hits,
+ * resolution^2 floats each, valid as long as the result; either may be NULL. */
+PLM_API plm_status plm_result_ol_bins(const plm_result* result, uint32_t group, const float** area,
+                                      const float** hits);
+
+typedef struct plm_ol_stats {
+  uint32_t resolution;   /* bins per side */
+  uint32_t mesh_count;   /* meshes in the group */
+  uint64_t hits;         /* photon hits recorded */
+  double area;           /* total front-side area of the group's triangles (m^2) */
+  double flux;           /* W (RGB mean) recorded: sum over bins of value * pi * area */
+  double orphan_flux;    /* W (RGB mean) of hits in bins without area, moved to neighbouring
+                            bins; 0 unless normals and areas disagree */
+} plm_ol_stats;
+
+PLM_API plm_status plm_result_ol_stats(const plm_result* result, uint32_t group, plm_ol_stats* out_stats);
+
+/* Writes one OL as an OpenEXR file of resolution x resolution pixels with
+ * channels R, G, B, area, error, hits (top row = the last row of bins, as for
+ * lightmaps). The file appears atomically. */
+PLM_API plm_status plm_result_write_ol_exr(const plm_result* result, uint32_t group, const char* path);
 
 #ifdef __cplusplus
 }

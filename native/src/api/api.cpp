@@ -53,6 +53,15 @@ const plm::LightmapImage& lightmap_of(const plm_result* r, uint32_t mesh_id, con
   return maps[mesh_id];
 }
 
+const plm::OlImage& ol_of(const plm_result* r, uint32_t group, const char* function) {
+  require(r, function, "result");
+  const auto& ols = r->output.ols;
+  if (group >= ols.size())
+    plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": OL group ", group, " is out of range (the scene had ", ols.size(),
+              " OL groups)");
+  return ols[group];
+}
+
 }  // namespace
 
 extern "C" {
@@ -201,6 +210,65 @@ plm_status plm_result_write_exr(const plm_result* result, uint32_t mesh_id, cons
       pixels[5 * t + 4] = img.hits[t];
     }
     plm::write_exr_atomic(path, img.width, img.height, {"R", "G", "B", "error", "hits"}, pixels.data());
+  });
+}
+
+plm_status plm_scene_add_ol_group(plm_scene* scene, const char* name, uint32_t resolution, uint32_t* out_group) {
+  return guarded("plm_scene_add_ol_group", [&] {
+    require(scene, "plm_scene_add_ol_group", "scene");
+    const uint32_t id = scene->scene.add_ol_group(name, resolution);
+    if (out_group) *out_group = id;
+  });
+}
+
+plm_status plm_scene_set_mesh_ol_group(plm_scene* scene, uint32_t mesh, uint32_t group) {
+  return guarded("plm_scene_set_mesh_ol_group", [&] {
+    require(scene, "plm_scene_set_mesh_ol_group", "scene");
+    scene->scene.set_mesh_ol_group(mesh, group);
+  });
+}
+
+plm_status plm_result_ol(const plm_result* result, uint32_t group, const float** rgb, const float** error,
+                         uint32_t* resolution) {
+  return guarded("plm_result_ol", [&] {
+    const plm::OlImage& img = ol_of(result, group, "plm_result_ol");
+    if (rgb) *rgb = img.rgb.data();
+    if (error) *error = img.error.data();
+    if (resolution) *resolution = img.resolution;
+  });
+}
+
+plm_status plm_result_ol_bins(const plm_result* result, uint32_t group, const float** area, const float** hits) {
+  return guarded("plm_result_ol_bins", [&] {
+    const plm::OlImage& img = ol_of(result, group, "plm_result_ol_bins");
+    if (area) *area = img.area.data();
+    if (hits) *hits = img.hits.data();
+  });
+}
+
+plm_status plm_result_ol_stats(const plm_result* result, uint32_t group, plm_ol_stats* out_stats) {
+  return guarded("plm_result_ol_stats", [&] {
+    const plm::OlImage& img = ol_of(result, group, "plm_result_ol_stats");
+    require(out_stats, "plm_result_ol_stats", "out_stats");
+    *out_stats = img.stats;
+  });
+}
+
+plm_status plm_result_write_ol_exr(const plm_result* result, uint32_t group, const char* path) {
+  return guarded("plm_result_write_ol_exr", [&] {
+    const plm::OlImage& img = ol_of(result, group, "plm_result_write_ol_exr");
+    require(path, "plm_result_write_ol_exr", "path");
+    const size_t n = size_t(img.resolution) * img.resolution;
+    // EXR keeps channels sorted by name after R, G, B: write them in that order.
+    std::vector<float> pixels(6 * n);
+    for (size_t b = 0; b < n; ++b) {
+      for (int c = 0; c < 3; ++c) pixels[6 * b + c] = img.rgb[3 * b + c];
+      pixels[6 * b + 3] = img.area[b];
+      pixels[6 * b + 4] = img.error[b];
+      pixels[6 * b + 5] = img.hits[b];
+    }
+    plm::write_exr_atomic(path, img.resolution, img.resolution, {"R", "G", "B", "area", "error", "hits"},
+                          pixels.data());
   });
 }
 

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "ol/octahedral.h"
 #include "util/error.h"
 
 namespace plm {
@@ -171,6 +172,30 @@ void Scene::set_world(const float radiance[3]) {
   if (!radiance) fail(PLM_ERROR_INVALID_ARGUMENT, "world: radiance must not be NULL");
   check_rgb(radiance, "radiance", "world", 1e30f);
   world = {radiance[0], radiance[1], radiance[2]};
+}
+
+uint32_t Scene::add_ol_group(const char* name, uint32_t resolution) {
+  const std::string owner = "OL group " + quoted_or(name, ol_groups.size()) + " (" + std::to_string(ol_groups.size()) + ")";
+  if (resolution > ol::kMaxOlResolution)
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": resolution ", resolution, " exceeds ", ol::kMaxOlResolution,
+         " bins per side (0 = automatic)");
+  ol_groups.push_back({name && *name ? name : "#" + std::to_string(ol_groups.size()), resolution});
+  return static_cast<uint32_t>(ol_groups.size() - 1);
+}
+
+void Scene::set_mesh_ol_group(uint32_t mesh, uint32_t group) {
+  if (mesh >= meshes.size())
+    fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh OL group: mesh ", mesh, " does not exist (the scene has ",
+         meshes.size(), " meshes)");
+  Mesh& m = meshes[mesh];
+  if (group >= ol_groups.size())
+    fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh OL group: mesh '", m.name, "' (", mesh, "): OL group ", group,
+         " does not exist (the scene has ", ol_groups.size(), " OL groups)");
+  if (m.has_lightmap())
+    fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh OL group: mesh '", m.name, "' (", mesh, ") has a ", m.lightmap_width,
+         " x ", m.lightmap_height, " lightmap and cannot join OL group '", ol_groups[group].name, "' (", group,
+         "): a mesh gets a lightmap or an orientation lightmap, not both (add it with lightmap size 0 x 0)");
+  m.ol_group = int32_t(group);
 }
 
 }  // namespace plm

@@ -31,6 +31,7 @@ struct Mesh {
   std::vector<float> uv;          // 6 per triangle, empty when no lightmap
   std::vector<uint32_t> material_ids;  // 1 per triangle
   uint32_t lightmap_width = 0, lightmap_height = 0;
+  int32_t ol_group = -1;  // orientation-lightmap group, -1 for none (a mesh has a lightmap or a group, not both)
 
   uint32_t triangle_count() const { return static_cast<uint32_t>(indices.size() / 3); }
   bool has_lightmap() const { return lightmap_width > 0; }
@@ -42,10 +43,18 @@ struct Light {
   plm_light desc;
 };
 
+// An orientation-lightmap group (thesis 6.2): lightmap-less meshes whose
+// light is stored per surface normal in one shared octahedral map.
+struct OlGroup {
+  std::string name;
+  uint32_t resolution = 0;  // bins per side of the map; 0 = automatic (see bake.h)
+};
+
 struct Scene {
   std::vector<Material> materials;
   std::vector<Mesh> meshes;
   std::vector<Light> lights;
+  std::vector<OlGroup> ol_groups;
   Vec3 world{0, 0, 0};
 
   uint32_t add_material(const char* name, const float albedo[3], const float emission[3]);
@@ -54,6 +63,10 @@ struct Scene {
                     const uint32_t* material_ids, uint32_t width, uint32_t height);
   uint32_t add_light(const char* name, const plm_light& light);
   void set_world(const float radiance[3]);
+  uint32_t add_ol_group(const char* name, uint32_t resolution);
+  // Puts a mesh into a group (a later call moves it). Throws for bad indices
+  // and for a mesh that has a lightmap.
+  void set_mesh_ol_group(uint32_t mesh, uint32_t group);
 };
 
 // Blender's defaults for a light of the given type.

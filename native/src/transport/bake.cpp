@@ -14,6 +14,8 @@
 #include "lightmap/dilate.h"
 #include "lightmap/reconstruct.h"
 #include "lightmap/texel_area.h"
+#include "ol/area_estimation.h"
+#include "ol/orientation_lightmap.h"
 #include "transport/direct.h"
 #include "transport/emitters.h"
 #include "transport/tracing.h"
@@ -41,19 +43,37 @@ struct Hit {
   float r, g, b;   // flux / pick probability; divided by the photon count at the end
 };
 
+// A hit on an OL mesh: the bin of the triangle's normal (OlMeshView::bins).
+struct OlHit {
+  uint32_t group, bin;
+  float r, g, b;
+};
+
 struct BatchOutput {
   std::vector<Hit> hits;
+  std::vector<OlHit> ol_hits;
   uint64_t rays = 0;
   uint64_t truncated = 0;
   double truncated_flux = 0.0;
 };
 
+constexpr uint32_t kNoBin = ~0u;
+
+// A mesh as the photon tracer sees its OL group: group -1 for none, else the
+// OL bin of each triangle's normal (kNoBin for degenerate triangles).
+struct OlMeshView {
+  int32_t group = -1;
+  const uint32_t* bins = nullptr;
+};
+
 class PhotonTracer {
  public:
+  // Hits on lightmapped meshes are recorded from depth first_recorded_depth
+  // on, hits on OL meshes at every depth (they get no direct pass).
   PhotonTracer(const Scene& scene, RTCScene rtc, const std::vector<MeshView>& views,
-               const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent,
-               uint32_t first_recorded_depth)
-      : scene_(scene), rtc_(rtc), views_(views), emitters_(emitters), settings_(settings),
+               const std::vector<OlMeshView>& ol_views, const std::vector<Emitter>& emitters,
+               const plm_bake_settings& settings, float scene_extent, uint32_t first_recorded_depth)
+      : scene_(scene), rtc_(rtc), views_(views), ol_views_(ol_views), emitters_(emitters), settings_(settings),
         offset_scale_(1e-6f * scene_extent), first_recorded_(first_recorded_depth), table_(emitters) {
     pick_offset_ = double(Rng(settings.seed, ~0ull).next_float());
     default_material_.albedo = {0.8f, 0.8f, 0.8f};
@@ -61,6 +81,7 @@ class PhotonTracer {
 
   void trace_batch(uint64_t first, uint64_t count, BatchOutput& out) const {
     out.hits.clear();
+    out.ol_hits.clear();
     out.rays = out.truncated = 0;
     out.truncated_flux = 0.0;
     for (uint64_t i = first; i < first + count; ++i) trace_photon(i, out);
@@ -160,6 +181,9 @@ class PhotonTracer {
             out.hits.push_back({uint32_t(view.texel_offset + texel), flux.x, flux.y, flux.z});
         }
       }
+      const OlMeshView& ol = ol_views_[rh.hit.geomID];
+      if (front && ol.group >= 0 && ol.bins[tri] != kNoBin)
+        out.ol_hits.push_back({uint32_t(ol.group), ol.bins[tri], flux.x, flux.y, flux.z});
 
       const Vec3 albedo = material(mesh, tri).albedo;
       const float q = std::fmin(1.0f, max_component(albedo));
@@ -187,6 +211,7 @@ class PhotonTracer {
   const Scene& scene_;
   RTCScene rtc_;
   const std::vector<MeshView>& views_;
+  const std::vector<OlMeshView>& ol_views_;
   const std::vector<Emitter>& emitters_;
   plm_bake_settings settings_;
   float offset_scale_;
@@ -261,11 +286,66 @@ void validate(const Scene& scene, const plm_bake_settings& s) {
   if (s.dilation > 4096) fail(PLM_ERROR_INVALID_ARGUMENT, "settings: dilation ", s.dilation, " exceeds 4096 texels");
   if (scene.meshes.empty()) fail(PLM_ERROR_INVALID_SCENE, "the scene has no meshes: nothing to bake");
   uint64_t texels = 0;
-  for (const Mesh& m : scene.meshes) texels += uint64_t(m.lightmap_width) * m.lightmap_height;
-  if (texels == 0)
-    fail(PLM_ERROR_INVALID_SCENE, "no mesh has a lightmap: give at least one mesh a lightmap size and UVs");
+  bool ol_meshes = false;
+  for (const Mesh& m : scene.meshes) {
+    texels += uint64_t(m.lightmap_width) * m.lightmap_height;
+    ol_meshes = ol_meshes || m.ol_group >= 0;
+  }
+  if (texels == 0 && !ol_meshes)
+    fail(PLM_ERROR_INVALID_SCENE, "no mesh has a lightmap or an OL group: give at least one mesh a lightmap size and "
+         "UVs, or put it into an orientation-lightmap group");
+  if (texels == 0 && s.target_error > 0.0)
+    fail(PLM_ERROR_INVALID_ARGUMENT, "settings: target_error is measured over lightmap texels, and no mesh has a "
+         "lightmap (orientation lightmaps do not steer the bake): set photon_count instead");
   if (texels >= (uint64_t(1) << 31))
     fail(PLM_ERROR_INVALID_SCENE, "the lightmaps hold ", texels, " texels together; the limit is 2^31");
+}
+
+// The OL of each group, its area per bin from the exact areas of its meshes'
+// triangles (ol/area_estimation.h), and each OL mesh's triangle bins.
+// Area and hits use the same double-precision normal, so a hit never lands
+// in a bin its triangle's area missed.
+std::vector<ol::OrientationLightmap> build_ols(const Scene& scene, std::vector<std::vector<uint32_t>>& bins,
+                                               std::vector<uint32_t>& mesh_counts,
+                                               std::vector<std::string>& warnings) {
+  constexpr size_t kChunk = 1 << 16;  // triangles per estimate_area call: bounds the Patch buffer
+  std::vector<ol::OrientationLightmap> ols;
+  bins.assign(scene.meshes.size(), {});
+  mesh_counts.assign(scene.ol_groups.size(), 0);
+  for (size_t g = 0; g < scene.ol_groups.size(); ++g) {
+    const OlGroup& group = scene.ol_groups[g];
+    ols.emplace_back(group.resolution ? group.resolution : kAutoOlResolution, kOlBatches);
+    ol::OrientationLightmap& map = ols.back();
+    std::vector<double> area(map.bins(), 0.0);
+    std::vector<ol::Patch> parts;
+    auto flush = [&] {
+      if (parts.empty()) return;
+      const ol::AreaEstimate e = ol::estimate_area(map.grid(), parts);
+      for (size_t b = 0; b < area.size(); ++b) area[b] += e.area[b];
+      parts.clear();
+    };
+    for (size_t i = 0; i < scene.meshes.size(); ++i) {
+      const Mesh& mesh = scene.meshes[i];
+      if (mesh.ol_group != int32_t(g)) continue;
+      ++mesh_counts[g];
+      bins[i].assign(mesh.triangle_count(), kNoBin);
+      for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
+        const ol::Vec3d p0(mesh.vertex(t, 0)), p1(mesh.vertex(t, 1)), p2(mesh.vertex(t, 2));
+        parts.push_back(ol::Patch::triangle(p0, p1, p2));
+        // The normal exactly as estimate_area's exact-triangle path computes it.
+        const ol::Vec3d n = cross(p1 - p0, p2 - p0);
+        const double len = length(n);
+        if (len > 0.0) bins[i][t] = map.grid().bin(n * (1.0 / len));
+        if (parts.size() == kChunk) flush();
+      }
+    }
+    flush();
+    map.set_area(std::move(area), std::vector<double>(map.bins(), 0.0));
+    if (mesh_counts[g] == 0)
+      warnings.push_back("OL group '" + group.name + "' (" + std::to_string(g) +
+                         ") has no meshes: its orientation lightmap is black");
+  }
+  return ols;
 }
 
 // A texel that holds a value (area > 0): the direct pass works through these.
@@ -479,6 +559,12 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
     }
     add_mesh_warnings(mesh, mesh.has_lightmap() ? &areas[i] : nullptr, out.warnings);
   }
+  std::vector<std::vector<uint32_t>> ol_bins;
+  std::vector<uint32_t> ol_mesh_counts;
+  std::vector<ol::OrientationLightmap> ols = build_ols(scene, ol_bins, ol_mesh_counts, out.warnings);
+  std::vector<OlMeshView> ol_views(scene.meshes.size());
+  for (size_t i = 0; i < scene.meshes.size(); ++i)
+    if (scene.meshes[i].ol_group >= 0) ol_views[i] = {scene.meshes[i].ol_group, ol_bins[i].data()};
 
   const std::vector<Emitter> emitters = build_emitters(scene, center, radius);
   double emitted = 0.0;
@@ -566,9 +652,10 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
     const bool steered = settings.target_error > 0.0 || settings.time_budget > 0.0;
     const uint64_t cap = settings.photon_count ? settings.photon_count : (uint64_t(1) << 40);
     const uint64_t batch_count = (cap + kBatchPhotons - 1) / kBatchPhotons;
-    PhotonTracer tracer(scene, accel.handle(), views, emitters, settings, extent, two_pass ? 1u : 0u);
+    PhotonTracer tracer(scene, accel.handle(), views, ol_views, emitters, settings, extent, two_pass ? 1u : 0u);
     std::vector<BatchOutput> batches;
     double truncated_flux = 0.0;
+    uint64_t ol_hits = 0;
     uint64_t merged = 0, next_check = kCheckBatches;
     bool done = false;
     run_in_groups(
@@ -588,6 +675,12 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
           for (uint64_t b = merged; b < end && !done; ++b) {
             const BatchOutput& bo = batches[b - merged];
             acc.merge(bo);
+            for (const OlHit& h : bo.ol_hits) {
+              ol::OrientationLightmap& map = ols[h.group];
+              const ol::Vec3d c = map.grid().centre(h.bin);  // falls back into bin h.bin
+              map.add_hit({float(c.x), float(c.y), float(c.z)}, {h.r, h.g, h.b}, uint32_t(b % kOlBatches));
+            }
+            ol_hits += bo.ol_hits.size();
             out.stats.rays_traced += bo.rays;
             out.stats.paths_truncated += bo.truncated;
             truncated_flux += bo.truncated_flux;
@@ -612,7 +705,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
           return !done;
         });
     out.stats.photons_emitted = photons;
-    out.stats.photon_hits = acc.total_hits;
+    out.stats.photon_hits = acc.total_hits + ol_hits;
     if (truncated_flux > 1e-4 * emitted * double(photons))
       out.warnings.push_back(std::to_string(out.stats.paths_truncated) + " photon paths reached max_bounces (" +
                              std::to_string(settings.max_bounces) + ") and were stopped, losing " +
@@ -663,6 +756,38 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
       for (int c = 0; c < 3; ++c) img.rgb[3 * t + c] = values[4 * t + c];
       img.error[t] = values[4 * t + 3];
     }
+  }
+
+  // ---- Orientation lightmaps ------------------------------------------------
+  out.ols.resize(ols.size());
+  for (size_t g = 0; g < ols.size(); ++g) {
+    ol::OrientationLightmap& map = ols[g];
+    OlImage& img = out.ols[g];
+    img.name = scene.ol_groups[g].name;
+    img.resolution = map.resolution();
+    const size_t n = map.bins();
+    img.rgb.assign(3 * n, 0.0f);
+    img.error.assign(n, 0.0f);
+    img.area.resize(n);
+    img.hits.resize(n);
+    img.stats.resolution = img.resolution;
+    img.stats.mesh_count = ol_mesh_counts[g];
+    img.stats.area = map.total_area();
+    if (photons > 0) map.finalize(photons);
+    for (uint32_t b = 0; b < n; ++b) {
+      img.area[b] = float(map.area(b));
+      img.hits[b] = float(map.hits(b));
+      img.stats.hits += map.hits(b);
+      if (!map.finalized()) continue;
+      double mean = 0.0;
+      for (int c = 0; c < 3; ++c) {
+        img.rgb[3 * b + c] = float(map.radiosity(b, c));
+        mean += map.radiosity(b, c) / 3.0;
+      }
+      img.error[b] = float(map.radiosity_error(b));
+      img.stats.flux += mean * kPiD * map.area(b);
+    }
+    if (photons > 0) img.stats.orphan_flux = map.orphan_flux() / double(photons);
   }
   out.stats.seconds_total = seconds_since(t_start);
   report(1.0, "done");

@@ -2,6 +2,12 @@
 // proportion to their power, bounce diffusely with Russian roulette, and every
 // hit on a lightmapped surface adds its flux to the texel it lands in. A texel
 // holds flux / (area * pi) = irradiance / pi.
+//
+// Meshes in an orientation-lightmap group (scene.h OlGroup) have no texels:
+// their front-side hits go to the group's OL bin of the triangle's normal
+// (ol/orientation_lightmap.h), at every photon depth, since the per-texel
+// direct pass cannot reach them. Their hits are merged in batch order like
+// texel hits, so OLs too are independent of the thread count.
 #pragma once
 
 #include <functional>
@@ -21,8 +27,28 @@ struct LightmapImage {
   std::vector<float> coverage;  // covered fraction (0 for dilated texels)
 };
 
+// Bins per side of an OL group created with resolution 0: 16 x 16 bins of
+// 4 pi / 256 sr each (~0.05 sr, a cone of ~7 degrees half-angle).
+constexpr uint32_t kAutoOlResolution = 16;
+// Independent photon groups of an OL, whose spread gives its error: photon
+// batch b (kBatchPhotons photons) goes to group b % kOlBatches.
+constexpr uint32_t kOlBatches = 16;
+
+// One orientation lightmap: bin = row * resolution + column over the
+// octahedral square (ol/octahedral.h), row 0 at v near 0.
+struct OlImage {
+  std::string name;
+  uint32_t resolution = 0;
+  std::vector<float> rgb;    // 3 per bin, irradiance / pi; 0 where the bin has no area
+  std::vector<float> error;  // standard error of the bin's mean RGB
+  std::vector<float> area;   // covered surface area whose normal falls in the bin (m^2)
+  std::vector<float> hits;   // photon hits recorded in the bin
+  plm_ol_stats stats{};
+};
+
 struct BakeOutput {
   std::vector<LightmapImage> lightmaps;  // one per mesh; empty for meshes without a lightmap
+  std::vector<OlImage> ols;              // one per OL group
   std::vector<std::string> warnings;
   plm_bake_stats stats{};
 };
