@@ -257,9 +257,12 @@ PLM_API plm_status plm_result_write_exr(const plm_result* result, uint32_t mesh_
 PLM_API plm_status plm_scene_add_ol_group(plm_scene* scene, const char* name, uint32_t resolution,
                                           uint32_t* out_group);
 
-/* Puts a mesh into an OL group (a later call moves it to another group). The
- * mesh must have no lightmap (added with size 0 x 0): a mesh gets a lightmap
- * or an OL, not both. Errors name the mesh and the group. */
+/* Puts a mesh into an OL group (a later call moves it to another group).
+ * Errors name the mesh and the group. A mesh in a group that also has a
+ * lightmap gets its lightmap resolved from the OL: each covered texel shows
+ * the OL at the texel's normal (value, error and hits of that bin), so an
+ * OL-lit object comes back as an ordinary lightmap image; its texels take no
+ * part in the direct pass, the photon texel sums or target_error. */
 PLM_API plm_status plm_scene_set_mesh_ol_group(plm_scene* scene, uint32_t mesh, uint32_t group);
 
 /* Reads one OL of a result. The pointers stay valid as long as the result;

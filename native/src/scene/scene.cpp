@@ -191,10 +191,6 @@ void Scene::set_mesh_ol_group(uint32_t mesh, uint32_t group) {
   if (group >= ol_groups.size())
     fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh OL group: mesh '", m.name, "' (", mesh, "): OL group ", group,
          " does not exist (the scene has ", ol_groups.size(), " OL groups)");
-  if (m.has_lightmap())
-    fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh OL group: mesh '", m.name, "' (", mesh, ") has a ", m.lightmap_width,
-         " x ", m.lightmap_height, " lightmap and cannot join OL group '", ol_groups[group].name, "' (", group,
-         "): a mesh gets a lightmap or an orientation lightmap, not both (add it with lightmap size 0 x 0)");
   m.ol_group = int32_t(group);
 }
 

@@ -288,7 +288,7 @@ void validate(const Scene& scene, const plm_bake_settings& s) {
   uint64_t texels = 0;
   bool ol_meshes = false;
   for (const Mesh& m : scene.meshes) {
-    texels += uint64_t(m.lightmap_width) * m.lightmap_height;
+    if (m.ol_group < 0) texels += uint64_t(m.lightmap_width) * m.lightmap_height;
     ol_meshes = ol_meshes || m.ol_group >= 0;
   }
   if (texels == 0 && !ol_meshes)
@@ -497,6 +497,23 @@ double percentile(std::vector<double> v, double q) {
   return v[k];
 }
 
+// A lightmap resolved from an OL: each covered texel shows the OL at its
+// normal (bilinear over the bins), with that bin's error and hit count.
+void resolve_ol(const ol::OrientationLightmap& map, const TexelAreas& areas, std::vector<float>& values,
+                std::vector<float>& hits, std::vector<uint8_t>& filled) {
+  for (size_t t = 0; t < areas.area.size(); ++t) {
+    if (!(areas.area[t] > 0.0)) continue;
+    const Vec3 n = areas.normal[t];
+    filled[t] = 1;
+    if (!map.finalized() || !(dot(n, n) > 0.0f)) continue;  // no photons, or no normal: black
+    const Vec3 v = map.lookup(n);
+    const uint32_t b = map.bin_of(n);
+    for (int c = 0; c < 3; ++c) values[4 * t + c] = v[c];
+    values[4 * t + 3] = float(map.radiosity_error(b));
+    hits[t] = float(map.hits(b));
+  }
+}
+
 }  // namespace
 
 plm_bake_settings default_settings() {
@@ -549,8 +566,8 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
     normals[i] = triangle_normals(mesh);
     views[i] = {&mesh, texel_count, nullptr, normals[i].data()};
     covered_begin[i] = covered.size();
-    if (mesh.has_lightmap()) {
-      areas[i] = compute_texel_areas(mesh);
+    if (mesh.has_lightmap()) areas[i] = compute_texel_areas(mesh);
+    if (mesh.has_lightmap() && mesh.ol_group < 0) {  // OL meshes' lightmaps are resolved from their OL
       views[i].texel_area = areas[i].area.data();
       const uint32_t n = mesh.lightmap_width * mesh.lightmap_height;
       for (uint32_t t = 0; t < n; ++t)
@@ -726,38 +743,6 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
                            std::to_string(photons) + " photons" + (over_budget(0.97) ? ", time budget spent" : "") +
                            "); lower the lightmap resolution or allow more time");
 
-  // ---- Lightmaps ------------------------------------------------------------
-  report(0.95, "writing lightmaps");
-  out.lightmaps.resize(scene.meshes.size());
-  std::vector<double> value3, variance;
-  for (size_t i = 0; i < scene.meshes.size(); ++i) {
-    const Mesh& mesh = scene.meshes[i];
-    if (!mesh.has_lightmap()) continue;
-    LightmapImage& img = out.lightmaps[i];
-    img.width = mesh.lightmap_width;
-    img.height = mesh.lightmap_height;
-    const size_t n = size_t(img.width) * img.height;
-    estimator.texels(i, photons, value3, variance);
-    std::vector<float> values(4 * n, 0.0f);  // R, G, B, error: dilated together
-    std::vector<uint8_t> filled(n, 0);
-    img.hits.assign(n, 0.0f);
-    img.coverage = areas[i].coverage;
-    for (size_t t = 0; t < n; ++t) {
-      if (!(areas[i].area[t] > 0.0)) continue;
-      for (int c = 0; c < 3; ++c) values[4 * t + c] = float(value3[3 * t + c]);
-      values[4 * t + 3] = float(std::sqrt(variance[t]));
-      img.hits[t] = float(acc.hits[views[i].texel_offset + t]);
-      filled[t] = 1;
-    }
-    dilate(values, 4, filled, img.width, img.height, settings.dilation);
-    img.rgb.resize(3 * n);
-    img.error.resize(n);
-    for (size_t t = 0; t < n; ++t) {
-      for (int c = 0; c < 3; ++c) img.rgb[3 * t + c] = values[4 * t + c];
-      img.error[t] = values[4 * t + 3];
-    }
-  }
-
   // ---- Orientation lightmaps ------------------------------------------------
   out.ols.resize(ols.size());
   for (size_t g = 0; g < ols.size(); ++g) {
@@ -789,6 +774,42 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
     }
     if (photons > 0) img.stats.orphan_flux = map.orphan_flux() / double(photons);
   }
+  // ---- Lightmaps ------------------------------------------------------------
+  report(0.95, "writing lightmaps");
+  out.lightmaps.resize(scene.meshes.size());
+  std::vector<double> value3, variance;
+  for (size_t i = 0; i < scene.meshes.size(); ++i) {
+    const Mesh& mesh = scene.meshes[i];
+    if (!mesh.has_lightmap()) continue;
+    LightmapImage& img = out.lightmaps[i];
+    img.width = mesh.lightmap_width;
+    img.height = mesh.lightmap_height;
+    const size_t n = size_t(img.width) * img.height;
+    std::vector<float> values(4 * n, 0.0f);  // R, G, B, error: dilated together
+    std::vector<uint8_t> filled(n, 0);
+    img.hits.assign(n, 0.0f);
+    img.coverage = areas[i].coverage;
+    if (mesh.ol_group >= 0) {
+      resolve_ol(ols[size_t(mesh.ol_group)], areas[i], values, img.hits, filled);
+    } else {
+      estimator.texels(i, photons, value3, variance);
+      for (size_t t = 0; t < n; ++t) {
+        if (!(areas[i].area[t] > 0.0)) continue;
+        for (int c = 0; c < 3; ++c) values[4 * t + c] = float(value3[3 * t + c]);
+        values[4 * t + 3] = float(std::sqrt(variance[t]));
+        img.hits[t] = float(acc.hits[views[i].texel_offset + t]);
+        filled[t] = 1;
+      }
+    }
+    dilate(values, 4, filled, img.width, img.height, settings.dilation);
+    img.rgb.resize(3 * n);
+    img.error.resize(n);
+    for (size_t t = 0; t < n; ++t) {
+      for (int c = 0; c < 3; ++c) img.rgb[3 * t + c] = values[4 * t + c];
+      img.error[t] = values[4 * t + 3];
+    }
+  }
+
   out.stats.seconds_total = seconds_since(t_start);
   report(1.0, "done");
   return out;
