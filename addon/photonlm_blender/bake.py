@@ -132,6 +132,17 @@ class BakeJob:
                                                  size=(b.width, b.height), coverage=lm.coverage,
                                                  rgb=lm.rgb if small else None)
             self._wire(context, images)
+            ol_info = {}
+            for group in self.export.ol_groups.values():
+                fname = export.safe_file_name(group.name) + "_ol.exr"
+                path = os.path.join(out_dir, fname)
+                result.write_ol_exr(group.group_id, path)
+                st = result.ol_stats(group.group_id)
+                ol_info[group.name] = dict(path=path, objects=list(group.objects), reason=group.reason,
+                                           resolution=int(st["resolution"]), hits=int(st["hits"]))
+                self.reports.info("orientation lightmap '%s' (%d x %d bins, %s): %s"
+                                  % (group.name, st["resolution"], st["resolution"],
+                                     ", ".join(group.objects), group.reason))
         finally:
             result.close()
             self.result = None
@@ -147,7 +158,7 @@ class BakeJob:
         LAST.clear()
         LAST.update(stats=dict(stats, seconds_export=self.seconds_export,
                                photons_per_second=photons_per_second),
-                    warnings=list(warnings), objects=per_object, output_dir=out_dir,
+                    warnings=list(warnings), objects=per_object, output_dir=out_dir, ols=ol_info,
                     reports=list(self.reports.items))
         self.created_uvs = []  # kept: they belong to the baked lightmaps now
         return LAST

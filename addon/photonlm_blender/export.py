@@ -169,6 +169,17 @@ class SceneExport:
         self.material_info = {}     # material key -> MaterialInfo
         self.geometry_only = 0
         self.lights = 0
+        self.ol_groups = {}         # key -> OlGroup
+
+
+class OlGroup:
+    """One orientation lightmap of the export: an object's own, or a collection's."""
+
+    def __init__(self, group_id, name, reason):
+        self.group_id = group_id
+        self.name = name
+        self.reason = reason
+        self.objects = []           # object names whose light it holds
 
 
 def _material_key(mat):
@@ -266,11 +277,49 @@ def _add_object(export, plm, orig, obj_eval, matrix, is_instance, with_lightmap,
     except Exception as e:  # the engine names the mesh and the first bad index
         reports.warning("object '%s' skipped: %s" % (orig.name, getattr(e, "message", e)))
         return
+    group = _ol_group(export, plm, orig, len(tris), resolution if with_lightmap else 0, reports)
+    if group is not None:
+        plm.set_mesh_ol_group(mesh_id, group.group_id)
+        if orig.name not in group.objects:
+            group.objects.append(orig.name)
     if with_lightmap:
         export.baked.append(BakedObject(orig, mesh_id, resolution, resolution,
                                         [(m.name if m is not None else None) for m in mats]))
     else:
         export.geometry_only += 1
+
+
+def _ol_group(export, plm, orig, triangles, resolution, reports):
+    """The OL group an object's light goes to, or None for an ordinary lightmap: the first of its
+    collections marked 'One Orientation Lightmap' (instances and objects without lightmaps too);
+    else its own OL for mode ORIENTATION, or AUTO with more than AUTO_TRIANGLES_PER_TEXEL
+    triangles per texel of its lightmap. Only objects with a lightmap get their own OL."""
+    for coll in orig.users_collection:
+        settings = getattr(coll, "photonlm", None)
+        if settings is not None and settings.orientation_lightmap:
+            key = ("collection", coll.name_full)
+            if key not in export.ol_groups:
+                gid = plm.add_ol_group("collection " + coll.name, int(settings.ol_resolution))
+                export.ol_groups[key] = OlGroup(gid, "collection_" + coll.name,
+                                                "collection '%s' is set to one orientation lightmap" % coll.name)
+            return export.ol_groups[key]
+    if resolution == 0:
+        return None
+    mode = orig.photonlm.mode
+    texels = resolution * resolution
+    if mode == 'ORIENTATION':
+        reason = "its Lighting is set to Orientation Lightmap"
+    elif mode == 'AUTO' and triangles > properties.AUTO_TRIANGLES_PER_TEXEL * texels:
+        reason = ("Auto: %d triangles on %d lightmap texels (more than %d per texel)"
+                  % (triangles, texels, properties.AUTO_TRIANGLES_PER_TEXEL))
+    else:
+        return None
+    key = ("object", orig.name_full)
+    if key not in export.ol_groups:
+        gid = plm.add_ol_group(orig.name, int(orig.photonlm.ol_resolution))
+        export.ol_groups[key] = OlGroup(gid, orig.name, reason)
+        reports.info("object '%s': orientation lightmap (%s)" % (orig.name, reason))
+    return export.ol_groups[key]
 
 
 def _add_light(plm, obj_eval, matrix, reports):

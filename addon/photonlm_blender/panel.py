@@ -73,6 +73,12 @@ class PHOTONLM_PT_object(bpy.types.Panel):
         col = layout.column()
         col.enabled = obj.photonlm.enabled
         col.prop(obj.photonlm, "resolution", text="Resolution (0 = Auto)")
+        col.prop(obj.photonlm, "mode")
+        if obj.photonlm.mode != 'LIGHTMAP':
+            col.prop(obj.photonlm, "ol_resolution")
+        for coll in obj.users_collection:
+            if coll != context.scene.collection:
+                col.prop(coll.photonlm, "orientation_lightmap", text="Collection '%s': One OL" % coll.name)
         has_uv = "lightmap" in obj.data.uv_layers
         col.label(text="UV map 'lightmap': %s" % ("present" if has_uv else "created when baking"),
                   icon='CHECKMARK' if has_uv else 'UV')

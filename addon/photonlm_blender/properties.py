@@ -114,9 +114,35 @@ class PhotonlmObjectSettings(bpy.types.PropertyGroup):
     resolution: IntProperty(
         name="Resolution", description="Lightmap width and height in texels; 0 = Auto from the scene's "
         "texel density and the object's surface area", default=0, min=0, max=16384, soft_max=4096)
+    mode: EnumProperty(
+        name="Lighting", description="How the object's light is stored",
+        items=[('LIGHTMAP', "Lightmap", "An ordinary lightmap: light per texel"),
+               ('ORIENTATION', "Orientation Lightmap", "One orientation lightmap (OL) over the object: "
+                "light averaged over all its surface with the same normal, whatever its complexity; "
+                "resolved into its lightmap image"),
+               ('AUTO', "Auto", "An OL when the object has more triangles than "
+                "4 x its lightmap texels (too complex for its lightmap), else a "
+                "lightmap")],
+        default='AUTO')
+    ol_resolution: IntProperty(
+        name="OL Resolution", description="Orientation-lightmap bins per side; 0 = automatic (16)",
+        default=0, min=0, max=1024)
 
 
-_CLASSES = (PhotonlmSceneSettings, PhotonlmObjectSettings)
+class PhotonlmCollectionSettings(bpy.types.PropertyGroup):
+    orientation_lightmap: BoolProperty(
+        name="One Orientation Lightmap", description="Light all objects of this collection (instances "
+        "and objects without lightmaps too) through one orientation lightmap shared by the whole "
+        "collection", default=False)
+    ol_resolution: IntProperty(
+        name="OL Resolution", description="Orientation-lightmap bins per side; 0 = automatic (16)",
+        default=0, min=0, max=1024)
+
+
+# AUTO chooses an OL above this many triangles per lightmap texel.
+AUTO_TRIANGLES_PER_TEXEL = 4
+
+_CLASSES = (PhotonlmSceneSettings, PhotonlmObjectSettings, PhotonlmCollectionSettings)
 
 
 def register():
@@ -124,9 +150,11 @@ def register():
         bpy.utils.register_class(cls)
     bpy.types.Scene.photonlm = PointerProperty(type=PhotonlmSceneSettings)
     bpy.types.Object.photonlm = PointerProperty(type=PhotonlmObjectSettings)
+    bpy.types.Collection.photonlm = PointerProperty(type=PhotonlmCollectionSettings)
 
 
 def unregister():
+    del bpy.types.Collection.photonlm
     del bpy.types.Object.photonlm
     del bpy.types.Scene.photonlm
     for cls in reversed(_CLASSES):

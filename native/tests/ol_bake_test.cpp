@@ -385,7 +385,7 @@ TEST(OlApi, BadInputNamesGroupAndMesh) {
   EXPECT_TRUE(contains(plm_last_error(), "OL group 5")) << plm_last_error();
 }
 
-TEST(OlApi, OlOnlySceneBakesAndTargetErrorIsRefused) {
+TEST(OlApi, OlOnlySceneBakesAndTargetErrorNeedsACap) {
   SceneBuilder b;
   const uint32_t m = b.material("grey", {0.5f, 0.5f, 0.5f}, {1, 1, 1});
   const uint32_t mesh = b.box("box", {0, 0, 0}, {1, 1, 1}, 0.0f, m, 0, true);
@@ -396,7 +396,15 @@ TEST(OlApi, OlOnlySceneBakesAndTargetErrorIsRefused) {
   uint32_t g = 0;
   ASSERT_EQ(plm_scene_add_ol_group(b.scene, "g", 0, &g), PLM_OK);
   ASSERT_EQ(plm_scene_set_mesh_ol_group(b.scene, mesh, g), PLM_OK);
+  // A target cannot steer OLs: with a photon cap it is ignored with a warning, without one refused.
   s.target_error = 0.05;
+  {
+    Baked baked;
+    bake(b, s, baked);
+    EXPECT_EQ(baked.stats().photons_emitted, 10000u);
+    EXPECT_TRUE(contains(baked.all_warnings().c_str(), "target_error ignored")) << baked.all_warnings();
+  }
+  s.photon_count = 0;
   EXPECT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &r), PLM_ERROR_INVALID_ARGUMENT);
   EXPECT_TRUE(contains(plm_last_error(), "target_error")) << plm_last_error();
   EXPECT_EQ(r, nullptr);

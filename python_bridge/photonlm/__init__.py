@@ -247,7 +247,8 @@ class Scene(_Handle):
         return out.value
 
     def set_mesh_ol_group(self, mesh, group):
-        """Put a mesh added without a lightmap (resolution 0) into an OL group."""
+        """Put a mesh into an OL group. A mesh with a lightmap gets it resolved from the OL (each
+        texel shows the OL at the texel's normal); one without needs no UVs."""
         _check(_C.plm_scene_set_mesh_ol_group(self._h, _uint(mesh, "mesh"), _uint(group, "group")))
 
     def set_world(self, radiance):

@@ -294,9 +294,9 @@ void validate(const Scene& scene, const plm_bake_settings& s) {
   if (texels == 0 && !ol_meshes)
     fail(PLM_ERROR_INVALID_SCENE, "no mesh has a lightmap or an OL group: give at least one mesh a lightmap size and "
          "UVs, or put it into an orientation-lightmap group");
-  if (texels == 0 && s.target_error > 0.0)
-    fail(PLM_ERROR_INVALID_ARGUMENT, "settings: target_error is measured over lightmap texels, and no mesh has a "
-         "lightmap (orientation lightmaps do not steer the bake): set photon_count instead");
+  if (texels == 0 && s.target_error > 0.0 && s.photon_count == 0 && s.time_budget <= 0.0)
+    fail(PLM_ERROR_INVALID_ARGUMENT, "settings: target_error is measured over ordinary lightmap texels, and no "
+         "mesh has one (orientation lightmaps do not steer the bake): set photon_count or time_budget");
   if (texels >= (uint64_t(1) << 31))
     fail(PLM_ERROR_INVALID_SCENE, "the lightmaps hold ", texels, " texels together; the limit is 2^31");
 }
@@ -532,9 +532,20 @@ plm_bake_settings default_settings() {
   return s;
 }
 
-BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const ProgressFn& progress) {
+BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const ProgressFn& progress) {
   const auto t_start = Clock::now();
-  validate(scene, settings);
+  validate(scene, requested);
+  BakeOutput out;
+  // Orientation lightmaps do not steer: with no ordinary texel, the photon
+  // count (or the time budget) decides.
+  plm_bake_settings settings = requested;
+  bool ordinary_texels = false;
+  for (const Mesh& m : scene.meshes) ordinary_texels = ordinary_texels || (m.has_lightmap() && m.ol_group < 0);
+  if (!ordinary_texels && settings.target_error > 0.0) {
+    settings.target_error = 0.0;
+    out.warnings.push_back("target_error ignored: it is measured over ordinary lightmap texels and every mesh "
+                           "is lit through an orientation lightmap; the photon count or time budget decides");
+  }
   auto report = [&](double fraction, const char* stage) {
     if (progress && !progress(std::min(1.0, fraction), stage)) fail(PLM_ERROR_CANCELLED, "the bake was cancelled");
   };
@@ -543,7 +554,6 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const Pro
   };
   report(0.0, "building the ray-tracing scene");
 
-  BakeOutput out;
   const unsigned threads = settings.thread_count ? settings.thread_count
                                                  : std::max(1u, std::thread::hardware_concurrency());
   EmbreeScene accel(scene, threads);
