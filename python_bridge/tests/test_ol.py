@@ -39,11 +39,11 @@ def test_ol_group_errors_name_the_culprit():
         lit = scene.add_mesh("mapped", pos, tri, QUAD_UV, resolution=4)
         with pytest.raises(photonlm.PhotonlmError, match="1024"):
             scene.add_ol_group("big", resolution=4096)
-        group = scene.add_ol_group("objects")
-        with pytest.raises(photonlm.PhotonlmError, match="'mapped'.*'objects'"):
-            scene.set_mesh_ol_group(lit, group)
-        with pytest.raises(photonlm.PhotonlmError, match="OL group 9"):
+        scene.add_ol_group("objects")
+        with pytest.raises(photonlm.PhotonlmError, match="'mapped'.*OL group 9"):
             scene.set_mesh_ol_group(lit, 9)
+        with pytest.raises(photonlm.PhotonlmError, match="mesh 7 does not exist"):
+            scene.set_mesh_ol_group(7, 0)
 
 
 def test_ol_and_lightmaps_in_one_furnace():
