@@ -21,12 +21,12 @@ export CC=clang CXX=clang++
 cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPHOTONLM_SANITIZE=ON -DPHOTONLM_FUZZ=ON \
       -DPHOTONLM_BENCH=OFF -DPHOTONLM_PYTHON_TESTS=OFF > /tmp/photonlm-fuzz-cmake.log 2>&1 || { cat /tmp/photonlm-fuzz-cmake.log; exit 1; }
 rm -f /tmp/photonlm-fuzz-cmake.log
-cmake --build build-fuzz -j"$(nproc)" --target fuzz_scene_api
+cmake --build build-fuzz -j"$(nproc)" --target fuzz_scene_api fuzz_lsystem
 # Debian's Embree, TBB and OpenImageIO are not instrumented but run cleanly
 # under ASan/LSan/UBSan here: no suppressions are needed (docs/robustness.md).
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1"
-for fuzzer in scene_api; do
+for fuzzer in scene_api lsystem; do
   work="build-fuzz/corpus/$fuzzer"
   if [ -n "${PHOTONLM_FUZZ_RUNS:-}" ]; then  # a fixed run starts from the committed seeds only
     work="build-fuzz/corpus-fixed/$fuzzer"

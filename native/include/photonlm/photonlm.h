@@ -127,6 +127,70 @@ PLM_API plm_status plm_scene_add_light(plm_scene* scene, const char* name, const
  * strength). Default black. */
 PLM_API plm_status plm_scene_set_world(plm_scene* scene, const float radiance[3]);
 
+/* ---- CSG solids (exact analytic primitives and boolean trees) -------------
+ *
+ * A CSG solid is traced exactly: rays hit the primitives' true surfaces,
+ * combined along each ray by the tree (thesis 4.1). Primitives are Blender's
+ * default add-primitive shapes in local space, placed by a 3x4 matrix
+ * (row-major, local -> world; any invertible affine map):
+ *   SPHERE radius 1; BOX [-1, 1]^3; CYLINDER radius 1, z in [-1, 1];
+ *   CONE base radius 1 at z = -1, apex at z = +1; TORUS about z with
+ *   major_radius / minor_radius (Blender: 1 and 0.25); PARABOLOID
+ *   z = x^2 + y^2 for z in [0, 1], closed by a cap at z = 1; HALF_SPACE z <= 0.
+ * Tree nodes: a LEAF names a primitive (first = its index); UNION,
+ * INTERSECTION and DIFFERENCE (first child minus all others) have `count`
+ * children listed from children[first]. Coincident faces follow fixed rules
+ * (a face shared inside a union vanishes; see docs/design.md) and overlapping
+ * coplanar faces are reported as warnings. */
+typedef enum plm_csg_shape {
+  PLM_CSG_SPHERE = 0,
+  PLM_CSG_BOX = 1,
+  PLM_CSG_CYLINDER = 2,
+  PLM_CSG_CONE = 3,
+  PLM_CSG_TORUS = 4,
+  PLM_CSG_PARABOLOID = 5,
+  PLM_CSG_HALF_SPACE = 6
+} plm_csg_shape;
+
+typedef struct plm_csg_primitive {
+  uint32_t shape;     /* plm_csg_shape */
+  uint32_t material;  /* material id (materials must be added first) */
+  double matrix[12];  /* row-major 3x4, local -> world */
+  double major_radius, minor_radius; /* TORUS only */
+} plm_csg_primitive;
+
+typedef enum plm_csg_op {
+  PLM_CSG_UNION = 0,
+  PLM_CSG_INTERSECTION = 1,
+  PLM_CSG_DIFFERENCE = 2,
+  PLM_CSG_LEAF = 3
+} plm_csg_op;
+
+typedef struct plm_csg_node {
+  uint32_t op;    /* plm_csg_op */
+  uint32_t first; /* LEAF: primitive index; else index of its first child in children[] */
+  uint32_t count; /* number of children (LEAF: ignored) */
+} plm_csg_node;
+
+/* Adds a CSG solid; its id is returned in out_csg. Errors name the solid and
+ * the offending primitive or node (bad shapes, NaN or singular matrices,
+ * torus radii, out-of-range indices, cycles, unbounded trees, trees needing
+ * more than the per-ray crossing buffer). A solid alone blocks and reflects
+ * light; to bake its light give it a carrier mesh. */
+PLM_API plm_status plm_scene_add_csg(plm_scene* scene, const char* name, const plm_csg_primitive* primitives,
+                                     uint32_t primitive_count, const plm_csg_node* nodes, uint32_t node_count,
+                                     const uint32_t* children, uint32_t child_count, uint32_t root,
+                                     uint32_t* out_csg);
+
+/* Makes mesh (with a lightmap) the carrier of CSG solid csg: the mesh is the
+ * artist's tessellation of the solid (e.g. Blender's evaluated Boolean
+ * result). It is not traced -- the exact solid stands in for it -- and its
+ * lightmap receives the solid's light: photons and direct light are gathered
+ * on the solid's own texels (on the primitives' faces, split where a CSG
+ * boundary cuts a texel), and each of the carrier's texels shows the solid's
+ * texel at the nearest point of the exact surface. */
+PLM_API plm_status plm_scene_set_csg_carrier(plm_scene* scene, uint32_t csg, uint32_t mesh);
+
 /* ---- Bake ---------------------------------------------------------------- */
 
 /* Two passes, as in thesis 3.5.2: direct light is computed per texel with

@@ -1,5 +1,6 @@
 #include "accel/embree_scene.h"
 
+#include "csg/csg_geometry.h"
 #include "util/error.h"
 
 namespace plm {
@@ -39,7 +40,15 @@ void EmbreeScene::build(const Scene& scene, unsigned thread_count) {
                                3 * sizeof(uint32_t), mesh.triangle_count());
     rtcCommitGeometry(g);
     rtcAttachGeometryByID(scene_, g, static_cast<unsigned>(id));
+    // A CSG carrier is the artist's tessellation of a solid traced exactly: not traced itself.
+    if (mesh.csg_carrier >= 0) rtcDisableGeometry(g);
     rtcReleaseGeometry(g);
+  }
+  // CSG solids as user geometries, ids after the meshes.
+  for (size_t c = 0; c < scene.csgs.size(); ++c) {
+    const unsigned id = csg::attach_csg(device_, scene_, *scene.csgs[c].object);
+    if (id != scene.meshes.size() + c)
+      fail(PLM_ERROR_INTERNAL, "CSG solid ", c, " got Embree geometry id ", id, ", expected ", scene.meshes.size() + c);
   }
   rtcCommitScene(scene_);
   if (!error_.empty()) fail(PLM_ERROR_INTERNAL, "building the ray-tracing scene failed: ", error_);

@@ -1,5 +1,6 @@
 // Owns the Embree device and scene built over the user's meshes. Vertex and
-// index buffers are shared with the Scene, not copied; geometry id = mesh id.
+// index buffers are shared with the Scene, not copied; geometry id = mesh id,
+// then one user geometry per CSG solid (id = mesh count + solid index).
 #pragma once
 
 #include <embree3/rtcore.h>

@@ -127,6 +127,24 @@ plm_status plm_scene_add_light(plm_scene* scene, const char* name, const plm_lig
   });
 }
 
+plm_status plm_scene_add_csg(plm_scene* scene, const char* name, const plm_csg_primitive* primitives,
+                             uint32_t primitive_count, const plm_csg_node* nodes, uint32_t node_count,
+                             const uint32_t* children, uint32_t child_count, uint32_t root, uint32_t* out_csg) {
+  return guarded("plm_scene_add_csg", [&] {
+    require(scene, "plm_scene_add_csg", "scene");
+    const uint32_t id =
+        scene->scene.add_csg(name, primitives, primitive_count, nodes, node_count, children, child_count, root);
+    if (out_csg) *out_csg = id;
+  });
+}
+
+plm_status plm_scene_set_csg_carrier(plm_scene* scene, uint32_t csg, uint32_t mesh) {
+  return guarded("plm_scene_set_csg_carrier", [&] {
+    require(scene, "plm_scene_set_csg_carrier", "scene");
+    scene->scene.set_csg_carrier(csg, mesh);
+  });
+}
+
 plm_status plm_scene_set_world(plm_scene* scene, const float radiance[3]) {
   return guarded("plm_scene_set_world", [&] {
     require(scene, "plm_scene_set_world", "scene");

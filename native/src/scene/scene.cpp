@@ -194,4 +194,63 @@ void Scene::set_mesh_ol_group(uint32_t mesh, uint32_t group) {
   m.ol_group = int32_t(group);
 }
 
+uint32_t Scene::add_csg(const char* name, const plm_csg_primitive* primitives, uint32_t primitive_count,
+                       const plm_csg_node* nodes, uint32_t node_count, const uint32_t* children,
+                       uint32_t child_count, uint32_t root) {
+  const std::string label = "CSG solid " + quoted_or(name, csgs.size());
+  constexpr uint32_t kMaxCount = 1u << 24;
+  if (primitive_count == 0 || !primitives)
+    fail(PLM_ERROR_INVALID_ARGUMENT, label, ": no primitives");
+  if (node_count == 0 || !nodes) fail(PLM_ERROR_INVALID_ARGUMENT, label, ": no tree nodes");
+  if (child_count && !children) fail(PLM_ERROR_INVALID_ARGUMENT, label, ": children is NULL");
+  if (primitive_count > kMaxCount || node_count > kMaxCount || child_count > kMaxCount)
+    fail(PLM_ERROR_INVALID_ARGUMENT, label, ": more than 2^24 primitives, nodes or children");
+  csg::CsgDesc desc;
+  desc.name = name && *name ? name : "#" + std::to_string(csgs.size());
+  for (uint32_t i = 0; i < primitive_count; ++i) {
+    const plm_csg_primitive& p = primitives[i];
+    if (p.shape > PLM_CSG_HALF_SPACE)
+      fail(PLM_ERROR_INVALID_ARGUMENT, label, ": primitive ", i, ": shape ", p.shape, " is not a plm_csg_shape");
+    const uint32_t material_limit = std::max<uint32_t>(1, uint32_t(materials.size()));
+    if (p.material >= material_limit)
+      fail(PLM_ERROR_INVALID_ARGUMENT, label, ": primitive ", i, ": material ", p.material, " does not exist (",
+           materials.size(), " materials)");
+    csg::PrimitiveDesc d;
+    d.shape = csg::Shape(p.shape);
+    std::copy(p.matrix, p.matrix + 12, d.to_world);
+    d.major_radius = p.major_radius;
+    d.minor_radius = p.minor_radius;
+    desc.primitives.push_back(d);
+    desc.materials.push_back(p.material);
+  }
+  for (uint32_t i = 0; i < node_count; ++i) {
+    if (nodes[i].op > PLM_CSG_LEAF)
+      fail(PLM_ERROR_INVALID_ARGUMENT, label, ": node ", i, ": op ", nodes[i].op, " is not a plm_csg_op");
+    desc.nodes.push_back({csg::Op(nodes[i].op), nodes[i].first, nodes[i].count});
+  }
+  desc.children.assign(children, children + child_count);
+  desc.root = root;
+  csgs.push_back({std::make_unique<csg::CsgObject>(desc), -1});  // validates; throws naming the item
+  return static_cast<uint32_t>(csgs.size() - 1);
+}
+
+void Scene::set_csg_carrier(uint32_t csg, uint32_t mesh) {
+  if (csg >= csgs.size())
+    fail(PLM_ERROR_INVALID_ARGUMENT, "set CSG carrier: CSG solid ", csg, " does not exist (the scene has ",
+         csgs.size(), " CSG solids)");
+  const std::string label = "set CSG carrier: CSG solid '" + csgs[csg].object->name() + "' (" + std::to_string(csg) + ")";
+  if (mesh >= meshes.size())
+    fail(PLM_ERROR_INVALID_ARGUMENT, label, ": mesh ", mesh, " does not exist (the scene has ", meshes.size(),
+         " meshes)");
+  Mesh& m = meshes[mesh];
+  if (!m.has_lightmap())
+    fail(PLM_ERROR_INVALID_ARGUMENT, label, ": mesh '", m.name, "' (", mesh, ") has no lightmap to receive its light");
+  if (m.csg_carrier >= 0 && uint32_t(m.csg_carrier) != csg)
+    fail(PLM_ERROR_INVALID_ARGUMENT, label, ": mesh '", m.name, "' (", mesh, ") already carries CSG solid ",
+         m.csg_carrier);
+  if (csgs[csg].carrier >= 0 && uint32_t(csgs[csg].carrier) != mesh) meshes[size_t(csgs[csg].carrier)].csg_carrier = -1;
+  csgs[csg].carrier = int32_t(mesh);
+  m.csg_carrier = int32_t(csg);
+}
+
 }  // namespace plm

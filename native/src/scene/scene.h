@@ -4,9 +4,11 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "csg/csg.h"
 #include "photonlm/photonlm.h"
 #include "util/math.h"
 
@@ -31,6 +33,7 @@ struct Mesh {
   std::vector<float> uv;          // 6 per triangle, empty when no lightmap
   std::vector<uint32_t> material_ids;  // 1 per triangle
   uint32_t lightmap_width = 0, lightmap_height = 0;
+  int32_t csg_carrier = -1;  // the CSG solid this mesh tessellates (not traced), -1 for none
   int32_t ol_group = -1;  // orientation-lightmap group, -1 for none (a mesh has a lightmap or a group, not both)
 
   uint32_t triangle_count() const { return static_cast<uint32_t>(indices.size() / 3); }
@@ -45,6 +48,11 @@ struct Light {
 
 // An orientation-lightmap group (thesis 6.2): lightmap-less meshes whose
 // light is stored per surface normal in one shared octahedral map.
+struct CsgSolid {
+  std::unique_ptr<csg::CsgObject> object;  // stable address: Embree keeps a pointer to it
+  int32_t carrier = -1;                    // mesh that receives its light, -1 for none
+};
+
 struct OlGroup {
   std::string name;
   uint32_t resolution = 0;  // bins per side of the map; 0 = automatic (see bake.h)
@@ -55,6 +63,7 @@ struct Scene {
   std::vector<Mesh> meshes;
   std::vector<Light> lights;
   std::vector<OlGroup> ol_groups;
+  std::vector<CsgSolid> csgs;
   Vec3 world{0, 0, 0};
 
   uint32_t add_material(const char* name, const float albedo[3], const float emission[3]);
@@ -67,6 +76,10 @@ struct Scene {
   // Puts a mesh into a group (a later call moves it). Throws for bad indices
   // and for a mesh that has a lightmap.
   void set_mesh_ol_group(uint32_t mesh, uint32_t group);
+  uint32_t add_csg(const char* name, const plm_csg_primitive* primitives, uint32_t primitive_count,
+                   const plm_csg_node* nodes, uint32_t node_count, const uint32_t* children, uint32_t child_count,
+                   uint32_t root);
+  void set_csg_carrier(uint32_t csg, uint32_t mesh);
 };
 
 // Blender's defaults for a light of the given type.

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <thread>
 
 #include "accel/embree_scene.h"
@@ -71,9 +72,11 @@ class PhotonTracer {
   // Hits on lightmapped meshes are recorded from depth first_recorded_depth
   // on, hits on OL meshes at every depth (they get no direct pass).
   PhotonTracer(const Scene& scene, RTCScene rtc, const std::vector<MeshView>& views,
-               const std::vector<OlMeshView>& ol_views, const std::vector<Emitter>& emitters,
-               const plm_bake_settings& settings, float scene_extent, uint32_t first_recorded_depth)
-      : scene_(scene), rtc_(rtc), views_(views), ol_views_(ol_views), emitters_(emitters), settings_(settings),
+               const std::vector<CsgView>& csg_views, const std::vector<OlMeshView>& ol_views,
+               const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent,
+               uint32_t first_recorded_depth)
+      : scene_(scene), rtc_(rtc), views_(views), csg_views_(csg_views), ol_views_(ol_views), emitters_(emitters),
+        settings_(settings),
         offset_scale_(1e-6f * scene_extent), first_recorded_(first_recorded_depth), table_(emitters) {
     pick_offset_ = double(Rng(settings.seed, ~0ull).next_float());
     default_material_.albedo = {0.8f, 0.8f, 0.8f};
@@ -88,9 +91,10 @@ class PhotonTracer {
   }
 
  private:
-  const Material& material(const Mesh& mesh, uint32_t tri) const {
-    return scene_.materials.empty() ? default_material_ : scene_.materials[mesh.material_ids[tri]];
+  const Material& material_by_id(uint32_t id) const {
+    return scene_.materials.empty() ? default_material_ : scene_.materials[id];
   }
+  const Material& material(const Mesh& mesh, uint32_t tri) const { return material_by_id(mesh.material_ids[tri]); }
 
   // A photon's random numbers: group 0 = light choice + emission, group
   // 1 + depth = that bounce. Sobol points are keyed per batch of kBatchPhotons
@@ -153,14 +157,26 @@ class PhotonTracer {
       ++out.rays;
       if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return;
 
-      const MeshView& view = views_[rh.hit.geomID];
-      const Mesh& mesh = *view.mesh;
+      // The hit: a mesh triangle, or the exact surface of a CSG solid (its
+      // primitive in primID, the face id in u, the solid's outward normal).
+      const bool is_csg = rh.hit.geomID >= views_.size();
       const uint32_t tri = rh.hit.primID;
-      const float bu = rh.hit.u, bv = rh.hit.v, bw = 1.0f - bu - bv;
-      const Vec3 p0 = mesh.vertex(tri, 0), p1 = mesh.vertex(tri, 1), p2 = mesh.vertex(tri, 2);
-      Vec3 normal = view.normals[tri];
-      if (normal.x == 0.0f && normal.y == 0.0f && normal.z == 0.0f) return;  // degenerate: the photon stops
-      const Vec3 hit = p0 * bw + p1 * bu + p2 * bv;
+      Vec3 normal, hit, albedo;
+      if (is_csg) {
+        const CsgView& cv = csg_views_[rh.hit.geomID - views_.size()];
+        normal = normalize(Vec3{rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z});
+        if (!is_finite(normal)) return;
+        hit = org + dir * rh.ray.tfar;
+        albedo = material_by_id(cv.object->material(tri)).albedo;
+      } else {
+        const MeshView& view = views_[rh.hit.geomID];
+        const Mesh& mesh = *view.mesh;
+        const float bu = rh.hit.u, bv = rh.hit.v, bw = 1.0f - bu - bv;
+        normal = view.normals[tri];
+        if (normal.x == 0.0f && normal.y == 0.0f && normal.z == 0.0f) return;  // degenerate: the photon stops
+        hit = mesh.vertex(tri, 0) * bw + mesh.vertex(tri, 1) * bu + mesh.vertex(tri, 2) * bv;
+        albedo = material(mesh, tri).albedo;
+      }
       if (depth == 0 && s.radius2 > 0.0f) {
         const Vec3 to_hit = hit - s.center;
         const float d2 = dot(to_hit, to_hit);
@@ -168,24 +184,13 @@ class PhotonTracer {
       }
       const bool front = dot(dir, normal) < 0.0f;
       if (!front) normal = -normal;  // the side the photon arrived on
-
-      if (front && view.texel_area && depth >= first_recorded_) {
-        const float* uv = &mesh.uv[6 * size_t(tri)];
-        const float tu = bw * uv[0] + bu * uv[2] + bv * uv[4];
-        const float tv = bw * uv[1] + bu * uv[3] + bv * uv[5];
-        const float fx = std::floor(tu * float(mesh.lightmap_width));
-        const float fy = std::floor(tv * float(mesh.lightmap_height));
-        if (fx >= 0.0f && fy >= 0.0f && fx < float(mesh.lightmap_width) && fy < float(mesh.lightmap_height)) {
-          const uint64_t texel = uint64_t(fy) * mesh.lightmap_width + uint64_t(fx);
-          if (view.texel_area[texel] > 0.0)
-            out.hits.push_back({uint32_t(view.texel_offset + texel), flux.x, flux.y, flux.z});
-        }
+      if (front && depth >= first_recorded_) record(rh, is_csg, hit, flux, out);
+      if (front && !is_csg) {
+        const OlMeshView& ol = ol_views_[rh.hit.geomID];
+        if (ol.group >= 0 && ol.bins[tri] != kNoBin)
+          out.ol_hits.push_back({uint32_t(ol.group), ol.bins[tri], flux.x, flux.y, flux.z});
       }
-      const OlMeshView& ol = ol_views_[rh.hit.geomID];
-      if (front && ol.group >= 0 && ol.bins[tri] != kNoBin)
-        out.ol_hits.push_back({uint32_t(ol.group), ol.bins[tri], flux.x, flux.y, flux.z});
 
-      const Vec3 albedo = material(mesh, tri).albedo;
       const float q = std::fmin(1.0f, max_component(albedo));
       if (q <= 0.0f || settings_.max_bounces == 0) return;
       if (depth >= settings_.max_bounces) {
@@ -203,14 +208,41 @@ class PhotonTracer {
       make_frame(normal, t, b);
       dir = t * local.x + b * local.y + normal * local.z;
       org = offset_origin(hit, normal, offset_scale_);
-      tc.skip_geom = rh.hit.geomID;
-      tc.skip_prim = tri;
+      // Leaving a triangle, skip it; leaving a CSG surface, only the offset
+      // (a ray may rightly hit the primitive it leaves: the inside of a bowl).
+      tc.skip_geom = is_csg ? RTC_INVALID_GEOMETRY_ID : rh.hit.geomID;
+      tc.skip_prim = is_csg ? RTC_INVALID_GEOMETRY_ID : tri;
+    }
+  }
+
+  // A front-side hit into the texel (or CSG sub-texel) it falls in, if any.
+  void record(const RTCRayHit& rh, bool is_csg, Vec3 hit, Vec3 flux, BatchOutput& out) const {
+    if (is_csg) {
+      const CsgView& cv = csg_views_[rh.hit.geomID - views_.size()];
+      if (!cv.lightmap) return;
+      const int64_t sub = cv.lightmap->sub_texel_of_hit(rh.hit.primID, int(rh.hit.u), to_double(hit));
+      if (sub >= 0) out.hits.push_back({uint32_t(cv.texel_offset + uint64_t(sub)), flux.x, flux.y, flux.z});
+      return;
+    }
+    const MeshView& view = views_[rh.hit.geomID];
+    if (!view.texel_area) return;
+    const Mesh& mesh = *view.mesh;
+    const float bu = rh.hit.u, bv = rh.hit.v, bw = 1.0f - bu - bv;
+    const float* uv = &mesh.uv[6 * size_t(rh.hit.primID)];
+    const float tu = bw * uv[0] + bu * uv[2] + bv * uv[4];
+    const float tv = bw * uv[1] + bu * uv[3] + bv * uv[5];
+    const float fx = std::floor(tu * float(mesh.lightmap_width));
+    const float fy = std::floor(tv * float(mesh.lightmap_height));
+    if (fx >= 0.0f && fy >= 0.0f && fx < float(mesh.lightmap_width) && fy < float(mesh.lightmap_height)) {
+      const uint64_t texel = uint64_t(fy) * mesh.lightmap_width + uint64_t(fx);
+      if (view.texel_area[texel] > 0.0) out.hits.push_back({uint32_t(view.texel_offset + texel), flux.x, flux.y, flux.z});
     }
   }
 
   const Scene& scene_;
   RTCScene rtc_;
   const std::vector<MeshView>& views_;
+  const std::vector<CsgView>& csg_views_;
   const std::vector<OlMeshView>& ol_views_;
   const std::vector<Emitter>& emitters_;
   plm_bake_settings settings_;
@@ -416,11 +448,32 @@ class Accumulators {
 struct Estimator {
   const std::vector<TexelAreas>& areas;
   const std::vector<MeshView>& views;
+  const std::vector<CsgView>& csgs;
   const std::vector<size_t>& covered_begin;  // per mesh: index of its first covered texel
   const std::vector<DirectSums>& direct;     // per covered texel, or empty
   const Accumulators& acc;
   uint32_t filter_radius;
   DirectNoise direct_noise;
+
+  // Sub-texel `sub` of CSG solid c: irradiance / pi (3 values) and its
+  // estimated mean squared error. No pooling: the photon estimate of the
+  // sub-texel alone (cut sub-texels may be tiny, and their neighbours on
+  // other faces or primitives), plus its direct light.
+  double csg_texel(size_t c, uint32_t sub, uint64_t photons, double value3[3]) const {
+    const size_t g = csgs[c].texel_offset + sub;
+    const double k = 1.0 / (kPiD * double(std::max<uint64_t>(photons, 1)) * csgs[c].lightmap->area(sub));
+    const double phantom_sq = acc.total_hits ? acc.total_sq / double(acc.total_hits) : 0.0;
+    double variance = 0.0;
+    for (int ch = 0; ch < 3; ++ch) value3[ch] = photons ? acc.sum[3 * g + ch] * k : 0.0;
+    if (photons) variance = (acc.sum_sq[g] + phantom_sq) * k * k;
+    if (!direct.empty()) {
+      const DirectSums& d = direct[covered_begin[views.size() + c] + sub];
+      if (d.count)
+        for (int ch = 0; ch < 3; ++ch) value3[ch] += d.rgb[ch] / d.count;
+      variance += d.variance_of_mean(direct_noise);
+    }
+    return variance;
+  }
 
   // Per texel: irradiance / pi (3 values) and its estimated mean squared error.
   void texels(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance) const {
@@ -481,6 +534,18 @@ ErrorEstimate estimate_error(const Estimator& est, uint64_t photons, std::vector
       if (per_texel && v > 0.0) per_texel->push_back(std::sqrt(variance[t]) / v);
     }
   }
+  for (size_t c = 0; c < est.csgs.size(); ++c) {
+    if (!est.csgs[c].lightmap) continue;
+    for (uint32_t sub = 0; sub < est.csgs[c].lightmap->sub_texel_count(); ++sub) {
+      double v3[3];
+      const double var = est.csg_texel(c, sub, photons, v3);
+      const double v = (v3[0] + v3[1] + v3[2]) / 3.0;
+      value_sum += v;
+      var_sum += var;
+      count += 1.0;
+      if (per_texel && v > 0.0) per_texel->push_back(std::sqrt(var) / v);
+    }
+  }
   for (const DirectSums& d : est.direct) var_direct += d.variance_of_mean(est.direct_noise);
   if (count > 0.0 && value_sum > 0.0) {
     const double mean = value_sum / count;
@@ -512,6 +577,48 @@ void resolve_ol(const ol::OrientationLightmap& map, const TexelAreas& areas, std
     values[4 * t + 3] = float(map.radiosity_error(b));
     hits[t] = float(map.hits(b));
   }
+}
+
+// The side of the CSG solid's own texels: half the carrier's texel side (its
+// surface area per covered texel): the carrier's texels resample the solid's
+// at their own points, and finer source texels blur that resampling less
+// (measured: 2.9% worst error at a sphere's terminator, 4.3% at equal size).
+double carrier_texel_size(const TexelAreas& areas, csg::DVec3 extent) {
+  double area = 0.0, cover = 0.0;
+  for (size_t t = 0; t < areas.area.size(); ++t) area += areas.area[t], cover += areas.coverage[t];
+  if (area > 0.0 && cover > 0.0) return 0.5 * std::sqrt(area / cover);
+  return 0.01 * std::max({extent.x, extent.y, extent.z, 1e-30});
+}
+
+// A carrier's lightmap: each covered texel shows the solid's sub-texel at the
+// nearest point of the exact surface (along the texel's normal). The search
+// reaches 2% of the solid's size: the tessellation's distance from the exact
+// surface (a 32-segment circle: 0.5% of its radius).
+void transfer_csg(const Estimator& est, size_t c, uint64_t photons, const TexelAreas& areas, const Accumulators& acc,
+                  std::vector<float>& values, std::vector<float>& hits, std::vector<uint8_t>& filled,
+                  std::vector<std::string>& warnings, const Mesh& mesh) {
+  const CsgView& cv = est.csgs[c];
+  const csg::DVec3 size = cv.object->bounds_hi() - cv.object->bounds_lo();
+  const double tolerance = 0.02 * std::max({size.x, size.y, size.z});
+  uint32_t missed = 0;
+  for (size_t t = 0; t < areas.area.size(); ++t) {
+    if (!(areas.area[t] > 0.0)) continue;
+    const int64_t sub = cv.lightmap->lookup(to_double(areas.position[t]), to_double(areas.normal[t]), tolerance);
+    if (sub < 0) {
+      ++missed;
+      continue;  // filled by dilation from its neighbours
+    }
+    double v3[3];
+    const double var = est.csg_texel(c, uint32_t(sub), photons, v3);
+    for (int ch = 0; ch < 3; ++ch) values[4 * t + ch] = float(v3[ch]);
+    values[4 * t + 3] = float(std::sqrt(var));
+    hits[t] = float(acc.hits[cv.texel_offset + uint64_t(sub)]);
+    filled[t] = 1;
+  }
+  if (missed)
+    warnings.push_back("mesh '" + mesh.name + "': " + std::to_string(missed) + " texels found no point of CSG solid '" +
+                       cv.object->name() + "' within " + std::to_string(tolerance) +
+                       " m (the mesh does not follow the solid there); they take their neighbours' values");
 }
 
 }  // namespace
@@ -577,7 +684,8 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     views[i] = {&mesh, texel_count, nullptr, normals[i].data()};
     covered_begin[i] = covered.size();
     if (mesh.has_lightmap()) areas[i] = compute_texel_areas(mesh);
-    if (mesh.has_lightmap() && mesh.ol_group < 0) {  // OL meshes' lightmaps are resolved from their OL
+    // OL meshes' lightmaps are resolved from their OL, CSG carriers' from their solid.
+    if (mesh.has_lightmap() && mesh.ol_group < 0 && mesh.csg_carrier < 0) {
       views[i].texel_area = areas[i].area.data();
       const uint32_t n = mesh.lightmap_width * mesh.lightmap_height;
       for (uint32_t t = 0; t < n; ++t)
@@ -585,6 +693,24 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
       texel_count += n;
     }
     add_mesh_warnings(mesh, mesh.has_lightmap() ? &areas[i] : nullptr, out.warnings);
+  }
+  // CSG solids: texels on their primitives' faces (split where the solid's
+  // boundary cuts them) for those with a carrier, at the carrier's texel size.
+  std::vector<std::unique_ptr<csg::CsgLightmap>> csg_maps(scene.csgs.size());
+  std::vector<CsgView> csg_views(scene.csgs.size());
+  for (size_t c = 0; c < scene.csgs.size(); ++c) {
+    const CsgSolid& solid = scene.csgs[c];
+    csg_views[c] = {solid.object.get(), nullptr, texel_count};
+    covered_begin.push_back(covered.size());
+    for (const std::string& w : solid.object->warnings()) out.warnings.push_back(w);
+    if (solid.carrier < 0) continue;
+    csg::CsgLightmapSettings ls;
+    ls.texel_size = carrier_texel_size(areas[size_t(solid.carrier)], solid.object->bounds_hi() - solid.object->bounds_lo());
+    csg_maps[c] = std::make_unique<csg::CsgLightmap>(*solid.object, ls);
+    csg_views[c].lightmap = csg_maps[c].get();
+    const uint32_t subs = csg_maps[c]->sub_texel_count();
+    for (uint32_t t = 0; t < subs; ++t) covered.push_back({uint32_t(scene.meshes.size() + c), t});
+    texel_count += subs;
   }
   std::vector<std::vector<uint32_t>> ol_bins;
   std::vector<uint32_t> ol_mesh_counts;
@@ -615,7 +741,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   const auto t_direct = Clock::now();
   if (two_pass) {
     direct.resize(covered.size());
-    DirectPass pass(accel.handle(), views, areas, emitters, settings, extent);
+    DirectPass pass(accel.handle(), views, csg_views, areas, emitters, settings, extent);
     std::vector<uint32_t> todo(covered.size());
     for (uint32_t i = 0; i < todo.size(); ++i) todo[i] = i;
     // Round r adds direct_samples * 2^min(r, 8) samples to the texels still
@@ -672,14 +798,15 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
 
   // ---- Photon pass ----------------------------------------------------------
   Accumulators acc(texel_count);
-  const Estimator estimator{areas, views, covered_begin, direct, acc, settings.filter_radius, direct_noise};
+  const Estimator estimator{areas, views, csg_views, covered_begin, direct, acc, settings.filter_radius, direct_noise};
   uint64_t photons = 0;
   const auto t_trace = Clock::now();
   if (photon_pass) {
     const bool steered = settings.target_error > 0.0 || settings.time_budget > 0.0;
     const uint64_t cap = settings.photon_count ? settings.photon_count : (uint64_t(1) << 40);
     const uint64_t batch_count = (cap + kBatchPhotons - 1) / kBatchPhotons;
-    PhotonTracer tracer(scene, accel.handle(), views, ol_views, emitters, settings, extent, two_pass ? 1u : 0u);
+    PhotonTracer tracer(scene, accel.handle(), views, csg_views, ol_views, emitters, settings, extent,
+                        two_pass ? 1u : 0u);
     std::vector<BatchOutput> batches;
     double truncated_flux = 0.0;
     uint64_t ol_hits = 0;
@@ -801,6 +928,9 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     img.coverage = areas[i].coverage;
     if (mesh.ol_group >= 0) {
       resolve_ol(ols[size_t(mesh.ol_group)], areas[i], values, img.hits, filled);
+    } else if (mesh.csg_carrier >= 0) {
+      transfer_csg(estimator, size_t(mesh.csg_carrier), photons, areas[i], acc, values, img.hits, filled,
+                   out.warnings, mesh);
     } else {
       estimator.texels(i, photons, value3, variance);
       for (size_t t = 0; t < n; ++t) {

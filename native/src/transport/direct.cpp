@@ -50,9 +50,10 @@ double DirectSums::variance_of_mean(const DirectNoise& noise) const {
   return noise.scale * (pair_sq * (n / double(paired)) + (typical - m) * (typical - m)) / (n * n);
 }
 
-DirectPass::DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<TexelAreas>& areas,
-                       const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent)
-    : rtc_(rtc), views_(views), areas_(areas), emitters_(emitters), seed_(settings.seed),
+DirectPass::DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<CsgView>& csgs,
+                       const std::vector<TexelAreas>& areas, const std::vector<Emitter>& emitters,
+                       const plm_bake_settings& settings, float scene_extent)
+    : rtc_(rtc), views_(views), csgs_(csgs), areas_(areas), emitters_(emitters), seed_(settings.seed),
       cycles_window_(settings.texel_value == PLM_TEXEL_CYCLES), sobol_(settings.sampler != PLM_SAMPLER_RANDOM),
       offset_scale_(1e-6f * scene_extent), table_(emitters) {
   triangle_emitter_.resize(views.size());
@@ -168,24 +169,27 @@ bool DirectPass::point_in_pieces(uint32_t mesh_id, uint32_t texel, const float u
 void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
                               DirectSums& sums) const {
   if (emitters_.empty()) return;
-  const Mesh& mesh = *views_[mesh_id].mesh;
-  const uint64_t global = views_[mesh_id].texel_offset + texel;
+  // A CSG sub-texel: points from its lightmap; rays leave the exact surface by
+  // the origin offset alone (a ray may rightly hit the primitive it leaves).
+  const CsgView* csg = mesh_id >= views_.size() ? &csgs_[mesh_id - views_.size()] : nullptr;
+  const uint32_t width = csg ? 1u : views_[mesh_id].mesh->lightmap_width;
+  const uint64_t global = (csg ? csg->texel_offset : views_[mesh_id].texel_offset) + texel;
   Rng rng(seed_ ^ 0x9E3779B9u, (global << 8) | (round & 0xFF));
   const uint32_t m = std::max(1u, uint32_t(std::ceil(std::sqrt(double(samples)))));
   const uint32_t n = m * m;
-  const float x0 = float(texel % mesh.lightmap_width), y0 = float(texel / mesh.lightmap_width);
+  const float x0 = csg ? 0.0f : float(texel % width), y0 = csg ? 0.0f : float(texel / width);
   TraceContext tc;
-  tc.skip_geom = mesh_id;
+  tc.skip_geom = csg ? RTC_INVALID_GEOMETRY_ID : mesh_id;
   // The strata cover the texel, or with PLM_TEXEL_CYCLES its central half
   // (x and y within a quarter texel of the centre), if a triangle covers the
   // centre. Barely covered texels sample their covered pieces directly.
   Vec3 unused_p, unused_n;
   uint32_t unused_tri;
-  const bool window = cycles_window_ && areas_[mesh_id].coverage[texel] >= 0.5f &&
+  const bool window = !csg && cycles_window_ && areas_[mesh_id].coverage[texel] >= 0.5f &&
                       surface_point(mesh_id, texel, x0 + 0.5f, y0 + 0.5f, unused_p, unused_n, unused_tri);
   const float origin_x = window ? x0 + 0.25f : x0, origin_y = window ? y0 + 0.25f : y0;
   const float side = window ? 0.5f / float(m) : 1.0f / float(m);
-  const bool sparse = !window && areas_[mesh_id].coverage[texel] < 0.5f;
+  const bool sparse = !csg && !window && areas_[mesh_id].coverage[texel] < 0.5f;
   const uint32_t pick_key = rng.next_u32();
   const uint32_t sobol_key = rng.next_u32();
   const SobolGroup light_dims(sobol_key, 0), mis_dims(sobol_key, 1), piece_dims(sobol_key, 2);
@@ -214,7 +218,11 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       for (float& r : v) r = rng.next_float();
       for (float& r : w) r = rng.next_float();  // drawn always: streams stay as they were
     }
-    if (sparse) {
+    if (csg) {
+      csg::DVec3 dp, dn;
+      csg->lightmap->sample_point(texel, x, y, dp, dn);
+      p = to_float(dp), normal = to_float(dn), tri = RTC_INVALID_GEOMETRY_ID;
+    } else if (sparse) {
       if (!point_in_pieces(mesh_id, texel, w, p, normal, tri)) continue;
     } else if (!surface_point(mesh_id, texel, x, y, p, normal, tri)) {
       continue;  // outside the islands
@@ -250,8 +258,9 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
       rtcIntersect1(rtc_, &tc.context, &rh);
       if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
-        const std::vector<int32_t>& map = triangle_emitter_[rh.hit.geomID];
-        const int32_t hit_emitter = map.empty() ? -1 : map[rh.hit.primID];
+        const bool mesh_hit = rh.hit.geomID < triangle_emitter_.size();  // not a CSG solid
+        const int32_t hit_emitter =
+            mesh_hit && !triangle_emitter_[rh.hit.geomID].empty() ? triangle_emitter_[rh.hit.geomID][rh.hit.primID] : -1;
         if (hit_emitter >= 0) {
           const Emitter& he = emitters_[size_t(hit_emitter)];
           const float cos_l = std::fabs(dot(he.normal, dir)), cos_s = local.z;

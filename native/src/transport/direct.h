@@ -40,11 +40,13 @@ struct DirectSums {
 
 class DirectPass {
  public:
-  DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<TexelAreas>& areas,
-             const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent);
+  DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<CsgView>& csgs,
+             const std::vector<TexelAreas>& areas, const std::vector<Emitter>& emitters,
+             const plm_bake_settings& settings, float scene_extent);
 
   // Adds `samples` (rounded up to a square) stratified samples of round `round`
-  // to texel `texel` of mesh `mesh`. Thread-safe for distinct texels.
+  // to texel `texel` of mesh `mesh`; mesh = mesh count + c means sub-texel
+  // `texel` of CSG solid c. Thread-safe for distinct texels.
   void sample_texel(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums) const;
 
  private:
@@ -53,6 +55,7 @@ class DirectPass {
 
   RTCScene rtc_;
   const std::vector<MeshView>& views_;
+  const std::vector<CsgView>& csgs_;
   const std::vector<TexelAreas>& areas_;
   const std::vector<Emitter>& emitters_;
   // Emissive triangles are also found by cosine-sampled rays, combined with

@@ -9,6 +9,7 @@
 #include <limits>
 #include <vector>
 
+#include "csg/csg_lightmap.h"
 #include "scene/scene.h"
 #include "util/math.h"
 
@@ -21,6 +22,16 @@ struct MeshView {
   const double* texel_area;  // world area per texel, null without lightmap
   const Vec3* normals;       // unit geometric normal per triangle; (0, 0, 0) if degenerate
 };
+
+// A CSG solid as the passes see it (Embree geometry id = mesh count + index).
+struct CsgView {
+  const csg::CsgObject* object;
+  const csg::CsgLightmap* lightmap;  // its texels on the primitives' faces; null without a carrier
+  uint64_t texel_offset;             // of its sub-texels in the global texel arrays
+};
+
+inline Vec3 to_float(csg::DVec3 v) { return {float(v.x), float(v.y), float(v.z)}; }
+inline csg::DVec3 to_double(Vec3 v) { return {v.x, v.y, v.z}; }
 
 // Unit normals of a mesh's triangles, (0, 0, 0) for degenerate ones.
 std::vector<Vec3> triangle_normals(const Mesh& mesh);
