@@ -236,6 +236,58 @@ class Scene(_Handle):
         _check(_C.plm_scene_add_light(self._h, _name(name), ctypes.byref(light), ctypes.byref(out)))
         return out.value
 
+    CSG_SHAPES = ("SPHERE", "BOX", "CYLINDER", "CONE", "TORUS", "PARABOLOID", "HALF_SPACE")
+    CSG_OPS = ("UNION", "INTERSECTION", "DIFFERENCE")
+
+    def add_csg(self, name, primitives, tree):
+        """Add a CSG solid traced exactly; returns its id.
+
+        primitives: list of dicts {shape: one of CSG_SHAPES, matrix: 3x4 or 4x4 local -> world (the
+        shape's canonical form is Blender's default primitive: sphere radius 1, box [-1, 1]^3,
+        cylinder radius 1 z in [-1, 1], cone base radius 1 at z = -1 apex at z = +1, torus
+        major/minor radius, paraboloid z = x^2 + y^2 up to z = 1, half-space z <= 0), material: id,
+        major_radius / minor_radius (torus)}.
+        tree: a primitive index (a leaf) or a tuple (op, child, child, ...) with op in CSG_OPS;
+        DIFFERENCE = first child minus the others.
+        """
+        prims = (_lib.plm_csg_primitive * max(1, len(primitives)))()
+        for i, p in enumerate(primitives):
+            shape = _choice(p.get("shape"), "primitive %d shape" % i, self.CSG_SHAPES)
+            m = np.asarray(p.get("matrix", np.eye(4)), np.float64)
+            if m.shape not in ((3, 4), (4, 4)):
+                raise ValueError("primitive %d: matrix must be 3x4 or 4x4, got %s" % (i, m.shape))
+            prims[i].shape = shape
+            prims[i].material = _uint(p.get("material", 0), "primitive %d material" % i)
+            for k, v in enumerate(m[:3].ravel()):
+                prims[i].matrix[k] = float(v)
+            prims[i].major_radius = float(p.get("major_radius", 1.0))
+            prims[i].minor_radius = float(p.get("minor_radius", 0.25))
+        nodes, children = [], []
+
+        def add(node):  # returns the node index; children are listed contiguously
+            if isinstance(node, (tuple, list)):
+                op = _choice(node[0], "tree operator", self.CSG_OPS)
+                index = len(nodes)
+                nodes.append([op, 0, len(node) - 1])
+                kids = [add(child) for child in node[1:]]
+                nodes[index][1] = len(children)
+                children.extend(kids)
+                return index
+            nodes.append([3, _uint(node, "tree leaf"), 0])
+            return len(nodes) - 1
+        root = add(tree)
+        cnodes = (_lib.plm_csg_node * len(nodes))(*[_lib.plm_csg_node(*n) for n in nodes])
+        ckids = (ctypes.c_uint32 * max(1, len(children)))(*children)
+        out = ctypes.c_uint32()
+        _check(_C.plm_scene_add_csg(self._h, _name(name), prims, len(primitives), cnodes, len(nodes), ckids,
+                                    len(children), root, ctypes.byref(out)))
+        return out.value
+
+    def set_csg_carrier(self, csg, mesh):
+        """Make a mesh with a lightmap the carrier of a CSG solid: the mesh is not traced (the exact
+        solid stands in for it) and its lightmap shows the solid's light."""
+        _check(_C.plm_scene_set_csg_carrier(self._h, _uint(csg, "csg"), _uint(mesh, "mesh")))
+
     def add_ol_group(self, name=None, resolution=0):
         """Add an orientation-lightmap group and return its id (0, 1, ...).
 

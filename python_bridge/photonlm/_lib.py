@@ -103,6 +103,20 @@ class plm_bake_stats(ctypes.Structure):
     ]
 
 
+class plm_csg_primitive(ctypes.Structure):
+    _fields_ = [
+        ("shape", c_uint32),
+        ("material", c_uint32),
+        ("matrix", c_double * 12),
+        ("major_radius", c_double),
+        ("minor_radius", c_double),
+    ]
+
+
+class plm_csg_node(ctypes.Structure):
+    _fields_ = [("op", c_uint32), ("first", c_uint32), ("count", c_uint32)]
+
+
 class plm_ol_stats(ctypes.Structure):
     _fields_ = [
         ("resolution", c_uint32),
@@ -145,6 +159,10 @@ _SIGNATURES = {
     "plm_result_write_exr": (status_t, [ResultPtr, c_uint32, c_char_p]),
     "plm_scene_add_ol_group": (status_t, [ScenePtr, c_char_p, c_uint32, UInt32Ptr]),
     "plm_scene_set_mesh_ol_group": (status_t, [ScenePtr, c_uint32, c_uint32]),
+    "plm_scene_add_csg": (status_t, [ScenePtr, c_char_p, POINTER(plm_csg_primitive), c_uint32,
+                                     POINTER(plm_csg_node), c_uint32, POINTER(c_uint32), c_uint32, c_uint32,
+                                     POINTER(c_uint32)]),
+    "plm_scene_set_csg_carrier": (status_t, [ScenePtr, c_uint32, c_uint32]),
     "plm_result_ol": (status_t, [ResultPtr, c_uint32, POINTER(FloatPtr), POINTER(FloatPtr), UInt32Ptr]),
     "plm_result_ol_bins": (status_t, [ResultPtr, c_uint32, POINTER(FloatPtr), POINTER(FloatPtr)]),
     "plm_result_ol_stats": (status_t, [ResultPtr, c_uint32, POINTER(plm_ol_stats)]),
