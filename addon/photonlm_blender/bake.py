@@ -159,6 +159,7 @@ class BakeJob:
         LAST.update(stats=dict(stats, seconds_export=self.seconds_export,
                                photons_per_second=photons_per_second),
                     warnings=list(warnings), objects=per_object, output_dir=out_dir, ols=ol_info,
+                    csg_objects=list(self.export.csg_objects),
                     reports=list(self.reports.items))
         self.created_uvs = []  # kept: they belong to the baked lightmaps now
         return LAST

@@ -14,11 +14,12 @@ What is exported
 - World: Background colour x strength (a uniform radiance), or world.color without nodes.
 """
 import contextlib
+import math
 import re
 
 import numpy as np
 
-from . import materials, properties, uvmaps
+from . import csg_export, materials, properties, uvmaps
 
 GEOMETRY_TYPES = {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT'}
 
@@ -154,6 +155,24 @@ def ensure_lightmap_uvs(context, objects, reports):
         created.append((obj.data, name))
         done_meshes.add(obj.data.name)
         reports.info("object '%s': created UV map '%s' (Smart UV Project)" % (obj.name, name))
+        # Boolean operands give the result some of its faces, with their own 'lightmap' UVs:
+        # unwrap those too, each object in its own tile of the map.
+        operands = [o for o in uvmaps.boolean_operands(obj)
+                    if not uvmaps.has_lightmap_uv(o.data) and o.data.name not in done_meshes]
+        if operands:
+            tiles = math.ceil(math.sqrt(len(operands) + 1))
+            uvmaps.tile_uv(obj.data, name, 0, tiles)
+            for k, op in enumerate(operands):
+                try:
+                    op_name = uvmaps.create_lightmap_uv(context, op, res)
+                except Exception as e:  # noqa: BLE001
+                    reports.warning("object '%s': could not unwrap Boolean operand '%s' (%s)" % (obj.name, op.name, e))
+                    continue
+                uvmaps.tile_uv(op.data, op_name, k + 1, tiles)
+                created.append((op.data, op_name))
+                done_meshes.add(op.data.name)
+            reports.info("object '%s': unwrapped its Boolean operands %s into tiles of its lightmap"
+                         % (obj.name, ", ".join("'%s'" % o.name for o in operands)))
     if created:
         context.view_layer.update()
     return created
@@ -170,6 +189,7 @@ class SceneExport:
         self.geometry_only = 0
         self.lights = 0
         self.ol_groups = {}         # key -> OlGroup
+        self.csg_objects = []       # names of objects traced as exact CSG solids
 
 
 class OlGroup:
@@ -282,11 +302,32 @@ def _add_object(export, plm, orig, obj_eval, matrix, is_instance, with_lightmap,
         plm.set_mesh_ol_group(mesh_id, group.group_id)
         if orig.name not in group.objects:
             group.objects.append(orig.name)
+    elif with_lightmap and not is_instance and csg_export.is_csg_object(orig):
+        _add_csg(export, plm, orig, mesh_id, default_id, reports)
     if with_lightmap:
         export.baked.append(BakedObject(orig, mesh_id, resolution, resolution,
                                         [(m.name if m is not None else None) for m in mats]))
     else:
         export.geometry_only += 1
+
+
+def _add_csg(export, plm, orig, mesh_id, default_id, reports):
+    """Trace orig exactly as a CSG solid whose carrier is its baked mesh, or report why not."""
+    def material_of(obj):
+        mat = obj.material_slots[0].material if obj.material_slots else None
+        return _add_material(export, plm, mat, reports) if mat is not None else default_id
+    try:
+        csg_id, count = csg_export.export_csg(plm, orig, material_of)
+        plm.set_csg_carrier(csg_id, mesh_id)
+    except csg_export.NotExact as e:
+        reports.info("object '%s': baked as its mesh, not as an exact CSG solid: %s" % (orig.name, e))
+        return
+    except Exception as e:  # the engine names the bad primitive or node
+        reports.warning("object '%s': baked as its mesh, the engine refused its CSG solid: %s"
+                        % (orig.name, getattr(e, "message", e)))
+        return
+    export.csg_objects.append(orig.name)
+    reports.info("object '%s': traced as an exact CSG solid of %d primitives" % (orig.name, count))
 
 
 def _ol_group(export, plm, orig, triangles, resolution, reports):

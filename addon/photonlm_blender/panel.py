@@ -74,6 +74,7 @@ class PHOTONLM_PT_object(bpy.types.Panel):
         col.enabled = obj.photonlm.enabled
         col.prop(obj.photonlm, "resolution", text="Resolution (0 = Auto)")
         col.prop(obj.photonlm, "mode")
+        layout.prop(obj.photonlm, "primitive")
         if obj.photonlm.mode != 'LIGHTMAP':
             col.prop(obj.photonlm, "ol_resolution")
         for coll in obj.users_collection:

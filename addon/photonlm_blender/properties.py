@@ -127,6 +127,17 @@ class PhotonlmObjectSettings(bpy.types.PropertyGroup):
     ol_resolution: IntProperty(
         name="OL Resolution", description="Orientation-lightmap bins per side; 0 = automatic (16)",
         default=0, min=0, max=1024)
+    primitive: EnumProperty(
+        name="Primitive", description="The analytic shape this object was made as (with Blender's Add > "
+        "Mesh operators): traced exactly, and combined exactly through Boolean modifiers whose operands "
+        "are primitives too. Size from the mesh's bounds, placement from the object's transform",
+        items=[('NONE', "None", "An ordinary mesh"),
+               ('SPHERE', "Sphere", "UV sphere"),
+               ('BOX', "Box", "Cube"),
+               ('CYLINDER', "Cylinder", "Cylinder with caps"),
+               ('CONE', "Cone", "Cone with a pointed top (Radius 2 = 0) and a base cap"),
+               ('TORUS', "Torus", "Torus about the object's z axis")],
+        default='NONE')
 
 
 class PhotonlmCollectionSettings(bpy.types.PropertyGroup):

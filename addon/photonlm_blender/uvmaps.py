@@ -95,6 +95,35 @@ def create_lightmap_uv(context, obj, resolution):
     return name
 
 
+def tile_uv(mesh, name, index, tiles):
+    """Squeeze UV map `name` into tile `index` of a tiles x tiles grid of the unit square. Objects
+    combined by Boolean modifiers each get their own tile, so that the islands the Boolean result
+    takes from its operands do not overlap."""
+    layer = mesh.uv_layers.get(name)
+    if layer is None or tiles <= 1:
+        return
+    uv = np.empty(len(layer.data) * 2, np.float32)
+    layer.data.foreach_get("uv", uv)
+    uv = uv.reshape(-1, 2)
+    tx, ty = index % tiles, index // tiles
+    uv = (uv + np.array([tx, ty], np.float32)) / float(tiles)
+    layer.data.foreach_set("uv", uv.ravel())
+    mesh.update()
+
+
+def boolean_operands(obj, depth=0):
+    """Mesh objects used as operands of obj's Boolean modifiers, recursively, in order."""
+    out = []
+    if depth > 32:
+        return out
+    for mod in obj.modifiers:
+        if mod.type == 'BOOLEAN' and mod.operand_type == 'OBJECT' and mod.object is not None \
+                and mod.object.type == 'MESH':
+            out.append(mod.object)
+            out += boolean_operands(mod.object, depth + 1)
+    return out
+
+
 def remove_uv(mesh, name):
     """Undo create_lightmap_uv (used when a bake is cancelled or fails)."""
     layer = mesh.uv_layers.get(name)
