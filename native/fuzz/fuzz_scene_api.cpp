@@ -5,7 +5,7 @@
 // returns PLM_OK must give finite, non-negative lightmaps and statistics.
 //
 // Build and run: scripts/fuzz.sh [seconds]. Input format (all little endian):
-// a stream of ops, one byte each (op % 10), each followed by its operands;
+// a stream of ops, one byte each (op % 12), each followed by its operands;
 // a float operand is a tag byte and then either 4 raw bytes (tag % 8 == 0),
 // one byte indexing kSpecialFloats (tag % 8 == 1), or one signed byte / 16.
 // Reading past the end gives zeros. native/fuzz/make_corpus.py writes seeds.
@@ -86,7 +86,7 @@ struct Reader {
 struct State {
   plm_scene* scene = nullptr;
   plm_result* result = nullptr;
-  uint32_t materials = 0, meshes = 0;
+  uint32_t materials = 0, meshes = 0, csgs = 0;
   ~State() {
     plm_result_release(result);
     plm_scene_release(scene);
@@ -298,6 +298,39 @@ void copy(State& st, Reader& in) {
                                           which & 8 ? cov.data() : nullptr));
 }
 
+// A CSG solid: 1-4 primitives with arbitrary or plausible matrices, a small
+// arbitrary tree (cycles, bad indices and unbounded trees included).
+void add_csg(State& st, Reader& in) {
+  plm_csg_primitive prims[4];
+  const uint32_t np = 1 + in.u8() % 4;
+  for (uint32_t i = 0; i < np; ++i) {
+    plm_csg_primitive& p = prims[i];
+    p.shape = in.u8() % 8;
+    p.material = in.u8() % (st.materials + 2);
+    if (in.u8() & 1) {
+      for (double& m : p.matrix) m = in.f();
+    } else {  // a scaled, translated canonical shape
+      const double k = in.f();
+      const double m[12] = {k, 0, 0, in.f(), 0, k, 0, in.f(), 0, 0, k, in.f()};
+      for (int j = 0; j < 12; ++j) p.matrix[j] = m[j];
+    }
+    p.major_radius = in.f();
+    p.minor_radius = in.f();
+  }
+  plm_csg_node nodes[6];
+  const uint32_t nn = 1 + in.u8() % 6;
+  for (uint32_t i = 0; i < nn; ++i) nodes[i] = {uint32_t(in.u8() % 5), uint32_t(in.u8() % 8), uint32_t(in.u8() % 4)};
+  uint32_t children[8];
+  const uint32_t nc = in.u8() % 8;
+  for (uint32_t i = 0; i < nc; ++i) children[i] = in.u8() % 8;
+  uint32_t id = 0;
+  const plm_status s = plm_scene_add_csg(st.scene, in.name(), prims, np, nodes, nn, nc ? children : nullptr, nc,
+                                         in.u8() % 8, &id);
+  expect_message(s);
+  if (g_trace) fprintf(stderr, "add_csg %u primitives, %u nodes, %u children -> %d\n", np, nn, nc, int(s));
+  if (s == PLM_OK) check(id == st.csgs++, "CSG ids count up");
+}
+
 void write_exr(State& st, Reader& in) {
   const uint32_t mesh = in.u8() % (st.meshes + 2);
   const uint8_t where = in.u8() % 4;
@@ -329,7 +362,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   State st;
   check(plm_scene_create(&st.scene) == PLM_OK, "create a scene");
   for (int ops = 0; ops < 48 && !in.done(); ++ops) {
-    switch (in.u8() % 10) {
+    switch (in.u8() % 12) {
       case 0: {
         const char* name = in.name();
         float albedo[3], emission[3];
@@ -365,12 +398,18 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         expect_message(plm_result_stats(st.result, i & 1 ? &stats : nullptr));
         break;
       }
+      case 9: add_csg(st, in); break;
+      case 10: {
+        const uint32_t csg = in.u8() % (st.csgs + 1), mesh = in.u8() % (st.meshes + 1);
+        expect_message(plm_scene_set_csg_carrier(st.scene, csg, mesh));
+        break;
+      }
       default:  // start over with an empty scene
         plm_result_release(st.result);
         st.result = nullptr;
         plm_scene_release(st.scene);
         st.scene = nullptr;
-        st.materials = st.meshes = 0;
+        st.materials = st.meshes = st.csgs = 0;
         check(plm_scene_create(&st.scene) == PLM_OK, "create a scene");
         break;
     }

@@ -147,8 +147,8 @@ TEST(CsgBake, SphereUnderTheSunIsCosineOverPi) {
       if (std::fabs(nz) < 0.15) continue;  // the terminator: value varies fast across the texel
       const double got = m.value(j * nu + i);
       worst = std::max(worst, std::fabs(got - exact));
-      // The carrier's texel shows the solid's texel (half its size) at its
-      // point: a resampling error up to ~ texel size x gradient (measured 2.9%).
+      // The carrier's texel averages the solid's texels over its footprint:
+      // a resampling error up to ~ texel size x gradient.
       EXPECT_NEAR(got, exact, 0.04 * 3.0 / M_PI) << "texel " << i << ", " << j;
       ++checked;
     }
