@@ -475,18 +475,3 @@ TEST(CsgLightmap, HalfSpaceCutsOverObjectBounds) {
 }
 
 }  // namespace
-namespace {
-TEST(CsgLightmapDebug, PerFace) {
-  for (int g : {4, 8, 16, 32}) {
-    plm::Rng rng(21, 0);
-    double mean = 0, sm = 0;
-    for (int k = 0; k < 16; ++k) {
-      const CsgObject obj = placed_holed_sphere(1, 0.4, rng);
-      const CsgLightmap lm = lightmap(obj, 0.1, g);
-      const double e = total_area(lm) / holed_sphere_area(1, 0.4) - 1;
-      mean += std::fabs(e) / 16; sm += e / 16;
-    }
-    std::printf("g=%d mean abs %.3e mean signed %.3e\n", g, mean, sm);
-  }
-}
-}

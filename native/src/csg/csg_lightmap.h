@@ -24,7 +24,10 @@
 //   half-space plane  the rectangle of the object's bounding box
 //                     projected onto the plane (local x, y)            ratio 1
 // An affine map multiplies the area element by |det M| |M^-T n| (Nanson),
-// which is bounded above and below for a non-singular M.
+// which is bounded above and below for a non-singular M. Measured max/min
+// texel area on unit primitives at texel size 0.1 (csg_lightmap_test): 1
+// (within 1e-9) for every chart except the torus (R 1, r 0.25: 1.644) and the
+// paraboloid bowl (2.179).
 //
 // Sub-texels. A texel is sampled at the centres of a g x g grid of cells and
 // each sample is classified with CsgObject::on_boundary. The areas are
