@@ -3,6 +3,7 @@
 // lightmap. Checked against energy balance and closed forms.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -86,6 +87,52 @@ TEST(CsgBake, BlackShellAroundPointLightHoldsItsPower) {
     double outside_max = 0.0;
     for (size_t t = 0; t < out.coverage.size(); ++t) outside_max = std::max(outside_max, out.value(t));
     EXPECT_EQ(outside_max, 0.0) << "light leaked through the shell";
+  }
+}
+
+// Two chambers cut out of one block with a 1 mm wall between them (block
+// minus two boxes): a light in chamber A leaves chamber B exactly dark; the
+// photons do land on chamber A's walls.
+TEST(CsgBake, ThinWallStopsAllPhotons) {
+  SceneBuilder b;
+  const uint32_t grey = b.material("grey", {0.5f, 0.5f, 0.5f});
+  plm_csg_primitive prims[3] = {prim(PLM_CSG_BOX, 1.0, {0, 0, 0}, grey), prim(PLM_CSG_BOX, 1.0, {0, 0, 0}, grey),
+                                prim(PLM_CSG_BOX, 1.0, {0, 0, 0}, grey)};
+  // Block [-2, 2] x [-1, 1] x [-1, 1]; chamber A x in [-1.9, -0.0005], chamber B x in [0.0005, 1.9].
+  const double block[12] = {2, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+  const double a[12] = {0.94975, 0, 0, -0.95025, 0, 0.9, 0, 0, 0, 0, 0.9, 0};
+  const double c[12] = {0.94975, 0, 0, 0.95025, 0, 0.9, 0, 0, 0, 0, 0.9, 0};
+  std::copy(block, block + 12, prims[0].matrix);
+  std::copy(a, a + 12, prims[1].matrix);
+  std::copy(c, c + 12, prims[2].matrix);
+  const plm_csg_node nodes[4] = {{PLM_CSG_DIFFERENCE, 0, 3}, {PLM_CSG_LEAF, 0, 0}, {PLM_CSG_LEAF, 1, 0},
+                                 {PLM_CSG_LEAF, 2, 0}};
+  const uint32_t kids[3] = {1, 2, 3};
+  uint32_t solid = 0;
+  ASSERT_EQ(plm_scene_add_csg(b.scene, "block", prims, 3, nodes, 4, kids, 3, 0, &solid), PLM_OK) << plm_last_error();
+  // The carrier is chamber B's inward box: the dark side, checked texel by texel.
+  const uint32_t chamber_b = b.box("chamber B", {0.95025f, 0, 0}, {1.8995f, 1.8f, 1.8f}, 0.0f, grey, 8, true);
+  ASSERT_EQ(plm_scene_set_csg_carrier(b.scene, solid, chamber_b), PLM_OK) << plm_last_error();
+  plm_light l;
+  plm_light_default(&l, PLM_LIGHT_POINT);
+  l.power = 1000.0f;
+  l.radius = 0.0f;
+  l.matrix[3] = -0.95f;  // in chamber A
+  b.light(l, "bulb");
+  ASSERT_TRUE(b.ok()) << b.error;
+  for (const uint32_t direct : {0u, 16u}) {
+    const plm_bake_settings s = settings(300000, direct);
+    Baked r;
+    ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &r.r), PLM_OK) << plm_last_error();
+    const plm_test::Map m = r.map(chamber_b);
+    double worst = 0.0, hits = 0.0;
+    for (size_t t = 0; t < m.coverage.size(); ++t) {
+      worst = std::max(worst, m.value(t));
+      hits += m.hits[t];
+    }
+    EXPECT_EQ(worst, 0.0) << "light crossed the 1 mm wall (direct samples " << direct << ")";
+    EXPECT_EQ(hits, 0.0);
+    EXPECT_GT(r.stats().photon_hits, 0u) << "photons did land in chamber A's walls";
   }
 }
 
