@@ -1,0 +1,207 @@
+// An L-system as a cyclic scene graph, ray traced without flattening
+// (thesis 4.3-4.4: the plant is a graph of shared nodes, unfolded once at
+// set-up for bounds, expanded on demand while tracing and kept in an LRU
+// cache of expanded instances; 7.4.2: instance keys from the traversal path).
+//
+// Nodes. A node class is (module symbol, constant parameters, remaining
+// depth d, turtle width and material on entry). Expanding an instance of
+// (X, d) rewrites X once and interprets the successor with the turtle of
+// lsystem/turtle.h from a local frame at the origin (H = +Z, L = -X, U = -Y):
+// turtle symbols that are terminal draw primitives in that frame, every
+// non-terminal module Y becomes a child reference (Y, d-1) with the turtle's
+// frame at that point as a rigid 3x4 transform. A module is terminal at d = 0
+// or when no production can rewrite it (it is then copied unchanged and
+// drawn at the end). The root is the axiom at the derivation depth D. Memory
+// is ~ classes x successor size; the number of classes is ~ symbols x depth
+// (times the few widths / materials that reach a symbol), not the number of
+// leaves.
+//
+// Turtle state across node boundaries:
+//   position, orientation  the child's transform (rotation + translation; the
+//                          turtle never scales a frame, so transforms are rigid)
+//   width, material        part of the child's class (exact: no scaling trick);
+//                          the child reports the width and material it ends with
+//   end of a child         a child's net effect (end frame, width, material) is
+//                          part of its class and is composed into the parent's
+//                          turtle after the reference, so `F -> FF` followed by
+//                          drawing continues where the child stopped
+//   step, angle            global (GraphOptions or the system), as in the turtle
+// Rejected with plm::Error (PLM_ERROR_INVALID_ARGUMENT):
+//   context-sensitive productions and rand() in any expression
+//       ("... need the flattened path");
+//   parametric productions whose parameters are not (nearly) constant per
+//       (module, depth): more than max_classes_per_symbol_depth distinct
+//       (parameters, width, material) states of one module at one depth
+//       ("parametric productions need the flattened path: ...");
+//   a stochastic module whose productions end in different turtle states
+//       (frame, width or material) and is followed, in the same branch, by
+//       anything that would read that state;
+//   depth + 1 levels over max_levels (<= kMaxGraphLevels), more than
+//       max_classes classes.
+//
+// Stochastic choices and keys. Every instance has a path key: the root's is
+// splitmix64(seed), the i-th child reference (0-based, in successor order) of
+// an instance with key k has child_key(k, i) = splitmix64(k ^ splitmix64(i + 1)).
+// Unlike the thesis (which records a digit only at nodes with more than one
+// subnode), every step is hashed, so a parent and its only child have
+// different keys. A stochastic instance draws its production from
+// RandomStream{stream_key(key, depth, symbol, 3)} with the probabilities of
+// derive(); the draw depends only on (seed, path), never on threads or on the
+// cache. The result differs from derive() with the same seed (derive keys
+// draws on string positions, which a graph does not have); flatten() is the
+// reference. A class is path dependent if it or anything below it has more
+// than one applicable production; its expansions are cached under
+// (class, path key), other classes under (class, 0) and shared by all paths.
+//
+// Bounds: one unfolding over classes at set-up, bottom-up and memoised; a
+// stochastic class takes the union over its productions, so bounds never
+// depend on the path. Child bounds are the child class's box mapped by the
+// child's transform (8 corners) and padded by 1e-9 relative.
+//
+// Threads: the graph (classes, bounds) is immutable after set-up. Each thread
+// that traces gets its own LRU cache of expansions (tbb::enumerable_thread_
+// specific inside the Graph): no lock and no shared atomic per ray; the cost
+// is that every thread expands (and holds up to the capacity of) its own
+// copies. Expansions are held by shared_ptr on the traversal stack, so an
+// eviction during a traversal never frees a node in use; a capacity below
+// the depth is exceeded by the nodes in use. stats() sums the thread caches;
+// call it and reset_cache() while no thread traces.
+#pragma once
+
+#include <embree3/rtcore.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "csg/primitive.h"
+#include "lsystem/lsystem.h"
+#include "lsystem/turtle.h"
+
+namespace plm::lsystem {
+
+// The traversal stack has one frame per level: the root plus one per derivation step.
+constexpr int kMaxGraphLevels = 64;
+
+struct GraphOptions {
+  int depth = -1;                 // < 0: the system's `depth:`
+  uint64_t seed = 0;              // stochastic choices (see the key scheme above)
+  double step = -1, angle = -1, width = -1;  // < 0: the system's
+  int32_t material = 0;
+  int max_levels = kMaxGraphLevels;          // depth + 1 may not exceed it
+  size_t max_classes = 200'000;
+  size_t max_classes_per_symbol_depth = 64;
+  size_t cache_entries = 4096;    // per thread; 0: no limit on entries
+  size_t cache_bytes = 64u << 20; // per thread; 0: no limit on bytes
+};
+
+// A primitive of an expansion, in the node's local frame.
+struct GraphPrimitive {
+  ShapeKind shape;
+  int32_t material;
+  csg::Primitive prim;
+};
+
+struct GraphChild {
+  uint32_t cls;                  // node class of the child
+  csg::Affine to_parent;         // child frame -> parent frame (rigid)
+  csg::Affine to_local;          // its inverse
+  csg::DVec3 lo, hi;             // child bounds in the parent frame
+};
+
+// One expanded instance: what the turtle drew and the child references.
+struct GraphExpansion {
+  std::vector<GraphPrimitive> prims;
+  std::vector<GraphChild> children;
+  std::vector<uint32_t> prims_before;  // per child: primitives drawn before it (successor order)
+  size_t bytes = 0;
+};
+
+struct GraphNodeClass {
+  uint32_t symbol;        // UINT32_MAX for the root (the axiom)
+  int depth;              // remaining derivation steps (root: D + 1)
+  double width;           // turtle width on entry
+  int32_t material;       // turtle material on entry
+  std::vector<double> params;
+  std::vector<std::pair<int32_t, double>> alternatives;  // (production, weight); weight < 0: deterministic
+  double total_weight = 0;
+  bool path_dependent = false;
+  csg::DVec3 lo, hi;      // bounds in the node frame (lo > hi: empty)
+  uint64_t max_primitives = 0;  // flattened count (max over productions; saturates at UINT64_MAX)
+};
+
+struct GraphHit {
+  double t = 0;
+  csg::DVec3 n;                  // unit world normal, outward from the primitive
+  ShapeKind shape = ShapeKind::Cylinder;
+  int32_t material = 0;
+  uint32_t prim = 0;             // index in the hit node's expansion
+  int levels = 0;                // child steps from the root to the hit node
+  uint32_t path[kMaxGraphLevels] = {};         // child index at each step
+  uint32_t classes[kMaxGraphLevels + 1] = {};  // node class at each level (0: the root)
+  uint64_t node_key = 0;         // path key of the hit node
+  uint64_t instance_key = 0;     // child_key(node_key, prim): the primitive instance
+};
+
+struct GraphStats {
+  size_t classes = 0;
+  int levels = 0;
+  size_t class_bytes = 0;        // the immutable graph
+  uint64_t cache_hits = 0, cache_misses = 0, evictions = 0;
+  size_t cached_entries = 0, cached_bytes = 0, peak_cached_bytes = 0;  // summed over thread caches
+  uint64_t flattened_primitives = 0;  // exact when the root is not path dependent, else an upper bound
+  uint64_t truncated = 0;        // traversals cut by the stack bound (0 by construction: depth is checked)
+};
+
+struct FlattenResult {
+  std::vector<TurtlePrimitive> primitives;  // world space, in successor (string) order
+  bool truncated = false;                   // the cap was reached
+};
+
+class Graph {
+ public:
+  // Throws plm::Error (PLM_ERROR_INVALID_ARGUMENT) for what the graph cannot represent (see above).
+  Graph(const LSystem& system, const GraphOptions& options = {});
+  ~Graph();
+  Graph(const Graph&) = delete;
+  Graph& operator=(const Graph&) = delete;
+
+  // Closest hit with t in [tnear, tfar); the direction need not be unit (t is
+  // the world ray's parameter). False if none.
+  bool first_hit(csg::DVec3 o, csg::DVec3 d, double tnear, double tfar, GraphHit* hit) const;
+  bool occluded(csg::DVec3 o, csg::DVec3 d, double tnear, double tfar) const;
+
+  csg::DVec3 bounds_lo() const;
+  csg::DVec3 bounds_hi() const;
+  const GraphNodeClass& node_class(uint32_t id) const;
+  uint64_t root_key() const;
+  static uint64_t child_key(uint64_t key, uint32_t index);
+  // Path key of the hit's ancestor at `level` (0: root, hit.levels: the hit node).
+  uint64_t ancestor_key(const GraphHit& hit, int level) const;
+
+  GraphStats stats() const;
+  void reset_cache() const;  // empties every thread's cache and zeroes the counters
+
+  // All primitives in world space, at most max_primitives (then truncated).
+  FlattenResult flatten(size_t max_primitives = 10'000'000) const;
+
+  // The last hit that the Embree intersect callback reported on this thread
+  // (valid right after rtcIntersect1 when the hit's geomID is the graph's).
+  const GraphHit& last_embree_hit() const;
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+// Attaches the graph to scene as one user geometry of one primitive (not yet
+// committed) and returns its geometry id. The hit carries tfar, a unit Ng,
+// u = the ShapeKind, v = 0, primID = the material; the path key and the rest
+// are in graph.last_embree_hit() on the calling thread. Filter functions are
+// not called for this geometry. The graph must outlive the scene's use.
+unsigned attach_graph(RTCDevice device, RTCScene scene, const Graph& graph);
+
+}  // namespace plm::lsystem

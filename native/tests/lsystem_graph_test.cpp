@@ -1,0 +1,484 @@
+// The L-system scene graph (lsystem/graph.h) against truth: its flattening
+// against the turtle on the derived string, and its first hits and
+// occlusion against brute force over the flattened primitives.
+#include <gtest/gtest.h>
+#include <embree3/rtcore.h>
+#include <tbb/parallel_for.h>
+
+#include <chrono>
+#include <cmath>
+#include <functional>
+#include <iostream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "lsystem/graph.h"
+#include "lsystem/lsystem.h"
+#include "lsystem/turtle.h"
+#include "util/error.h"
+
+namespace {
+
+using namespace plm::lsystem;
+using plm::csg::DVec3;
+
+const char* kPlant =
+    "angle: 25.7\nwidth: 0.1\naxiom: X\n"
+    "X -> F[+X]F[-X]+X\n"
+    "F -> FF\n";
+
+// 3D: pitch, roll, widths and materials that cross node boundaries; F and S
+// are non-terminal, so their end states carry the turtle on.
+const char* kTree =
+    "angle: 22.5\nwidth: 0.08\naxiom: !(0.12)A\n"
+    "A -> [&FL!(0.06)A]/////'[&FLA]///////'[&FL!(0.04)A]\n"
+    "F -> S/////F\n"
+    "S -> FL\n"
+    "L -> [^^@L(0.4)]@O\n";
+
+const char* kStochastic =
+    "angle: 25\nwidth: 0.1\naxiom: X\n"
+    "X -> (1) F[+X]F[-X]+X\n"
+    "X -> (1) F[+X]F\n"
+    "X -> (2) F[-X][+'X]\n"
+    "F -> FF\n";
+
+GraphOptions options(int depth, uint64_t seed = 0) {
+  GraphOptions o;
+  o.depth = depth;
+  o.seed = seed;
+  return o;
+}
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const plm::Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+struct Flat {
+  std::vector<TurtlePrimitive> src;
+  std::vector<plm::csg::Primitive> prims;
+  explicit Flat(std::vector<TurtlePrimitive> p) : src(std::move(p)) {
+    for (const TurtlePrimitive& t : src) {
+      plm::csg::PrimitiveDesc d;
+      switch (t.shape) {
+        case ShapeKind::Cylinder: d.shape = plm::csg::Shape::Cylinder; break;
+        case ShapeKind::Sphere: d.shape = plm::csg::Shape::Sphere; break;
+        case ShapeKind::Cone: d.shape = plm::csg::Shape::Cone; break;
+        case ShapeKind::Box: d.shape = plm::csg::Shape::Box; break;
+      }
+      std::copy(t.to_world, t.to_world + 12, d.to_world);
+      prims.push_back(plm::csg::make_primitive(d));
+    }
+  }
+  // Same rule as the graph: the first crossing with t in [tnear, tfar).
+  bool first_hit(DVec3 o, DVec3 d, double tnear, double tfar, double* t_out, size_t* which, bool any) const {
+    plm::csg::Crossing cr[plm::csg::kMaxPrimitiveCrossings];
+    double best = tfar;
+    bool found = false;
+    for (size_t i = 0; i < prims.size(); ++i) {
+      const int n = plm::csg::intersect(prims[i], o, d, 0.0, cr);
+      for (int k = 0; k < n; ++k) {
+        if (cr[k].t < tnear) continue;
+        if (cr[k].t >= best) break;
+        best = cr[k].t;
+        *which = i;
+        found = true;
+        if (any) return true;
+        break;
+      }
+    }
+    *t_out = best;
+    return found;
+  }
+};
+
+struct Ray {
+  DVec3 o, d;
+  double tfar;
+};
+
+// Rays from outside the bounds aimed at primitive centres (jittered) and at
+// random points of the bounds, plus rays starting inside the bounds.
+std::vector<Ray> make_rays(const Graph& g, const std::vector<TurtlePrimitive>* prims, size_t n, uint32_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  const DVec3 lo = g.bounds_lo(), hi = g.bounds_hi();
+  const DVec3 c = 0.5 * (lo + hi);
+  const double r = plm::csg::length(hi - lo);
+  auto in_box = [&] { return DVec3{lo.x + u(rng) * (hi.x - lo.x), lo.y + u(rng) * (hi.y - lo.y), lo.z + u(rng) * (hi.z - lo.z)}; };
+  auto on_sphere = [&] {
+    const double z = 2 * u(rng) - 1, phi = 6.283185307179586 * u(rng), s = std::sqrt(1 - z * z);
+    return DVec3{s * std::cos(phi), s * std::sin(phi), z};
+  };
+  std::vector<Ray> rays;
+  for (size_t i = 0; i < n; ++i) {
+    Ray ray;
+    const int kind = int(i % 4);
+    DVec3 target;
+    if (kind <= 1 && prims && !prims->empty()) {
+      const TurtlePrimitive& p = (*prims)[size_t(u(rng) * double(prims->size())) % prims->size()];
+      target = DVec3{p.to_world[3], p.to_world[7], p.to_world[11]} + 0.05 * on_sphere();
+    } else {
+      target = in_box();
+    }
+    ray.o = kind == 3 ? in_box() : c + r * on_sphere();
+    ray.d = kind == 3 ? on_sphere() * (0.5 + u(rng)) : target - ray.o;
+    ray.tfar = kind == 2 ? 0.3 + 0.7 * u(rng) : INFINITY;  // some segments end early (occlusion)
+    rays.push_back(ray);
+  }
+  return rays;
+}
+
+// Every ray: the same first hit (t to 1e-9 relative, shape, material) and occlusion as brute force.
+void expect_matches_brute_force(const Graph& g, const Flat& flat, const std::vector<Ray>& rays, size_t* hits_out = nullptr) {
+  size_t hits = 0, mismatches = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const Ray& r = rays[i];
+    GraphHit h;
+    const bool gh = g.first_hit(r.o, r.d, 0.0, r.tfar, &h);
+    double t = 0;
+    size_t which = 0;
+    const bool bh = flat.first_hit(r.o, r.d, 0.0, r.tfar, &t, &which, false);
+    bool ok = gh == bh;
+    if (ok && gh) {
+      ok = std::fabs(h.t - t) <= 1e-9 * std::max(1.0, std::fabs(t)) && h.shape == flat.src[which].shape &&
+           h.material == flat.src[which].material;
+      ++hits;
+    }
+    double t2;
+    size_t w2;
+    ok = ok && g.occluded(r.o, r.d, 0.0, r.tfar) == flat.first_hit(r.o, r.d, 0.0, r.tfar, &t2, &w2, true);
+    if (!ok && ++mismatches <= 5)
+      ADD_FAILURE() << "ray " << i << ": graph " << gh << " t=" << h.t << " shape " << int(h.shape) << " mat "
+                    << h.material << " vs brute " << bh << " t=" << t << " shape " << int(flat.src[which].shape)
+                    << " mat " << flat.src[which].material;
+  }
+  EXPECT_EQ(mismatches, 0u);
+  EXPECT_GT(hits, rays.size() / 5) << "too few rays hit anything to be a test";
+  if (hits_out) *hits_out = hits;
+}
+
+void expect_same_primitives(const std::vector<TurtlePrimitive>& a, const std::vector<TurtlePrimitive>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    ASSERT_EQ(int(a[i].shape), int(b[i].shape)) << i;
+    ASSERT_EQ(a[i].material, b[i].material) << i;
+    for (int k = 0; k < 12; ++k) ASSERT_NEAR(a[i].to_world[k], b[i].to_world[k], 1e-9 * (1 + std::fabs(b[i].to_world[k]))) << i << "," << k;
+  }
+}
+
+TEST(LSystemGraph, FlattenEqualsTurtleOnDerivedString) {
+  for (const char* text : {kPlant, kTree}) {
+    const LSystem sys = parse(text);
+    for (int depth : {0, 1, 2, 4}) {
+      SCOPED_TRACE(std::string(text).substr(0, 20) + " depth " + std::to_string(depth));
+      const Graph g(sys, options(depth));
+      DeriveOptions d;
+      d.depth = depth;
+      const TurtleResult t = interpret(sys, derive(sys, d));
+      const FlattenResult f = g.flatten();
+      EXPECT_FALSE(f.truncated);
+      expect_same_primitives(f.primitives, t.primitives);
+      EXPECT_EQ(g.stats().flattened_primitives, t.primitives.size());
+      // The graph's bounds contain the turtle's.
+      if (!t.primitives.empty())
+        for (int a = 0; a < 3; ++a) {
+          EXPECT_LE(g.bounds_lo()[a], t.lo[a]);
+          EXPECT_GE(g.bounds_hi()[a], t.hi[a]);
+        }
+    }
+  }
+}
+
+TEST(LSystemGraph, ParametricConstantPerDepthEqualsTurtle) {
+  const LSystem sys = parse("angle: 30\naxiom: !(0.2)A(1,0.2)\nA(l,w) -> !(w)F(l)[+A(l*0.7,w*0.7)][-A(l*0.7,w*0.7)]&A(l*0.7,w*0.7)\n");
+  const Graph g(sys, options(6));
+  DeriveOptions d;
+  d.depth = 6;
+  expect_same_primitives(g.flatten().primitives, interpret(sys, derive(sys, d)).primitives);
+  EXPECT_EQ(g.stats().classes, 1u + 6u);  // the root and one A per depth
+}
+
+TEST(LSystemGraph, BracketedPlantMatchesBruteForce) {
+  const LSystem sys = parse(kPlant);
+  for (int depth : {4, 6}) {
+    const Graph g(sys, options(depth));
+    const Flat flat(g.flatten().primitives);
+    const auto rays = make_rays(g, &flat.src, depth == 4 ? 8000 : 20000, 11 + uint32_t(depth));
+    expect_matches_brute_force(g, flat, rays);
+  }
+}
+
+TEST(LSystemGraph, Tree3DMatchesBruteForce) {
+  const LSystem sys = parse(kTree);
+  for (int depth : {3, 5}) {
+    const Graph g(sys, options(depth));
+    const Flat flat(g.flatten().primitives);
+    const auto rays = make_rays(g, &flat.src, 10000, 7 + uint32_t(depth));
+    expect_matches_brute_force(g, flat, rays);
+  }
+}
+
+TEST(LSystemGraph, HitNormalsAndPathKeys) {
+  const LSystem sys = parse(kTree);
+  const Graph g(sys, options(4));
+  const Flat flat(g.flatten().primitives);
+  const auto rays = make_rays(g, &flat.src, 2000, 5);
+  const int levels = g.stats().levels;
+  size_t checked = 0;
+  for (const Ray& r : rays) {
+    GraphHit h;
+    if (!g.first_hit(r.o, r.d, 0, r.tfar, &h)) continue;
+    double t;
+    size_t which;
+    ASSERT_TRUE(flat.first_hit(r.o, r.d, 0, r.tfar, &t, &which, false));
+    // The normal is the flattened primitive's at the same point.
+    const DVec3 n = plm::csg::normal(flat.prims[which], plm::csg::face_at(flat.prims[which], r.o + t * r.d), r.o + t * r.d);
+    EXPECT_NEAR(plm::csg::dot(n, h.n), 1.0, 1e-6);
+    EXPECT_EQ(h.node_key, g.ancestor_key(h, h.levels));
+    EXPECT_EQ(h.instance_key, Graph::child_key(h.node_key, h.prim));
+    EXPECT_EQ(g.ancestor_key(h, 0), g.root_key());
+    // Depth path: the class at level k has k fewer derivation steps left than the root.
+    for (int k = 0; k <= h.levels; ++k) EXPECT_EQ(g.node_class(h.classes[k]).depth, levels - k);
+    ++checked;
+  }
+  EXPECT_GT(checked, 200u);
+}
+
+TEST(LSystemGraph, StochasticMatchesItsFlatteningAndSeedsDiffer) {
+  const LSystem sys = parse(kStochastic);
+  const Graph a(sys, options(6, 1)), a2(sys, options(6, 1)), b(sys, options(6, 2));
+  const FlattenResult fa = a.flatten(), fa2 = a2.flatten(), fb = b.flatten();
+  expect_same_primitives(fa.primitives, fa2.primitives);  // deterministic for a seed
+  bool differ = fa.primitives.size() != fb.primitives.size();
+  for (size_t i = 0; !differ && i < fa.primitives.size(); ++i)
+    for (int k = 0; k < 12; ++k) differ = differ || fa.primitives[i].to_world[k] != fb.primitives[i].to_world[k];
+  EXPECT_TRUE(differ);
+  EXPECT_TRUE(a.node_class(0).path_dependent);
+  EXPECT_GE(a.stats().flattened_primitives, fa.primitives.size());  // an upper bound
+  // Bounds are the union over productions: they contain every seed's plant.
+  for (const Graph* g : {&a, &b})
+    for (const TurtlePrimitive& p : g->flatten().primitives)
+      for (int r = 0; r < 3; ++r) {
+        EXPECT_GE(p.to_world[4 * r + 3], a.bounds_lo()[r]);
+        EXPECT_LE(p.to_world[4 * r + 3], a.bounds_hi()[r]);
+      }
+  for (const Graph* g : {&a, &b}) {
+    const Flat flat(g->flatten().primitives);
+    expect_matches_brute_force(*g, flat, make_rays(*g, &flat.src, 10000, 3));
+  }
+}
+
+TEST(LSystemGraph, TinyLruCacheGivesIdenticalResults) {
+  const LSystem sys = parse(kStochastic);
+  GraphOptions big = options(6, 4), tiny = big;
+  tiny.cache_entries = 3;
+  const Graph gb(sys, big), gt(sys, tiny);
+  const auto rays = make_rays(gb, nullptr, 5000, 9);
+  for (const Ray& r : rays) {
+    GraphHit hb, ht;
+    const bool b = gb.first_hit(r.o, r.d, 0, r.tfar, &hb), t = gt.first_hit(r.o, r.d, 0, r.tfar, &ht);
+    ASSERT_EQ(b, t);
+    if (!b) continue;
+    ASSERT_EQ(hb.t, ht.t);
+    ASSERT_EQ(hb.instance_key, ht.instance_key);
+    ASSERT_EQ(hb.material, ht.material);
+  }
+  const GraphStats sb = gb.stats(), st = gt.stats();
+  EXPECT_EQ(sb.cache_hits + sb.cache_misses, st.cache_hits + st.cache_misses);  // same lookups
+  EXPECT_GT(st.cache_misses, sb.cache_misses);
+  EXPECT_GT(st.evictions, 0u);
+  EXPECT_EQ(sb.evictions, 0u);
+  EXPECT_LE(st.cached_entries, 3u);
+  EXPECT_EQ(st.cache_misses - st.evictions, st.cached_entries);
+  std::cout << "[lru] capacity 3: hits " << st.cache_hits << " misses " << st.cache_misses << " evictions "
+            << st.evictions << "; unbounded: hits " << sb.cache_hits << " misses " << sb.cache_misses << " ("
+            << sb.cached_entries << " entries, " << sb.cached_bytes << " bytes)\n";
+  gt.reset_cache();
+  EXPECT_EQ(gt.stats().cache_misses, 0u);
+  EXPECT_EQ(gt.stats().cached_entries, 0u);
+}
+
+TEST(LSystemGraph, DeepPlantStaysSmall) {
+  const LSystem sys = parse(kPlant);
+  const int depth = 13;
+  GraphOptions o = options(depth);
+  o.cache_entries = 256;
+  const Graph g(sys, o);
+  // Flattened count by the recurrence: F(d) draws 2^d cylinders, X(d) = 2 F(d-1) + 3 X(d-1), X(0) = 0.
+  uint64_t x = 0;
+  for (int d = 1; d <= depth; ++d) x = 2 * (uint64_t(1) << (d - 1)) + 3 * x;
+  GraphStats s = g.stats();
+  EXPECT_EQ(s.flattened_primitives, x);
+  EXPECT_GT(x, 2'000'000u);
+  EXPECT_LE(s.classes, 1u + 2u * depth);  // root + X and F per depth
+  // Aim at a sample of the plant (the first primitives in string order) and at its bounds.
+  const FlattenResult sample = g.flatten(20000);
+  const auto rays = make_rays(g, &sample.primitives, 4000, 21);
+  g.reset_cache();
+  size_t hits = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (const Ray& r : rays) {
+    GraphHit h;
+    hits += g.first_hit(r.o, r.d, 0, r.tfar, &h);
+  }
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  s = g.stats();
+  EXPECT_GT(hits, 100u);
+  EXPECT_LE(s.cached_entries, 256u);
+  std::cout << "[deep] depth " << depth << ": " << s.classes << " classes (" << s.class_bytes << " bytes), "
+            << s.flattened_primitives << " primitives if flattened (~" << s.flattened_primitives * sizeof(TurtlePrimitive) / (1 << 20)
+            << " MiB as TurtlePrimitive); " << rays.size() << " rays, " << hits << " hits, " << double(rays.size()) / secs
+            << " rays/s; cache " << s.cached_entries << " entries / " << s.cached_bytes << " bytes (peak " << s.peak_cached_bytes
+            << "), hit rate " << double(s.cache_hits) / double(s.cache_hits + s.cache_misses) << ", evictions " << s.evictions << "\n";
+  // A stochastic plant as deep: every instance is its own node, held only while in the LRU cache.
+  GraphOptions so = options(12, 5);
+  so.cache_entries = 2048;
+  const Graph sg(parse(kStochastic), so);
+  const FlattenResult ssample = sg.flatten(20000);
+  const auto srays = make_rays(sg, &ssample.primitives, 4000, 23);
+  sg.reset_cache();
+  size_t shits = 0;
+  const auto t1 = std::chrono::steady_clock::now();
+  for (const Ray& r : srays) {
+    GraphHit h;
+    shits += sg.first_hit(r.o, r.d, 0, r.tfar, &h);
+  }
+  const double ssecs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+  const GraphStats ss = sg.stats();
+  EXPECT_LE(ss.cached_entries, 2048u);
+  EXPECT_GT(shits, 100u);
+  std::cout << "[deep stochastic] depth 12: " << ss.classes << " classes, <= " << ss.flattened_primitives
+            << " primitives if flattened; " << srays.size() << " rays, " << shits << " hits, "
+            << double(srays.size()) / ssecs << " rays/s; cache " << ss.cached_entries << " entries / "
+            << ss.cached_bytes << " bytes (peak " << ss.peak_cached_bytes << "), hit rate "
+            << double(ss.cache_hits) / double(ss.cache_hits + ss.cache_misses) << ", misses " << ss.cache_misses
+            << ", evictions " << ss.evictions << "\n";
+  // Flattening is refused beyond the cap instead of running away.
+  const FlattenResult f = g.flatten(1000);
+  EXPECT_TRUE(f.truncated);
+  EXPECT_EQ(f.primitives.size(), 1000u);
+}
+
+TEST(LSystemGraph, ThroughputAndThreads) {
+  const LSystem sys = parse(kPlant);
+  const Graph g(sys, options(7));
+  const Flat flat(g.flatten().primitives);
+  const auto rays = make_rays(g, &flat.src, 4000, 31);
+  std::vector<double> serial(rays.size(), -1);
+  auto t0 = std::chrono::steady_clock::now();
+  for (size_t i = 0; i < rays.size(); ++i) {
+    GraphHit h;
+    if (g.first_hit(rays[i].o, rays[i].d, 0, rays[i].tfar, &h)) serial[i] = h.t;
+  }
+  const double graph_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const size_t brute_n = 400;
+  t0 = std::chrono::steady_clock::now();
+  for (size_t i = 0; i < brute_n; ++i) {
+    double t;
+    size_t w;
+    flat.first_hit(rays[i].o, rays[i].d, 0, rays[i].tfar, &t, &w, false);
+  }
+  const double brute_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const GraphStats s = g.stats();
+  std::cout << "[throughput] depth 7, " << flat.src.size() << " primitives, " << s.classes << " classes: graph "
+            << double(rays.size()) / graph_s << " rays/s, brute force " << double(brute_n) / brute_s
+            << " rays/s; cache hit rate " << double(s.cache_hits) / double(s.cache_hits + s.cache_misses) << "\n";
+  // Many threads, one graph: the same answers.
+  std::vector<double> parallel(rays.size(), -1);
+  t0 = std::chrono::steady_clock::now();
+  for (int rep = 0; rep < 4; ++rep)
+    tbb::parallel_for(size_t(0), rays.size(), [&](size_t i) {
+      GraphHit h;
+      if (g.first_hit(rays[i].o, rays[i].d, 0, rays[i].tfar, &h)) parallel[i] = h.t;
+    });
+  const double par_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::cout << "[throughput] parallel (all cores, per-thread caches): " << 4.0 * double(rays.size()) / par_s
+            << " rays/s\n";
+  EXPECT_EQ(serial, parallel);
+}
+
+TEST(LSystemGraph, EmbreeUserGeometryMatchesDirectCalls) {
+  const LSystem sys = parse(kTree);
+  const Graph g(sys, options(4));
+  RTCDevice device = rtcNewDevice(nullptr);
+  RTCScene scene = rtcNewScene(device);
+  const unsigned id = attach_graph(device, scene, g);
+  rtcCommitScene(scene);
+  const Flat flat(g.flatten().primitives);
+  const auto rays = make_rays(g, &flat.src, 2000, 17);
+  size_t hits = 0;
+  for (const Ray& r : rays) {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRayHit rh{};
+    rh.ray.org_x = float(r.o.x);
+    rh.ray.org_y = float(r.o.y);
+    rh.ray.org_z = float(r.o.z);
+    rh.ray.dir_x = float(r.d.x);
+    rh.ray.dir_y = float(r.d.y);
+    rh.ray.dir_z = float(r.d.z);
+    rh.ray.tnear = 0;
+    rh.ray.tfar = std::isinf(r.tfar) ? INFINITY : float(r.tfar);
+    rh.ray.mask = 0xFFFFFFFF;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    const float tfar0 = rh.ray.tfar;
+    rtcIntersect1(scene, &ctx, &rh);
+    // The same ray in float precision, traced directly.
+    const DVec3 o{rh.ray.org_x, rh.ray.org_y, rh.ray.org_z}, d{rh.ray.dir_x, rh.ray.dir_y, rh.ray.dir_z};
+    GraphHit h;
+    const bool direct = g.first_hit(o, d, 0, tfar0, &h);
+    ASSERT_EQ(direct, rh.hit.geomID == id);
+    if (!direct) continue;
+    ++hits;
+    EXPECT_NEAR(rh.ray.tfar, h.t, 1e-5 * std::max(1.0, h.t));
+    EXPECT_EQ(rh.hit.primID, unsigned(h.material));
+    EXPECT_EQ(int(rh.hit.u), int(h.shape));
+    EXPECT_EQ(g.last_embree_hit().instance_key, h.instance_key);
+    RTCRay occ = rh.ray;
+    occ.tfar = INFINITY;
+    rtcOccluded1(scene, &ctx, &occ);
+    EXPECT_EQ(occ.tfar, -INFINITY);
+  }
+  EXPECT_GT(hits, 300u);
+  rtcReleaseScene(scene);
+  rtcReleaseDevice(device);
+}
+
+TEST(LSystemGraph, RejectsWhatItCannotRepresent) {
+  const LSystem plant = parse(kPlant);
+  GraphOptions deep = options(80);
+  EXPECT_NE(error_of([&] { Graph g(plant, deep); }).find("over the limit of 64"), std::string::npos);
+  GraphOptions shallow = options(10);
+  shallow.max_levels = 8;
+  EXPECT_NE(error_of([&] { Graph g(plant, shallow); }).find("max_levels"), std::string::npos);
+  // Parameters that differ per instance at one depth.
+  const LSystem diverging = parse("axiom: A(1)\nA(l) -> F(l)[+A(l*0.7)][-A(l*0.5+0.1)]\n");
+  EXPECT_NE(error_of([&] { Graph g(diverging, options(10)); }).find("parametric productions need the flattened path"),
+            std::string::npos);
+  EXPECT_NO_THROW(Graph(diverging, options(5)));  // 2^5 states per depth is still within the limit
+  EXPECT_NE(error_of([&] { Graph g(parse("axiom: AB\nA < B -> F\n"), options(2)); }).find("context-sensitive"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { Graph g(parse("axiom: A\nA -> F(rand())A\n"), options(2)); }).find("rand()"),
+            std::string::npos);
+  // A stochastic module that ends in different places and is followed by drawing.
+  EXPECT_NE(error_of([&] { Graph g(parse("axiom: XF\nX -> (1) F\nX -> (1) FF\n"), options(1)); })
+                .find("end in different turtle states"),
+            std::string::npos);
+  EXPECT_NO_THROW(Graph(parse("axiom: [X]F\nX -> (1) F\nX -> (1) FF\n"), options(1)));
+  // Brackets across node boundaries.
+  EXPECT_NE(error_of([&] { Graph g(parse("axiom: AF]\nA -> [F\n"), options(1)); }).find("brackets may not cross"),
+            std::string::npos);
+  // A class limit stops a runaway set-up.
+  GraphOptions few = options(12);
+  few.max_classes = 5;
+  EXPECT_NE(error_of([&] { Graph g(plant, few); }).find("max_classes"), std::string::npos);
+}
+
+}  // namespace
