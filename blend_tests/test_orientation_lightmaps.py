@@ -106,7 +106,77 @@ def main():
         checks.check(os.path.isfile(info["path"]) and info["hits"] > 0,
                      "OL '%s': %s written, %d hits" % (name, os.path.basename(info["path"]), info["hits"]))
     checks.check(bpy.data.images.get("ball_lightmap") is not None, "image 'ball_lightmap' exists")
+
+    # prop_b has no lightmap: its material looks the collection's OL up by the world normal.
+    tree = bpy.data.materials["mat_prop_b"].node_tree
+    group_nodes = [n for n in tree.nodes if n.bl_idname == 'ShaderNodeGroup' and n.node_tree is not None
+                   and n.node_tree.name == "PhotonLM OL Lookup"]
+    images = [n.image.name for n in tree.nodes if n.bl_idname == 'ShaderNodeTexImage' and n.image]
+    checks.check(len(group_nodes) == 1 and "collection_props_ol" in images,
+                 "prop_b's material looks up the collection OL by normal (images %s)" % images)
+    if group_nodes:
+        worst = check_lookup_group(group_nodes[0].node_tree)
+        checks.check(worst < 1e-5, "the node group maps normals as the engine's equal-area octahedral map "
+                     "(worst |uv difference| %.2g over 2000 normals)" % worst)
     checks.finish()
+
+
+def oct_encode(d):
+    """The engine's mapping (native/src/ol/octahedral.h)."""
+    ax, ay, az = abs(d[0]), abs(d[1]), abs(d[2])
+    r = np.sqrt((ax * ax + ay * ay) / (1.0 + az))
+    phi = np.arctan2(ay, ax) * 2.0 / np.pi
+    b = phi * r
+    a = r - b
+    if d[2] < 0:
+        a, b = 1.0 - b, 1.0 - a
+    return 0.5 * (np.copysign(a, d[0]) + 1.0), 0.5 * (np.copysign(b, d[1]) + 1.0)
+
+
+def check_lookup_group(group):
+    """Evaluate the group's math nodes in Python for random normals against oct_encode."""
+    ops = {'ABSOLUTE': lambda a, b, c: abs(a), 'SQRT': lambda a, b, c: np.sqrt(max(a, 0.0)),
+           'MAXIMUM': lambda a, b, c: max(a, b), 'MINIMUM': lambda a, b, c: min(a, b),
+           'SUBTRACT': lambda a, b, c: a - b, 'ADD': lambda a, b, c: a + b, 'MULTIPLY': lambda a, b, c: a * b,
+           'DIVIDE': lambda a, b, c: a / b if b != 0 else 0.0, 'ARCTANGENT': lambda a, b, c: np.arctan(a),
+           'LESS_THAN': lambda a, b, c: float(a < b), 'GREATER_THAN': lambda a, b, c: float(a > b),
+           'MULTIPLY_ADD': lambda a, b, c: a * b + c}
+    rng = np.random.default_rng(5)
+    worst = 0.0
+    for _ in range(2000):
+        n = rng.normal(size=3)
+        n /= np.linalg.norm(n)
+        cache = {}
+
+        def value(socket):
+            if socket.is_linked:
+                return out_value(socket.links[0].from_socket)
+            v = socket.default_value
+            return v if isinstance(v, float) else tuple(v)
+
+        def out_value(sock):
+            node = sock.node
+            key = (node.name, sock.identifier)
+            if key in cache:
+                return cache[key]
+            if node.bl_idname == 'ShaderNodeNewGeometry':
+                res = tuple(n)
+            elif node.bl_idname == 'ShaderNodeSeparateXYZ':
+                vec = value(node.inputs[0])
+                res = vec["XYZ".index(sock.name)]
+            elif node.bl_idname == 'ShaderNodeMath':
+                res = ops[node.operation](*[value(node.inputs[i]) for i in range(3)])
+            elif node.bl_idname == 'ShaderNodeCombineXYZ':
+                res = tuple(value(i) for i in node.inputs)
+            else:
+                raise ValueError(node.bl_idname)
+            cache[key] = res
+            return res
+        out = next(nd for nd in group.nodes if nd.bl_idname == 'NodeGroupOutput')
+        uv = value(out.inputs[0])
+        u, v = oct_encode(n)
+        worst = max(worst, abs(uv[0] - u), abs(uv[1] - v))
+    return worst
 
 
 main()

@@ -10,6 +10,8 @@ Modules
     bridge      finds and imports the `photonlm` package (beside the add-on when installed)
     properties  scene / object settings and the last bake's statistics
     uvmaps      creates missing `lightmap` UV maps without disturbing other UV maps
+    csg_export  objects marked as primitives + Boolean modifiers -> exact CSG solids
+    lsystem     L-system objects: presets, engine-made previews, light stored on the preview
     export      Blender scene -> photonlm.Scene (numpy, foreach_get)
     materials   reads Blender materials; wires lightmaps into node trees, preview toggle
     bake        one bake job: prepare (main thread) / run (any thread) / finish (main thread)
@@ -29,15 +31,16 @@ bl_info = {
 
 if "bpy" in locals():  # re-running register() after a reload in the same session
     import importlib
-    for _name in ("bridge", "properties", "uvmaps", "export", "materials", "bake", "operators", "panel"):
+    for _name in ("bridge", "properties", "uvmaps", "csg_export", "lsystem", "export", "materials", "bake",
+                  "operators", "panel"):
         if _name in locals():
             importlib.reload(locals()[_name])
 
 import bpy  # noqa: E402  (after the reload block)
 
-from . import bridge, properties, uvmaps, export, materials, bake, operators, panel  # noqa: E402,F401
+from . import bridge, properties, uvmaps, csg_export, lsystem, export, materials, bake, operators, panel  # noqa: E402,F401
 
-_MODULES = (properties, operators, panel)
+_MODULES = (properties, lsystem, operators, panel)
 
 
 def register():

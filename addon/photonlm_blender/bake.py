@@ -17,7 +17,7 @@ import time
 
 import bpy
 
-from . import bridge, export, materials, properties, uvmaps
+from . import bridge, export, lsystem, materials, properties, uvmaps
 
 LAST = {}
 
@@ -60,7 +60,7 @@ class BakeJob:
         self.cancelled = False
         self.created_uvs = []
         objects = export.lightmap_objects(context)
-        if not objects:
+        if not objects and not any(lsystem.is_lsystem(o) for o in context.view_layer.objects):
             raise BakeError("nothing to bake: no visible mesh object with 'Bake Lightmap' enabled")
         t0 = time.perf_counter()
         try:
@@ -70,7 +70,7 @@ class BakeJob:
             self.abort(context)
             raise
         self.seconds_export = time.perf_counter() - t0
-        if not self.export.baked:
+        if not self.export.baked and not self.export.lsystems:
             self.abort(context)
             raise BakeError("nothing to bake: every object was skipped (see the reports)")
 
@@ -132,6 +132,10 @@ class BakeJob:
                                                  size=(b.width, b.height), coverage=lm.coverage,
                                                  rgb=lm.rgb if small else None)
             self._wire(context, images)
+            for name, lid in self.export.lsystems:
+                obj = bpy.data.objects.get(name)
+                if obj is not None:
+                    lsystem.store_light(result, lid, obj)
             ol_info = {}
             for group in self.export.ol_groups.values():
                 fname = export.safe_file_name(group.name) + "_ol.exr"
@@ -143,6 +147,7 @@ class BakeJob:
                 self.reports.info("orientation lightmap '%s' (%d x %d bins, %s): %s"
                                   % (group.name, st["resolution"], st["resolution"],
                                      ", ".join(group.objects), group.reason))
+                self._wire_ol(context, group, load_image(group.name + "_ol", path))
         finally:
             result.close()
             self.result = None
@@ -160,6 +165,7 @@ class BakeJob:
                                photons_per_second=photons_per_second),
                     warnings=list(warnings), objects=per_object, output_dir=out_dir, ols=ol_info,
                     csg_objects=list(self.export.csg_objects),
+                    lsystems=[name for name, _ in self.export.lsystems],
                     reports=list(self.reports.items))
         self.created_uvs = []  # kept: they belong to the baked lightmaps now
         return LAST
@@ -189,6 +195,27 @@ class BakeJob:
             for note in materials.wire_material(mat, images[objs[0]], engine):
                 self.reports.warning(note)
             materials.set_preview(mat, context.scene.photonlm.preview)
+
+
+    def _wire_ol(self, context, group, image):
+        """Objects of an OL group without a lightmap image of their own (instances, objects without
+        'Bake Lightmap'): their materials look the OL up by the world normal (node group
+        'PhotonLM OL Lookup'), unless a baked lightmap already owns the material."""
+        owned = {n for b in self.export.baked for n in b.material_names if n is not None}
+        baked = {b.object_name for b in self.export.baked}
+        engine = context.scene.render.engine
+        for name in group.objects:
+            obj = bpy.data.objects.get(name)
+            if obj is None or name in baked:
+                continue
+            for slot in obj.material_slots:
+                mat = slot.material
+                if mat is None or mat.name in owned:
+                    continue
+                for note in materials.wire_material(mat, image, engine, orientation=True):
+                    self.reports.warning(note)
+                materials.set_preview(mat, context.scene.photonlm.preview)
+                owned.add(mat.name)
 
 
 def load_image(name, path):

@@ -19,7 +19,7 @@ import re
 
 import numpy as np
 
-from . import csg_export, materials, properties, uvmaps
+from . import csg_export, lsystem, materials, properties, uvmaps
 
 GEOMETRY_TYPES = {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT'}
 
@@ -190,6 +190,7 @@ class SceneExport:
         self.lights = 0
         self.ol_groups = {}         # key -> OlGroup
         self.csg_objects = []       # names of objects traced as exact CSG solids
+        self.lsystems = []          # (object name, engine id) of L-system objects
 
 
 class OlGroup:
@@ -232,6 +233,9 @@ def export_scene(context, photonlm, reports):
                     export.lights += 1
                 continue
             if obj_eval.type not in GEOMETRY_TYPES:
+                continue
+            if not inst.is_instance and lsystem.is_lsystem(orig):
+                _add_lsystem(export, plm, orig, inst.matrix_world.copy(), default_id, reports)
                 continue
             with_lightmap = (not inst.is_instance) and orig.name in bake_names
             _add_object(export, plm, orig, obj_eval, inst.matrix_world.copy(), inst.is_instance,
@@ -309,6 +313,19 @@ def _add_object(export, plm, orig, obj_eval, matrix, is_instance, with_lightmap,
                                         [(m.name if m is not None else None) for m in mats]))
     else:
         export.geometry_only += 1
+
+
+def _add_lsystem(export, plm, orig, matrix, default_id, reports):
+    """Add an L-system object from its rules (its mesh is only a preview), or report why not."""
+    ids = [_add_material(export, plm, s.material, reports) if s.material is not None else default_id
+           for s in orig.material_slots] or [default_id]
+    try:
+        lid = lsystem.export_lsystem(plm, orig, matrix, np.array(ids, np.uint32))
+    except Exception as e:  # the engine names the line and column, or the limit
+        reports.warning("L-system '%s' skipped: %s" % (orig.name, getattr(e, "message", e)))
+        return
+    export.lsystems.append((orig.name, lid))
+    reports.info("L-system '%s': traced from its rules, lit through orientation lightmaps" % orig.name)
 
 
 def _add_csg(export, plm, orig, mesh_id, default_id, reports):

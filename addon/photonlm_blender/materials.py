@@ -201,8 +201,77 @@ def _feed(tree, target, source_socket, default):
         target.default_value = default
 
 
-def wire_material(mat, image, render_engine):
-    """Add (or update) the preview nodes of `mat` for lightmap `image`. Returns report strings.
+OL_GROUP = "PhotonLM OL Lookup"
+
+
+def ol_lookup_group():
+    """The node group mapping the world-space normal to (u, v) of an orientation lightmap: the
+    engine's equal-area octahedral map (Clarberg 2008; ol/octahedral.h): r = sqrt(1 - |z|),
+    phi = atan(min / max of |x|, |y|) * 2 / pi (from the x axis), b = phi r, a = r - b; below
+    the equator (a, b) -> (1 - b, 1 - a); u = (sign(x) a + 1) / 2, v = (sign(y) b + 1) / 2."""
+    g = bpy.data.node_groups.get(OL_GROUP)
+    if g is not None and g.get(TAG) == 1:
+        return g
+    if g is None:
+        g = bpy.data.node_groups.new(OL_GROUP, 'ShaderNodeTree')
+    g.nodes.clear()
+    for sock in list(g.outputs):
+        g.outputs.remove(sock)
+    g.outputs.new('NodeSocketVector', "Vector")
+    g[TAG] = 1
+    nodes, links = g.nodes, g.links
+    out = nodes.new('NodeGroupOutput')
+    geo = nodes.new('ShaderNodeNewGeometry')
+    sep = nodes.new('ShaderNodeSeparateXYZ')
+    links.new(geo.outputs['Normal'], sep.inputs['Vector'])
+    x, y, z = sep.outputs['X'], sep.outputs['Y'], sep.outputs['Z']
+
+    def math(op, a, b=None, value_b=0.0):
+        n = nodes.new('ShaderNodeMath')
+        n.operation = op
+        if isinstance(a, float):
+            n.inputs[0].default_value = a
+        else:
+            links.new(a, n.inputs[0])
+        if b is not None:
+            if isinstance(b, float):
+                n.inputs[1].default_value = b
+            else:
+                links.new(b, n.inputs[1])
+        else:
+            n.inputs[1].default_value = value_b
+        return n.outputs[0]
+    ax, ay, az = math('ABSOLUTE', x), math('ABSOLUTE', y), math('ABSOLUTE', z)
+    r = math('SQRT', math('MAXIMUM', math('SUBTRACT', 1.0, az), 0.0))
+    hi, lo = math('MAXIMUM', ax, ay), math('MINIMUM', ax, ay)
+    q = math('DIVIDE', lo, math('MAXIMUM', hi, 1e-12))
+    phi = math('MULTIPLY', math('ARCTANGENT', q), 2.0 / 3.141592653589793)
+    swap = math('LESS_THAN', ax, ay)  # 1 when |y| > |x|: phi measured from the y axis -> 1 - phi
+    phi = math('ADD', phi, math('MULTIPLY', swap, math('SUBTRACT', 1.0, math('MULTIPLY', phi, 2.0))))
+    b = math('MULTIPLY', phi, r)
+    a = math('SUBTRACT', r, b)
+    below = math('LESS_THAN', z, 0.0)
+    a2 = math('ADD', a, math('MULTIPLY', below, math('SUBTRACT', math('SUBTRACT', 1.0, b), a)))
+    b2 = math('ADD', b, math('MULTIPLY', below, math('SUBTRACT', math('SUBTRACT', 1.0, a), b)))
+    # copysign: sign(0) would be 0; use 2 * (x >= 0) - 1.
+    sx = math('SUBTRACT', math('MULTIPLY', math('GREATER_THAN', x, -1e-30), 2.0), 1.0)
+    sy = math('SUBTRACT', math('MULTIPLY', math('GREATER_THAN', y, -1e-30), 2.0), 1.0)
+    u = math('MULTIPLY_ADD', math('MULTIPLY', a2, sx), 0.5)
+    v = math('MULTIPLY_ADD', math('MULTIPLY', b2, sy), 0.5)
+    for n in nodes:
+        if n.bl_idname == 'ShaderNodeMath' and n.operation == 'MULTIPLY_ADD':
+            n.inputs[1].default_value = 0.5
+            n.inputs[2].default_value = 0.5
+    comb = nodes.new('ShaderNodeCombineXYZ')
+    links.new(u, comb.inputs['X'])
+    links.new(v, comb.inputs['Y'])
+    links.new(comb.outputs['Vector'], out.inputs['Vector'])
+    return g
+
+
+def wire_material(mat, image, render_engine, orientation=False):
+    """Add (or update) the preview nodes of `mat` for lightmap `image` (orientation=True: an
+    orientation lightmap looked up by the world normal). Returns report strings.
     The active output is not changed here (see set_preview)."""
     notes = []
     if mat is None:
@@ -218,7 +287,11 @@ def wire_material(mat, image, render_engine):
     frame.label = "PhotonLM Lightmap"
     x0 = (orig.location.x if orig else 0.0) + 300.0
     y0 = (orig.location.y if orig else 0.0) - 400.0
-    uv = _node(tree, "uv", 'ShaderNodeUVMap', frame)
+    if orientation:
+        uv = _node(tree, "uv", 'ShaderNodeGroup', frame)
+        uv.node_tree = ol_lookup_group()
+    else:
+        uv = _node(tree, "uv", 'ShaderNodeUVMap', frame)
     tex = _node(tree, "image", 'ShaderNodeTexImage', frame)
     mul = _node(tree, "multiply", 'ShaderNodeMixRGB', frame)
     emit = _node(tree, "emission", 'ShaderNodeEmission', frame)
@@ -229,7 +302,8 @@ def wire_material(mat, image, render_engine):
         n.location = (x0 + 260.0 * i, y0)
     emit0.location = (x0 + 260.0 * 3, y0 - 180.0)
 
-    uv.uv_map = LIGHTMAP_UV
+    if not orientation:
+        uv.uv_map = LIGHTMAP_UV
     tex.image = image
     tex.interpolation = 'Linear'
     tex.extension = 'EXTEND'
@@ -237,7 +311,7 @@ def wire_material(mat, image, render_engine):
     mul.use_clamp = False
     mul.inputs['Fac'].default_value = 1.0
     links = tree.links
-    links.new(uv.outputs['UV'], tex.inputs['Vector'])
+    links.new(uv.outputs['Vector' if orientation else 'UV'], tex.inputs['Vector'])
     for link in list(mul.inputs['Color1'].links):
         links.remove(link)
     if info.color_socket is not None and info.color_socket.is_linked:

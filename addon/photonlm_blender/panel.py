@@ -35,6 +35,7 @@ class PHOTONLM_PT_lightmaps(bpy.types.Panel):
                      text="Baking... (Esc to cancel)" if running else "Bake Lightmaps")
         if bridge.error():
             layout.label(text=bridge.error(), icon='ERROR')
+        layout.operator_menu_enum("photonlm.add_lsystem", "preset", text="Add L-System", icon='OUTLINER_OB_CURVES')
         row = layout.row(align=True)
         row.prop(settings, "preview", toggle=True, icon='HIDE_OFF' if settings.preview else 'HIDE_ON')
         row.operator("photonlm.remove_preview", text="", icon='TRASH')
@@ -75,6 +76,18 @@ class PHOTONLM_PT_object(bpy.types.Panel):
         col.prop(obj.photonlm, "resolution", text="Resolution (0 = Auto)")
         col.prop(obj.photonlm, "mode")
         layout.prop(obj.photonlm, "primitive")
+        ls = obj.photonlm.lsystem
+        layout.prop(ls, "enabled")
+        if ls.enabled:
+            col = layout.column()
+            col.prop(ls, "rules")
+            col.prop(ls, "depth")
+            col.prop(ls, "seed")
+            col.prop(ls, "step")
+            col.prop(ls, "width")
+            col.prop(ls, "ol_level")
+            col.prop(ls, "preview_cap")
+            col.operator("photonlm.update_lsystem", icon='FILE_REFRESH')
         if obj.photonlm.mode != 'LIGHTMAP':
             col.prop(obj.photonlm, "ol_resolution")
         for coll in obj.users_collection:

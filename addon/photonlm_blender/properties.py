@@ -107,6 +107,23 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
     last_objects: StringProperty(name="Objects", get=_stat_getter("objects", _fmt_count))
 
 
+class PhotonlmLSystemSettings(bpy.types.PropertyGroup):
+    enabled: BoolProperty(name="L-System", description="This object is an L-system: baked from its rules",
+                          default=False)
+    rules: StringProperty(name="Rules", description="The L-system: axiom, productions, settings (see the "
+                          "user guide)", default="")
+    depth: IntProperty(name="Depth", description="Derivation steps", default=5, min=0, max=60)
+    seed: IntProperty(name="Seed", description="Seed of stochastic productions", default=0, min=0)
+    step: FloatProperty(name="Step", description="Length of F without a parameter (m); 0 = the rules'",
+                        default=0.0, min=0.0, unit='LENGTH')
+    width: FloatProperty(name="Width", description="Initial branch width (m); 0 = the rules'", default=0.0,
+                         min=0.0, unit='LENGTH')
+    ol_level: IntProperty(name="OL Level", description="One orientation lightmap per branch this many levels "
+                          "below the root (0 = one for the whole object)", default=0, min=0, max=60)
+    preview_cap: IntProperty(name="Preview Primitives", description="Most primitives in the viewport preview",
+                             default=20000, min=1, max=2_000_000)
+
+
 class PhotonlmObjectSettings(bpy.types.PropertyGroup):
     enabled: BoolProperty(
         name="Bake Lightmap", description="Give this object a lightmap. When off the object still blocks "
@@ -127,6 +144,7 @@ class PhotonlmObjectSettings(bpy.types.PropertyGroup):
     ol_resolution: IntProperty(
         name="OL Resolution", description="Orientation-lightmap bins per side; 0 = automatic (16)",
         default=0, min=0, max=1024)
+    lsystem: PointerProperty(type=PhotonlmLSystemSettings)
     primitive: EnumProperty(
         name="Primitive", description="The analytic shape this object was made as (with Blender's Add > "
         "Mesh operators): traced exactly, and combined exactly through Boolean modifiers whose operands "
@@ -153,7 +171,7 @@ class PhotonlmCollectionSettings(bpy.types.PropertyGroup):
 # AUTO chooses an OL above this many triangles per lightmap texel.
 AUTO_TRIANGLES_PER_TEXEL = 4
 
-_CLASSES = (PhotonlmSceneSettings, PhotonlmObjectSettings, PhotonlmCollectionSettings)
+_CLASSES = (PhotonlmSceneSettings, PhotonlmLSystemSettings, PhotonlmObjectSettings, PhotonlmCollectionSettings)
 
 
 def register():
