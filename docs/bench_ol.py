@@ -17,6 +17,13 @@
    and the sphere shadows the floor it sees).
 3. OL set-up cost: a "tree crown" of N small random triangles in one OL group (no lightmaps),
    200 k photons, each N in its own process (peak memory = ru_maxrss of that process).
+4. The N = 120,000-leaf crown of part 3 (same seed) on the floor, sun + sky, baked three ways,
+   each in its own process: A = the crown with an ordinary lightmap (every leaf its own 3 x 3 texel
+   cell of a 1041 x 1041 atlas, half-texel margins); B = the crown in a 16 x 16 OL group, no
+   lightmap; C = both (the atlas resolved from the OL). Reference: A with as many photons as fit in
+   ~60 s (--ref-seconds), 64 direct samples, plus a second seed for its noise. Leaf value =
+   coverage-weighted mean over the leaf's cell (B: the OL bin at the leaf's normal); errors =
+   relative RMSE over leaves and the ratio of the area-weighted crown flux. About 3 minutes.
 Timings are wall-clock on a shared 2-core machine: noisy.
 """
 import argparse
@@ -273,6 +280,189 @@ def tree_one(n, photons, use_ol):
                 nonfinite=int((~np.isfinite(ol.rgb)).sum()), mean_value=float(ol.rgb.mean()))
 
 
+# ---- part 4: the 120 k-leaf tree baked with an OL against ordinary lightmaps ----------------------
+
+def leaves_geometry(n):
+    """The crown of tree_one (same seed, same leaves): positions (3n, 3) float32, triangles, areas
+    (double) and unit geometric normals (by winding, the side lightmaps and OLs record)."""
+    rng = np.random.default_rng(12345)
+    c = rng.normal(size=(n, 3))
+    c /= np.linalg.norm(c, axis=1, keepdims=True)
+    c *= rng.random((n, 1)) ** (1 / 3)
+    c = c * (1.5, 1.5, 1.2) + (0, 0, 3.0)
+    size = 0.06
+    pos = (c[:, None, :] + rng.uniform(-size, size, (n, 3, 3))).reshape(-1, 3).astype(np.float32)
+    tri = np.arange(3 * n, dtype=np.uint32).reshape(n, 3)
+    p = pos.astype(np.float64)[tri]
+    g = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    ln = np.linalg.norm(g, axis=1)
+    return pos, tri, 0.5 * ln, g / ln[:, None]
+
+
+def atlas_uv(n, c):
+    """Every leaf its own c x c texel cell (leaf i: column i % side, row i // side) of a square
+    atlas of side * c texels; the triangle is the cell's lower-left half inset by half a texel."""
+    side = int(np.ceil(np.sqrt(n)))
+    i = np.arange(n)
+    x0, y0 = (i % side) * c, (i // side) * c
+    corners = np.array([[0.5, 0.5], [c - 0.5, 0.5], [0.5, c - 0.5]])
+    uv = (np.stack([x0, y0], 1)[:, None, :] + corners[None]) / (side * c)
+    return uv.astype(np.float32), side
+
+
+def leaf_values(lm, n, side, c):
+    """Per-leaf value: coverage-weighted mean (RGB mean) over its cell's covered texels, and the
+    leaf's standard error from the texels' errors (texel errors taken as independent)."""
+    w = side * c
+    val = lm.rgb.mean(axis=2)[:w, :w].reshape(side, c, side, c)
+    cov = lm.coverage[:w, :w].reshape(side, c, side, c)
+    err = lm.error[:w, :w].reshape(side, c, side, c)
+    cov = np.where(cov > 0, cov, 0)
+    s = (val * cov).sum(axis=(1, 3)).ravel()[:n]
+    a = (cov).sum(axis=(1, 3)).ravel()[:n]
+    e2 = ((err * cov) ** 2).sum(axis=(1, 3)).ravel()[:n]
+    return s / np.maximum(a, 1e-30), np.sqrt(e2) / np.maximum(a, 1e-30), a
+
+
+def tree_variant(variant, n, photons, direct, seed, c, out_npy):
+    """One bake of the crown (own process): A = atlas lightmap, B = OL group without lightmap,
+    C = atlas lightmap resolved from the OL group. Leaf values go to out_npy."""
+    pos, tri, area, nrm = leaves_geometry(n)
+    t0 = time.perf_counter()
+    scene = photonlm.Scene()
+    scene.add_material(albedo=(0.4, 0.6, 0.3))
+    grey = scene.add_material(albedo=0.5)
+    side = int(np.ceil(np.sqrt(n)))
+    if variant in "AC":
+        uv, side = atlas_uv(n, c)
+        leaves = scene.add_mesh("leaves", pos, tri, uv, resolution=side * c)
+    else:
+        leaves = scene.add_mesh("leaves", pos, tri)
+    if variant in "BC":
+        g = scene.add_ol_group("crown", resolution=16)
+        scene.set_mesh_ol_group(leaves, g)
+    h = 4.0
+    quad = np.array([[-h, -h, 0], [h, -h, 0], [h, h, 0], [-h, h, 0]], np.float32)
+    scene.add_mesh("floor", quad, np.array([[0, 1, 2], [0, 2, 3]], np.uint32),
+                   material_ids=np.array([grey, grey], np.uint32))
+    sun = np.eye(4, dtype=np.float32)
+    sun[:3, :3] = rot_x(40.0)
+    scene.add_light("SUN", power=3.0, matrix=sun)
+    scene.set_world(SKY)
+    t_build = time.perf_counter() - t0
+    with scene.bake(photons=photons, seed=seed, direct_samples=direct) as r:
+        st = r.stats
+        warn = r.warnings
+        out = dict(variant=variant, photons=photons, direct=direct, seconds_setup=st["seconds_setup"],
+                   seconds_total=st["seconds_total"], seconds_direct=st["seconds_direct"],
+                   error_estimate=st["error_estimate"], build_wall=t_build, warnings=warn[:5])
+        if variant in "AC":
+            lm = r.lightmap(leaves)
+            vals, errs, cov = leaf_values(lm, n, side, c)
+            out["texels"] = int(lm.coverage.size)
+            out["covered_texels"] = int((lm.coverage > 0).sum())
+            out["nonfinite"] = int((~np.isfinite(lm.rgb)).sum())
+            del lm
+        if variant in "BC":
+            ol = r.orientation_lightmap(g)
+            ols = r.ol_stats(g)
+            out.update(hits=ols["hits"], orphan=ols["orphan_flux"])
+            nb = ol.resolution
+            eu, ev = oct_encode(nrm)
+            b = np.minimum((ev * nb).astype(int), nb - 1) * nb + np.minimum((eu * nb).astype(int), nb - 1)
+            binned = ol.rgb.mean(axis=2).ravel()[b]
+            if variant == "B":
+                vals, errs, cov = binned, ol.error.ravel()[b], np.ones(n)
+            else:
+                out["c_vs_bin_lookup"] = float(np.sqrt(np.mean((vals - binned) ** 2)) / binned.mean())
+    out["wall"] = time.perf_counter() - t0
+    scene.close()
+    out["peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    out["leaves_uncovered"] = int(np.sum(cov <= 0))
+    np.save(out_npy, np.stack([vals, errs]))
+    return out
+
+
+def tree_study(quick, ref_seconds):
+    """Part 4: the 120 k-leaf crown, atlas lightmap (A), OL without lightmap (B), both (C)."""
+    n = 12_000 if quick else 120_000
+    c = 3
+    tmp = "/tmp/bench_ol_tree_%d" % __import__("os").getpid()
+    __import__("os").makedirs(tmp, exist_ok=True)
+
+    def sub(variant, photons, direct, seed):
+        f = "%s/%s_%d_%d_%d.npy" % (tmp, variant, photons, direct, seed)
+        out = subprocess.run([sys.executable, __file__, "--tree-variant", variant, str(n), str(photons),
+                              str(direct), str(seed), str(c), f], check=True, capture_output=True,
+                             text=True).stdout
+        r = json.loads(out.strip().splitlines()[-1])
+        v = np.load(f)
+        return r, v[0], v[1]
+
+    _, _, area, _ = leaves_geometry(n)
+    # reference photon count: time a small atlas bake, scale to ~ref_seconds
+    p0 = 200_000 if quick else 2_000_000
+    probe, _, _ = sub("A", p0, 64, 7)
+    per_photon = max(probe["seconds_total"] - probe["seconds_direct"] - probe["seconds_setup"], 1e-3) / p0
+    fixed = probe["seconds_direct"] + probe["seconds_setup"]
+    ref_p = int(max(p0, (ref_seconds - fixed) / per_photon) // 1_000_000 * 1_000_000 or p0)
+    ref, refv, refe = sub("A", ref_p, 64, 99)
+    ref2, ref2v, _ = sub("A", ref_p, 64, 98)
+    print("\n### tree crown: %d leaves, atlas %d x %d texels (%d x %d per leaf), 16 x 16 OL" % (
+        n, ref["texels"] ** 0.5, ref["texels"] ** 0.5, c, c))
+    ref_flux = np.sum(area * refv)
+    rel_noise = np.sqrt(np.mean((ref2v - refv) ** 2) / 2) / refv.mean()
+    print("second reference flux ratio %.4f" % (np.sum(area * ref2v) / ref_flux))
+    print("reference: variant A, %.0f M photons, 64 direct samples: %.1f s engine (%.1f s direct), "
+          "peak %.0f MB; its own per-leaf noise (seed 99 vs 98, / sqrt 2) %.2f %% rel. RMS; "
+          "%d covered texels; %d leaves without a covered texel%s" % (
+              ref_p / 1e6, ref["seconds_total"], ref["seconds_direct"], ref["peak_mb"], 100 * rel_noise,
+              ref["covered_texels"], ref["leaves_uncovered"],
+              "; warnings: " + " | ".join(ref["warnings"]) if ref["warnings"] else ""))
+    base = subprocess.run([sys.executable, __file__, "--tree", "0", "0", "0"], check=True,
+                          capture_output=True, text=True).stdout
+    print("baseline peak (imports only): %.0f MB" % json.loads(base.strip().splitlines()[-1])["peak_mb"])
+    print()
+    print("| variant | photons | direct samples | seconds_setup | seconds_total | wall s (process) | peak MB | "
+          "leaf rel. RMSE vs reference | crown flux ratio | notes |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    ok = np.isfinite(refv)
+    for variant, photons, direct in (("A", 1_000_000, 16), ("A", 4_000_000, 16), ("B", 1_000_000, 0),
+                                     ("B", 4_000_000, 0), ("B", 32_000_000, 0), ("C", 4_000_000, 16)):
+        if quick:
+            photons //= 10
+        r, v, e = sub(variant, photons, direct, 1)
+        d = v[ok] - refv[ok]
+        rmse = np.sqrt(np.mean(d * d)) / refv[ok].mean()
+        fr = np.sum(area * v) / ref_flux
+        notes = []
+        if "hits" in r:
+            notes.append("%d OL hits, orphan %.3g" % (r["hits"], r["orphan"]))
+        if "c_vs_bin_lookup" in r:
+            notes.append("resolved map vs bin lookup %.1f %%" % (100 * r["c_vs_bin_lookup"]))
+        if r.get("nonfinite"):
+            notes.append("%d non-finite!" % r["nonfinite"])
+        notes += r["warnings"]
+        print("| %s | %g M | %d | %.3f | %.2f | %.1f | %.0f | %.1f %% | %.4f | %s |" % (
+            variant, photons / 1e6, direct, r["seconds_setup"], r["seconds_total"], r["wall"], r["peak_mb"],
+            100 * rmse, fr, "; ".join(notes)), flush=True)
+    # what the best 16 x 16 OL could do: reference leaf values averaged (area-weighted) per normal bin
+    _, _, _, nrm = leaves_geometry(n)
+    eu, ev = oct_encode(nrm)
+    b = np.minimum((ev * 16).astype(int), 15) * 16 + np.minimum((eu * 16).astype(int), 15)
+    nbv = (np.bincount(b, area * refv, 256) / np.maximum(np.bincount(b, area, 256), 1e-30))[b]
+    print("\nnormal-binned reference (reference leaf values averaged per 16 x 16 bin): %.1f %% leaf rel. "
+          "RMSE, flux ratio %.4f" % (100 * np.sqrt(np.mean((nbv - refv) ** 2)) / refv.mean(),
+                                     np.sum(area * nbv) / ref_flux))
+    # self-shadowing: the reference by depth in the crown (normalised ellipsoid radius)
+    pos = leaves_geometry(n)[0].reshape(n, 3, 3).mean(axis=1)
+    rr = np.linalg.norm((pos - (0, 0, 3.0)) / (1.5, 1.5, 1.2), axis=1)
+    print("reference leaf value (mean) by depth: " + ", ".join(
+        "r %.1f-%.1f: %.4f (normal-binned %.4f)" % (lo, hi, refv[(rr >= lo) & (rr < hi)].mean(),
+                                                    nbv[(rr >= lo) & (rr < hi)].mean())
+        for lo, hi in ((0, 0.5), (0.5, 0.8), (0.8, 0.9), (0.9, 1.1))))
+
+
 def save_image(maps, mask, path):
     import matplotlib
     matplotlib.use("Agg")
@@ -304,9 +494,15 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true", help="small photon counts (smoke test)")
     ap.add_argument("--out", default="docs/images/ol_torus.png")
-    ap.add_argument("--parts", default="123")
+    ap.add_argument("--parts", default="1234")
     ap.add_argument("--tree", nargs=3, metavar=("N", "PHOTONS", "OL"))
+    ap.add_argument("--tree-variant", nargs=7, metavar=("V", "N", "PHOTONS", "DIRECT", "SEED", "C", "NPY"))
+    ap.add_argument("--ref-seconds", type=float, default=60.0)
     args = ap.parse_args()
+    if args.tree_variant:
+        v, *a, f = args.tree_variant
+        print(json.dumps(tree_variant(v, *map(int, a), f)))
+        return
     if args.tree:
         print(json.dumps(tree_one(int(args.tree[0]), int(args.tree[1]), args.tree[2] == "1")))
         return
@@ -340,6 +536,8 @@ def main():
                 r["seconds_setup"], r["seconds_total"], r["peak_mb"], p["seconds_setup"], p["seconds_total"],
                 p["peak_mb"], r["hits"], r["covered_bins"], r["orphan"],
                 " %d non-finite!" % r["nonfinite"] if r["nonfinite"] else ""), flush=True)
+    if "4" in args.parts:
+        tree_study(q, 5.0 if q else args.ref_seconds)
 
 if __name__ == "__main__":
     main()
