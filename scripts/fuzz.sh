@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Fuzzes the C API with libFuzzer + AddressSanitizer + UBSan (clang) for a
-# bounded time: scripts/fuzz.sh [seconds per fuzzer, default 60].
+# Fuzzes the C API, the L-system reader and the JSON scene file reader with
+# libFuzzer + AddressSanitizer + UBSan (clang) for a bounded time:
+# scripts/fuzz.sh [seconds per fuzzer, default 60].
 # Builds in build-fuzz/ (separate from build/ and build-asan/), runs each
 # fuzzer over a working copy of its seed corpus (native/fuzz/corpus/<name>/,
 # never modified here) and fails on any crash, leak, sanitizer report or hang
@@ -21,12 +22,12 @@ export CC=clang CXX=clang++
 cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPHOTONLM_SANITIZE=ON -DPHOTONLM_FUZZ=ON \
       -DPHOTONLM_BENCH=OFF -DPHOTONLM_PYTHON_TESTS=OFF > /tmp/photonlm-fuzz-cmake.log 2>&1 || { cat /tmp/photonlm-fuzz-cmake.log; exit 1; }
 rm -f /tmp/photonlm-fuzz-cmake.log
-cmake --build build-fuzz -j"$(nproc)" --target fuzz_scene_api fuzz_lsystem
+cmake --build build-fuzz -j"$(nproc)" --target fuzz_scene_api fuzz_lsystem fuzz_scene_file
 # Debian's Embree, TBB and OpenImageIO are not instrumented but run cleanly
 # under ASan/LSan/UBSan here: no suppressions are needed (docs/robustness.md).
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1"
-for fuzzer in scene_api lsystem; do
+for fuzzer in scene_api lsystem scene_file; do
   work="build-fuzz/corpus/$fuzzer"
   if [ -n "${PHOTONLM_FUZZ_RUNS:-}" ]; then  # a fixed run starts from the committed seeds only
     work="build-fuzz/corpus-fixed/$fuzzer"

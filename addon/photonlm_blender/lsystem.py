@@ -205,7 +205,7 @@ class PHOTONLM_OT_add_lsystem(bpy.types.Operator):
         try:
             count = update_preview(obj)
         except Exception as e:  # noqa: BLE001 -- the engine names the line and column
-            self.report({'ERROR'}, "L-system: %s" % (getattr(e, "message", None) or e))
+            self.report({'ERROR'}, str(getattr(e, "message", None) or e))
             return {'CANCELLED'}
         for o in context.view_layer.objects:
             o.select_set(False)
@@ -230,8 +230,8 @@ class PHOTONLM_OT_update_lsystem(bpy.types.Operator):
         notes = []
         try:
             count = update_preview(context.active_object, notes)
-        except Exception as e:  # noqa: BLE001
-            self.report({'ERROR'}, "L-system: %s" % (getattr(e, "message", None) or e))
+        except Exception as e:  # noqa: BLE001 -- the engine names the object, line and column
+            self.report({'ERROR'}, str(getattr(e, "message", None) or e))
             return {'CANCELLED'}
         for n in notes:
             self.report({'WARNING'}, n)

@@ -7,6 +7,10 @@ int plm_c99_check(void) {
   plm_bake_settings_default(&s);
   plm_light_default(&l, PLM_LIGHT_POINT);
   plm_ol_stats os;
+  plm_lsystem_settings ls;
+  plm_lsystem_stats lst;
   os.resolution = 0;
-  return (int)s.max_bounces + l.type + (int)os.resolution;
+  plm_lsystem_settings_default(&ls);
+  lst.resolution = 0;
+  return (int)s.max_bounces + l.type + (int)os.resolution + (int)ls.ol_level + (int)lst.resolution;
 }

@@ -2,7 +2,9 @@
 //   photonlm version
 //   photonlm furnace [--albedo R] [--emission E] [--photons N] [--res N] [-o DIR]
 //   photonlm cornell [--photons N] [--res N] [--seed S] [-o DIR]
-// Progress goes to stderr; results (time, photons, error) to stdout.
+//   photonlm bake SCENE.json -o DIR [--target-error X] [--time-budget S] [--photons N] [--seed N] [--threads N]
+// furnace/cornell: progress goes to stderr; results (time, photons, error) to stdout.
+// bake (bake_command.cpp): see docs/scene-file.md.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -11,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "bake_command.h"
 #include "demo_scenes.h"
 
 namespace {
@@ -28,8 +31,12 @@ int usage(const char* error) {
                "usage: photonlm version\n"
                "       photonlm furnace [--albedo R] [--emission E] [--photons N] [--res N] [-o DIR]\n"
                "       photonlm cornell [--photons N] [--res N] [--seed S] [--threads T] [-o DIR]\n"
+               "       photonlm bake SCENE.json -o DIR [--target-error X] [--time-budget S] [--photons N]\n"
+               "                     [--seed N] [--threads N]\n"
                "furnace: closed box with uniform emission and albedo; the exact texel value is E/(1-R).\n"
-               "cornell: Cornell box with a 200 W area light; writes one EXR per object with -o.\n");
+               "cornell: Cornell box with a 200 W area light; writes one EXR per object with -o.\n"
+               "bake: bakes a JSON scene file (docs/scene-file.md) into DIR: one EXR per lightmap and\n"
+               "      OL group, and report.json. Exit codes: 0 ok, 1 bad input, 2 bake failure, 130 interrupted.\n");
   return 2;
 }
 
@@ -129,6 +136,7 @@ int run(const Options& o) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc >= 2 && std::strcmp(argv[1], "bake") == 0) return plm_cli::bake_command(argc - 2, argv + 2);
   Options o;
   std::string error;
   if (!parse(argc, argv, o, error)) return usage(error.empty() ? nullptr : error.c_str());

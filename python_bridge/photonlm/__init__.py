@@ -25,7 +25,7 @@ from . import _lib
 from ._lib import LibraryNotFoundError, library_path
 
 __all__ = ["version", "PhotonlmError", "BakeCancelled", "LibraryNotFoundError", "Scene", "Result",
-           "Lightmap", "OrientationLightmap", "library_path"]
+           "Lightmap", "OrientationLightmap", "library_path", "lsystem_flatten", "LSYSTEM_SHAPES"]
 
 _C = _lib.lib
 _OK = 0
@@ -113,6 +113,59 @@ def _ptr(a, ctype):
 
 def _name(name):
     return None if name is None else str(name).encode("utf-8")
+
+
+def _lsystem_settings(depth, seed, matrix, step, angle, width, materials=None, ol_level=0, ol_resolution=0):
+    """A filled plm_lsystem_settings; the returned tuple keeps the materials array alive."""
+    s = _lib.plm_lsystem_settings()
+    _C.plm_lsystem_settings_default(ctypes.byref(s))
+    s.depth = _uint(depth, "depth")
+    s.seed = _uint(seed, "seed")
+    if matrix is not None:
+        m = np.asarray(matrix, np.float64)
+        if m.shape not in ((3, 4), (4, 4)):
+            raise ValueError("matrix must be 3x4 or 4x4, got shape %s" % (m.shape,))
+        for k, v in enumerate(m[:3].ravel()):
+            s.matrix[k] = float(v)
+    s.step, s.angle, s.width = float(step), float(angle), float(width)
+    mats = None
+    if materials is not None:
+        mats = _indices(np.atleast_1d(materials), "materials")
+        if mats.size:
+            s.materials = _ptr(mats, ctypes.c_uint32)
+            s.material_count = mats.size
+    s.ol_level = _uint(ol_level, "ol_level")
+    s.ol_resolution = _uint(ol_resolution, "ol_resolution")
+    return s, mats
+
+
+# plm_csg_shape codes of the primitives lsystem_flatten returns.
+LSYSTEM_SHAPES = {0: "SPHERE", 1: "BOX", 2: "CYLINDER", 3: "CONE"}
+
+
+def lsystem_flatten(rules, depth=0, seed=0, max_primitives=100000, step=-1, angle=-1, width=-1, matrix=None):
+    """Flatten an L-system for a viewport preview.
+
+    Returns (shapes, matrices, materials, truncated): shapes (N,) uint32 plm_csg_shape codes
+    (LSYSTEM_SHAPES: 0 SPHERE, 1 BOX, 2 CYLINDER, 3 CONE); matrices (N, 3, 4) float64 mapping the
+    canonical CSG shape (Scene.add_csg) to world space, the placement `matrix` included;
+    materials (N,) uint32 turtle material indices; truncated: max_primitives was reached.
+    depth 0 and step/angle/width < 0 take the rules' values."""
+    settings, _ = _lsystem_settings(depth, seed, matrix, step, angle, width)
+    text = str(rules).encode("utf-8")
+    cap = _uint(max_primitives, "max_primitives", 64)
+    count, truncated = ctypes.c_uint64(), ctypes.c_int()
+    _check(_C.plm_lsystem_flatten(text, ctypes.byref(settings), cap, None, None, None, ctypes.byref(count),
+                                  ctypes.byref(truncated)))
+    n = count.value
+    shapes = np.zeros(n, np.uint32)
+    matrices = np.zeros((n, 3, 4), np.float64)
+    materials = np.zeros(n, np.uint32)
+    if n:
+        _check(_C.plm_lsystem_flatten(text, ctypes.byref(settings), n, _ptr(shapes, ctypes.c_uint32),
+                                      _ptr(matrices, ctypes.c_double), _ptr(materials, ctypes.c_uint32),
+                                      ctypes.byref(count), None))
+    return shapes, matrices, materials, bool(truncated.value)
 
 
 class _Handle:
@@ -303,6 +356,25 @@ class Scene(_Handle):
         texel shows the OL at the texel's normal); one without needs no UVs."""
         _check(_C.plm_scene_set_mesh_ol_group(self._h, _uint(mesh, "mesh"), _uint(group, "group")))
 
+    def add_lsystem(self, name, rules, depth=0, seed=0, matrix=None, step=-1, angle=-1, width=-1,
+                    materials=None, ol_level=0, ol_resolution=0):
+        """Add an L-system object (a plant traced as a scene graph, lit through orientation
+        lightmaps) and return its id (0, 1, ...).
+
+        rules: the L-system text (axiom, productions, depth, step, angle, width). depth 0 and
+        step/angle/width < 0 take the rules' values. matrix: 3x4 or 4x4 placement local -> world
+        (rotation times a uniform scale, plus translation). materials: scene material id per turtle
+        material index (None: material 0). ol_level: one stub OL per node instance this many levels
+        below the root (0 = one OL for the whole object); ol_resolution: bins per side (0 = 16).
+        Parse errors name the line and column."""
+        settings, mats = _lsystem_settings(depth, seed, matrix, step, angle, width, materials, ol_level,
+                                           ol_resolution)
+        out = ctypes.c_uint32()
+        _check(_C.plm_scene_add_lsystem(self._h, _name(name), str(rules).encode("utf-8"), ctypes.byref(settings),
+                                        ctypes.byref(out)))
+        del mats
+        return out.value
+
     def set_world(self, radiance):
         """Uniform world radiance (RGB, Cycles background colour x strength) over the whole sphere."""
         rad = _rgb(radiance, "radiance")
@@ -439,6 +511,28 @@ class Result(_Handle):
     def write_ol_exr(self, group, path):
         """Write an OL group's map as OpenEXR (R, G, B, area, error, hits), atomically."""
         _check(_C.plm_result_write_ol_exr(self._h, _uint(group, "group"), os.fsencode(os.fspath(path))))
+
+    def lsystem_lookup(self, lsystem, points, normals):
+        """The light (irradiance / pi, RGB) at surface points of an L-system object.
+
+        points, normals: (N, 3) world space. Each point uses the stub OL of the instance it lies on
+        when that stub's bin holds enough hits, else the object's root OL. Returns (N, 3) float32."""
+        p = np.ascontiguousarray(np.asarray(points, np.float32).reshape(-1, 3))
+        n = np.ascontiguousarray(np.asarray(normals, np.float32).reshape(-1, 3))
+        if p.shape != n.shape:
+            raise ValueError("points and normals must have the same shape, got %s and %s" % (p.shape, n.shape))
+        out = np.zeros(p.shape, np.float32)
+        _check(_C.plm_result_lsystem_lookup(self._h, _uint(lsystem, "lsystem"), p.shape[0], _ptr(p, ctypes.c_float),
+                                            _ptr(n, ctypes.c_float), _ptr(out, ctypes.c_float)))
+        return out
+
+    def lsystem_stats(self, lsystem):
+        """dict: stubs (stub OLs with hits), stub_instances, hits, classes, primitives (flattened for
+        the areas), truncated, resolution, cache_hits, cache_misses, cache_bytes, class_bytes,
+        area (m^2), flux (W arriving on the object)."""
+        s = _lib.plm_lsystem_stats()
+        _check(_C.plm_result_lsystem_stats(self._h, _uint(lsystem, "lsystem"), ctypes.byref(s)))
+        return {k: getattr(s, k) for k, _ in s._fields_}
 
     def write_exr(self, mesh_id, path):
         """Write a mesh's lightmap as OpenEXR (R, G, B, error, hits), atomically."""

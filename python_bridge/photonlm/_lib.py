@@ -128,6 +128,40 @@ class plm_ol_stats(ctypes.Structure):
     ]
 
 
+class plm_lsystem_settings(ctypes.Structure):
+    _fields_ = [
+        ("depth", c_uint32),
+        ("seed", c_uint32),
+        ("matrix", c_double * 12),
+        ("step", c_double),
+        ("angle", c_double),
+        ("width", c_double),
+        ("materials", POINTER(c_uint32)),
+        ("material_count", c_uint32),
+        ("ol_level", c_uint32),
+        ("ol_resolution", c_uint32),
+        ("cache_bytes", c_uint64),
+    ]
+
+
+class plm_lsystem_stats(ctypes.Structure):
+    _fields_ = [
+        ("stubs", c_uint64),
+        ("stub_instances", c_uint64),
+        ("hits", c_uint64),
+        ("classes", c_uint64),
+        ("primitives", c_uint64),
+        ("truncated", c_uint32),
+        ("resolution", c_uint32),
+        ("cache_hits", c_uint64),
+        ("cache_misses", c_uint64),
+        ("cache_bytes", c_uint64),
+        ("class_bytes", c_uint64),
+        ("area", c_double),
+        ("flux", c_double),
+    ]
+
+
 # plm_status is a C enum: int-sized on every ABI we target.
 status_t = c_int
 progress_fn = ctypes.CFUNCTYPE(c_int, c_void_p, c_double, c_char_p)
@@ -167,6 +201,13 @@ _SIGNATURES = {
     "plm_result_ol_bins": (status_t, [ResultPtr, c_uint32, POINTER(FloatPtr), POINTER(FloatPtr)]),
     "plm_result_ol_stats": (status_t, [ResultPtr, c_uint32, POINTER(plm_ol_stats)]),
     "plm_result_write_ol_exr": (status_t, [ResultPtr, c_uint32, c_char_p]),
+    "plm_lsystem_settings_default": (None, [POINTER(plm_lsystem_settings)]),
+    "plm_scene_add_lsystem": (status_t, [ScenePtr, c_char_p, c_char_p, POINTER(plm_lsystem_settings),
+                                         UInt32Ptr]),
+    "plm_lsystem_flatten": (status_t, [c_char_p, POINTER(plm_lsystem_settings), c_uint64, UInt32Ptr,
+                                       POINTER(c_double), UInt32Ptr, POINTER(c_uint64), POINTER(c_int)]),
+    "plm_result_lsystem_lookup": (status_t, [ResultPtr, c_uint32, c_uint64, FloatPtr, FloatPtr, FloatPtr]),
+    "plm_result_lsystem_stats": (status_t, [ResultPtr, c_uint32, POINTER(plm_lsystem_stats)]),
 }
 
 for _name, (_restype, _argtypes) in _SIGNATURES.items():

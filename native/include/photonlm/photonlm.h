@@ -360,6 +360,98 @@ PLM_API plm_status plm_result_ol_stats(const plm_result* result, uint32_t group,
  * lightmaps). The file appears atomically. */
 PLM_API plm_status plm_result_write_ol_exr(const plm_result* result, uint32_t group, const char* path);
 
+/* ---- L-system objects (plants traced as cyclic scene graphs) ------------
+ *
+ * An L-system object is a plant described by rules in the L-system language
+ * of docs (axiom, productions, depth, step, angle, width; see
+ * native/src/lsystem/lsystem.h). It is traced without flattening (thesis
+ * 4.3-4.4): a graph of node classes expanded on demand per thread, with an
+ * LRU cache of expanded instances. Turtle primitives are the CSG shapes
+ * CYLINDER (F), SPHERE (@O), CONE (@C) and BOX (@L, @B).
+ *
+ * Light: an L-system object has no texels. Its light is stored in
+ * orientation lightmaps by surface normal (thesis ch. 7): one root OL for the
+ * whole object, plus one "stub" OL per node instance ol_level derivation
+ * levels below the root (instances are named by the key of their traversal
+ * path), so that different branches can differ. Photons record their hits at
+ * every depth (no per-texel direct pass). Bin areas are estimated at bake
+ * time by sampling the faces of the flattened primitives (at most 2^21; at
+ * least 16 samples per face, 65536 shared by area) and binning the normals.
+ * Hits on the inside of a primitive (where primitives overlap) are not
+ * recorded; the overlapped surface still counts in the areas. */
+typedef struct plm_lsystem_settings {
+  uint32_t depth;          /* derivation steps; 0 = the rules' `depth:` */
+  uint32_t seed;           /* stochastic productions */
+  double matrix[12];       /* row-major 3x4 placement, local -> world: a rotation (or mirror) times a
+                              uniform scale, plus a translation; shear and non-uniform scale are errors */
+  double step, angle, width; /* < 0: the rules' `step:`, `angle:` (degrees), `width:` (a diameter) */
+  const uint32_t* materials; /* turtle material index i (set with ') -> scene material materials[i];
+                                indices past the end use the last entry. NULL / 0 entries: material 0 */
+  uint32_t material_count;
+  uint32_t ol_level;       /* stub OLs one per node instance this many levels below the root
+                              (level 1 is the axiom's modules, level k their (k-1)-th descendants;
+                              primitives drawn above that level form stubs of their own node);
+                              0 = only the root OL. More than 2^20 stub bins in all (4096 stubs of
+                              16^2 bins): only the root OL, with a warning */
+  uint32_t ol_resolution;  /* bins per side of every OL of the object, 1..1024; 0 = 16 */
+  uint64_t cache_bytes;    /* expanded-instance cache per tracing thread; 0 = 64 MiB */
+} plm_lsystem_settings;
+
+/* depth 0, seed 0, identity matrix, step/angle/width -1, no materials,
+ * ol_level 0, ol_resolution 0, cache_bytes 0. */
+PLM_API void plm_lsystem_settings_default(plm_lsystem_settings* settings);
+
+/* Parses the rules and builds the object's graph now; its id (0, 1, ...) is
+ * returned in out_id. Errors name the object: parse errors with "line L,
+ * column C", systems the graph cannot trace (context-sensitive productions,
+ * rand()), depth over 63 levels, NaN or non-similarity matrices, material ids
+ * that do not exist (materials must be added first). The object blocks and
+ * reflects light, shadows other objects in the direct pass, and gets OLs. */
+PLM_API plm_status plm_scene_add_lsystem(plm_scene* scene, const char* name, const char* rules,
+                                         const plm_lsystem_settings* settings, uint32_t* out_id);
+
+/* Flattens a system for viewport previews: at most max_primitives primitives
+ * in world space (the placement included), in string order. settings may be
+ * NULL (defaults). Outputs (each may be NULL, e.g. all NULL to count):
+ *   shapes     one plm_csg_shape per primitive (CYLINDER 2, SPHERE 0, CONE 3, BOX 1)
+ *   matrices   12 doubles per primitive: the canonical CSG shape -> world, row-major 3x4
+ *   materials  one per primitive: the turtle index mapped through
+ *              settings->materials when given, else the turtle index itself
+ * out_count: primitives written; out_truncated: 1 if max_primitives was hit. */
+PLM_API plm_status plm_lsystem_flatten(const char* rules, const plm_lsystem_settings* settings,
+                                       uint64_t max_primitives, uint32_t* shapes, double* matrices,
+                                       uint32_t* materials, uint64_t* out_count, int* out_truncated);
+
+/* The light at count surface points of L-system object `lsystem`: points and
+ * normals 3 floats per item (world space), out_rgb 3 floats per item,
+ * irradiance / pi. Each point finds the primitive it lies on by a short ray
+ * (from point + eps * normal along -normal, eps = 1e-3 of the object's size)
+ * and takes the stub OL of that primitive's instance at ol_level, looked up
+ * at the normal, if that stub's bin for the normal holds at least 16 hits;
+ * otherwise (no stub, too few hits, no primitive found) the root OL: the
+ * thesis' "lowest level with enough hits". Safe to call from several threads. */
+PLM_API plm_status plm_result_lsystem_lookup(const plm_result* result, uint32_t lsystem, uint64_t count,
+                                             const float* points, const float* normals, float* out_rgb);
+
+typedef struct plm_lsystem_stats {
+  uint64_t stubs;          /* stub OLs that received hits */
+  uint64_t stub_instances; /* instances at ol_level in the flattened object (areas known) */
+  uint64_t hits;           /* photon hits recorded on the object */
+  uint64_t classes;        /* node classes of the graph */
+  uint64_t primitives;     /* flattened primitives used for the areas */
+  uint32_t truncated;      /* 1 if flattening for the areas hit its cap (2^21 primitives): the areas
+                              of the first 2^21 are scaled up to the whole object, with a warning */
+  uint32_t resolution;     /* bins per side of its OLs */
+  uint64_t cache_hits, cache_misses; /* expansion cache over all threads, since the object was added
+                                        (bakes and lookups) */
+  uint64_t cache_bytes;    /* peak cached bytes summed over the thread caches */
+  uint64_t class_bytes;    /* the immutable graph */
+  double area;             /* total surface area of the primitives (m^2, estimated) */
+  double flux;             /* W (RGB mean) arriving on the object: sum over root bins of value * pi * area */
+} plm_lsystem_stats;
+
+PLM_API plm_status plm_result_lsystem_stats(const plm_result* result, uint32_t lsystem, plm_lsystem_stats* out_stats);
+
 #ifdef __cplusplus
 }
 #endif

@@ -1,6 +1,7 @@
 #include "accel/embree_scene.h"
 
 #include "csg/csg_geometry.h"
+#include "lsystem/lsystem_object.h"
 #include "util/error.h"
 
 namespace plm {
@@ -49,6 +50,12 @@ void EmbreeScene::build(const Scene& scene, unsigned thread_count) {
     const unsigned id = csg::attach_csg(device_, scene_, *scene.csgs[c].object);
     if (id != scene.meshes.size() + c)
       fail(PLM_ERROR_INTERNAL, "CSG solid ", c, " got Embree geometry id ", id, ", expected ", scene.meshes.size() + c);
+  }
+  // L-system objects as user geometries, ids after the CSG solids.
+  for (size_t l = 0; l < scene.lsystems.size(); ++l) {
+    const unsigned id = lsystem::attach_lsystem(device_, scene_, *scene.lsystems[l]);
+    const size_t want = scene.meshes.size() + scene.csgs.size() + l;
+    if (id != want) fail(PLM_ERROR_INTERNAL, "L-system ", l, " got Embree geometry id ", id, ", expected ", want);
   }
   rtcCommitScene(scene_);
   if (!error_.empty()) fail(PLM_ERROR_INTERNAL, "building the ray-tracing scene failed: ", error_);

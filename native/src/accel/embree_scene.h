@@ -1,6 +1,7 @@
 // Owns the Embree device and scene built over the user's meshes. Vertex and
 // index buffers are shared with the Scene, not copied; geometry id = mesh id,
-// then one user geometry per CSG solid (id = mesh count + solid index).
+// then one user geometry per CSG solid (id = mesh count + solid index), then
+// one per L-system object (id = mesh count + solid count + object index).
 #pragma once
 
 #include <embree3/rtcore.h>

@@ -1,11 +1,14 @@
 // The C API: every entry point catches every exception and turns it into a
 // status code plus a per-thread message; nothing escapes into the host.
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <new>
 #include <string>
 
 #include "api/handles.h"
 #include "io/exr.h"
+#include "lsystem/lsystem_object.h"
 #include "photonlm/photonlm.h"
 #include "scene/scene.h"
 #include "transport/bake.h"
@@ -60,6 +63,35 @@ const plm::OlImage& ol_of(const plm_result* r, uint32_t group, const char* funct
     plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": OL group ", group, " is out of range (the scene had ", ols.size(),
               " OL groups)");
   return ols[group];
+}
+
+const plm::LSystemOutput& lsystem_of(const plm_result* r, uint32_t id, const char* function) {
+  require(r, function, "result");
+  const auto& ls = r->output.lsystems;
+  if (id >= ls.size())
+    plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": L-system ", id, " is out of range (the scene had ", ls.size(),
+              " L-system objects)");
+  return ls[id];
+}
+
+// The light of an L-system object at a surface point (plm_result_lsystem_lookup).
+plm::Vec3 lsystem_light(const plm::LSystemOutput& lo, plm::csg::DVec3 p, plm::csg::DVec3 n) {
+  const plm::ol::OrientationLightmap& root = *lo.root;
+  const plm::Vec3 nf{float(n.x), float(n.y), float(n.z)};
+  if (!root.finalized()) return {0, 0, 0};
+  const plm::lsystem::LSystemObject& obj = *lo.object;
+  if (obj.ol_level() > 0 && !lo.stubs.empty()) {
+    const plm::csg::DVec3 size = obj.bounds_hi() - obj.bounds_lo();
+    const double eps = 1e-3 * std::max({size.x, size.y, size.z, 1e-30});
+    plm::lsystem::GraphHit hit;
+    if (obj.first_hit(p + n * eps, -n, 0.0, 2.0 * eps, &hit)) {
+      const auto it = lo.stubs.find(obj.stub_key(hit));
+      if (it != lo.stubs.end() && it->second.finalized() &&
+          it->second.hits(it->second.bin_of(nf)) >= plm::kStubMinHits)
+        return it->second.lookup(nf);
+    }
+  }
+  return root.lookup(nf);
 }
 
 }  // namespace
@@ -287,6 +319,80 @@ plm_status plm_result_write_ol_exr(const plm_result* result, uint32_t group, con
     }
     plm::write_exr_atomic(path, img.resolution, img.resolution, {"R", "G", "B", "area", "error", "hits"},
                           pixels.data());
+  });
+}
+
+void plm_lsystem_settings_default(plm_lsystem_settings* settings) {
+  if (settings) *settings = plm::lsystem::default_lsystem_settings();
+}
+
+plm_status plm_scene_add_lsystem(plm_scene* scene, const char* name, const char* rules,
+                                 const plm_lsystem_settings* settings, uint32_t* out_id) {
+  return guarded("plm_scene_add_lsystem", [&] {
+    require(scene, "plm_scene_add_lsystem", "scene");
+    const plm_lsystem_settings s = settings ? *settings : plm::lsystem::default_lsystem_settings();
+    const uint32_t id = scene->scene.add_lsystem(name, rules, s);
+    if (out_id) *out_id = id;
+  });
+}
+
+plm_status plm_lsystem_flatten(const char* rules, const plm_lsystem_settings* settings, uint64_t max_primitives,
+                               uint32_t* shapes, double* matrices, uint32_t* materials, uint64_t* out_count,
+                               int* out_truncated) {
+  return guarded("plm_lsystem_flatten", [&] {
+    const plm_lsystem_settings s = settings ? *settings : plm::lsystem::default_lsystem_settings();
+    if (max_primitives > (uint64_t(1) << 32))
+      plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_lsystem_flatten: max_primitives ", max_primitives,
+                " exceeds 2^32");
+    const plm::lsystem::FlattenResult r = plm::lsystem::flatten_lsystem(rules, s, size_t(max_primitives));
+    for (size_t i = 0; i < r.primitives.size(); ++i) {
+      const plm::lsystem::TurtlePrimitive& p = r.primitives[i];
+      if (shapes) {
+        switch (p.shape) {
+          case plm::lsystem::ShapeKind::Cylinder: shapes[i] = PLM_CSG_CYLINDER; break;
+          case plm::lsystem::ShapeKind::Sphere: shapes[i] = PLM_CSG_SPHERE; break;
+          case plm::lsystem::ShapeKind::Cone: shapes[i] = PLM_CSG_CONE; break;
+          case plm::lsystem::ShapeKind::Box: shapes[i] = PLM_CSG_BOX; break;
+        }
+      }
+      if (matrices) std::memcpy(matrices + 12 * i, p.to_world, 12 * sizeof(double));
+      if (materials) {
+        const uint32_t t = uint32_t(std::max(p.material, 0));
+        materials[i] = s.material_count && s.materials ? s.materials[std::min(t, s.material_count - 1)] : t;
+      }
+    }
+    if (out_count) *out_count = r.primitives.size();
+    if (out_truncated) *out_truncated = r.truncated ? 1 : 0;
+  });
+}
+
+plm_status plm_result_lsystem_lookup(const plm_result* result, uint32_t lsystem, uint64_t count, const float* points,
+                                     const float* normals, float* out_rgb) {
+  return guarded("plm_result_lsystem_lookup", [&] {
+    const plm::LSystemOutput& lo = lsystem_of(result, lsystem, "plm_result_lsystem_lookup");
+    if (count == 0) return;
+    require(points, "plm_result_lsystem_lookup", "points");
+    require(normals, "plm_result_lsystem_lookup", "normals");
+    require(out_rgb, "plm_result_lsystem_lookup", "out_rgb");
+    for (uint64_t i = 0; i < count; ++i) {
+      const plm::csg::DVec3 p{points[3 * i], points[3 * i + 1], points[3 * i + 2]};
+      plm::csg::DVec3 n{normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]};
+      const double len = plm::csg::length(n);
+      if (!plm::csg::is_finite(p) || !(len > 0.0) || !std::isfinite(len))
+        plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_result_lsystem_lookup: item ", i,
+                  " has a non-finite point or a zero or non-finite normal");
+      n = n / len;
+      const plm::Vec3 v = lsystem_light(lo, p, n);
+      for (int c = 0; c < 3; ++c) out_rgb[3 * i + c] = v[c];
+    }
+  });
+}
+
+plm_status plm_result_lsystem_stats(const plm_result* result, uint32_t lsystem, plm_lsystem_stats* out_stats) {
+  return guarded("plm_result_lsystem_stats", [&] {
+    const plm::LSystemOutput& lo = lsystem_of(result, lsystem, "plm_result_lsystem_stats");
+    require(out_stats, "plm_result_lsystem_stats", "out_stats");
+    *out_stats = lo.stats;
   });
 }
 

@@ -653,8 +653,12 @@ struct Graph::Impl {
 
   uint64_t root_key() const { return splitmix64(opt.seed); }
 
-  void flatten(uint32_t cls, uint64_t key, const Affine& to_world, size_t cap, FlattenResult& out) const {
+  // level: child steps from the root; key_level < 0: no keys; stub: the
+  // ancestor key at key_level inherited from above.
+  void flatten(uint32_t cls, uint64_t key, const Affine& to_world, size_t cap, FlattenResult& out, int level = 0,
+               int key_level = -1, uint64_t stub = 0) const {
     if (out.truncated) return;
+    if (level <= key_level) stub = key;
     const auto e = get(caches.local(), cls, key);
     auto emit = [&](size_t from, size_t to) {
       for (size_t i = from; i < to; ++i) {
@@ -669,6 +673,7 @@ struct Graph::Impl {
         const Affine w = compose(to_world, g.prim.to_world);
         std::copy(w.m, w.m + 12, p.to_world);
         out.primitives.push_back(p);
+        if (key_level >= 0) out.keys.push_back(stub);
       }
     };
     size_t done = 0;
@@ -676,7 +681,8 @@ struct Graph::Impl {
       emit(done, e->prims_before[i]);
       done = e->prims_before[i];
       if (out.truncated) return;
-      flatten(e->children[i].cls, child_key(key, uint32_t(i)), compose(to_world, e->children[i].to_parent), cap, out);
+      flatten(e->children[i].cls, child_key(key, uint32_t(i)), compose(to_world, e->children[i].to_parent), cap, out,
+              level + 1, key_level, stub);
     }
     if (!out.truncated) emit(done, e->prims.size());
   }
@@ -790,6 +796,14 @@ FlattenResult Graph::flatten(size_t max_primitives) const {
   FlattenResult out;
   const Affine identity{{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}};
   impl_->flatten(0, root_key(), identity, max_primitives, out);
+  return out;
+}
+
+FlattenResult Graph::flatten(size_t max_primitives, int key_level) const {
+  if (key_level < 0) fail(PLM_ERROR_INVALID_ARGUMENT, "lsystem graph: flatten key level must be >= 0, got ", key_level);
+  FlattenResult out;
+  const Affine identity{{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}};
+  impl_->flatten(0, root_key(), identity, max_primitives, out, 0, key_level, 0);
   return out;
 }
 

@@ -158,6 +158,10 @@ struct GraphStats {
 struct FlattenResult {
   std::vector<TurtlePrimitive> primitives;  // world space, in successor (string) order
   bool truncated = false;                   // the cap was reached
+  // Only from flatten(max, key_level): per primitive, the path key of its
+  // node's ancestor at key_level (the node itself when it lies higher up):
+  // what ancestor_key(hit, key_level) gives for a hit on that primitive.
+  std::vector<uint64_t> keys;
 };
 
 class Graph {
@@ -186,6 +190,9 @@ class Graph {
 
   // All primitives in world space, at most max_primitives (then truncated).
   FlattenResult flatten(size_t max_primitives = 10'000'000) const;
+  // The same, with FlattenResult::keys filled for level key_level >= 0
+  // (e.g. to group primitives by the instance that holds them).
+  FlattenResult flatten(size_t max_primitives, int key_level) const;
 
   // The last hit that the Embree intersect callback reported on this thread
   // (valid right after rtcIntersect1 when the hit's geomID is the graph's).

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "lsystem/lsystem_object.h"
 #include "ol/octahedral.h"
 #include "util/error.h"
 
@@ -251,6 +252,12 @@ void Scene::set_csg_carrier(uint32_t csg, uint32_t mesh) {
   if (csgs[csg].carrier >= 0 && uint32_t(csgs[csg].carrier) != mesh) meshes[size_t(csgs[csg].carrier)].csg_carrier = -1;
   csgs[csg].carrier = int32_t(mesh);
   m.csg_carrier = int32_t(csg);
+}
+
+uint32_t Scene::add_lsystem(const char* name, const char* rules, const plm_lsystem_settings& settings) {
+  const std::string label = name && *name ? std::string(name) : "#" + std::to_string(lsystems.size());
+  lsystems.push_back(std::make_shared<const lsystem::LSystemObject>(label, rules, settings, materials.size()));
+  return static_cast<uint32_t>(lsystems.size() - 1);
 }
 
 }  // namespace plm

@@ -13,6 +13,9 @@
 #include "util/math.h"
 
 namespace plm {
+namespace lsystem {
+class LSystemObject;
+}
 
 // Coordinates beyond this (m) are rejected: photons start up to a few scene
 // radii out, and Embree accepts ray origins only up to ~1.8e18.
@@ -64,6 +67,9 @@ struct Scene {
   std::vector<Light> lights;
   std::vector<OlGroup> ol_groups;
   std::vector<CsgSolid> csgs;
+  // L-system objects (lsystem/lsystem_object.h); shared with bake results,
+  // whose lookups trace them. Embree ids after the CSG solids.
+  std::vector<std::shared_ptr<const lsystem::LSystemObject>> lsystems;
   Vec3 world{0, 0, 0};
 
   uint32_t add_material(const char* name, const float albedo[3], const float emission[3]);
@@ -80,6 +86,7 @@ struct Scene {
                    const plm_csg_node* nodes, uint32_t node_count, const uint32_t* children, uint32_t child_count,
                    uint32_t root);
   void set_csg_carrier(uint32_t csg, uint32_t mesh);
+  uint32_t add_lsystem(const char* name, const char* rules, const plm_lsystem_settings& settings);
 };
 
 // Blender's defaults for a light of the given type.

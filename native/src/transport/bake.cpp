@@ -15,6 +15,7 @@
 #include "lightmap/dilate.h"
 #include "lightmap/reconstruct.h"
 #include "lightmap/texel_area.h"
+#include "lsystem/lsystem_object.h"
 #include "ol/area_estimation.h"
 #include "ol/orientation_lightmap.h"
 #include "transport/direct.h"
@@ -50,9 +51,18 @@ struct OlHit {
   float r, g, b;
 };
 
+// A hit on an L-system object: its root-OL bin and the stub key of the
+// instance hit (LSystemObject::stub_key).
+struct LsHit {
+  uint32_t object, bin;
+  uint64_t key;
+  float r, g, b;
+};
+
 struct BatchOutput {
   std::vector<Hit> hits;
   std::vector<OlHit> ol_hits;
+  std::vector<LsHit> ls_hits;
   uint64_t rays = 0;
   uint64_t truncated = 0;
   double truncated_flux = 0.0;
@@ -74,8 +84,9 @@ class PhotonTracer {
   PhotonTracer(const Scene& scene, RTCScene rtc, const std::vector<MeshView>& views,
                const std::vector<CsgView>& csg_views, const std::vector<OlMeshView>& ol_views,
                const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent,
-               uint32_t first_recorded_depth)
+               uint32_t first_recorded_depth, const std::vector<ol::OctGrid>& ls_grids)
       : scene_(scene), rtc_(rtc), views_(views), csg_views_(csg_views), ol_views_(ol_views), emitters_(emitters),
+        ls_grids_(ls_grids), ls_base_(views.size() + csg_views.size()),
         settings_(settings),
         offset_scale_(1e-6f * scene_extent), first_recorded_(first_recorded_depth), table_(emitters) {
     pick_offset_ = double(Rng(settings.seed, ~0ull).next_float());
@@ -85,6 +96,7 @@ class PhotonTracer {
   void trace_batch(uint64_t first, uint64_t count, BatchOutput& out) const {
     out.hits.clear();
     out.ol_hits.clear();
+    out.ls_hits.clear();
     out.rays = out.truncated = 0;
     out.truncated_flux = 0.0;
     for (uint64_t i = first; i < first + count; ++i) trace_photon(i, out);
@@ -157,12 +169,27 @@ class PhotonTracer {
       ++out.rays;
       if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return;
 
-      // The hit: a mesh triangle, or the exact surface of a CSG solid (its
-      // primitive in primID, the face id in u, the solid's outward normal).
-      const bool is_csg = rh.hit.geomID >= views_.size();
+      // The hit: a mesh triangle, the exact surface of a CSG solid (its
+      // primitive in primID, the face id in u, the solid's outward normal),
+      // or an L-system object (its GraphHit kept on this thread).
+      const bool is_lsystem = rh.hit.geomID >= ls_base_;
+      const bool is_csg = !is_lsystem && rh.hit.geomID >= views_.size();
       const uint32_t tri = rh.hit.primID;
       Vec3 normal, hit, albedo;
-      if (is_csg) {
+      uint32_t ls_bin = 0;
+      uint64_t ls_key = 0;
+      if (is_lsystem) {
+        const uint32_t l = rh.hit.geomID - ls_base_;
+        const lsystem::LSystemObject& obj = *scene_.lsystems[l];
+        const lsystem::GraphHit& gh = obj.last_hit();
+        const ol::Vec3d nd = lsystem::ol_normal(gh.n);
+        if (!std::isfinite(nd.x) || !std::isfinite(nd.y) || !std::isfinite(nd.z)) return;
+        normal = {float(nd.x), float(nd.y), float(nd.z)};
+        hit = org + dir * rh.ray.tfar;
+        albedo = material_by_id(obj.scene_material(gh.material)).albedo;
+        ls_bin = ls_grids_[l].bin(nd);
+        ls_key = obj.stub_key(gh);
+      } else if (is_csg) {
         const CsgView& cv = csg_views_[rh.hit.geomID - views_.size()];
         normal = normalize(Vec3{rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z});
         if (!is_finite(normal)) return;
@@ -184,8 +211,10 @@ class PhotonTracer {
       }
       const bool front = dot(dir, normal) < 0.0f;
       if (!front) normal = -normal;  // the side the photon arrived on
-      if (front && depth >= first_recorded_) record(rh, is_csg, hit, flux, out);
-      if (front && !is_csg) {
+      if (front && is_lsystem)
+        out.ls_hits.push_back({rh.hit.geomID - uint32_t(ls_base_), ls_bin, ls_key, flux.x, flux.y, flux.z});
+      if (front && !is_lsystem && depth >= first_recorded_) record(rh, is_csg, hit, flux, out);
+      if (front && !is_csg && !is_lsystem) {
         const OlMeshView& ol = ol_views_[rh.hit.geomID];
         if (ol.group >= 0 && ol.bins[tri] != kNoBin)
           out.ol_hits.push_back({uint32_t(ol.group), ol.bins[tri], flux.x, flux.y, flux.z});
@@ -208,10 +237,12 @@ class PhotonTracer {
       make_frame(normal, t, b);
       dir = t * local.x + b * local.y + normal * local.z;
       org = offset_origin(hit, normal, offset_scale_);
-      // Leaving a triangle, skip it; leaving a CSG surface, only the offset
-      // (a ray may rightly hit the primitive it leaves: the inside of a bowl).
-      tc.skip_geom = is_csg ? RTC_INVALID_GEOMETRY_ID : rh.hit.geomID;
-      tc.skip_prim = is_csg ? RTC_INVALID_GEOMETRY_ID : tri;
+      // Leaving a triangle, skip it; leaving a CSG or L-system surface, only
+      // the offset (a ray may rightly hit the primitive it leaves: the inside
+      // of a bowl, a neighbouring branch).
+      const bool analytic = is_csg || is_lsystem;
+      tc.skip_geom = analytic ? RTC_INVALID_GEOMETRY_ID : rh.hit.geomID;
+      tc.skip_prim = analytic ? RTC_INVALID_GEOMETRY_ID : tri;
     }
   }
 
@@ -245,6 +276,8 @@ class PhotonTracer {
   const std::vector<CsgView>& csg_views_;
   const std::vector<OlMeshView>& ol_views_;
   const std::vector<Emitter>& emitters_;
+  const std::vector<ol::OctGrid>& ls_grids_;  // per L-system object: its OLs' grid
+  size_t ls_base_;                            // Embree id of the first L-system object
   plm_bake_settings settings_;
   float offset_scale_;
   uint32_t first_recorded_;
@@ -316,14 +349,15 @@ void validate(const Scene& scene, const plm_bake_settings& s) {
   if (s.sampler > PLM_SAMPLER_SOBOL)
     fail(PLM_ERROR_INVALID_ARGUMENT, "settings: sampler ", s.sampler, " is not PLM_SAMPLER_DEFAULT (0), _RANDOM (1) or _SOBOL (2)");
   if (s.dilation > 4096) fail(PLM_ERROR_INVALID_ARGUMENT, "settings: dilation ", s.dilation, " exceeds 4096 texels");
-  if (scene.meshes.empty()) fail(PLM_ERROR_INVALID_SCENE, "the scene has no meshes: nothing to bake");
+  if (scene.meshes.empty() && scene.lsystems.empty())
+    fail(PLM_ERROR_INVALID_SCENE, "the scene has no meshes: nothing to bake");
   uint64_t texels = 0;
   bool ol_meshes = false;
   for (const Mesh& m : scene.meshes) {
     if (m.ol_group < 0) texels += uint64_t(m.lightmap_width) * m.lightmap_height;
     ol_meshes = ol_meshes || m.ol_group >= 0;
   }
-  if (texels == 0 && !ol_meshes)
+  if (texels == 0 && !ol_meshes && scene.lsystems.empty())
     fail(PLM_ERROR_INVALID_SCENE, "no mesh has a lightmap or an OL group: give at least one mesh a lightmap size and "
          "UVs, or put it into an orientation-lightmap group");
   if (texels == 0 && s.target_error > 0.0 && s.photon_count == 0 && s.time_budget <= 0.0)
@@ -683,6 +717,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   const unsigned threads = settings.thread_count ? settings.thread_count
                                                  : std::max(1u, std::thread::hardware_concurrency());
   EmbreeScene accel(scene, threads);
+  tbb::task_arena arena(static_cast<int>(threads));
   const Vec3 lo = accel.bounds_min(), hi = accel.bounds_max();
   if (!is_finite(lo) || !is_finite(hi) || lo.x > hi.x)
     fail(PLM_ERROR_INVALID_SCENE, "the scene has no triangle with a non-zero area");
@@ -738,6 +773,26 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   for (size_t i = 0; i < scene.meshes.size(); ++i)
     if (scene.meshes[i].ol_group >= 0) ol_views[i] = {scene.meshes[i].ol_group, ol_bins[i].data()};
 
+  // L-system objects: root OL areas and stub areas from the flattened object.
+  if (!scene.lsystems.empty()) report(0.03, "estimating L-system OL areas");
+  std::vector<ol::OctGrid> ls_grids;
+  std::vector<lsystem::OlAreas> ls_areas;
+  out.lsystems.resize(scene.lsystems.size());
+  for (size_t l = 0; l < scene.lsystems.size(); ++l) {
+    const lsystem::LSystemObject& obj = *scene.lsystems[l];
+    ls_grids.emplace_back(obj.ol_resolution());
+    LSystemOutput& lo = out.lsystems[l];
+    lo.object = scene.lsystems[l];
+    lo.root = std::make_unique<ol::OrientationLightmap>(obj.ol_resolution(), kOlBatches);
+    arena.execute([&] { ls_areas.push_back(obj.estimate_areas(ls_grids.back(), out.warnings)); });
+    lo.root->set_area(ls_areas.back().root, ls_areas.back().root_variance);
+    lo.stats.resolution = obj.ol_resolution();
+    lo.stats.primitives = ls_areas.back().primitives;
+    lo.stats.truncated = ls_areas.back().truncated ? 1u : 0u;
+    lo.stats.stub_instances = ls_areas.back().stub_instances;
+    lo.stats.area = lo.root->total_area();
+  }
+
   const std::vector<Emitter> emitters = build_emitters(scene, center, radius);
   double emitted = 0.0;
   for (const Emitter& e : emitters) emitted += average(e.flux);
@@ -749,7 +804,6 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     out.warnings.push_back("the scene has no lights, no emissive materials and no world light: every lightmap is black");
   out.stats.emitted_power = emitted;
 
-  tbb::task_arena arena(static_cast<int>(threads));
   const bool two_pass = settings.direct_samples > 0 && !emitters.empty();
   const bool photon_pass = !emitters.empty() && (!two_pass || settings.max_bounces > 0);
   const double direct_end = photon_pass ? 0.35 : 0.95;
@@ -825,7 +879,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     const uint64_t cap = settings.photon_count ? settings.photon_count : (uint64_t(1) << 40);
     const uint64_t batch_count = (cap + kBatchPhotons - 1) / kBatchPhotons;
     PhotonTracer tracer(scene, accel.handle(), views, csg_views, ol_views, emitters, settings, extent,
-                        two_pass ? 1u : 0u);
+                        two_pass ? 1u : 0u, ls_grids);
     std::vector<BatchOutput> batches;
     double truncated_flux = 0.0;
     uint64_t ol_hits = 0;
@@ -854,6 +908,24 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
               map.add_hit({float(c.x), float(c.y), float(c.z)}, {h.r, h.g, h.b}, uint32_t(b % kOlBatches));
             }
             ol_hits += bo.ol_hits.size();
+            for (const LsHit& h : bo.ls_hits) {
+              LSystemOutput& lo = out.lsystems[h.object];
+              const ol::Vec3d c = lo.root->grid().centre(h.bin);  // falls back into bin h.bin
+              const Vec3 n{float(c.x), float(c.y), float(c.z)}, rgb{h.r, h.g, h.b};
+              const uint32_t batch = uint32_t(b % kOlBatches);
+              lo.root->add_hit(n, rgb, batch);
+              ++lo.stats.hits;
+              const auto& areas = ls_areas[h.object];
+              if (lo.object->ol_level() == 0 || areas.stubs_dropped) continue;
+              auto it = lo.stubs.find(h.key);
+              if (it == lo.stubs.end()) {
+                it = lo.stubs.emplace(h.key, ol::OrientationLightmap(lo.root->resolution(), kOlBatches)).first;
+                const auto a = areas.stubs.find(h.key);
+                if (a != areas.stubs.end()) it->second.set_area(a->second, std::vector<double>(a->second.size(), 0.0));
+              }
+              it->second.add_hit(n, rgb, batch);
+            }
+            ol_hits += bo.ls_hits.size();
             out.stats.rays_traced += bo.rays;
             out.stats.paths_truncated += bo.truncated;
             truncated_flux += bo.truncated_flux;
@@ -929,6 +1001,27 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
       img.stats.flux += mean * kPiD * map.area(b);
     }
     if (photons > 0) img.stats.orphan_flux = map.orphan_flux() / double(photons);
+  }
+  // ---- L-system OLs ---------------------------------------------------------
+  for (LSystemOutput& lo : out.lsystems) {
+    if (photons > 0) {
+      lo.root->finalize(photons);
+      for (auto& [key, stub] : lo.stubs)
+        if (stub.total_area() > 0.0) stub.finalize(photons);
+    }
+    lo.stats.stubs = lo.stubs.size();
+    if (lo.root->finalized())
+      for (uint32_t b = 0; b < lo.root->bins(); ++b) {
+        double mean = 0.0;
+        for (int c = 0; c < 3; ++c) mean += lo.root->radiosity(b, c) / 3.0;
+        lo.stats.flux += mean * kPiD * lo.root->area(b);
+      }
+    const lsystem::GraphStats gs = lo.object->graph().stats();
+    lo.stats.classes = gs.classes;
+    lo.stats.cache_hits = gs.cache_hits;
+    lo.stats.cache_misses = gs.cache_misses;
+    lo.stats.cache_bytes = gs.peak_cached_bytes;
+    lo.stats.class_bytes = gs.class_bytes;
   }
   // ---- Lightmaps ------------------------------------------------------------
   report(0.95, "writing lightmaps");

@@ -3,6 +3,10 @@
 // hit on a lightmapped surface adds its flux to the texel it lands in. A texel
 // holds flux / (area * pi) = irradiance / pi.
 //
+// L-system objects (scene.h) have no texels either: every hit (at every
+// depth, front side) goes to the object's root OL and to the stub OL of its
+// instance at ol_level (LSystemOutput).
+//
 // Meshes in an orientation-lightmap group (scene.h OlGroup) have no texels:
 // their front-side hits go to the group's OL bin of the triangle's normal
 // (ol/orientation_lightmap.h), at every photon depth, since the per-texel
@@ -11,8 +15,12 @@
 #pragma once
 
 #include <functional>
+#include <memory>
 #include <string>
+#include <unordered_map>
 #include <vector>
+
+#include "ol/orientation_lightmap.h"
 
 #include "photonlm/photonlm.h"
 #include "scene/scene.h"
@@ -46,9 +54,26 @@ struct OlImage {
   plm_ol_stats stats{};
 };
 
+// The OLs of one L-system object (thesis ch. 7): the root OL covers the
+// whole object; a stub OL covers the primitives under one node instance at
+// the object's ol_level, keyed by that instance's path key
+// (lsystem/graph.h ancestor_key). Every hit goes to the root and to its
+// stub; stubs exist for instances that received hits. Finalized when photons
+// were traced.
+struct LSystemOutput {
+  std::shared_ptr<const lsystem::LSystemObject> object;
+  std::unique_ptr<ol::OrientationLightmap> root;
+  std::unordered_map<uint64_t, ol::OrientationLightmap> stubs;
+  plm_lsystem_stats stats{};
+};
+
+// A lookup uses a stub's bin when it holds at least this many hits, else the root.
+constexpr uint64_t kStubMinHits = 16;
+
 struct BakeOutput {
   std::vector<LightmapImage> lightmaps;  // one per mesh; empty for meshes without a lightmap
   std::vector<OlImage> ols;              // one per OL group
+  std::vector<LSystemOutput> lsystems;   // one per L-system object
   std::vector<std::string> warnings;
   plm_bake_stats stats{};
 };

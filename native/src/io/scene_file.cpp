@@ -1,0 +1,747 @@
+// JSON scene file reader (docs/scene-file.md). Only the public C API builds
+// the scene, so the CLI can compile this file against the shared library.
+#include "scene_file.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <initializer_list>
+#include <limits>
+#include <stdexcept>
+
+namespace plm {
+
+namespace {
+
+using json = nlohmann::json;
+
+// A rejected input; what() is the whole message.
+struct InputError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+[[noreturn]] void fail(const std::string& path, const std::string& message) {
+  throw InputError(path + ": " + message);
+}
+
+std::string index_path(const std::string& path, size_t i) { return path + "[" + std::to_string(i) + "]"; }
+
+std::string json_quoted(std::string_view s) {
+  std::string q = json(std::string(s)).dump(-1, ' ', false, json::error_handler_t::replace);
+  if (q.size() > 60) q = q.substr(0, 56) + "...\"";
+  return q;
+}
+
+// How a value is shown after "got": short, one line.
+std::string shown(const json& v) {
+  switch (v.type()) {
+    case json::value_t::object: return "an object";
+    case json::value_t::array: return "an array";
+    case json::value_t::null: return "null";
+    case json::value_t::string: return json_quoted(v.get_ref<const std::string&>());
+    case json::value_t::number_float:
+      if (!std::isfinite(v.get<double>())) return "a number out of range";
+      [[fallthrough]];
+    default: {
+      std::string s = v.dump(-1, ' ', false, json::error_handler_t::replace);
+      if (s.size() > 40) s = s.substr(0, 37) + "...";
+      return s;
+    }
+  }
+}
+
+[[noreturn]] void expected(const std::string& path, const char* what, const json& v) {
+  fail(path, std::string("expected ") + what + ", got " + shown(v));
+}
+
+// Rejects keys other than the allowed ones: misspelt fields never pass silently.
+void check_keys(const json& obj, const std::string& path, std::initializer_list<const char*> allowed) {
+  for (auto it = obj.begin(); it != obj.end(); ++it) {
+    bool known = false;
+    for (const char* a : allowed) known = known || it.key() == a;
+    if (!known) {
+      std::string list;
+      for (const char* a : allowed) list += std::string(list.empty() ? "" : ", ") + a;
+      fail(path + "." + it.key(), "unknown field (allowed: " + list + ")");
+    }
+  }
+}
+
+const json& object(const json& v, const std::string& path) {
+  if (!v.is_object()) expected(path, "an object", v);
+  return v;
+}
+
+const json& array(const json& v, const std::string& path, uint64_t max_count, const char* what = "elements") {
+  if (!v.is_array()) expected(path, "an array", v);
+  if (v.size() > max_count)
+    fail(path, std::to_string(v.size()) + " " + what + " exceed the limit of " + std::to_string(max_count));
+  return v;
+}
+
+const json* optional(const json& obj, const char* key) {
+  auto it = obj.find(key);
+  return it == obj.end() ? nullptr : &*it;
+}
+
+const json& required(const json& obj, const std::string& path, const char* key) {
+  auto it = obj.find(key);
+  if (it == obj.end()) fail(path, std::string("missing field \"") + key + "\"");
+  return *it;
+}
+
+double number(const json& v, const std::string& path) {
+  if (!v.is_number()) expected(path, "a number", v);
+  const double d = v.get<double>();
+  if (!std::isfinite(d)) fail(path, "expected a finite number, got a number out of range");
+  return d;
+}
+
+float to_float(const json& v, const std::string& path) {
+  const double d = number(v, path);
+  if (std::fabs(d) > double(std::numeric_limits<float>::max()))
+    fail(path, "the number " + shown(v) + " is out of the range of a 32-bit float");
+  return float(d);
+}
+
+// A non-negative integer (an integral float such as 1e6 is fine) at most max.
+uint64_t integer(const json& v, const std::string& path, uint64_t max) {
+  if (!v.is_number()) expected(path, "an integer", v);
+  uint64_t u = 0;
+  if (v.is_number_unsigned()) {
+    u = v.get<uint64_t>();
+  } else if (v.is_number_integer()) {
+    fail(path, "expected an integer >= 0, got " + shown(v));
+  } else {
+    const double d = v.get<double>();
+    if (!std::isfinite(d) || d != std::floor(d)) expected(path, "an integer", v);
+    if (d < 0) fail(path, "expected an integer >= 0, got " + shown(v));
+    if (d >= 18446744073709551616.0) fail(path, shown(v) + " exceeds the limit of " + std::to_string(max));
+    u = uint64_t(d);
+  }
+  if (u > max) fail(path, shown(v) + " exceeds the limit of " + std::to_string(max));
+  return u;
+}
+
+uint32_t u32(const json& v, const std::string& path, uint32_t max = std::numeric_limits<uint32_t>::max()) {
+  return uint32_t(integer(v, path, max));
+}
+
+const std::string& string(const json& v, const std::string& path) {
+  if (!v.is_string()) expected(path, "a string", v);
+  return v.get_ref<const std::string&>();
+}
+
+uint32_t enum_value(const json& v, const std::string& path, std::initializer_list<const char*> names) {
+  const std::string& s = string(v, path);
+  uint32_t i = 0;
+  std::string list;
+  for (const char* n : names) {
+    if (s == n) return i;
+    list += std::string(list.empty() ? "" : ", ") + n;
+    ++i;
+  }
+  fail(path, json_quoted(s) + " is not one of " + list);
+}
+
+// An RGB colour: [r, g, b] or one number for grey.
+void rgb(const json& v, const std::string& path, float out[3]) {
+  if (v.is_number()) {
+    out[0] = out[1] = out[2] = to_float(v, path);
+    return;
+  }
+  if (!v.is_array()) expected(path, "[r, g, b] or a number", v);
+  if (v.size() != 3) fail(path, "expected 3 numbers [r, g, b], got " + std::to_string(v.size()));
+  for (size_t c = 0; c < 3; ++c) out[c] = to_float(v[c], index_path(path, c));
+}
+
+void fixed_floats(const json& v, const std::string& path, size_t n, float* out) {
+  if (!v.is_array()) expected(path, "an array", v);
+  if (v.size() != n) fail(path, "expected " + std::to_string(n) + " numbers, got " + std::to_string(v.size()));
+  for (size_t i = 0; i < n; ++i) out[i] = to_float(v[i], index_path(path, i));
+}
+
+std::string name_or(const json& obj, const std::string& path, const std::string& fallback) {
+  const json* n = optional(obj, "name");
+  return n ? string(*n, path + ".name") : fallback;
+}
+
+// A reference to an earlier item: its index or its (unique) name.
+uint32_t reference(const json& v, const std::string& path, const std::vector<std::string>& names, const char* list) {
+  if (v.is_string()) {
+    const std::string& s = v.get_ref<const std::string&>();
+    int64_t found = -1;
+    for (size_t i = 0; i < names.size(); ++i) {
+      if (names[i] != s) continue;
+      if (found >= 0) fail(path, json_quoted(s) + " is ambiguous: several of " + list + " have that name");
+      found = int64_t(i);
+    }
+    if (found < 0) fail(path, json_quoted(s) + " is not the name of one of " + list);
+    return uint32_t(found);
+  }
+  if (!v.is_number()) expected(path, "a name or an index", v);
+  const uint64_t i = integer(v, path, std::numeric_limits<uint32_t>::max());
+  if (i >= names.size())
+    fail(path, "index " + std::to_string(i) + " is out of range (" + list + " has " + std::to_string(names.size()) +
+                   ")");
+  return uint32_t(i);
+}
+
+// Engine errors carry the path of the object being added.
+void engine(plm_status s, const std::string& path) {
+  if (s != PLM_OK) fail(path, plm_last_error());
+}
+
+bool read_file(const std::string& path, uint64_t max_bytes, std::string& text, std::string& error) {
+  FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) {
+    error = path + ": cannot open: " + std::strerror(errno);
+    return false;
+  }
+  text.clear();
+  char buf[65536];
+  size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) {
+    if (text.size() + n > max_bytes) {
+      std::fclose(f);
+      error = path + ": the file is larger than the limit of " + std::to_string(max_bytes) + " bytes";
+      return false;
+    }
+    text.append(buf, n);
+  }
+  const bool bad = std::ferror(f);
+  std::fclose(f);
+  if (bad) {
+    error = path + ": read error";
+    return false;
+  }
+  return true;
+}
+
+// ---- OBJ -------------------------------------------------------------------
+
+struct ObjMesh {
+  std::vector<float> positions, uv;  // uv per triangle corner (empty if the mesh needs none)
+  std::vector<uint32_t> indices, materials;
+  bool usemtl = false;  // some face follows a usemtl
+};
+
+struct ObjReader {
+  const std::string& file;
+  const SceneFileLimits& limits;
+  const std::vector<std::string>& material_names;
+  bool need_uv;
+  uint32_t material;  // before any usemtl
+  size_t line = 0;
+  std::vector<float> vt;  // u, v pairs
+
+  [[noreturn]] void bad(const std::string& message) const {
+    throw InputError(file + ":" + std::to_string(line) + ": " + message);
+  }
+
+  static std::vector<std::string_view> split(std::string_view s) {
+    std::vector<std::string_view> out;
+    size_t i = 0;
+    while (i < s.size()) {
+      while (i < s.size() && (s[i] == ' ' || s[i] == '\t' || s[i] == '\r' || s[i] == '\v' || s[i] == '\f')) ++i;
+      const size_t b = i;
+      while (i < s.size() && !(s[i] == ' ' || s[i] == '\t' || s[i] == '\r' || s[i] == '\v' || s[i] == '\f')) ++i;
+      if (i > b) out.push_back(s.substr(b, i - b));
+    }
+    return out;
+  }
+
+  float real(std::string_view tok) const {
+    const std::string t(tok);
+    char* end = nullptr;
+    errno = 0;
+    const double d = std::strtod(t.c_str(), &end);
+    if (t.empty() || *end) bad("\"" + t.substr(0, 40) + "\" is not a number");
+    if (!std::isfinite(d) || std::fabs(d) > double(std::numeric_limits<float>::max()))
+      bad("\"" + t.substr(0, 40) + "\" is not a finite 32-bit float");
+    return float(d);
+  }
+
+  // A 1-based OBJ index (negative: relative to the end) into count items.
+  uint32_t index(std::string_view tok, size_t count, const char* what) const {
+    const std::string t(tok);
+    char* end = nullptr;
+    errno = 0;
+    const long long i = std::strtoll(t.c_str(), &end, 10);
+    if (t.empty() || *end || errno == ERANGE) bad(std::string(what) + " index \"" + t.substr(0, 40) + "\" is not an integer");
+    if (i == 0) bad(std::string(what) + " index 0 (OBJ indices start at 1)");
+    const long long r = i > 0 ? i - 1 : (long long)count + i;
+    if (r < 0 || r >= (long long)count)
+      bad(std::string(what) + " index " + t + " is out of range (" + std::to_string(count) + " so far)");
+    return uint32_t(r);
+  }
+
+  ObjMesh read(std::string_view text) {
+    ObjMesh m;
+    uint32_t current = material;
+    size_t pos = 0;
+    std::vector<uint32_t> face_v, face_t;
+    while (pos < text.size()) {
+      size_t eol = text.find('\n', pos);
+      if (eol == std::string_view::npos) eol = text.size();
+      std::string_view l = text.substr(pos, eol - pos);
+      pos = eol + 1;
+      ++line;
+      const size_t hash = l.find('#');
+      if (hash != std::string_view::npos) l = l.substr(0, hash);
+      const std::vector<std::string_view> tok = split(l);
+      if (tok.empty()) continue;
+      const std::string_view key = tok[0];
+      if (key == "v") {
+        if (tok.size() < 4 || tok.size() > 7) bad("v needs 3 coordinates (x y z [w] or x y z r g b)");
+        if (m.positions.size() / 3 >= limits.max_vertices)
+          bad("more than " + std::to_string(limits.max_vertices) + " vertices");
+        for (int c = 1; c <= 3; ++c) m.positions.push_back(real(tok[c]));
+        for (size_t c = 4; c < tok.size(); ++c) real(tok[c]);
+      } else if (key == "vt") {
+        if (tok.size() < 2 || tok.size() > 4) bad("vt needs 1 to 3 coordinates (u [v [w]])");
+        if (vt.size() / 2 >= limits.max_vertices)
+          bad("more than " + std::to_string(limits.max_vertices) + " texture coordinates");
+        vt.push_back(real(tok[1]));
+        vt.push_back(tok.size() > 2 ? real(tok[2]) : 0.0f);
+        if (tok.size() > 3) real(tok[3]);
+      } else if (key == "f") {
+        if (tok.size() < 4) bad("a face needs at least 3 vertices, got " + std::to_string(tok.size() - 1));
+        face_v.clear();
+        face_t.clear();
+        for (size_t c = 1; c < tok.size(); ++c) {
+          const std::string_view corner = tok[c];
+          const size_t s1 = corner.find('/');
+          face_v.push_back(index(corner.substr(0, s1), m.positions.size() / 3, "vertex"));
+          std::string_view t;
+          if (s1 != std::string_view::npos) {
+            const size_t s2 = corner.find('/', s1 + 1);
+            t = corner.substr(s1 + 1, s2 == std::string_view::npos ? std::string_view::npos : s2 - s1 - 1);
+            if (s2 != std::string_view::npos && corner.find('/', s2 + 1) != std::string_view::npos)
+              bad("face corner \"" + std::string(corner.substr(0, 40)) + "\" has more than 3 parts");
+          }
+          if (t.empty()) {
+            if (need_uv)
+              bad("face corner " + std::to_string(c) + " has no texture coordinate (vt), which the lightmap needs");
+          } else {
+            face_t.push_back(index(t, vt.size() / 2, "texture coordinate"));
+          }
+        }
+        const size_t new_tris = face_v.size() - 2;
+        if (m.indices.size() / 3 + new_tris > limits.max_triangles)
+          bad("more than " + std::to_string(limits.max_triangles) + " triangles");
+        for (size_t k = 1; k + 1 < face_v.size(); ++k) {  // fan
+          const size_t corners[3] = {0, k, k + 1};
+          for (size_t c : corners) {
+            m.indices.push_back(face_v[c]);
+            if (need_uv) {
+              m.uv.push_back(vt[2 * face_t[c]]);
+              m.uv.push_back(vt[2 * face_t[c] + 1]);
+            }
+          }
+          m.materials.push_back(current);
+        }
+        m.usemtl = m.usemtl || current != material;
+      } else if (key == "usemtl") {
+        if (tok.size() != 2) bad("usemtl needs one material name");
+        const std::string name(tok[1]);
+        bool found = false;
+        for (size_t i = 0; i < material_names.size() && !found; ++i)
+          if (material_names[i] == name) {
+            current = uint32_t(i);
+            found = true;
+          }
+        if (!found) bad("usemtl " + json_quoted(name) + ": the scene has no material of that name (scene.materials)");
+      }
+      // Everything else (vn, vp, o, g, s, mtllib, l, p, curves...) does not concern a lightmap.
+    }
+    if (m.indices.empty()) bad("no faces in the file");
+    return m;
+  }
+};
+
+// ---- scene -----------------------------------------------------------------
+
+struct Reader {
+  const SceneFileOptions& options;
+  SceneFile& out;
+  std::vector<std::string> mesh_names, ol_names;
+
+  void materials(const json& v, const std::string& path) {
+    array(v, path, options.limits.max_items, "materials");
+    for (size_t i = 0; i < v.size(); ++i) {
+      const std::string p = index_path(path, i);
+      const json& m = object(v[i], p);
+      check_keys(m, p, {"name", "albedo", "emission"});
+      const std::string name = name_or(m, p, "");
+      float albedo[3] = {0.8f, 0.8f, 0.8f}, emission[3] = {0, 0, 0};
+      if (const json* a = optional(m, "albedo")) rgb(*a, p + ".albedo", albedo);
+      if (const json* e = optional(m, "emission")) rgb(*e, p + ".emission", emission);
+      uint32_t id = 0;
+      engine(plm_scene_add_material(out.scene, name.empty() ? nullptr : name.c_str(), albedo, emission, &id), p);
+      out.material_names.push_back(name);
+    }
+  }
+
+  void ol_groups(const json& v, const std::string& path) {
+    array(v, path, options.limits.max_items, "OL groups");
+    for (size_t i = 0; i < v.size(); ++i) {
+      const std::string p = index_path(path, i);
+      const json& g = object(v[i], p);
+      check_keys(g, p, {"name", "resolution"});
+      const std::string name = name_or(g, p, "ol" + std::to_string(i));
+      uint32_t resolution = 0;
+      if (const json* r = optional(g, "resolution")) resolution = u32(*r, p + ".resolution", 1024);
+      uint32_t id = 0;
+      engine(plm_scene_add_ol_group(out.scene, name.c_str(), resolution, &id), p);
+      out.ol_groups.push_back({name, id, resolution});
+      ol_names.push_back(name);
+    }
+  }
+
+  void resolution(const json& v, const std::string& path, uint32_t& w, uint32_t& h) {
+    if (v.is_array()) {
+      if (v.size() != 2) fail(path, "expected N or [width, height], got an array of " + std::to_string(v.size()));
+      w = u32(v[0], index_path(path, 0), 16384);
+      h = u32(v[1], index_path(path, 1), 16384);
+    } else {
+      if (!v.is_number()) expected(path, "N or [width, height]", v);
+      w = h = u32(v, path, 16384);
+    }
+    if ((w == 0) != (h == 0)) fail(path, "width and height must both be 0 (no lightmap) or both > 0");
+  }
+
+  void meshes(const json& v, const std::string& path) {
+    array(v, path, options.limits.max_items, "meshes");
+    const SceneFileLimits& lim = options.limits;
+    for (size_t i = 0; i < v.size(); ++i) {
+      const std::string p = index_path(path, i);
+      const json& m = object(v[i], p);
+      check_keys(m, p,
+                 {"name", "positions", "indices", "lightmap_uv", "obj", "material", "materials",
+                  "lightmap_resolution", "ol_group"});
+      SceneFileMesh info;
+      info.name = name_or(m, p, "mesh" + std::to_string(i));
+      if (const json* r = optional(m, "lightmap_resolution")) resolution(*r, p + ".lightmap_resolution", info.width, info.height);
+      const bool lightmap = info.width > 0;
+      const json* one_material = optional(m, "material");
+      const json* per_triangle = optional(m, "materials");
+      if (one_material && per_triangle) fail(p + ".materials", "give either \"material\" or \"materials\", not both");
+      uint32_t material = 0;
+      if (one_material) material = reference(*one_material, p + ".material", out.material_names, "scene.materials");
+
+      std::vector<float> positions, uv;
+      std::vector<uint32_t> indices, mats;
+      if (const json* obj = optional(m, "obj")) {
+        for (const char* k : {"positions", "indices", "lightmap_uv", "materials"})
+          if (optional(m, k)) fail(p + "." + k, "not allowed together with \"obj\" (the OBJ file gives it)");
+        const std::string& rel = string(*obj, p + ".obj");
+        if (!options.allow_file_access) fail(p + ".obj", "file access is disabled");
+        if (rel.empty()) fail(p + ".obj", "empty file name");
+        const std::string file =
+            rel[0] == '/' || options.base_dir.empty() ? rel : options.base_dir + "/" + rel;
+        std::string text, error;
+        if (!read_file(file, lim.max_file_bytes, text, error)) fail(p + ".obj", error);
+        ObjReader reader{file, lim, out.material_names, lightmap, material, 0, {}};
+        try {
+          ObjMesh o = reader.read(text);
+          positions = std::move(o.positions);
+          indices = std::move(o.indices);
+          uv = std::move(o.uv);
+          mats = std::move(o.materials);
+          if (!one_material && !o.usemtl) mats.clear();  // material 0, or the engine's grey default
+        } catch (const InputError& e) {
+          fail(p + ".obj", e.what());
+        }
+      } else {
+        const std::string pp = p + ".positions", pi = p + ".indices";
+        const json& jp = array(required(m, p, "positions"), pp, uint64_t(lim.max_vertices) * 3, "numbers");
+        if (jp.size() % 3) fail(pp, "expected 3 numbers per vertex, got " + std::to_string(jp.size()) + " numbers");
+        positions.resize(jp.size());
+        for (size_t k = 0; k < jp.size(); ++k) positions[k] = to_float(jp[k], index_path(pp, k));
+        const json& ji = array(required(m, p, "indices"), pi, uint64_t(lim.max_triangles) * 3, "indices");
+        if (ji.size() % 3) fail(pi, "expected 3 indices per triangle, got " + std::to_string(ji.size()) + " indices");
+        if (ji.empty()) fail(pi, "a mesh needs at least one triangle");
+        const size_t vertex_count = positions.size() / 3;
+        indices.resize(ji.size());
+        for (size_t k = 0; k < ji.size(); ++k) {
+          const std::string pk = index_path(pi, k);
+          const uint64_t x = integer(ji[k], pk, std::numeric_limits<uint32_t>::max());
+          if (x >= vertex_count)
+            fail(pk, "vertex index " + std::to_string(x) + " is out of range (the mesh has " +
+                         std::to_string(vertex_count) + " vertices)");
+          indices[k] = uint32_t(x);
+        }
+        const json* ju = optional(m, "lightmap_uv");
+        const std::string pu = p + ".lightmap_uv";
+        if (lightmap && !ju) fail(p, "missing field \"lightmap_uv\" (needed for a lightmap_resolution above 0)");
+        if (!lightmap && ju) fail(pu, "given, but the mesh has no lightmap (set lightmap_resolution)");
+        if (ju) {
+          array(*ju, pu, uint64_t(lim.max_triangles) * 6, "numbers");
+          if (ju->size() != indices.size() * 2)
+            fail(pu, "expected 2 numbers (u, v) per triangle corner: " + std::to_string(indices.size() * 2) +
+                         " for " + std::to_string(indices.size() / 3) + " triangles, got " +
+                         std::to_string(ju->size()));
+          uv.resize(ju->size());
+          for (size_t k = 0; k < ju->size(); ++k) uv[k] = to_float((*ju)[k], index_path(pu, k));
+        }
+        if (per_triangle) {
+          const std::string pm = p + ".materials";
+          array(*per_triangle, pm, lim.max_triangles, "materials");
+          if (per_triangle->size() != indices.size() / 3)
+            fail(pm, "expected one material per triangle: " + std::to_string(indices.size() / 3) + ", got " +
+                         std::to_string(per_triangle->size()));
+          mats.resize(per_triangle->size());
+          for (size_t k = 0; k < mats.size(); ++k)
+            mats[k] = reference((*per_triangle)[k], index_path(pm, k), out.material_names, "scene.materials");
+        }
+      }
+      if (mats.empty() && one_material) mats.assign(indices.size() / 3, material);
+      uint32_t id = 0;
+      engine(plm_scene_add_mesh(out.scene, info.name.c_str(), positions.data(), uint32_t(positions.size() / 3),
+                                indices.data(), uint32_t(indices.size() / 3), lightmap ? uv.data() : nullptr,
+                                mats.empty() ? nullptr : mats.data(), info.width, info.height, &id),
+             p);
+      info.id = id;
+      if (const json* g = optional(m, "ol_group")) {
+        const uint32_t group = reference(*g, p + ".ol_group", ol_names, "scene.ol_groups");
+        engine(plm_scene_set_mesh_ol_group(out.scene, id, out.ol_groups[group].id), p + ".ol_group");
+        info.ol_group = int32_t(group);
+      }
+      out.meshes.push_back(info);
+      mesh_names.push_back(info.name);
+    }
+  }
+
+  void lights(const json& v, const std::string& path) {
+    array(v, path, options.limits.max_items, "lights");
+    for (size_t i = 0; i < v.size(); ++i) {
+      const std::string p = index_path(path, i);
+      const json& l = object(v[i], p);
+      check_keys(l, p,
+                 {"name", "type", "color", "power", "matrix", "location", "radius", "angle", "size_x", "size_y",
+                  "spot_size", "spot_blend"});
+      const std::string name = name_or(l, p, "light" + std::to_string(i));
+      const uint32_t type =
+          enum_value(required(l, p, "type"), p + ".type", {"POINT", "SPOT", "SUN", "AREA_RECT", "AREA_DISK"});
+      plm_light light;
+      plm_light_default(&light, plm_light_type(type));
+      if (const json* c = optional(l, "color")) rgb(*c, p + ".color", light.color);
+      const json* matrix = optional(l, "matrix");
+      const json* location = optional(l, "location");
+      if (matrix && location) fail(p + ".location", "give either \"matrix\" or \"location\", not both");
+      if (matrix) fixed_floats(*matrix, p + ".matrix", 16, light.matrix);
+      if (location) {
+        float t[3];
+        fixed_floats(*location, p + ".location", 3, t);
+        light.matrix[3] = t[0];
+        light.matrix[7] = t[1];
+        light.matrix[11] = t[2];
+      }
+      struct {
+        const char* key;
+        float* field;
+      } scalars[] = {{"power", &light.power},   {"radius", &light.radius},       {"angle", &light.angle},
+                     {"size_x", &light.size_x}, {"size_y", &light.size_y},       {"spot_size", &light.spot_size},
+                     {"spot_blend", &light.spot_blend}};
+      for (const auto& s : scalars)
+        if (const json* x = optional(l, s.key)) *s.field = to_float(*x, p + "." + s.key);
+      uint32_t id = 0;
+      engine(plm_scene_add_light(out.scene, name.c_str(), &light, &id), p);
+    }
+  }
+
+  void world(const json& v, const std::string& path) {
+    object(v, path);
+    check_keys(v, path, {"radiance"});
+    float radiance[3] = {0, 0, 0};
+    if (const json* r = optional(v, "radiance")) rgb(*r, path + ".radiance", radiance);
+    engine(plm_scene_set_world(out.scene, radiance), path);
+  }
+
+  void csg(const json& v, const std::string& path) {
+    array(v, path, options.limits.max_items, "CSG solids");
+    const uint32_t max = options.limits.max_items;
+    for (size_t i = 0; i < v.size(); ++i) {
+      const std::string p = index_path(path, i);
+      const json& c = object(v[i], p);
+      check_keys(c, p, {"name", "primitives", "nodes", "children", "root", "carrier"});
+      const std::string name = name_or(c, p, "csg" + std::to_string(i));
+      const std::string pp = p + ".primitives", pn = p + ".nodes", pc = p + ".children";
+      const json& jp = array(required(c, p, "primitives"), pp, max, "primitives");
+      std::vector<plm_csg_primitive> prims(jp.size());
+      for (size_t k = 0; k < jp.size(); ++k) {
+        const std::string q = index_path(pp, k);
+        const json& e = object(jp[k], q);
+        check_keys(e, q, {"shape", "material", "matrix", "major_radius", "minor_radius"});
+        plm_csg_primitive& prim = prims[k];
+        prim = plm_csg_primitive{};
+        prim.shape = enum_value(required(e, q, "shape"), q + ".shape",
+                                {"SPHERE", "BOX", "CYLINDER", "CONE", "TORUS", "PARABOLOID", "HALF_SPACE"});
+        if (const json* m = optional(e, "material"))
+          prim.material = reference(*m, q + ".material", out.material_names, "scene.materials");
+        const double identity[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+        std::memcpy(prim.matrix, identity, sizeof identity);
+        if (const json* m = optional(e, "matrix")) {
+          const std::string pm = q + ".matrix";
+          if (!m->is_array()) expected(pm, "an array", *m);
+          if (m->size() != 12) fail(pm, "expected 12 numbers (3x4, row-major), got " + std::to_string(m->size()));
+          for (size_t j = 0; j < 12; ++j) prim.matrix[j] = number((*m)[j], index_path(pm, j));
+        }
+        prim.major_radius = 1.0;
+        prim.minor_radius = 0.25;
+        if (const json* r = optional(e, "major_radius")) prim.major_radius = number(*r, q + ".major_radius");
+        if (const json* r = optional(e, "minor_radius")) prim.minor_radius = number(*r, q + ".minor_radius");
+      }
+      const json& jn = array(required(c, p, "nodes"), pn, max, "nodes");
+      std::vector<plm_csg_node> nodes(jn.size());
+      for (size_t k = 0; k < jn.size(); ++k) {
+        const std::string q = index_path(pn, k);
+        const json& e = object(jn[k], q);
+        check_keys(e, q, {"op", "first", "count"});
+        nodes[k].op = enum_value(required(e, q, "op"), q + ".op", {"UNION", "INTERSECTION", "DIFFERENCE", "LEAF"});
+        nodes[k].first = u32(required(e, q, "first"), q + ".first");
+        nodes[k].count = 0;
+        if (const json* n = optional(e, "count")) nodes[k].count = u32(*n, q + ".count");
+        else if (nodes[k].op != PLM_CSG_LEAF) fail(q, "missing field \"count\"");
+      }
+      std::vector<uint32_t> children;
+      if (const json* jc = optional(c, "children")) {
+        array(*jc, pc, max, "children");
+        for (size_t k = 0; k < jc->size(); ++k) children.push_back(u32((*jc)[k], index_path(pc, k)));
+      }
+      uint32_t root = 0;
+      if (const json* r = optional(c, "root")) root = u32(*r, p + ".root");
+      uint32_t id = 0;
+      engine(plm_scene_add_csg(out.scene, name.c_str(), prims.data(), uint32_t(prims.size()), nodes.data(),
+                               uint32_t(nodes.size()), children.empty() ? nullptr : children.data(),
+                               uint32_t(children.size()), root, &id),
+             p);
+      if (const json* carrier = optional(c, "carrier")) {
+        const uint32_t mesh = reference(*carrier, p + ".carrier", mesh_names, "scene.meshes");
+        engine(plm_scene_set_csg_carrier(out.scene, id, out.meshes[mesh].id), p + ".carrier");
+      }
+    }
+  }
+
+  void settings(const json& v, const std::string& path) {
+    object(v, path);
+    check_keys(v, path,
+               {"photon_count", "max_bounces", "seed", "thread_count", "dilation", "target_error", "time_budget",
+                "direct_samples", "filter_radius", "texel_value", "sampler"});
+    plm_bake_settings& s = out.settings;
+    if (const json* x = optional(v, "photon_count")) s.photon_count = integer(*x, path + ".photon_count", uint64_t(1) << 40);
+    struct {
+      const char* key;
+      uint32_t* field;
+    } ints[] = {{"max_bounces", &s.max_bounces},       {"seed", &s.seed},
+                {"thread_count", &s.thread_count},     {"dilation", &s.dilation},
+                {"direct_samples", &s.direct_samples}, {"filter_radius", &s.filter_radius}};
+    for (const auto& f : ints)
+      if (const json* x = optional(v, f.key)) *f.field = u32(*x, path + "." + f.key);
+    for (const char* key : {"target_error", "time_budget"}) {
+      if (const json* x = optional(v, key)) {
+        const double d = number(*x, path + "." + key);
+        if (d < 0) fail(path + "." + key, "must be >= 0, got " + shown(*x));
+        (std::strcmp(key, "target_error") == 0 ? s.target_error : s.time_budget) = d;
+      }
+    }
+    if (const json* x = optional(v, "texel_value")) s.texel_value = enum_value(*x, path + ".texel_value", {"CYCLES", "AREA"});
+    if (const json* x = optional(v, "sampler"))
+      s.sampler = enum_value(*x, path + ".sampler", {"DEFAULT", "RANDOM", "SOBOL"});
+  }
+
+  void scene(const json& root) {
+    const std::string p = "scene";
+    object(root, p);
+    check_keys(root, p, {"version", "settings", "world", "materials", "ol_groups", "meshes", "lights", "csg"});
+    if (const json* ver = optional(root, "version")) {
+      if (u32(*ver, p + ".version") != 1) fail(p + ".version", "this reader knows version 1, got " + shown(*ver));
+    }
+    if (const json* x = optional(root, "materials")) materials(*x, p + ".materials");
+    if (const json* x = optional(root, "ol_groups")) ol_groups(*x, p + ".ol_groups");
+    if (const json* x = optional(root, "meshes")) meshes(*x, p + ".meshes");
+    if (const json* x = optional(root, "lights")) lights(*x, p + ".lights");
+    if (const json* x = optional(root, "world")) world(*x, p + ".world");
+    if (const json* x = optional(root, "csg")) csg(*x, p + ".csg");
+    if (const json* x = optional(root, "settings")) settings(*x, p + ".settings");
+  }
+};
+
+}  // namespace
+
+SceneFile::SceneFile() { plm_bake_settings_default(&settings); }
+SceneFile::~SceneFile() { plm_scene_release(scene); }
+
+bool parse_scene_file_text(std::string_view text, const SceneFileOptions& options, SceneFile& out, std::string& error) {
+  try {
+    if (text.size() > options.limits.max_file_bytes) {
+      error = "the scene file is larger than the limit of " + std::to_string(options.limits.max_file_bytes) + " bytes";
+      return false;
+    }
+    json root;
+    const uint32_t max_depth = options.limits.max_depth;
+    try {
+      root = json::parse(text.begin(), text.end(), [max_depth](int depth, json::parse_event_t, json&) {
+        if (depth > int(max_depth))
+          throw InputError("JSON nesting deeper than " + std::to_string(max_depth) + " levels");
+        return true;
+      });
+    } catch (const json::exception& e) {
+      // e.what() is "[json.exception.parse_error.101] parse error at line 3, column 5: ..." or
+      // "[json.exception.out_of_range.406] number overflow parsing '1e999'".
+      std::string what = e.what();
+      const size_t at = what.find("] ");
+      error = "JSON syntax: " + (at == std::string::npos ? what : what.substr(at + 2));
+      return false;
+    }
+    plm_scene_release(out.scene);
+    out.scene = nullptr;
+    out.meshes.clear();
+    out.ol_groups.clear();
+    out.material_names.clear();
+    plm_bake_settings_default(&out.settings);
+    if (plm_scene_create(&out.scene) != PLM_OK) {
+      error = std::string("cannot create a scene: ") + plm_last_error();
+      return false;
+    }
+    Reader reader{options, out, {}, {}};
+    reader.scene(root);
+    return true;
+  } catch (const InputError& e) {
+    error = e.what();
+  } catch (const std::bad_alloc&) {
+    error = "out of memory";
+  } catch (const std::exception& e) {
+    error = std::string("internal error: ") + e.what();
+  }
+  return false;
+}
+
+bool read_scene_file(const std::string& path, const SceneFileOptions& options, SceneFile& out, std::string& error) {
+  std::string text;
+  if (!read_file(path, options.limits.max_file_bytes, text, error)) return false;
+  SceneFileOptions o = options;
+  const size_t slash = path.find_last_of('/');
+  o.base_dir = slash == std::string::npos ? "" : (slash == 0 ? "/" : path.substr(0, slash));
+  if (!parse_scene_file_text(text, o, out, error)) {
+    error = path + ": " + error;
+    return false;
+  }
+  return true;
+}
+
+const char* texel_value_name(uint32_t value) {
+  return value == PLM_TEXEL_CYCLES ? "CYCLES" : value == PLM_TEXEL_AREA ? "AREA" : "?";
+}
+
+const char* sampler_name(uint32_t value) {
+  return value == PLM_SAMPLER_DEFAULT ? "DEFAULT" : value == PLM_SAMPLER_RANDOM ? "RANDOM"
+         : value == PLM_SAMPLER_SOBOL ? "SOBOL" : "?";
+}
+
+}  // namespace plm

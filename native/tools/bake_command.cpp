@@ -1,0 +1,354 @@
+// `photonlm bake`: scene file in, lightmaps and a report out (docs/scene-file.md).
+// Ctrl-C (or SIGTERM) cancels the bake through the progress callback; files of
+// an interrupted run are removed, so a folder holds either a whole bake or none.
+#include "bake_command.h"
+
+#include <nlohmann/json.hpp>
+#include <unistd.h>
+
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "../src/io/scene_file.h"
+#include "photonlm/photonlm.h"
+
+namespace plm_cli {
+
+namespace {
+
+using ordered_json = nlohmann::ordered_json;
+
+constexpr int kOk = 0, kBadInput = 1, kBakeFailed = 2, kInterrupted = 130;
+
+volatile std::sig_atomic_t g_interrupted = 0;
+
+void on_signal(int sig) {
+  g_interrupted = 1;
+  std::signal(sig, SIG_DFL);  // a second Ctrl-C ends the process at once
+}
+
+struct Args {
+  std::string scene, out_dir;
+  bool has_target = false, has_budget = false, has_photons = false, has_seed = false, has_threads = false;
+  double target_error = 0, time_budget = 0;
+  uint64_t photons = 0;
+  uint32_t seed = 0, threads = 0;
+};
+
+int bad_input(const std::string& message) {
+  std::fprintf(stderr, "photonlm bake: %s\n", message.c_str());
+  return kBadInput;
+}
+
+bool parse_u64(const char* s, uint64_t max, uint64_t& out) {
+  if (!*s || *s == '-' || std::isspace((unsigned char)*s)) return false;
+  char* end = nullptr;
+  errno = 0;
+  const unsigned long long v = std::strtoull(s, &end, 10);
+  if (*end || errno == ERANGE || v > max) return false;
+  out = v;
+  return true;
+}
+
+bool parse_seconds(const char* s, double& out) {
+  char* end = nullptr;
+  const double v = std::strtod(s, &end);
+  if (!*s || *end || !(v >= 0) || !std::isfinite(v)) return false;
+  out = v;
+  return true;
+}
+
+// Returns "" or the error.
+std::string parse_args(int argc, char** argv, Args& a) {
+  for (int i = 0; i < argc; ++i) {
+    const std::string opt = argv[i];
+    if (opt.empty() || opt[0] != '-') {
+      if (!a.scene.empty()) return "more than one scene file (" + a.scene + ", " + opt + ")";
+      a.scene = opt;
+      continue;
+    }
+    if (i + 1 >= argc) return "option " + opt + " needs a value";
+    const char* v = argv[++i];
+    uint64_t u = 0;
+    if (opt == "-o" || opt == "--out") {
+      a.out_dir = v;
+    } else if (opt == "--target-error") {
+      if (!parse_seconds(v, a.target_error)) return "--target-error: '" + std::string(v) + "' is not a number >= 0";
+      a.has_target = true;
+    } else if (opt == "--time-budget") {
+      if (!parse_seconds(v, a.time_budget)) return "--time-budget: '" + std::string(v) + "' is not a number >= 0";
+      a.has_budget = true;
+    } else if (opt == "--photons") {
+      if (!parse_u64(v, uint64_t(1) << 40, a.photons)) return "--photons: '" + std::string(v) + "' is not an integer in [0, 2^40]";
+      a.has_photons = true;
+    } else if (opt == "--seed") {
+      if (!parse_u64(v, 0xffffffffu, u)) return "--seed: '" + std::string(v) + "' is not an integer in [0, 2^32)";
+      a.seed = uint32_t(u);
+      a.has_seed = true;
+    } else if (opt == "--threads") {
+      if (!parse_u64(v, 0xffffffffu, u)) return "--threads: '" + std::string(v) + "' is not an integer >= 0";
+      a.threads = uint32_t(u);
+      a.has_threads = true;
+    } else {
+      return "unknown option " + opt;
+    }
+  }
+  if (a.scene.empty()) return "no scene file given (usage: photonlm bake SCENE.json -o DIR [options])";
+  if (a.out_dir.empty()) return "no output folder given (-o DIR)";
+  return "";
+}
+
+// Progress: one updating line on a terminal, plain lines (each stage, every 10 %) otherwise.
+struct Progress {
+  bool tty = false;
+  std::string stage;
+  int decile = -1;
+  std::chrono::steady_clock::time_point last{};
+  bool line_open = false;
+
+  void finish_line() {
+    if (line_open) std::printf("\n");
+    line_open = false;
+    std::fflush(stdout);
+  }
+};
+
+int on_progress(void* user, double fraction, const char* stage) {
+  if (g_interrupted) return 0;
+  Progress& p = *static_cast<Progress*>(user);
+  const std::string s = stage ? stage : "";
+  const double pct = 100.0 * (fraction < 0 ? 0 : fraction > 1 ? 1 : fraction);
+  const auto now = std::chrono::steady_clock::now();
+  if (p.tty) {
+    if (s != p.stage || now - p.last > std::chrono::milliseconds(100) || fraction >= 1) {
+      std::printf("\r%-32.32s %5.1f%%", s.c_str(), pct);
+      std::fflush(stdout);
+      p.line_open = true;
+      p.last = now;
+    }
+  } else {
+    const int decile = int(pct / 10);
+    if (s != p.stage || decile != p.decile) {
+      std::printf("%s %.1f%%\n", s.c_str(), pct);
+      std::fflush(stdout);
+      p.decile = decile;
+    }
+  }
+  p.stage = s;
+  return g_interrupted ? 0 : 1;
+}
+
+// A file name from an object name: letters, digits, '.', '-', '_' kept, the
+// rest '_'; unique in the folder (ignoring case) by numbering duplicates.
+std::string file_name(const std::string& name, const char* suffix, std::set<std::string>& used) {
+  std::string base;
+  for (char c : name) base += (std::isalnum((unsigned char)c) || c == '-' || c == '_' || c == '.') ? c : '_';
+  while (!base.empty() && base[0] == '.') base.erase(0, 1);
+  if (base.size() > 100) base.resize(100);
+  if (base.empty()) base = "unnamed";
+  for (int n = 1;; ++n) {
+    const std::string f = (n == 1 ? base : base + "_" + std::to_string(n)) + suffix;
+    std::string key = f;
+    for (char& c : key) c = char(std::tolower((unsigned char)c));
+    if (key == "report.json") continue;
+    if (used.insert(key).second) return f;
+  }
+}
+
+// Writes text to path atomically (temporary file in the same folder, then rename).
+bool write_atomic(const std::string& path, const std::string& text, std::string& error) {
+  const std::string tmp = path + ".tmp-" + std::to_string(getpid());
+  FILE* f = std::fopen(tmp.c_str(), "wb");
+  if (!f) {
+    error = tmp + ": " + std::strerror(errno);
+    return false;
+  }
+  bool ok = std::fwrite(text.data(), 1, text.size(), f) == text.size() && std::fflush(f) == 0 && fsync(fileno(f)) == 0;
+  ok = (std::fclose(f) == 0) && ok;
+  if (!ok || std::rename(tmp.c_str(), path.c_str()) != 0) {
+    error = path + ": " + std::strerror(errno);
+    std::remove(tmp.c_str());
+    return false;
+  }
+  return true;
+}
+
+ordered_json settings_json(const plm_bake_settings& s) {
+  ordered_json j;
+  j["photon_count"] = s.photon_count;
+  j["max_bounces"] = s.max_bounces;
+  j["seed"] = s.seed;
+  j["thread_count"] = s.thread_count;
+  j["dilation"] = s.dilation;
+  j["target_error"] = s.target_error;
+  j["time_budget"] = s.time_budget;
+  j["direct_samples"] = s.direct_samples;
+  j["filter_radius"] = s.filter_radius;
+  j["texel_value"] = plm::texel_value_name(s.texel_value);
+  j["sampler"] = plm::sampler_name(s.sampler);
+  return j;
+}
+
+struct ResultGuard {
+  plm_result* r = nullptr;
+  ~ResultGuard() { plm_result_release(r); }
+};
+
+}  // namespace
+
+int bake_command(int argc, char** argv) {
+  Args a;
+  const std::string arg_error = parse_args(argc, argv, a);
+  if (!arg_error.empty()) return bad_input(arg_error);
+
+  plm::SceneFile scene;
+  std::string error;
+  if (!plm::read_scene_file(a.scene, plm::SceneFileOptions{}, scene, error)) return bad_input(error);
+  plm_bake_settings s = scene.settings;
+  if (a.has_target) s.target_error = a.target_error;
+  if (a.has_budget) s.time_budget = a.time_budget;
+  if (a.has_photons) s.photon_count = a.photons;
+  if (a.has_seed) s.seed = a.seed;
+  if (a.has_threads) s.thread_count = a.threads;
+
+  std::error_code ec;
+  std::filesystem::create_directories(a.out_dir, ec);
+  if (ec || !std::filesystem::is_directory(a.out_dir))
+    return bad_input(a.out_dir + ": cannot create the output folder" + (ec ? ": " + ec.message() : ""));
+
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  Progress progress;
+  progress.tty = isatty(fileno(stdout)) != 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  ResultGuard result;
+  const plm_status st = plm_bake(scene.scene, &s, on_progress, &progress, &result.r);
+  progress.finish_line();
+  if (st == PLM_ERROR_CANCELLED || (g_interrupted && st != PLM_OK)) {
+    std::fprintf(stderr, "photonlm bake: interrupted; nothing written\n");
+    return kInterrupted;
+  }
+  if (st != PLM_OK) {
+    std::fprintf(stderr, "photonlm bake: %s: bake failed (%s): %s\n", a.scene.c_str(), plm_status_string(st),
+                 plm_last_error());
+    return st == PLM_ERROR_INVALID_ARGUMENT || st == PLM_ERROR_INVALID_SCENE ? kBadInput : kBakeFailed;
+  }
+
+  plm_bake_stats stats{};
+  if (plm_result_stats(result.r, &stats) != PLM_OK) {
+    std::fprintf(stderr, "photonlm bake: %s\n", plm_last_error());
+    return kBakeFailed;
+  }
+  ordered_json report;
+  report["photonlm_version"] = plm_version();
+  report["scene"] = a.scene;
+  report["settings"] = settings_json(s);
+  report["times"] = {{"setup", stats.seconds_setup},
+                     {"direct", stats.seconds_direct},
+                     {"trace", stats.seconds_trace},
+                     {"total", stats.seconds_total}};
+  report["photons"] = {{"emitted", stats.photons_emitted},
+                       {"hits", stats.photon_hits},
+                       {"rays", stats.rays_traced},
+                       {"truncated", stats.paths_truncated}};
+  report["direct_samples"] = stats.direct_samples;
+  report["emitted_power"] = stats.emitted_power;
+  report["stats"] = {{"error_estimate", stats.error_estimate},
+                     {"error_direct", stats.error_direct},
+                     {"median", stats.error_median},
+                     {"p95", stats.error_p95}};
+  ordered_json warnings = ordered_json::array();
+  for (uint32_t i = 0; i < plm_result_warning_count(result.r); ++i) {
+    const char* w = plm_result_warning(result.r, i);
+    std::fprintf(stderr, "warning: %s\n", w);
+    warnings.push_back(w);
+  }
+  report["warnings"] = warnings;
+
+  // Files: written one by one (each atomically); on any failure or interruption all are removed.
+  std::vector<std::string> written;
+  auto abandon = [&](int code) {
+    for (const std::string& f : written) std::remove(f.c_str());
+    if (code == kInterrupted) std::fprintf(stderr, "photonlm bake: interrupted; nothing written\n");
+    return code;
+  };
+  std::set<std::string> used;
+  const std::string dir = a.out_dir + "/";
+  ordered_json meshes = ordered_json::array();
+  for (const plm::SceneFileMesh& m : scene.meshes) {
+    if (m.width == 0) continue;
+    if (g_interrupted) return abandon(kInterrupted);
+    const std::string name = file_name(m.name, "_lightmap.exr", used);
+    if (plm_result_write_exr(result.r, m.id, (dir + name).c_str()) != PLM_OK) {
+      std::fprintf(stderr, "photonlm bake: %s\n", plm_last_error());
+      return abandon(kBakeFailed);
+    }
+    written.push_back(dir + name);
+    const size_t n = size_t(m.width) * m.height;
+    std::vector<float> rgb(3 * n), coverage(n);
+    double sum[3] = {0, 0, 0}, area = 0;
+    if (plm_result_copy_lightmap(result.r, m.id, rgb.data(), nullptr, nullptr, coverage.data()) == PLM_OK) {
+      for (size_t t = 0; t < n; ++t) {
+        if (coverage[t] <= 0) continue;
+        for (int c = 0; c < 3; ++c) sum[c] += double(rgb[3 * t + c]) * coverage[t];
+        area += coverage[t];
+      }
+    }
+    const double k = area > 0 ? 1.0 / area : 0.0;
+    ordered_json jm;
+    jm["name"] = m.name;
+    jm["file"] = name;
+    jm["size"] = {m.width, m.height};
+    jm["mean"] = {sum[0] * k, sum[1] * k, sum[2] * k};
+    jm["mean_value"] = (sum[0] + sum[1] + sum[2]) * k / 3.0;
+    jm["ol_group"] = m.ol_group >= 0 ? ordered_json(scene.ol_groups[size_t(m.ol_group)].name) : ordered_json();
+    meshes.push_back(jm);
+    std::printf("%-24s %5ux%-5u mean %.6g -> %s\n", m.name.c_str(), m.width, m.height, (sum[0] + sum[1] + sum[2]) * k / 3.0,
+                name.c_str());
+  }
+  report["meshes"] = meshes;
+  ordered_json groups = ordered_json::array();
+  for (const plm::SceneFileOlGroup& g : scene.ol_groups) {
+    if (g_interrupted) return abandon(kInterrupted);
+    const std::string name = file_name(g.name, "_ol.exr", used);
+    if (plm_result_write_ol_exr(result.r, g.id, (dir + name).c_str()) != PLM_OK) {
+      std::fprintf(stderr, "photonlm bake: %s\n", plm_last_error());
+      return abandon(kBakeFailed);
+    }
+    written.push_back(dir + name);
+    plm_ol_stats os{};
+    plm_result_ol_stats(result.r, g.id, &os);
+    groups.push_back({{"name", g.name},
+                      {"file", name},
+                      {"resolution", os.resolution},
+                      {"meshes", os.mesh_count},
+                      {"hits", os.hits},
+                      {"area", os.area},
+                      {"flux", os.flux}});
+    std::printf("%-24s %5ux%-5u OL -> %s\n", g.name.c_str(), os.resolution, os.resolution, name.c_str());
+  }
+  report["ol_groups"] = groups;
+  report["times"]["wall"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (g_interrupted) return abandon(kInterrupted);
+  if (!write_atomic(dir + "report.json", report.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n",
+                    error)) {
+    std::fprintf(stderr, "photonlm bake: cannot write the report: %s\n", error.c_str());
+    return abandon(kBakeFailed);
+  }
+  std::printf("photons %llu, %.3f s, error estimate %.4f (median %.4f, p95 %.4f) -> %sreport.json\n",
+              (unsigned long long)stats.photons_emitted, stats.seconds_total, stats.error_estimate, stats.error_median,
+              stats.error_p95, dir.c_str());
+  return kOk;
+}
+
+}  // namespace plm_cli
