@@ -107,6 +107,16 @@ def main():
                      "OL '%s': %s written, %d hits" % (name, os.path.basename(info["path"]), info["hits"]))
     checks.check(bpy.data.images.get("ball_lightmap") is not None, "image 'ball_lightmap' exists")
 
+    # Lightmap + OL Backup: the sphere keeps its lightmap; noisy texels lean on its OL.
+    sphere.photonlm.mode = 'BACKUP'
+    backed = scenes.photonlm_bake(4_000_000, 64, seed=5, target_error=0.0)
+    b_rgb, b_cov = sphere_map(backed, "ball")
+    m_b = scenes.coverage_weighted_mean(b_rgb, b_cov)
+    rel_b = float(np.abs(m_b - m_lm).max() / m_lm.max())
+    checks.check("ball" in backed.get("ols", {}) and "Backup" in backed["ols"]["ball"]["reason"] and rel_b < 0.03,
+                 "Lightmap + OL Backup: an OL beside the lightmap, mean %s vs %s (%.2f %%, limit 3 %%)"
+                 % (np.round(m_b, 4), np.round(m_lm, 4), 100 * rel_b))
+
     # prop_b has no lightmap: its material looks the collection's OL up by the world normal.
     tree = bpy.data.materials["mat_prop_b"].node_tree
     group_nodes = [n for n in tree.nodes if n.bl_idname == 'ShaderNodeGroup' and n.node_tree is not None

@@ -367,6 +367,8 @@ def _ol_group(export, plm, orig, triangles, resolution, reports):
     texels = resolution * resolution
     if mode == 'ORIENTATION':
         reason = "its Lighting is set to Orientation Lightmap"
+    elif mode == 'BACKUP':
+        reason = "its Lighting is set to Lightmap + OL Backup"
     elif mode == 'AUTO' and triangles > properties.AUTO_TRIANGLES_PER_TEXEL * texels:
         reason = ("Auto: %d triangles on %d lightmap texels (more than %d per texel)"
                   % (triangles, texels, properties.AUTO_TRIANGLES_PER_TEXEL))
@@ -375,6 +377,8 @@ def _ol_group(export, plm, orig, triangles, resolution, reports):
     key = ("object", orig.name_full)
     if key not in export.ol_groups:
         gid = plm.add_ol_group(orig.name, int(orig.photonlm.ol_resolution))
+        if mode == 'BACKUP':
+            plm.set_ol_group_backup(gid, True)
         export.ol_groups[key] = OlGroup(gid, orig.name, reason)
         reports.info("object '%s': orientation lightmap (%s)" % (orig.name, reason))
     return export.ol_groups[key]

@@ -137,6 +137,8 @@ class PhotonlmObjectSettings(bpy.types.PropertyGroup):
                ('ORIENTATION', "Orientation Lightmap", "One orientation lightmap (OL) over the object: "
                 "light averaged over all its surface with the same normal, whatever its complexity; "
                 "resolved into its lightmap image"),
+               ('BACKUP', "Lightmap + OL Backup", "An ordinary lightmap whose noisy texels lean on an "
+                "orientation lightmap of the object (combined by inverse variance, bias included)"),
                ('AUTO', "Auto", "An OL when the object has more triangles than "
                 "4 x its lightmap texels (too complex for its lightmap), else a "
                 "lightmap")],

@@ -351,6 +351,12 @@ class Scene(_Handle):
                                          ctypes.byref(out)))
         return out.value
 
+    def set_ol_group_backup(self, group, backup=True):
+        """Make an OL group a backup: its lightmapped meshes keep their own texels, and each texel's
+        indirect light is combined with the OL at its normal by inverse variance (noisy texels lean
+        on the OL; the OL's bias against the texels is estimated and counted)."""
+        _check(_C.plm_scene_set_ol_group_backup(self._h, _uint(group, "group"), 1 if backup else 0))
+
     def set_mesh_ol_group(self, mesh, group):
         """Put a mesh into an OL group. A mesh with a lightmap gets it resolved from the OL (each
         texel shows the OL at the texel's normal); one without needs no UVs."""

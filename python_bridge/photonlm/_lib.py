@@ -193,6 +193,7 @@ _SIGNATURES = {
     "plm_result_write_exr": (status_t, [ResultPtr, c_uint32, c_char_p]),
     "plm_scene_add_ol_group": (status_t, [ScenePtr, c_char_p, c_uint32, UInt32Ptr]),
     "plm_scene_set_mesh_ol_group": (status_t, [ScenePtr, c_uint32, c_uint32]),
+    "plm_scene_set_ol_group_backup": (status_t, [ScenePtr, c_uint32, c_int]),
     "plm_scene_add_csg": (status_t, [ScenePtr, c_char_p, POINTER(plm_csg_primitive), c_uint32,
                                      POINTER(plm_csg_node), c_uint32, POINTER(c_uint32), c_uint32, c_uint32,
                                      POINTER(c_uint32)]),

@@ -70,3 +70,25 @@ def test_ol_and_lightmaps_in_one_furnace():
     assert np.all(np.abs(value - truth) < 4.5 * ol.error[covered]), (value, ol.error[covered])
     texels = np.concatenate([lm.rgb.mean(axis=2).ravel() for lm in lms])
     assert abs(texels.mean() / truth - 1) < 0.01, texels.mean()
+
+
+def test_backup_ol_keeps_the_lightmap_and_its_truth():
+    """A furnace box backed up by an OL: every texel still reads E / (1 - rho) within its error."""
+    rho, emission = 0.5, 1.0
+    truth = emission / (1.0 - rho)
+    with photonlm.Scene() as scene:
+        scene.add_material(albedo=rho, emission=emission)
+        group = scene.add_ol_group("walls", resolution=8)
+        scene.set_ol_group_backup(group)
+        meshes = []
+        for i, quad in enumerate(box_faces()):
+            m = scene.add_mesh("face%d" % i, quad, QUAD_TRIANGLES, QUAD_UV, resolution=8)
+            scene.set_mesh_ol_group(m, group)
+            meshes.append(m)
+        with scene.bake(photons=300_000, seed=2) as result:
+            lms = [result.lightmap(m) for m in meshes]
+            assert result.stats["direct_samples"] > 0
+    values = np.concatenate([lm.rgb.mean(axis=2).ravel() for lm in lms])
+    errors = np.concatenate([lm.error.ravel() for lm in lms])
+    assert abs(values.mean() / truth - 1) < 0.01
+    assert np.sqrt(np.mean(((values - truth) / errors) ** 2)) < 1.5

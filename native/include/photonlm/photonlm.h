@@ -329,6 +329,17 @@ PLM_API plm_status plm_scene_add_ol_group(plm_scene* scene, const char* name, ui
  * part in the direct pass, the photon texel sums or target_error. */
 PLM_API plm_status plm_scene_set_mesh_ol_group(plm_scene* scene, uint32_t mesh, uint32_t group);
 
+/* Makes OL group `group` a backup (backup != 0) or a resolving group (0, the
+ * default). The lightmapped meshes of a backup group keep their own texels
+ * (direct pass, photon sums, target_error), the OL gathers only their
+ * indirect hits (those the texels record), and each texel's indirect estimate
+ * is combined with the OL at its normal by inverse variance: the OL's variance
+ * plus its squared bias against the texels (estimated per lightmap as the
+ * mean of (texel - OL)^2 - their variances). Noisy texels lean on the OL,
+ * well-sampled ones keep their own detail. Meshes without a lightmap in a
+ * backup group record into the OL as usual. */
+PLM_API plm_status plm_scene_set_ol_group_backup(plm_scene* scene, uint32_t group, int backup);
+
 /* Reads one OL of a result. The pointers stay valid as long as the result;
  * any output may be NULL.
  *   rgb         resolution^2 * 3 floats, irradiance / pi (0 in bins whose

@@ -271,6 +271,13 @@ plm_status plm_scene_add_ol_group(plm_scene* scene, const char* name, uint32_t r
   });
 }
 
+plm_status plm_scene_set_ol_group_backup(plm_scene* scene, uint32_t group, int backup) {
+  return guarded("plm_scene_set_ol_group_backup", [&] {
+    require(scene, "plm_scene_set_ol_group_backup", "scene");
+    scene->scene.set_ol_group_backup(group, backup != 0);
+  });
+}
+
 plm_status plm_scene_set_mesh_ol_group(plm_scene* scene, uint32_t mesh, uint32_t group) {
   return guarded("plm_scene_set_mesh_ol_group", [&] {
     require(scene, "plm_scene_set_mesh_ol_group", "scene");

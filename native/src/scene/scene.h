@@ -59,6 +59,7 @@ struct CsgSolid {
 struct OlGroup {
   std::string name;
   uint32_t resolution = 0;  // bins per side of the map; 0 = automatic (see bake.h)
+  bool backup = false;      // its meshes keep their lightmaps; the OL backs up their indirect light
 };
 
 struct Scene {
@@ -82,6 +83,11 @@ struct Scene {
   // Puts a mesh into a group (a later call moves it). Throws for bad indices
   // and for a mesh that has a lightmap.
   void set_mesh_ol_group(uint32_t mesh, uint32_t group);
+  void set_ol_group_backup(uint32_t group, bool backup);
+  // A mesh with its own texels (direct pass, photon sums): no OL, or a backup OL.
+  bool own_texels(const Mesh& m) const {
+    return m.has_lightmap() && m.csg_carrier < 0 && (m.ol_group < 0 || ol_groups[size_t(m.ol_group)].backup);
+  }
   uint32_t add_csg(const char* name, const plm_csg_primitive* primitives, uint32_t primitive_count,
                    const plm_csg_node* nodes, uint32_t node_count, const uint32_t* children, uint32_t child_count,
                    uint32_t root);

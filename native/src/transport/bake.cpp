@@ -75,6 +75,7 @@ constexpr uint32_t kNoBin = ~0u;
 struct OlMeshView {
   int32_t group = -1;
   const uint32_t* bins = nullptr;
+  bool backup = false;  // a backup OL: it records what the mesh's texels record (the indirect hits)
 };
 
 class PhotonTracer {
@@ -216,7 +217,7 @@ class PhotonTracer {
       if (front && !is_lsystem && depth >= first_recorded_) record(rh, is_csg, hit, flux, out);
       if (front && !is_csg && !is_lsystem) {
         const OlMeshView& ol = ol_views_[rh.hit.geomID];
-        if (ol.group >= 0 && ol.bins[tri] != kNoBin)
+        if (ol.group >= 0 && ol.bins[tri] != kNoBin && (!ol.backup || depth >= first_recorded_))
           out.ol_hits.push_back({uint32_t(ol.group), ol.bins[tri], flux.x, flux.y, flux.z});
       }
 
@@ -354,7 +355,8 @@ void validate(const Scene& scene, const plm_bake_settings& s) {
   uint64_t texels = 0;
   bool ol_meshes = false;
   for (const Mesh& m : scene.meshes) {
-    if (m.ol_group < 0) texels += uint64_t(m.lightmap_width) * m.lightmap_height;
+    if (m.ol_group < 0 || scene.ol_groups[size_t(m.ol_group)].backup)
+      texels += uint64_t(m.lightmap_width) * m.lightmap_height;
     ol_meshes = ol_meshes || m.ol_group >= 0;
   }
   if (texels == 0 && !ol_meshes && scene.lsystems.empty())
@@ -674,6 +676,60 @@ void transfer_csg(const Estimator& est, size_t c, uint64_t photons, const TexelA
                        " m (the mesh does not follow the solid there); they take their neighbours' values");
 }
 
+// A lightmap backed up by an OL (plm_scene_set_ol_group_backup): each
+// texel's indirect part (its estimate minus its direct light) and the OL at
+// its normal are combined by inverse variance, the OL's variance including its
+// squared bias against the texel: the larger of the lightmap's mean of
+// (texel - OL)^2 - both variances (unbiased for the mean squared bias) and the
+// texel's own such difference where it exceeds two standard deviations.
+void blend_backup(const ol::OrientationLightmap& map, const TexelAreas& areas, const std::vector<DirectSums>& direct,
+                  size_t first_covered, const DirectNoise& noise, std::vector<double>& value3,
+                  std::vector<double>& variance) {
+  struct Parts {
+    size_t t;
+    double ind[3], var_ind, ol[3], var_ol, var_direct, direct[3], diff_sq;
+  };
+  std::vector<Parts> parts;
+  size_t k = first_covered;
+  double bias_sum = 0.0;
+  for (size_t t = 0; t < areas.area.size(); ++t) {
+    if (!(areas.area[t] > 0.0)) continue;
+    Parts p{t, {0, 0, 0}, 0.0, {0, 0, 0}, 0.0, 0.0, {0, 0, 0}, 0.0};
+    if (!direct.empty()) {
+      const DirectSums& d = direct[k++];
+      for (int c = 0; c < 3; ++c) p.direct[c] = d.count ? d.rgb[c] / d.count : 0.0;
+      p.var_direct = d.variance_of_mean(noise);
+    }
+    for (int c = 0; c < 3; ++c) p.ind[c] = value3[3 * t + c] - p.direct[c];
+    p.var_ind = std::max(0.0, variance[t] - p.var_direct);
+    const Vec3 n = areas.normal[t];
+    if (!(dot(n, n) > 0.0f)) continue;  // no normal: the texel keeps its own estimate
+    const Vec3 o = map.lookup(n);
+    for (int c = 0; c < 3; ++c) p.ol[c] = o[c];
+    const double e = map.radiosity_error(map.bin_of(n));
+    p.var_ol = e * e;
+    const double diff = (p.ind[0] + p.ind[1] + p.ind[2] - p.ol[0] - p.ol[1] - p.ol[2]) / 3.0;
+    p.diff_sq = diff * diff;
+    bias_sum += diff * diff - p.var_ind - p.var_ol;
+    parts.push_back(p);
+  }
+  if (parts.empty()) return;
+  const double bias_sq = std::max(0.0, bias_sum / double(parts.size()));
+  for (const Parts& p : parts) {
+    // The texel's own evidence of bias counts too: where it differs from the OL by
+    // more than both noises explain, the OL is biased there (a corner, a box top
+    // sharing the floor's normal), and the texel keeps more of its own estimate.
+    const double noise = p.var_ind + p.var_ol;
+    const double local = p.diff_sq > 4.0 * noise ? p.diff_sq - noise : 0.0;  // beyond 2 sigma: evidence
+    const double var_o = p.var_ol + std::max(bias_sq, local);
+    // Weights 1/var; a texel with no variance estimate (or an exact OL) keeps the better one alone.
+    const double wt = p.var_ind > 0.0 ? 1.0 / p.var_ind : 1e300, wo = var_o > 0.0 ? 1.0 / var_o : 1e300;
+    const double a = wt / (wt + wo);
+    for (int c = 0; c < 3; ++c) value3[3 * p.t + c] = p.direct[c] + a * p.ind[c] + (1.0 - a) * p.ol[c];
+    variance[p.t] = p.var_direct + a * a * p.var_ind + (1.0 - a) * (1.0 - a) * var_o;
+  }
+}
+
 }  // namespace
 
 plm_bake_settings default_settings() {
@@ -700,7 +756,8 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   // count (or the time budget) decides.
   plm_bake_settings settings = requested;
   bool ordinary_texels = false;
-  for (const Mesh& m : scene.meshes) ordinary_texels = ordinary_texels || (m.has_lightmap() && m.ol_group < 0);
+  for (const Mesh& m : scene.meshes)
+    ordinary_texels = ordinary_texels || scene.own_texels(m) || (m.has_lightmap() && m.csg_carrier >= 0);
   if (!ordinary_texels && settings.target_error > 0.0) {
     settings.target_error = 0.0;
     out.warnings.push_back("target_error ignored: it is measured over ordinary lightmap texels and every mesh "
@@ -739,7 +796,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     covered_begin[i] = covered.size();
     if (mesh.has_lightmap()) areas[i] = compute_texel_areas(mesh);
     // OL meshes' lightmaps are resolved from their OL, CSG carriers' from their solid.
-    if (mesh.has_lightmap() && mesh.ol_group < 0 && mesh.csg_carrier < 0) {
+    if (scene.own_texels(mesh)) {
       views[i].texel_area = areas[i].area.data();
       const uint32_t n = mesh.lightmap_width * mesh.lightmap_height;
       for (uint32_t t = 0; t < n; ++t)
@@ -771,7 +828,9 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   std::vector<ol::OrientationLightmap> ols = build_ols(scene, ol_bins, ol_mesh_counts, out.warnings);
   std::vector<OlMeshView> ol_views(scene.meshes.size());
   for (size_t i = 0; i < scene.meshes.size(); ++i)
-    if (scene.meshes[i].ol_group >= 0) ol_views[i] = {scene.meshes[i].ol_group, ol_bins[i].data()};
+    if (scene.meshes[i].ol_group >= 0)
+      ol_views[i] = {scene.meshes[i].ol_group, ol_bins[i].data(),
+                     scene.ol_groups[size_t(scene.meshes[i].ol_group)].backup};
 
   // L-system objects: root OL areas and stub areas from the flattened object.
   if (!scene.lsystems.empty()) report(0.03, "estimating L-system OL areas");
@@ -1038,13 +1097,16 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     std::vector<uint8_t> filled(n, 0);
     img.hits.assign(n, 0.0f);
     img.coverage = areas[i].coverage;
-    if (mesh.ol_group >= 0) {
+    const bool backed_up = mesh.ol_group >= 0 && scene.ol_groups[size_t(mesh.ol_group)].backup;
+    if (mesh.ol_group >= 0 && !backed_up) {
       resolve_ol(ols[size_t(mesh.ol_group)], areas[i], values, img.hits, filled);
     } else if (mesh.csg_carrier >= 0) {
       transfer_csg(estimator, size_t(mesh.csg_carrier), photons, areas[i], acc, values, img.hits, filled,
                    out.warnings, mesh);
     } else {
       estimator.texels(i, photons, value3, variance);
+      if (backed_up && ols[size_t(mesh.ol_group)].finalized())
+        blend_backup(ols[size_t(mesh.ol_group)], areas[i], direct, covered_begin[i], direct_noise, value3, variance);
       for (size_t t = 0; t < n; ++t) {
         if (!(areas[i].area[t] > 0.0)) continue;
         for (int c = 0; c < 3; ++c) values[4 * t + c] = float(value3[3 * t + c]);
