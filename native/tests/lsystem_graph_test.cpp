@@ -482,3 +482,28 @@ TEST(LSystemGraph, RejectsWhatItCannotRepresent) {
 }
 
 }  // namespace
+
+// Parameters equal but for rounding (l * r1 * r2 and l * r2 * r1) are one node
+// state: the sympodial tree (two branch ratios) builds at depth 15 (32,767
+// cylinders) with node classes growing linearly in the depth, and flattens
+// to the same primitive count as the derivation.
+TEST(LSystemGraph, RoundingDoesNotSplitParameterStates) {
+  const char* rules =
+      "const r1 = 0.9\nconst r2 = 0.7\nconst a1 = 10\nconst a2 = 60\nconst wr = 0.707\n"
+      "axiom: A(1, 0.1)\n"
+      "A(l, w) -> !(w) F(l) [ &(a1) B(l*r1, w*wr) ] /(180) [ &(a2) B(l*r2, w*wr) ]\n"
+      "B(l, w) -> !(w) F(l) [ +(a1) B(l*r1, w*wr) ] [ -(a2) B(l*r2, w*wr) ]\n";
+  const plm::lsystem::LSystem sys = plm::lsystem::parse(rules);
+  plm::lsystem::GraphOptions opt;
+  opt.depth = 15;
+  const plm::lsystem::Graph g(sys, opt);
+  const plm::lsystem::GraphStats st = g.stats();
+  EXPECT_EQ(st.flattened_primitives, 32767u);
+  EXPECT_LT(st.classes, 16u * 17u * 2u) << "node states split by rounding";
+  opt.depth = 10;
+  const plm::lsystem::Graph small(sys, opt);
+  plm::lsystem::DeriveOptions d;
+  d.depth = 10;
+  const plm::lsystem::TurtleResult flat = plm::lsystem::interpret(sys, plm::lsystem::derive(sys, d));
+  EXPECT_EQ(small.flatten().primitives.size(), flat.primitives.size());
+}

@@ -169,10 +169,17 @@ struct ClassKey {
   }
 };
 
+// The key of a parameter or width: its bits with the mantissa rounded to 40
+// bits, so that values equal but for rounding (l * r1 * r2 and l * r2 * r1)
+// are one state; the state keeps the value it was first met with (the others
+// differ from it by a few ulps).
 uint64_t bits(double v) {
   if (v == 0) v = 0;  // -0 and +0 are one state
   uint64_t b;
   std::memcpy(&b, &v, sizeof b);
+  constexpr int kDropped = 12;  // of the 52 mantissa bits
+  if ((b & 0x7FF0000000000000ull) != 0x7FF0000000000000ull)  // finite: round to nearest
+    b = (b + (uint64_t(1) << (kDropped - 1))) & ~((uint64_t(1) << kDropped) - 1);
   return b;
 }
 
