@@ -151,7 +151,9 @@ class BakeJob:
         finally:
             result.close()
             self.result = None
-        photons_per_second = stats["photons_emitted"] / max(stats["seconds_total"], 1e-9)
+        # The photon pass's own rate (the whole bake also holds set-up, the direct pass and writing).
+        photons_per_second = stats["photons_emitted"] / max(stats["seconds_trace"], 1e-9) \
+            if stats["photons_emitted"] else 0.0
         scene[properties.STATS_KEY] = dict(
             photons_emitted=int(stats["photons_emitted"]), seconds_total=float(stats["seconds_total"]),
             seconds_export=float(self.seconds_export), photons_per_second=float(photons_per_second),

@@ -45,7 +45,7 @@ class PHOTONLM_PT_lightmaps(bpy.types.Panel):
             box.label(text="Last Bake", icon='INFO')
             col = box.column(align=True)
             for label, prop in (("Objects", "last_objects"), ("Photons", "last_photons"), ("Time", "last_time"), ("Error", "last_error"),
-                                ("Speed", "last_rate"), ("Warnings", "last_warnings")):
+                                ("Photon Speed", "last_rate"), ("Warnings", "last_warnings")):
                 split = col.split(factor=0.4)
                 split.alignment = 'RIGHT'
                 split.label(text=label)

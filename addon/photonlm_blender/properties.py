@@ -102,7 +102,8 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
     last_photons: StringProperty(name="Photons", get=_stat_getter("photons_emitted", _fmt_count))
     last_time: StringProperty(name="Time", get=_stat_getter("seconds_total", _fmt_seconds))
     last_error: StringProperty(name="Error", get=_stat_getter("error_estimate", _fmt_percent))
-    last_rate: StringProperty(name="Speed", get=_stat_getter("photons_per_second", _fmt_rate))
+    last_rate: StringProperty(name="Photon Speed", description="Photons per second of the photon pass",
+                              get=_stat_getter("photons_per_second", _fmt_rate))
     last_warnings: StringProperty(name="Warnings", get=_stat_getter("warning_count", _fmt_count))
     last_objects: StringProperty(name="Objects", get=_stat_getter("objects", _fmt_count))
 
