@@ -787,7 +787,10 @@ TEST_F(BadInput, NonFiniteLightOrWorldIsRejected) {
         {PLM_LIGHT_POINT, &plm_light::radius, "radius"},       {PLM_LIGHT_SPOT, &plm_light::radius, "radius"},
         {PLM_LIGHT_SUN, &plm_light::angle, "angle"},           {PLM_LIGHT_AREA_RECT, &plm_light::size_x, "size"},
         {PLM_LIGHT_AREA_DISK, &plm_light::size_y, "size"},     {PLM_LIGHT_SPOT, &plm_light::spot_size, "spot_size"},
-        {PLM_LIGHT_SPOT, &plm_light::spot_blend, "spot_blend"}};
+        {PLM_LIGHT_SPOT, &plm_light::spot_blend, "spot_blend"},
+        // Fields the type does not use must be numbers too.
+        {PLM_LIGHT_SUN, &plm_light::radius, "radius"},         {PLM_LIGHT_POINT, &plm_light::angle, "angle"},
+        {PLM_LIGHT_SUN, &plm_light::size_x, "size_x"},         {PLM_LIGHT_AREA_RECT, &plm_light::spot_size, "spot_size"}};
     for (const Field& f : fields) {
       plm_light l;
       plm_light_default(&l, f.type);

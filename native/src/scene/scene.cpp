@@ -128,6 +128,13 @@ uint32_t Scene::add_light(const char* name, const plm_light& l) {
       fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": matrix element ", i, " = ", l.matrix[i],
            " is beyond the engine's range of +-", kMaxCoordinate);
   }
+  // Fields a type does not use must still be numbers: NaN or Inf anywhere is a
+  // bad input (a program filling the struct wrongly), not something to ignore.
+  const std::pair<const char*, float> fields[] = {{"radius", l.radius},       {"spot_size", l.spot_size},
+                                                  {"spot_blend", l.spot_blend}, {"angle", l.angle},
+                                                  {"size_x", l.size_x},       {"size_y", l.size_y}};
+  for (const auto& [field, value] : fields)
+    if (!std::isfinite(value)) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": ", field, " ", value, " is not finite");
   Transform m;
   std::memcpy(m.m, l.matrix, sizeof(m.m));
   switch (l.type) {
