@@ -212,6 +212,14 @@ struct Graph::Impl {
     using Entry = std::pair<CacheKey, std::shared_ptr<const GraphExpansion>>;
     std::list<Entry> lru;  // front: most recently used
     std::unordered_map<CacheKey, std::list<Entry>::iterator, CacheKeyHash> map;
+    // Per class: the entry of its last lookup, found again without hashing
+    // (a class that is not path dependent has one entry; valid until evicted).
+    struct Memo {
+      bool valid = false;
+      uint64_t path = 0;
+      std::list<Entry>::iterator it;
+    };
+    std::vector<Memo> memo;
     size_t bytes = 0, peak = 0;
     uint64_t hits = 0, misses = 0, evictions = 0, truncated = 0;
     GraphHit last_hit;
@@ -545,22 +553,34 @@ struct Graph::Impl {
 
   std::shared_ptr<const GraphExpansion> get(Cache& cache, uint32_t cls, uint64_t path) const {
     const CacheKey key{cls, classes[cls].path_dependent ? path : 0};
+    if (cache.memo.size() < classes.size()) cache.memo.resize(classes.size());
+    Cache::Memo& memo = cache.memo[cls];
+    if (memo.valid && memo.path == key.path) {  // the common case: no hashing
+      ++cache.hits;
+      if (memo.it != cache.lru.begin()) cache.lru.splice(cache.lru.begin(), cache.lru, memo.it);
+      return memo.it->second;
+    }
     const auto it = cache.map.find(key);
     if (it != cache.map.end()) {
       ++cache.hits;
       cache.lru.splice(cache.lru.begin(), cache.lru, it->second);
+      memo = {true, key.path, it->second};
       return it->second->second;
     }
     ++cache.misses;
     auto e = expand(cls, path);
     cache.lru.emplace_front(key, e);
     cache.map.emplace(key, cache.lru.begin());
+    memo = {true, key.path, cache.lru.begin()};
     cache.bytes += e->bytes;
     cache.peak = std::max(cache.peak, cache.bytes);
     while (cache.lru.size() > 1 && ((opt.cache_entries && cache.lru.size() > opt.cache_entries) ||
                                     (opt.cache_bytes && cache.bytes > opt.cache_bytes))) {
+      const CacheKey gone = cache.lru.back().first;
+      Cache::Memo& m = cache.memo[gone.cls];
+      if (m.valid && m.path == gone.path) m.valid = false;
       cache.bytes -= cache.lru.back().second->bytes;
-      cache.map.erase(cache.lru.back().first);
+      cache.map.erase(gone);
       cache.lru.pop_back();
       ++cache.evictions;
     }
@@ -794,6 +814,7 @@ void Graph::reset_cache() const {
   for (Impl::Cache& c : impl_->caches) {
     c.lru.clear();
     c.map.clear();
+    c.memo.clear();
     c.bytes = c.peak = 0;
     c.hits = c.misses = c.evictions = c.truncated = 0;
   }
