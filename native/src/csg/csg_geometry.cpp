@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "accel/user_geometry.h"
+
 namespace plm::csg {
 namespace {
 
@@ -127,16 +129,7 @@ void occluded(const RTCOccludedFunctionNArguments* args) {
 }  // namespace
 
 unsigned attach_csg(RTCDevice device, RTCScene scene, const CsgObject& obj) {
-  RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
-  rtcSetGeometryUserPrimitiveCount(g, 1);
-  rtcSetGeometryUserData(g, const_cast<CsgObject*>(&obj));
-  rtcSetGeometryBoundsFunction(g, bounds, nullptr);
-  rtcSetGeometryIntersectFunction(g, intersect);
-  rtcSetGeometryOccludedFunction(g, occluded);
-  rtcCommitGeometry(g);
-  const unsigned id = rtcAttachGeometry(scene, g);
-  rtcReleaseGeometry(g);
-  return id;
+  return attach_user_geometry(device, scene, &obj, bounds, intersect, occluded);
 }
 
 }  // namespace plm::csg

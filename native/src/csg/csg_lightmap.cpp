@@ -29,25 +29,6 @@ double wrap01(double a) {
 
 double clamp01(double a) { return std::fmin(1.0, std::fmax(0.0, a)); }
 
-// Shirley-Chiu concentric map of [0,1]^2 onto the unit disk: equal-area (pi per unit square).
-void square_to_disk(double s, double t, double& x, double& y) {
-  const double a = 2 * s - 1, b = 2 * t - 1;
-  if (a == 0 && b == 0) {
-    x = y = 0;
-    return;
-  }
-  double r, phi;
-  if (std::fabs(a) > std::fabs(b)) {
-    r = a;
-    phi = (kPi / 4) * (b / a);
-  } else {
-    r = b;
-    phi = kPi / 2 - (kPi / 4) * (a / b);
-  }
-  x = r * std::cos(phi);
-  y = r * std::sin(phi);
-}
-
 FaceCoord disk_to_square(double x, double y) {
   double r = std::hypot(x, y);
   if (r > 1) {

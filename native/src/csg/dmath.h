@@ -68,4 +68,26 @@ inline Affine inverse(const Affine& a) {
   return b;
 }
 
+// Shirley-Chiu concentric map of [0,1]^2 onto the unit disk: equal-area (pi
+// per unit square), so uniform points map to uniform points and strata stay
+// compact. Face charts (csg_lightmap) and face sampling (primitive) share it.
+inline void square_to_disk(double s, double t, double& x, double& y) {
+  constexpr double kPi = 3.14159265358979323846;
+  const double a = 2 * s - 1, b = 2 * t - 1;
+  if (a == 0 && b == 0) {
+    x = y = 0;
+    return;
+  }
+  double r, phi;
+  if (std::fabs(a) > std::fabs(b)) {
+    r = a;
+    phi = (kPi / 4) * (b / a);
+  } else {
+    r = b;
+    phi = kPi / 2 - (kPi / 4) * (a / b);
+  }
+  x = r * std::cos(phi);
+  y = r * std::sin(phi);
+}
+
 }  // namespace plm::csg

@@ -363,25 +363,6 @@ double face_world_area(const Primitive& prim, int face) {
   return curved_face_area(prim, abs_det);
 }
 
-// Uniform point in the unit disk (concentric map: strata stay compact).
-void unit_disk(double u1, double u2, double& x, double& y) {
-  const double a = 2 * u1 - 1, b = 2 * u2 - 1;
-  if (a == 0 && b == 0) {
-    x = y = 0;
-    return;
-  }
-  double r, phi;
-  if (std::fabs(a) > std::fabs(b)) {
-    r = a;
-    phi = (kPi / 4) * (b / a);
-  } else {
-    r = b;
-    phi = kPi / 2 - (kPi / 4) * (a / b);
-  }
-  x = r * std::cos(phi);
-  y = r * std::sin(phi);
-}
-
 struct LocalSample {
   DVec3 q, n;        // local point and unit normal
   double u = 0, v = 0;
@@ -390,7 +371,7 @@ struct LocalSample {
 
 LocalSample disk_sample(double x1, double x2, double z, double nz) {
   LocalSample s;
-  unit_disk(x1, x2, s.q.x, s.q.y);
+  square_to_disk(x1, x2, s.q.x, s.q.y);  // uniform in the disk; strata stay compact
   s.q.z = z;
   s.n = {0, 0, nz};
   s.u = 0.5 * (s.q.x + 1);

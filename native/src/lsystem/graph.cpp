@@ -13,6 +13,8 @@
 #include <tuple>
 #include <unordered_map>
 
+#include "accel/user_geometry.h"
+#include "lsystem/embree_callbacks.h"
 #include "lsystem/expr.h"
 #include "util/error.h"
 #include "util/rng.h"
@@ -26,19 +28,6 @@ namespace {
 
 constexpr uint32_t kRoot = std::numeric_limits<uint32_t>::max();
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-// sin and cos of an angle in degrees, exact at multiples of 90 (as the turtle).
-void sincos_degrees(double degrees, double* s, double* c) {
-  double r = std::fmod(degrees, 360.0);
-  if (r < 0) r += 360.0;
-  if (r == 0) { *s = 0; *c = 1; return; }
-  if (r == 90) { *s = 1; *c = 0; return; }
-  if (r == 180) { *s = 0; *c = -1; return; }
-  if (r == 270) { *s = -1; *c = 0; return; }
-  const double rad = degrees * (3.14159265358979323846 / 180.0);
-  *s = std::sin(rad);
-  *c = std::cos(rad);
-}
 
 // The turtle state of lsystem/turtle.cpp, in a node's local frame.
 struct State {
@@ -841,77 +830,19 @@ const GraphHit& Graph::last_embree_hit() const { return impl_->caches.local().la
 
 namespace {
 
-const Graph& graph_of(void* user) { return *static_cast<const Graph*>(user); }
-
 void graph_bounds(const RTCBoundsFunctionArguments* args) {
-  const Graph& g = graph_of(args->geometryUserPtr);
-  const DVec3 lo = g.bounds_lo(), hi = g.bounds_hi();
-  RTCBounds* b = args->bounds_o;
-  if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) {  // nothing drawn: an empty box Embree skips
-    b->lower_x = b->lower_y = b->lower_z = INFINITY;
-    b->upper_x = b->upper_y = b->upper_z = -INFINITY;
-    return;
-  }
-  b->lower_x = std::nextafter(float(lo.x), -INFINITY);
-  b->lower_y = std::nextafter(float(lo.y), -INFINITY);
-  b->lower_z = std::nextafter(float(lo.z), -INFINITY);
-  b->upper_x = std::nextafter(float(hi.x), INFINITY);
-  b->upper_y = std::nextafter(float(hi.y), INFINITY);
-  b->upper_z = std::nextafter(float(hi.z), INFINITY);
+  const Graph& g = *static_cast<const Graph*>(args->geometryUserPtr);
+  write_bounds(g.bounds_lo(), g.bounds_hi(), 0.0, args->bounds_o);
 }
 
 void graph_intersect(const RTCIntersectFunctionNArguments* args) {
-  const Graph& g = graph_of(args->geometryUserPtr);
-  const unsigned N = args->N;
-  RTCRayN* rays = RTCRayHitN_RayN(args->rayhit, N);
-  RTCHitN* hits = RTCRayHitN_HitN(args->rayhit, N);
-  for (unsigned i = 0; i < N; ++i) {
-    if (args->valid[i] == 0) continue;
-    const DVec3 o{RTCRayN_org_x(rays, N, i), RTCRayN_org_y(rays, N, i), RTCRayN_org_z(rays, N, i)};
-    const DVec3 d{RTCRayN_dir_x(rays, N, i), RTCRayN_dir_y(rays, N, i), RTCRayN_dir_z(rays, N, i)};
-    const float tnear = RTCRayN_tnear(rays, N, i), tfar = RTCRayN_tfar(rays, N, i);
-    GraphHit h;
-    if (!g.first_hit(o, d, tnear, tfar, &h)) continue;
-    const float t = std::fmax(float(h.t), tnear);
-    if (!(t <= tfar)) continue;
-    RTCRayN_tfar(rays, N, i) = t;
-    RTCHitN_Ng_x(hits, N, i) = float(h.n.x);
-    RTCHitN_Ng_y(hits, N, i) = float(h.n.y);
-    RTCHitN_Ng_z(hits, N, i) = float(h.n.z);
-    RTCHitN_u(hits, N, i) = float(int(h.shape));
-    RTCHitN_v(hits, N, i) = 0.0f;
-    RTCHitN_primID(hits, N, i) = unsigned(h.material);
-    RTCHitN_geomID(hits, N, i) = args->geomID;
-    RTCHitN_instID(hits, N, i, 0) = args->context->instID[0];
-    const_cast<GraphHit&>(g.last_embree_hit()) = h;
-  }
-}
-
-void graph_occluded(const RTCOccludedFunctionNArguments* args) {
-  const Graph& g = graph_of(args->geometryUserPtr);
-  const unsigned N = args->N;
-  RTCRayN* rays = args->ray;
-  for (unsigned i = 0; i < N; ++i) {
-    if (args->valid[i] == 0) continue;
-    const DVec3 o{RTCRayN_org_x(rays, N, i), RTCRayN_org_y(rays, N, i), RTCRayN_org_z(rays, N, i)};
-    const DVec3 d{RTCRayN_dir_x(rays, N, i), RTCRayN_dir_y(rays, N, i), RTCRayN_dir_z(rays, N, i)};
-    if (g.occluded(o, d, RTCRayN_tnear(rays, N, i), RTCRayN_tfar(rays, N, i))) RTCRayN_tfar(rays, N, i) = -INFINITY;
-  }
+  intersect_n<Graph>(args, [](const Graph& g) -> GraphHit& { return const_cast<GraphHit&>(g.last_embree_hit()); });
 }
 
 }  // namespace
 
 unsigned attach_graph(RTCDevice device, RTCScene scene, const Graph& graph) {
-  RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
-  rtcSetGeometryUserPrimitiveCount(geom, 1);
-  rtcSetGeometryUserData(geom, const_cast<Graph*>(&graph));
-  rtcSetGeometryBoundsFunction(geom, graph_bounds, nullptr);
-  rtcSetGeometryIntersectFunction(geom, graph_intersect);
-  rtcSetGeometryOccludedFunction(geom, graph_occluded);
-  rtcCommitGeometry(geom);
-  const unsigned id = rtcAttachGeometry(scene, geom);
-  rtcReleaseGeometry(geom);
-  return id;
+  return attach_user_geometry(device, scene, &graph, graph_bounds, graph_intersect, occluded_n<Graph>);
 }
 
 }  // namespace plm::lsystem

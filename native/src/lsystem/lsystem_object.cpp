@@ -8,7 +8,9 @@
 #include <cmath>
 #include <limits>
 
+#include "accel/user_geometry.h"
 #include "csg/primitive.h"
+#include "lsystem/embree_callbacks.h"
 #include "util/error.h"
 #include "util/rng.h"
 
@@ -311,79 +313,22 @@ FlattenResult flatten_lsystem(const char* rules, const plm_lsystem_settings& s, 
 
 namespace {
 
-const LSystemObject& object_of(void* user) { return *static_cast<const LSystemObject*>(user); }
-
 void object_bounds(const RTCBoundsFunctionArguments* args) {
-  const LSystemObject& obj = object_of(args->geometryUserPtr);
+  const LSystemObject& obj = *static_cast<const LSystemObject*>(args->geometryUserPtr);
   const DVec3 lo = obj.bounds_lo(), hi = obj.bounds_hi();
-  RTCBounds* b = args->bounds_o;
-  if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) {  // nothing drawn: an empty box Embree skips
-    b->lower_x = b->lower_y = b->lower_z = INFINITY;
-    b->upper_x = b->upper_y = b->upper_z = -INFINITY;
-    return;
-  }
   // Padded by a relative 1e-7 beyond float rounding: the box maps corners in double.
   const double pad = 1e-7 * std::max(max_abs(hi - lo), std::max(max_abs(lo), max_abs(hi)));
-  b->lower_x = std::nextafter(float(lo.x - pad), -INFINITY);
-  b->lower_y = std::nextafter(float(lo.y - pad), -INFINITY);
-  b->lower_z = std::nextafter(float(lo.z - pad), -INFINITY);
-  b->upper_x = std::nextafter(float(hi.x + pad), INFINITY);
-  b->upper_y = std::nextafter(float(hi.y + pad), INFINITY);
-  b->upper_z = std::nextafter(float(hi.z + pad), INFINITY);
+  write_bounds(lo, hi, pad, args->bounds_o);
 }
 
 void object_intersect(const RTCIntersectFunctionNArguments* args) {
-  const LSystemObject& obj = object_of(args->geometryUserPtr);
-  const unsigned N = args->N;
-  RTCRayN* rays = RTCRayHitN_RayN(args->rayhit, N);
-  RTCHitN* hits = RTCRayHitN_HitN(args->rayhit, N);
-  for (unsigned i = 0; i < N; ++i) {
-    if (args->valid[i] == 0) continue;
-    const DVec3 o{RTCRayN_org_x(rays, N, i), RTCRayN_org_y(rays, N, i), RTCRayN_org_z(rays, N, i)};
-    const DVec3 d{RTCRayN_dir_x(rays, N, i), RTCRayN_dir_y(rays, N, i), RTCRayN_dir_z(rays, N, i)};
-    const float tnear = RTCRayN_tnear(rays, N, i), tfar = RTCRayN_tfar(rays, N, i);
-    GraphHit h;
-    if (!obj.first_hit(o, d, tnear, tfar, &h)) continue;
-    const float t = std::fmax(float(h.t), tnear);
-    if (!(t <= tfar)) continue;
-    RTCRayN_tfar(rays, N, i) = t;
-    RTCHitN_Ng_x(hits, N, i) = float(h.n.x);
-    RTCHitN_Ng_y(hits, N, i) = float(h.n.y);
-    RTCHitN_Ng_z(hits, N, i) = float(h.n.z);
-    RTCHitN_u(hits, N, i) = float(int(h.shape));
-    RTCHitN_v(hits, N, i) = 0.0f;
-    RTCHitN_primID(hits, N, i) = unsigned(std::max(h.material, 0));
-    RTCHitN_geomID(hits, N, i) = args->geomID;
-    RTCHitN_instID(hits, N, i, 0) = args->context->instID[0];
-    obj.last_hit_mut() = h;
-  }
-}
-
-void object_occluded(const RTCOccludedFunctionNArguments* args) {
-  const LSystemObject& obj = object_of(args->geometryUserPtr);
-  const unsigned N = args->N;
-  RTCRayN* rays = args->ray;
-  for (unsigned i = 0; i < N; ++i) {
-    if (args->valid[i] == 0) continue;
-    const DVec3 o{RTCRayN_org_x(rays, N, i), RTCRayN_org_y(rays, N, i), RTCRayN_org_z(rays, N, i)};
-    const DVec3 d{RTCRayN_dir_x(rays, N, i), RTCRayN_dir_y(rays, N, i), RTCRayN_dir_z(rays, N, i)};
-    if (obj.occluded(o, d, RTCRayN_tnear(rays, N, i), RTCRayN_tfar(rays, N, i))) RTCRayN_tfar(rays, N, i) = -INFINITY;
-  }
+  intersect_n<LSystemObject>(args, [](const LSystemObject& o) -> GraphHit& { return o.last_hit_mut(); });
 }
 
 }  // namespace
 
 unsigned attach_lsystem(RTCDevice device, RTCScene scene, const LSystemObject& object) {
-  RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
-  rtcSetGeometryUserPrimitiveCount(geom, 1);
-  rtcSetGeometryUserData(geom, const_cast<LSystemObject*>(&object));
-  rtcSetGeometryBoundsFunction(geom, object_bounds, nullptr);
-  rtcSetGeometryIntersectFunction(geom, object_intersect);
-  rtcSetGeometryOccludedFunction(geom, object_occluded);
-  rtcCommitGeometry(geom);
-  const unsigned id = rtcAttachGeometry(scene, geom);
-  rtcReleaseGeometry(geom);
-  return id;
+  return attach_user_geometry(device, scene, &object, object_bounds, object_intersect, occluded_n<LSystemObject>);
 }
 
 }  // namespace plm::lsystem

@@ -21,19 +21,6 @@ V3 cross(V3 a, V3 b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x
 V3 normalize(V3 a) { return (1.0 / std::sqrt(dot(a, a))) * a; }
 bool finite(V3 a) { return std::isfinite(a.x) && std::isfinite(a.y) && std::isfinite(a.z); }
 
-// sin and cos of an angle in degrees, exact at multiples of 90.
-void sincos_degrees(double degrees, double* s, double* c) {
-  double r = std::fmod(degrees, 360.0);
-  if (r < 0) r += 360.0;
-  if (r == 0) { *s = 0; *c = 1; return; }
-  if (r == 90) { *s = 1; *c = 0; return; }
-  if (r == 180) { *s = 0; *c = -1; return; }
-  if (r == 270) { *s = -1; *c = 0; return; }
-  const double rad = degrees * (3.14159265358979323846 / 180.0);
-  *s = std::sin(rad);
-  *c = std::cos(rad);
-}
-
 struct State {
   V3 p{0, 0, 0};
   V3 h{0, 0, 1}, l{-1, 0, 0}, u{0, -1, 0};

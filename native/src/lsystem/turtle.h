@@ -27,6 +27,7 @@
 // 90 use exact sines and cosines, so a square closes exactly.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -34,6 +35,20 @@
 #include "lsystem/lsystem.h"
 
 namespace plm::lsystem {
+
+// sin and cos of an angle in degrees, exact at multiples of 90 (the turtle and
+// the scene graph turn alike).
+inline void sincos_degrees(double degrees, double* s, double* c) {
+  double r = std::fmod(degrees, 360.0);
+  if (r < 0) r += 360.0;
+  if (r == 0) { *s = 0; *c = 1; return; }
+  if (r == 90) { *s = 1; *c = 0; return; }
+  if (r == 180) { *s = 0; *c = -1; return; }
+  if (r == 270) { *s = -1; *c = 0; return; }
+  const double rad = degrees * (3.14159265358979323846 / 180.0);
+  *s = std::sin(rad);
+  *c = std::cos(rad);
+}
 
 // The canonical shapes are those of csg/primitive.h (Blender's defaults):
 // cylinder radius 1 with z in [-1,1]; cone base radius 1 at z=-1, apex z=+1;

@@ -1,0 +1,74 @@
+// Embree user-geometry callbacks shared by a bare Graph (graph.cpp) and a
+// placed LSystemObject (lsystem_object.cpp): T provides first_hit(o, d,
+// tnear, tfar, GraphHit*) and occluded(o, d, tnear, tfar); `slot(object)`
+// is where the full hit record of the calling thread goes.
+#pragma once
+
+#include <embree3/rtcore.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "lsystem/graph.h"
+
+namespace plm::lsystem {
+
+// Bounds [lo - pad, hi + pad] rounded outwards to float; an empty box (lo > hi)
+// becomes one Embree skips.
+inline void write_bounds(csg::DVec3 lo, csg::DVec3 hi, double pad, RTCBounds* b) {
+  if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) {  // nothing drawn
+    b->lower_x = b->lower_y = b->lower_z = INFINITY;
+    b->upper_x = b->upper_y = b->upper_z = -INFINITY;
+    return;
+  }
+  b->lower_x = std::nextafter(float(lo.x - pad), -INFINITY);
+  b->lower_y = std::nextafter(float(lo.y - pad), -INFINITY);
+  b->lower_z = std::nextafter(float(lo.z - pad), -INFINITY);
+  b->upper_x = std::nextafter(float(hi.x + pad), INFINITY);
+  b->upper_y = std::nextafter(float(hi.y + pad), INFINITY);
+  b->upper_z = std::nextafter(float(hi.z + pad), INFINITY);
+}
+
+// A hit writes tfar, Ng, u = ShapeKind, v = 0, primID = the turtle material.
+template <typename T, typename Slot>
+void intersect_n(const RTCIntersectFunctionNArguments* args, Slot slot) {
+  const T& obj = *static_cast<const T*>(args->geometryUserPtr);
+  const unsigned N = args->N;
+  RTCRayN* rays = RTCRayHitN_RayN(args->rayhit, N);
+  RTCHitN* hits = RTCRayHitN_HitN(args->rayhit, N);
+  for (unsigned i = 0; i < N; ++i) {
+    if (args->valid[i] == 0) continue;
+    const csg::DVec3 o{RTCRayN_org_x(rays, N, i), RTCRayN_org_y(rays, N, i), RTCRayN_org_z(rays, N, i)};
+    const csg::DVec3 d{RTCRayN_dir_x(rays, N, i), RTCRayN_dir_y(rays, N, i), RTCRayN_dir_z(rays, N, i)};
+    const float tnear = RTCRayN_tnear(rays, N, i), tfar = RTCRayN_tfar(rays, N, i);
+    GraphHit h;
+    if (!obj.first_hit(o, d, tnear, tfar, &h)) continue;
+    const float t = std::fmax(float(h.t), tnear);
+    if (!(t <= tfar)) continue;
+    RTCRayN_tfar(rays, N, i) = t;
+    RTCHitN_Ng_x(hits, N, i) = float(h.n.x);
+    RTCHitN_Ng_y(hits, N, i) = float(h.n.y);
+    RTCHitN_Ng_z(hits, N, i) = float(h.n.z);
+    RTCHitN_u(hits, N, i) = float(int(h.shape));
+    RTCHitN_v(hits, N, i) = 0.0f;
+    RTCHitN_primID(hits, N, i) = unsigned(std::max(h.material, 0));  // turtle materials are >= 0
+    RTCHitN_geomID(hits, N, i) = args->geomID;
+    RTCHitN_instID(hits, N, i, 0) = args->context->instID[0];
+    slot(obj) = h;
+  }
+}
+
+template <typename T>
+void occluded_n(const RTCOccludedFunctionNArguments* args) {
+  const T& obj = *static_cast<const T*>(args->geometryUserPtr);
+  const unsigned N = args->N;
+  RTCRayN* rays = args->ray;
+  for (unsigned i = 0; i < N; ++i) {
+    if (args->valid[i] == 0) continue;
+    const csg::DVec3 o{RTCRayN_org_x(rays, N, i), RTCRayN_org_y(rays, N, i), RTCRayN_org_z(rays, N, i)};
+    const csg::DVec3 d{RTCRayN_dir_x(rays, N, i), RTCRayN_dir_y(rays, N, i), RTCRayN_dir_z(rays, N, i)};
+    if (obj.occluded(o, d, RTCRayN_tnear(rays, N, i), RTCRayN_tfar(rays, N, i))) RTCRayN_tfar(rays, N, i) = -INFINITY;
+  }
+}
+
+}  // namespace plm::lsystem
