@@ -3,7 +3,7 @@
 set -euo pipefail
 packages=(cmake g++ make libembree-dev libopenimageio-dev openimageio-tools libtbb-dev
           libgtest-dev libbenchmark-dev python3-numpy python3-pytest python3-matplotlib blender xvfb
-          clang libclang-rt-14-dev nlohmann-json3-dev)
+          clang libclang-rt-14-dev nlohmann-json3-dev libosd-dev libtinygltf-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -819,14 +819,14 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     ls.texel_size = carrier_texel_size(areas[size_t(solid.carrier)], solid.object->bounds_hi() - solid.object->bounds_lo());
     // The solid's texels cover every face of every primitive, also the parts
     // its carrier never shows: at most 4 texels per covered carrier texel (at
-    // least 16384 in all), so that a solid far larger than its carrier does not
+    // least 4096 in all), so that a solid far larger than its carrier does not
     // make the classification at set-up run for minutes.
     double face_area = 0.0, cover = 0.0;
     for (uint32_t k = 0; k < solid.object->primitive_count(); ++k)
       for (double a : solid.object->primitive(k).area)
         if (std::isfinite(a) && a > 0.0) face_area += a;
     for (float cv : areas[size_t(solid.carrier)].coverage) cover += cv;
-    const double budget_side = std::sqrt(face_area / std::max(16384.0, 4.0 * cover));
+    const double budget_side = std::sqrt(face_area / std::max(4096.0, 4.0 * cover));
     if (budget_side > ls.texel_size) {
       ls.texel_size = budget_side;
       out.warnings.push_back("CSG solid '" + solid.object->name() + "': its primitives' faces (" +
