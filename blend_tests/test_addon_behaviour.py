@@ -126,6 +126,11 @@ def build_scene():
     scenes.add_light("sun", 'SUN', (0, 0, 5), rotation=(math.radians(20), math.radians(10), 0), energy=3.0)
     scenes.add_light("lamp", 'POINT', (1.0, -1.0, 2.0), energy=200.0)
     scenes.set_world_color((0.05, 0.05, 0.08))
+    # Cycles portals: a rectangle is exported as a portal, a disk is reported and skipped.
+    window = scenes.add_light("window", 'AREA', (0, 0, 3), shape='RECTANGLE', size=2.0, size_y=1.0)
+    window.data.cycles.is_portal = True
+    round_window = scenes.add_light("round_window", 'AREA', (0, 0, 3.5), shape='DISK', size=1.0)
+    round_window.data.cycles.is_portal = True
     return dict(cube=cube, floor=floor, shared_a=s1, shared_b=s2, broken=broken, odd=odd)
 
 
@@ -206,6 +211,9 @@ def main():
     checks.check("broken" not in baked and {"cube", "floor", "shared_a", "shared_b", "odd/name:*?"} <= baked,
                  "other objects baked: %s" % sorted(baked))
     checks.check(any("shared_mat" in t and "shared" in t for t in reports), "shared material reported")
+    checks.check(any("portal 'window'" in t and "sampled through it" in t for t in reports)
+                 and any("portal 'round_window'" in t and "skipped" in t for t in reports),
+                 "rectangular portal exported, disk portal reported and skipped")
 
     # -- images and EXR files ------------------------------------------------------------------------------
     for name in sorted(baked):

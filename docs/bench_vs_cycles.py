@@ -110,7 +110,13 @@ def build_interior():
     scenes.add_light("sun", 'SUN', (0, -6, 6), rotation=(math.radians(50), 0, math.radians(20)),
                      energy=4.0, angle=math.radians(1.0))
     scenes.set_world_color((0.30, 0.40, 0.60), 1.0)
-    return objs, "closed room, window 1.5 x 1 m, sun 4 W/m^2 + sky outside, white walls, albedo 0.8"
+    # A portal in the window, as one sets up Cycles for interiors (both bakers sample the sky
+    # through it; photonlm also sends the sun's photons through it). Local -Z points into the room.
+    portal = scenes.add_light("window_portal", 'AREA', (0, -2, 1.25), rotation=(math.radians(90), 0, 0),
+                              shape='RECTANGLE', size=1.5, size_y=1.0)
+    portal.data.cycles.is_portal = True
+    return objs, ("closed room, window 1.5 x 1 m with a portal, sun 4 W/m^2 + sky outside, white walls, "
+                  "albedo 0.8")
 
 
 SCENES = {"cornell": build_cornell, "open": build_open, "interior": build_interior}

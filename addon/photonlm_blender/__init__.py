@@ -16,6 +16,7 @@ Modules
     materials   reads Blender materials; wires lightmaps into node trees, preview toggle
     bake        one bake job: prepare (main thread) / run (any thread) / finish (main thread)
     operators   bpy.ops.photonlm.bake (modal with progress bar, or synchronous)
+    scene_file_export  File > Export > PhotonLM scene (.json) for `photonlm bake` on batch machines
     panel       Render Properties > PhotonLM Lightmaps
 """
 
@@ -32,15 +33,16 @@ bl_info = {
 if "bpy" in locals():  # re-running register() after a reload in the same session
     import importlib
     for _name in ("bridge", "properties", "uvmaps", "csg_export", "lsystem", "export", "materials", "bake",
-                  "operators", "panel"):
+                  "operators", "scene_file_export", "panel"):
         if _name in locals():
             importlib.reload(locals()[_name])
 
 import bpy  # noqa: E402  (after the reload block)
 
 from . import bridge, properties, uvmaps, csg_export, lsystem, export, materials, bake, operators, panel  # noqa: E402,F401
+from . import scene_file_export  # noqa: E402
 
-_MODULES = (properties, lsystem, operators, panel)
+_MODULES = (properties, lsystem, operators, scene_file_export, panel)
 
 
 def register():

@@ -43,16 +43,21 @@ def output_directory(scene):
     return path
 
 
+def bake_settings(scene):
+    """The scene's PhotonLM settings as arguments of photonlm.Scene.bake (also written into
+    exported scene files, so that `photonlm bake` bakes what the add-on would)."""
+    settings = scene.photonlm
+    return dict(photons=int(settings.photons), max_bounces=int(settings.max_bounces),
+                seed=int(settings.seed), target_error=float(settings.target_error),
+                time_budget=float(settings.time_budget), direct_samples=int(settings.direct_samples),
+                texel_value=settings.texel_value)
+
+
 class BakeJob:
     def __init__(self, context):
         self.reports = export.Reports()
         self.photonlm = bridge.get()           # RuntimeError with a readable message if missing
-        settings = context.scene.photonlm
-        self.settings = dict(photons=int(settings.photons), max_bounces=int(settings.max_bounces),
-                             seed=int(settings.seed), target_error=float(settings.target_error),
-                             time_budget=float(settings.time_budget),
-                             direct_samples=int(settings.direct_samples),
-                             texel_value=settings.texel_value)
+        self.settings = bake_settings(context.scene)
         self.scene_name = context.scene.name
         self.result = None
         self.export = None
@@ -85,6 +90,7 @@ class BakeJob:
             self.error = "bake failed: %s" % (getattr(e, "message", None) or e)
         finally:
             self.export.scene.close()
+            self.export.texture_files.cleanup()  # the engine copied the images at the bake's start
 
     # -- main thread again -------------------------------------------------------------------
     def abort(self, context):
@@ -97,6 +103,7 @@ class BakeJob:
         self.created_uvs = []
         if self.export is not None:
             self.export.scene.close()
+            self.export.texture_files.cleanup()
         if self.result is not None:
             self.result.close()
             self.result = None

@@ -9,7 +9,8 @@ What is exported
   object.photonlm.resolution or the scene's texel density); otherwise, and for instances
   (particles, collection instances) and curve/text/metaball objects, they are geometry
   only: they block and reflect light but get no lightmap.
-- Lights: point, spot, sun, area (square/rectangle -> AREA_RECT, disk/ellipse -> AREA_DISK)
+- Lights: point, spot, sun, area (square/rectangle -> AREA_RECT, disk/ellipse -> AREA_DISK);
+  Cycles portal lights (square/rectangle) -> PORTAL
   with colour, power, world matrix, soft size, sun angle, area size, spot size/blend.
 - World: Background colour x strength (a uniform radiance), or world.color without nodes.
 """
@@ -19,7 +20,7 @@ import re
 
 import numpy as np
 
-from . import csg_export, lsystem, materials, properties, uvmaps
+from . import csg_export, lsystem, materials, properties, subdiv_export, uvmaps
 
 GEOMETRY_TYPES = {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT'}
 
@@ -191,6 +192,7 @@ class SceneExport:
         self.ol_groups = {}         # key -> OlGroup
         self.csg_objects = []       # names of objects traced as exact CSG solids
         self.lsystems = []          # (object name, engine id) of L-system objects
+        self.texture_files = materials.TextureFiles()  # images for the engine; cleanup() after the bake
 
 
 class OlGroup:
@@ -215,6 +217,10 @@ def export_scene(context, photonlm, reports):
     """
     scene = context.scene
     view_layer = context.view_layer
+    cages = {}  # objects whose last modifier is a Subdivision Surface go as their cage (subdiv_export.py)
+    if getattr(scene.photonlm, "native_subdivision", True):
+        cages = subdiv_export.read_cages(context, subdiv_export.candidates(
+            [o for o in view_layer.objects if is_renderable(o, view_layer)], reports), reports)
     depsgraph = context.evaluated_depsgraph_get()
     density = scene.photonlm.texel_density
     plm = photonlm.Scene()
@@ -238,6 +244,10 @@ def export_scene(context, photonlm, reports):
                 _add_lsystem(export, plm, orig, inst.matrix_world.copy(), default_id, reports)
                 continue
             with_lightmap = (not inst.is_instance) and orig.name in bake_names
+            cage = None if inst.is_instance else cages.get(orig.name)
+            if cage is not None and _add_subdiv_object(export, plm, orig, obj_eval, cage, with_lightmap, density,
+                                                       default_id, reports):
+                continue
             _add_object(export, plm, orig, obj_eval, inst.matrix_world.copy(), inst.is_instance,
                         with_lightmap, density, default_id, reports)
         _set_world(plm, scene.world, reports)
@@ -255,6 +265,7 @@ def _add_material(export, plm, mat, reports):
     for note in info.notes:
         reports.warning(note)
     mid = plm.add_material(info.albedo, info.emission, name=info.name)
+    materials.export_textures(plm, mid, info, export.texture_files, reports)
     export.material_ids[key] = mid
     export.material_info[key] = info
     return mid
@@ -286,6 +297,8 @@ def _add_object(export, plm, orig, obj_eval, matrix, is_instance, with_lightmap,
         slot_ids = np.array([_add_material(export, plm, m, reports) if m is not None else default_id
                              for m in mats] or [default_id], dtype=np.uint32)
         mat_ids = slot_ids[np.clip(mat_index, 0, len(slot_ids) - 1)]
+        tex_uv = materials.texture_uv(mesh, [export.material_info.get(_material_key(m)) for m in mats],
+                                      orig.name, reports)
     finally:
         obj_eval.to_mesh_clear()
     if with_lightmap and uv is None:
@@ -301,6 +314,8 @@ def _add_object(export, plm, orig, obj_eval, matrix, is_instance, with_lightmap,
     except Exception as e:  # the engine names the mesh and the first bad index
         reports.warning("object '%s' skipped: %s" % (orig.name, getattr(e, "message", e)))
         return
+    if tex_uv is not None and hasattr(plm, "set_mesh_texture_uv"):
+        plm.set_mesh_texture_uv(mesh_id, tex_uv)
     group = _ol_group(export, plm, orig, len(tris), resolution if with_lightmap else 0, reports)
     if group is not None:
         plm.set_mesh_ol_group(mesh_id, group.group_id)
@@ -313,6 +328,43 @@ def _add_object(export, plm, orig, obj_eval, matrix, is_instance, with_lightmap,
                                         [(m.name if m is not None else None) for m in mats]))
     else:
         export.geometry_only += 1
+
+
+def _add_subdiv_object(export, plm, orig, obj_eval, cage, with_lightmap, density, default_id, reports):
+    """Add orig as its subdivision cage (refined by the engine); False to fall back to the mesh."""
+    mats = _object_materials(obj_eval, None) or list(orig.data.materials)
+    slot_ids = np.array([_add_material(export, plm, m, reports) if m is not None else default_id
+                         for m in mats] or [default_id], dtype=np.uint32)
+    infos = [export.material_info.get(_material_key(m)) for m in mats]
+    if any(getattr(i, "albedo_texture", None) is not None or getattr(i, "emission_texture", None) is not None
+           for i in infos):
+        reports.info("object '%s': exported as Blender's subdivided mesh: a material has an image texture "
+                     "(texture UVs are read from Blender's mesh only)" % orig.name)
+        return False
+    if with_lightmap and cage.uv is None:
+        reports.warning("object '%s': its subdivision cage has no '%s' UV map: baked as geometry only"
+                        % (orig.name, uvmaps.LIGHTMAP_UV))
+        with_lightmap = False
+    resolution = object_resolution(orig, cage.area, density) if with_lightmap else 0
+    try:
+        mesh_id = subdiv_export.add_cage(plm, orig.name, cage, with_lightmap, slot_ids, resolution)
+    except Exception as e:  # the engine names the mesh and the first bad index
+        reports.warning("object '%s': exported as Blender's subdivided mesh: the engine refused its cage: %s"
+                        % (orig.name, getattr(e, "message", e)))
+        return False
+    reports.info("object '%s': subdivision level %d refined by the engine from a cage of %d faces"
+                 % (orig.name, cage.level, len(cage.face_sizes)))
+    group = _ol_group(export, plm, orig, cage.triangle_count(), resolution, reports)
+    if group is not None:
+        plm.set_mesh_ol_group(mesh_id, group.group_id)
+        if orig.name not in group.objects:
+            group.objects.append(orig.name)
+    if with_lightmap:
+        export.baked.append(BakedObject(orig, mesh_id, resolution, resolution,
+                                        [(m.name if m is not None else None) for m in mats]))
+    else:
+        export.geometry_only += 1
+    return True
 
 
 def _add_lsystem(export, plm, orig, matrix, default_id, reports):
@@ -386,6 +438,19 @@ def _ol_group(export, plm, orig, triangles, resolution, reports):
 
 def _add_light(plm, obj_eval, matrix, reports):
     light = obj_eval.data
+    m = [list(row) for row in matrix]
+    if light.type == 'AREA' and getattr(getattr(light, "cycles", None), "is_portal", False):
+        if light.shape not in ('SQUARE', 'RECTANGLE'):
+            reports.warning("portal '%s': only square and rectangle portals are supported: skipped" % obj_eval.name)
+            return False
+        sy = light.size_y if light.shape == 'RECTANGLE' else light.size
+        try:
+            plm.add_light('PORTAL', name=obj_eval.name, matrix=m, size=light.size, size_y=sy)
+        except Exception as e:
+            reports.warning("portal '%s' skipped: %s" % (obj_eval.name, getattr(e, "message", e)))
+            return False
+        reports.info("portal '%s': sun and sky light are sampled through it" % obj_eval.name)
+        return True
     color = tuple(light.color)
     power = float(light.energy)
     if power <= 0.0 or max(color) <= 0.0:
@@ -393,7 +458,6 @@ def _add_light(plm, obj_eval, matrix, reports):
     if light.use_nodes:
         reports.warning("light '%s': light nodes are ignored (colour and power come from the light's "
                         "settings)" % obj_eval.name)
-    m = [list(row) for row in matrix]
     kw = dict(name=obj_eval.name, color=color, power=power, matrix=m)
     t = light.type
     try:

@@ -7,9 +7,12 @@ through its Surface link (reroutes are skipped):
                      emission = Emission x Emission Strength
     Diffuse BSDF     albedo = Color
     Emission         albedo = 0, emission = Color x Strength
-A linked (textured) Base Color, any other shader, a group or nothing linked gives a grey
-0.8 albedo and a report naming the material. A linked Emission/Strength counts as no
-emission (also reported). A material without nodes uses its viewport colour
+An Image Texture node linked into Base Color / Color (its Vector unlinked or from a UV Map
+node) becomes an engine albedo texture (albedo = image x the constant factor above) on the
+UV map it reads (export_textures, texture_uv); one into Emission (Color) with an unlinked
+Strength becomes an emission texture (radiance = image x strength). Anything else linked
+(procedural nodes, mixes), any other shader, a group or nothing linked gives a grey 0.8
+albedo and a report naming the material; other linked emission counts as no emission. A material without nodes uses its viewport colour
 (material.diffuse_color). Albedos above 1 are clamped (they would create energy).
 
 Wiring (for the preview). Baking adds, to every material of a baked object, nodes
@@ -49,6 +52,48 @@ class MaterialInfo:
         self.emission_color_socket = None
         self.emission_strength_socket = None
         self.emission_strength_default = 1.0
+        self.albedo_texture = None     # TextureRef: Image Texture node into the base colour
+        self.emission_texture = None   # TextureRef: Image Texture node into the emission colour
+
+
+class TextureRef:
+    """An Image Texture node the engine looks up itself: its image and the UV map it reads
+    (None = the mesh's active render UV map)."""
+
+    def __init__(self, node, uv_map):
+        self.node = node
+        self.image = node.image
+        self.uv_map = uv_map
+
+
+def _image_texture(mat, socket, what, info):
+    """TextureRef when socket is fed by an Image Texture node the engine can look up (an image,
+    its Vector unlinked or from a UV Map node, Repeat extension); else None with a note."""
+    node = _follow(socket)
+    if node is None or node.bl_idname != 'ShaderNodeTexImage':
+        kind = node.bl_label if node is not None else "a link"
+        info.notes.append("material '%s': %s comes from %s (not an Image Texture): baked as grey 0.8"
+                          % (mat.name, what, kind) if what == "Base Color" else
+                          "material '%s': %s comes from %s (not an Image Texture): baked without emission"
+                          % (mat.name, what, kind))
+        return None
+    if node.image is None:
+        info.notes.append("material '%s': Image Texture '%s' has no image: %s ignored" % (mat.name, node.name, what))
+        return None
+    uv_map = None
+    vec = node.inputs['Vector']
+    if vec.is_linked:
+        src = _follow(vec)
+        if src is None or src.bl_idname != 'ShaderNodeUVMap':
+            info.notes.append("material '%s': Image Texture '%s' reads coordinates from '%s' (only a UV Map node "
+                              "is supported): the mesh's render UV map is used"
+                              % (mat.name, node.name, src.bl_label if src else "?"))
+        else:
+            uv_map = src.uv_map or None
+    if node.extension != 'REPEAT':
+        info.notes.append("material '%s': Image Texture '%s' uses extension %s: baked as Repeat"
+                          % (mat.name, node.name, node.extension))
+    return TextureRef(node, uv_map)
 
 
 def _is_ours(node):
@@ -122,21 +167,25 @@ def read_material(mat):
     if kind == 'ShaderNodeBsdfPrincipled':
         base = shader.inputs['Base Color']
         info.color_socket = base
+        factor = 1.0
+        for name in ('Metallic', 'Transmission'):
+            s = shader.inputs[name]
+            if not s.is_linked:
+                factor *= 1.0 - min(max(float(s.default_value), 0.0), 1.0)
         if base.is_linked:
-            info.notes.append("material '%s': Base Color is linked (texture?): baked as grey 0.8" % mat.name)
+            info.albedo_texture = _image_texture(mat, base, "Base Color", info)
+            if info.albedo_texture is not None:
+                info.albedo = (factor, factor, factor)  # the engine multiplies the image by it
         else:
-            factor = 1.0
-            for name in ('Metallic', 'Transmission'):
-                s = shader.inputs[name]
-                if not s.is_linked:
-                    factor *= 1.0 - min(max(float(s.default_value), 0.0), 1.0)
             info.albedo = tuple(c * factor for c in _color(base))
         _read_emission(info, mat, shader.inputs['Emission'], shader.inputs['Emission Strength'])
     elif kind == 'ShaderNodeBsdfDiffuse':
         col = shader.inputs['Color']
         info.color_socket = col
         if col.is_linked:
-            info.notes.append("material '%s': Color is linked (texture?): baked as grey 0.8" % mat.name)
+            info.albedo_texture = _image_texture(mat, col, "Base Color", info)
+            if info.albedo_texture is not None:
+                info.albedo = (1.0, 1.0, 1.0)
         else:
             info.albedo = _color(col)
     elif kind == 'ShaderNodeEmission':
@@ -151,10 +200,16 @@ def read_material(mat):
 def _read_emission(info, mat, color, strength):
     info.emission_color_socket = color
     info.emission_strength_socket = strength
-    if color.is_linked or strength.is_linked:
-        info.notes.append("material '%s': emission is linked (texture?): baked without emission" % mat.name)
-        return
     s = float(strength.default_value)
+    if color.is_linked and not strength.is_linked and s > 0.0:
+        info.emission_texture = _image_texture(mat, color, "Emission", info)
+        if info.emission_texture is not None:
+            info.emission = (max(s, 0.0),) * 3  # the engine multiplies the image by the strength
+        return
+    if color.is_linked or strength.is_linked:
+        info.notes.append("material '%s': emission is linked (not an Image Texture with a constant strength): "
+                          "baked without emission" % mat.name)
+        return
     info.emission = tuple(max(c * s, 0.0) for c in _color(color))
 
 
@@ -407,3 +462,110 @@ def remove_wiring(mat):
     if ORIGINAL_OUTPUT_KEY in tree:
         del tree[ORIGINAL_OUTPUT_KEY]
     return bool(ours)
+
+
+# ---- image textures for the engine ---------------------------------------------------------
+
+class TextureFiles:
+    """Images handed to the engine: file-backed images by their path, packed / generated /
+    edited ones written to a private temporary directory (removed by cleanup())."""
+
+    def __init__(self):
+        self.dir = None
+        self.paths = {}  # image name -> (path, colorspace)
+
+    def path_of(self, image):
+        import os
+        key = image.name_full
+        if key in self.paths:
+            return self.paths[key]
+        path = bpy.path.abspath(image.filepath, library=image.library) if image.filepath else ""
+        space = "srgb" if image.colorspace_settings.name == 'sRGB' else "linear"
+        if not (image.source == 'FILE' and not image.packed_file and not image.is_dirty
+                and path and os.path.isfile(path)):
+            path, space = self._write_pixels(image)
+        self.paths[key] = (path, space)
+        return self.paths[key]
+
+    def _write_pixels(self, image):
+        """The image's pixels as PPM (byte images, as stored: sRGB stays encoded) or PFM (float
+        images, scene linear)."""
+        import os
+        import tempfile
+        import numpy as np
+        if self.dir is None:
+            self.dir = tempfile.mkdtemp(prefix="photonlm-images-")
+        w, h = image.size
+        if w == 0 or h == 0:
+            raise ValueError("image '%s' has no pixels" % image.name)
+        px = np.empty(w * h * image.channels, np.float32)
+        image.pixels.foreach_get(px)
+        px = px.reshape(h, w, image.channels)
+        rgb = px[..., :3] if image.channels >= 3 else np.repeat(px[..., :1], 3, axis=2)
+        name = "%d" % len(self.paths)
+        if image.is_float:
+            path = os.path.join(self.dir, name + ".pfm")
+            with open(path, "wb") as f:  # PFM rows run bottom to top, like Blender's pixels
+                f.write(b"PF\n%d %d\n-1.0\n" % (w, h))
+                f.write(np.ascontiguousarray(rgb, "<f4").tobytes())
+            return path, "linear"
+        path = os.path.join(self.dir, name + ".ppm")
+        with open(path, "wb") as f:  # PPM rows run top to bottom
+            f.write(b"P6\n%d %d\n255\n" % (w, h))
+            f.write(np.clip(np.rint(rgb[::-1] * 255.0), 0, 255).astype(np.uint8).tobytes())
+        return path, "srgb" if image.colorspace_settings.name == 'sRGB' else "linear"
+
+    def cleanup(self):
+        import shutil
+        if self.dir is not None:
+            shutil.rmtree(self.dir, ignore_errors=True)
+            self.dir = None
+        self.paths = {}
+
+
+def export_textures(plm, material_id, info, files, reports):
+    """Give engine material material_id the textures of info (if the scene supports them).
+    A texture the engine cannot read is reported and the material keeps its fallback colour."""
+    if not hasattr(plm, "set_material_texture"):
+        if info.albedo_texture or info.emission_texture:
+            reports.warning("material '%s': textures are not exported here: their mean is not known, "
+                            "baked with constant colours" % info.name)
+        return
+    for slot, ref in (("albedo", info.albedo_texture), ("emission", info.emission_texture)):
+        if ref is None:
+            continue
+        try:
+            path, space = files.path_of(ref.image)
+            plm.set_material_texture(material_id, slot, path, space)
+        except Exception as e:  # noqa: BLE001 -- reported; the bake goes on without the texture
+            reports.warning("material '%s': %s texture '%s' not used: %s"
+                            % (info.name, slot, ref.image.name, getattr(e, "message", e)))
+
+
+def texture_uv(mesh, infos, object_name, reports):
+    """(T, 3, 2) float32 texture UVs of an evaluated mesh (loop triangles) for its textured
+    materials, or None when none is textured. One UV map per mesh: the first textured
+    material's (a UV Map node's, else the active render UV map); others are reported."""
+    import numpy as np
+    wanted = []
+    for info in infos:
+        for ref in (info.albedo_texture, info.emission_texture) if info is not None else ():
+            if ref is not None and ref.uv_map not in wanted:
+                wanted.append(ref.uv_map)
+    if not wanted:
+        return None
+    name = wanted[0]
+    layer = mesh.uv_layers.get(name) if name else next((l for l in mesh.uv_layers if l.active_render), None)
+    if len(wanted) > 1:
+        reports.warning("object '%s': its textures read different UV maps %s: all use '%s'"
+                        % (object_name, wanted, layer.name if layer else name))
+    if layer is None:
+        reports.warning("object '%s': no UV map '%s' for its textures: their mean colour is used"
+                        % (object_name, name or "(render)"))
+        return None
+    nt = len(mesh.loop_triangles)
+    loops = np.empty(nt * 3, np.int32)
+    mesh.loop_triangles.foreach_get("loops", loops)
+    loop_uv = np.empty(len(mesh.loops) * 2, np.float32)
+    layer.data.foreach_get("uv", loop_uv)
+    return loop_uv.reshape(-1, 2)[loops].reshape(nt, 3, 2)

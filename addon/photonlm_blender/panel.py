@@ -25,6 +25,7 @@ class PHOTONLM_PT_lightmaps(bpy.types.Panel):
         col.prop(settings, "texel_value")
         col.prop(settings, "max_bounces")
         col.prop(settings, "texel_density")
+        col.prop(settings, "native_subdivision")
         col.prop(settings, "seed")
         col.prop(settings, "output_dir")
 
@@ -39,6 +40,7 @@ class PHOTONLM_PT_lightmaps(bpy.types.Panel):
         row = layout.row(align=True)
         row.prop(settings, "preview", toggle=True, icon='HIDE_OFF' if settings.preview else 'HIDE_ON')
         row.operator("photonlm.remove_preview", text="", icon='TRASH')
+        layout.operator("photonlm.export_scene_file", text="Export Scene File...", icon='EXPORT')
 
         if settings.last_photons:
             box = layout.box()

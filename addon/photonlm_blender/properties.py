@@ -89,6 +89,10 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
         name="Output", description="Folder for the EXR lightmaps (<object>_lightmap.exr). A relative path "
         "(//) is relative to the .blend file; for an unsaved file it is a temporary folder",
         default="//lightmaps/", subtype='DIR_PATH')
+    native_subdivision: BoolProperty(
+        name="Native Subdivision", default=True,
+        description="Export objects whose last modifier is a Subdivision Surface as their cage and refine "
+                    "them in the engine (OpenSubdiv, the modifier's render level); off: Blender's subdivided mesh")
     max_bounces: IntProperty(
         name="Max Bounces", description="Diffuse bounces after the first hit; 0 bakes direct light only",
         default=1024, min=0, soft_max=1024)

@@ -304,7 +304,7 @@ TEST(SceneFile, FileErrorsNameTheFile) {
   write_text(temp_dir() + "/broken.json", R"({"lights": [{"type": "LASER"}]})");
   EXPECT_FALSE(plm::read_scene_file(temp_dir() + "/broken.json", {}, f, error));
   EXPECT_EQ(error, temp_dir() + "/broken.json: scene.lights[0].type: \"LASER\" is not one of POINT, SPOT, SUN, "
-                                "AREA_RECT, AREA_DISK");
+                                "AREA_RECT, AREA_DISK, PORTAL");
   // OBJ paths are relative to the scene file's folder.
   write_text(temp_dir() + "/tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
   write_text(temp_dir() + "/tri.json", R"({"meshes": [{"obj": "tri.obj"}]})");

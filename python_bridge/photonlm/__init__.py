@@ -25,12 +25,13 @@ from . import _lib
 from ._lib import LibraryNotFoundError, library_path
 
 __all__ = ["version", "PhotonlmError", "BakeCancelled", "LibraryNotFoundError", "Scene", "Result",
-           "Lightmap", "OrientationLightmap", "library_path", "lsystem_flatten", "LSYSTEM_SHAPES"]
+           "Lightmap", "OrientationLightmap", "library_path", "lsystem_flatten", "LSYSTEM_SHAPES",
+           "subdiv_refine"]
 
 _C = _lib.lib
 _OK = 0
 _CANCELLED = 5
-_LIGHT_TYPES = {"POINT": 0, "SPOT": 1, "SUN": 2, "AREA_RECT": 3, "AREA_DISK": 4}
+_LIGHT_TYPES = {"POINT": 0, "SPOT": 1, "SUN": 2, "AREA_RECT": 3, "AREA_DISK": 4, "PORTAL": 5}
 
 
 class PhotonlmError(Exception):
@@ -141,6 +142,59 @@ def _lsystem_settings(depth, seed, matrix, step, angle, width, materials=None, o
 
 # plm_csg_shape codes of the primitives lsystem_flatten returns.
 LSYSTEM_SHAPES = {0: "SPHERE", 1: "BOX", 2: "CYLINDER", 3: "CONE"}
+
+
+def _cage(name, positions, face_sizes, face_indices, lightmap_uv, crease_edges, crease_weights):
+    """Checked, contiguous arrays of a subdivision cage (see Scene.add_subdiv_mesh)."""
+    pos = np.ascontiguousarray(positions, dtype=np.float32)
+    if pos.ndim != 2 or pos.shape[1] != 3:
+        raise ValueError("positions of mesh %r must have shape (V, 3), got %s" % (name, pos.shape))
+    sizes = _indices(face_sizes, "face_sizes")
+    if sizes.ndim != 1:
+        raise ValueError("face_sizes of mesh %r must have shape (F,), got %s" % (name, sizes.shape))
+    corners = int(sizes.sum(dtype=np.int64))
+    fidx = _indices(face_indices, "face_indices").reshape(-1)
+    if fidx.shape != (corners,):
+        raise ValueError("face_indices of mesh %r must hold sum(face_sizes) = %d indices, got %d"
+                         % (name, corners, fidx.size))
+    uv = None
+    if lightmap_uv is not None:
+        uv = np.ascontiguousarray(lightmap_uv, dtype=np.float32)
+        if uv.shape != (corners, 2):
+            raise ValueError("lightmap_uv of mesh %r must have shape (sum(face_sizes), 2) = (%d, 2), got %s"
+                             % (name, corners, uv.shape))
+    edges = weights = None
+    count = 0
+    if crease_edges is not None or crease_weights is not None:
+        if crease_edges is None or crease_weights is None:
+            raise ValueError("crease_edges and crease_weights of mesh %r go together" % (name,))
+        edges = _indices(crease_edges, "crease_edges")
+        weights = np.ascontiguousarray(crease_weights, dtype=np.float32)
+        if edges.ndim != 2 or edges.shape[1] != 2 or weights.shape != (edges.shape[0],):
+            raise ValueError("crease_edges of mesh %r must have shape (C, 2) and crease_weights (C,), "
+                             "got %s and %s" % (name, edges.shape, weights.shape))
+        count = edges.shape[0]
+    return pos, sizes, fidx, uv, edges, weights, count
+
+
+def subdiv_refine(positions, face_sizes, face_indices, level, lightmap_uv=None, crease_edges=None,
+                  crease_weights=None):
+    """The engine's refinement of a cage (as Scene.add_subdiv_mesh makes it): positions (V, 3) f32,
+    triangles (T, 3) u32 and, with lightmap_uv, the UV per triangle corner (T, 3, 2) f32 (else None)."""
+    pos, sizes, fidx, uv, edges, weights, count = _cage("cage", positions, face_sizes, face_indices,
+                                                        lightmap_uv, crease_edges, crease_weights)
+    nv, nt = ctypes.c_uint32(), ctypes.c_uint32()
+    args = [_ptr(pos, ctypes.c_float), _uint(pos.shape[0], "vertex count"), _ptr(sizes, ctypes.c_uint32),
+            _uint(sizes.shape[0], "face count"), _ptr(fidx, ctypes.c_uint32), _ptr(uv, ctypes.c_float),
+            _ptr(edges, ctypes.c_uint32), _ptr(weights, ctypes.c_float), _uint(count, "crease count"),
+            _uint(level, "level")]
+    _check(_C.plm_subdiv_refine(*args, None, 0, None, None, 0, ctypes.byref(nv), ctypes.byref(nt)))
+    out_pos = np.empty((nv.value, 3), np.float32)
+    out_tri = np.empty((nt.value, 3), np.uint32)
+    out_uv = np.empty((nt.value, 3, 2), np.float32) if uv is not None else None
+    _check(_C.plm_subdiv_refine(*args, _ptr(out_pos, ctypes.c_float), nv.value, _ptr(out_tri, ctypes.c_uint32),
+                                _ptr(out_uv, ctypes.c_float), nt.value, ctypes.byref(nv), ctypes.byref(nt)))
+    return out_pos, out_tri, out_uv
 
 
 def lsystem_flatten(rules, depth=0, seed=0, max_primitives=100000, step=-1, angle=-1, width=-1, matrix=None):
@@ -255,13 +309,85 @@ class Scene(_Handle):
             self._h, _name(name), _ptr(pos, ctypes.c_float), _uint(pos.shape[0], "vertex count"),
             _ptr(tri, ctypes.c_uint32), _uint(t, "triangle count"), _ptr(uv, ctypes.c_float),
             _ptr(mats, ctypes.c_uint32), width, height, ctypes.byref(out)))
+        self.__dict__.setdefault("_mesh_triangles", {})[out.value] = t
         return out.value
+
+    def add_subdiv_mesh(self, name, positions, face_sizes, face_indices, level, lightmap_uv=None,
+                        material_ids=None, crease_edges=None, crease_weights=None, resolution=0):
+        """Add a Catmull-Clark subdivision surface given by its world-space polygon cage; the
+        engine refines it with OpenSubdiv as Blender's Subdivision Surface modifier does with its
+        defaults. Returns an ordinary mesh id.
+
+        positions (V, 3) float32; face_sizes (F,) corner counts (>= 3); face_indices (sum(face_sizes),)
+        vertex indices, face after face (Blender's polygon loops); level 1..10;
+        lightmap_uv (sum(face_sizes), 2) one (u, v) per face corner (Blender's loops);
+        material_ids (F,) per face or None; crease_edges (C, 2) vertex pairs, each a cage edge,
+        with crease_weights (C,) Blender creases in [0, 1]; resolution as for add_mesh.
+        """
+        pos, sizes, fidx, uv, edges, weights, count = _cage(name, positions, face_sizes, face_indices,
+                                                            lightmap_uv, crease_edges, crease_weights)
+        corners = fidx.shape[0]
+        mats = None
+        if material_ids is not None:
+            mats = _indices(material_ids, "material_ids")
+            if mats.shape != sizes.shape:
+                raise ValueError("material_ids of mesh %r must have shape (F,) = %s, got %s"
+                                 % (name, sizes.shape, mats.shape))
+        if np.ndim(resolution) == 0:
+            width = height = _uint(resolution, "resolution")
+        else:
+            if len(resolution) != 2:
+                raise ValueError("resolution must be n or (width, height), got %r" % (resolution,))
+            width, height = (_uint(r, "resolution") for r in resolution)
+        level = _uint(level, "level")
+        out = ctypes.c_uint32()
+        _check(_C.plm_scene_add_subdiv_mesh(
+            self._h, _name(name), _ptr(pos, ctypes.c_float), _uint(pos.shape[0], "vertex count"),
+            _ptr(sizes, ctypes.c_uint32), _uint(sizes.shape[0], "face count"), _ptr(fidx, ctypes.c_uint32),
+            _ptr(uv, ctypes.c_float), _ptr(mats, ctypes.c_uint32), _ptr(edges, ctypes.c_uint32),
+            _ptr(weights, ctypes.c_float), _uint(count, "crease count"), level, width, height,
+            ctypes.byref(out)))
+        self.__dict__.setdefault("_mesh_triangles", {})[out.value] = 2 * corners * 4 ** (level - 1)
+        return out.value
+
+    TEXTURE_SLOTS = {"albedo": 0, "emission": 1}
+    TEXTURE_COLORSPACES = {"auto": 0, "linear": 1, "srgb": 2}
+
+    def set_material_texture(self, material, slot, path, colorspace="auto"):
+        """Give a material an image texture. slot "albedo" (albedo = image x the material's albedo)
+        or "emission" (radiance = image x the material's emission); path None or "" removes it.
+        colorspace "auto" (8/16-bit images are sRGB, float images linear), "linear" or "srgb".
+        Meshes need texture UVs (set_mesh_texture_uv); without them the image's mean is used."""
+        if slot not in self.TEXTURE_SLOTS:
+            raise ValueError("texture slot must be one of %s, got %r" % (sorted(self.TEXTURE_SLOTS), slot))
+        if colorspace not in self.TEXTURE_COLORSPACES:
+            raise ValueError("colorspace must be one of %s, got %r" % (sorted(self.TEXTURE_COLORSPACES), colorspace))
+        encoded = os.fsencode(os.fspath(path)) if path else None
+        _check(_C.plm_scene_set_material_texture(self._h, _uint(material, "material"), self.TEXTURE_SLOTS[slot],
+                                                 encoded, self.TEXTURE_COLORSPACES[colorspace]))
+
+    def set_mesh_texture_uv(self, mesh, uv):
+        """Set a mesh's texture UVs: (T, 3, 2) or (3T, 2) float32, one (u, v) per triangle corner
+        ((0, 0) = the image's bottom-left corner, as in Blender); None removes them."""
+        mesh = _uint(mesh, "mesh")
+        t = self.__dict__.get("_mesh_triangles", {}).get(mesh)
+        if t is None:
+            raise ValueError("mesh %d does not exist" % mesh)
+        if uv is None:
+            _check(_C.plm_scene_set_mesh_texture_uv(self._h, mesh, None))
+            return
+        arr = np.ascontiguousarray(uv, dtype=np.float32)
+        if arr.shape not in ((t, 3, 2), (3 * t, 2)):
+            raise ValueError("texture uv of mesh %d must have shape (T, 3, 2) or (3T, 2) with T = %d triangles, "
+                             "got %s" % (mesh, t, arr.shape))
+        _check(_C.plm_scene_set_mesh_texture_uv(self._h, mesh, _ptr(arr, ctypes.c_float)))
 
     def add_light(self, type, *, name=None, color=None, power=None, matrix=None, radius=None,
                   angle=None, size=None, size_y=None, spot_size=None, spot_blend=None):
         """Add a Blender-style light and return its id.
 
-        type: 'POINT', 'SPOT', 'SUN', 'AREA_RECT' or 'AREA_DISK'. Fields left None keep
+        type: 'POINT', 'SPOT', 'SUN', 'AREA_RECT', 'AREA_DISK' or 'PORTAL' (a rectangle in an
+        opening, local -Z into the interior: sun and sky are sampled through it). Fields left None keep
         Blender's defaults (plm_light_default). power is W (sun: irradiance W/m^2); matrix is
         the 4x4 object-to-world matrix (numpy or mathutils.Matrix); lights shine along local -Z.
         size_y defaults to size (square / circle) when only size is given.

@@ -42,15 +42,45 @@ def rotation_x(theta):
     return m
 
 
-def texel_average(f, x0, x1, y0, y1, width, height, sub=8, window=1.0):
+def cycles_fold(x, y, cx, cy, quad):
+    """Where Cycles 3.4 bakes the point (x, y) of a texel centred at (cx, cy) on the square
+    quad = (x0, x1, y0, y1) split into QUAD_TRIANGLES: in the triangle that owns the centre (the
+    second one on the diagonal), the point folded back into it by mirror repeat of the barycentric
+    coordinates, u (corner 0) into [0, 1], then v (corner 1) into [0, 1 - u]."""
+    qx0, qx1, qy0, qy1 = quad
+    s, t = (x - qx0) / (qx1 - qx0), (y - qy0) / (qy1 - qy0)
+    sc, tc = (cx - qx0) / (qx1 - qx0), (cy - qy0) / (qy1 - qy0)
+
+    def mirror(a, rng):
+        rng = np.maximum(rng, 1e-300)
+        q = a / rng
+        f = np.floor(q)
+        r = q - f
+        return np.where(f.astype(np.int64) & 1, 1.0 - r, r) * rng
+    upper = tc >= sc                       # triangle (0, 2, 3): s = v, t = 1 - u
+    u2 = mirror(1.0 - t, 1.0)
+    v2 = mirror(s, 1.0 - u2)
+    u1 = mirror(1.0 - s, 1.0)              # triangle (0, 1, 2): s = 1 - u, t = 1 - u - v
+    v1 = mirror(s - t, 1.0 - u1)
+    s2 = np.where(upper, v2, 1.0 - u1)
+    t2 = np.where(upper, 1.0 - u2, 1.0 - u1 - v1)
+    return qx0 + s2 * (qx1 - qx0), qy0 + t2 * (qy1 - qy0)
+
+
+def texel_average(f, x0, x1, y0, y1, width, height, sub=8, window=1.0, fold_quad=None):
     """Average of f(x, y) over each texel of a (height, width) grid on [x0,x1] x [y0,y1], row 0 at y0;
-    window < 1: over the texel's central window x window part only."""
+    window < 1: over the texel's central window x window part only; fold_quad: the points are
+    folded as Cycles folds them into the quad's triangle that owns the texel centre (cycles_fold)."""
     def coords(lo, hi, n):
         k = np.arange(n * sub)
         frac = 0.5 - window / 2 + window * ((k % sub) + 0.5) / sub
-        return lo + (k // sub + frac) * (hi - lo) / n
-    xs, ys = coords(x0, x1, width), coords(y0, y1, height)
-    v = f(xs[None, :], ys[:, None])
+        return lo + (k // sub + frac) * (hi - lo) / n, lo + (k // sub + 0.5) * (hi - lo) / n
+    (xs, cxs), (ys, cys) = coords(x0, x1, width), coords(y0, y1, height)
+    X, Y = np.meshgrid(xs, ys)
+    if fold_quad is not None:
+        CX, CY = np.meshgrid(cxs, cys)
+        X, Y = cycles_fold(X, Y, CX, CY, fold_quad)
+    v = f(X, Y)
     return v.reshape(height, sub, width, sub).mean(axis=(1, 3))
 
 

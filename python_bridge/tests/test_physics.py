@@ -171,6 +171,6 @@ def test_area_light_irradiance_at_centre():
 
     # Central 8x8 texels, averaged over each texel's central half (the default texel value).
     c0 = res // 2 - 4
-    truth = texel_average(value, -0.5, 0.5, -0.5, 0.5, 8, 8, sub=8, window=0.5)
+    truth = texel_average(value, -0.5, 0.5, -0.5, 0.5, 8, 8, sub=8, window=0.5, fold_quad=(-2.0, 2.0, -2.0, 2.0))
     centre = photonlm.Lightmap(*(a_[c0:c0 + 8, c0:c0 + 8] for a_ in lm))
     check_against_truth(centre, truth, "area light")

@@ -70,6 +70,39 @@ PLM_API plm_status plm_scene_add_material(plm_scene* scene, const char* name,
                                           const float albedo[3], const float emission[3],
                                           uint32_t* out_material_id);
 
+/* Image textures on materials (docs/design.md "Textures").
+ *   PLM_TEXTURE_ALBEDO    albedo = image x the material's albedo
+ *   PLM_TEXTURE_EMISSION  emitted radiance = image x the material's emission
+ * (multiplied, so pass albedo 1 1 1 for "the image replaces the colour", as
+ * Blender's Image node into Base Color does; pass the strength as the
+ * emission). Looked up at the point's texture UV (plm_scene_set_mesh_texture_uv)
+ * with bilinear filtering on the full-resolution image and repeat wrapping,
+ * like Cycles' Linear / Repeat Image node. Colour: flags
+ * PLM_TEXTURE_COLOR_AUTO = 0 treats 8/16-bit integer images as sRGB (decoded
+ * to linear, Blender's default) and float images (EXR, HDR) as linear;
+ * PLM_TEXTURE_COLOR_LINEAR (Blender "Non-Color"/"Linear") or
+ * PLM_TEXTURE_COLOR_SRGB force one; 8-bit sRGB images are filtered encoded and
+ * decoded after the lookup, as Cycles does. Albedo images are clamped to
+ * [0, 1]. The images are read when the bake starts (into a private temporary
+ * folder it removes), so the files must stay until plm_bake begins.
+ * Surfaces without texture UVs (a mesh without them, CSG solids, L-systems)
+ * use the image's mean colour (a mesh gets a warning at bake time).
+ * Emission textures: each emitting triangle emits its texture's mean over
+ * the triangle (constant per triangle). path NULL or "" removes the texture.
+ * Errors: a missing or unreadable file, named with the material. */
+typedef enum plm_texture_slot { PLM_TEXTURE_ALBEDO = 0, PLM_TEXTURE_EMISSION = 1 } plm_texture_slot;
+#define PLM_TEXTURE_COLOR_AUTO 0u
+#define PLM_TEXTURE_COLOR_LINEAR 1u
+#define PLM_TEXTURE_COLOR_SRGB 2u
+PLM_API plm_status plm_scene_set_material_texture(plm_scene* scene, uint32_t material_id, plm_texture_slot slot,
+                                                  const char* path, uint32_t flags);
+
+/* Texture UVs of a mesh: triangle_count * 3 * 2 floats, the (u, v) of each
+ * corner (face-varying, like lightmap_uv; any UV map, (0, 0) = the image's
+ * bottom-left corner as in Blender). NULL removes them. Errors name the mesh
+ * and the first non-finite value. */
+PLM_API plm_status plm_scene_set_mesh_texture_uv(plm_scene* scene, uint32_t mesh_id, const float* uv);
+
 /* A triangle mesh in world space.
  *   positions      vertex_count * 3 floats (x, y, z)
  *   indices        triangle_count * 3 vertex indices
@@ -91,12 +124,62 @@ PLM_API plm_status plm_scene_add_mesh(plm_scene* scene, const char* name,
                                       uint32_t lightmap_width, uint32_t lightmap_height,
                                       uint32_t* out_mesh_id);
 
+/* A Catmull-Clark subdivision surface given by its polygon cage in world
+ * space. The engine refines it with OpenSubdiv as Blender 3.4's Subdivision
+ * Surface modifier does with its defaults (limit surface on, boundary smooth
+ * ALL, UV smooth PRESERVE_BOUNDARIES, creases on) and splits each refined quad
+ * into two triangles. The id is an ordinary mesh id (lightmaps, OL groups and
+ * results work as for plm_scene_add_mesh).
+ *   positions       vertex_count * 3 floats
+ *   face_sizes      face_count corner counts (each >= 3; n-gons are fine)
+ *   face_indices    sum(face_sizes) vertex indices, face after face
+ *   lightmap_uv     sum(face_sizes) * 2 floats, (u, v) per face corner, or
+ *                   NULL when the mesh has no lightmap. Corners of one vertex
+ *                   whose UVs agree within 1e-4 are smoothed together; the
+ *                   others form UV seams, kept linear like island boundaries.
+ *   material_ids    face_count ids, or NULL for material 0
+ *   crease_edges    crease_count pairs of vertex indices, each an edge of the cage
+ *   crease_weights  crease_count Blender edge creases in [0, 1]
+ *   level           1..10; the refined mesh has 2 * sum(face_sizes) * 4^(level-1)
+ *                   triangles, and more than 2^25 is an error.
+ * Errors name the mesh and the first bad vertex, face, corner or crease. */
+PLM_API plm_status plm_scene_add_subdiv_mesh(plm_scene* scene, const char* name,
+                                             const float* positions, uint32_t vertex_count,
+                                             const uint32_t* face_sizes, uint32_t face_count,
+                                             const uint32_t* face_indices, const float* lightmap_uv,
+                                             const uint32_t* material_ids, const uint32_t* crease_edges,
+                                             const float* crease_weights, uint32_t crease_count,
+                                             uint32_t level, uint32_t lightmap_width,
+                                             uint32_t lightmap_height, uint32_t* out_mesh_id);
+
+/* The refinement plm_scene_add_subdiv_mesh makes, returned to the caller (to
+ * check it against Blender, or to preview it). Same cage arguments (lightmap_uv
+ * may be NULL). Writes *out_vertex_count and *out_triangle_count; when the
+ * buffers are non-NULL and large enough (vertex_capacity vertices,
+ * triangle_capacity triangles) also fills out_positions (3 per vertex),
+ * out_indices (3 per triangle) and out_uv (6 per triangle, only with
+ * lightmap_uv), else PLM_ERROR_INVALID_ARGUMENT names the sizes needed. */
+PLM_API plm_status plm_subdiv_refine(const float* positions, uint32_t vertex_count, const uint32_t* face_sizes,
+                                     uint32_t face_count, const uint32_t* face_indices,
+                                     const float* lightmap_uv, const uint32_t* crease_edges,
+                                     const float* crease_weights, uint32_t crease_count, uint32_t level,
+                                     float* out_positions, uint32_t vertex_capacity, uint32_t* out_indices,
+                                     float* out_uv, uint32_t triangle_capacity, uint32_t* out_vertex_count,
+                                     uint32_t* out_triangle_count);
+
 typedef enum plm_light_type {
   PLM_LIGHT_POINT = 0,
   PLM_LIGHT_SPOT = 1,
   PLM_LIGHT_SUN = 2,
   PLM_LIGHT_AREA_RECT = 3, /* Blender area light, shape SQUARE or RECTANGLE */
-  PLM_LIGHT_AREA_DISK = 4  /* Blender area light, shape DISK or ELLIPSE */
+  PLM_LIGHT_AREA_DISK = 4, /* Blender area light, shape DISK or ELLIPSE */
+  /* Not a light: a rectangle (size_x x size_y, the matrix as for AREA_RECT,
+   * local -Z pointing into the interior) in an opening through which sun and
+   * sky light enter, as Cycles' portal lights. Sun and world photons and the
+   * sky's direct light are then sampled mostly through the portals, the rest
+   * as without them, so the result stays unbiased (light entering elsewhere
+   * is still found, only more slowly); colour and power are ignored. */
+  PLM_LIGHT_PORTAL = 5
 } plm_light_type;
 
 /* A light, described as Blender describes it. The light's frame is the

@@ -11,6 +11,7 @@
 #include "lsystem/lsystem_object.h"
 #include "photonlm/photonlm.h"
 #include "scene/scene.h"
+#include "subdiv/subdiv.h"
 #include "transport/bake.h"
 #include "util/error.h"
 
@@ -134,6 +135,21 @@ plm_status plm_scene_add_material(plm_scene* scene, const char* name, const floa
   });
 }
 
+plm_status plm_scene_set_material_texture(plm_scene* scene, uint32_t material_id, plm_texture_slot slot,
+                                          const char* path, uint32_t flags) {
+  return guarded("plm_scene_set_material_texture", [&] {
+    require(scene, "plm_scene_set_material_texture", "scene");
+    scene->scene.set_material_texture(material_id, int(slot), path, flags);
+  });
+}
+
+plm_status plm_scene_set_mesh_texture_uv(plm_scene* scene, uint32_t mesh_id, const float* uv) {
+  return guarded("plm_scene_set_mesh_texture_uv", [&] {
+    require(scene, "plm_scene_set_mesh_texture_uv", "scene");
+    scene->scene.set_mesh_texture_uv(mesh_id, uv);
+  });
+}
+
 plm_status plm_scene_add_mesh(plm_scene* scene, const char* name, const float* positions, uint32_t vertex_count,
                               const uint32_t* indices, uint32_t triangle_count, const float* lightmap_uv,
                               const uint32_t* material_ids, uint32_t lightmap_width, uint32_t lightmap_height,
@@ -143,6 +159,82 @@ plm_status plm_scene_add_mesh(plm_scene* scene, const char* name, const float* p
     const uint32_t id = scene->scene.add_mesh(name, positions, vertex_count, indices, triangle_count, lightmap_uv,
                                               material_ids, lightmap_width, lightmap_height);
     if (out_mesh_id) *out_mesh_id = id;
+  });
+}
+
+plm_status plm_scene_add_subdiv_mesh(plm_scene* scene, const char* name, const float* positions,
+                                     uint32_t vertex_count, const uint32_t* face_sizes, uint32_t face_count,
+                                     const uint32_t* face_indices, const float* lightmap_uv,
+                                     const uint32_t* material_ids, const uint32_t* crease_edges,
+                                     const float* crease_weights, uint32_t crease_count, uint32_t level,
+                                     uint32_t lightmap_width, uint32_t lightmap_height, uint32_t* out_mesh_id) {
+  return guarded("plm_scene_add_subdiv_mesh", [&] {
+    require(scene, "plm_scene_add_subdiv_mesh", "scene");
+    const size_t index = scene->scene.meshes.size();
+    const std::string owner = "mesh '" + (name && *name ? std::string(name) : "#" + std::to_string(index)) + "'";
+    if (lightmap_width > 0 && !lightmap_uv)
+      plm::fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": has a ", lightmap_width, " x ", lightmap_height,
+                " lightmap but no lightmap UVs (pass UVs, or size 0 x 0 for geometry only)");
+    if (material_ids) {
+      for (uint32_t f = 0; f < face_count; ++f)
+        if (material_ids[f] >= scene->scene.materials.size())
+          plm::fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": cage face ", f, " uses material ", material_ids[f],
+                    " but the scene has ", scene->scene.materials.size(),
+                    " materials (add materials before meshes)");
+    }
+    plm::subdiv::Cage cage;
+    cage.positions = positions;
+    cage.vertex_count = vertex_count;
+    cage.face_sizes = face_sizes;
+    cage.face_count = face_count;
+    cage.face_indices = face_indices;
+    cage.uv = lightmap_width > 0 ? lightmap_uv : nullptr;
+    cage.material_ids = material_ids;
+    cage.crease_edges = crease_edges;
+    cage.crease_weights = crease_weights;
+    cage.crease_count = crease_count;
+    cage.level = level;
+    const plm::subdiv::RefinedMesh m = plm::subdiv::refine(owner, cage);
+    const uint32_t id = scene->scene.add_mesh(name, m.positions.data(), m.vertex_count(), m.indices.data(),
+                                              m.triangle_count(), m.uv.empty() ? nullptr : m.uv.data(),
+                                              m.material_ids.empty() ? nullptr : m.material_ids.data(),
+                                              lightmap_width, lightmap_height);
+    if (out_mesh_id) *out_mesh_id = id;
+  });
+}
+
+plm_status plm_subdiv_refine(const float* positions, uint32_t vertex_count, const uint32_t* face_sizes,
+                             uint32_t face_count, const uint32_t* face_indices, const float* lightmap_uv,
+                             const uint32_t* crease_edges, const float* crease_weights, uint32_t crease_count,
+                             uint32_t level, float* out_positions, uint32_t vertex_capacity, uint32_t* out_indices,
+                             float* out_uv, uint32_t triangle_capacity, uint32_t* out_vertex_count,
+                             uint32_t* out_triangle_count) {
+  return guarded("plm_subdiv_refine", [&] {
+    require(out_vertex_count, "plm_subdiv_refine", "out_vertex_count");
+    require(out_triangle_count, "plm_subdiv_refine", "out_triangle_count");
+    plm::subdiv::Cage cage;
+    cage.positions = positions;
+    cage.vertex_count = vertex_count;
+    cage.face_sizes = face_sizes;
+    cage.face_count = face_count;
+    cage.face_indices = face_indices;
+    cage.uv = lightmap_uv;
+    cage.crease_edges = crease_edges;
+    cage.crease_weights = crease_weights;
+    cage.crease_count = crease_count;
+    cage.level = level;
+    const plm::subdiv::RefinedMesh m = plm::subdiv::refine("plm_subdiv_refine", cage);
+    *out_vertex_count = m.vertex_count();
+    *out_triangle_count = m.triangle_count();
+    if (!out_positions && !out_indices && !out_uv) return;
+    if (!out_positions || !out_indices || (lightmap_uv && !out_uv) || vertex_capacity < m.vertex_count() ||
+        triangle_capacity < m.triangle_count())
+      plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_subdiv_refine: the buffers must hold ", m.vertex_count(),
+                " vertices and ", m.triangle_count(), " triangles (positions, indices",
+                lightmap_uv ? " and UVs" : "", "); got room for ", vertex_capacity, " and ", triangle_capacity);
+    std::copy(m.positions.begin(), m.positions.end(), out_positions);
+    std::copy(m.indices.begin(), m.indices.end(), out_indices);
+    if (lightmap_uv) std::copy(m.uv.begin(), m.uv.end(), out_uv);
   });
 }
 

@@ -2,6 +2,8 @@
 // the scene, so the CLI can compile this file against the shared library.
 #include "scene_file.h"
 
+#include "gltf_mesh.h"
+
 #include <nlohmann/json.hpp>
 
 #include <cerrno>
@@ -376,15 +378,40 @@ struct Reader {
     for (size_t i = 0; i < v.size(); ++i) {
       const std::string p = index_path(path, i);
       const json& m = object(v[i], p);
-      check_keys(m, p, {"name", "albedo", "emission"});
+      check_keys(m, p, {"name", "albedo", "emission", "albedo_texture", "emission_texture"});
       const std::string name = name_or(m, p, "");
       float albedo[3] = {0.8f, 0.8f, 0.8f}, emission[3] = {0, 0, 0};
       if (const json* a = optional(m, "albedo")) rgb(*a, p + ".albedo", albedo);
       if (const json* e = optional(m, "emission")) rgb(*e, p + ".emission", emission);
       uint32_t id = 0;
       engine(plm_scene_add_material(out.scene, name.empty() ? nullptr : name.c_str(), albedo, emission, &id), p);
+      if (const json* t = optional(m, "albedo_texture")) texture(*t, p + ".albedo_texture", id, PLM_TEXTURE_ALBEDO);
+      if (const json* t = optional(m, "emission_texture"))
+        texture(*t, p + ".emission_texture", id, PLM_TEXTURE_EMISSION);
       out.material_names.push_back(name);
     }
+  }
+
+  // "file.png" or {"path": "file.png", "colorspace": "auto" | "linear" | "srgb"}; relative to the scene file.
+  void texture(const json& v, const std::string& p, uint32_t material, plm_texture_slot slot) {
+    std::string rel, space = "auto";
+    if (v.is_object()) {
+      check_keys(v, p, {"path", "colorspace"});
+      rel = string(required(v, p, "path"), p + ".path");
+      if (const json* c = optional(v, "colorspace")) space = string(*c, p + ".colorspace");
+    } else if (v.is_string()) {
+      rel = v.get_ref<const std::string&>();
+    } else {
+      expected(p, "a file name or an object {\"path\", \"colorspace\"}", v);
+    }
+    uint32_t flags = PLM_TEXTURE_COLOR_AUTO;
+    if (space == "linear") flags = PLM_TEXTURE_COLOR_LINEAR;
+    else if (space == "srgb") flags = PLM_TEXTURE_COLOR_SRGB;
+    else if (space != "auto") fail(p + ".colorspace", "\"" + space + "\" is not one of auto, linear, srgb");
+    if (!options.allow_file_access) fail(p, "file access is disabled");
+    if (rel.empty()) fail(p, "empty file name");
+    const std::string file = rel[0] == '/' || options.base_dir.empty() ? rel : options.base_dir + "/" + rel;
+    engine(plm_scene_set_material_texture(out.scene, material, slot, file.c_str(), flags), p);
   }
 
   void ol_groups(const json& v, const std::string& path) {
@@ -392,12 +419,16 @@ struct Reader {
     for (size_t i = 0; i < v.size(); ++i) {
       const std::string p = index_path(path, i);
       const json& g = object(v[i], p);
-      check_keys(g, p, {"name", "resolution"});
+      check_keys(g, p, {"name", "resolution", "backup"});
       const std::string name = name_or(g, p, "ol" + std::to_string(i));
       uint32_t resolution = 0;
       if (const json* r = optional(g, "resolution")) resolution = u32(*r, p + ".resolution", 1024);
       uint32_t id = 0;
       engine(plm_scene_add_ol_group(out.scene, name.c_str(), resolution, &id), p);
+      if (const json* b = optional(g, "backup")) {
+        if (!b->is_boolean()) expected(p + ".backup", "true or false", *b);
+        engine(plm_scene_set_ol_group_backup(out.scene, id, b->get<bool>() ? 1 : 0), p + ".backup");
+      }
       out.ol_groups.push_back({name, id, resolution});
       ol_names.push_back(name);
     }
@@ -415,6 +446,152 @@ struct Reader {
     if ((w == 0) != (h == 0)) fail(path, "width and height must both be 0 (no lightmap) or both > 0");
   }
 
+  // A Catmull-Clark cage: inline "positions", "indices" = the polygons' vertex indices one face
+  // after another, "subdivision": {"level": n, "face_sizes": [...] (default: all quads),
+  // "creases": [[v0, v1, crease], ...]}, "lightmap_uv" per face corner, "materials" per face.
+  uint32_t subdivision_mesh(const json& m, const json& sd, const std::string& p, const SceneFileMesh& info,
+                            bool lightmap, const uint32_t* one_material, const json* per_face) {
+    const SceneFileLimits& lim = options.limits;
+    const std::string ps = p + ".subdivision";
+    object(sd, ps);
+    check_keys(sd, ps, {"level", "face_sizes", "creases"});
+    for (const char* k : {"obj", "gltf", "gltf_mesh", "gltf_node", "gltf_texcoord", "texture_uv"})
+      if (optional(m, k)) fail(p + "." + k, "not allowed together with \"subdivision\" (give the cage inline)");
+    const uint32_t level = uint32_t(integer(required(sd, ps, "level"), ps + ".level", 10));
+    if (level < 1) fail(ps + ".level", "must be in [1, 10]");
+    const std::string pp = p + ".positions", pi = p + ".indices";
+    const json& jp = array(required(m, p, "positions"), pp, uint64_t(lim.max_vertices) * 3, "numbers");
+    if (jp.size() % 3) fail(pp, "expected 3 numbers per vertex, got " + std::to_string(jp.size()) + " numbers");
+    std::vector<float> positions(jp.size());
+    for (size_t k = 0; k < jp.size(); ++k) positions[k] = to_float(jp[k], index_path(pp, k));
+    const size_t vertex_count = positions.size() / 3;
+    const json& ji = array(required(m, p, "indices"), pi, uint64_t(lim.max_triangles) * 3, "indices");
+    std::vector<uint32_t> indices(ji.size());
+    for (size_t k = 0; k < ji.size(); ++k) {
+      const std::string pk = index_path(pi, k);
+      const uint64_t x = integer(ji[k], pk, std::numeric_limits<uint32_t>::max());
+      if (x >= vertex_count)
+        fail(pk, "vertex index " + std::to_string(x) + " is out of range (the mesh has " +
+                     std::to_string(vertex_count) + " vertices)");
+      indices[k] = uint32_t(x);
+    }
+    std::vector<uint32_t> sizes;
+    if (const json* jf = optional(sd, "face_sizes")) {
+      const std::string pf = ps + ".face_sizes";
+      array(*jf, pf, uint64_t(lim.max_triangles), "numbers");
+      uint64_t total = 0;
+      for (size_t k = 0; k < jf->size(); ++k) {
+        const uint64_t n = integer((*jf)[k], index_path(pf, k), 1u << 16);
+        if (n < 3) fail(index_path(pf, k), "a face needs at least 3 vertices, got " + std::to_string(n));
+        sizes.push_back(uint32_t(n));
+        total += n;
+      }
+      if (total != indices.size())
+        fail(pf, "the face sizes add up to " + std::to_string(total) + " but \"indices\" has " +
+                     std::to_string(indices.size()) + " entries");
+    } else {
+      if (indices.size() % 4)
+        fail(pi, "without \"face_sizes\" every face is a quad: expected a multiple of 4 indices, got " +
+                     std::to_string(indices.size()));
+      sizes.assign(indices.size() / 4, 4u);
+    }
+    if (sizes.empty()) fail(pi, "a subdivision cage needs at least one face");
+    std::vector<uint32_t> crease_edges;
+    std::vector<float> crease_weights;
+    if (const json* jc = optional(sd, "creases")) {
+      const std::string pc = ps + ".creases";
+      array(*jc, pc, uint64_t(lim.max_triangles), "creases");
+      for (size_t k = 0; k < jc->size(); ++k) {
+        const std::string pk = index_path(pc, k);
+        const json& c = array((*jc)[k], pk, 3, "numbers");
+        if (c.size() != 3) fail(pk, "expected [vertex, vertex, crease]");
+        for (int e = 0; e < 2; ++e) {
+          const uint64_t x = integer(c[size_t(e)], index_path(pk, size_t(e)), std::numeric_limits<uint32_t>::max());
+          if (x >= vertex_count)
+            fail(index_path(pk, size_t(e)), "vertex index " + std::to_string(x) + " is out of range (the mesh has " +
+                                                std::to_string(vertex_count) + " vertices)");
+          crease_edges.push_back(uint32_t(x));
+        }
+        const float w = to_float(c[2], index_path(pk, 2));
+        if (!(w >= 0.0f && w <= 1.0f)) fail(index_path(pk, 2), "a crease is in [0, 1]");
+        crease_weights.push_back(w);
+      }
+    }
+    std::vector<float> uv;
+    const json* ju = optional(m, "lightmap_uv");
+    const std::string pu = p + ".lightmap_uv";
+    if (lightmap && !ju) fail(p, "missing field \"lightmap_uv\" (needed for a lightmap_resolution above 0)");
+    if (!lightmap && ju) fail(pu, "given, but the mesh has no lightmap (set lightmap_resolution)");
+    if (ju) {
+      array(*ju, pu, uint64_t(lim.max_triangles) * 6, "numbers");
+      if (ju->size() != indices.size() * 2)
+        fail(pu, "expected 2 numbers (u, v) per face corner: " + std::to_string(indices.size() * 2) + ", got " +
+                     std::to_string(ju->size()));
+      uv.resize(ju->size());
+      for (size_t k = 0; k < ju->size(); ++k) uv[k] = to_float((*ju)[k], index_path(pu, k));
+    }
+    std::vector<uint32_t> mats;
+    if (per_face) {
+      const std::string pm = p + ".materials";
+      array(*per_face, pm, lim.max_triangles, "materials");
+      if (per_face->size() != sizes.size())
+        fail(pm, "expected one material per face: " + std::to_string(sizes.size()) + ", got " +
+                     std::to_string(per_face->size()));
+      for (size_t k = 0; k < sizes.size(); ++k)
+        mats.push_back(reference((*per_face)[k], index_path(pm, k), out.material_names, "scene.materials"));
+    } else if (one_material) {
+      mats.assign(sizes.size(), *one_material);
+    }
+    uint32_t id = 0;
+    engine(plm_scene_add_subdiv_mesh(out.scene, info.name.c_str(), positions.data(), uint32_t(vertex_count),
+                                     sizes.data(), uint32_t(sizes.size()), indices.data(),
+                                     lightmap ? uv.data() : nullptr, mats.empty() ? nullptr : mats.data(),
+                                     crease_edges.empty() ? nullptr : crease_edges.data(),
+                                     crease_weights.empty() ? nullptr : crease_weights.data(),
+                                     uint32_t(crease_weights.size()), level, info.width, info.height, &id),
+           p);
+    return id;
+  }
+
+  // A "gltf" mesh reference: the default scene, one mesh ("gltf_mesh") or one node's subtree
+  // ("gltf_node"), each by index or name; "gltf_texcoord" n: TEXCOORD_n is the lightmap UV.
+  void gltf_mesh(const json& m, const json& file_field, const std::string& p, bool lightmap,
+                 std::vector<float>& positions, std::vector<uint32_t>& indices, std::vector<float>& uv) {
+    for (const char* k : {"positions", "indices", "lightmap_uv", "materials", "obj"})
+      if (optional(m, k)) fail(p + "." + k, "not allowed together with \"gltf\" (the glTF file gives the geometry)");
+    const std::string& rel = string(file_field, p + ".gltf");
+    if (!options.allow_file_access) fail(p + ".gltf", "file access is disabled");
+    if (rel.empty()) fail(p + ".gltf", "empty file name");
+    const json* mesh = optional(m, "gltf_mesh");
+    const json* node = optional(m, "gltf_node");
+    if (mesh && node) fail(p + ".gltf_node", "give either \"gltf_mesh\" or \"gltf_node\", not both");
+    GltfSelection sel;
+    if (mesh || node) {
+      const json& ref = mesh ? *mesh : *node;
+      const std::string pr = p + (mesh ? ".gltf_mesh" : ".gltf_node");
+      sel.kind = mesh ? GltfSelection::kMesh : GltfSelection::kNode;
+      if (ref.is_string()) sel.name = ref.get_ref<const std::string&>();
+      else if (ref.is_number()) sel.index = int64_t(u32(ref, pr, std::numeric_limits<int32_t>::max()));
+      else expected(pr, "a name or an index", ref);
+    }
+    uint32_t texcoord = 0;
+    if (const json* t = optional(m, "gltf_texcoord")) {
+      texcoord = u32(*t, p + ".gltf_texcoord", 31);
+      if (!lightmap) fail(p + ".gltf_texcoord", "given, but the mesh has no lightmap (set lightmap_resolution)");
+    }
+    const std::string file = rel[0] == '/' || options.base_dir.empty() ? rel : options.base_dir + "/" + rel;
+    const SceneFileLimits& lim = options.limits;
+    GltfMeshData data;
+    std::string error;
+    if (!read_gltf_mesh(file, sel, texcoord, lightmap,
+                        GltfLimits{lim.max_file_bytes, lim.max_vertices, lim.max_triangles, lim.max_depth}, data,
+                        error))
+      fail(p + ".gltf", error);
+    positions = std::move(data.positions);
+    indices = std::move(data.indices);
+    uv = std::move(data.uv);
+  }
+
   void meshes(const json& v, const std::string& path) {
     array(v, path, options.limits.max_items, "meshes");
     const SceneFileLimits& lim = options.limits;
@@ -423,7 +600,8 @@ struct Reader {
       const json& m = object(v[i], p);
       check_keys(m, p,
                  {"name", "positions", "indices", "lightmap_uv", "obj", "material", "materials",
-                  "lightmap_resolution", "ol_group"});
+                  "lightmap_resolution", "ol_group", "gltf", "gltf_mesh", "gltf_node", "gltf_texcoord",
+                  "texture_uv", "subdivision"});
       SceneFileMesh info;
       info.name = name_or(m, p, "mesh" + std::to_string(i));
       if (const json* r = optional(m, "lightmap_resolution")) resolution(*r, p + ".lightmap_resolution", info.width, info.height);
@@ -434,9 +612,24 @@ struct Reader {
       uint32_t material = 0;
       if (one_material) material = reference(*one_material, p + ".material", out.material_names, "scene.materials");
 
+      if (const json* sd = optional(m, "subdivision")) {  // a polygon cage refined by the engine
+        info.id = subdivision_mesh(m, *sd, p, info, lightmap, one_material ? &material : nullptr, per_triangle);
+        if (const json* g = optional(m, "ol_group")) {
+          const uint32_t group = reference(*g, p + ".ol_group", ol_names, "scene.ol_groups");
+          engine(plm_scene_set_mesh_ol_group(out.scene, info.id, out.ol_groups[group].id), p + ".ol_group");
+          info.ol_group = int32_t(group);
+        }
+        out.meshes.push_back(info);
+        mesh_names.push_back(info.name);
+        continue;
+      }
       std::vector<float> positions, uv;
       std::vector<uint32_t> indices, mats;
-      if (const json* obj = optional(m, "obj")) {
+      for (const char* k : {"gltf_mesh", "gltf_node", "gltf_texcoord"})
+        if (optional(m, k) && !optional(m, "gltf")) fail(p + "." + k, "only allowed together with \"gltf\"");
+      if (const json* gltf = optional(m, "gltf")) {
+        gltf_mesh(m, *gltf, p, lightmap, positions, indices, uv);
+      } else if (const json* obj = optional(m, "obj")) {
         for (const char* k : {"positions", "indices", "lightmap_uv", "materials"})
           if (optional(m, k)) fail(p + "." + k, "not allowed together with \"obj\" (the OBJ file gives it)");
         const std::string& rel = string(*obj, p + ".obj");
@@ -507,6 +700,17 @@ struct Reader {
                                 mats.empty() ? nullptr : mats.data(), info.width, info.height, &id),
              p);
       info.id = id;
+      if (const json* jt = optional(m, "texture_uv")) {
+        const std::string pt = p + ".texture_uv";
+        if (optional(m, "obj") || optional(m, "gltf")) fail(pt, "only allowed for inline meshes (positions, indices)");
+        array(*jt, pt, uint64_t(lim.max_triangles) * 6, "numbers");
+        if (jt->size() != indices.size() * 2)
+          fail(pt, "expected 2 numbers (u, v) per triangle corner: " + std::to_string(indices.size() * 2) + " for " +
+                       std::to_string(indices.size() / 3) + " triangles, got " + std::to_string(jt->size()));
+        std::vector<float> tuv(jt->size());
+        for (size_t k = 0; k < jt->size(); ++k) tuv[k] = to_float((*jt)[k], index_path(pt, k));
+        engine(plm_scene_set_mesh_texture_uv(out.scene, id, tuv.data()), pt);
+      }
       if (const json* g = optional(m, "ol_group")) {
         const uint32_t group = reference(*g, p + ".ol_group", ol_names, "scene.ol_groups");
         engine(plm_scene_set_mesh_ol_group(out.scene, id, out.ol_groups[group].id), p + ".ol_group");
@@ -527,7 +731,7 @@ struct Reader {
                   "spot_size", "spot_blend"});
       const std::string name = name_or(l, p, "light" + std::to_string(i));
       const uint32_t type =
-          enum_value(required(l, p, "type"), p + ".type", {"POINT", "SPOT", "SUN", "AREA_RECT", "AREA_DISK"});
+          enum_value(required(l, p, "type"), p + ".type", {"POINT", "SPOT", "SUN", "AREA_RECT", "AREA_DISK", "PORTAL"});
       plm_light light;
       plm_light_default(&light, plm_light_type(type));
       if (const json* c = optional(l, "color")) rgb(*c, p + ".color", light.color);
@@ -658,7 +862,9 @@ struct Reader {
   void scene(const json& root) {
     const std::string p = "scene";
     object(root, p);
-    check_keys(root, p, {"version", "settings", "world", "materials", "ol_groups", "meshes", "lights", "csg"});
+    // "metadata": free-form, for the tools that write the file (the Blender export); not read.
+    check_keys(root, p,
+               {"version", "settings", "world", "materials", "ol_groups", "meshes", "lights", "csg", "metadata"});
     if (const json* ver = optional(root, "version")) {
       if (u32(*ver, p + ".version") != 1) fail(p + ".version", "this reader knows version 1, got " + shown(*ver));
     }

@@ -1,4 +1,4 @@
-// The JSON scene file (docs/scene-file.md): materials, meshes (inline or OBJ
+// The JSON scene file (docs/scene-file.md): materials, meshes (inline, OBJ or glTF
 // files), lights, world, CSG solids, OL groups and bake settings, read into a
 // plm_scene through the public C API only. Every error names the JSON path of
 // the offending value ("scene.meshes[2].positions[7]: expected a number, got

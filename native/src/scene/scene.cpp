@@ -5,6 +5,7 @@
 
 #include "lsystem/lsystem_object.h"
 #include "ol/octahedral.h"
+#include "texture/texture.h"
 #include "util/error.h"
 
 namespace plm {
@@ -31,7 +32,11 @@ uint32_t Scene::add_material(const char* name, const float albedo[3], const floa
   if (!albedo || !emission) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": albedo and emission must not be NULL");
   check_rgb(albedo, "albedo", owner, 1.0f);
   check_rgb(emission, "emission", owner, 1e30f);
-  materials.push_back({name ? name : "", {albedo[0], albedo[1], albedo[2]}, {emission[0], emission[1], emission[2]}});
+  Material m;
+  m.name = name ? name : "";
+  m.albedo = {albedo[0], albedo[1], albedo[2]};
+  m.emission = {emission[0], emission[1], emission[2]};
+  materials.push_back(m);
   return static_cast<uint32_t>(materials.size() - 1);
 }
 
@@ -117,7 +122,7 @@ plm_light default_light(plm_light_type type) {
 
 uint32_t Scene::add_light(const char* name, const plm_light& l) {
   const std::string owner = "light " + quoted_or(name, lights.size());
-  if (l.type < PLM_LIGHT_POINT || l.type > PLM_LIGHT_AREA_DISK)
+  if (l.type < PLM_LIGHT_POINT || l.type > PLM_LIGHT_PORTAL)
     fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": unknown light type ", l.type);
   check_rgb(l.color, "color", owner, 1e30f);
   if (!std::isfinite(l.power) || l.power < 0.0f)
@@ -158,16 +163,18 @@ uint32_t Scene::add_light(const char* name, const plm_light& l) {
         fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": matrix has no direction (zero scale)");
       break;
     case PLM_LIGHT_AREA_RECT:
-    case PLM_LIGHT_AREA_DISK: {
+    case PLM_LIGHT_AREA_DISK:
+    case PLM_LIGHT_PORTAL: {
+      const char* what = l.type == PLM_LIGHT_PORTAL ? "portal" : "area light";
       if (!(l.size_x > 0.0f && l.size_y > 0.0f) || !std::isfinite(l.size_x) || !std::isfinite(l.size_y))
-        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": area light size ", l.size_x, " x ", l.size_y,
+        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": ", what, " size ", l.size_x, " x ", l.size_y,
              " must be > 0 (a zero-area light emits nothing)");
       const Vec3 n = cross(m.vector({l.size_x, 0, 0}), m.vector({0, l.size_y, 0}));
       if (!(length(n) > 0.0f))
-        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": the matrix scales the area light to zero area");
+        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": the matrix scales the ", what, " to zero area");
       if (!(max_abs_component(m.vector({l.size_x, 0, 0})) <= kMaxCoordinate &&
             max_abs_component(m.vector({0, l.size_y, 0})) <= kMaxCoordinate))
-        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": area light size ", l.size_x, " x ", l.size_y,
+        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": ", what, " size ", l.size_x, " x ", l.size_y,
              " (after the matrix's scale) is beyond the engine's range of ", kMaxCoordinate, " m");
       break;
     }
@@ -189,6 +196,41 @@ uint32_t Scene::add_ol_group(const char* name, uint32_t resolution) {
          " bins per side (0 = automatic)");
   ol_groups.push_back({name && *name ? name : "#" + std::to_string(ol_groups.size()), resolution});
   return static_cast<uint32_t>(ol_groups.size() - 1);
+}
+
+void Scene::set_material_texture(uint32_t material, int slot, const char* path, uint32_t flags) {
+  if (material >= materials.size())
+    fail(PLM_ERROR_INVALID_ARGUMENT, "set material texture: material ", material, " does not exist (the scene has ",
+         materials.size(), " materials)");
+  Material& m = materials[material];
+  const std::string owner = "material " + quoted_or(m.name.c_str(), material) + " (" + std::to_string(material) + ")";
+  if (slot != PLM_TEXTURE_ALBEDO && slot != PLM_TEXTURE_EMISSION)
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": texture slot ", slot,
+         " is not PLM_TEXTURE_ALBEDO (0) or PLM_TEXTURE_EMISSION (1)");
+  if (flags > PLM_TEXTURE_COLOR_SRGB)
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": texture flags ", flags,
+         " are not a PLM_TEXTURE_COLOR_* value (0, 1, 2)");
+  const std::string file = path ? path : "";
+  if (!file.empty()) check_texture_file(file, owner);
+  (slot == PLM_TEXTURE_ALBEDO ? m.albedo_texture : m.emission_texture) = file;
+  (slot == PLM_TEXTURE_ALBEDO ? m.albedo_texture_flags : m.emission_texture_flags) = flags;
+}
+
+void Scene::set_mesh_texture_uv(uint32_t mesh, const float* uv) {
+  if (mesh >= meshes.size())
+    fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh texture UV: mesh ", mesh, " does not exist (the scene has ",
+         meshes.size(), " meshes)");
+  Mesh& m = meshes[mesh];
+  if (!uv) {
+    m.texture_uv.clear();
+    return;
+  }
+  std::vector<float> values(uv, uv + size_t(m.triangle_count()) * 6);
+  for (size_t k = 0; k < values.size(); ++k)
+    if (!std::isfinite(values[k]))
+      fail(PLM_ERROR_INVALID_ARGUMENT, "mesh '", m.name, "' (", mesh, "): triangle ", k / 6, " corner ", (k % 6) / 2,
+           " has a non-finite texture UV");
+  m.texture_uv.swap(values);
 }
 
 void Scene::set_mesh_ol_group(uint32_t mesh, uint32_t group) {

@@ -25,6 +25,9 @@ struct Material {
   std::string name;
   Vec3 albedo;
   Vec3 emission;  // radiance, both sides
+  // Image textures (texture/texture.h), multiplied by albedo / emission; empty = none.
+  std::string albedo_texture, emission_texture;
+  uint32_t albedo_texture_flags = 0, emission_texture_flags = 0;  // PLM_TEXTURE_COLOR_*
 };
 
 struct Mesh {
@@ -35,6 +38,7 @@ struct Mesh {
   std::vector<uint32_t> indices;  // 3 per triangle
   std::vector<float> uv;          // 6 per triangle, empty when no lightmap
   std::vector<uint32_t> material_ids;  // 1 per triangle
+  std::vector<float> texture_uv;       // 6 per triangle, empty when none (textures use their mean)
   uint32_t lightmap_width = 0, lightmap_height = 0;
   int32_t csg_carrier = -1;  // the CSG solid this mesh tessellates (not traced), -1 for none
   int32_t ol_group = -1;  // orientation-lightmap group, -1 for none (a mesh has a lightmap or a group, not both)
@@ -79,6 +83,14 @@ struct Scene {
                     const uint32_t* material_ids, uint32_t width, uint32_t height);
   uint32_t add_light(const char* name, const plm_light& light);
   void set_world(const float radiance[3]);
+  // slot: plm_texture_slot; path NULL or "" removes. Throws for a bad index or an unreadable file.
+  void set_material_texture(uint32_t material, int slot, const char* path, uint32_t flags);
+  void set_mesh_texture_uv(uint32_t mesh, const float* uv);
+  bool has_textures() const {
+    for (const Material& m : materials)
+      if (!m.albedo_texture.empty() || !m.emission_texture.empty()) return true;
+    return false;
+  }
   uint32_t add_ol_group(const char* name, uint32_t resolution);
   // Puts a mesh into a group (a later call moves it). Throws for bad indices
   // and for a mesh that has a lightmap.

@@ -18,6 +18,7 @@
 #include "lsystem/lsystem_object.h"
 #include "ol/area_estimation.h"
 #include "ol/orientation_lightmap.h"
+#include "texture/texture.h"
 #include "transport/direct.h"
 #include "transport/emitters.h"
 #include "transport/tracing.h"
@@ -85,8 +86,10 @@ class PhotonTracer {
   PhotonTracer(const Scene& scene, RTCScene rtc, const std::vector<MeshView>& views,
                const std::vector<CsgView>& csg_views, const std::vector<OlMeshView>& ol_views,
                const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent,
-               uint32_t first_recorded_depth, const std::vector<ol::OctGrid>& ls_grids)
-      : scene_(scene), rtc_(rtc), views_(views), csg_views_(csg_views), ol_views_(ol_views), emitters_(emitters),
+               uint32_t first_recorded_depth, const std::vector<ol::OctGrid>& ls_grids,
+               const TextureSet* textures = nullptr)
+      : scene_(scene), textures_(textures), rtc_(rtc), views_(views), csg_views_(csg_views), ol_views_(ol_views),
+        emitters_(emitters),
         ls_grids_(ls_grids), ls_base_(views.size() + csg_views.size()),
         settings_(settings),
         offset_scale_(1e-6f * scene_extent), first_recorded_(first_recorded_depth), table_(emitters) {
@@ -100,7 +103,8 @@ class PhotonTracer {
     out.ls_hits.clear();
     out.rays = out.truncated = 0;
     out.truncated_flux = 0.0;
-    for (uint64_t i = first; i < first + count; ++i) trace_photon(i, out);
+    void* tex_thread = textures_ ? textures_->thread_info() : nullptr;  // once per batch, not per ray
+    for (uint64_t i = first; i < first + count; ++i) trace_photon(i, out, tex_thread);
   }
 
  private:
@@ -150,7 +154,12 @@ class PhotonTracer {
     double pick_offset_;
   };
 
-  void trace_photon(uint64_t index, BatchOutput& out) const {
+  // Albedo of a material where no texture UV exists (textures: their mean).
+  Vec3 flat_albedo(uint32_t id) const {
+    return textures_ && !scene_.materials.empty() ? textures_->flat_albedo(id) : material_by_id(id).albedo;
+  }
+
+  void trace_photon(uint64_t index, BatchOutput& out, void* tex_thread) const {
     PhotonSampler sampler(index, settings_, pick_offset_);
     float u_pick, u[4];
     sampler.emission(u_pick, u);
@@ -187,7 +196,7 @@ class PhotonTracer {
         if (!std::isfinite(nd.x) || !std::isfinite(nd.y) || !std::isfinite(nd.z)) return;
         normal = {float(nd.x), float(nd.y), float(nd.z)};
         hit = org + dir * rh.ray.tfar;
-        albedo = material_by_id(obj.scene_material(gh.material)).albedo;
+        albedo = flat_albedo(obj.scene_material(gh.material));
         ls_bin = ls_grids_[l].bin(nd);
         ls_key = obj.stub_key(gh);
       } else if (is_csg) {
@@ -195,7 +204,7 @@ class PhotonTracer {
         normal = normalize(Vec3{rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z});
         if (!is_finite(normal)) return;
         hit = org + dir * rh.ray.tfar;
-        albedo = material_by_id(cv.object->material(tri)).albedo;
+        albedo = flat_albedo(cv.object->material(tri));
       } else {
         const MeshView& view = views_[rh.hit.geomID];
         const Mesh& mesh = *view.mesh;
@@ -203,7 +212,9 @@ class PhotonTracer {
         normal = view.normals[tri];
         if (normal.x == 0.0f && normal.y == 0.0f && normal.z == 0.0f) return;  // degenerate: the photon stops
         hit = mesh.vertex(tri, 0) * bw + mesh.vertex(tri, 1) * bu + mesh.vertex(tri, 2) * bv;
-        albedo = material(mesh, tri).albedo;
+        albedo = textures_ && !scene_.materials.empty()
+                     ? textures_->albedo(mesh, mesh.material_ids[tri], tri, bu, bv, tex_thread)
+                     : material(mesh, tri).albedo;
       }
       if (depth == 0 && s.radius2 > 0.0f) {
         const Vec3 to_hit = hit - s.center;
@@ -272,6 +283,7 @@ class PhotonTracer {
   }
 
   const Scene& scene_;
+  const TextureSet* textures_;  // null for an untextured scene
   RTCScene rtc_;
   const std::vector<MeshView>& views_;
   const std::vector<CsgView>& csg_views_;
@@ -868,7 +880,14 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     lo.stats.area = lo.root->total_area();
   }
 
-  const std::vector<Emitter> emitters = build_emitters(scene, center, radius);
+  // Image textures: a TextureSystem only when a material names one.
+  std::unique_ptr<TextureSet> textures;
+  if (scene.has_textures()) {
+    report(0.04, "loading textures");
+    textures = std::make_unique<TextureSet>(scene);
+    for (const std::string& w : textures->warnings) out.warnings.push_back(w);
+  }
+  const std::vector<Emitter> emitters = build_emitters(scene, center, radius, textures.get());
   double emitted = 0.0;
   for (const Emitter& e : emitters) emitted += average(e.flux);
   if (!std::isfinite(emitted) || emitted > 1e30)
@@ -954,7 +973,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     const uint64_t cap = settings.photon_count ? settings.photon_count : (uint64_t(1) << 40);
     const uint64_t batch_count = (cap + kBatchPhotons - 1) / kBatchPhotons;
     PhotonTracer tracer(scene, accel.handle(), views, csg_views, ol_views, emitters, settings, extent,
-                        two_pass ? 1u : 0u, ls_grids);
+                        two_pass ? 1u : 0u, ls_grids, textures.get());
     std::vector<BatchOutput> batches;
     double truncated_flux = 0.0;
     uint64_t ol_hits = 0;

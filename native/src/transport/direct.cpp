@@ -166,6 +166,53 @@ bool DirectPass::point_in_pieces(uint32_t mesh_id, uint32_t texel, const float u
   return true;
 }
 
+// The triangle Blender's bake rasterizer gives a texel: the last one (in
+// triangle order) that covers its centre, edges included; -1 for none.
+int64_t DirectPass::centre_owner(uint32_t mesh_id, uint32_t texel) const {
+  const Mesh& mesh = *views_[mesh_id].mesh;
+  const TexelAreas& ta = areas_[mesh_id];
+  const double w = mesh.lightmap_width, h = mesh.lightmap_height;
+  const double x = double(texel % mesh.lightmap_width) + 0.5, y = double(texel / mesh.lightmap_width) + 0.5;
+  int64_t owner = -1;
+  for (uint32_t k = ta.tri_begin[texel]; k < ta.tri_begin[texel + 1]; ++k) {
+    const uint32_t t = ta.tri_ids[k];
+    const float* uv = &mesh.uv[6 * size_t(t)];
+    const double ax = uv[0] * w, ay = uv[1] * h;
+    const double e1x = uv[2] * w - ax, e1y = uv[3] * h - ay, e2x = uv[4] * w - ax, e2y = uv[5] * h - ay;
+    const double det = e1x * e2y - e2x * e1y;
+    if (det == 0.0) continue;
+    const double b1 = ((x - ax) * e2y - e2x * (y - ay)) / det, b2 = (e1x * (y - ay) - (x - ax) * e1y) / det;
+    const double eps = 1e-9;
+    if (b1 >= -eps && b2 >= -eps && b1 + b2 <= 1.0 + eps) owner = t;
+  }
+  return owner;
+}
+
+// The point Cycles 3.4 bakes for texel coordinates (x, y) of a texel owned by
+// triangle tri: the barycentric coordinates (u of corner 0, v of corner 1) of
+// (x, y), folded back into the triangle by mirror repeat, u into [0, 1] and
+// then v into [0, 1 - u] (Cycles' bake_clamp_mirror_repeat). Inside the
+// triangle this is the point itself; a window that crosses an edge samples
+// the owner's side twice instead of the neighbour's.
+Vec3 DirectPass::mirrored_point(uint32_t mesh_id, uint32_t tri, float x, float y) const {
+  const Mesh& mesh = *views_[mesh_id].mesh;
+  const float* uv = &mesh.uv[6 * size_t(tri)];
+  const double w = mesh.lightmap_width, h = mesh.lightmap_height;
+  const double ax = uv[0] * w, ay = uv[1] * h;
+  const double e1x = uv[2] * w - ax, e1y = uv[3] * h - ay, e2x = uv[4] * w - ax, e2y = uv[5] * h - ay;
+  const double det = e1x * e2y - e2x * e1y;
+  const double b1 = ((x - ax) * e2y - e2x * (y - ay)) / det, b2 = (e1x * (y - ay) - (x - ax) * e1y) / det;
+  auto mirror = [](double t, double range) {
+    if (!(range > 0.0)) return 0.0;
+    const double q = t / range, f = std::floor(q), r = q - f;
+    return (int64_t(f) & 1 ? 1.0 - r : r) * range;
+  };
+  const double u = mirror(1.0 - b1 - b2, 1.0);
+  const double v = mirror(b1, 1.0 - u);
+  const Vec3 p0 = mesh.vertex(tri, 0), p1 = mesh.vertex(tri, 1), p2 = mesh.vertex(tri, 2);
+  return p0 * float(u) + p1 * float(v) + p2 * float(1.0 - u - v);
+}
+
 void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
                               DirectSums& sums) const {
   if (emitters_.empty()) return;
@@ -183,10 +230,11 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   // The strata cover the texel, or with PLM_TEXEL_CYCLES its central half
   // (x and y within a quarter texel of the centre), if a triangle covers the
   // centre. Barely covered texels sample their covered pieces directly.
-  Vec3 unused_p, unused_n;
-  uint32_t unused_tri;
-  const bool window = !csg && cycles_window_ && areas_[mesh_id].coverage[texel] >= 0.5f &&
-                      surface_point(mesh_id, texel, x0 + 0.5f, y0 + 0.5f, unused_p, unused_n, unused_tri);
+  // Points in the window are folded into the triangle that owns the centre,
+  // as Cycles does (mirrored_point).
+  const int64_t owner = !csg && cycles_window_ && areas_[mesh_id].coverage[texel] >= 0.5f
+                            ? centre_owner(mesh_id, texel) : -1;
+  const bool window = owner >= 0;
   const float origin_x = window ? x0 + 0.25f : x0, origin_y = window ? y0 + 0.25f : y0;
   const float side = window ? 0.5f / float(m) : 1.0f / float(m);
   const bool sparse = !csg && !window && areas_[mesh_id].coverage[texel] < 0.5f;
@@ -224,6 +272,10 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       p = to_float(dp), normal = to_float(dn), tri = RTC_INVALID_GEOMETRY_ID;
     } else if (sparse) {
       if (!point_in_pieces(mesh_id, texel, w, p, normal, tri)) continue;
+    } else if (window) {
+      tri = uint32_t(owner);
+      p = mirrored_point(mesh_id, tri, x, y);
+      normal = views_[mesh_id].normals[tri];
     } else if (!surface_point(mesh_id, texel, x, y, p, normal, tri)) {
       continue;  // outside the islands
     }

@@ -52,6 +52,8 @@ class DirectPass {
  private:
   bool surface_point(uint32_t mesh, uint32_t texel, float x, float y, Vec3& p, Vec3& n, uint32_t& tri) const;
   bool point_in_pieces(uint32_t mesh, uint32_t texel, const float u[3], Vec3& p, Vec3& n, uint32_t& tri) const;
+  int64_t centre_owner(uint32_t mesh, uint32_t texel) const;
+  Vec3 mirrored_point(uint32_t mesh, uint32_t tri, float x, float y) const;
 
   RTCScene rtc_;
   const std::vector<MeshView>& views_;

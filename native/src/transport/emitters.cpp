@@ -3,6 +3,8 @@
 #include <cstring>
 #include <limits>
 
+#include "texture/texture.h"
+
 namespace plm {
 
 float spot_attenuation(float c, float cos_half, float spot_smooth) {
@@ -88,18 +90,97 @@ Emitter light_emitter(const Light& light) {
 
 EmitterTable::EmitterTable(const std::vector<Emitter>& emitters) {
   double total = 0.0;
-  for (const Emitter& e : emitters) total += average(e.flux);
+  for (const Emitter& e : emitters) total += e.pick;
   double running = 0.0;
   for (const Emitter& e : emitters) {
-    running += average(e.flux);
+    running += e.pick;
     cdf_.push_back(running / total);
-    pick_.push_back(float(average(e.flux) / total));
+    pick_.push_back(float(e.pick / total));
   }
   if (!cdf_.empty()) cdf_.back() = 1.0;
 }
 
-std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radius) {
+namespace {
+
+constexpr float kPortalPhotonShare = 0.9f;  // sun and world photons sent through portals
+constexpr float kPortalDirectShare = 0.75f;  // the sky's direct samples aimed at portals
+
+std::vector<Portal> scene_portals(const Scene& scene) {
+  std::vector<Portal> out;
+  for (const Light& light : scene.lights) {
+    if (light.desc.type != PLM_LIGHT_PORTAL) continue;
+    const Transform m = to_transform(light.desc.matrix);
+    Portal p;
+    p.center = m.point({0, 0, 0});
+    p.half_u = m.vector({0.5f * light.desc.size_x, 0, 0});
+    p.half_v = m.vector({0, 0.5f * light.desc.size_y, 0});
+    const Vec3 n = cross(p.half_u, p.half_v);
+    p.area = 4.0f * length(n);
+    p.inward = -normalize(n);  // the side a Blender area light shines to
+    if (p.area > 0.0f && is_finite(p.inward)) out.push_back(p);
+  }
+  return out;
+}
+
+// Where the line o + t d meets portal p's plane inside the parallelogram,
+// travelling along `side` * inward (+1: into the interior, -1: out of it).
+bool portal_crossing(const Portal& p, Vec3 o, Vec3 d, float side, float& t, float& cos_p) {
+  cos_p = dot(d, p.inward) * side;
+  if (!(cos_p > 0.0f)) return false;
+  t = dot(p.center - o, p.inward) / dot(d, p.inward);
+  const Vec3 q = o + d * t - p.center;
+  const float uu = dot(p.half_u, p.half_u), uv = dot(p.half_u, p.half_v), vv = dot(p.half_v, p.half_v);
+  const float qu = dot(q, p.half_u), qv = dot(q, p.half_v), det = uu * vv - uv * uv;
+  const float a = (qu * vv - qv * uv) / det, b = (qv * uu - qu * uv) / det;
+  return std::fabs(a) <= 1.0f && std::fabs(b) <= 1.0f;
+}
+
+// Density of the sun or world photon line (o, d) over (direction, position
+// across the direction), per unit of the direction density the two sampling
+// strategies share: the disk across the scene (1 - share) and the portals.
+float photon_line_density(const Emitter& e, Vec3 o, Vec3 d) {
+  const float disk = 1.0f / (kPi * e.radius * e.radius);
+  float density = (1.0f - e.portal_share) * (e.kind == EmitterKind::World ? disk / (4.0f * kPi) : disk);
+  for (size_t j = 0; j < e.portals.size(); ++j) {
+    float t, cos_p;
+    if (e.portal_pick[j] <= 0.0f || !portal_crossing(e.portals[j], o, d, 1.0f, t, cos_p)) continue;
+    // World: cosine directions (cos / pi) over the portal's area, per area across d: 1 / (pi A).
+    // Sun: the portal's area seen along d: 1 / (A cos).
+    const float a = e.portals[j].area;
+    density += e.portal_share * e.portal_pick[j] / (e.kind == EmitterKind::World ? kPi * a : a * cos_p);
+  }
+  return density;
+}
+
+// Gives a sun or world emitter the scene's portals: photons are picked by the
+// flux they are expected to bring in (mostly what enters through the portals).
+void attach_portals(Emitter& e, const std::vector<Portal>& portals) {
+  std::vector<float> weight;
+  float total = 0.0f, entering = 0.0f;
+  for (const Portal& p : portals) {
+    const float w = e.kind == EmitterKind::World ? p.area : p.area * std::fmax(0.0f, dot(e.normal, p.inward));
+    weight.push_back(w);
+    total += w;
+  }
+  if (!(total > 0.0f)) return;  // the sun shines away from every portal
+  for (float& w : weight) w /= total;
+  e.portals = portals;
+  e.portal_pick = weight;
+  e.portal_share = kPortalPhotonShare;
+  // Flux through the portals: world pi L sum A, sun S sum A cos.
+  entering = average(e.radiance) * (e.kind == EmitterKind::World ? kPi * total : total);
+  e.pick = kPortalPhotonShare * entering + (1.0f - kPortalPhotonShare) * average(e.flux);
+}
+
+}  // namespace
+
+std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radius, const TextureSet* textures) {
+  void* tex_thread = textures ? textures->thread_info() : nullptr;
   std::vector<Emitter> out;
+  const std::vector<Portal> portals = scene_portals(scene);
+  for (const Portal& p : portals)  // the disk of sun and world photons covers the portals too
+    for (float a : {-1.0f, 1.0f})
+      for (float b : {-1.0f, 1.0f}) radius = std::fmax(radius, 1.01f * length(p.center + p.half_u * a + p.half_v * b - center));
   const float disk_area = kPi * radius * radius;
   for (const Light& light : scene.lights) {
     Emitter e = light_emitter(light);
@@ -118,7 +199,9 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
   for (uint32_t mesh_id = 0; mesh_id < scene.meshes.size(); ++mesh_id) {
     const Mesh& mesh = scene.meshes[mesh_id];
     for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
-      const Vec3 emission = scene.materials.empty() ? Vec3{} : scene.materials[mesh.material_ids[t]].emission;
+      Vec3 emission = scene.materials.empty() ? Vec3{} : scene.materials[mesh.material_ids[t]].emission;
+      if (max_component(emission) <= 0.0f) continue;
+      if (textures) emission = textures->triangle_emission(mesh, mesh.material_ids[t], t, tex_thread);
       if (max_component(emission) <= 0.0f) continue;
       if (degenerate_triangle(mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2))) continue;
       Emitter e{};
@@ -150,6 +233,10 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
     e.scale = e.flux;
     e.radiance = scene.world;
     if (average(e.flux) > 0.0f) out.push_back(e);
+  }
+  for (Emitter& e : out) {
+    e.pick = average(e.flux);
+    if (!portals.empty() && (e.kind == EmitterKind::Sun || e.kind == EmitterKind::World)) attach_portals(e, portals);
   }
   return out;
 }
@@ -216,22 +303,54 @@ EmitterSample sample_emitter(const Emitter& e, const float u[4]) {
     }
     case EmitterKind::Sun:
     case EmitterKind::World: {
+      // With portals, u[0] first chooses the strategy (and the portal) and is
+      // then reused, rescaled, as the first direction number.
+      float u0 = u[0];
+      const bool through_portal = u0 < e.portal_share;
+      size_t j = 0;
+      if (e.portal_share > 0.0f) {
+        u0 = through_portal ? u0 / e.portal_share : (u0 - e.portal_share) / (1.0f - e.portal_share);
+        if (through_portal) {
+          while (j + 1 < e.portals.size() && u0 >= e.portal_pick[j]) u0 -= e.portal_pick[j++];
+          u0 = std::fmin(u0 / e.portal_pick[j], 0.99999994f);
+        }
+      }
       Vec3 d = e.normal, t = e.axis_u, b = e.axis_v;
       if (e.kind == EmitterKind::World) {
-        d = uniform_sphere(u[0], u[1]);
+        if (through_portal) {  // cosine-distributed into the interior
+          const Vec3 local = cosine_hemisphere(u0, u[1]);
+          make_frame(e.portals[j].inward, t, b);
+          d = t * local.x + b * local.y + e.portals[j].inward * local.z;
+        } else {
+          d = uniform_sphere(u0, u[1]);
+        }
         make_frame(d, t, b);
       } else if (e.cos_half < 1.0f) {
         // A direction uniform over the sun's disk of directions.
-        const float c = 1.0f - u[0] * (1.0f - e.cos_half);
+        const float c = 1.0f - u0 * (1.0f - e.cos_half);
         const float sn = std::sqrt(std::fmax(0.0f, 1.0f - c * c));
         const float phi = 2.0f * kPi * u[1];
         d = t * (sn * std::cos(phi)) + b * (sn * std::sin(phi)) + e.normal * c;
         make_frame(d, t, b);
       }
-      float x, y;
-      concentric_disk(u[2], u[3], x, y);
-      s.origin = e.origin + (t * x + b * y) * e.radius - d * (2.0f * e.radius);
+      if (through_portal) {
+        const Portal& p = e.portals[j];
+        const Vec3 q = p.center + p.half_u * (2.0f * u[2] - 1.0f) + p.half_v * (2.0f * u[3] - 1.0f);
+        s.origin = q - d * (2.0f * e.radius);
+      } else {
+        float x, y;
+        concentric_disk(u[2], u[3], x, y);
+        s.origin = e.origin + (t * x + b * y) * e.radius - d * (2.0f * e.radius);
+      }
       s.direction = d;
+      if (e.portal_share > 0.0f) {
+        float tc, cos_p;
+        if (through_portal && !portal_crossing(e.portals[j], s.origin, d, 1.0f, tc, cos_p)) {
+          s.weight = {0, 0, 0};  // the sun's cone grazing the portal, or rounding at its rim
+        } else {
+          s.weight = e.radiance * (1.0f / photon_line_density(e, s.origin, d));
+        }
+      }
       break;
     }
   }
@@ -264,6 +383,39 @@ DirectSample from_surface_point(Vec3 q, Vec3 nl, bool two_sided, Vec3 L, float A
   if (two_sided) cos_l = std::fabs(cos_l);
   const float cos_s = dot(n, s.dir);
   if (cos_l > 0.0f && cos_s > 0.0f) s.irradiance = L * (cos_l * cos_s * A / d2);
+  return s;
+}
+
+// The sky's direct light at p with portals: a mixture of cosine directions
+// and points on the portals (chosen by area), weighted by the mixture's
+// density in solid angle, so texels the portals do not see stay unbiased.
+DirectSample sky_through_portals(const Emitter& e, Vec3 p, Vec3 n, const float u[3]) {
+  DirectSample s{{0, 0, 0}, {0, 0, 1}, std::numeric_limits<float>::infinity()};
+  const float share = kPortalDirectShare;
+  if (u[2] < share) {
+    float v = u[2] / share;
+    size_t j = 0;
+    while (j + 1 < e.portals.size() && v >= e.portal_pick[j]) v -= e.portal_pick[j++];
+    const Portal& q = e.portals[j];
+    const Vec3 to = q.center + q.half_u * (2.0f * u[0] - 1.0f) + q.half_v * (2.0f * u[1] - 1.0f) - p;
+    const float d = length(to);
+    if (!(d > 0.0f)) return s;
+    s.dir = to / d;
+  } else {
+    const Vec3 local = cosine_hemisphere(u[0], u[1]);
+    Vec3 t, b;
+    make_frame(n, t, b);
+    s.dir = t * local.x + b * local.y + n * local.z;
+  }
+  const float cos_s = dot(n, s.dir);
+  if (!(cos_s > 0.0f)) return s;
+  float density = (1.0f - share) * cos_s / kPi;
+  for (size_t j = 0; j < e.portals.size(); ++j) {
+    float t, cos_p;  // leaving the interior through portal j
+    if (!portal_crossing(e.portals[j], p, s.dir, -1.0f, t, cos_p) || !(t > 0.0f)) continue;
+    density += share * e.portal_pick[j] * t * t / (e.portals[j].area * cos_p);
+  }
+  if (density > 0.0f && std::isfinite(density)) s.irradiance = e.radiance * (cos_s / density);
   return s;
 }
 
@@ -307,12 +459,15 @@ DirectSample sample_direct(const Emitter& e, Vec3 p, Vec3 n, const float u[3]) {
       return s;
     }
     case EmitterKind::World: {
-      const Vec3 local = cosine_hemisphere(u[0], u[1]);
-      Vec3 t, b;
-      make_frame(n, t, b);
-      s.dir = t * local.x + b * local.y + n * local.z;
-      s.irradiance = e.radiance * kPi;  // cosine-weighted: L cos / (cos / pi)
-      return s;
+      if (e.portals.empty()) {
+        const Vec3 local = cosine_hemisphere(u[0], u[1]);
+        Vec3 t, b;
+        make_frame(n, t, b);
+        s.dir = t * local.x + b * local.y + n * local.z;
+        s.irradiance = e.radiance * kPi;  // cosine-weighted: L cos / (cos / pi)
+        return s;
+      }
+      return sky_through_portals(e, p, n, u);
     }
     case EmitterKind::AreaRect:
     case EmitterKind::AreaDisk: {

@@ -14,6 +14,13 @@ namespace plm {
 
 enum class EmitterKind : uint8_t { Point, Spot, Sun, AreaRect, AreaDisk, Triangle, World };
 
+// An opening through which sun and sky light enter (PLM_LIGHT_PORTAL): a
+// parallelogram centre +- half_u +- half_v, inward = unit normal into the interior.
+struct Portal {
+  Vec3 center, half_u, half_v, inward;
+  float area;
+};
+
 struct Emitter {
   EmitterKind kind;
   Vec3 flux;        // total emitted RGB flux (W)
@@ -29,6 +36,13 @@ struct Emitter {
   Vec3 radiance;
   float area = 0;
   uint32_t mesh = 0, triangle = 0;  // Triangle: where it is in the scene
+  float pick = 0;   // the emitter's share of photons is proportional to this (its mean flux by default)
+  // Sun and world with portals: a share of the photons (and of the sky's
+  // direct samples) go through the portals, chosen by portal_pick; the
+  // weights use the mixture's density, so the sum stays unbiased.
+  std::vector<Portal> portals;
+  std::vector<float> portal_pick;
+  float portal_share = 0;
 };
 
 struct EmitterSample {
@@ -46,7 +60,10 @@ float spot_attenuation(float c, float cos_half, float spot_smooth);
 
 // Flattens lights, emissive triangles and the world. scene_center/radius
 // bound all geometry (sun and world photons start on a disk around them).
-std::vector<Emitter> build_emitters(const Scene& scene, Vec3 scene_center, float scene_radius);
+// textures (null for none) give emissive triangles their texture's mean over the triangle.
+class TextureSet;
+std::vector<Emitter> build_emitters(const Scene& scene, Vec3 scene_center, float scene_radius,
+                                    const TextureSet* textures = nullptr);
 
 // Chooses emitters in proportion to their power (mean RGB flux).
 class EmitterTable {

@@ -1,0 +1,455 @@
+// OpenSubdiv refinement of a polygon cage. Settings follow Blender 3.4's
+// Subdivision Surface modifier defaults, checked against Blender itself
+// (blend_tests/test_subdiv.py):
+//   Catmull-Clark, triangles split by the Catmark rule (TRI_SUB_CATMARK),
+//   boundary_smooth = ALL            -> VTX_BOUNDARY_EDGE_ONLY,
+//   uv_smooth = PRESERVE_BOUNDARIES  -> FVAR_LINEAR_BOUNDARIES,
+//   use_creases = True               -> edge sharpness 10 c^2, CREASE_UNIFORM,
+//   use_limit_surface = True, quality = 3
+//                                    -> vertices and UVs evaluated as Blender does: on the
+//                                       bicubic patches of an adaptive refinement isolated to
+//                                       level 3 (Gregory end caps, inf-sharp patches), at the
+//                                       ptex coordinates of the uniformly refined vertices.
+//                                       (The exact limit, PrimvarRefiner::Limit, differs from
+//                                       Blender by up to ~1e-3 of the size at smooth corners
+//                                       and near creases sharper than 3.)
+#include "subdiv/subdiv.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <memory>
+#include <unordered_set>
+
+#include <opensubdiv/far/patchMap.h>
+#include <opensubdiv/far/patchTableFactory.h>
+#include <opensubdiv/far/primvarRefiner.h>
+#include <opensubdiv/far/ptexIndices.h>
+#include <opensubdiv/far/topologyDescriptor.h>
+#include <opensubdiv/far/topologyRefinerFactory.h>
+
+#include "scene/scene.h"
+#include "util/error.h"
+
+namespace plm::subdiv {
+
+namespace {
+
+using namespace OpenSubdiv;
+
+// Primvar types for Far::PrimvarRefiner (accumulated in double).
+struct Point3 {
+  double x = 0, y = 0, z = 0;
+  void Clear() { x = y = z = 0; }
+  void AddWithWeight(const Point3& s, float w) {
+    x += w * s.x;
+    y += w * s.y;
+    z += w * s.z;
+  }
+};
+
+struct Point2 {
+  double u = 0, v = 0;
+  void Clear() { u = v = 0; }
+  void AddWithWeight(const Point2& s, float w) {
+    u += w * s.u;
+    v += w * s.v;
+  }
+};
+
+uint64_t edge_key(uint32_t a, uint32_t b) {
+  if (a > b) std::swap(a, b);
+  return (uint64_t(a) << 32) | b;
+}
+
+// Welds the corners of each vertex whose UVs agree within kUvConnectLimit
+// (as Blender's subdivision converter does); returns a value index per corner.
+std::vector<int> weld_uvs(const Cage& c, size_t corner_count, std::vector<Point2>& values) {
+  // Corners grouped by vertex (CSR).
+  std::vector<uint32_t> start(size_t(c.vertex_count) + 1, 0);
+  for (size_t k = 0; k < corner_count; ++k) ++start[c.face_indices[k] + 1];
+  for (uint32_t v = 0; v < c.vertex_count; ++v) start[v + 1] += start[v];
+  std::vector<uint32_t> fill(start.begin(), start.end() - 1);
+  std::vector<uint32_t> corners(corner_count);
+  for (size_t k = 0; k < corner_count; ++k) corners[fill[c.face_indices[k]]++] = uint32_t(k);
+
+  std::vector<int> index(corner_count, -1);
+  values.clear();
+  for (uint32_t v = 0; v < c.vertex_count; ++v) {
+    const size_t first_value = values.size();
+    for (uint32_t i = start[v]; i < start[v + 1]; ++i) {
+      const uint32_t k = corners[i];
+      const double u = c.uv[2 * k], w = c.uv[2 * k + 1];
+      int found = -1;
+      for (size_t j = first_value; j < values.size(); ++j) {
+        if (std::fabs(values[j].u - u) < kUvConnectLimit && std::fabs(values[j].v - w) < kUvConnectLimit) {
+          found = int(j);
+          break;
+        }
+      }
+      if (found < 0) {
+        found = int(values.size());
+        values.push_back(Point2{u, w});
+      }
+      index[k] = found;
+    }
+  }
+  return index;
+}
+
+// Isolation level of Blender's limit-surface patches (the modifier's quality, default 3).
+constexpr int kBlenderQuality = 3;
+
+// Where a refined vertex lies: ptex face and (u, v) in it.
+struct PtexCoord {
+  int face = -1;
+  double u = 0, v = 0;
+};
+
+// Ptex coordinates of the 4 corners of every face of the last uniform level. A quad's
+// ptex (u, v) runs (0,0) (1,0) (1,1) (0,1) over its corners; an n-gon has one ptex face
+// per corner, (0,0) at the corner, (1,1) at the face centre. Far orders child face j of a
+// parent quad so that its corner k lies at (P_j + P_k) / 2 of the parent's corners P, and
+// child j of an n-gon as (corner j, next edge, centre, previous edge).
+void face_corner_ptex(const Far::TopologyRefiner& refiner, int level, std::vector<int>& face_ptex,
+                      std::vector<std::array<double, 8>>& face_uv) {
+  static constexpr double kUnit[8] = {0, 0, 1, 0, 1, 1, 0, 1};
+  const Far::PtexIndices ptex(refiner);
+  const Far::TopologyLevel& base = refiner.GetLevel(0);
+  face_ptex.assign(size_t(refiner.GetLevel(1).GetNumFaces()), -1);
+  face_uv.assign(face_ptex.size(), {});
+  for (int f = 0; f < base.GetNumFaces(); ++f) {
+    const int n = base.GetFaceVertices(f).size();
+    const Far::ConstIndexArray children = base.GetFaceChildFaces(f);
+    for (int j = 0; j < children.size(); ++j) {
+      const int c = children[j];
+      if (n == 4) {
+        face_ptex[size_t(c)] = ptex.GetFaceId(f);
+        for (int k = 0; k < 4; ++k)
+          for (int a = 0; a < 2; ++a) face_uv[size_t(c)][2 * k + a] = 0.5 * (kUnit[2 * j + a] + kUnit[2 * k + a]);
+      } else {
+        face_ptex[size_t(c)] = ptex.GetFaceId(f) + j;
+        std::copy(kUnit, kUnit + 8, face_uv[size_t(c)].begin());
+      }
+    }
+  }
+  for (int l = 1; l < level; ++l) {
+    const Far::TopologyLevel& parent = refiner.GetLevel(l);
+    std::vector<int> next_ptex(size_t(refiner.GetLevel(l + 1).GetNumFaces()), -1);
+    std::vector<std::array<double, 8>> next_uv(next_ptex.size());
+    for (int f = 0; f < parent.GetNumFaces(); ++f) {
+      const Far::ConstIndexArray children = parent.GetFaceChildFaces(f);
+      const std::array<double, 8>& P = face_uv[size_t(f)];
+      for (int j = 0; j < children.size(); ++j) {
+        const size_t c = size_t(children[j]);
+        next_ptex[c] = face_ptex[size_t(f)];
+        for (int k = 0; k < 4; ++k)
+          for (int a = 0; a < 2; ++a) next_uv[c][2 * k + a] = 0.5 * (P[2 * j + a] + P[2 * k + a]);
+      }
+    }
+    face_ptex.swap(next_ptex);
+    face_uv.swap(next_uv);
+  }
+}
+
+// Blender's limit surface: patches of an adaptive refinement (as Blender's OpenSubdiv
+// evaluator builds them), evaluated at ptex coordinates. Entries whose patch is not found
+// (should not happen) keep their input value.
+void evaluate_patches(const Far::TopologyDescriptor& desc,
+                      const Far::TopologyRefinerFactory<Far::TopologyDescriptor>::Options& options,
+                      const std::vector<Point3>& base_vertex, const std::vector<Point2>* base_fvar, const std::vector<PtexCoord>& vertex_at,
+                      std::vector<Point3>& pos_out, const std::vector<PtexCoord>* fvar_at,
+                      std::vector<Point2>* fvar_out, const std::string& owner) {
+  using Factory = Far::TopologyRefinerFactory<Far::TopologyDescriptor>;
+  std::unique_ptr<Far::TopologyRefiner> refiner(Factory::Create(desc, options));
+  if (!refiner) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": OpenSubdiv rejected the cage topology");
+  const bool fvar = base_fvar != nullptr;
+  Far::TopologyRefiner::AdaptiveOptions adaptive(kBlenderQuality);
+  adaptive.considerFVarChannels = fvar;
+  adaptive.useInfSharpPatch = true;
+  refiner->RefineAdaptive(adaptive);
+  Far::PatchTableFactory::Options po(kBlenderQuality);
+  po.SetEndCapType(Far::PatchTableFactory::Options::ENDCAP_GREGORY_BASIS);
+  po.useInfSharpPatch = true;
+  po.generateFVarTables = fvar;
+  po.generateFVarLegacyLinearPatches = false;
+  std::unique_ptr<Far::PatchTable> table(Far::PatchTableFactory::Create(*refiner, po));
+  if (!table) fail(PLM_ERROR_INTERNAL, owner, ": OpenSubdiv could not build the limit-surface patches");
+
+  // Control points: every refined vertex of the adaptive hierarchy, then the end caps' local points.
+  Far::PrimvarRefiner primvar(*refiner);
+  std::vector<Point3> cv(size_t(refiner->GetNumVerticesTotal() + table->GetNumLocalPoints()));
+  std::copy(base_vertex.begin(), base_vertex.end(), cv.begin());
+  size_t offset = 0;
+  for (int l = 1; l <= refiner->GetMaxLevel(); ++l) {
+    const size_t n_parent = size_t(refiner->GetLevel(l - 1).GetNumVertices());
+    Point3* src = cv.data() + offset;
+    Point3* dst = src + n_parent;
+    primvar.Interpolate(l, src, dst);
+    offset += n_parent;
+  }
+  if (table->GetNumLocalPoints() > 0)
+    table->ComputeLocalPointValues(cv.data(), cv.data() + refiner->GetNumVerticesTotal());
+  std::vector<Point2> fv;
+  if (fvar) {
+    fv.resize(size_t(refiner->GetNumFVarValuesTotal(0) + table->GetNumLocalPointsFaceVarying(0)));
+    std::copy(base_fvar->begin(), base_fvar->end(), fv.begin());
+    size_t fo = 0;
+    for (int l = 1; l <= refiner->GetMaxLevel(); ++l) {
+      const size_t n_parent = size_t(refiner->GetLevel(l - 1).GetNumFVarValues(0));
+      Point2* src = fv.data() + fo;
+      Point2* dst = src + n_parent;
+      primvar.InterpolateFaceVarying(l, src, dst, 0);
+      fo += n_parent;
+    }
+    if (table->GetNumLocalPointsFaceVarying(0) > 0)
+      table->ComputeLocalPointValuesFaceVarying(fv.data(), fv.data() + refiner->GetNumFVarValuesTotal(0), 0);
+  }
+
+  const Far::PatchMap map(*table);
+  double w[20], wu[20], wv[20];
+  for (size_t i = 0; i < vertex_at.size(); ++i) {
+    const PtexCoord& pc = vertex_at[i];
+    if (pc.face < 0) continue;
+    const Far::PatchTable::PatchHandle* h = map.FindPatch(pc.face, pc.u, pc.v);
+    if (!h) continue;
+    const Far::ConstIndexArray cvs = table->GetPatchVertices(*h);
+    if (cvs.size() > 20) continue;
+    table->EvaluateBasis(*h, pc.u, pc.v, w, wu, wv);
+    Point3 p;
+    for (int k = 0; k < cvs.size(); ++k) p.AddWithWeight(cv[size_t(cvs[k])], float(w[k]));
+    pos_out[i] = p;
+  }
+  if (!fvar) return;
+  for (size_t i = 0; i < fvar_at->size(); ++i) {
+    const PtexCoord& pc = (*fvar_at)[i];
+    if (pc.face < 0) continue;
+    const Far::PatchTable::PatchHandle* h = map.FindPatch(pc.face, pc.u, pc.v);
+    if (!h) continue;
+    const Far::ConstIndexArray cvs = table->GetPatchFVarValues(*h, 0);
+    if (cvs.size() > 20) continue;
+    table->EvaluateBasisFaceVarying(*h, pc.u, pc.v, w, wu, wv, nullptr, nullptr, nullptr, 0);
+    Point2 t;
+    for (int k = 0; k < cvs.size(); ++k) t.AddWithWeight(fv[size_t(cvs[k])], float(w[k]));
+    (*fvar_out)[i] = t;
+  }
+}
+
+}  // namespace
+
+RefinedMesh refine(const std::string& owner, const Cage& c) {
+  // ---- validation: every error names the cage and the index ----
+  if (c.vertex_count == 0 || c.face_count == 0)
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": the subdivision cage has ", c.vertex_count, " vertices and ",
+         c.face_count, " faces; both must be > 0");
+  if (!c.positions || !c.face_sizes || !c.face_indices)
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": positions, face sizes and face indices must not be NULL");
+  if (c.level < 1 || c.level > kMaxLevel)
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": subdivision level ", c.level, " is not in [1, ", kMaxLevel, "]");
+  if (c.crease_count > 0 && (!c.crease_edges || !c.crease_weights))
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": ", c.crease_count,
+         " creases but the crease edges or weights are NULL");
+  if (c.vertex_count > uint32_t(INT32_MAX) || c.face_count > uint32_t(INT32_MAX))
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": the subdivision cage is too large for OpenSubdiv");
+
+  for (uint32_t i = 0; i < c.vertex_count; ++i) {
+    const float* p = c.positions + 3 * size_t(i);
+    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2]))
+      fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": cage vertex ", i, " has a non-finite position (", p[0], ", ", p[1],
+           ", ", p[2], ")");
+    if (std::max({std::fabs(p[0]), std::fabs(p[1]), std::fabs(p[2])}) > kMaxCoordinate)
+      fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": cage vertex ", i, " is beyond the engine's range of +-",
+           kMaxCoordinate, " m");
+  }
+  uint64_t corner_count = 0;
+  for (uint32_t f = 0; f < c.face_count; ++f) {
+    if (c.face_sizes[f] < 3)
+      fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": cage face ", f, " has ", c.face_sizes[f],
+           " vertices; a face needs at least 3");
+    corner_count += c.face_sizes[f];
+  }
+  if (corner_count > uint64_t(INT32_MAX))
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": the subdivision cage has too many face corners (", corner_count, ")");
+  // Level L turns a cage face of n corners into n * 4^(L-1) quads, two triangles each.
+  const uint64_t triangles = 2 * corner_count << (2 * (c.level - 1));
+  if (triangles > kMaxRefinedTriangles)
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": subdivision level ", c.level, " would make ", triangles,
+         " triangles, more than the limit of ", kMaxRefinedTriangles, "; lower the level");
+
+  std::unordered_set<uint64_t> edges;
+  edges.reserve(size_t(corner_count));
+  {
+    size_t k = 0;
+    for (uint32_t f = 0; f < c.face_count; ++f) {
+      const uint32_t n = c.face_sizes[f];
+      for (uint32_t j = 0; j < n; ++j) {
+        const uint32_t v = c.face_indices[k + j];
+        if (v >= c.vertex_count)
+          fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": cage face ", f, " corner ", j, " uses vertex ", v,
+               " but the cage has ", c.vertex_count, " vertices");
+        for (uint32_t i = 0; i < j; ++i)
+          if (c.face_indices[k + i] == v)
+            fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": cage face ", f, " uses vertex ", v, " twice (corners ", i,
+                 " and ", j, ")");
+        edges.insert(edge_key(v, c.face_indices[k + (j + 1) % n]));
+      }
+      if (c.uv) {
+        for (uint32_t j = 0; j < 2 * n; ++j) {
+          const float t = c.uv[2 * k + j];
+          if (!std::isfinite(t) || std::fabs(t) > 1e4f)
+            fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": cage face ", f, " corner ", j / 2, " has the lightmap UV ",
+                 "coordinate ", t, " (must be finite and within +-1e4)");
+        }
+      }
+      k += n;
+    }
+  }
+  for (uint32_t e = 0; e < c.crease_count; ++e) {
+    const uint32_t a = c.crease_edges[2 * e], b = c.crease_edges[2 * e + 1];
+    const float w = c.crease_weights[e];
+    if (a >= c.vertex_count || b >= c.vertex_count || a == b)
+      fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": crease ", e, " joins vertices ", a, " and ", b,
+           ", which is not an edge of a cage of ", c.vertex_count, " vertices");
+    if (!edges.count(edge_key(a, b)))
+      fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": crease ", e, " names the edge ", a, "-", b,
+           ", which no cage face has");
+    if (!(w >= 0.0f && w <= 1.0f))
+      fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": crease ", e, " has weight ", w, "; Blender creases are in [0, 1]");
+  }
+
+  // ---- topology for OpenSubdiv ----
+  std::vector<int> face_sizes(c.face_sizes, c.face_sizes + c.face_count);
+  std::vector<int> face_indices(c.face_indices, c.face_indices + corner_count);
+  std::vector<int> crease_pairs;
+  std::vector<float> sharpness;
+  for (uint32_t e = 0; e < c.crease_count; ++e) {
+    if (c.crease_weights[e] <= 0.0f) continue;
+    crease_pairs.push_back(int(c.crease_edges[2 * e]));
+    crease_pairs.push_back(int(c.crease_edges[2 * e + 1]));
+    sharpness.push_back(blender_crease_to_sharpness(c.crease_weights[e]));
+  }
+  std::vector<Point2> uv_values;
+  std::vector<int> uv_index;
+  if (c.uv) uv_index = weld_uvs(c, size_t(corner_count), uv_values);
+
+  Far::TopologyDescriptor desc;
+  desc.numVertices = int(c.vertex_count);
+  desc.numFaces = int(c.face_count);
+  desc.numVertsPerFace = face_sizes.data();
+  desc.vertIndicesPerFace = face_indices.data();
+  desc.numCreases = int(sharpness.size());
+  desc.creaseVertexIndexPairs = crease_pairs.empty() ? nullptr : crease_pairs.data();
+  desc.creaseWeights = sharpness.empty() ? nullptr : sharpness.data();
+  Far::TopologyDescriptor::FVarChannel channel;
+  if (c.uv) {
+    channel.numValues = int(uv_values.size());
+    channel.valueIndices = uv_index.data();
+    desc.numFVarChannels = 1;
+    desc.fvarChannels = &channel;
+  }
+
+  Sdc::Options sdc;
+  sdc.SetVtxBoundaryInterpolation(Sdc::Options::VTX_BOUNDARY_EDGE_ONLY);
+  sdc.SetFVarLinearInterpolation(Sdc::Options::FVAR_LINEAR_BOUNDARIES);
+  sdc.SetCreasingMethod(Sdc::Options::CREASE_UNIFORM);
+  sdc.SetTriangleSubdivision(Sdc::Options::TRI_SUB_CATMARK);
+  using Factory = Far::TopologyRefinerFactory<Far::TopologyDescriptor>;
+  std::unique_ptr<Far::TopologyRefiner> refiner(
+      Factory::Create(desc, Factory::Options(Sdc::SCHEME_CATMARK, sdc)));
+  if (!refiner)
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": OpenSubdiv rejected the cage topology");
+
+  Far::TopologyRefiner::UniformOptions uniform(int(c.level));
+  uniform.fullTopologyInLastLevel = true;  // needed by Limit / LimitFaceVarying
+  refiner->RefineUniform(uniform);
+
+  // ---- interpolate level by level, then move to the limit ----
+  Far::PrimvarRefiner primvar(*refiner);
+  std::vector<Point3> pos(c.vertex_count), pos_next;
+  for (uint32_t i = 0; i < c.vertex_count; ++i)
+    pos[i] = Point3{c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]};
+  std::vector<uint32_t> mat, mat_next;
+  if (c.material_ids) mat.assign(c.material_ids, c.material_ids + c.face_count);
+  const std::vector<Point3> base_pos = pos;
+  const std::vector<Point2> base_uv = uv_values;
+  std::vector<Point2> uv = std::move(uv_values), uv_next;
+  for (int l = 1; l <= int(c.level); ++l) {
+    const Far::TopologyLevel& child = refiner->GetLevel(l);
+    pos_next.assign(size_t(child.GetNumVertices()), Point3{});
+    primvar.Interpolate(l, pos, pos_next);
+    pos.swap(pos_next);
+    if (c.uv) {
+      uv_next.assign(size_t(child.GetNumFVarValues(0)), Point2{});
+      primvar.InterpolateFaceVarying(l, uv, uv_next, 0);
+      uv.swap(uv_next);
+    }
+    if (c.material_ids) {
+      mat_next.assign(size_t(child.GetNumFaces()), 0u);
+      primvar.InterpolateFaceUniform(l, mat, mat_next);
+      mat.swap(mat_next);
+    }
+  }
+  std::vector<Point3> limit(pos.size());
+  primvar.Limit(pos, limit);
+  std::vector<Point2> uv_limit(uv.size());
+  if (c.uv) primvar.LimitFaceVarying(uv, uv_limit, 0);
+
+  // Blender evaluates the limit surface on patches, at the ptex coordinates of the vertices.
+  {
+    const Far::TopologyLevel& last = refiner->GetLevel(int(c.level));
+    std::vector<int> face_ptex;
+    std::vector<std::array<double, 8>> face_uv;
+    face_corner_ptex(*refiner, int(c.level), face_ptex, face_uv);
+    std::vector<PtexCoord> vertex_at(limit.size()), fvar_at(uv_limit.size());
+    for (int f = 0; f < last.GetNumFaces(); ++f) {
+      const Far::ConstIndexArray fv = last.GetFaceVertices(f);
+      for (int k = 0; k < fv.size() && k < 4; ++k) {
+        PtexCoord& a = vertex_at[size_t(fv[k])];
+        if (a.face < 0) a = PtexCoord{face_ptex[size_t(f)], face_uv[size_t(f)][2 * k], face_uv[size_t(f)][2 * k + 1]};
+      }
+      if (!c.uv) continue;
+      const Far::ConstIndexArray fuv = last.GetFaceFVarValues(f, 0);
+      for (int k = 0; k < fuv.size() && k < 4; ++k) {
+        PtexCoord& a = fvar_at[size_t(fuv[k])];
+        if (a.face < 0) a = PtexCoord{face_ptex[size_t(f)], face_uv[size_t(f)][2 * k], face_uv[size_t(f)][2 * k + 1]};
+      }
+    }
+    evaluate_patches(desc, Factory::Options(Sdc::SCHEME_CATMARK, sdc), base_pos, c.uv ? &base_uv : nullptr,
+                     vertex_at, limit, &fvar_at, &uv_limit, owner);
+  }
+
+  // ---- the triangle mesh ----
+  const Far::TopologyLevel& last = refiner->GetLevel(int(c.level));
+  RefinedMesh out;
+  out.positions.resize(limit.size() * 3);
+  for (size_t i = 0; i < limit.size(); ++i) {
+    out.positions[3 * i] = float(limit[i].x);
+    out.positions[3 * i + 1] = float(limit[i].y);
+    out.positions[3 * i + 2] = float(limit[i].z);
+  }
+  const int faces = last.GetNumFaces();
+  out.indices.reserve(size_t(faces) * 6);
+  if (c.uv) out.uv.reserve(size_t(faces) * 12);
+  if (c.material_ids) out.material_ids.reserve(size_t(faces) * 2);
+  static constexpr int kTri[2][3] = {{0, 1, 2}, {0, 2, 3}};
+  for (int f = 0; f < faces; ++f) {
+    const Far::ConstIndexArray fv = last.GetFaceVertices(f);
+    if (fv.size() != 4)  // Catmull-Clark refinement makes only quads
+      fail(PLM_ERROR_INTERNAL, owner, ": refined face ", f, " has ", fv.size(), " vertices instead of 4");
+    Far::ConstIndexArray fuv;
+    if (c.uv) fuv = last.GetFaceFVarValues(f, 0);
+    for (const auto& t : kTri) {
+      for (int j : t) {
+        out.indices.push_back(uint32_t(fv[j]));
+        if (c.uv) {
+          out.uv.push_back(float(uv_limit[size_t(fuv[j])].u));
+          out.uv.push_back(float(uv_limit[size_t(fuv[j])].v));
+        }
+      }
+      if (c.material_ids) out.material_ids.push_back(mat[size_t(f)]);
+    }
+  }
+  return out;
+}
+
+}  // namespace plm::subdiv

@@ -1,0 +1,53 @@
+// Catmull-Clark subdivision of a polygon cage with OpenSubdiv (Far), matching
+// the defaults of Blender 3.4's Subdivision Surface modifier, into the
+// triangle mesh the rest of the engine bakes.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace plm::subdiv {
+
+// The most refined triangles one cage may produce (a clear error beyond).
+constexpr uint64_t kMaxRefinedTriangles = uint64_t(1) << 25;  // 33.5 M
+constexpr uint32_t kMaxLevel = 10;
+// Blender welds the UVs of corners that share a vertex when they differ by
+// less than this in u and in v (STD_UV_CONNECT_LIMIT); welded corners are
+// smoothed together, the others form UV seams (island boundaries).
+constexpr float kUvConnectLimit = 1e-4f;
+
+// A polygon cage as Blender stores it. Pointers are borrowed.
+struct Cage {
+  const float* positions = nullptr;         // vertex_count * 3
+  uint32_t vertex_count = 0;
+  const uint32_t* face_sizes = nullptr;     // face_count, each >= 3
+  uint32_t face_count = 0;
+  const uint32_t* face_indices = nullptr;   // sum(face_sizes) vertex indices
+  const float* uv = nullptr;                // sum(face_sizes) * 2 (per face corner), or NULL
+  const uint32_t* material_ids = nullptr;   // face_count, or NULL
+  const uint32_t* crease_edges = nullptr;   // crease_count * 2 vertex indices (edges of the cage)
+  const float* crease_weights = nullptr;    // crease_count Blender creases in [0, 1]
+  uint32_t crease_count = 0;
+  uint32_t level = 1;                       // 1..kMaxLevel
+};
+
+// The refined mesh: vertices on the limit surface, every refined quad split
+// into two triangles (corners 0-1-2 and 0-2-3, as Blender's loop triangles).
+struct RefinedMesh {
+  std::vector<float> positions;       // 3 per vertex
+  std::vector<uint32_t> indices;      // 3 per triangle
+  std::vector<float> uv;              // 6 per triangle; empty without cage UVs
+  std::vector<uint32_t> material_ids; // 1 per triangle; empty without cage ids
+  uint32_t vertex_count() const { return uint32_t(positions.size() / 3); }
+  uint32_t triangle_count() const { return uint32_t(indices.size() / 3); }
+};
+
+// Blender 3.4 maps an edge crease c in [0, 1] to OpenSubdiv sharpness 10 c^2.
+inline float blender_crease_to_sharpness(float crease) { return crease * crease * 10.0f; }
+
+// Refines the cage; throws plm::Error (naming `owner` and the bad index) on
+// invalid input or when the result would exceed kMaxRefinedTriangles.
+RefinedMesh refine(const std::string& owner, const Cage& cage);
+
+}  // namespace plm::subdiv

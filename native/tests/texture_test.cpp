@@ -1,0 +1,148 @@
+// Image textures (texture/texture.h) through the scene file and the C API: a
+// furnace box whose albedo texture is one colour c bakes to E / (1 - c) per
+// channel, and malformed texture fields are refused with their JSON path.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include "io/scene_file.h"
+#include "test_support.h"
+
+namespace {
+
+std::string temp_dir() {
+  static const std::string dir = [] {
+    std::string d = testing::TempDir() + "photonlm_texture_" + std::to_string(getpid());
+    ::mkdir(d.c_str(), 0700);
+    return d;
+  }();
+  return dir;
+}
+
+// A w x h binary PPM of one colour.
+void write_ppm(const std::string& path, int w, int h, unsigned char r, unsigned char g, unsigned char b) {
+  std::ofstream f(path, std::ios::binary);
+  f << "P6\n" << w << " " << h << "\n255\n";
+  for (int i = 0; i < w * h; ++i) f << r << g << b;
+  ASSERT_TRUE(f.good()) << path;
+}
+
+std::string parse(const std::string& text, plm::SceneFile& out) {
+  plm::SceneFileOptions options;
+  options.base_dir = temp_dir();
+  std::string error;
+  if (!plm::parse_scene_file_text(text, options, out, error)) return error.empty() ? "(empty error)" : error;
+  return "";
+}
+
+constexpr const char* kQuadUv = "[0,0, 1,0, 1,1, 0,0, 1,1, 0,1]";
+
+std::string quad_mesh(const char* name, const float o[3], const float eu[3], const float ev[3], int res) {
+  auto p = [&](float s, float t) {
+    std::string r;
+    for (int c = 0; c < 3; ++c) r += (c ? "," : "") + std::to_string(o[c] + s * eu[c] + t * ev[c]);
+    return r;
+  };
+  return std::string("{\"name\": \"") + name + "\", \"material\": 0, \"positions\": [" + p(0, 0) + "," + p(1, 0) +
+         "," + p(0, 1) + "," + p(1, 1) + "], \"indices\": [0,1,3, 0,3,2], \"lightmap_uv\": " + kQuadUv +
+         ", \"texture_uv\": " + kQuadUv + ", \"lightmap_resolution\": " + std::to_string(res) + "}";
+}
+
+// A closed cube of six inward-facing quads, emission 1, albedo texture `texture`.
+std::string furnace_file(const std::string& texture) {
+  const float faces[6][3][3] = {
+      {{-1, -1, -1}, {2, 0, 0}, {0, 2, 0}}, {{-1, -1, 1}, {0, 2, 0}, {2, 0, 0}},
+      {{-1, -1, -1}, {0, 2, 0}, {0, 0, 2}}, {{1, -1, -1}, {0, 0, 2}, {0, 2, 0}},
+      {{-1, -1, -1}, {0, 0, 2}, {2, 0, 0}}, {{-1, 1, -1}, {2, 0, 0}, {0, 0, 2}}};
+  std::string meshes;
+  for (int f = 0; f < 6; ++f)
+    meshes += (f ? ",\n" : "") +
+              quad_mesh(("face" + std::to_string(f)).c_str(), faces[f][0], faces[f][1], faces[f][2], 6);
+  return "{\"version\": 1,\n\"materials\": [{\"name\": \"furnace\", \"albedo\": 1, \"emission\": [1, 1, 1], "
+         "\"albedo_texture\": " + texture + "}],\n\"meshes\": [" + meshes +
+         "],\n\"settings\": {\"photon_count\": 1000000, \"seed\": 3}}";
+}
+
+}  // namespace
+
+TEST(Texture, SceneFileFurnaceWithConstantTexture) {
+  write_ppm(temp_dir() + "/flat.ppm", 8, 8, 102, 153, 51);  // linear 0.4, 0.6, 0.2
+  plm::SceneFile f;
+  ASSERT_EQ(parse(furnace_file(R"({"path": "flat.ppm", "colorspace": "linear"})"), f), "");
+  plm_test::BakeResult r;
+  ASSERT_EQ(plm_bake(f.scene, &f.settings, nullptr, nullptr, &r.r), PLM_OK) << plm_last_error();
+  const double c[3] = {0.4, 0.6, 0.2};
+  double sum[3] = {0, 0, 0};
+  int n = 0;
+  for (const plm::SceneFileMesh& m : f.meshes) {
+    const plm_test::Map lm = r.map(m.id);
+    for (size_t t = 0; t < lm.coverage.size(); ++t) {
+      if (lm.coverage[t] < 0.999f) continue;
+      for (int k = 0; k < 3; ++k) sum[k] += lm.rgb[3 * t + size_t(k)];
+      ++n;
+    }
+  }
+  ASSERT_EQ(n, 6 * 36);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(sum[k] / n, 1.0 / (1.0 - c[k]), 0.015 / (1.0 - c[k])) << "channel " << k;
+  EXPECT_EQ(plm_result_warning_count(r.r), 0u);
+}
+
+TEST(Texture, SceneFileErrorsNameTheJsonPath) {
+  write_ppm(temp_dir() + "/one.ppm", 2, 2, 10, 20, 30);
+  const std::string tri =
+      R"("positions": [0,0,0, 1,0,0, 0,1,0], "indices": [0,1,2])";
+  struct Case {
+    std::string text, error;
+  } cases[] = {
+      {R"({"materials": [{"albedo_texture": 5}]})",
+       "scene.materials[0].albedo_texture: expected a file name or an object {\"path\", \"colorspace\"}, got 5"},
+      {R"({"materials": [{"albedo_texture": {"path": "one.ppm", "gamma": 2}}]})",
+       "scene.materials[0].albedo_texture.gamma: unknown field (allowed: path, colorspace)"},
+      {R"({"materials": [{"emission_texture": {"path": "one.ppm", "colorspace": "aces"}}]})",
+       "scene.materials[0].emission_texture.colorspace: \"aces\" is not one of auto, linear, srgb"},
+      {R"({"materials": [{"albedo_texture": ""}]})", "scene.materials[0].albedo_texture: empty file name"},
+      {R"({"meshes": [{)" + tri + R"(, "texture_uv": [0,0, 1,0]}]})",
+       "scene.meshes[0].texture_uv: expected 2 numbers (u, v) per triangle corner: 6 for 1 triangles, got 4"},
+      {R"({"meshes": [{)" + tri + R"(, "texture_uv": [0,0, 1,0, 0,"x"]}]})",
+       "scene.meshes[0].texture_uv[5]: expected a number, got \"x\""},
+  };
+  for (const Case& c : cases) {
+    plm::SceneFile f;
+    EXPECT_EQ(parse(c.text, f), c.error) << c.text;
+  }
+  // A missing file: the JSON path, the material and the file.
+  plm::SceneFile f;
+  const std::string error = parse(R"({"materials": [{"name": "brick", "albedo_texture": "missing.png"}]})", f);
+  EXPECT_NE(error.find("scene.materials[0].albedo_texture"), std::string::npos) << error;
+  EXPECT_NE(error.find("material 'brick' (0)"), std::string::npos) << error;
+  EXPECT_NE(error.find("missing.png"), std::string::npos) << error;
+  // No file access (the fuzzer's mode).
+  plm::SceneFileOptions no_files;
+  no_files.allow_file_access = false;
+  std::string e2;
+  plm::SceneFile g;
+  EXPECT_FALSE(plm::parse_scene_file_text(R"({"materials": [{"albedo_texture": "one.ppm"}]})", no_files, g, e2));
+  EXPECT_EQ(e2, "scene.materials[0].albedo_texture: file access is disabled");
+}
+
+TEST(Texture, CApiRejectsBadArguments) {
+  plm_scene* s = nullptr;
+  ASSERT_EQ(plm_scene_create(&s), PLM_OK);
+  const float a[3] = {0.5f, 0.5f, 0.5f}, e[3] = {0, 0, 0};
+  uint32_t mat = 0;
+  ASSERT_EQ(plm_scene_add_material(s, "m", a, e, &mat), PLM_OK);
+  EXPECT_EQ(plm_scene_set_material_texture(s, 3, PLM_TEXTURE_ALBEDO, "x.png", 0), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(plm_scene_set_material_texture(s, mat, plm_texture_slot(9), "x.png", 0), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(plm_last_error()).find("texture slot 9"), std::string::npos) << plm_last_error();
+  EXPECT_EQ(plm_scene_set_material_texture(s, mat, PLM_TEXTURE_ALBEDO, "x.png", 7), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(plm_scene_set_material_texture(s, mat, PLM_TEXTURE_ALBEDO, "/nonexistent/x.png", 0), PLM_ERROR_IO);
+  EXPECT_NE(std::string(plm_last_error()).find("material 'm' (0)"), std::string::npos) << plm_last_error();
+  EXPECT_EQ(plm_scene_set_material_texture(s, mat, PLM_TEXTURE_ALBEDO, nullptr, 0), PLM_OK);  // removes
+  EXPECT_EQ(plm_scene_set_mesh_texture_uv(s, 0, nullptr), PLM_ERROR_INVALID_ARGUMENT);  // no mesh 0
+  EXPECT_EQ(plm_scene_set_mesh_texture_uv(nullptr, 0, nullptr), PLM_ERROR_INVALID_ARGUMENT);
+  plm_scene_release(s);
+}
