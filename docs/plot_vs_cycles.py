@@ -21,9 +21,13 @@ def main(src, dst):
     scenes = data["scenes"]
     fig, axes = plt.subplots(1, len(scenes), figsize=(5.2 * len(scenes), 4.6), squeeze=False)
     for ax, (name, r) in zip(axes[0], scenes.items()):
-        for key, color, marker, label in (("cycles", "tab:blue", "o", "Cycles"),
-                                          ("photonlm", "tab:red", "s", "photonlm")):
-            runs = sorted(r[key], key=lambda x: x["seconds"])
+        series = [("cycles", "default", "tab:blue", "o", "Cycles"),
+                  ("cycles", "no portal", "tab:cyan", "^", "Cycles without portal"),
+                  ("photonlm", "default", "tab:red", "s", "photonlm")]
+        for key, which, color, marker, label in series:
+            runs = sorted((x for x in r[key] if x.get("series", "default") == which), key=lambda x: x["seconds"])
+            if not runs:
+                continue
             t = [x["seconds"] for x in runs]
             ax.loglog(t, [max(x["error"], 1e-4) for x in runs], "-", color=color, marker=marker,
                       label="%s vs Cycles reference" % label)

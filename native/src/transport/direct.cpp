@@ -21,6 +21,20 @@ float cos_weight_ratio(float cos_s, float cos_l_area, float pick, float distance
   return std::fmin(r, 1e30f);
 }
 
+// Barycentric coordinates (b1, b2 of corners 1 and 2) of texel coordinates
+// (x, y) in triangle t's lightmap UVs; false if the triangle has no UV area.
+bool uv_barycentric(const Mesh& mesh, uint32_t t, double x, double y, double& b1, double& b2) {
+  const float* uv = &mesh.uv[6 * size_t(t)];
+  const double w = mesh.lightmap_width, h = mesh.lightmap_height;
+  const double ax = uv[0] * w, ay = uv[1] * h;
+  const double e1x = uv[2] * w - ax, e1y = uv[3] * h - ay, e2x = uv[4] * w - ax, e2y = uv[5] * h - ay;
+  const double det = e1x * e2y - e2x * e1y;
+  if (det == 0.0) return false;
+  b1 = ((x - ax) * e2y - e2x * (y - ay)) / det;
+  b2 = (e1x * (y - ay) - (x - ax) * e1y) / det;
+  return true;
+}
+
 }  // namespace
 
 double DirectSums::pair_variance_of_mean() const {
@@ -71,20 +85,13 @@ bool DirectPass::surface_point(uint32_t mesh_id, uint32_t texel, float x, float 
                                uint32_t& tri) const {
   const Mesh& mesh = *views_[mesh_id].mesh;
   const TexelAreas& ta = areas_[mesh_id];
-  const float w = float(mesh.lightmap_width), h = float(mesh.lightmap_height);
   for (uint32_t k = ta.tri_begin[texel]; k < ta.tri_begin[texel + 1]; ++k) {
     const uint32_t t = ta.tri_ids[k];
-    const float* uv = &mesh.uv[6 * size_t(t)];
-    const float ax = uv[0] * w, ay = uv[1] * h;
-    const float e1x = uv[2] * w - ax, e1y = uv[3] * h - ay, e2x = uv[4] * w - ax, e2y = uv[5] * h - ay;
-    const float det = e1x * e2y - e2x * e1y;
-    if (det == 0.0f) continue;
-    const float qx = x - ax, qy = y - ay;
-    const float b1 = (qx * e2y - e2x * qy) / det, b2 = (e1x * qy - qx * e1y) / det;
-    const float eps = -1e-6f;
-    if (b1 < eps || b2 < eps || b1 + b2 > 1.0f - eps) continue;
+    double b1, b2;
+    const double eps = -1e-6;
+    if (!uv_barycentric(mesh, t, x, y, b1, b2) || b1 < eps || b2 < eps || b1 + b2 > 1.0 - eps) continue;
     const Vec3 p0 = mesh.vertex(t, 0), p1 = mesh.vertex(t, 1), p2 = mesh.vertex(t, 2);
-    p = p0 + (p1 - p0) * b1 + (p2 - p0) * b2;
+    p = p0 + (p1 - p0) * float(b1) + (p2 - p0) * float(b2);
     n = views_[mesh_id].normals[t];
     tri = t;
     return true;
@@ -171,19 +178,13 @@ bool DirectPass::point_in_pieces(uint32_t mesh_id, uint32_t texel, const float u
 int64_t DirectPass::centre_owner(uint32_t mesh_id, uint32_t texel) const {
   const Mesh& mesh = *views_[mesh_id].mesh;
   const TexelAreas& ta = areas_[mesh_id];
-  const double w = mesh.lightmap_width, h = mesh.lightmap_height;
   const double x = double(texel % mesh.lightmap_width) + 0.5, y = double(texel / mesh.lightmap_width) + 0.5;
   int64_t owner = -1;
   for (uint32_t k = ta.tri_begin[texel]; k < ta.tri_begin[texel + 1]; ++k) {
     const uint32_t t = ta.tri_ids[k];
-    const float* uv = &mesh.uv[6 * size_t(t)];
-    const double ax = uv[0] * w, ay = uv[1] * h;
-    const double e1x = uv[2] * w - ax, e1y = uv[3] * h - ay, e2x = uv[4] * w - ax, e2y = uv[5] * h - ay;
-    const double det = e1x * e2y - e2x * e1y;
-    if (det == 0.0) continue;
-    const double b1 = ((x - ax) * e2y - e2x * (y - ay)) / det, b2 = (e1x * (y - ay) - (x - ax) * e1y) / det;
+    double b1, b2;
     const double eps = 1e-9;
-    if (b1 >= -eps && b2 >= -eps && b1 + b2 <= 1.0 + eps) owner = t;
+    if (uv_barycentric(mesh, t, x, y, b1, b2) && b1 >= -eps && b2 >= -eps && b1 + b2 <= 1.0 + eps) owner = t;
   }
   return owner;
 }
@@ -196,12 +197,8 @@ int64_t DirectPass::centre_owner(uint32_t mesh_id, uint32_t texel) const {
 // the owner's side twice instead of the neighbour's.
 Vec3 DirectPass::mirrored_point(uint32_t mesh_id, uint32_t tri, float x, float y) const {
   const Mesh& mesh = *views_[mesh_id].mesh;
-  const float* uv = &mesh.uv[6 * size_t(tri)];
-  const double w = mesh.lightmap_width, h = mesh.lightmap_height;
-  const double ax = uv[0] * w, ay = uv[1] * h;
-  const double e1x = uv[2] * w - ax, e1y = uv[3] * h - ay, e2x = uv[4] * w - ax, e2y = uv[5] * h - ay;
-  const double det = e1x * e2y - e2x * e1y;
-  const double b1 = ((x - ax) * e2y - e2x * (y - ay)) / det, b2 = (e1x * (y - ay) - (x - ax) * e1y) / det;
+  double b1 = 0.0, b2 = 0.0;
+  uv_barycentric(mesh, tri, x, y, b1, b2);  // the owner has UV area: it covers the centre
   auto mirror = [](double t, double range) {
     if (!(range > 0.0)) return 0.0;
     const double q = t / range, f = std::floor(q), r = q - f;
