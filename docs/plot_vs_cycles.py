@@ -21,13 +21,17 @@ def main(src, dst):
     scenes = data["scenes"]
     fig, axes = plt.subplots(1, len(scenes), figsize=(5.2 * len(scenes), 4.6), squeeze=False)
     for ax, (name, r) in zip(axes[0], scenes.items()):
+        extra_legend = False
         series = [("cycles", "default", "tab:blue", "o", "Cycles"),
                   ("cycles", "no portal", "tab:cyan", "^", "Cycles without portal"),
                   ("photonlm", "default", "tab:red", "s", "photonlm")]
         for key, which, color, marker, label in series:
-            runs = sorted((x for x in r[key] if x.get("series", "default") == which), key=lambda x: x["seconds"])
+            order = (lambda x: x["samples"]) if key == "cycles" else (lambda x: x["seconds"])
+            runs = sorted((x for x in r[key] if x.get("series", "default") == which), key=order)
             if not runs:
                 continue
+            if which == "no portal":
+                extra_legend = True
             t = [x["seconds"] for x in runs]
             ax.loglog(t, [max(x["error"], 1e-4) for x in runs], "-", color=color, marker=marker,
                       label="%s vs Cycles reference" % label)
@@ -48,6 +52,8 @@ def main(src, dst):
         ax.set_xlabel("seconds (operator wall time, 2 cores)")
         ax.set_ylabel("relative RMSE over covered texels")
         ax.grid(True, which="both", alpha=0.25)
+        if extra_legend:
+            ax.legend(fontsize=7, loc="upper right")
     axes[0][0].legend(fontsize=7, loc="lower left")
     fig.suptitle("Speed against error: photonlm vs Cycles (labels: Cycles samples / photonlm target error)",
                  fontsize=11)
