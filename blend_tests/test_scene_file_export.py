@@ -3,7 +3,9 @@ exported scene file, and scripts/bake_blend.sh bakes from a saved .blend, give t
 
 Scene: the Cornell box (area light, seven objects, three materials) plus a spot light, a world
 colour, a geometry-only quad with two materials (per-triangle materials in the file) and the
-tall box on an orientation lightmap (an OL group in the file).
+tall box on an orientation lightmap (an OL group in the file), and a small cube with a Subdivision
+Surface modifier (level 2, one creased edge) that both the add-on and the file carry as its cage
+(the engine refines it; no fallback to Blender's refined mesh).
 
 1. Bake with the add-on's operator (fixed photon count, seed 7, 2 threads).
 2. File > Export > PhotonLM scene: the file holds the scene's settings and, in "metadata", each
@@ -71,6 +73,15 @@ def build_scene():
     panel.photonlm.enabled = False  # geometry only, two materials
     objs["tall_box"].photonlm.mode = 'ORIENTATION'
     objs["tall_box"].photonlm.ol_resolution = 8
+    bpy.ops.mesh.primitive_cube_add(size=0.3, location=(0.55, 0.55, 0.25))
+    blob = bpy.context.active_object
+    blob.name = "blob"
+    blob.data.uv_layers[0].name = "lightmap"  # Blender's fixed cube layout: the same in every process
+    blob.data.edges[0].crease = 1.0
+    blob.data.materials.append(yellow)
+    mod = blob.modifiers.new("Subdivision", 'SUBSURF')
+    mod.levels = mod.render_levels = 2
+    objs["blob"] = blob
     return objs
 
 
@@ -114,8 +125,8 @@ def main():
     last = scenes.photonlm_bake(PHOTONS, 64, seed=SEED, target_error=0.0, direct_samples=16)
     ours = {name: np.array(o["rgb"], np.float32) for name, o in last["objects"].items()}
     ol_ours = {g: exr_rgb(o["path"]) for g, o in last["ols"].items()}
-    checks.check(len(ours) == 7 and len(ol_ours) == 1,
-                 "the add-on baked 7 lightmaps and 1 OL (%d, %d)" % (len(ours), len(ol_ours)))
+    checks.check(len(ours) == 8 and len(ol_ours) == 1,
+                 "the add-on baked 8 lightmaps and 1 OL (%d, %d)" % (len(ours), len(ol_ours)))
 
     # ---- export: operator (inline meshes) and function (every mesh in an OBJ file) ----------------
     scene_json = os.path.join(out, "inline", "cornell.json")
@@ -129,18 +140,34 @@ def main():
                  "the file holds the scene's bake settings: %s" % st)
     kinds = sorted(l["type"] for l in doc.get("lights", []))
     checks.check(kinds == ["AREA_RECT", "SPOT"] and "world" in doc and len(doc.get("ol_groups", [])) == 1
-                 and any("materials" in m for m in doc["meshes"]) and len(doc["meshes"]) == 8,
-                 "the file holds 8 meshes (one with per-triangle materials), lights %s, the world, 1 OL group" % kinds)
+                 and any("materials" in m for m in doc["meshes"]) and len(doc["meshes"]) == 9,
+                 "the file holds 9 meshes (one with per-triangle materials), lights %s, the world, 1 OL group" % kinds)
     meta = doc.get("metadata", {})
     files = {o["object"]: o["lightmap_file"] for o in meta.get("objects", [])}
     checks.check(sorted(files) == sorted(ours) and all(doc["meshes"][o["mesh"]]["name"] == o["object"]
                                                        for o in meta["objects"]),
                  "metadata names each object's mesh and EXR file: %s" % files)
     obj_json = os.path.join(out, "obj", "cornell.json")
-    scene_file_export.export_scene_file(bpy.context, obj_json, obj_threshold=0)
+    from photonlm_blender import export
+    reports = export.Reports()
+    scene_file_export.export_scene_file(bpy.context, obj_json, reports=reports, obj_threshold=0)
     with open(obj_json) as f:
         doc_obj = json.load(f)
-    checks.check(all("obj" in m for m in doc_obj["meshes"]), "threshold 0: every mesh is an OBJ sidecar file")
+    checks.check(all(("obj" in m) == (m["name"] != "blob") for m in doc_obj["meshes"]),
+                 "threshold 0: every mesh but the cage is an OBJ sidecar file (cages stay inline)")
+    for label, d in (("inline", doc), ("obj", doc_obj)):
+        blob = [m for m in d["meshes"] if m["name"] == "blob"]
+        sd = blob[0].get("subdivision", {}) if blob else {}
+        checks.check(sd.get("level") == 2 and sd.get("face_sizes") == [4] * 6 and len(sd.get("creases", [])) == 1
+                     and sd["creases"][0][2] == 1.0 and len(blob[0]["indices"]) == 24
+                     and len(blob[0].get("lightmap_uv", [])) == 48,
+                     "%s file: the subdivided cube is its cage (level 2, 6 quads, 1 crease, UV per corner): %s"
+                     % (label, sd))
+    texts = [t for _, t in reports.items]
+    checks.check(any("'blob': subdivision level 2 refined by the engine" in t for t in texts)
+                 and not any("Blender's subdivided mesh" in t for t in texts),
+                 "the export reports the cage, no fallback to Blender's mesh: %s"
+                 % [t for t in texts if "blob" in t])
 
     # ---- the CLI bakes the files -----------------------------------------------------------------------
     for label, path in (("inline", scene_json), ("obj", obj_json)):
@@ -173,9 +200,9 @@ def main():
     with bpy.data.libraries.load(blend, link=True) as (src_data, dst_data):
         dst_data.images = [n for n in src_data.images if n.endswith("_lightmap")]
     linked = {im.name: bpy.path.abspath(im.filepath, library=im.library) for im in dst_data.images if im}
-    checks.check(len(linked) == 7 and all(os.path.normpath(p).startswith(os.path.normpath(head_out))
+    checks.check(len(linked) == 8 and all(os.path.normpath(p).startswith(os.path.normpath(head_out))
                                           for p in linked.values()),
-                 "the saved .blend links 7 lightmap images to the EXRs in %s" % head_out)
+                 "the saved .blend links 8 lightmap images to the EXRs in %s" % head_out)
 
     empty = os.path.join(out, "empty.blend")
     scenes.clear_scene()

@@ -49,6 +49,23 @@ def light(type_, power=None, color=None, matrix=(), size=None, name=2):
     return bytes([3, type_ + 1, fields]) + body + bytes([name])
 
 
+def subdiv(pos, sizes, idx, uv, mats, creases=(), level=2, flags=63, w_sel=4, h_sel=4, name=2):
+    body = bytes([11, name, len(pos) // 3, len(sizes)]) + b"".join(f(v) for v in pos)
+    body += bytes([s - 2 for s in sizes]) + bytes(idx) + b"".join(f(v) for v in uv) + bytes(mats)
+    body += bytes([len(creases)]) + b"".join(bytes([a, b]) + f(w) for a, b, w in creases)
+    return body + bytes([flags, level, w_sel, h_sel])
+
+
+def cube_cage():
+    pos = [1, 1, 1, 1, 1, -1, 1, -1, 1, 1, -1, -1, -1, 1, 1, -1, 1, -1, -1, -1, 1, -1, -1, -1]
+    idx = [0, 4, 6, 2, 3, 2, 6, 7, 7, 6, 4, 5, 5, 1, 3, 7, 1, 0, 2, 3, 5, 4, 0, 1]
+    uv = []
+    for k in range(6):  # one tile of a 3 x 2 atlas per face
+        u0, v0 = (k % 3) / 3 + 0.01, (k // 3) / 2 + 0.01
+        uv += [u0, v0, u0 + 0.31, v0, u0 + 0.31, v0 + 0.48, u0, v0 + 0.48]
+    return pos, [4] * 6, idx, uv, [0] * 6
+
+
 def world(rgb):
     return bytes([4]) + b"".join(f(v) for v in rgb) + bytes([1])
 
@@ -88,6 +105,9 @@ SEEDS = {
                                                                  [0, 0, 1, 0, 0, 1], [0], 8, 4) +
     light(1, "nan", color=("1e30", 1, 1), matrix=[(3, "inf")]) + world(("-inf", 0, 0)) + bake(0) +
     quad(("3.4e38", 0, 0), (1, 0, 0), (0, 1, 0)) + bake(10, 1, flags=1) + exr(3, 3),
+    "subdiv_cube_under_sky": material((0.8, 0.8, 0.8), (0, 0, 0)) +
+    subdiv(*cube_cage(), creases=[(0, 4, 1.0), (4, 6, 0.5)]) + world((0.5, 0.5, 0.5)) +
+    light(5, size=(1.0, 1.0), matrix=[(11, 3.0)]) + bake(1000, 4) + copy(0) + warnings(),
 }
 
 os.makedirs(OUT, exist_ok=True)

@@ -483,6 +483,12 @@ class Scene(_Handle):
         on the OL; the OL's bias against the texels is estimated and counted)."""
         _check(_C.plm_scene_set_ol_group_backup(self._h, _uint(group, "group"), 1 if backup else 0))
 
+    def set_ol_group_limit_area(self, group, limit_area=True):
+        """Take the per-bin areas of the group's subdivision meshes from their limit surface instead
+        of their refined triangles (photons still hit the triangles: the OL then describes the limit
+        surface and reads lower by A_triangles / A_limit, 12 % for a cube cage at level 1)."""
+        _check(_C.plm_scene_set_ol_group_limit_area(self._h, _uint(group, "group"), 1 if limit_area else 0))
+
     def set_mesh_ol_group(self, mesh, group):
         """Put a mesh into an OL group. A mesh with a lightmap gets it resolved from the OL (each
         texel shows the OL at the texel's normal); one without needs no UVs."""

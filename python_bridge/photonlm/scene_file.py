@@ -1,7 +1,7 @@
 """Writes scenes as JSON scene files (docs/scene-file.md) for `photonlm bake SCENE -o DIR`.
 
 SceneFileWriter has the scene-building methods of photonlm.Scene (add_material, add_mesh,
-add_light, set_world, add_csg, set_csg_carrier, add_ol_group, set_ol_group_backup,
+add_subdiv_mesh, add_light, set_world, add_csg, set_csg_carrier, add_ol_group, set_ol_group_backup,
 set_mesh_ol_group, set_material_texture, set_mesh_texture_uv) with the same arguments and the
 same returned ids, so code that builds a
 photonlm.Scene can build a file instead:
@@ -19,8 +19,11 @@ pass to the engine: a file bake with the same settings and seed gives the same l
 Meshes are inline unless they have more than `obj_threshold` triangles; those go to OBJ files
 beside the scene file (exact floats, one `vt` per triangle corner, `usemtl` per material run).
 Meshes with texture UVs stay inline (the reader takes texture_uv for inline meshes only).
+Subdivision cages (add_subdiv_mesh) are always inline, as the cage with a "subdivision" object
+(level, face sizes, creases): `photonlm bake` refines them as the bridge does; they take no
+texture UVs (the reader refuses texture_uv on a cage).
 Texture images are copied into <stem>_textures/ beside the scene file. Calls the file format
-cannot hold (L-systems, subdivision cages, and anything added to photonlm.Scene later) raise
+cannot hold (L-systems, texture UVs on a cage, and anything added to photonlm.Scene later) raise
 SceneFileUnsupported naming the call.
 """
 import json
@@ -32,7 +35,7 @@ import tempfile
 
 import numpy as np
 
-from . import _indices, _rgb, _uint
+from . import _cage, _indices, _rgb, _uint
 
 __all__ = ["SceneFileWriter", "SceneFileUnsupported", "file_name"]
 
@@ -159,6 +162,79 @@ class SceneFileWriter:
                             "resolution": (width, height), "ol_group": None, "texture_uv": None})
         return len(self.meshes) - 1
 
+    def add_subdiv_mesh(self, name, positions, face_sizes, face_indices, level, lightmap_uv=None,
+                        material_ids=None, crease_edges=None, crease_weights=None, resolution=0):
+        """photonlm.Scene.add_subdiv_mesh: a Catmull-Clark cage, written inline as a mesh with a
+        "subdivision" object (the engine refines it when the file is read, never this writer).
+        The checks of the bridge (its _cage) plus those the file reader and the engine would make
+        later, so a bad cage fails here naming the mesh and the index."""
+        pos, sizes, fidx, uv, edges, weights, _ = _cage(name, positions, face_sizes, face_indices,
+                                                        lightmap_uv, crease_edges, crease_weights)
+        level = _uint(level, "level")
+        if not 1 <= level <= 10:
+            raise ValueError("mesh %r: subdivision level %d is not in [1, 10]" % (name, level))
+        if sizes.shape[0] == 0:
+            raise ValueError("mesh %r: a subdivision cage needs at least one face" % (name,))
+        if sizes.min() < 3 or sizes.max() > 65536:
+            f = int(np.argmax((sizes < 3) | (sizes > 65536)))
+            raise ValueError("mesh %r: cage face %d has %d corners (3 to 65536 allowed)" % (name, f, sizes[f]))
+        corners = fidx.shape[0]
+        triangles = 2 * corners * 4 ** (level - 1)
+        if triangles > 1 << 25:
+            raise ValueError("mesh %r: level %d makes %d triangles from %d face corners, more than 2^25"
+                             % (name, level, triangles, corners))
+        nv = pos.shape[0]
+        if fidx.max() >= nv:
+            k = int(np.argmax(fidx >= nv))
+            f = int(np.searchsorted(np.cumsum(sizes, dtype=np.int64), k, side="right"))
+            raise ValueError("mesh %r: cage face %d (face_indices[%d]) uses vertex %d, out of range (%d vertices)"
+                             % (name, f, k, fidx[k], nv))
+        _floats(pos, "mesh %r positions" % name)
+        if edges is not None and edges.shape[0]:
+            if edges.max() >= nv:
+                bad = np.argwhere(edges >= nv)[0]
+                raise ValueError("mesh %r: crease_edges[%d, %d] = %d is out of range (%d vertices)"
+                                 % (name, bad[0], bad[1], edges[tuple(bad)], nv))
+            _floats(weights, "mesh %r crease_weights" % name)
+            if weights.min() < 0.0 or weights.max() > 1.0:
+                c = int(np.argmax((weights < 0.0) | (weights > 1.0)))
+                raise ValueError("mesh %r: crease_weights[%d] = %r is not in [0, 1]" % (name, c, float(weights[c])))
+            # Each crease must be an edge of the cage (the engine's check, made here to fail early).
+            nxt = np.arange(corners, dtype=np.int64) + 1
+            last = np.cumsum(sizes, dtype=np.int64) - 1
+            nxt[last] = last - sizes + 1
+            a, b = fidx.astype(np.int64), fidx[nxt].astype(np.int64)
+            cage_edges = np.unique(np.minimum(a, b) * nv + np.maximum(a, b))
+            e = edges.astype(np.int64)
+            keys = np.minimum(e[:, 0], e[:, 1]) * nv + np.maximum(e[:, 0], e[:, 1])
+            missing = ~np.isin(keys, cage_edges)
+            if missing.any():
+                c = int(np.argmax(missing))
+                raise ValueError("mesh %r: crease %d names the edge %d-%d, which no cage face has"
+                                 % (name, c, e[c, 0], e[c, 1]))
+        width, height = _resolution(resolution)
+        if width:
+            if uv is None:
+                raise ValueError("mesh %r has a lightmap (resolution %d x %d) but no lightmap_uv" % (name, width, height))
+            _floats(uv, "mesh %r lightmap_uv" % name)
+        else:
+            uv = None  # the engine ignores the UVs of a mesh without a lightmap; the reader refuses them
+        mats = None
+        if material_ids is not None:
+            mats = _indices(material_ids, "material_ids")
+            if mats.shape != sizes.shape:
+                raise ValueError("material_ids of mesh %r must have shape (F,) = %s, got %s"
+                                 % (name, sizes.shape, mats.shape))
+            if mats.max() >= max(len(self.materials), 1):
+                f = int(np.argmax(mats >= max(len(self.materials), 1)))
+                raise ValueError("mesh %r: cage face %d uses material %d, out of range (%d materials)"
+                                 % (name, f, int(mats[f]), len(self.materials)))
+        self.meshes.append({"name": str(name), "positions": pos, "triangles": None, "uv": uv, "materials": mats,
+                            "resolution": (width, height), "ol_group": None, "texture_uv": None,
+                            "subdivision": {"level": level, "face_sizes": sizes, "face_indices": fidx,
+                                            "crease_edges": edges, "crease_weights": weights}})
+        return len(self.meshes) - 1
+
     def add_light(self, type, *, name=None, color=None, power=None, matrix=None, radius=None,
                   angle=None, size=None, size_y=None, spot_size=None, spot_blend=None):
         kind = str(type).upper()
@@ -246,6 +322,9 @@ class SceneFileWriter:
     def set_ol_group_backup(self, group, backup=True):
         self.ol_groups[self._index(group, self.ol_groups, "group")]["backup"] = bool(backup)
 
+    def set_ol_group_limit_area(self, group, limit_area=True):
+        self.ol_groups[self._index(group, self.ol_groups, "group")]["limit_area"] = bool(limit_area)
+
     def set_mesh_ol_group(self, mesh, group):
         mesh = self._index(mesh, self.meshes, "mesh")
         self.meshes[mesh]["ol_group"] = self._index(group, self.ol_groups, "group")
@@ -271,6 +350,9 @@ class SceneFileWriter:
         if uv is None:
             m["texture_uv"] = None
             return
+        if "subdivision" in m:
+            raise SceneFileUnsupported("mesh %r is a subdivision cage: the scene file format takes no texture_uv "
+                                       "for subdivision meshes (export the refined mesh instead)" % m["name"])
         t = len(m["triangles"])
         arr = np.ascontiguousarray(uv, dtype=np.float32)
         if arr.shape not in ((t, 3, 2), (3 * t, 2)):
@@ -355,8 +437,8 @@ class SceneFileWriter:
                         shutil.copyfile(src, os.path.join(texture_dir, fname))
                         copied[src] = (texture_dir_rel + "/" if texture_dir_rel else "") + fname
                 m[key] = {"path": copied[src], "colorspace": m[key]["colorspace"]}
-        big = [i for i, m in enumerate(self.meshes) if mesh_dir is not None and len(m["triangles"]) > self.obj_threshold
-               and m["texture_uv"] is None]
+        big = [i for i, m in enumerate(self.meshes) if mesh_dir is not None and "subdivision" not in m
+               and m["texture_uv"] is None and len(m["triangles"]) > self.obj_threshold]
         if big:  # usemtl takes one whitespace-free token: give every material a unique one
             used = set()
             for i, m in enumerate(materials):
@@ -383,7 +465,16 @@ class SceneFileWriter:
                     e["material"] = int(mats[0])
             else:
                 e["positions"] = _floats(m["positions"], "positions")
-                e["indices"] = m["triangles"].ravel().tolist()
+                sd = m.get("subdivision")
+                if sd is None:
+                    e["indices"] = m["triangles"].ravel().tolist()
+                else:  # a cage, always inline: indices, lightmap_uv and materials are per face (corner)
+                    e["indices"] = sd["face_indices"].tolist()
+                    e["subdivision"] = {"level": sd["level"], "face_sizes": sd["face_sizes"].tolist()}
+                    if sd["crease_edges"] is not None and len(sd["crease_edges"]):
+                        e["subdivision"]["creases"] = [
+                            [int(v0), int(v1), c] for (v0, v1), c in
+                            zip(sd["crease_edges"].tolist(), _floats(sd["crease_weights"], "crease_weights"))]
                 if w:
                     e["lightmap_uv"] = _floats(m["uv"], "lightmap_uv")
                 if mats is not None:

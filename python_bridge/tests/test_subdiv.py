@@ -71,3 +71,25 @@ def test_subdiv_refine_returns_the_limit_surface():
         assert uv.min() >= 0.02 - 1e-6 and uv.max() <= 1 - 0.02 + 1e-6
     pos, tris, uv = photonlm.subdiv_refine(CUBE, np.full(6, 4), FACES.ravel(), 2)
     assert uv is None
+
+
+def test_ol_group_limit_area_uses_the_limit_surface():
+    """A level-1 cube cage (+-1) in an OL group: by default its bins hold the refined triangles'
+    area (8.125 m^2); with limit_area the limit surface's larger area (9.197 m^2, which the C++
+    tests check against level-7 triangles)."""
+    areas = []
+    for limit in (False, True):
+        with photonlm.Scene() as scene:
+            scene.add_material(albedo=0.5)
+            scene.set_world((1.0, 1.0, 1.0))
+            mesh = scene.add_subdiv_mesh("cube", CUBE, np.full(6, 4), FACES.ravel(), level=1)
+            group = scene.add_ol_group("blob", resolution=8)
+            scene.set_mesh_ol_group(mesh, group)
+            scene.set_ol_group_limit_area(group, limit)
+            with scene.bake(photons=20_000, seed=1) as result:
+                areas.append(result.ol_stats(group)["area"])
+    assert areas[0] == pytest.approx(8.12497, rel=1e-4)
+    assert areas[1] == pytest.approx(9.1973, rel=2e-3)
+    with photonlm.Scene() as scene:
+        with pytest.raises(photonlm.PhotonlmError, match="OL group 3 does not exist"):
+            scene.set_ol_group_limit_area(3)

@@ -423,6 +423,14 @@ PLM_API plm_status plm_scene_set_mesh_ol_group(plm_scene* scene, uint32_t mesh, 
  * backup group record into the OL as usual. */
 PLM_API plm_status plm_scene_set_ol_group_backup(plm_scene* scene, uint32_t group, int backup);
 
+/* Per-bin areas of the group's subdivision meshes (plm_scene_add_subdiv_mesh)
+ * from samples of their limit surface instead of their refined triangles
+ * (default off). Photons hit the refined triangles, so the OL then describes
+ * the smooth limit surface: its values are lower by the ratio of triangle area
+ * to limit area (12 % for a cube cage at level 1, 3 % at level 2, under 0.3 %
+ * from level 3 or for fine cages). Other meshes of the group are unaffected. */
+PLM_API plm_status plm_scene_set_ol_group_limit_area(plm_scene* scene, uint32_t group, int limit_area);
+
 /* Reads one OL of a result. The pointers stay valid as long as the result;
  * any output may be NULL.
  *   rgb         resolution^2 * 3 floats, irradiance / pi (0 in bins whose
@@ -441,7 +449,8 @@ typedef struct plm_ol_stats {
   uint32_t resolution;   /* bins per side */
   uint32_t mesh_count;   /* meshes in the group */
   uint64_t hits;         /* photon hits recorded */
-  double area;           /* total front-side area of the group's triangles (m^2) */
+  double area;           /* total front-side area of the group's triangles (m^2); for a
+                            subdivision mesh, of its limit surface (sampled) */
   double flux;           /* W (RGB mean) recorded: sum over bins of value * pi * area */
   double orphan_flux;    /* W (RGB mean) of hits in bins without area, moved to neighbouring
                             bins; 0 unless normals and areas disagree */

@@ -11,6 +11,7 @@
 #include "lsystem/lsystem_object.h"
 #include "photonlm/photonlm.h"
 #include "scene/scene.h"
+#include "subdiv/limit_area.h"
 #include "subdiv/subdiv.h"
 #include "transport/bake.h"
 #include "util/error.h"
@@ -199,6 +200,8 @@ plm_status plm_scene_add_subdiv_mesh(plm_scene* scene, const char* name, const f
                                               m.triangle_count(), m.uv.empty() ? nullptr : m.uv.data(),
                                               m.material_ids.empty() ? nullptr : m.material_ids.data(),
                                               lightmap_width, lightmap_height);
+    // Kept for the OL areas on the limit surface, should the mesh join an OL group.
+    scene->scene.meshes[id].cage = std::make_shared<const plm::subdiv::CageCopy>(plm::subdiv::CageCopy::of(cage));
     if (out_mesh_id) *out_mesh_id = id;
   });
 }
@@ -367,6 +370,13 @@ plm_status plm_scene_set_ol_group_backup(plm_scene* scene, uint32_t group, int b
   return guarded("plm_scene_set_ol_group_backup", [&] {
     require(scene, "plm_scene_set_ol_group_backup", "scene");
     scene->scene.set_ol_group_backup(group, backup != 0);
+  });
+}
+
+plm_status plm_scene_set_ol_group_limit_area(plm_scene* scene, uint32_t group, int limit_area) {
+  return guarded("plm_scene_set_ol_group_limit_area", [&] {
+    require(scene, "plm_scene_set_ol_group_limit_area", "scene");
+    scene->scene.ol_group(group, "set OL group limit area").limit_area = limit_area != 0;
   });
 }
 

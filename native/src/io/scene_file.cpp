@@ -419,7 +419,7 @@ struct Reader {
     for (size_t i = 0; i < v.size(); ++i) {
       const std::string p = index_path(path, i);
       const json& g = object(v[i], p);
-      check_keys(g, p, {"name", "resolution", "backup"});
+      check_keys(g, p, {"name", "resolution", "backup", "limit_area"});
       const std::string name = name_or(g, p, "ol" + std::to_string(i));
       uint32_t resolution = 0;
       if (const json* r = optional(g, "resolution")) resolution = u32(*r, p + ".resolution", 1024);
@@ -428,6 +428,10 @@ struct Reader {
       if (const json* b = optional(g, "backup")) {
         if (!b->is_boolean()) expected(p + ".backup", "true or false", *b);
         engine(plm_scene_set_ol_group_backup(out.scene, id, b->get<bool>() ? 1 : 0), p + ".backup");
+      }
+      if (const json* b = optional(g, "limit_area")) {
+        if (!b->is_boolean()) expected(p + ".limit_area", "true or false", *b);
+        engine(plm_scene_set_ol_group_limit_area(out.scene, id, b->get<bool>() ? 1 : 0), p + ".limit_area");
       }
       out.ol_groups.push_back({name, id, resolution});
       ol_names.push_back(name);

@@ -244,11 +244,11 @@ void Scene::set_mesh_ol_group(uint32_t mesh, uint32_t group) {
   m.ol_group = int32_t(group);
 }
 
-void Scene::set_ol_group_backup(uint32_t group, bool backup) {
+OlGroup& Scene::ol_group(uint32_t group, const char* what) {
   if (group >= ol_groups.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, "set OL group backup: OL group ", group, " does not exist (the scene has ",
-         ol_groups.size(), " OL groups)");
-  ol_groups[group].backup = backup;
+    fail(PLM_ERROR_INVALID_ARGUMENT, what, ": OL group ", group, " does not exist (the scene has ", ol_groups.size(),
+         " OL groups)");
+  return ol_groups[group];
 }
 
 uint32_t Scene::add_csg(const char* name, const plm_csg_primitive* primitives, uint32_t primitive_count,

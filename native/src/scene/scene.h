@@ -16,6 +16,9 @@ namespace plm {
 namespace lsystem {
 class LSystemObject;
 }
+namespace subdiv {
+struct CageCopy;
+}
 
 // Coordinates beyond this (m) are rejected: photons start up to a few scene
 // radii out, and Embree accepts ray origins only up to ~1.8e18.
@@ -42,6 +45,9 @@ struct Mesh {
   uint32_t lightmap_width = 0, lightmap_height = 0;
   int32_t csg_carrier = -1;  // the CSG solid this mesh tessellates (not traced), -1 for none
   int32_t ol_group = -1;  // orientation-lightmap group, -1 for none (a mesh has a lightmap or a group, not both)
+  // Subdivision meshes: the cage, whose limit surface gives the mesh's OL areas
+  // (subdiv/limit_area.h); null for other meshes.
+  std::shared_ptr<const subdiv::CageCopy> cage;
 
   uint32_t triangle_count() const { return static_cast<uint32_t>(indices.size() / 3); }
   bool has_lightmap() const { return lightmap_width > 0; }
@@ -64,6 +70,7 @@ struct OlGroup {
   std::string name;
   uint32_t resolution = 0;  // bins per side of the map; 0 = automatic (see bake.h)
   bool backup = false;      // its meshes keep their lightmaps; the OL backs up their indirect light
+  bool limit_area = false;  // subdivision meshes' bin areas from their limit surface (subdiv/limit_area.h)
 };
 
 struct Scene {
@@ -95,7 +102,8 @@ struct Scene {
   // Puts a mesh into a group (a later call moves it). Throws for bad indices
   // and for a mesh that has a lightmap.
   void set_mesh_ol_group(uint32_t mesh, uint32_t group);
-  void set_ol_group_backup(uint32_t group, bool backup);
+  void set_ol_group_backup(uint32_t group, bool backup) { ol_group(group, "set OL group backup").backup = backup; }
+  OlGroup& ol_group(uint32_t group, const char* what);  // fails naming `what` if there is no such group
   // A mesh with its own texels (direct pass, photon sums): no OL, or a backup OL.
   bool own_texels(const Mesh& m) const {
     return m.has_lightmap() && m.csg_carrier < 0 && (m.ol_group < 0 || ol_groups[size_t(m.ol_group)].backup);

@@ -52,6 +52,17 @@ class TextureSet {
   // Mean emitted radiance over a triangle (the material's emission times the
   // texture's mean over the triangle's texture-UV footprint).
   Vec3 triangle_emission(const Mesh& mesh, uint32_t material, uint32_t tri, void* thread) const;
+  // True where the emitted radiance varies over the mesh's triangles: an
+  // emission texture and texture UVs to look it up with.
+  bool emission_varies(const Mesh& mesh, uint32_t material) const {
+    return emission_[material].texture >= 0 && !mesh.texture_uv.empty();
+  }
+  // Emitted radiance at barycentrics (bu, bv) of triangle tri (Embree's u, v):
+  // the material's emission times its texture there. Only where emission_varies.
+  Vec3 emission(const Mesh& mesh, uint32_t material, uint32_t tri, float bu, float bv, void* thread) const {
+    const Slot& s = emission_[material];
+    return s.constant * lookup(s.texture, mesh, tri, bu, bv, thread);
+  }
 
   // Mesh names whose textured materials fall back to the mean (no texture UVs).
   std::vector<std::string> warnings;

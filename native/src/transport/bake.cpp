@@ -18,6 +18,7 @@
 #include "lsystem/lsystem_object.h"
 #include "ol/area_estimation.h"
 #include "ol/orientation_lightmap.h"
+#include "subdiv/limit_area.h"
 #include "texture/texture.h"
 #include "transport/direct.h"
 #include "transport/emitters.h"
@@ -164,7 +165,11 @@ class PhotonTracer {
     float u_pick, u[4];
     sampler.emission(u_pick, u);
     const size_t k = table_.choose(u_pick);
-    const EmitterSample s = sample_emitter(emitters_[k], u);
+    const Emitter& em = emitters_[k];
+    EmitterSample s = sample_emitter(em, u);
+    if (em.textured)  // the texture at the photon's origin: flux 2 pi L(x) A, unbiased whatever the mean
+      s.weight = textures_->emission(*views_[em.mesh].mesh, em.material, em.triangle, s.bu, s.bv, tex_thread) *
+                 (2.0f * kPi * em.area);
     Vec3 flux = s.weight * (1.0f / table_.probability(k));
     if (max_component(flux) <= 0.0f) return;
 
@@ -382,7 +387,9 @@ void validate(const Scene& scene, const plm_bake_settings& s) {
 }
 
 // The OL of each group, its area per bin from the exact areas of its meshes'
-// triangles (ol/area_estimation.h), and each OL mesh's triangle bins.
+// triangles (ol/area_estimation.h) or, for subdivision meshes of a group that
+// asks for it (OlGroup::limit_area), from samples of their limit surface
+// (subdiv/limit_area.h), and each OL mesh's triangle bins.
 // Area and hits use the same double-precision normal, so a hit never lands
 // in a bin its triangle's area missed.
 std::vector<ol::OrientationLightmap> build_ols(const Scene& scene, std::vector<std::vector<uint32_t>>& bins,
@@ -396,7 +403,7 @@ std::vector<ol::OrientationLightmap> build_ols(const Scene& scene, std::vector<s
     const OlGroup& group = scene.ol_groups[g];
     ols.emplace_back(group.resolution ? group.resolution : kAutoOlResolution, kOlBatches);
     ol::OrientationLightmap& map = ols.back();
-    std::vector<double> area(map.bins(), 0.0);
+    std::vector<double> area(map.bins(), 0.0), area_var(map.bins(), 0.0);
     std::vector<ol::Patch> parts;
     auto flush = [&] {
       if (parts.empty()) return;
@@ -409,18 +416,30 @@ std::vector<ol::OrientationLightmap> build_ols(const Scene& scene, std::vector<s
       if (mesh.ol_group != int32_t(g)) continue;
       ++mesh_counts[g];
       bins[i].assign(mesh.triangle_count(), kNoBin);
+      const bool limit = group.limit_area && mesh.cage;
+      std::vector<double> cage_tri_area(limit ? map.bins() : 0, 0.0);
       for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
         const ol::Vec3d p0(mesh.vertex(t, 0)), p1(mesh.vertex(t, 1)), p2(mesh.vertex(t, 2));
-        parts.push_back(ol::Patch::triangle(p0, p1, p2));
         // The normal exactly as estimate_area's exact-triangle path computes it.
         const ol::Vec3d n = cross(p1 - p0, p2 - p0);
         const double len = length(n);
         if (len > 0.0) bins[i][t] = map.grid().bin(n * (1.0 / len));
+        if (limit) {
+          if (len > 0.0) cage_tri_area[bins[i][t]] += 0.5 * len;
+          continue;
+        }
+        parts.push_back(ol::Patch::triangle(p0, p1, p2));
         if (parts.size() == kChunk) flush();
+      }
+      if (limit) {  // a subdivision mesh: the areas of its limit surface (subdiv/limit_area.h)
+        const ol::AreaEstimate e = subdiv::mesh_limit_area("mesh '" + mesh.name + "' (" + std::to_string(i) + ")",
+                                                           *mesh.cage, map.grid(), cage_tri_area,
+                                                           {subdiv::kLimitAreaSamples, i + 1});
+        for (size_t b = 0; b < area.size(); ++b) area[b] += e.area[b], area_var[b] += e.variance[b];
       }
     }
     flush();
-    map.set_area(std::move(area), std::vector<double>(map.bins(), 0.0));
+    map.set_area(std::move(area), std::move(area_var));
     if (mesh_counts[g] == 0)
       warnings.push_back("OL group '" + group.name + "' (" + std::to_string(g) +
                          ") has no meshes: its orientation lightmap is black");
@@ -908,7 +927,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   const auto t_direct = Clock::now();
   if (two_pass) {
     direct.resize(covered.size());
-    DirectPass pass(accel.handle(), views, csg_views, areas, emitters, settings, extent);
+    DirectPass pass(accel.handle(), views, csg_views, areas, emitters, settings, extent, textures.get());
     std::vector<uint32_t> todo(covered.size());
     for (uint32_t i = 0; i < todo.size(); ++i) todo[i] = i;
     // Round r adds direct_samples * 2^min(r, 8) samples to the texels still

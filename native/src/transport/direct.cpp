@@ -66,8 +66,9 @@ double DirectSums::variance_of_mean(const DirectNoise& noise) const {
 
 DirectPass::DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<CsgView>& csgs,
                        const std::vector<TexelAreas>& areas, const std::vector<Emitter>& emitters,
-                       const plm_bake_settings& settings, float scene_extent)
-    : rtc_(rtc), views_(views), csgs_(csgs), areas_(areas), emitters_(emitters), seed_(settings.seed),
+                       const plm_bake_settings& settings, float scene_extent, const TextureSet* textures)
+    : rtc_(rtc), views_(views), csgs_(csgs), areas_(areas), emitters_(emitters), textures_(textures),
+      seed_(settings.seed),
       cycles_window_(settings.texel_value == PLM_TEXEL_CYCLES), sobol_(settings.sampler != PLM_SAMPLER_RANDOM),
       offset_scale_(1e-6f * scene_extent), table_(emitters) {
   triangle_emitter_.resize(views.size());
@@ -77,6 +78,7 @@ DirectPass::DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const s
     if (map.empty()) map.assign(views[emitters[k].mesh].mesh->triangle_count(), -1);
     map[emitters[k].triangle] = int32_t(k);
     has_triangle_emitters_ = true;
+    if (emitters[k].textured) has_textured_emitters_ = true;
   }
 }
 
@@ -238,6 +240,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   const uint32_t pick_key = rng.next_u32();
   const uint32_t sobol_key = rng.next_u32();
   const SobolGroup light_dims(sobol_key, 0), mis_dims(sobol_key, 1), piece_dims(sobol_key, 2);
+  void* tex_thread = has_textured_emitters_ ? textures_->thread_info() : nullptr;  // once per texel
   uint32_t previous = ~0u;  // the last accepted stratum, and its value
   double previous_value = 0.0;
   for (uint32_t j = 0; j < n; ++j) {
@@ -278,7 +281,10 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
     }
     const size_t k = table_.choose(u_pick);
     const Emitter& em = emitters_[k];
-    const DirectSample ds = sample_direct(em, p, normal, u);
+    DirectSample ds = sample_direct(em, p, normal, u);
+    if (em.textured && ds.geometry > 0.0f)  // the texture at the sampled point (0: skip the shadow ray)
+      ds.irradiance = textures_->emission(*views_[em.mesh].mesh, em.material, em.triangle, ds.bu, ds.bv, tex_thread) *
+                      ds.geometry;
     const Vec3 origin = offset_origin(p, normal, offset_scale_);
     tc.skip_prim = tri;
     tc.target_geom = em.kind == EmitterKind::Triangle ? em.mesh : RTC_INVALID_GEOMETRY_ID;
@@ -315,7 +321,12 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
           const float cos_l = std::fabs(dot(he.normal, dir)), cos_s = local.z;
           // Irradiance estimate L cos / p_cos = pi L, weighted; stored as irradiance / pi.
           const float r = cos_weight_ratio(cos_s, cos_l * he.area, table_.probability(size_t(hit_emitter)), rh.ray.tfar);
-          if (cos_l > 0.0f && cos_s > 0.0f && r > 0.0f) e += he.radiance * (r / (1.0f + r));
+          if (cos_l > 0.0f && cos_s > 0.0f && r > 0.0f) {
+            const Vec3 L = he.textured ? textures_->emission(*views_[rh.hit.geomID].mesh, he.material, he.triangle,
+                                                             rh.hit.u, rh.hit.v, tex_thread)
+                                       : he.radiance;
+            e += L * (r / (1.0f + r));
+          }
         }
       }
     }

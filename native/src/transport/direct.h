@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "lightmap/texel_area.h"
+#include "texture/texture.h"
 #include "transport/emitters.h"
 #include "transport/tracing.h"
 
@@ -42,7 +43,7 @@ class DirectPass {
  public:
   DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<CsgView>& csgs,
              const std::vector<TexelAreas>& areas, const std::vector<Emitter>& emitters,
-             const plm_bake_settings& settings, float scene_extent);
+             const plm_bake_settings& settings, float scene_extent, const TextureSet* textures = nullptr);
 
   // Adds `samples` (rounded up to a square) stratified samples of round `round`
   // to texel `texel` of mesh `mesh`; mesh = mesh count + c means sub-texel
@@ -65,6 +66,10 @@ class DirectPass {
   // a large emitter light sampling alone has a heavy-tailed 1/d^2 variance.
   std::vector<std::vector<int32_t>> triangle_emitter_;  // [mesh][triangle] -> emitter or -1
   bool has_triangle_emitters_ = false;
+  // Emission textures: a textured emitter's radiance is looked up at the
+  // sampled (or hit) point. Null, and has_textured_emitters_ false, without.
+  const TextureSet* textures_;
+  bool has_textured_emitters_ = false;
   uint32_t seed_;
   bool cycles_window_;  // sample the texel's central half (PLM_TEXEL_CYCLES), not all of it
   bool sobol_;

@@ -199,9 +199,10 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
   for (uint32_t mesh_id = 0; mesh_id < scene.meshes.size(); ++mesh_id) {
     const Mesh& mesh = scene.meshes[mesh_id];
     for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
-      Vec3 emission = scene.materials.empty() ? Vec3{} : scene.materials[mesh.material_ids[t]].emission;
+      const uint32_t material = mesh.material_ids.empty() ? 0u : mesh.material_ids[t];
+      Vec3 emission = scene.materials.empty() ? Vec3{} : scene.materials[material].emission;
       if (max_component(emission) <= 0.0f) continue;
-      if (textures) emission = textures->triangle_emission(mesh, mesh.material_ids[t], t, tex_thread);
+      if (textures) emission = textures->triangle_emission(mesh, material, t, tex_thread);
       if (max_component(emission) <= 0.0f) continue;
       if (degenerate_triangle(mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2))) continue;
       Emitter e{};
@@ -220,6 +221,8 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
       e.area = area;
       e.mesh = mesh_id;
       e.triangle = t;
+      e.material = material;
+      e.textured = textures && textures->emission_varies(mesh, material);
       if (average(e.flux) > 0.0f) out.push_back(e);  // denormal emission can underflow to 0
     }
   }
@@ -291,6 +294,8 @@ EmitterSample sample_emitter(const Emitter& e, const float u[4]) {
         b = 1.0f - b;
       }
       s.origin = e.origin + e.axis_u * a + e.axis_v * b;
+      s.bu = a;
+      s.bv = b;
       // Pick a side with u[2], reuse the remainder of it for the direction.
       const bool back = u[2] >= 0.5f;
       const float u2 = back ? 2.0f * u[2] - 1.0f : 2.0f * u[2];
@@ -372,7 +377,7 @@ Vec3 sample_cone(Vec3 axis, float cos_half, float u0, float u1) {
 // Irradiance from a point q on an emitting surface of radiance L and area A
 // (density 1/A), with emitter normal nl (two_sided: either side emits).
 DirectSample from_surface_point(Vec3 q, Vec3 nl, bool two_sided, Vec3 L, float A, Vec3 p, Vec3 n) {
-  DirectSample s{{0, 0, 0}, {0, 0, 1}, 0.0f};
+  DirectSample s{{0, 0, 0}, {0, 0, 1}, 0.0f, 0.0f, 0.0f, 0.0f};
   const Vec3 v = q - p;
   const float d2 = dot(v, v);
   if (!(d2 > 0.0f)) return s;
@@ -382,7 +387,10 @@ DirectSample from_surface_point(Vec3 q, Vec3 nl, bool two_sided, Vec3 L, float A
   float cos_l = -dot(nl, s.dir);
   if (two_sided) cos_l = std::fabs(cos_l);
   const float cos_s = dot(n, s.dir);
-  if (cos_l > 0.0f && cos_s > 0.0f) s.irradiance = L * (cos_l * cos_s * A / d2);
+  if (cos_l > 0.0f && cos_s > 0.0f) {
+    s.geometry = cos_l * cos_s * A / d2;
+    s.irradiance = L * s.geometry;
+  }
   return s;
 }
 
@@ -390,7 +398,7 @@ DirectSample from_surface_point(Vec3 q, Vec3 nl, bool two_sided, Vec3 L, float A
 // and points on the portals (chosen by area), weighted by the mixture's
 // density in solid angle, so texels the portals do not see stay unbiased.
 DirectSample sky_through_portals(const Emitter& e, Vec3 p, Vec3 n, const float u[3]) {
-  DirectSample s{{0, 0, 0}, {0, 0, 1}, std::numeric_limits<float>::infinity()};
+  DirectSample s{{0, 0, 0}, {0, 0, 1}, std::numeric_limits<float>::infinity(), 0.0f, 0.0f, 0.0f};
   const float share = kPortalDirectShare;
   if (u[2] < share) {
     float v = u[2] / share;
@@ -422,7 +430,7 @@ DirectSample sky_through_portals(const Emitter& e, Vec3 p, Vec3 n, const float u
 }  // namespace
 
 DirectSample sample_direct(const Emitter& e, Vec3 p, Vec3 n, const float u[3]) {
-  DirectSample s{{0, 0, 0}, {0, 0, 1}, std::numeric_limits<float>::infinity()};
+  DirectSample s{{0, 0, 0}, {0, 0, 1}, std::numeric_limits<float>::infinity(), 0.0f, 0.0f, 0.0f};
   switch (e.kind) {
     case EmitterKind::Point:
     case EmitterKind::Spot: {
@@ -481,7 +489,10 @@ DirectSample sample_direct(const Emitter& e, Vec3 p, Vec3 n, const float u[3]) {
         a = 1.0f - a;
         b = 1.0f - b;
       }
-      return from_surface_point(e.origin + e.axis_u * a + e.axis_v * b, e.normal, true, e.radiance, e.area, p, n);
+      DirectSample s2 = from_surface_point(e.origin + e.axis_u * a + e.axis_v * b, e.normal, true, e.radiance, e.area, p, n);
+      s2.bu = a;
+      s2.bv = b;
+      return s2;
     }
   }
   return s;

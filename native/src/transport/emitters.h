@@ -36,6 +36,11 @@ struct Emitter {
   Vec3 radiance;
   float area = 0;
   uint32_t mesh = 0, triangle = 0;  // Triangle: where it is in the scene
+  uint32_t material = 0;            // Triangle: its material
+  // Triangle with an emission texture: radiance (and flux) are the texture's
+  // mean over the triangle; a sample's own radiance is the texture at its
+  // point (TextureSet::emission at EmitterSample / DirectSample bu, bv).
+  bool textured = false;
   float pick = 0;   // the emitter's share of photons is proportional to this (its mean flux by default)
   // Sun and world with portals: a share of the photons (and of the sky's
   // direct samples) go through the portals, chosen by portal_pick; the
@@ -53,6 +58,7 @@ struct EmitterSample {
   // The first hit scales the flux by d^2 / (d^2 + r^2); 0 = no scaling.
   float radius2 = 0.0f;
   Vec3 center;
+  float bu = 0.0f, bv = 0.0f;  // Triangle: barycentrics of origin (Embree's u, v)
 };
 
 // Cycles' spot falloff for a unit direction at cosine c from the axis.
@@ -60,7 +66,8 @@ float spot_attenuation(float c, float cos_half, float spot_smooth);
 
 // Flattens lights, emissive triangles and the world. scene_center/radius
 // bound all geometry (sun and world photons start on a disk around them).
-// textures (null for none) give emissive triangles their texture's mean over the triangle.
+// textures (null for none) give emissive triangles their texture's mean over
+// the triangle (their power, by which they are picked) and mark them textured.
 class TextureSet;
 std::vector<Emitter> build_emitters(const Scene& scene, Vec3 scene_center, float scene_radius,
                                     const TextureSet* textures = nullptr);
@@ -90,6 +97,10 @@ struct DirectSample {
   Vec3 irradiance;
   Vec3 dir;
   float distance;
+  // Triangle: the sampled point's barycentrics (Embree's u, v) and irradiance
+  // per unit radiance there (cos_l cos_s A / d^2; a textured triangle's
+  // irradiance is its radiance at (bu, bv) times this).
+  float bu, bv, geometry;
 };
 DirectSample sample_direct(const Emitter& e, Vec3 p, Vec3 n, const float u[3]);
 

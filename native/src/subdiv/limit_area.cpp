@@ -1,0 +1,202 @@
+// Limit-surface OL areas: see limit_area.h.
+#include "subdiv/limit_area.h"
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+
+#include <opensubdiv/far/patchMap.h>
+#include <opensubdiv/far/patchTableFactory.h>
+#include <opensubdiv/far/primvarRefiner.h>
+#include <opensubdiv/far/ptexIndices.h>
+#include <opensubdiv/far/topologyDescriptor.h>
+#include <opensubdiv/far/topologyRefinerFactory.h>
+
+#include "util/error.h"
+#include "util/rng.h"
+
+namespace plm::subdiv {
+
+CageCopy CageCopy::of(const Cage& c) {
+  CageCopy k;
+  k.positions.assign(c.positions, c.positions + 3 * size_t(c.vertex_count));
+  k.face_sizes.assign(c.face_sizes, c.face_sizes + c.face_count);
+  size_t corners = 0;
+  for (uint32_t n : k.face_sizes) corners += n;
+  k.face_indices.assign(c.face_indices, c.face_indices + corners);
+  if (c.crease_count > 0) {
+    k.crease_edges.assign(c.crease_edges, c.crease_edges + 2 * size_t(c.crease_count));
+    k.crease_weights.assign(c.crease_weights, c.crease_weights + c.crease_count);
+  }
+  k.level = c.level;
+  return k;
+}
+
+Cage CageCopy::view() const {
+  Cage c;
+  c.positions = positions.data();
+  c.vertex_count = uint32_t(positions.size() / 3);
+  c.face_sizes = face_sizes.data();
+  c.face_count = uint32_t(face_sizes.size());
+  c.face_indices = face_indices.data();
+  c.crease_edges = crease_edges.empty() ? nullptr : crease_edges.data();
+  c.crease_weights = crease_weights.empty() ? nullptr : crease_weights.data();
+  c.crease_count = uint32_t(crease_weights.size());
+  c.level = level;
+  return c;
+}
+
+namespace {
+
+using namespace OpenSubdiv;
+
+struct Point3 {
+  double x = 0, y = 0, z = 0;
+  void Clear() { x = y = z = 0; }
+  void AddWithWeight(const Point3& s, float w) {
+    x += w * s.x;
+    y += w * s.y;
+    z += w * s.z;
+  }
+};
+
+// Same isolation and patch options as subdiv.cpp's evaluate_patches (Blender's quality 3).
+constexpr int kQuality = 3;
+
+double uniform01(Rng& rng) { return double(rng.next_u32()) * (1.0 / 4294967296.0); }
+
+}  // namespace
+
+ol::AreaEstimate estimate_limit_area(const std::string& owner, const Cage& c, const ol::OctGrid& grid,
+                                     const LimitAreaSettings& settings) {
+  if (settings.samples == 0) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": limit-surface area samples must be > 0");
+  std::vector<int> face_sizes(c.face_sizes, c.face_sizes + c.face_count);
+  size_t corners = 0;
+  for (int n : face_sizes) corners += size_t(n);
+  std::vector<int> face_indices(c.face_indices, c.face_indices + corners);
+  std::vector<int> crease_pairs;
+  std::vector<float> sharpness;
+  for (uint32_t e = 0; e < c.crease_count; ++e) {
+    if (c.crease_weights[e] <= 0.0f) continue;
+    crease_pairs.push_back(int(c.crease_edges[2 * e]));
+    crease_pairs.push_back(int(c.crease_edges[2 * e + 1]));
+    sharpness.push_back(blender_crease_to_sharpness(c.crease_weights[e]));
+  }
+  Far::TopologyDescriptor desc;
+  desc.numVertices = int(c.vertex_count);
+  desc.numFaces = int(c.face_count);
+  desc.numVertsPerFace = face_sizes.data();
+  desc.vertIndicesPerFace = face_indices.data();
+  desc.numCreases = int(sharpness.size());
+  desc.creaseVertexIndexPairs = crease_pairs.empty() ? nullptr : crease_pairs.data();
+  desc.creaseWeights = sharpness.empty() ? nullptr : sharpness.data();
+  Sdc::Options sdc;  // as refine()
+  sdc.SetVtxBoundaryInterpolation(Sdc::Options::VTX_BOUNDARY_EDGE_ONLY);
+  sdc.SetFVarLinearInterpolation(Sdc::Options::FVAR_LINEAR_BOUNDARIES);
+  sdc.SetCreasingMethod(Sdc::Options::CREASE_UNIFORM);
+  sdc.SetTriangleSubdivision(Sdc::Options::TRI_SUB_CATMARK);
+  using Factory = Far::TopologyRefinerFactory<Far::TopologyDescriptor>;
+  std::unique_ptr<Far::TopologyRefiner> refiner(Factory::Create(desc, Factory::Options(Sdc::SCHEME_CATMARK, sdc)));
+  if (!refiner) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": OpenSubdiv rejected the cage topology");
+  Far::TopologyRefiner::AdaptiveOptions adaptive(kQuality);
+  adaptive.useInfSharpPatch = true;
+  refiner->RefineAdaptive(adaptive);
+  Far::PatchTableFactory::Options po(kQuality);
+  po.SetEndCapType(Far::PatchTableFactory::Options::ENDCAP_GREGORY_BASIS);
+  po.useInfSharpPatch = true;
+  std::unique_ptr<Far::PatchTable> table(Far::PatchTableFactory::Create(*refiner, po));
+  if (!table) fail(PLM_ERROR_INTERNAL, owner, ": OpenSubdiv could not build the limit-surface patches");
+
+  // Control points: the adaptive hierarchy's vertices, then the end caps' local points.
+  Far::PrimvarRefiner primvar(*refiner);
+  std::vector<Point3> cv(size_t(refiner->GetNumVerticesTotal() + table->GetNumLocalPoints()));
+  for (uint32_t i = 0; i < c.vertex_count; ++i)
+    cv[i] = Point3{c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]};
+  size_t offset = 0;
+  for (int l = 1; l <= refiner->GetMaxLevel(); ++l) {
+    const size_t n_parent = size_t(refiner->GetLevel(l - 1).GetNumVertices());
+    Point3* src = cv.data() + offset;
+    Point3* dst = src + n_parent;
+    primvar.Interpolate(l, src, dst);
+    offset += n_parent;
+  }
+  if (table->GetNumLocalPoints() > 0)
+    table->ComputeLocalPointValues(cv.data(), cv.data() + refiner->GetNumVerticesTotal());
+
+  // k x k strata per ptex face, k even (strata pair up along rows).
+  const Far::PtexIndices ptex(*refiner);
+  const uint64_t faces = uint64_t(ptex.GetNumFaces());
+  const double per_face = double(settings.samples) / double(faces);
+  const uint64_t k = 2 * std::max<uint64_t>(1, uint64_t(std::llround(std::sqrt(per_face) / 2.0)));
+  const double cell = 1.0 / double(k), weight = cell * cell;
+
+  ol::AreaEstimate est;
+  est.area.assign(grid.bins(), 0.0);
+  est.variance.assign(grid.bins(), 0.0);
+  const Far::PatchMap map(*table);
+  double w[20], wu[20], wv[20];
+  // Area element and bin of one point; bin < 0 for a zero area element or a missing patch.
+  auto sample = [&](int face, double u, double v, double& y) -> int64_t {
+    y = 0.0;
+    const Far::PatchTable::PatchHandle* h = map.FindPatch(face, u, v);
+    if (!h) return -1;
+    const Far::ConstIndexArray cvs = table->GetPatchVertices(*h);
+    if (cvs.size() > 20) return -1;
+    table->EvaluateBasis(*h, u, v, w, wu, wv);
+    ol::Vec3d du, dv;
+    for (int j = 0; j < cvs.size(); ++j) {
+      const Point3& p = cv[size_t(cvs[j])];
+      du = du + ol::Vec3d{p.x, p.y, p.z} * wu[j];
+      dv = dv + ol::Vec3d{p.x, p.y, p.z} * wv[j];
+    }
+    // Far scales the derivatives by 2^depth of the patch, counted from the cage face; a
+    // patch under an n-gon's sub-face (its own ptex face) is one level shallower in ptex.
+    const double scale = table->GetPatchParam(*h).NonQuadRoot() ? 0.25 : 1.0;
+    const ol::Vec3d n = cross(du, dv) * scale;
+    const double len = length(n);
+    if (!(len > 0.0) || !std::isfinite(len)) return -1;
+    y = len * weight;
+    return int64_t(grid.bin(n * (1.0 / len)));
+  };
+  for (uint64_t f = 0; f < faces; ++f) {
+    Rng rng(settings.seed, f);
+    for (uint64_t r = 0; r < k; ++r) {
+      for (uint64_t col = 0; col < k; col += 2) {
+        double ya = 0.0, yb = 0.0;
+        const double ua = (double(col) + uniform01(rng)) * cell, va = (double(r) + uniform01(rng)) * cell;
+        const double ub = (double(col + 1) + uniform01(rng)) * cell, vb = (double(r) + uniform01(rng)) * cell;
+        const int64_t ba = sample(int(f), ua, va, ya), bb = sample(int(f), ub, vb, yb);
+        if (ba >= 0) est.area[size_t(ba)] += ya;
+        if (bb >= 0) est.area[size_t(bb)] += yb;
+        if (ba >= 0 && ba == bb) {
+          est.variance[size_t(ba)] += (ya - yb) * (ya - yb);
+        } else {
+          if (ba >= 0) est.variance[size_t(ba)] += ya * ya;
+          if (bb >= 0) est.variance[size_t(bb)] += yb * yb;
+        }
+        est.total += ya + yb;
+        est.total_variance += (ya - yb) * (ya - yb);
+      }
+    }
+  }
+  est.samples = faces * k * k;
+  return est;
+}
+
+ol::AreaEstimate mesh_limit_area(const std::string& owner, const CageCopy& cage, const ol::OctGrid& grid,
+                                 const std::vector<double>& triangle_area, const LimitAreaSettings& settings) {
+  ol::AreaEstimate est = estimate_limit_area(owner, cage.view(), grid, settings);
+  if (triangle_area.size() != est.area.size())
+    fail(PLM_ERROR_INTERNAL, owner, ": ", triangle_area.size(), " triangle bin areas for ", est.area.size(), " bins");
+  double triangles = 0.0;
+  for (double a : triangle_area) triangles += a;
+  const double scale = triangles > 0.0 ? est.total / triangles : 1.0;
+  for (size_t b = 0; b < est.area.size(); ++b) {
+    if (est.area[b] > 0.0 || !(triangle_area[b] > 0.0)) continue;
+    est.area[b] = triangle_area[b] * scale;
+    est.variance[b] = est.area[b] * est.area[b];
+  }
+  return est;
+}
+
+}  // namespace plm::subdiv
