@@ -12,6 +12,7 @@
 #include <opensubdiv/far/topologyDescriptor.h>
 #include <opensubdiv/far/topologyRefinerFactory.h>
 
+#include "subdiv/osd_topology.h"
 #include "util/error.h"
 #include "util/rng.h"
 
@@ -49,19 +50,10 @@ Cage CageCopy::view() const {
 namespace {
 
 using namespace OpenSubdiv;
-
-struct Point3 {
-  double x = 0, y = 0, z = 0;
-  void Clear() { x = y = z = 0; }
-  void AddWithWeight(const Point3& s, float w) {
-    x += w * s.x;
-    y += w * s.y;
-    z += w * s.z;
-  }
-};
+using detail::Point3;
 
 // Same isolation and patch options as subdiv.cpp's evaluate_patches (Blender's quality 3).
-constexpr int kQuality = 3;
+constexpr int kQuality = detail::kBlenderQuality;
 
 double uniform01(Rng& rng) { return double(rng.next_u32()) * (1.0 / 4294967296.0); }
 
@@ -70,34 +62,8 @@ double uniform01(Rng& rng) { return double(rng.next_u32()) * (1.0 / 4294967296.0
 ol::AreaEstimate estimate_limit_area(const std::string& owner, const Cage& c, const ol::OctGrid& grid,
                                      const LimitAreaSettings& settings) {
   if (settings.samples == 0) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": limit-surface area samples must be > 0");
-  std::vector<int> face_sizes(c.face_sizes, c.face_sizes + c.face_count);
-  size_t corners = 0;
-  for (int n : face_sizes) corners += size_t(n);
-  std::vector<int> face_indices(c.face_indices, c.face_indices + corners);
-  std::vector<int> crease_pairs;
-  std::vector<float> sharpness;
-  for (uint32_t e = 0; e < c.crease_count; ++e) {
-    if (c.crease_weights[e] <= 0.0f) continue;
-    crease_pairs.push_back(int(c.crease_edges[2 * e]));
-    crease_pairs.push_back(int(c.crease_edges[2 * e + 1]));
-    sharpness.push_back(blender_crease_to_sharpness(c.crease_weights[e]));
-  }
-  Far::TopologyDescriptor desc;
-  desc.numVertices = int(c.vertex_count);
-  desc.numFaces = int(c.face_count);
-  desc.numVertsPerFace = face_sizes.data();
-  desc.vertIndicesPerFace = face_indices.data();
-  desc.numCreases = int(sharpness.size());
-  desc.creaseVertexIndexPairs = crease_pairs.empty() ? nullptr : crease_pairs.data();
-  desc.creaseWeights = sharpness.empty() ? nullptr : sharpness.data();
-  Sdc::Options sdc;  // as refine()
-  sdc.SetVtxBoundaryInterpolation(Sdc::Options::VTX_BOUNDARY_EDGE_ONLY);
-  sdc.SetFVarLinearInterpolation(Sdc::Options::FVAR_LINEAR_BOUNDARIES);
-  sdc.SetCreasingMethod(Sdc::Options::CREASE_UNIFORM);
-  sdc.SetTriangleSubdivision(Sdc::Options::TRI_SUB_CATMARK);
-  using Factory = Far::TopologyRefinerFactory<Far::TopologyDescriptor>;
-  std::unique_ptr<Far::TopologyRefiner> refiner(Factory::Create(desc, Factory::Options(Sdc::SCHEME_CATMARK, sdc)));
-  if (!refiner) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": OpenSubdiv rejected the cage topology");
+  const detail::Topology topology(c);
+  std::unique_ptr<Far::TopologyRefiner> refiner = detail::blender_refiner(topology.desc, owner);
   Far::TopologyRefiner::AdaptiveOptions adaptive(kQuality);
   adaptive.useInfSharpPatch = true;
   refiner->RefineAdaptive(adaptive);

@@ -14,6 +14,7 @@
 //                                       Blender by up to ~1e-3 of the size at smooth corners
 //                                       and near creases sharper than 3.)
 #include "subdiv/subdiv.h"
+#include "subdiv/osd_topology.h"
 
 #include <algorithm>
 #include <array>
@@ -38,15 +39,7 @@ namespace {
 using namespace OpenSubdiv;
 
 // Primvar types for Far::PrimvarRefiner (accumulated in double).
-struct Point3 {
-  double x = 0, y = 0, z = 0;
-  void Clear() { x = y = z = 0; }
-  void AddWithWeight(const Point3& s, float w) {
-    x += w * s.x;
-    y += w * s.y;
-    z += w * s.z;
-  }
-};
+using detail::Point3;
 
 struct Point2 {
   double u = 0, v = 0;
@@ -97,8 +90,7 @@ std::vector<int> weld_uvs(const Cage& c, size_t corner_count, std::vector<Point2
   return index;
 }
 
-// Isolation level of Blender's limit-surface patches (the modifier's quality, default 3).
-constexpr int kBlenderQuality = 3;
+using detail::kBlenderQuality;
 
 // Where a refined vertex lies: ptex face and (u, v) in it.
 struct PtexCoord {
@@ -156,13 +148,10 @@ void face_corner_ptex(const Far::TopologyRefiner& refiner, int level, std::vecto
 // evaluator builds them), evaluated at ptex coordinates. Entries whose patch is not found
 // (should not happen) keep their input value.
 void evaluate_patches(const Far::TopologyDescriptor& desc,
-                      const Far::TopologyRefinerFactory<Far::TopologyDescriptor>::Options& options,
                       const std::vector<Point3>& base_vertex, const std::vector<Point2>* base_fvar, const std::vector<PtexCoord>& vertex_at,
                       std::vector<Point3>& pos_out, const std::vector<PtexCoord>* fvar_at,
                       std::vector<Point2>* fvar_out, const std::string& owner) {
-  using Factory = Far::TopologyRefinerFactory<Far::TopologyDescriptor>;
-  std::unique_ptr<Far::TopologyRefiner> refiner(Factory::Create(desc, options));
-  if (!refiner) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": OpenSubdiv rejected the cage topology");
+  std::unique_ptr<Far::TopologyRefiner> refiner = detail::blender_refiner(desc, owner);
   const bool fvar = base_fvar != nullptr;
   Far::TopologyRefiner::AdaptiveOptions adaptive(kBlenderQuality);
   adaptive.considerFVarChannels = fvar;
@@ -318,28 +307,12 @@ RefinedMesh refine(const std::string& owner, const Cage& c) {
   }
 
   // ---- topology for OpenSubdiv ----
-  std::vector<int> face_sizes(c.face_sizes, c.face_sizes + c.face_count);
-  std::vector<int> face_indices(c.face_indices, c.face_indices + corner_count);
-  std::vector<int> crease_pairs;
-  std::vector<float> sharpness;
-  for (uint32_t e = 0; e < c.crease_count; ++e) {
-    if (c.crease_weights[e] <= 0.0f) continue;
-    crease_pairs.push_back(int(c.crease_edges[2 * e]));
-    crease_pairs.push_back(int(c.crease_edges[2 * e + 1]));
-    sharpness.push_back(blender_crease_to_sharpness(c.crease_weights[e]));
-  }
   std::vector<Point2> uv_values;
   std::vector<int> uv_index;
   if (c.uv) uv_index = weld_uvs(c, size_t(corner_count), uv_values);
 
-  Far::TopologyDescriptor desc;
-  desc.numVertices = int(c.vertex_count);
-  desc.numFaces = int(c.face_count);
-  desc.numVertsPerFace = face_sizes.data();
-  desc.vertIndicesPerFace = face_indices.data();
-  desc.numCreases = int(sharpness.size());
-  desc.creaseVertexIndexPairs = crease_pairs.empty() ? nullptr : crease_pairs.data();
-  desc.creaseWeights = sharpness.empty() ? nullptr : sharpness.data();
+  detail::Topology topology(c);
+  Far::TopologyDescriptor& desc = topology.desc;
   Far::TopologyDescriptor::FVarChannel channel;
   if (c.uv) {
     channel.numValues = int(uv_values.size());
@@ -348,16 +321,7 @@ RefinedMesh refine(const std::string& owner, const Cage& c) {
     desc.fvarChannels = &channel;
   }
 
-  Sdc::Options sdc;
-  sdc.SetVtxBoundaryInterpolation(Sdc::Options::VTX_BOUNDARY_EDGE_ONLY);
-  sdc.SetFVarLinearInterpolation(Sdc::Options::FVAR_LINEAR_BOUNDARIES);
-  sdc.SetCreasingMethod(Sdc::Options::CREASE_UNIFORM);
-  sdc.SetTriangleSubdivision(Sdc::Options::TRI_SUB_CATMARK);
-  using Factory = Far::TopologyRefinerFactory<Far::TopologyDescriptor>;
-  std::unique_ptr<Far::TopologyRefiner> refiner(
-      Factory::Create(desc, Factory::Options(Sdc::SCHEME_CATMARK, sdc)));
-  if (!refiner)
-    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": OpenSubdiv rejected the cage topology");
+  std::unique_ptr<Far::TopologyRefiner> refiner = detail::blender_refiner(desc, owner);
 
   Far::TopologyRefiner::UniformOptions uniform(int(c.level));
   uniform.fullTopologyInLastLevel = true;  // needed by Limit / LimitFaceVarying
@@ -414,7 +378,7 @@ RefinedMesh refine(const std::string& owner, const Cage& c) {
         if (a.face < 0) a = PtexCoord{face_ptex[size_t(f)], face_uv[size_t(f)][2 * k], face_uv[size_t(f)][2 * k + 1]};
       }
     }
-    evaluate_patches(desc, Factory::Options(Sdc::SCHEME_CATMARK, sdc), base_pos, c.uv ? &base_uv : nullptr,
+    evaluate_patches(desc, base_pos, c.uv ? &base_uv : nullptr,
                      vertex_at, limit, &fvar_at, &uv_limit, owner);
   }
 
