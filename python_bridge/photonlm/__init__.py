@@ -108,6 +108,15 @@ def _indices(x, what):
     return np.ascontiguousarray(a, dtype=np.uint32)
 
 
+def _resolution(resolution):
+    """(width, height) of a lightmap given as n or (width, height)."""
+    if np.ndim(resolution) == 0:
+        return (_uint(resolution, "resolution"),) * 2
+    if len(resolution) != 2:
+        raise ValueError("resolution must be n or (width, height), got %r" % (resolution,))
+    return tuple(_uint(r, "resolution") for r in resolution)
+
+
 def _ptr(a, ctype):
     return None if a is None else a.ctypes.data_as(ctypes.POINTER(ctype))
 
@@ -298,12 +307,7 @@ class Scene(_Handle):
             if mats.shape != (t,):
                 raise ValueError("material_ids of mesh %r must have shape (T,) with T = %d triangles, "
                                  "got %s" % (name, t, mats.shape))
-        if np.ndim(resolution) == 0:
-            width = height = _uint(resolution, "resolution")
-        else:
-            if len(resolution) != 2:
-                raise ValueError("resolution must be n or (width, height), got %r" % (resolution,))
-            width, height = (_uint(r, "resolution") for r in resolution)
+        width, height = _resolution(resolution)
         out = ctypes.c_uint32()
         _check(_C.plm_scene_add_mesh(
             self._h, _name(name), _ptr(pos, ctypes.c_float), _uint(pos.shape[0], "vertex count"),
@@ -333,12 +337,7 @@ class Scene(_Handle):
             if mats.shape != sizes.shape:
                 raise ValueError("material_ids of mesh %r must have shape (F,) = %s, got %s"
                                  % (name, sizes.shape, mats.shape))
-        if np.ndim(resolution) == 0:
-            width = height = _uint(resolution, "resolution")
-        else:
-            if len(resolution) != 2:
-                raise ValueError("resolution must be n or (width, height), got %r" % (resolution,))
-            width, height = (_uint(r, "resolution") for r in resolution)
+        width, height = _resolution(resolution)
         level = _uint(level, "level")
         out = ctypes.c_uint32()
         _check(_C.plm_scene_add_subdiv_mesh(

@@ -36,6 +36,7 @@ import tempfile
 import numpy as np
 
 from . import _cage, _indices, _rgb, _uint
+from . import _resolution as _bridge_resolution
 
 __all__ = ["SceneFileWriter", "SceneFileUnsupported", "file_name"]
 
@@ -86,12 +87,7 @@ def _real(x):
 
 
 def _resolution(resolution):
-    if np.ndim(resolution) == 0:
-        w = h = _uint(resolution, "resolution")
-    else:
-        if len(resolution) != 2:
-            raise ValueError("resolution must be n or (width, height), got %r" % (resolution,))
-        w, h = (_uint(r, "resolution") for r in resolution)
+    w, h = _bridge_resolution(resolution)
     if (w == 0) != (h == 0):
         raise ValueError("resolution: width and height must both be 0 or both > 0, got %d x %d" % (w, h))
     return w, h

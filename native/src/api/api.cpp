@@ -163,6 +163,28 @@ plm_status plm_scene_add_mesh(plm_scene* scene, const char* name, const float* p
   });
 }
 
+namespace {
+
+plm::subdiv::Cage make_cage(const float* positions, uint32_t vertex_count, const uint32_t* face_sizes,
+                            uint32_t face_count, const uint32_t* face_indices, const float* uv,
+                            const uint32_t* crease_edges, const float* crease_weights, uint32_t crease_count,
+                            uint32_t level) {
+  plm::subdiv::Cage cage;
+  cage.positions = positions;
+  cage.vertex_count = vertex_count;
+  cage.face_sizes = face_sizes;
+  cage.face_count = face_count;
+  cage.face_indices = face_indices;
+  cage.uv = uv;
+  cage.crease_edges = crease_edges;
+  cage.crease_weights = crease_weights;
+  cage.crease_count = crease_count;
+  cage.level = level;
+  return cage;
+}
+
+}  // namespace
+
 plm_status plm_scene_add_subdiv_mesh(plm_scene* scene, const char* name, const float* positions,
                                      uint32_t vertex_count, const uint32_t* face_sizes, uint32_t face_count,
                                      const uint32_t* face_indices, const float* lightmap_uv,
@@ -183,18 +205,10 @@ plm_status plm_scene_add_subdiv_mesh(plm_scene* scene, const char* name, const f
                     " but the scene has ", scene->scene.materials.size(),
                     " materials (add materials before meshes)");
     }
-    plm::subdiv::Cage cage;
-    cage.positions = positions;
-    cage.vertex_count = vertex_count;
-    cage.face_sizes = face_sizes;
-    cage.face_count = face_count;
-    cage.face_indices = face_indices;
-    cage.uv = lightmap_width > 0 ? lightmap_uv : nullptr;
+    plm::subdiv::Cage cage = make_cage(positions, vertex_count, face_sizes, face_count, face_indices,
+                                       lightmap_width > 0 ? lightmap_uv : nullptr, crease_edges, crease_weights,
+                                       crease_count, level);
     cage.material_ids = material_ids;
-    cage.crease_edges = crease_edges;
-    cage.crease_weights = crease_weights;
-    cage.crease_count = crease_count;
-    cage.level = level;
     const plm::subdiv::RefinedMesh m = plm::subdiv::refine(owner, cage);
     const uint32_t id = scene->scene.add_mesh(name, m.positions.data(), m.vertex_count(), m.indices.data(),
                                               m.triangle_count(), m.uv.empty() ? nullptr : m.uv.data(),
@@ -215,17 +229,8 @@ plm_status plm_subdiv_refine(const float* positions, uint32_t vertex_count, cons
   return guarded("plm_subdiv_refine", [&] {
     require(out_vertex_count, "plm_subdiv_refine", "out_vertex_count");
     require(out_triangle_count, "plm_subdiv_refine", "out_triangle_count");
-    plm::subdiv::Cage cage;
-    cage.positions = positions;
-    cage.vertex_count = vertex_count;
-    cage.face_sizes = face_sizes;
-    cage.face_count = face_count;
-    cage.face_indices = face_indices;
-    cage.uv = lightmap_uv;
-    cage.crease_edges = crease_edges;
-    cage.crease_weights = crease_weights;
-    cage.crease_count = crease_count;
-    cage.level = level;
+    const plm::subdiv::Cage cage = make_cage(positions, vertex_count, face_sizes, face_count, face_indices,
+                                             lightmap_uv, crease_edges, crease_weights, crease_count, level);
     const plm::subdiv::RefinedMesh m = plm::subdiv::refine("plm_subdiv_refine", cage);
     *out_vertex_count = m.vertex_count();
     *out_triangle_count = m.triangle_count();

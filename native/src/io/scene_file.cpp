@@ -194,6 +194,20 @@ uint32_t reference(const json& v, const std::string& path, const std::vector<std
 }
 
 // Engine errors carry the path of the object being added.
+// Vertex indices, each checked against the mesh's vertex count.
+std::vector<uint32_t> vertex_indices(const json& v, const std::string& path, size_t vertex_count) {
+  std::vector<uint32_t> out(v.size());
+  for (size_t k = 0; k < v.size(); ++k) {
+    const std::string pk = index_path(path, k);
+    const uint64_t x = integer(v[k], pk, std::numeric_limits<uint32_t>::max());
+    if (x >= vertex_count)
+      fail(pk, "vertex index " + std::to_string(x) + " is out of range (the mesh has " +
+                   std::to_string(vertex_count) + " vertices)");
+    out[k] = uint32_t(x);
+  }
+  return out;
+}
+
 void engine(plm_status s, const std::string& path) {
   if (s != PLM_OK) fail(path, plm_last_error());
 }
@@ -470,15 +484,7 @@ struct Reader {
     for (size_t k = 0; k < jp.size(); ++k) positions[k] = to_float(jp[k], index_path(pp, k));
     const size_t vertex_count = positions.size() / 3;
     const json& ji = array(required(m, p, "indices"), pi, uint64_t(lim.max_triangles) * 3, "indices");
-    std::vector<uint32_t> indices(ji.size());
-    for (size_t k = 0; k < ji.size(); ++k) {
-      const std::string pk = index_path(pi, k);
-      const uint64_t x = integer(ji[k], pk, std::numeric_limits<uint32_t>::max());
-      if (x >= vertex_count)
-        fail(pk, "vertex index " + std::to_string(x) + " is out of range (the mesh has " +
-                     std::to_string(vertex_count) + " vertices)");
-      indices[k] = uint32_t(x);
-    }
+    const std::vector<uint32_t> indices = vertex_indices(ji, pi, vertex_count);
     std::vector<uint32_t> sizes;
     if (const json* jf = optional(sd, "face_sizes")) {
       const std::string pf = ps + ".face_sizes";
@@ -664,15 +670,7 @@ struct Reader {
         if (ji.size() % 3) fail(pi, "expected 3 indices per triangle, got " + std::to_string(ji.size()) + " indices");
         if (ji.empty()) fail(pi, "a mesh needs at least one triangle");
         const size_t vertex_count = positions.size() / 3;
-        indices.resize(ji.size());
-        for (size_t k = 0; k < ji.size(); ++k) {
-          const std::string pk = index_path(pi, k);
-          const uint64_t x = integer(ji[k], pk, std::numeric_limits<uint32_t>::max());
-          if (x >= vertex_count)
-            fail(pk, "vertex index " + std::to_string(x) + " is out of range (the mesh has " +
-                         std::to_string(vertex_count) + " vertices)");
-          indices[k] = uint32_t(x);
-        }
+        indices = vertex_indices(ji, pi, vertex_count);
         const json* ju = optional(m, "lightmap_uv");
         const std::string pu = p + ".lightmap_uv";
         if (lightmap && !ju) fail(p, "missing field \"lightmap_uv\" (needed for a lightmap_resolution above 0)");
