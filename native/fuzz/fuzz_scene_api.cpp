@@ -262,7 +262,10 @@ void add_light(State& st, Reader& in) {
   if (fields & 16) l.spot_size = in.f(), l.spot_blend = in.f();
   if (fields & 32)
     for (float& c : l.color) c = in.f();
-  for (int k = in.u8() % 5; k > 0; --k) l.matrix[in.u8() % 16] = in.f();
+  for (int k = in.u8() % 5; k > 0; --k) {
+    const uint8_t element = in.u8() % 16;  // read before the value: C++17 evaluates `a[i()] = f()` right to left
+    l.matrix[element] = in.f();
+  }
   const plm_status s = plm_scene_add_light(fields & 128 ? nullptr : st.scene, in.name(), fields & 64 ? nullptr : &l,
                                            nullptr);
   expect_message(s);

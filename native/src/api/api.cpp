@@ -98,6 +98,29 @@ plm::Vec3 lsystem_light(const plm::LSystemOutput& lo, plm::csg::DVec3 p, plm::cs
 
 }  // namespace
 
+namespace {
+
+// The cage arguments of plm_scene_add_subdiv_mesh and plm_subdiv_refine.
+plm::subdiv::Cage make_cage(const float* positions, uint32_t vertex_count, const uint32_t* face_sizes,
+                            uint32_t face_count, const uint32_t* face_indices, const float* uv,
+                            const uint32_t* crease_edges, const float* crease_weights, uint32_t crease_count,
+                            uint32_t level) {
+  plm::subdiv::Cage cage;
+  cage.positions = positions;
+  cage.vertex_count = vertex_count;
+  cage.face_sizes = face_sizes;
+  cage.face_count = face_count;
+  cage.face_indices = face_indices;
+  cage.uv = uv;
+  cage.crease_edges = crease_edges;
+  cage.crease_weights = crease_weights;
+  cage.crease_count = crease_count;
+  cage.level = level;
+  return cage;
+}
+
+}  // namespace
+
 extern "C" {
 
 const char* plm_version(void) { return "0.1.0"; }
@@ -162,28 +185,6 @@ plm_status plm_scene_add_mesh(plm_scene* scene, const char* name, const float* p
     if (out_mesh_id) *out_mesh_id = id;
   });
 }
-
-namespace {
-
-plm::subdiv::Cage make_cage(const float* positions, uint32_t vertex_count, const uint32_t* face_sizes,
-                            uint32_t face_count, const uint32_t* face_indices, const float* uv,
-                            const uint32_t* crease_edges, const float* crease_weights, uint32_t crease_count,
-                            uint32_t level) {
-  plm::subdiv::Cage cage;
-  cage.positions = positions;
-  cage.vertex_count = vertex_count;
-  cage.face_sizes = face_sizes;
-  cage.face_count = face_count;
-  cage.face_indices = face_indices;
-  cage.uv = uv;
-  cage.crease_edges = crease_edges;
-  cage.crease_weights = crease_weights;
-  cage.crease_count = crease_count;
-  cage.level = level;
-  return cage;
-}
-
-}  // namespace
 
 plm_status plm_scene_add_subdiv_mesh(plm_scene* scene, const char* name, const float* positions,
                                      uint32_t vertex_count, const uint32_t* face_sizes, uint32_t face_count,
