@@ -136,7 +136,7 @@ TEST(Texture, CApiRejectsBadArguments) {
   uint32_t mat = 0;
   ASSERT_EQ(plm_scene_add_material(s, "m", a, e, &mat), PLM_OK);
   EXPECT_EQ(plm_scene_set_material_texture(s, 3, PLM_TEXTURE_ALBEDO, "x.png", 0), PLM_ERROR_INVALID_ARGUMENT);
-  EXPECT_EQ(plm_scene_set_material_texture(s, mat, plm_texture_slot(9), "x.png", 0), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(plm_scene_set_material_texture(s, mat, 9, "x.png", 0), PLM_ERROR_INVALID_ARGUMENT);
   EXPECT_NE(std::string(plm_last_error()).find("texture slot 9"), std::string::npos) << plm_last_error();
   EXPECT_EQ(plm_scene_set_material_texture(s, mat, PLM_TEXTURE_ALBEDO, "x.png", 7), PLM_ERROR_INVALID_ARGUMENT);
   EXPECT_EQ(plm_scene_set_material_texture(s, mat, PLM_TEXTURE_ALBEDO, "/nonexistent/x.png", 0), PLM_ERROR_IO);

@@ -87,14 +87,15 @@ PLM_API plm_status plm_scene_add_material(plm_scene* scene, const char* name,
  * folder it removes), so the files must stay until plm_bake begins.
  * Surfaces without texture UVs (a mesh without them, CSG solids, L-systems)
  * use the image's mean colour (a mesh gets a warning at bake time).
- * Emission textures: each emitting triangle emits its texture's mean over
- * the triangle (constant per triangle). path NULL or "" removes the texture.
- * Errors: a missing or unreadable file, named with the material. */
+ * Emission textures: light leaves each point with the texture's colour there
+ * (emitters are chosen by their mean over each triangle). slot is a
+ * plm_texture_slot; path NULL or "" removes the texture. Errors: a bad slot,
+ * a missing or unreadable file, named with the material. */
 typedef enum plm_texture_slot { PLM_TEXTURE_ALBEDO = 0, PLM_TEXTURE_EMISSION = 1 } plm_texture_slot;
 #define PLM_TEXTURE_COLOR_AUTO 0u
 #define PLM_TEXTURE_COLOR_LINEAR 1u
 #define PLM_TEXTURE_COLOR_SRGB 2u
-PLM_API plm_status plm_scene_set_material_texture(plm_scene* scene, uint32_t material_id, plm_texture_slot slot,
+PLM_API plm_status plm_scene_set_material_texture(plm_scene* scene, uint32_t material_id, int32_t slot,
                                                   const char* path, uint32_t flags);
 
 /* Texture UVs of a mesh: triangle_count * 3 * 2 floats, the (u, v) of each

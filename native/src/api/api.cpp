@@ -159,11 +159,11 @@ plm_status plm_scene_add_material(plm_scene* scene, const char* name, const floa
   });
 }
 
-plm_status plm_scene_set_material_texture(plm_scene* scene, uint32_t material_id, plm_texture_slot slot,
+plm_status plm_scene_set_material_texture(plm_scene* scene, uint32_t material_id, int32_t slot,
                                           const char* path, uint32_t flags) {
   return guarded("plm_scene_set_material_texture", [&] {
     require(scene, "plm_scene_set_material_texture", "scene");
-    scene->scene.set_material_texture(material_id, int(slot), path, flags);
+    scene->scene.set_material_texture(material_id, slot, path, flags);
   });
 }
 
