@@ -95,7 +95,10 @@ class PhotonTracer {
         settings_(settings),
         offset_scale_(1e-6f * scene_extent), first_recorded_(first_recorded_depth), table_(emitters) {
     pick_offset_ = double(Rng(settings.seed, ~0ull).next_float());
+    seed_hash_ = {splitmix64(settings.seed)};
     default_material_.albedo = {0.8f, 0.8f, 0.8f};
+    mesh_only_ = !textures && csg_views.empty() && scene.lsystems.empty();
+    build_hit_tables();
   }
 
   void trace_batch(uint64_t first, uint64_t count, BatchOutput& out) const {
@@ -105,7 +108,10 @@ class PhotonTracer {
     out.rays = out.truncated = 0;
     out.truncated_flux = 0.0;
     void* tex_thread = textures_ ? textures_->thread_info() : nullptr;  // once per batch, not per ray
-    for (uint64_t i = first; i < first + count; ++i) trace_photon(i, out, tex_thread);
+    if (mesh_only_)
+      for (uint64_t i = first; i < first + count; ++i) trace_photon<true>(i, out, tex_thread);
+    else
+      for (uint64_t i = first; i < first + count; ++i) trace_photon<false>(i, out, tex_thread);
   }
 
  private:
@@ -122,9 +128,10 @@ class PhotonTracer {
   // sequence, stratified for any photon count, and the rest is pseudo-random.
   class PhotonSampler {
    public:
-    PhotonSampler(uint64_t index, const plm_bake_settings& s, double pick_offset)
-        : rng_(s.seed, index), global_(index), index_(uint32_t(index % kBatchPhotons)),
-          key_(uint32_t(splitmix64((uint64_t(s.seed) << 32) ^ (index / kBatchPhotons)))), mode_(s.sampler),
+    PhotonSampler(uint64_t index, const plm_bake_settings& s, double pick_offset, Rng::SeedHash seed_hash)
+        : rng_(seed_hash, index), global_(index), index_(uint32_t(index % kBatchPhotons)),
+          key_(s.sampler == PLM_SAMPLER_SOBOL ? uint32_t(splitmix64((uint64_t(s.seed) << 32) ^ (index / kBatchPhotons))) : 0u),
+          mode_(s.sampler),
           pick_offset_(pick_offset) {}
     // pick, then the four numbers of sample_emitter.
     void emission(float& pick, float u[4]) {
@@ -155,19 +162,87 @@ class PhotonTracer {
     double pick_offset_;
   };
 
+  // What a photon needs at a mesh hit, flattened per triangle into one cache
+  // line (HitTri) and per mesh (HitMesh), so a bounce reads one line instead
+  // of the normal, material and OL-bin arrays and divides nothing. The values
+  // are those the loop computed per hit, so results are bit for bit the same:
+  // make_frame(-n) is exactly (t, -b) for make_frame(n) = (t, b), and
+  // albedo * (1 / q) is what albedo / q evaluates.
+  struct alignas(64) HitTri {
+    Vec3 normal;       // unit geometric normal
+    Vec3 frame_t, frame_b;  // make_frame(normal)
+    Vec3 bounce;       // albedo / roulette: the flux factor of a surviving photon (untextured scenes)
+    float roulette;    // survival probability min(1, max_component(albedo))
+    uint32_t ol_bin;   // OL bin of the normal, kNoBin if none
+    uint32_t degenerate;  // 1: the photon stops here
+    uint32_t pad_;
+  };
+  static_assert(sizeof(HitTri) == 64, "HitTri fills one cache line");
+  struct HitMesh {
+    const HitTri* tris;
+    const float* uv;  // 6 per triangle (Mesh::uv)
+    const uint32_t* indices;
+    const Vec3* positions;
+    const uint8_t* covered;  // per texel: area > 0; null when the mesh records no texel hits
+    uint64_t texel_offset;
+    uint32_t width, height;
+    int32_t ol_group;
+    bool ol_backup;
+  };
+
+  void build_hit_tables() {
+    size_t tris = 0, texels = 0;
+    for (const MeshView& v : views_) {
+      tris += v.mesh->triangle_count();
+      if (v.texel_area) texels += size_t(v.mesh->lightmap_width) * v.mesh->lightmap_height;
+    }
+    hit_tris_.resize(tris);
+    covered_.resize(texels);
+    hit_meshes_.resize(views_.size());
+    size_t t0 = 0, c0 = 0;
+    for (size_t m = 0; m < views_.size(); ++m) {
+      const MeshView& v = views_[m];
+      const Mesh& mesh = *v.mesh;
+      const OlMeshView& ol = ol_views_[m];
+      HitMesh& hm = hit_meshes_[m];
+      hm = {hit_tris_.data() + t0, mesh.uv.data(), mesh.indices.data(), mesh.positions.data(), nullptr, v.texel_offset,
+            mesh.lightmap_width, mesh.lightmap_height, ol.group, ol.backup};
+      for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
+        HitTri& h = hit_tris_[t0 + t];
+        h.normal = v.normals[t];
+        h.degenerate = h.normal.x == 0.0f && h.normal.y == 0.0f && h.normal.z == 0.0f;
+        if (!h.degenerate) make_frame(h.normal, h.frame_t, h.frame_b);
+        const Vec3 albedo = material(mesh, t).albedo;
+        h.roulette = std::fmin(1.0f, max_component(albedo));
+        h.bounce = h.roulette > 0.0f ? albedo / h.roulette : Vec3{};
+        h.ol_bin = ol.group >= 0 ? ol.bins[t] : kNoBin;
+      }
+      t0 += mesh.triangle_count();
+      if (v.texel_area) {
+        const size_t n = size_t(mesh.lightmap_width) * mesh.lightmap_height;
+        for (size_t k = 0; k < n; ++k) covered_[c0 + k] = v.texel_area[k] > 0.0 ? 1 : 0;
+        hm.covered = covered_.data() + c0;
+        c0 += n;
+      }
+    }
+  }
+
   // Albedo of a material where no texture UV exists (textures: their mean).
   Vec3 flat_albedo(uint32_t id) const {
     return textures_ && !scene_.materials.empty() ? textures_->flat_albedo(id) : material_by_id(id).albedo;
   }
 
+  // kMeshOnly: no CSG solid, no L-system object, no texture (mesh_only_);
+  // the compiler then drops their branches from the loop.
+  template <bool kMeshOnly>
   void trace_photon(uint64_t index, BatchOutput& out, void* tex_thread) const {
-    PhotonSampler sampler(index, settings_, pick_offset_);
+    PhotonSampler sampler(index, settings_, pick_offset_, seed_hash_);
     float u_pick, u[4];
     sampler.emission(u_pick, u);
     const size_t k = table_.choose(u_pick);
     const Emitter& em = emitters_[k];
     EmitterSample s = sample_emitter(em, u);
-    if (em.textured)  // the texture at the photon's origin: flux 2 pi L(x) A, unbiased whatever the mean
+    if (!kMeshOnly && em.textured)  // the texture at the photon's origin: flux 2 pi L(x) A, unbiased whatever the mean
       s.weight = textures_->emission(*views_[em.mesh].mesh, em.material, em.triangle, s.bu, s.bv, tex_thread) *
                  (2.0f * kPi * em.area);
     Vec3 flux = s.weight * (1.0f / table_.probability(k));
@@ -187,10 +262,12 @@ class PhotonTracer {
       // The hit: a mesh triangle, the exact surface of a CSG solid (its
       // primitive in primID, the face id in u, the solid's outward normal),
       // or an L-system object (its GraphHit kept on this thread).
-      const bool is_lsystem = rh.hit.geomID >= ls_base_;
-      const bool is_csg = !is_lsystem && rh.hit.geomID >= views_.size();
+      const bool is_lsystem = !kMeshOnly && rh.hit.geomID >= ls_base_;
+      const bool is_csg = !kMeshOnly && !is_lsystem && rh.hit.geomID >= views_.size();
       const uint32_t tri = rh.hit.primID;
       Vec3 normal, hit, albedo;
+      float q = -1.0f;  // survival probability; set here for mesh hits, below for the others
+      const HitTri* flat = nullptr;  // an untextured mesh triangle: albedo, frame and weight from the table
       uint32_t ls_bin = 0;
       uint64_t ls_key = 0;
       if (is_lsystem) {
@@ -211,15 +288,21 @@ class PhotonTracer {
         hit = org + dir * rh.ray.tfar;
         albedo = flat_albedo(cv.object->material(tri));
       } else {
-        const MeshView& view = views_[rh.hit.geomID];
-        const Mesh& mesh = *view.mesh;
+        const HitMesh& hm = hit_meshes_[rh.hit.geomID];
+        const HitTri& ht = hm.tris[tri];
         const float bu = rh.hit.u, bv = rh.hit.v, bw = 1.0f - bu - bv;
-        normal = view.normals[tri];
-        if (normal.x == 0.0f && normal.y == 0.0f && normal.z == 0.0f) return;  // degenerate: the photon stops
-        hit = mesh.vertex(tri, 0) * bw + mesh.vertex(tri, 1) * bu + mesh.vertex(tri, 2) * bv;
-        albedo = textures_ && !scene_.materials.empty()
-                     ? textures_->albedo(mesh, mesh.material_ids[tri], tri, bu, bv, tex_thread)
-                     : material(mesh, tri).albedo;
+        if (ht.degenerate) return;  // the photon stops
+        normal = ht.normal;
+        const uint32_t* ix = hm.indices + 3 * size_t(tri);
+        hit = hm.positions[ix[0]] * bw + hm.positions[ix[1]] * bu + hm.positions[ix[2]] * bv;
+        if (!kMeshOnly && textures_ && !scene_.materials.empty()) {
+          const Mesh& mesh = *views_[rh.hit.geomID].mesh;
+          albedo = textures_->albedo(mesh, mesh.material_ids[tri], tri, bu, bv, tex_thread);
+          q = std::fmin(1.0f, max_component(albedo));
+        } else {
+          flat = &ht;
+          q = ht.roulette;
+        }
       }
       if (depth == 0 && s.radius2 > 0.0f) {
         const Vec3 to_hit = hit - s.center;
@@ -232,14 +315,16 @@ class PhotonTracer {
         out.ls_hits.push_back({rh.hit.geomID - uint32_t(ls_base_), ls_bin, ls_key, flux.x, flux.y, flux.z});
       if (front && !is_lsystem && depth >= first_recorded_) record(rh, is_csg, hit, flux, out);
       if (front && !is_csg && !is_lsystem) {
-        const OlMeshView& ol = ol_views_[rh.hit.geomID];
-        if (ol.group >= 0 && ol.bins[tri] != kNoBin && (!ol.backup || depth >= first_recorded_))
-          out.ol_hits.push_back({uint32_t(ol.group), ol.bins[tri], flux.x, flux.y, flux.z});
+        const HitMesh& hm = hit_meshes_[rh.hit.geomID];
+        const uint32_t bin = hm.tris[tri].ol_bin;
+        if (bin != kNoBin && (!hm.ol_backup || depth >= first_recorded_))
+          out.ol_hits.push_back({uint32_t(hm.ol_group), bin, flux.x, flux.y, flux.z});
       }
 
-      const float q = std::fmin(1.0f, max_component(albedo));
+      if (q < 0.0f) q = std::fmin(1.0f, max_component(albedo));
       if (q <= 0.0f || settings_.max_bounces == 0) return;
       if (depth >= settings_.max_bounces) {
+        if (flat) albedo = material(*views_[rh.hit.geomID].mesh, tri).albedo;
         ++out.truncated;
         out.truncated_flux += average(flux * albedo);
         return;
@@ -247,11 +332,16 @@ class PhotonTracer {
       float v[3];
       sampler.bounce(depth, v);
       if (v[2] >= q) return;  // Russian roulette
-      flux *= albedo / q;
+      flux *= flat ? flat->bounce : albedo / q;
 
       const Vec3 local = cosine_hemisphere(v[0], v[1]);
       Vec3 t, b;
-      make_frame(normal, t, b);
+      if (flat) {
+        t = flat->frame_t;
+        b = front ? flat->frame_b : -flat->frame_b;
+      } else {
+        make_frame(normal, t, b);
+      }
       dir = t * local.x + b * local.y + normal * local.z;
       org = offset_origin(hit, normal, offset_scale_);
       // Leaving a triangle, skip it; leaving a CSG or L-system surface, only
@@ -272,18 +362,29 @@ class PhotonTracer {
       if (sub >= 0) out.hits.push_back({uint32_t(cv.texel_offset + uint64_t(sub)), flux.x, flux.y, flux.z});
       return;
     }
-    const MeshView& view = views_[rh.hit.geomID];
-    if (!view.texel_area) return;
-    const Mesh& mesh = *view.mesh;
+    const HitMesh& hm = hit_meshes_[rh.hit.geomID];
+    if (!hm.covered) return;
     const float bu = rh.hit.u, bv = rh.hit.v, bw = 1.0f - bu - bv;
-    const float* uv = &mesh.uv[6 * size_t(rh.hit.primID)];
+    const float* uv = hm.uv + 6 * size_t(rh.hit.primID);
     const float tu = bw * uv[0] + bu * uv[2] + bv * uv[4];
     const float tv = bw * uv[1] + bu * uv[3] + bv * uv[5];
-    const float fx = std::floor(tu * float(mesh.lightmap_width));
-    const float fy = std::floor(tv * float(mesh.lightmap_height));
-    if (fx >= 0.0f && fy >= 0.0f && fx < float(mesh.lightmap_width) && fy < float(mesh.lightmap_height)) {
-      const uint64_t texel = uint64_t(fy) * mesh.lightmap_width + uint64_t(fx);
-      if (view.texel_area[texel] > 0.0) out.hits.push_back({uint32_t(view.texel_offset + texel), flux.x, flux.y, flux.z});
+    // On [0, width) truncation is the floor (std::floor is a libm-like
+    // sequence without SSE4.1); outside, and for NaN, nothing is recorded.
+    const float sx = tu * float(hm.width), sy = tv * float(hm.height);
+    if (sx >= 0.0f && sy >= 0.0f && sx < float(hm.width) && sy < float(hm.height)) {
+      const uint64_t texel = uint64_t(sy) * hm.width + uint64_t(sx);
+      if (hm.covered[texel]) {
+        // Fields stored in place: a Hit built on the stack and copied is
+        // reloaded as one 16-byte word right after four 4-byte stores, which
+        // store forwarding cannot serve (measured: the loop's largest stall).
+        const Hit zero{};
+        out.hits.push_back(zero);  // an lvalue: the inlined push_back (an rvalue calls emplace_back)
+        Hit& h = out.hits.back();
+        h.texel = uint32_t(hm.texel_offset + texel);
+        h.r = flux.x;
+        h.g = flux.y;
+        h.b = flux.z;
+      }
     }
   }
 
@@ -302,6 +403,11 @@ class PhotonTracer {
   EmitterTable table_;
   double pick_offset_ = 0.0;
   Material default_material_;
+  std::vector<HitTri> hit_tris_;    // all meshes' triangles, mesh after mesh
+  std::vector<HitMesh> hit_meshes_;  // per mesh (Embree geometry id)
+  std::vector<uint8_t> covered_;     // per texel of the meshes that record hits
+  bool mesh_only_ = false;           // trace_photon<true> applies
+  Rng::SeedHash seed_hash_{};        // of settings_.seed, for the photons' Rng
 };
 
 // Runs work(first, count) over [0, total) in groups that take about 0.2 s, so

@@ -5,6 +5,8 @@
 
 #include <embree3/rtcore.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -46,8 +48,10 @@ struct TraceContext {
 };
 
 // Ray origin just off the surface at p on the side of unit normal n.
+// (std::max, not max_abs_component's fmaxf call: p is finite, and a NaN gives NaN either way.)
 inline Vec3 offset_origin(Vec3 p, Vec3 n, float offset_scale) {
-  return p + n * (offset_scale + 2.5e-7f * max_abs_component(p));
+  const float m = std::max(std::fabs(p.x), std::max(std::fabs(p.y), std::fabs(p.z)));
+  return p + n * (offset_scale + 2.5e-7f * m);
 }
 
 inline RTCRay make_ray(Vec3 org, Vec3 dir, float tfar) {

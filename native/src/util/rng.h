@@ -16,9 +16,7 @@ inline uint64_t splitmix64(uint64_t x) {
 // Van der Corput radical inverse in base 2 of i, in [0, 1): every prefix of
 // the sequence is stratified, whatever its length.
 inline double radical_inverse2(uint64_t i) {
-  i = (i << 32) | (i >> 32);
-  i = ((i & 0x0000FFFF0000FFFFull) << 16) | ((i & 0xFFFF0000FFFF0000ull) >> 16);
-  i = ((i & 0x00FF00FF00FF00FFull) << 8) | ((i & 0xFF00FF00FF00FF00ull) >> 8);
+  i = __builtin_bswap64(i);  // the byte order reversed; then the bits of each byte
   i = ((i & 0x0F0F0F0F0F0F0F0Full) << 4) | ((i & 0xF0F0F0F0F0F0F0F0ull) >> 4);
   i = ((i & 0x3333333333333333ull) << 2) | ((i & 0xCCCCCCCCCCCCCCCCull) >> 2);
   i = ((i & 0x5555555555555555ull) << 1) | ((i & 0xAAAAAAAAAAAAAAAAull) >> 1);
@@ -61,11 +59,17 @@ inline uint32_t permute(uint32_t i, uint32_t n, uint32_t key) {
 // PCG32 (O'Neill): small state, good statistics, fast.
 class Rng {
  public:
-  Rng(uint64_t seed, uint64_t stream) {
+  Rng(uint64_t seed, uint64_t stream) : Rng(SeedHash{splitmix64(seed)}, stream) {}
+  // The same generator, splitmix64(seed) hashed once by the caller (one
+  // stream per photon: the seed's hash is the same for all of them).
+  struct SeedHash {
+    uint64_t value;
+  };
+  Rng(SeedHash seed, uint64_t stream) {
     state_ = 0;
     inc_ = (splitmix64(stream ^ 0xDA3E39CB94B95BDBull) << 1u) | 1u;
     next_u32();
-    state_ += splitmix64(seed);
+    state_ += seed.value;
     next_u32();
   }
   uint32_t next_u32() {
