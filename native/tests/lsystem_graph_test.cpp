@@ -507,3 +507,109 @@ TEST(LSystemGraph, RoundingDoesNotSplitParameterStates) {
   const plm::lsystem::TurtleResult flat = plm::lsystem::interpret(sys, plm::lsystem::derive(sys, d));
   EXPECT_EQ(small.flatten().primitives.size(), flat.primitives.size());
 }
+
+namespace {
+
+// The exact box of flattened primitives, by the turtle's per-shape extents.
+void exact_box(const std::vector<TurtlePrimitive>& prims, DVec3* lo, DVec3* hi) {
+  *lo = DVec3{INFINITY, INFINITY, INFINITY};
+  *hi = DVec3{-INFINITY, -INFINITY, -INFINITY};
+  for (const TurtlePrimitive& p : prims)
+    for (int r = 0; r < 3; ++r) {
+      const double* m = p.to_world + 4 * r;
+      const double e = p.shape == ShapeKind::Sphere ? std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2])
+                       : p.shape == ShapeKind::Box  ? std::fabs(m[0]) + std::fabs(m[1]) + std::fabs(m[2])
+                                                    : std::sqrt(m[0] * m[0] + m[1] * m[1]) + std::fabs(m[2]);
+      (*lo)[r] = std::min((*lo)[r], m[3] - e);
+      (*hi)[r] = std::max((*hi)[r], m[3] + e);
+    }
+}
+
+double volume(DVec3 lo, DVec3 hi) { return (hi.x - lo.x) * (hi.y - lo.y) * (hi.z - lo.z); }
+
+}  // namespace
+
+// Bounds (graph.h, Bounds): child boxes are the exact boxes of their subtrees,
+// found by unfolding; GraphOptions::bounds_budget = 0 gives the looser boxes
+// of mapped child boxes (8 corners, level by level), a small budget lies in
+// between. The root box holds every flattened primitive (for a deterministic
+// plant it is their exact box up to the padding); the hits are the same
+// whatever the budget: the same t, shape and material, and the same
+// primitive instance except where two primitives are hit at exactly the same
+// t (kTree draws some leaves twice at one place: then the order of the
+// visits, which the boxes change, picks one).
+TEST(LSystemGraph, ExactBoundsHoldThePlantAndAreTighter) {
+  const char* sympodial =
+      "const r1 = 0.9\nconst r2 = 0.7\nconst a1 = 10\nconst a2 = 60\nconst wr = 0.707\n"
+      "axiom: A(0, 0)\n"
+      "A(i, j) -> !(0.1*wr^(i+j)) F(r1^i*r2^j) [ &(a1) B(i+1, j) ] /(180) [ &(a2) B(i, j+1) ]\n"
+      "B(i, j) -> !(0.1*wr^(i+j)) F(r1^i*r2^j) [ +(a1) B(i+1, j) ] [ -(a2) B(i, j+1) ]\n";
+  for (const char* text : {kTree, kStochastic, sympodial}) {
+    SCOPED_TRACE(std::string(text).substr(0, 30));
+    const LSystem sys = parse(text);
+    const bool stochastic = text == kStochastic;
+    GraphOptions exact = options(text == sympodial ? 9 : 5, 3), loose = exact, small = exact;
+    loose.bounds_budget = 0;
+    small.bounds_budget = 2;
+    const Graph ge(sys, exact), gl(sys, loose), gs(sys, small);
+    const FlattenResult f = ge.flatten();
+    DVec3 lo, hi;
+    exact_box(f.primitives, &lo, &hi);
+    const double tol = 1e-8 * (plm::csg::max_abs(lo) + plm::csg::max_abs(hi));
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_LE(ge.bounds_lo()[a], lo[a]);
+      EXPECT_GE(ge.bounds_hi()[a], hi[a]);
+      if (!stochastic) {  // a stochastic class's box is the union over its productions
+        EXPECT_NEAR(ge.bounds_lo()[a], lo[a], tol);
+        EXPECT_NEAR(ge.bounds_hi()[a], hi[a], tol);
+      }
+      EXPECT_LE(gs.bounds_lo()[a], ge.bounds_lo()[a] + tol);
+      EXPECT_GE(gs.bounds_hi()[a], ge.bounds_hi()[a] - tol);
+      EXPECT_LE(gl.bounds_lo()[a], gs.bounds_lo()[a] + tol);
+      EXPECT_GE(gl.bounds_hi()[a], gs.bounds_hi()[a] - tol);
+    }
+    const double ve = volume(ge.bounds_lo(), ge.bounds_hi()), vl = volume(gl.bounds_lo(), gl.bounds_hi());
+    std::cout << "[bounds] root box volume: exact " << ve << ", budget 2 " << volume(gs.bounds_lo(), gs.bounds_hi())
+              << ", mapped boxes (budget 0) " << vl << "\n";
+    EXPECT_LT(ve, 0.9 * vl) << "the exact unfolding should be clearly tighter";
+    // Hits: the same rays, the same answers, whatever the bounds.
+    const Flat flat(f.primitives);
+    const auto rays = make_rays(ge, &flat.src, 4000, 41);
+    size_t hits = 0, ties = 0;
+    for (const Ray& r : rays) {
+      GraphHit he, hl, hs;
+      const bool be = ge.first_hit(r.o, r.d, 0, r.tfar, &he), bl = gl.first_hit(r.o, r.d, 0, r.tfar, &hl),
+                 bs = gs.first_hit(r.o, r.d, 0, r.tfar, &hs);
+      ASSERT_EQ(be, bl);
+      ASSERT_EQ(be, bs);
+      EXPECT_EQ(ge.occluded(r.o, r.d, 0, r.tfar), be);
+      EXPECT_EQ(gl.occluded(r.o, r.d, 0, r.tfar), be);
+      if (!be) continue;
+      ++hits;
+      EXPECT_EQ(he.t, hl.t);
+      EXPECT_EQ(he.t, hs.t);
+      EXPECT_EQ(int(he.shape), int(hl.shape));
+      EXPECT_EQ(he.material, hl.material);
+      ties += he.instance_key != hl.instance_key || he.instance_key != hs.instance_key;
+    }
+    EXPECT_GT(hits, rays.size() / 20);
+    std::cout << "[bounds] " << hits << " hits, " << ties << " on coincident primitives of other instances\n";
+    // The tree of docs/benchmarks.md's ray-cost bench against brute force over
+    // its flattened primitives (its thin twigs: fewer rays hit than elsewhere).
+    if (text != sympodial) continue;
+    size_t bhits = 0, mismatches = 0;
+    for (const Ray& r : make_rays(ge, &flat.src, 8000, 43)) {
+      GraphHit h;
+      const bool gh = ge.first_hit(r.o, r.d, 0.0, r.tfar, &h);
+      double t = 0, t2 = 0;
+      size_t which = 0, w2 = 0;
+      const bool bh = flat.first_hit(r.o, r.d, 0.0, r.tfar, &t, &which, false);
+      bool ok = gh == bh && ge.occluded(r.o, r.d, 0.0, r.tfar) == flat.first_hit(r.o, r.d, 0.0, r.tfar, &t2, &w2, true);
+      if (ok && gh) ok = std::fabs(h.t - t) <= 1e-9 * std::max(1.0, t) && h.shape == flat.src[which].shape;
+      bhits += gh;
+      mismatches += !ok;
+    }
+    EXPECT_EQ(mismatches, 0u);
+    EXPECT_GT(bhits, 500u);
+  }
+}

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cstring>
 #include <cmath>
 #include <limits>
@@ -102,6 +103,33 @@ void transform_box(const Affine& t, DVec3 lo, DVec3 hi, DVec3* out_lo, DVec3* ou
   *out_hi = b + DVec3{pad, pad, pad};
 }
 
+// The exact box of a turtle primitive whose local->frame map is m: the
+// extent along row r is sqrt(m0^2 + m1^2 + m2^2) for a sphere, sqrt(m0^2 +
+// m1^2) + |m2| for a cylinder and a cone (by its cylinder hull, as the turtle
+// bounds it), |m0| + |m1| + |m2| for a box. Not padded.
+void prim_box(ShapeKind shape, const Affine& m, DVec3* lo, DVec3* hi) {
+  for (int r = 0; r < 3; ++r) {
+    const double* a = m.m + 4 * r;
+    double e;
+    switch (shape) {
+      case ShapeKind::Sphere: e = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]); break;
+      case ShapeKind::Cylinder:
+      case ShapeKind::Cone: e = std::sqrt(a[0] * a[0] + a[1] * a[1]) + std::fabs(a[2]); break;
+      default: e = std::fabs(a[0]) + std::fabs(a[1]) + std::fabs(a[2]); break;
+    }
+    (*lo)[r] = a[3] - e;
+    (*hi)[r] = a[3] + e;
+  }
+}
+
+// Pads a non-empty box by 1e-9 relative (as transform_box does).
+void pad_box(DVec3& lo, DVec3& hi) {
+  if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) return;
+  const double pad = 1e-9 * (max_abs(lo) + max_abs(hi)) + 1e-300;
+  lo = lo - DVec3{pad, pad, pad};
+  hi = hi + DVec3{pad, pad, pad};
+}
+
 bool box_hit(DVec3 lo, DVec3 hi, DVec3 o, DVec3 d, double t0, double t1) {
   for (int a = 0; a < 3; ++a) {
     if (!(lo[a] <= hi[a])) return false;
@@ -195,10 +223,49 @@ struct Graph::Impl {
   std::map<ClassKey, uint32_t> index;
   std::map<std::pair<uint32_t, int>, size_t> per_symbol_depth;
   std::vector<double> vars;          // set-up scratch
+  // Per class, per production: each child reference's box in the class frame.
+  std::vector<std::vector<std::vector<GraphBox>>> child_boxes;
+  // Set-up only (emptied after): per class, the primitives and child
+  // references of all its productions, for the exact child bounds.
+  struct SkeletonPrim {
+    ShapeKind shape;
+    Affine m;
+  };
+  struct SkeletonChild {
+    uint32_t cls;
+    Affine t;
+  };
+  struct Skeleton {
+    std::vector<SkeletonPrim> prims;
+    std::vector<SkeletonChild> children;
+  };
+  std::vector<std::vector<Skeleton>> skel;  // [class][production]
+  // Per class, per production, per child, per production of the child: the
+  // boxes of the child's children in the class frame (for inlining).
+  std::vector<std::vector<std::vector<std::vector<std::vector<GraphBox>>>>> grand_boxes;
+  uint64_t root_key_ = 0;
+  bool inline_views = true;  // see kGraphInlineMinCacheBytes
+
+  // A level of the traversal: the node's expansion and the ray in its frame.
+  struct Frame {
+    const GraphExpansion* e = nullptr;
+    DVec3 o, d, inv;                 // inv = 1 / d per component (+-inf for +-0)
+    uint8_t near[3], far[3];         // per axis: the box coordinate met first / last (see slab)
+    uint64_t key = 0;                // path key where the class is path dependent (and the root), else 0
+    const GraphHop* via = nullptr;   // how the ray got here from the frame above (null at the root)
+  };
+  struct Pending {
+    double t;                        // box entry along the ray
+    uint32_t level, hop;             // hop `hop` of the node at `level`
+  };
 
   // Per-thread LRU cache of expansions.
   struct Cache {
-    using Entry = std::pair<CacheKey, std::shared_ptr<const GraphExpansion>>;
+    struct Entry {
+      CacheKey key;
+      std::shared_ptr<const GraphExpansion> e;  // shared: flatten() holds expansions across evictions
+      uint64_t stamp;                           // the traversal that last looked it up
+    };
     std::list<Entry> lru;  // front: most recently used
     std::unordered_map<CacheKey, std::list<Entry>::iterator, CacheKeyHash> map;
     // Per class: the entry of its last lookup, found again without hashing
@@ -207,13 +274,67 @@ struct Graph::Impl {
       bool valid = false;
       uint64_t path = 0;
       std::list<Entry>::iterator it;
+      uint64_t stamp = 0;                   // it->stamp, read without touching the list
+      const GraphExpansion* e = nullptr;    // it->e.get()
     };
     std::vector<Memo> memo;
     size_t bytes = 0, peak = 0;
     uint64_t hits = 0, misses = 0, evictions = 0, truncated = 0;
     GraphHit last_hit;
+    // The running traversal (0: none): its entries are not evicted.
+    uint64_t epoch = 0, tick = 0;
+    std::vector<Frame> frames;      // kMaxGraphLevels + 1, one per level
+    std::vector<Pending> pending;   // children still to visit, nearest at the back
   };
   mutable tbb::enumerable_thread_specific<Cache> caches;
+  // Never reused, so a thread's remembered (id, cache) can only be this graph's.
+  const uint64_t id = next_id();
+  static uint64_t next_id() {
+    static std::atomic<uint64_t> counter{0};
+    return ++counter;
+  }
+  // The calling thread's cache: caches.local() (a hash lookup) once per thread and graph in a row.
+  Cache& local_cache() const {
+    struct Last {
+      uint64_t id = 0;
+      Cache* cache = nullptr;
+    };
+    static thread_local Last last;
+    if (last.id != id) last = {id, &caches.local()};
+    return *last.cache;
+  }
+
+  // A traversal's start and end: entries looked up in between stay until
+  // end(), which trims the cache back to its capacity.
+  void begin_trace(Cache& cache) const {
+    cache.epoch = ++cache.tick;
+    ready(cache);
+    if (cache.frames.size() < size_t(kMaxGraphLevels) + 1) cache.frames.resize(size_t(kMaxGraphLevels) + 1);
+    if (cache.pending.size() < 256) cache.pending.resize(256);
+  }
+  void ready(Cache& cache) const {
+    if (cache.memo.size() < classes.size()) cache.memo.resize(classes.size());
+  }
+  void end_trace(Cache& cache) const {
+    cache.epoch = 0;
+    trim(cache);
+  }
+  bool over(const Cache& cache) const {
+    return cache.lru.size() > 1 && ((opt.cache_entries && cache.lru.size() > opt.cache_entries) ||
+                                    (opt.cache_bytes && cache.bytes > opt.cache_bytes));
+  }
+  // Evicts least recently used entries that the running traversal did not touch.
+  void trim(Cache& cache) const {
+    while (over(cache) && (cache.epoch == 0 || cache.lru.back().stamp != cache.epoch)) {
+      const CacheKey gone = cache.lru.back().key;
+      Cache::Memo& m = cache.memo[gone.cls];
+      if (m.valid && m.path == gone.path) m.valid = false;
+      cache.bytes -= cache.lru.back().e->bytes;
+      cache.map.erase(gone);
+      cache.lru.pop_back();
+      ++cache.evictions;
+    }
+  }
 
   std::string symbol_name(uint32_t s) const { return s == kRoot ? std::string("axiom") : sys.symbols[s].name; }
 
@@ -291,6 +412,9 @@ struct Graph::Impl {
     classes.push_back(std::move(c));
     end.emplace_back();
     end_variable.push_back(0);
+    child_boxes.emplace_back();
+    skel.emplace_back();
+    grand_boxes.emplace_back();
     index.emplace(std::move(key), id);
     analyse(id);
     return id;
@@ -324,7 +448,10 @@ struct Graph::Impl {
 
   // Interprets a successor in the node's frame: draws terminal modules,
   // references non-terminal ones. setup: bounds and classes; else fills out.
-  WalkResult walk(const GraphNodeClass& owner_copy, const Successor& s, bool setup, GraphExpansion* out) {
+  // id, alt: the class and the production walked (child boxes are recorded
+  // per production at set-up and read back when expanding).
+  WalkResult walk(const GraphNodeClass& owner_copy, uint32_t id, size_t alt, const Successor& s, bool setup,
+                  GraphExpansion* out) {
     const uint32_t owner_symbol = owner_copy.symbol;
     const int child_depth = owner_copy.depth - 1;
     WalkResult r;
@@ -354,8 +481,14 @@ struct Graph::Impl {
       if (!why.empty()) error(why);
       GraphPrimitive g{shape, st.material, csg::make_primitive(d)};
       if (r.count < std::numeric_limits<uint64_t>::max()) ++r.count;
+      Affine m;
+      std::copy(d.to_world, d.to_world + 12, m.m);
+      DVec3 blo, bhi;
+      prim_box(shape, m, &blo, &bhi);
+      pad_box(blo, bhi);
       if (setup) {
-        grow(r.lo, r.hi, g.prim.lo, g.prim.hi);
+        grow(r.lo, r.hi, blo, bhi);
+        skel[id][alt].prims.push_back({shape, m});
       } else {
         out->prims.push_back(g);
       }
@@ -392,16 +525,32 @@ struct Graph::Impl {
       if (child) {
         const GraphNodeClass& cc = classes[cls];
         const Affine t = st.frame();
-        DVec3 lo, hi;
-        transform_box(t, cc.lo, cc.hi, &lo, &hi);
         if (setup) {
+          const int64_t budget0 = int64_t(std::min<size_t>(opt.bounds_budget, size_t(INT64_MAX)));
+          DVec3 lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
+          int64_t budget = budget0;
+          subtree_box(cls, t, budget, lo, hi);
+          pad_box(lo, hi);
+          skel[id][alt].children.push_back({cls, t});
+          child_boxes[id][alt].push_back({lo, hi});
+          std::vector<std::vector<GraphBox>> grand(skel[cls].size());
+          for (size_t a2 = 0; a2 < skel[cls].size(); ++a2)
+            for (const SkeletonChild& gc : skel[cls][a2].children) {
+              DVec3 glo{kInf, kInf, kInf}, ghi{-kInf, -kInf, -kInf};
+              budget = budget0;
+              subtree_box(gc.cls, compose(t, gc.t), budget, glo, ghi);
+              pad_box(glo, ghi);
+              grand[a2].push_back({glo, ghi});
+            }
+          grand_boxes[id][alt].push_back(std::move(grand));
           grow(r.lo, r.hi, lo, hi);
           r.count = cc.max_primitives > std::numeric_limits<uint64_t>::max() - r.count
                         ? std::numeric_limits<uint64_t>::max()
                         : r.count + cc.max_primitives;
           r.path_dependent = r.path_dependent || cc.path_dependent;
         } else {
-          out->children.push_back(GraphChild{cls, t, csg::inverse(t), lo, hi});
+          const GraphBox& b = child_boxes[id][alt][out->children.size()];
+          out->children.push_back(GraphChild{cls, cc.path_dependent, t, csg::inverse(t), b.lo, b.hi});
           out->prims_before.push_back(uint32_t(out->prims.size()));
         }
         const State& e = end[cls];
@@ -486,8 +635,33 @@ struct Graph::Impl {
     return r;
   }
 
+  // The box, under a, of every primitive below class cls (see Bounds in
+  // graph.h); where budget runs out, the class box mapped by a.
+  void subtree_box(uint32_t cls, const Affine& a, int64_t& budget, DVec3& lo, DVec3& hi) const {
+    const GraphNodeClass& c = classes[cls];
+    if (!(c.lo.x <= c.hi.x && c.lo.y <= c.hi.y && c.lo.z <= c.hi.z)) return;  // draws nothing
+    if (budget <= 0) {
+      DVec3 l, h;
+      transform_box(a, c.lo, c.hi, &l, &h);
+      grow(lo, hi, l, h);
+      return;
+    }
+    --budget;
+    for (const Skeleton& k : skel[cls]) {
+      for (const SkeletonPrim& p : k.prims) {
+        DVec3 l, h;
+        prim_box(p.shape, compose(a, p.m), &l, &h);
+        grow(lo, hi, l, h);
+      }
+      for (const SkeletonChild& ch : k.children) subtree_box(ch.cls, compose(a, ch.t), budget, lo, hi);
+    }
+  }
+
   void analyse(uint32_t id) {
     const size_t alts = classes[id].symbol == kRoot ? 1 : classes[id].alternatives.size();
+    child_boxes[id].assign(alts, {});
+    skel[id].assign(alts, {});
+    grand_boxes[id].assign(alts, {});
     DVec3 lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
     uint64_t count = 0;
     bool path_dependent = alts > 1, variable = false;
@@ -495,7 +669,7 @@ struct Graph::Impl {
     for (size_t a = 0; a < alts; ++a) {
       const GraphNodeClass copy = classes[id];  // classes may grow while walking
       const Successor s = rewrite(copy, a);
-      const WalkResult r = walk(copy, s, true, nullptr);
+      const WalkResult r = walk(copy, id, a, s, true, nullptr);
       grow(lo, hi, r.lo, r.hi);
       count = std::max(count, r.count);
       path_dependent = path_dependent || r.path_dependent;
@@ -517,7 +691,7 @@ struct Graph::Impl {
 
   // ---- tracing ----
 
-  std::shared_ptr<const GraphExpansion> expand(uint32_t cls, uint64_t key) const {
+  size_t choose_alt(uint32_t cls, uint64_t key) const {
     const GraphNodeClass& c = classes[cls];
     size_t alt = 0;
     if (c.alternatives.size() > 1) {
@@ -532,142 +706,359 @@ struct Graph::Impl {
         u -= c.alternatives[k].second;
       }
     }
+    return alt;
+  }
+
+  // What the turtle draws for (cls, key): primitives and child references.
+  std::shared_ptr<GraphExpansion> expand_base(uint32_t cls, uint64_t key, size_t* alt) const {
+    const GraphNodeClass& c = classes[cls];
+    *alt = choose_alt(cls, key);
     auto e = std::make_shared<GraphExpansion>();
-    const Successor s = rewrite(c, alt);
-    const_cast<Impl*>(this)->walk(c, s, false, e.get());  // lookup only: no set-up state changes
-    e->bytes = sizeof(GraphExpansion) + e->prims.capacity() * sizeof(GraphPrimitive) +
-               e->children.capacity() * sizeof(GraphChild) + e->prims_before.capacity() * sizeof(uint32_t) + 64;
+    const Successor s = rewrite(c, *alt);
+    const_cast<Impl*>(this)->walk(c, cls, *alt, s, false, e.get());  // lookup only: no set-up state changes
     return e;
   }
 
-  std::shared_ptr<const GraphExpansion> get(Cache& cache, uint32_t cls, uint64_t path) const {
-    const CacheKey key{cls, classes[cls].path_dependent ? path : 0};
-    if (cache.memo.size() < classes.size()) cache.memo.resize(classes.size());
+  static size_t bytes_of(const GraphExpansion& e) {
+    return sizeof(GraphExpansion) + e.prims.capacity() * sizeof(GraphPrimitive) +
+           e.children.capacity() * sizeof(GraphChild) + e.prims_before.capacity() * sizeof(uint32_t) +
+           e.inlined_prims.capacity() * sizeof(GraphPrimitive) +
+           e.tprims.capacity() * sizeof(GraphTracePrim) + e.prim_boxes.capacity() * sizeof(GraphBox) +
+           e.hops.capacity() * sizeof(GraphHop) + e.hop_boxes.capacity() * sizeof(GraphBox) +
+           e.groups.capacity() * sizeof(GraphGroup) + 64;
+  }
+
+  std::shared_ptr<const GraphExpansion> expand(uint32_t cls, uint64_t key) const {
+    size_t alt = 0;
+    std::shared_ptr<GraphExpansion> e = expand_base(cls, key, &alt);
+    e->alt = uint32_t(alt);
+    e->bytes = bytes_of(*e);
+    return e;
+  }
+
+  // The cached expansion of (cls, path) if there is one; no statistics, no recency.
+  const GraphExpansion* peek(const Cache& cache, uint32_t cls, uint64_t path) const {
+    const auto it = cache.map.find(CacheKey{cls, classes[cls].path_dependent ? path : 0});
+    return it == cache.map.end() ? nullptr : it->second->e.get();
+  }
+
+  // The traversal view of expansion e of (cls, key) (graph.h: small children
+  // inlined, unless inline_views is off).
+  void build_view(const Cache& cache, GraphExpansion* e, uint32_t cls, uint64_t key) const {
+    const size_t alt = e->alt;
+    auto own_box = [](const GraphPrimitive& gp) {
+      GraphBox b;
+      prim_box(gp.shape, gp.prim.to_world, &b.lo, &b.hi);
+      pad_box(b.lo, b.hi);
+      return b;
+    };
+    for (size_t i = 0; i < e->prims.size(); ++i) {
+      e->tprims.push_back({nullptr, nullptr, uint32_t(i), 0, 0});
+      e->prim_boxes.push_back(own_box(e->prims[i]));
+    }
+    // A child's expansion: the cached one, else made here and dropped after.
+    std::vector<std::shared_ptr<GraphExpansion>> made;
+    std::vector<const GraphExpansion*> inlined(e->children.size(), nullptr);
+    for (size_t k = 0; k < e->children.size(); ++k) {
+      const GraphChild& ch = e->children[k];
+      const uint64_t ck = ch.path_dependent ? child_key(key, uint32_t(k)) : 0;
+      const GraphExpansion* ce = inline_views ? peek(cache, ch.cls, ck) : nullptr;
+      if (!ce && inline_views) {
+        size_t calt = 0;
+        made.push_back(expand_base(ch.cls, ck, &calt));
+        made.back()->alt = uint32_t(calt);
+        ce = made.back().get();
+      }
+      if (ce && ce->prims.size() + ce->children.size() <= kGraphInlineItems) {
+        inlined[k] = ce;
+      } else {
+        e->hops.push_back({ch.to_local, nullptr, ch.cls, ch.path_dependent, 1, {uint32_t(k), 0}, 0});
+        e->hop_boxes.push_back({ch.lo, ch.hi});
+      }
+    }
+    e->groups.push_back({GraphBox{}, uint32_t(e->tprims.size()), uint32_t(e->hops.size()), Affine{}});
+    for (size_t k = 0; k < e->children.size(); ++k) {
+      if (!inlined[k]) continue;
+      const GraphChild& ch = e->children[k];
+      const GraphExpansion& ce = *inlined[k];
+      for (size_t j = 0; j < ce.prims.size(); ++j) {
+        const GraphPrimitive& cp = ce.prims[j];
+        e->inlined_prims.push_back(cp);
+        e->tprims.push_back({nullptr, nullptr, uint32_t(j), uint32_t(k), ch.cls});
+        GraphBox b;  // in this node's frame
+        prim_box(cp.shape, compose(ch.to_parent, cp.prim.to_world), &b.lo, &b.hi);
+        pad_box(b.lo, b.hi);
+        e->prim_boxes.push_back(b);
+      }
+      const std::vector<GraphBox>& gb = grand_boxes[cls][alt][k][ce.alt];
+      for (size_t kk = 0; kk < ce.children.size(); ++kk) {
+        const GraphChild& gc = ce.children[kk];
+        e->hops.push_back({gc.to_local, nullptr, gc.cls, gc.path_dependent, 2, {uint32_t(k), uint32_t(kk)}, ch.cls});
+        e->hop_boxes.push_back(gb[kk]);
+      }
+      e->groups.push_back({GraphBox{ch.lo, ch.hi}, uint32_t(e->tprims.size()), uint32_t(e->hops.size()), ch.to_local});
+    }
+    // The vectors are final: point the trace primitives and hops at their primitives and groups.
+    const uint32_t own = e->groups[0].prim_end;
+    for (size_t g = 1, i = own, h = e->groups[0].hop_end; g < e->groups.size(); ++g) {
+      for (; i < e->groups[g].prim_end; ++i) e->tprims[i].mid = &e->groups[g].to_child;
+      for (; h < e->groups[g].hop_end; ++h) e->hops[h].mid = &e->groups[g].to_child;
+    }
+    for (size_t i = 0; i < e->tprims.size(); ++i)
+      e->tprims[i].gp = i < own ? &e->prims[e->tprims[i].prim] : &e->inlined_prims[i - own];
+    e->has_view = true;
+    e->bytes = bytes_of(*e);
+  }
+
+  // The cache entry of (cls, path), expanded on a miss; stamped with the
+  // running traversal. Recency is kept per traversal: an entry moves to the
+  // front of the LRU list at its first lookup in a traversal only.
+  const std::shared_ptr<const GraphExpansion>& get(Cache& cache, uint32_t cls, uint64_t path) const {
+    return get(cache, cls, path, classes[cls].path_dependent);
+  }
+  const std::shared_ptr<const GraphExpansion>& get(Cache& cache, uint32_t cls, uint64_t path,
+                                                   bool path_dependent) const {
+    const CacheKey key{cls, path_dependent ? path : 0};
     Cache::Memo& memo = cache.memo[cls];
     if (memo.valid && memo.path == key.path) {  // the common case: no hashing
       ++cache.hits;
-      if (memo.it != cache.lru.begin()) cache.lru.splice(cache.lru.begin(), cache.lru, memo.it);
-      return memo.it->second;
+      if (memo.stamp != cache.epoch || cache.epoch == 0) {
+        memo.it->stamp = memo.stamp = cache.epoch;
+        if (memo.it != cache.lru.begin()) cache.lru.splice(cache.lru.begin(), cache.lru, memo.it);
+      }
+      return memo.it->e;
     }
     const auto it = cache.map.find(key);
     if (it != cache.map.end()) {
       ++cache.hits;
+      it->second->stamp = cache.epoch;
       cache.lru.splice(cache.lru.begin(), cache.lru, it->second);
-      memo = {true, key.path, it->second};
-      return it->second->second;
+      memo = {true, key.path, it->second, cache.epoch, it->second->e.get()};
+      return it->second->e;
     }
     ++cache.misses;
-    auto e = expand(cls, path);
-    cache.lru.emplace_front(key, e);
+    cache.lru.push_front(Cache::Entry{key, expand(cls, path), cache.epoch});
     cache.map.emplace(key, cache.lru.begin());
-    memo = {true, key.path, cache.lru.begin()};
-    cache.bytes += e->bytes;
+    memo = {true, key.path, cache.lru.begin(), cache.epoch, cache.lru.front().e.get()};
+    cache.bytes += cache.lru.front().e->bytes;
     cache.peak = std::max(cache.peak, cache.bytes);
-    while (cache.lru.size() > 1 && ((opt.cache_entries && cache.lru.size() > opt.cache_entries) ||
-                                    (opt.cache_bytes && cache.bytes > opt.cache_bytes))) {
-      const CacheKey gone = cache.lru.back().first;
-      Cache::Memo& m = cache.memo[gone.cls];
-      if (m.valid && m.path == gone.path) m.valid = false;
-      cache.bytes -= cache.lru.back().second->bytes;
-      cache.map.erase(gone);
-      cache.lru.pop_back();
-      ++cache.evictions;
+    trim(cache);  // never evicts the new entry: it carries the running traversal's stamp
+    return cache.lru.front().e;
+  }
+
+  // get() for the traversal: the expansion itself, without touching the list
+  // when the class's memo already holds this traversal's entry.
+  const GraphExpansion* find(Cache& cache, uint32_t cls, uint64_t path, bool path_dependent) const {
+    const Cache::Memo& memo = cache.memo[cls];
+    if (memo.stamp == cache.epoch && memo.valid && memo.path == (path_dependent ? path : 0)) {
+      ++cache.hits;
+      return memo.e;
+    }
+    GraphExpansion* e = const_cast<GraphExpansion*>(get(cache, cls, path, path_dependent).get());
+    if (!e->has_view) {  // the thread's own entry: no other thread sees it
+      const size_t before = e->bytes;
+      build_view(cache, e, cls, path);
+      cache.bytes += e->bytes - before;
+      cache.peak = std::max(cache.peak, cache.bytes);
     }
     return e;
   }
 
-  struct Frame {
-    std::shared_ptr<const GraphExpansion> e;
-    DVec3 o, d;
-    uint64_t key = 0;
-    uint32_t cls = 0, next = 0, index = 0;
-    const GraphChild* via = nullptr;
-  };
+  // Slab test of the box (lo, hi) against the ray of frame f over [t0, t1];
+  // true with *entry = the entry t if they meet. A zero direction component
+  // gives 0 * inf = NaN on a slab's boundary, which leaves the range as it is
+  // (the closed slab contains the ray); an empty box (lo > hi) never meets.
+  // The frame's near[a] / far[a] pick lo or hi by the sign of inv[a].
+  static bool slab(const GraphBox& box, const Frame& f, double t0, double t1, double* entry) {
+    const double* b = &box.lo.x;  // lo.x lo.y lo.z hi.x hi.y hi.z
+    static_assert(sizeof(GraphBox) == 6 * sizeof(double), "GraphBox is two DVec3");
+    const double nx = (b[f.near[0]] - f.o.x) * f.inv.x, fx = (b[f.far[0]] - f.o.x) * f.inv.x;
+    const double ny = (b[f.near[1]] - f.o.y) * f.inv.y, fy = (b[f.far[1]] - f.o.y) * f.inv.y;
+    const double nz = (b[f.near[2]] - f.o.z) * f.inv.z, fz = (b[f.far[2]] - f.o.z) * f.inv.z;
+    if (nx > t0) t0 = nx;
+    if (ny > t0) t0 = ny;
+    if (nz > t0) t0 = nz;
+    if (fx < t1) t1 = fx;
+    if (fy < t1) t1 = fy;
+    if (fz < t1) t1 = fz;
+    *entry = t0;
+    return t0 <= t1;
+  }
+
+  static void set_ray(Frame& f, DVec3 o, DVec3 d) {
+    f.o = o;
+    f.d = d;
+    f.inv = DVec3{1.0 / d.x, 1.0 / d.y, 1.0 / d.z};
+    for (int a = 0; a < 3; ++a) {
+      const bool neg = f.inv[a] < 0;  // -0 gives -inf: negative
+      f.near[a] = uint8_t(neg ? 3 + a : a);
+      f.far[a] = uint8_t(neg ? a : 3 + a);
+    }
+  }
 
   // Closest hit (hit != nullptr) or any hit (hit == nullptr) in [tnear, tfar).
   bool trace(DVec3 o, DVec3 d, double tnear, double tfar, GraphHit* hit) const {
     const GraphNodeClass& root = classes[0];
     if (!(tnear <= tfar) || !box_hit(root.lo, root.hi, o, d, tnear, tfar)) return false;
-    Cache& cache = caches.local();
-    std::array<Frame, kMaxGraphLevels + 1> frames;
+    Cache& cache = local_cache();
+    begin_trace(cache);
+    Frame* frames = cache.frames.data();
+    // Hops still to enter, nearest at the back: a per-thread array that only
+    // grows (written field by field: no store-forwarding stalls).
+    Pending* pend = cache.pending.data();
+    size_t npend = 0;
     double best = tfar;
     bool found = false;
+    // The closest hit so far; the hit record is made once at the end.
+    const GraphTracePrim* hit_tp = nullptr;
+    int hit_level = 0, hit_face = 0;
+    DVec3 hit_p;  // in the hit primitive's frame
+    const GraphHop* hit_via[kMaxGraphLevels + 1];
     csg::Crossing cr[csg::kMaxPrimitiveCrossings];
-    // Tests the primitives of frame `top`; true to stop (occlusion found).
-    auto prims = [&](int top) {
-      const Frame& f = frames[size_t(top)];
-      const auto& ps = f.e->prims;
-      for (size_t i = 0; i < ps.size(); ++i) {
-        const int n = csg::intersect(ps[i].prim, f.o, f.d, 0.0, cr);
-        for (int k = 0; k < n; ++k) {
-          const double t = cr[k].t;
-          if (t < tnear) continue;
-          if (t >= best) break;
-          found = true;
-          if (!hit) return true;
-          best = t;
-          hit->t = t;
-          hit->shape = ps[i].shape;
-          hit->material = ps[i].material;
-          hit->prim = uint32_t(i);
-          hit->levels = top;
-          for (int lev = 0; lev <= top; ++lev) {
-            hit->classes[lev] = frames[size_t(lev)].cls;
-            if (lev > 0) hit->path[lev - 1] = frames[size_t(lev)].index;
+    // Tests the primitives of the node at `level` and queues the hops that
+    // the ray meets before `best`, nearest last; true to stop (occlusion found).
+    auto visit = [&](int level) {
+      const Frame& f = frames[level];
+      const GraphExpansion& e = *f.e;
+      const size_t nh = e.hops.size();
+      if (npend + nh > cache.pending.size()) {
+        cache.pending.resize(2 * (npend + nh));
+        pend = cache.pending.data();
+      }
+      const size_t first = npend;
+      const GraphBox* pboxes = e.prim_boxes.data();
+      const GraphBox* hboxes = e.hop_boxes.data();
+      uint32_t p = 0, h = 0;
+      for (size_t gi = 0; gi < e.groups.size(); ++gi) {
+        const GraphGroup& grp = e.groups[gi];
+        double entry;
+        if (gi > 0 && !slab(grp.box, f, tnear, best, &entry)) {
+          p = grp.prim_end;
+          h = grp.hop_end;
+          continue;
+        }
+        DVec3 co = f.o, cd = f.d;  // the ray in the primitives' frame (an inlined child's: made when needed)
+        bool mapped = gi == 0;
+        for (; p < grp.prim_end; ++p) {
+          if (!slab(pboxes[p], f, tnear, best, &entry)) continue;
+          const GraphTracePrim& tp = e.tprims[p];
+          if (!mapped) {
+            co = grp.to_child.point(f.o);
+            cd = grp.to_child.vector(f.d);
+            mapped = true;
           }
-          hit->node_key = f.key;
-          hit->instance_key = child_key(f.key, uint32_t(i));
-          DVec3 nl = csg::normal(ps[i].prim, cr[k].face, f.o + t * f.d);
-          for (int lev = top; lev > 0; --lev) nl = frames[size_t(lev)].via->to_local.transpose_vector(nl);
-          hit->n = csg::normalize(nl);
-          break;
+          const int n = csg::intersect(tp.gp->prim, co, cd, 0.0, cr);
+          for (int k = 0; k < n; ++k) {
+            const double t = cr[k].t;
+            if (t < tnear) continue;
+            if (t >= best) break;
+            found = true;
+            if (!hit) return true;
+            best = t;
+            hit_tp = &tp;
+            hit_level = level;
+            hit_face = cr[k].face;
+            hit_p = co + t * cd;
+            for (int lev = 1; lev <= level; ++lev) hit_via[lev] = frames[lev].via;
+            break;
+          }
+        }
+        for (; h < grp.hop_end; ++h) {
+          if (!slab(hboxes[h], f, tnear, best, &entry)) continue;
+          // Insertion into this node's queued run, kept sorted with the nearest at the back.
+          size_t j = npend++;
+          while (j > first && pend[j - 1].t < entry) {
+            pend[j].t = pend[j - 1].t;
+            pend[j].level = pend[j - 1].level;
+            pend[j].hop = pend[j - 1].hop;
+            --j;
+          }
+          pend[j].t = entry;
+          pend[j].level = uint32_t(level);
+          pend[j].hop = h;
         }
       }
       return false;
     };
-    frames[0].e = get(cache, 0, root_key());
-    frames[0].o = o;
-    frames[0].d = d;
-    frames[0].key = root_key();
-    frames[0].cls = 0;
-    frames[0].next = 0;
-    int top = 0;
-    if (prims(0)) return true;
-    while (top >= 0) {
-      Frame& f = frames[size_t(top)];
-      const auto& ch = f.e->children;
-      bool pushed = false;
-      while (f.next < ch.size()) {
-        const uint32_t i = f.next++;
-        const GraphChild& c = ch[i];
-        if (!box_hit(c.lo, c.hi, f.o, f.d, tnear, best)) continue;
-        if (top + 1 > kMaxGraphLevels) {  // unreachable: levels are checked at set-up
-          ++cache.truncated;
-          continue;
-        }
-        Frame& g = frames[size_t(top + 1)];
-        g.o = c.to_local.point(f.o);
-        g.d = c.to_local.vector(f.d);
-        g.key = child_key(f.key, i);
-        g.cls = c.cls;
-        g.index = i;
-        g.next = 0;
-        g.via = &c;
-        g.e = get(cache, c.cls, g.key);
-        ++top;
-        if (prims(top)) return true;
-        pushed = true;
-        break;
+    Frame& f0 = frames[0];
+    f0.e = find(cache, 0, root_key_, classes[0].path_dependent);
+    set_ray(f0, o, d);
+    f0.key = root_key_;
+    f0.via = nullptr;
+    bool stop = visit(0);
+    while (!stop && npend > 0) {
+      --npend;
+      const double pt = pend[npend].t;
+      const uint32_t plevel = pend[npend].level, phop = pend[npend].hop;
+      if (pt > best) continue;  // a closer hit was found after it was queued
+      const Frame& f = frames[plevel];
+      const int level = int(plevel) + 1;
+      if (level > kMaxGraphLevels) {  // unreachable: a frame is at least one derivation step
+        ++cache.truncated;
+        continue;
       }
-      if (!pushed) {
-        frames[size_t(top)].e.reset();
-        --top;
+      const GraphHop& c = f.e->hops[phop];
+      Frame& g = frames[level];
+      if (c.mid) {  // through the inlined child's frame, as without inlining
+        const DVec3 mo = c.mid->point(f.o), md = c.mid->vector(f.d);
+        set_ray(g, c.to_local.point(mo), c.to_local.vector(md));
+      } else {
+        set_ray(g, c.to_local.point(f.o), c.to_local.vector(f.d));
       }
+      uint64_t key = 0;
+      if (c.path_dependent) {  // then so are the nodes above it
+        key = f.key;
+        if (c.steps == 2) key = child_key(key, c.index[0]);
+        key = child_key(key, c.index[c.steps - 1]);
+      }
+      g.key = key;
+      g.via = &c;
+      g.e = find(cache, c.cls, key, c.path_dependent);
+      stop = visit(level);
     }
+    if (found && hit) {
+      const GraphTracePrim& tp = *hit_tp;
+      int lv = 0;  // derivation steps from the root
+      hit->classes[0] = 0;
+      for (int lev = 1; lev <= hit_level; ++lev) {
+        const GraphHop& v = *hit_via[lev];
+        if (v.steps == 2) {
+          hit->path[lv] = v.index[0];
+          hit->classes[++lv] = v.mid_cls;
+        }
+        hit->path[lv] = v.index[v.steps - 1];
+        hit->classes[++lv] = v.cls;
+      }
+      if (tp.mid) {
+        hit->path[lv] = tp.child;
+        hit->classes[++lv] = tp.child_cls;
+      }
+      hit->t = best;
+      hit->levels = lv;
+      hit->shape = tp.gp->shape;
+      hit->material = tp.gp->material;
+      hit->prim = tp.prim;
+      DVec3 nl = csg::normal(tp.gp->prim, hit_face, hit_p);
+      if (tp.mid) nl = tp.mid->transpose_vector(nl);
+      for (int lev = hit_level; lev > 0; --lev) {
+        nl = hit_via[lev]->to_local.transpose_vector(nl);
+        if (hit_via[lev]->mid) nl = hit_via[lev]->mid->transpose_vector(nl);
+      }
+      hit->n = csg::normalize(nl);
+      hit->node_key = ancestor_key(*hit, hit->levels);
+      hit->instance_key = child_key(hit->node_key, hit->prim);
+    }
+    end_trace(cache);
     return found;
   }
 
-  uint64_t root_key() const { return splitmix64(opt.seed); }
+  uint64_t root_key() const { return root_key_; }
+  uint64_t ancestor_key(const GraphHit& hit, int level) const {
+    uint64_t k = root_key_;
+    for (int l = 0; l < std::min(level, hit.levels); ++l) k = Graph::child_key(k, hit.path[l]);
+    return k;
+  }
+
 
   // level: child steps from the root; key_level < 0: no keys; stub: the
   // ancestor key at key_level inherited from above.
@@ -675,7 +1066,9 @@ struct Graph::Impl {
                int key_level = -1, uint64_t stub = 0) const {
     if (out.truncated) return;
     if (level <= key_level) stub = key;
-    const auto e = get(caches.local(), cls, key);
+    Cache& cache = local_cache();
+    ready(cache);
+    const std::shared_ptr<const GraphExpansion> e = get(cache, cls, key);  // held: may be evicted below
     auto emit = [&](size_t from, size_t to) {
       for (size_t i = from; i < to; ++i) {
         if (out.primitives.size() >= cap) {
@@ -743,6 +1136,8 @@ Graph::Graph(const LSystem& system, const GraphOptions& options) : impl_(std::ma
       if (uses_rand(system.nodes, a))
         fail(PLM_ERROR_INVALID_ARGUMENT, "line ", system.axiom_line, ": axiom: rand() needs the flattened path");
   g.vars.assign(slots + 1, 0.0);
+  g.root_key_ = splitmix64(o.seed);
+  g.inline_views = o.cache_bytes == 0 || o.cache_bytes >= kGraphInlineMinCacheBytes;
   // The root: the axiom at depth D (its class depth is D + 1).
   GraphNodeClass root;
   root.symbol = kRoot;
@@ -752,7 +1147,11 @@ Graph::Graph(const LSystem& system, const GraphOptions& options) : impl_(std::ma
   g.classes.push_back(root);
   g.end.emplace_back();
   g.end_variable.push_back(0);
+  g.child_boxes.emplace_back();
+  g.skel.emplace_back();
+  g.grand_boxes.emplace_back();
   g.analyse(0);
+  g.skel = {};  // set-up only
 }
 
 Graph::~Graph() = default;
@@ -824,7 +1223,7 @@ FlattenResult Graph::flatten(size_t max_primitives, int key_level) const {
   return out;
 }
 
-const GraphHit& Graph::last_embree_hit() const { return impl_->caches.local().last_hit; }
+const GraphHit& Graph::last_embree_hit() const { return impl_->local_cache().last_hit; }
 
 // ---- Embree ----
 

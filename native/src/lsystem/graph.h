@@ -55,17 +55,34 @@
 //
 // Bounds: one unfolding over classes at set-up, bottom-up and memoised; a
 // stochastic class takes the union over its productions, so bounds never
-// depend on the path. Child bounds are the child class's box mapped by the
-// child's transform (8 corners) and padded by 1e-9 relative.
+// depend on the path. A child's bounds are the exact box, in the parent's
+// frame, of every primitive of the child's subtree (each primitive's exact
+// extent: sphere, cylinder / cone hull, box), found by unfolding the subtree
+// under the composed transforms; an unfolding that would visit more than
+// GraphOptions::bounds_budget nodes uses, where the budget runs out, the
+// class's own box mapped by its transform (8 corners): conservative, looser
+// only there. Boxes are padded by 1e-9 relative. A class box is the union of
+// its primitives' and children's boxes.
+//
+// Traversal: an expansion's traversal view (GraphExpansion::tprims, hops,
+// groups) inlines its small children, so one visit covers two derivation
+// steps: a node's cache entry is looked up once per two levels. Every primitive, inlined child and hop has
+// its box in the node's frame, tested with the frame's inverse direction
+// before any transform or intersection. Hops are entered front to back
+// (sorted by box entry, skipped once the entry lies beyond the closest hit so
+// far). The hit record (path, classes per level, keys, normal) is made once
+// per ray, from the hops that led to the closest hit.
 //
 // Threads: the graph (classes, bounds) is immutable after set-up. Each thread
 // that traces gets its own LRU cache of expansions (tbb::enumerable_thread_
 // specific inside the Graph): no lock and no shared atomic per ray; the cost
 // is that every thread expands (and holds up to the capacity of) its own
-// copies. Expansions are held by shared_ptr on the traversal stack, so an
-// eviction during a traversal never frees a node in use; a capacity below
-// the depth is exceeded by the nodes in use. stats() sums the thread caches;
-// call it and reset_cache() while no thread traces.
+// copies. A traversal holds plain pointers to expansions: every entry it
+// looked up is stamped with the traversal's number and not evicted before the
+// traversal ends, so a capacity below what one ray touches is exceeded by
+// those entries until the ray ends (then the cache is trimmed back to its
+// capacity). stats() sums the thread caches; call it and reset_cache() while
+// no thread traces.
 #pragma once
 
 #include <embree3/rtcore.h>
@@ -95,6 +112,7 @@ struct GraphOptions {
   size_t max_classes_per_symbol_depth = 64;
   size_t cache_entries = 4096;    // per thread; 0: no limit on entries
   size_t cache_bytes = 64u << 20; // per thread; 0: no limit on bytes
+  size_t bounds_budget = 1u << 15; // nodes one child's exact-bounds unfolding may visit (see Bounds)
 };
 
 // A primitive of an expansion, in the node's local frame.
@@ -104,11 +122,62 @@ struct GraphPrimitive {
   csg::Primitive prim;
 };
 
+struct GraphBox {
+  csg::DVec3 lo, hi;             // lo > hi: empty
+};
+
 struct GraphChild {
   uint32_t cls;                  // node class of the child
+  bool path_dependent;           // the child class's path_dependent
   csg::Affine to_parent;         // child frame -> parent frame (rigid)
   csg::Affine to_local;          // its inverse
-  csg::DVec3 lo, hi;             // child bounds in the parent frame
+  csg::DVec3 lo, hi;             // child bounds in the parent frame (exact subtree box, see Bounds)
+};
+
+// The traversal's view of an expansion. Small children (at most
+// kGraphInlineItems primitives and children) are inlined: their primitives
+// (boxes in the node's frame) are tested within the node's visit, and their
+// children become the node's hops (two steps down), so a cache entry is
+// looked up and the queue of hops grows once per two levels. Groups: 0 holds the node's own primitives
+// and its children that are not inlined; each further group an inlined child,
+// tested against that child's box first. The view is made when a ray first
+// enters an expansion: with inlining a miss costs the expansion of the node
+// and of its children, and a view holds ~3x the bytes of the plain
+// expansion, so a small cache thrashes sooner and pays more per miss: with
+// GraphOptions::cache_bytes below kGraphInlineMinCacheBytes views inline
+// nothing (one visit per level). Results do not depend on it.
+constexpr size_t kGraphInlineItems = 16;
+constexpr size_t kGraphInlineMinCacheBytes = size_t(1) << 20;
+
+// Rays and primitives keep the frames of the graph: an inlined child's
+// primitive is intersected in the child's frame and a grandchild's ray is
+// mapped through the child's frame, with the same arithmetic as without
+// inlining, so hits are bit for bit those of the plain traversal (up to which
+// of two coincident primitives wins a tie in t).
+
+// A node below this one that the traversal enters.
+struct GraphHop {
+  csg::Affine to_local;          // the frame one step above the target -> the target's frame
+  const csg::Affine* mid;        // steps 2: this node's frame -> the inlined child's (its group's to_child)
+  uint32_t cls;                  // the target's class
+  bool path_dependent;           // the target class's path_dependent
+  uint8_t steps;                 // 1: a child; 2: a grandchild through an inlined child
+  uint32_t index[2];             // child index at each step
+  uint32_t mid_cls;              // steps 2: the inlined child's class
+};
+
+// A primitive the traversal tests (its box in this node's frame).
+struct GraphTracePrim {
+  const GraphPrimitive* gp;      // the node's own (prims), or an inlined child's, in that child's frame
+  const csg::Affine* mid;        // an inlined child's: this node's frame -> the child's, else null
+  uint32_t prim;                 // its index in its own node's expansion
+  uint32_t child, child_cls;     // an inlined child's: the child's index and class
+};
+
+struct GraphGroup {
+  GraphBox box;                  // group 0: not tested
+  uint32_t prim_end, hop_end;    // its primitives and hops: from the previous group's ends to these
+  csg::Affine to_child;          // an inlined child's: this node's frame -> the child's
 };
 
 // One expanded instance: what the turtle drew and the child references.
@@ -116,6 +185,16 @@ struct GraphExpansion {
   std::vector<GraphPrimitive> prims;
   std::vector<GraphChild> children;
   std::vector<uint32_t> prims_before;  // per child: primitives drawn before it (successor order)
+  uint32_t alt = 0;                    // the production expanded
+  // The traversal's view (see above; made when a ray first enters the
+  // expansion, not by flatten()); boxes in the node frame, padded.
+  bool has_view = false;
+  std::vector<GraphPrimitive> inlined_prims;  // inlined children's primitives (copies, in their frames)
+  std::vector<GraphTracePrim> tprims;
+  std::vector<GraphBox> prim_boxes;    // per tprim: its exact box
+  std::vector<GraphHop> hops;
+  std::vector<GraphBox> hop_boxes;     // per hop: the target's subtree box
+  std::vector<GraphGroup> groups;
   size_t bytes = 0;
 };
 
@@ -139,8 +218,9 @@ struct GraphHit {
   int32_t material = 0;
   uint32_t prim = 0;             // index in the hit node's expansion
   int levels = 0;                // child steps from the root to the hit node
-  uint32_t path[kMaxGraphLevels] = {};         // child index at each step
-  uint32_t classes[kMaxGraphLevels + 1] = {};  // node class at each level (0: the root)
+  // Valid up to `levels` (not cleared beyond: a hit record is made per ray).
+  uint32_t path[kMaxGraphLevels];              // child index at each step
+  uint32_t classes[kMaxGraphLevels + 1];       // node class at each level (0: the root)
   uint64_t node_key = 0;         // path key of the hit node
   uint64_t instance_key = 0;     // child_key(node_key, prim): the primitive instance
 };
