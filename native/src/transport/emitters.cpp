@@ -498,4 +498,37 @@ DirectSample sample_direct(const Emitter& e, Vec3 p, Vec3 n, const float u[3]) {
   return s;
 }
 
+float unoccluded_irradiance(const Emitter& e, Vec3 p, Vec3 n) {
+  const float L = average(e.radiance);
+  switch (e.kind) {
+    case EmitterKind::Point:
+    case EmitterKind::Spot: {
+      const Vec3 v = e.origin - p;
+      const float d2 = dot(v, v);
+      if (!(d2 > 0.0f)) return 0.0f;
+      const Vec3 w = v / std::sqrt(d2);
+      const float att = e.kind == EmitterKind::Spot ? spot_attenuation(-dot(w, e.normal), e.cos_half, e.spot_smooth) : 1.0f;
+      return L * att * std::max(dot(n, w), 0.0f) / (d2 + e.radius * e.radius);
+    }
+    case EmitterKind::Sun:
+      return L * std::max(-dot(n, e.normal), 0.0f);
+    case EmitterKind::World:
+      return L * kPi;
+    case EmitterKind::AreaRect:
+    case EmitterKind::AreaDisk:
+    case EmitterKind::Triangle: {
+      const Vec3 centre = e.kind == EmitterKind::Triangle ? e.origin + (e.axis_u + e.axis_v) * (1.0f / 3.0f) : e.origin;
+      const Vec3 v = centre - p;
+      // The distance is kept above the light's size: close up the centre is no guide.
+      const float d2 = std::max(dot(v, v), e.area);
+      if (!(d2 > 0.0f)) return 0.0f;
+      const Vec3 w = v * (1.0f / std::sqrt(dot(v, v) + 1e-30f));
+      float cos_l = -dot(e.normal, w);
+      if (e.kind == EmitterKind::Triangle) cos_l = std::fabs(cos_l);
+      return L * e.area * std::max(cos_l, 0.0f) * std::max(dot(n, w), 0.0f) / d2;
+    }
+  }
+  return 0.0f;
+}
+
 }  // namespace plm

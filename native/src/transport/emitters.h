@@ -104,4 +104,9 @@ struct DirectSample {
 };
 DirectSample sample_direct(const Emitter& e, Vec3 p, Vec3 n, const float u[3]);
 
+// A cheap guess of the irradiance (mean of RGB) e gives p if nothing is in the
+// way, from the light's centre: for choosing lights per point, not a value.
+// 0 where it cannot reach p from its centre (it may still reach p by its rim).
+float unoccluded_irradiance(const Emitter& e, Vec3 p, Vec3 n);
+
 }  // namespace plm
