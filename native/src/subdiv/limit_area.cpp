@@ -73,21 +73,10 @@ ol::AreaEstimate estimate_limit_area(const std::string& owner, const Cage& c, co
   std::unique_ptr<Far::PatchTable> table(Far::PatchTableFactory::Create(*refiner, po));
   if (!table) fail(PLM_ERROR_INTERNAL, owner, ": OpenSubdiv could not build the limit-surface patches");
 
-  // Control points: the adaptive hierarchy's vertices, then the end caps' local points.
-  Far::PrimvarRefiner primvar(*refiner);
-  std::vector<Point3> cv(size_t(refiner->GetNumVerticesTotal() + table->GetNumLocalPoints()));
+  std::vector<Point3> base(c.vertex_count);
   for (uint32_t i = 0; i < c.vertex_count; ++i)
-    cv[i] = Point3{c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]};
-  size_t offset = 0;
-  for (int l = 1; l <= refiner->GetMaxLevel(); ++l) {
-    const size_t n_parent = size_t(refiner->GetLevel(l - 1).GetNumVertices());
-    Point3* src = cv.data() + offset;
-    Point3* dst = src + n_parent;
-    primvar.Interpolate(l, src, dst);
-    offset += n_parent;
-  }
-  if (table->GetNumLocalPoints() > 0)
-    table->ComputeLocalPointValues(cv.data(), cv.data() + refiner->GetNumVerticesTotal());
+    base[i] = Point3{c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]};
+  const std::vector<Point3> cv = detail::patch_control_points(*refiner, *table, base);
 
   // k x k strata per ptex face, k even (strata pair up along rows).
   const Far::PtexIndices ptex(*refiner);

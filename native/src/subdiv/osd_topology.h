@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include <opensubdiv/far/patchTable.h>
+#include <opensubdiv/far/primvarRefiner.h>
 #include <opensubdiv/far/topologyDescriptor.h>
 #include <opensubdiv/far/topologyRefinerFactory.h>
 
@@ -79,6 +81,26 @@ inline std::unique_ptr<OpenSubdiv::Far::TopologyRefiner> blender_refiner(
   std::unique_ptr<OpenSubdiv::Far::TopologyRefiner> refiner(RefinerFactory::Create(desc, blender_options()));
   if (!refiner) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": OpenSubdiv rejected the cage topology");
   return refiner;
+}
+
+// The control points of `table` (built from `refiner`): the base vertices, every vertex of
+// the adaptive hierarchy level by level, then the end caps' local points.
+inline std::vector<Point3> patch_control_points(const OpenSubdiv::Far::TopologyRefiner& refiner,
+                                                const OpenSubdiv::Far::PatchTable& table,
+                                                const std::vector<Point3>& base) {
+  OpenSubdiv::Far::PrimvarRefiner primvar(refiner);
+  std::vector<Point3> cv(size_t(refiner.GetNumVerticesTotal() + table.GetNumLocalPoints()));
+  std::copy(base.begin(), base.end(), cv.begin());
+  size_t offset = 0;
+  for (int l = 1; l <= refiner.GetMaxLevel(); ++l) {
+    const size_t n_parent = size_t(refiner.GetLevel(l - 1).GetNumVertices());
+    Point3* src = cv.data() + offset;
+    Point3* dst = src + n_parent;
+    primvar.Interpolate(l, src, dst);
+    offset += n_parent;
+  }
+  if (table.GetNumLocalPoints() > 0) table.ComputeLocalPointValues(cv.data(), cv.data() + refiner.GetNumVerticesTotal());
+  return cv;
 }
 
 }  // namespace plm::subdiv::detail

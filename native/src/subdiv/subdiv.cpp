@@ -165,20 +165,8 @@ void evaluate_patches(const Far::TopologyDescriptor& desc,
   std::unique_ptr<Far::PatchTable> table(Far::PatchTableFactory::Create(*refiner, po));
   if (!table) fail(PLM_ERROR_INTERNAL, owner, ": OpenSubdiv could not build the limit-surface patches");
 
-  // Control points: every refined vertex of the adaptive hierarchy, then the end caps' local points.
+  const std::vector<Point3> cv = detail::patch_control_points(*refiner, *table, base_vertex);
   Far::PrimvarRefiner primvar(*refiner);
-  std::vector<Point3> cv(size_t(refiner->GetNumVerticesTotal() + table->GetNumLocalPoints()));
-  std::copy(base_vertex.begin(), base_vertex.end(), cv.begin());
-  size_t offset = 0;
-  for (int l = 1; l <= refiner->GetMaxLevel(); ++l) {
-    const size_t n_parent = size_t(refiner->GetLevel(l - 1).GetNumVertices());
-    Point3* src = cv.data() + offset;
-    Point3* dst = src + n_parent;
-    primvar.Interpolate(l, src, dst);
-    offset += n_parent;
-  }
-  if (table->GetNumLocalPoints() > 0)
-    table->ComputeLocalPointValues(cv.data(), cv.data() + refiner->GetNumVerticesTotal());
   std::vector<Point2> fv;
   if (fvar) {
     fv.resize(size_t(refiner->GetNumFVarValuesTotal(0) + table->GetNumLocalPointsFaceVarying(0)));
