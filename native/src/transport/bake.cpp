@@ -41,6 +41,9 @@ double seconds_since(Clock::time_point t0) {
 // is checked at fixed batch counts, so where a bake stops is deterministic too.
 constexpr uint32_t kBatchPhotons = 4096;
 constexpr uint64_t kCheckBatches = 16;
+// With a target error the direct pass starts with at most this many samples
+// per texel and adds more where its noise is (bake(), "Direct pass").
+constexpr uint32_t kFirstTargetSamples = 16;
 
 struct Hit {
   uint32_t texel;  // global texel index over all lightmaps
@@ -1036,21 +1039,29 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     DirectPass pass(accel.handle(), views, csg_views, areas, emitters, settings, extent, textures.get());
     std::vector<uint32_t> todo(covered.size());
     for (uint32_t i = 0; i < todo.size(); ++i) todo[i] = i;
-    // Round r adds direct_samples * 2^min(r, 8) samples to the texels still
-    // above the limit: texels that see a light rarely (the sky through a
-    // window) need thousands.
+    // Round 0 gives every texel direct_samples (with a target at most
+    // kFirstTargetSamples: the rest goes where the noise is). Later rounds:
+    // texels without two samples yet get direct_samples * 2^round (texels
+    // that see a light rarely, the sky through a window, need thousands);
+    // with a target, while the direct part's RMS error is above 0.7 x target
+    // (the rest of the budget is the photons'), each texel gets its share of
+    // the fewest samples that reach it: n_i = sigma_i * sum_j sigma_j / budget
+    // for per-sample deviations sigma_i (minimises sum n_i for sum sigma_i^2 /
+    // n_i = budget), re-estimated after each round.
+    const bool targeted = settings.target_error > 0.0;
+    const uint32_t first = targeted ? std::min(settings.direct_samples, kFirstTargetSamples) : settings.direct_samples;
+    std::vector<uint32_t> want(covered.size(), first);
     const uint32_t max_rounds = 16;
     for (uint32_t round = 0; round < max_rounds && !todo.empty(); ++round) {
-      const uint32_t samples = settings.direct_samples << std::min(round, 8u);
       const double r0 = 0.05 + (direct_end - 0.05) * round / max_rounds;
       const double r1 = 0.05 + (direct_end - 0.05) * (round + 1) / max_rounds;
       run_in_groups(
           arena, todo.size(), 64,
-          [&](uint64_t first, uint64_t n) {
-            tbb::parallel_for(tbb::blocked_range<uint64_t>(first, first + n, 16), [&](const auto& r) {
+          [&](uint64_t first_texel, uint64_t n) {
+            tbb::parallel_for(tbb::blocked_range<uint64_t>(first_texel, first_texel + n, 16), [&](const auto& r) {
               for (uint64_t k = r.begin(); k < r.end(); ++k) {
                 const CoveredTexel& c = covered[todo[k]];
-                pass.sample_texel(c.mesh, c.texel, round, samples, direct[todo[k]]);
+                pass.sample_texel(c.mesh, c.texel, round, want[todo[k]], direct[todo[k]]);
               }
             });
           },
@@ -1058,11 +1069,6 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
             report(r0 + (r1 - r0) * double(done) / double(todo.size()), "direct light");
             return true;
           });
-      // Next round: texels without two samples yet; and with a target, while
-      // the direct part's RMS error is above 0.7 x target (leaving the rest of
-      // the error budget to the photons), the texels of above-average
-      // variance: the RMS falls fastest there, and shadow-edge texels are not
-      // driven to the target one by one.
       double mean = 0.0, all_sq = 0.0, all_count = 0.0, mean_var = 0.0;
       for (const DirectSums& d : direct) {
         mean += d.mean();
@@ -1072,14 +1078,29 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
       const double texels = double(std::max<size_t>(direct.size(), 1));
       mean /= texels;
       direct_noise.typical = all_count > 0.0 ? std::sqrt(all_sq / all_count) : 0.0;
-      if (round == 0 && settings.sampler != PLM_SAMPLER_RANDOM) direct_noise.scale = calibrate_direct(arena, pass, covered, direct, samples);
+      if (round == 0 && settings.sampler != PLM_SAMPLER_RANDOM) direct_noise.scale = calibrate_direct(arena, pass, covered, direct, first);
       for (const DirectSums& d : direct) mean_var += d.variance_of_mean(direct_noise);
       mean_var /= texels;
-      const bool refine = settings.target_error > 0.0 && std::sqrt(mean_var) > 0.7 * settings.target_error * mean;
+      const double allowed = 0.7 * settings.target_error * mean;
+      const bool refine = targeted && std::sqrt(mean_var) > allowed;
+      double sum_sigma = 0.0;
+      if (refine)
+        for (const DirectSums& d : direct) sum_sigma += std::sqrt(d.variance_of_mean(direct_noise) * std::max(d.count, 1u));
+      const double budget = allowed * allowed * texels;
       std::vector<uint32_t> next;
       for (uint32_t i = 0; i < direct.size(); ++i) {
-        const bool noisy = refine && direct[i].variance_of_mean(direct_noise) > mean_var;
-        if (direct[i].count < 2 || noisy) next.push_back(i);
+        const DirectSums& d = direct[i];
+        double extra = 0.0;
+        if (refine) {
+          const double sigma = std::sqrt(d.variance_of_mean(direct_noise) * std::max(d.count, 1u));
+          extra = sigma * sum_sigma / budget - double(d.count);
+          if (extra < std::max(1.0, 0.25 * d.count)) extra = 0.0;  // not worth a round
+        }
+        if (d.count < 2) extra = std::max(extra, double(settings.direct_samples) * double(1u << std::min(round + 1, 8u)));
+        if (extra > 0.0) {
+          want[i] = uint32_t(std::min(std::ceil(extra), 65536.0));
+          next.push_back(i);
+        }
       }
       todo.swap(next);
       if (over_budget(photon_pass ? 0.5 : 0.95)) break;
