@@ -249,7 +249,7 @@ class PhotonTracer {
       s.weight = textures_->emission(*views_[em.mesh].mesh, em.material, em.triangle, s.bu, s.bv, tex_thread) *
                  (2.0f * kPi * em.area);
     Vec3 flux = s.weight * (1.0f / table_.probability(k));
-    if (max_component(flux) <= 0.0f) return;
+    if (!(flux.x > 0.0f || flux.y > 0.0f || flux.z > 0.0f)) return;  // max_component(flux) <= 0 without a libm fmaxf call
 
     TraceContext tc;
     Vec3 org = s.origin, dir = s.direction;
@@ -1040,7 +1040,8 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     std::vector<uint32_t> todo(covered.size());
     for (uint32_t i = 0; i < todo.size(); ++i) todo[i] = i;
     // Round 0 gives every texel direct_samples (with a target at most
-    // kFirstTargetSamples: the rest goes where the noise is). Later rounds:
+    // kFirstTargetSamples, and if that is not enough, round 1 the rest of
+    // direct_samples: loose targets are met sooner). Later rounds:
     // texels without two samples yet get direct_samples * 2^round (texels
     // that see a light rarely, the sky through a window, need thousands);
     // with a target, while the direct part's RMS error is above 0.7 x target
@@ -1069,15 +1070,18 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
             report(r0 + (r1 - r0) * double(done) / double(todo.size()), "direct light");
             return true;
           });
-      double mean = 0.0, all_sq = 0.0, all_count = 0.0, mean_var = 0.0;
+      // typical: a sample's RMS in a typical texel (each texel weighs the
+      // same, however many samples the allocation gave it).
+      double mean = 0.0, texel_sq = 0.0, sampled = 0.0, mean_var = 0.0;
       for (const DirectSums& d : direct) {
         mean += d.mean();
-        all_sq += d.sum_sq;
-        all_count += d.count;
+        if (d.count == 0) continue;
+        texel_sq += d.sum_sq / d.count;
+        sampled += 1.0;
       }
       const double texels = double(std::max<size_t>(direct.size(), 1));
       mean /= texels;
-      direct_noise.typical = all_count > 0.0 ? std::sqrt(all_sq / all_count) : 0.0;
+      direct_noise.typical = sampled > 0.0 ? std::sqrt(texel_sq / sampled) : 0.0;
       if (round == 0 && settings.sampler != PLM_SAMPLER_RANDOM) direct_noise.scale = calibrate_direct(arena, pass, covered, direct, first);
       for (const DirectSums& d : direct) mean_var += d.variance_of_mean(direct_noise);
       mean_var /= texels;
@@ -1086,15 +1090,24 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
       double sum_sigma = 0.0;
       if (refine)
         for (const DirectSums& d : direct) sum_sigma += std::sqrt(d.variance_of_mean(direct_noise) * std::max(d.count, 1u));
-      const double budget = allowed * allowed * texels;
+      // Far from the target a round aims at twice the allowed variance:
+      // stratified samples converge faster than the 1 / n this allocation
+      // assumes, so the remainder is left to the next round's new estimate.
+      const double aim = mean_var > 4.0 * allowed * allowed ? 2.0 : 1.0;
+      const double budget = aim * allowed * allowed * texels;
       std::vector<uint32_t> next;
+      // First up to direct_samples everywhere: with few samples the phantom
+      // sample (variance_of_mean) still dominates the estimate of dark texels.
+      const bool top_up = refine && round == 0 && first < settings.direct_samples;
       for (uint32_t i = 0; i < direct.size(); ++i) {
         const DirectSums& d = direct[i];
         double extra = 0.0;
-        if (refine) {
+        if (top_up) {
+          extra = double(settings.direct_samples - first);
+        } else if (refine) {
           const double sigma = std::sqrt(d.variance_of_mean(direct_noise) * std::max(d.count, 1u));
           extra = sigma * sum_sigma / budget - double(d.count);
-          if (extra < std::max(1.0, 0.25 * d.count)) extra = 0.0;  // not worth a round
+          if (extra < 1.0) extra = 0.0;
         }
         if (d.count < 2) extra = std::max(extra, double(settings.direct_samples) * double(1u << std::min(round + 1, 8u)));
         if (extra > 0.0) {
