@@ -69,3 +69,23 @@ TEST(Sobol, KeysRandomiseDeterministically) {
 }
 
 }  // namespace
+
+// The byte tables give exactly the XOR of the direction numbers of the
+// index's set bits (the definition), for every dimension and any index.
+TEST(Sobol, ByteTablesMatchTheDirectionNumbers) {
+  using namespace plm::sobol_detail;
+  plm::Rng rng(7, 1);
+  for (int n = 0; n < 20000; ++n) {
+    const uint32_t index = n < 1000 ? uint32_t(n) : rng.next_u32();
+    for (int dim = 1; dim < 4; ++dim) {
+      uint32_t x = 0;
+      for (int k = 0; k < 32; ++k)
+        if ((index >> k) & 1u) x ^= kDirections[dim - 1][k];
+      ASSERT_EQ(sobol(index, dim), x) << "index " << index << " dimension " << dim;
+    }
+  }
+  // Known start of dimension 2 (x_k = x_{k-1} ^ v_{gray change}): 1/2, 3/4, 1/4.
+  EXPECT_EQ(sobol(1, 1), 0x80000000u);
+  EXPECT_EQ(sobol(2, 1), 0xC0000000u);
+  EXPECT_EQ(sobol(3, 1), 0x40000000u);
+}

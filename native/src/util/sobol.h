@@ -47,14 +47,29 @@ constexpr std::array<uint32_t, 32> directions(uint32_t s, uint32_t a, std::array
 constexpr std::array<std::array<uint32_t, 32>, 3> kDirections = {
     directions(1, 0, {1, 0, 0}), directions(2, 1, {1, 3, 0}), directions(3, 1, {1, 3, 1})};
 
-// Sobol coordinate `dim` (0-3) of point `index`, as a 32-bit fraction.
+// The XOR of the direction numbers selected by each byte value at each byte
+// position of the index: a coordinate is then four lookups, not a loop over
+// the (shuffled, so ~32-bit) index's bits. 12 KiB for dimensions 2-4.
+constexpr std::array<std::array<uint32_t, 1024>, 3> byte_tables() {
+  std::array<std::array<uint32_t, 1024>, 3> t{};
+  for (int d = 0; d < 3; ++d)
+    for (int byte = 0; byte < 4; ++byte)
+      for (uint32_t value = 0; value < 256; ++value) {
+        uint32_t x = 0;
+        for (int bit = 0; bit < 8; ++bit)
+          if ((value >> bit) & 1u) x ^= kDirections[d][8 * byte + bit];
+        t[d][256 * byte + value] = x;
+      }
+  return t;
+}
+inline constexpr std::array<std::array<uint32_t, 1024>, 3> kByteTables = byte_tables();
+
+// Sobol coordinate `dim` (0-3) of point `index`, as a 32-bit fraction: the
+// XOR of the direction numbers of the index's set bits.
 inline uint32_t sobol(uint32_t index, int dim) {
   if (dim == 0) return reverse_bits(index);
-  uint32_t x = 0;
-  const std::array<uint32_t, 32>& v = kDirections[dim - 1];
-  for (int k = 0; index; index >>= 1, ++k)
-    if (index & 1u) x ^= v[k];
-  return x;
+  const uint32_t* t = kByteTables[dim - 1].data();
+  return t[index & 255u] ^ t[256 + ((index >> 8) & 255u)] ^ t[512 + ((index >> 16) & 255u)] ^ t[768 + (index >> 24)];
 }
 
 // Nested uniform scrambling (an Owen scramble) of a 32-bit fraction: each bit
