@@ -1,6 +1,7 @@
 // Ray cost of an L-system traced as a cyclic scene graph against the same
 // plant flattened (issue 6; docs/benchmarks.md, "L-system objects").
 //   build/bin/photonlm_bench_lsystem [--depth 15] [--rays 200000] [--repeats 5] [--bounds-budget N]
+//                                    [--cache-bytes N: the graph's per-thread cache, default 64 MiB]
 //                                    [--summary: only the summary | --no-summary] [Google Benchmark flags]
 //
 // The plant is docs/bench_lsystem.py's SYMPODIAL_TREE (the add-on preset with
@@ -63,6 +64,7 @@ int g_depth = 15;
 size_t g_rays = 200000;
 int g_repeats = 5;
 long long g_budget = -1;  // < 0: GraphOptions' default
+long long g_cache_bytes = -1;  // < 0: GraphOptions' default (64 MiB)
 
 // ---- the flattened plant: csg::intersect per primitive in Embree's BVH ----
 
@@ -153,6 +155,7 @@ struct Setup {
     ls::GraphOptions o;
     o.depth = g_depth;
     if (g_budget >= 0) o.bounds_budget = size_t(g_budget);
+    if (g_cache_bytes >= 0) o.cache_bytes = size_t(g_cache_bytes);
     auto t0 = std::chrono::steady_clock::now();
     graph = std::make_unique<ls::Graph>(ls::parse(kTree), o);
     graph_scene = rtcNewScene(device);
@@ -354,9 +357,11 @@ void summary() {
                   gn, fn, cn, gn / fn, gn / cn, differ);
     }
   const ls::GraphStats after = s.graph->stats();
-  std::printf("graph cache: %zu entries, %.3f MB, hit rate %.4f\n", after.cached_entries,
-              double(after.cached_bytes) / 1e6,
-              double(after.cache_hits) / double(std::max<uint64_t>(1, after.cache_hits + after.cache_misses)));
+  std::printf("graph cache (limit %lld bytes): %zu entries, %.3f MB, peak %.3f MB, hit rate %.4f, %llu misses (%llu not admitted)\n",
+              g_cache_bytes < 0 ? (long long)ls::GraphOptions{}.cache_bytes : g_cache_bytes, after.cached_entries,
+              double(after.cached_bytes) / 1e6, double(after.peak_cached_bytes) / 1e6,
+              double(after.cache_hits) / double(std::max<uint64_t>(1, after.cache_hits + after.cache_misses)),
+              (unsigned long long)after.cache_misses, (unsigned long long)after.bypassed);
   std::fflush(stdout);
 }
 
@@ -386,6 +391,8 @@ int main(int argc, char** argv) {
       g_repeats = std::max(1, std::atoi(argv[++i]));
     } else if (a == "--bounds-budget" && i + 1 < argc) {
       g_budget = std::atoll(argv[++i]);
+    } else if (a == "--cache-bytes" && i + 1 < argc) {
+      g_cache_bytes = std::atoll(argv[++i]);
     } else if (a == "--summary") {
       summary_only = true;
     } else if (a == "--no-summary") {

@@ -26,6 +26,42 @@ using csg::Affine;
 using csg::DVec3;
 
 namespace {
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+}  // namespace
+
+// graph.h: make_primitive's arithmetic for every field but area[]
+// (LSystemGraph.TracePrimitiveMatchesMakePrimitive).
+csg::Primitive trace_primitive(const csg::PrimitiveDesc& desc) {
+  csg::Primitive p{};
+  p.shape = desc.shape;
+  p.major = desc.major_radius;
+  p.minor = desc.minor_radius;
+  std::copy(desc.to_world, desc.to_world + 12, p.to_world.m);
+  p.to_local = csg::inverse(p.to_world);
+  const DVec3 c0 = p.to_world.column(0), c1 = p.to_world.column(1), c2 = p.to_world.column(2);
+  const double l0 = csg::length(c0), l1 = csg::length(c1), l2 = csg::length(c2),
+               lmax = std::fmax(l0, std::fmax(l1, l2));
+  p.size = lmax;
+  double frob = 0;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) frob += p.to_local.m[4 * r + c] * p.to_local.m[4 * r + c];
+  p.stretch = std::sqrt(frob);
+  const double e = 1e-12 * lmax * lmax;
+  p.similarity = std::fabs(l0 - l1) <= 1e-12 * lmax && std::fabs(l0 - l2) <= 1e-12 * lmax &&
+                 std::fabs(dot(c0, c1)) <= e && std::fabs(dot(c1, c2)) <= e && std::fabs(dot(c0, c2)) <= e;
+  p.area_weight_max = std::fabs(p.to_world.det()) * p.stretch;
+  for (double& a : p.area) a = std::numeric_limits<double>::quiet_NaN();
+  p.lo = {kInfinity, kInfinity, kInfinity};
+  p.hi = -p.lo;
+  for (int i = 0; i < 8; ++i) {  // the local box is [-1, 1]^3 for these shapes
+    const DVec3 corner = p.to_world.point({(i & 1) ? 1.0 : -1.0, (i & 2) ? 1.0 : -1.0, (i & 4) ? 1.0 : -1.0});
+    p.lo = csg::min(p.lo, corner);
+    p.hi = csg::max(p.hi, corner);
+  }
+  return p;
+}
+
+namespace {
 
 constexpr uint32_t kRoot = std::numeric_limits<uint32_t>::max();
 constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -244,6 +280,7 @@ struct Graph::Impl {
   // boxes of the child's children in the class frame (for inlining).
   std::vector<std::vector<std::vector<std::vector<std::vector<GraphBox>>>>> grand_boxes;
   uint64_t root_key_ = 0;
+  DVec3 world_lo{kInf, kInf, kInf}, world_hi{-kInf, -kInf, -kInf};  // see Graph::world_bounds_lo()
   bool inline_views = true;  // see kGraphInlineMinCacheBytes
 
   // A level of the traversal: the node's expansion and the ray in its frame.
@@ -263,7 +300,7 @@ struct Graph::Impl {
   struct Cache {
     struct Entry {
       CacheKey key;
-      std::shared_ptr<const GraphExpansion> e;  // shared: flatten() holds expansions across evictions
+      std::shared_ptr<const GraphExpansion> e;
       uint64_t stamp;                           // the traversal that last looked it up
     };
     std::list<Entry> lru;  // front: most recently used
@@ -276,10 +313,15 @@ struct Graph::Impl {
       std::list<Entry>::iterator it;
       uint64_t stamp = 0;                   // it->stamp, read without touching the list
       const GraphExpansion* e = nullptr;    // it->e.get()
+      bool transient = false;               // e is in `transient`, not in the list (it is not valid)
+      uint32_t freq = 0;                    // the class's recent lookups (see admit())
     };
     std::vector<Memo> memo;
+    // Expansions that a full cache did not admit: held until the traversal ends.
+    std::vector<std::pair<uint32_t, std::shared_ptr<const GraphExpansion>>> transient;
+    uint64_t lookups = 0;                   // since the frequencies were last halved
     size_t bytes = 0, peak = 0;
-    uint64_t hits = 0, misses = 0, evictions = 0, truncated = 0;
+    uint64_t hits = 0, misses = 0, evictions = 0, truncated = 0, bypassed = 0;
     GraphHit last_hit;
     // The running traversal (0: none): its entries are not evicted.
     uint64_t epoch = 0, tick = 0;
@@ -317,7 +359,32 @@ struct Graph::Impl {
   }
   void end_trace(Cache& cache) const {
     cache.epoch = 0;
+    for (const auto& t : cache.transient) {
+      Cache::Memo& m = cache.memo[t.first];
+      if (m.transient) m = {false, 0, {}, 0, nullptr, false, m.freq};
+    }
+    cache.transient.clear();
     trim(cache);
+  }
+  // Admission (scan resistance): a miss is cached when the cache has room
+  // for it, or when its class was looked up more often lately than the class
+  // of the entry it would evict first; otherwise it is held for the running
+  // traversal only. Plain LRU lets the many cold nodes deep in a plant push
+  // out the nodes that most rays visit, once the working set exceeds the
+  // cache (the tree of docs/benchmarks.md at 64 KiB). Frequencies count
+  // lookups per class (hits and misses), halved every 16 lookups per class.
+  bool admit(const Cache& cache, uint32_t cls, size_t bytes) const {
+    const bool full = (opt.cache_bytes && cache.bytes + bytes > opt.cache_bytes) ||
+                      (opt.cache_entries && cache.lru.size() + 1 > opt.cache_entries);
+    if (!full || cache.lru.empty() || cache.lru.back().stamp == cache.epoch) return true;
+    return cache.memo[cls].freq > cache.memo[cache.lru.back().key.cls].freq;
+  }
+  void count_lookup(Cache& cache, uint32_t cls) const {
+    ++cache.memo[cls].freq;
+    if (++cache.lookups >= 16 * uint64_t(cache.memo.size())) {
+      for (Cache::Memo& m : cache.memo) m.freq >>= 1;
+      cache.lookups = 0;
+    }
   }
   bool over(const Cache& cache) const {
     return cache.lru.size() > 1 && ((opt.cache_entries && cache.lru.size() > opt.cache_entries) ||
@@ -477,9 +544,10 @@ struct Graph::Impl {
       }
       for (double v : d.to_world)
         if (!std::isfinite(v)) error("the primitive's transform overflowed");
-      const std::string why = csg::check_primitive(d);
-      if (!why.empty()) error(why);
-      GraphPrimitive g{shape, st.material, csg::make_primitive(d)};
+      if (setup) {  // an expansion repeats a set-up walk of the same (class, production)
+        const std::string why = csg::check_primitive(d);
+        if (!why.empty()) error(why);
+      }
       if (r.count < std::numeric_limits<uint64_t>::max()) ++r.count;
       Affine m;
       std::copy(d.to_world, d.to_world + 12, m.m);
@@ -490,7 +558,7 @@ struct Graph::Impl {
         grow(r.lo, r.hi, blo, bhi);
         skel[id][alt].prims.push_back({shape, m});
       } else {
-        out->prims.push_back(g);
+        out->prims.push_back(GraphPrimitive{shape, st.material, trace_primitive(d)});
       }
     };
     auto along = [&](ShapeKind shape, double len, double rad) {
@@ -736,15 +804,10 @@ struct Graph::Impl {
     return e;
   }
 
-  // The cached expansion of (cls, path) if there is one; no statistics, no recency.
-  const GraphExpansion* peek(const Cache& cache, uint32_t cls, uint64_t path) const {
-    const auto it = cache.map.find(CacheKey{cls, classes[cls].path_dependent ? path : 0});
-    return it == cache.map.end() ? nullptr : it->second->e.get();
-  }
-
   // The traversal view of expansion e of (cls, key) (graph.h: small children
-  // inlined, unless inline_views is off).
-  void build_view(const Cache& cache, GraphExpansion* e, uint32_t cls, uint64_t key) const {
+  // inlined, unless inline_views is off). Afterwards e holds only the view
+  // (children and prims_before are released: the traversal reads hops).
+  void build_view(GraphExpansion* e, uint32_t cls, uint64_t key) const {
     const size_t alt = e->alt;
     auto own_box = [](const GraphPrimitive& gp) {
       GraphBox b;
@@ -756,14 +819,15 @@ struct Graph::Impl {
       e->tprims.push_back({nullptr, nullptr, uint32_t(i), 0, 0});
       e->prim_boxes.push_back(own_box(e->prims[i]));
     }
-    // A child's expansion: the cached one, else made here and dropped after.
+    // A child's expansion, made here and dropped after (cached entries hold
+    // views only; a miss is cheap: graph.h, trace_primitive).
     std::vector<std::shared_ptr<GraphExpansion>> made;
     std::vector<const GraphExpansion*> inlined(e->children.size(), nullptr);
     for (size_t k = 0; k < e->children.size(); ++k) {
       const GraphChild& ch = e->children[k];
       const uint64_t ck = ch.path_dependent ? child_key(key, uint32_t(k)) : 0;
-      const GraphExpansion* ce = inline_views ? peek(cache, ch.cls, ck) : nullptr;
-      if (!ce && inline_views) {
+      const GraphExpansion* ce = nullptr;
+      if (inline_views) {
         size_t calt = 0;
         made.push_back(expand_base(ch.cls, ck, &calt));
         made.back()->alt = uint32_t(calt);
@@ -798,6 +862,14 @@ struct Graph::Impl {
       }
       e->groups.push_back({GraphBox{ch.lo, ch.hi}, uint32_t(e->tprims.size()), uint32_t(e->hops.size()), ch.to_local});
     }
+    e->inlined_prims.shrink_to_fit();
+    e->tprims.shrink_to_fit();
+    e->prim_boxes.shrink_to_fit();
+    e->hops.shrink_to_fit();
+    e->hop_boxes.shrink_to_fit();
+    e->groups.shrink_to_fit();
+    std::vector<GraphChild>().swap(e->children);
+    std::vector<uint32_t>().swap(e->prims_before);
     // The vectors are final: point the trace primitives and hops at their primitives and groups.
     const uint32_t own = e->groups[0].prim_end;
     for (size_t g = 1, i = own, h = e->groups[0].hop_end; g < e->groups.size(); ++g) {
@@ -813,14 +885,12 @@ struct Graph::Impl {
   // The cache entry of (cls, path), expanded on a miss; stamped with the
   // running traversal. Recency is kept per traversal: an entry moves to the
   // front of the LRU list at its first lookup in a traversal only.
-  const std::shared_ptr<const GraphExpansion>& get(Cache& cache, uint32_t cls, uint64_t path) const {
-    return get(cache, cls, path, classes[cls].path_dependent);
-  }
   const std::shared_ptr<const GraphExpansion>& get(Cache& cache, uint32_t cls, uint64_t path,
                                                    bool path_dependent) const {
     const CacheKey key{cls, path_dependent ? path : 0};
     Cache::Memo& memo = cache.memo[cls];
-    if (memo.valid && memo.path == key.path) {  // the common case: no hashing
+    count_lookup(cache, cls);
+    if (memo.valid && !memo.transient && memo.path == key.path) {  // the common case: no hashing
       ++cache.hits;
       if (memo.stamp != cache.epoch || cache.epoch == 0) {
         memo.it->stamp = memo.stamp = cache.epoch;
@@ -833,13 +903,20 @@ struct Graph::Impl {
       ++cache.hits;
       it->second->stamp = cache.epoch;
       cache.lru.splice(cache.lru.begin(), cache.lru, it->second);
-      memo = {true, key.path, it->second, cache.epoch, it->second->e.get()};
+      memo = {true, key.path, it->second, cache.epoch, it->second->e.get(), false, memo.freq};
       return it->second->e;
     }
     ++cache.misses;
-    cache.lru.push_front(Cache::Entry{key, expand(cls, path), cache.epoch});
+    std::shared_ptr<const GraphExpansion> e = expand(cls, path);
+    if (cache.epoch != 0 && !admit(cache, cls, e->bytes)) {
+      ++cache.bypassed;
+      cache.transient.emplace_back(cls, std::move(e));
+      memo = {true, key.path, {}, cache.epoch, cache.transient.back().second.get(), true, memo.freq};
+      return cache.transient.back().second;
+    }
+    cache.lru.push_front(Cache::Entry{key, std::move(e), cache.epoch});
     cache.map.emplace(key, cache.lru.begin());
-    memo = {true, key.path, cache.lru.begin(), cache.epoch, cache.lru.front().e.get()};
+    memo = {true, key.path, cache.lru.begin(), cache.epoch, cache.lru.front().e.get(), false, memo.freq};
     cache.bytes += cache.lru.front().e->bytes;
     cache.peak = std::max(cache.peak, cache.bytes);
     trim(cache);  // never evicts the new entry: it carries the running traversal's stamp
@@ -857,9 +934,11 @@ struct Graph::Impl {
     GraphExpansion* e = const_cast<GraphExpansion*>(get(cache, cls, path, path_dependent).get());
     if (!e->has_view) {  // the thread's own entry: no other thread sees it
       const size_t before = e->bytes;
-      build_view(cache, e, cls, path);
-      cache.bytes += e->bytes - before;
-      cache.peak = std::max(cache.peak, cache.bytes);
+      build_view(e, cls, path);
+      if (!cache.memo[cls].transient) {
+        cache.bytes = cache.bytes - before + e->bytes;
+        cache.peak = std::max(cache.peak, cache.bytes);
+      }
     }
     return e;
   }
@@ -1062,13 +1141,21 @@ struct Graph::Impl {
 
   // level: child steps from the root; key_level < 0: no keys; stub: the
   // ancestor key at key_level inherited from above.
-  void flatten(uint32_t cls, uint64_t key, const Affine& to_world, size_t cap, FlattenResult& out, int level = 0,
-               int key_level = -1, uint64_t stub = 0) const {
+  // memo: per class, its expansion where the class is not path dependent
+  // (flatten() keeps its own expansions: cached entries hold only the
+  // traversal view, see find()).
+  void flatten(uint32_t cls, uint64_t key, const Affine& to_world, size_t cap, FlattenResult& out,
+               std::vector<std::shared_ptr<const GraphExpansion>>& memo, int level = 0, int key_level = -1,
+               uint64_t stub = 0) const {
     if (out.truncated) return;
     if (level <= key_level) stub = key;
-    Cache& cache = local_cache();
-    ready(cache);
-    const std::shared_ptr<const GraphExpansion> e = get(cache, cls, key);  // held: may be evicted below
+    std::shared_ptr<const GraphExpansion> e;
+    if (classes[cls].path_dependent) {
+      e = expand(cls, key);
+    } else {
+      if (!memo[cls]) memo[cls] = expand(cls, 0);
+      e = memo[cls];
+    }
     auto emit = [&](size_t from, size_t to) {
       for (size_t i = from; i < to; ++i) {
         if (out.primitives.size() >= cap) {
@@ -1091,7 +1178,7 @@ struct Graph::Impl {
       done = e->prims_before[i];
       if (out.truncated) return;
       flatten(e->children[i].cls, child_key(key, uint32_t(i)), compose(to_world, e->children[i].to_parent), cap, out,
-              level + 1, key_level, stub);
+              memo, level + 1, key_level, stub);
     }
     if (!out.truncated) emit(done, e->prims.size());
   }
@@ -1151,6 +1238,9 @@ Graph::Graph(const LSystem& system, const GraphOptions& options) : impl_(std::ma
   g.skel.emplace_back();
   g.grand_boxes.emplace_back();
   g.analyse(0);
+  int64_t budget = int64_t(std::min<size_t>(o.bounds_budget, size_t(INT64_MAX)));
+  g.subtree_box(0, o.world, budget, g.world_lo, g.world_hi);
+  pad_box(g.world_lo, g.world_hi);
   g.skel = {};  // set-up only
 }
 
@@ -1166,6 +1256,8 @@ bool Graph::occluded(DVec3 o, DVec3 d, double tnear, double tfar) const {
 
 DVec3 Graph::bounds_lo() const { return impl_->classes[0].lo; }
 DVec3 Graph::bounds_hi() const { return impl_->classes[0].hi; }
+DVec3 Graph::world_bounds_lo() const { return impl_->world_lo; }
+DVec3 Graph::world_bounds_hi() const { return impl_->world_hi; }
 const GraphNodeClass& Graph::node_class(uint32_t id) const { return impl_->classes.at(id); }
 uint64_t Graph::root_key() const { return impl_->root_key(); }
 
@@ -1189,6 +1281,7 @@ GraphStats Graph::stats() const {
     s.cache_hits += c.hits;
     s.cache_misses += c.misses;
     s.evictions += c.evictions;
+    s.bypassed += c.bypassed;
     s.cached_entries += c.lru.size();
     s.cached_bytes += c.bytes;
     s.peak_cached_bytes += c.peak;
@@ -1204,14 +1297,17 @@ void Graph::reset_cache() const {
     c.map.clear();
     c.memo.clear();
     c.bytes = c.peak = 0;
-    c.hits = c.misses = c.evictions = c.truncated = 0;
+    c.transient.clear();
+    c.lookups = 0;
+    c.hits = c.misses = c.evictions = c.truncated = c.bypassed = 0;
   }
 }
 
 FlattenResult Graph::flatten(size_t max_primitives) const {
   FlattenResult out;
   const Affine identity{{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}};
-  impl_->flatten(0, root_key(), identity, max_primitives, out);
+  std::vector<std::shared_ptr<const GraphExpansion>> memo(impl_->classes.size());
+  impl_->flatten(0, root_key(), identity, max_primitives, out, memo);
   return out;
 }
 
@@ -1219,7 +1315,8 @@ FlattenResult Graph::flatten(size_t max_primitives, int key_level) const {
   if (key_level < 0) fail(PLM_ERROR_INVALID_ARGUMENT, "lsystem graph: flatten key level must be >= 0, got ", key_level);
   FlattenResult out;
   const Affine identity{{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}};
-  impl_->flatten(0, root_key(), identity, max_primitives, out, 0, key_level, 0);
+  std::vector<std::shared_ptr<const GraphExpansion>> memo(impl_->classes.size());
+  impl_->flatten(0, root_key(), identity, max_primitives, out, memo, 0, key_level, 0);
   return out;
 }
 

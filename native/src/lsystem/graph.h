@@ -81,8 +81,12 @@
 // looked up is stamped with the traversal's number and not evicted before the
 // traversal ends, so a capacity below what one ray touches is exceeded by
 // those entries until the ray ends (then the cache is trimmed back to its
-// capacity). stats() sums the thread caches; call it and reset_cache() while
-// no thread traces.
+// capacity). A full cache admits a miss only if its class was looked up more
+// often lately than the class of the entry LRU would evict (otherwise the
+// expansion lives for its traversal only: GraphStats::bypassed), so the many
+// cold nodes deep in a plant do not push out the nodes most rays visit when
+// the working set exceeds the cache. stats() sums the thread caches; call it
+// and reset_cache() while no thread traces.
 #pragma once
 
 #include <embree3/rtcore.h>
@@ -113,6 +117,9 @@ struct GraphOptions {
   size_t cache_entries = 4096;    // per thread; 0: no limit on entries
   size_t cache_bytes = 64u << 20; // per thread; 0: no limit on bytes
   size_t bounds_budget = 1u << 15; // nodes one child's exact-bounds unfolding may visit (see Bounds)
+  // The object's placement (graph frame -> world, any affine map): only for
+  // world_bounds_lo() / hi(), the exact box of the placed primitives.
+  csg::Affine world{{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}};
 };
 
 // A primitive of an expansion, in the node's local frame.
@@ -141,11 +148,13 @@ struct GraphChild {
 // looked up and the queue of hops grows once per two levels. Groups: 0 holds the node's own primitives
 // and its children that are not inlined; each further group an inlined child,
 // tested against that child's box first. The view is made when a ray first
-// enters an expansion: with inlining a miss costs the expansion of the node
-// and of its children, and a view holds ~3x the bytes of the plain
-// expansion, so a small cache thrashes sooner and pays more per miss: with
-// GraphOptions::cache_bytes below kGraphInlineMinCacheBytes views inline
-// nothing (one visit per level). Results do not depend on it.
+// enters an expansion; a cache entry then holds the view only (children and
+// prims_before are released; flatten() makes its own expansions). With
+// inlining a miss costs the expansion of the node and of its children (each
+// ~1 us: primitives are made by trace_primitive, without face areas) and an
+// entry holds ~2x the bytes, so with GraphOptions::cache_bytes below
+// kGraphInlineMinCacheBytes views inline nothing (one visit per level).
+// Results do not depend on it.
 constexpr size_t kGraphInlineItems = 16;
 constexpr size_t kGraphInlineMinCacheBytes = size_t(1) << 20;
 
@@ -186,6 +195,7 @@ struct GraphExpansion {
   std::vector<GraphChild> children;
   std::vector<uint32_t> prims_before;  // per child: primitives drawn before it (successor order)
   uint32_t alt = 0;                    // the production expanded
+  // children and prims_before are empty once the view is made (cache entries).
   // The traversal's view (see above; made when a ray first enters the
   // expansion, not by flatten()); boxes in the node frame, padded.
   bool has_view = false;
@@ -230,6 +240,7 @@ struct GraphStats {
   int levels = 0;
   size_t class_bytes = 0;        // the immutable graph
   uint64_t cache_hits = 0, cache_misses = 0, evictions = 0;
+  uint64_t bypassed = 0;         // misses held for their traversal only (a full cache did not admit them)
   size_t cached_entries = 0, cached_bytes = 0, peak_cached_bytes = 0;  // summed over thread caches
   uint64_t flattened_primitives = 0;  // exact when the root is not path dependent, else an upper bound
   uint64_t truncated = 0;        // traversals cut by the stack bound (0 by construction: depth is checked)
@@ -259,6 +270,13 @@ class Graph {
 
   csg::DVec3 bounds_lo() const;
   csg::DVec3 bounds_hi() const;
+  // The box under GraphOptions::world of every primitive, unfolded once at
+  // set-up like a child's bounds (exact up to bounds_budget nodes, then mapped
+  // class boxes; padded by 1e-9 relative): tight for a rotated object, where
+  // the 8 corners of bounds_lo() / hi() mapped by world are not. Empty (lo >
+  // hi) when the plant draws nothing.
+  csg::DVec3 world_bounds_lo() const;
+  csg::DVec3 world_bounds_hi() const;
   const GraphNodeClass& node_class(uint32_t id) const;
   uint64_t root_key() const;
   static uint64_t child_key(uint64_t key, uint32_t index);
@@ -283,6 +301,12 @@ class Graph {
  private:
   std::unique_ptr<Impl> impl_;
 };
+
+// csg::make_primitive(desc) without the face areas (area[] is NaN), for a
+// sphere, cylinder, cone or box that csg::check_primitive accepts: what the
+// graph's expansions hold (the areas are numerical integrals and ~70 % of an
+// expansion's cost; the traversal never reads them).
+csg::Primitive trace_primitive(const csg::PrimitiveDesc& desc);
 
 // Attaches the graph to scene as one user geometry of one primitive (not yet
 // committed) and returns its geometry id. The hit carries tfar, a unit Ng,

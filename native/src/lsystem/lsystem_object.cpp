@@ -76,6 +76,7 @@ GraphOptions graph_options(const plm_lsystem_settings& s) {
   o.angle = s.angle;
   o.width = s.width;
   o.cache_bytes = s.cache_bytes ? size_t(s.cache_bytes) : size_t(64) << 20;
+  std::copy(s.matrix, s.matrix + 12, o.world.m);
   return o;
 }
 
@@ -141,16 +142,10 @@ LSystemObject::LSystemObject(const std::string& name, const char* rules, const p
   std::copy(s.matrix, s.matrix + 12, to_world_.m);
   to_local_ = csg::inverse(to_world_);
   graph_ = build_graph(rules, s, label);
-  // World bounds: the 8 corners of the graph's box.
-  const DVec3 a = graph_->bounds_lo(), b = graph_->bounds_hi();
-  lo_ = {INFINITY, INFINITY, INFINITY};
-  hi_ = {-INFINITY, -INFINITY, -INFINITY};
-  if (a.x <= b.x && a.y <= b.y && a.z <= b.z) {
-    for (int k = 0; k < 8; ++k) {
-      const DVec3 p = to_world_.point({k & 1 ? b.x : a.x, k & 2 ? b.y : a.y, k & 4 ? b.z : a.z});
-      lo_ = csg::min(lo_, p);
-      hi_ = csg::max(hi_, p);
-    }
+  // World bounds: the graph's exact box of the placed primitives (tight when rotated).
+  lo_ = graph_->world_bounds_lo();
+  hi_ = graph_->world_bounds_hi();
+  if (lo_.x <= hi_.x && lo_.y <= hi_.y && lo_.z <= hi_.z) {
     if (!is_finite(lo_) || !is_finite(hi_) || max_abs(lo_) > 1e12 || max_abs(hi_) > 1e12)
       fail(PLM_ERROR_INVALID_ARGUMENT, label, ": the placed object reaches beyond the engine's range of +-1e12 m");
   }
