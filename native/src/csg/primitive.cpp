@@ -482,6 +482,13 @@ std::string check_primitive(const PrimitiveDesc& desc) {
 Primitive make_primitive(const PrimitiveDesc& desc) {
   const std::string problem = check_primitive(desc);
   if (!problem.empty()) fail(PLM_ERROR_INVALID_ARGUMENT, problem);
+  Primitive p = make_primitive_without_areas(desc);
+  for (int f = 0; f < face_count(p.shape); ++f) p.area[f] = face_world_area(p, f);
+  for (int f = face_count(p.shape); f < kMaxFaces; ++f) p.area[f] = 0;
+  return p;
+}
+
+Primitive make_primitive_without_areas(const PrimitiveDesc& desc) {
   Primitive p{};
   p.shape = desc.shape;
   p.major = desc.major_radius;
@@ -499,8 +506,7 @@ Primitive make_primitive(const PrimitiveDesc& desc) {
   p.similarity = std::fabs(l0 - l1) <= 1e-12 * lmax && std::fabs(l0 - l2) <= 1e-12 * lmax &&
                  std::fabs(dot(c0, c1)) <= e && std::fabs(dot(c1, c2)) <= e && std::fabs(dot(c0, c2)) <= e;
   p.area_weight_max = std::fabs(p.to_world.det()) * p.stretch;
-  for (int f = 0; f < face_count(p.shape); ++f) p.area[f] = face_world_area(p, f);
-  for (int f = face_count(p.shape); f < kMaxFaces; ++f) p.area[f] = 0;
+  for (double& a : p.area) a = std::numeric_limits<double>::quiet_NaN();
 
   if (p.shape == Shape::HalfSpace) {
     // Unbounded, except along an axis the plane's normal is parallel to.

@@ -71,6 +71,11 @@ const char* shape_name(Shape shape);
 std::string check_primitive(const PrimitiveDesc& desc);
 // Throws plm::Error (PLM_ERROR_INVALID_ARGUMENT) with check_primitive's message.
 Primitive make_primitive(const PrimitiveDesc& desc);
+// make_primitive without the check and without the face areas (left NaN; they
+// are integrated numerically and cost most of the time): for primitives made
+// again and again from descriptions already checked, whose areas nobody
+// reads (an L-system graph's cached expansions).
+Primitive make_primitive_without_areas(const PrimitiveDesc& desc);
 
 // World-space t tolerance for a ray from o with direction d near prim.
 double ray_tolerance(const Primitive& prim, DVec3 o, DVec3 d);

@@ -29,37 +29,8 @@ namespace {
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 }  // namespace
 
-// graph.h: make_primitive's arithmetic for every field but area[]
-// (LSystemGraph.TracePrimitiveMatchesMakePrimitive).
-csg::Primitive trace_primitive(const csg::PrimitiveDesc& desc) {
-  csg::Primitive p{};
-  p.shape = desc.shape;
-  p.major = desc.major_radius;
-  p.minor = desc.minor_radius;
-  std::copy(desc.to_world, desc.to_world + 12, p.to_world.m);
-  p.to_local = csg::inverse(p.to_world);
-  const DVec3 c0 = p.to_world.column(0), c1 = p.to_world.column(1), c2 = p.to_world.column(2);
-  const double l0 = csg::length(c0), l1 = csg::length(c1), l2 = csg::length(c2),
-               lmax = std::fmax(l0, std::fmax(l1, l2));
-  p.size = lmax;
-  double frob = 0;
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) frob += p.to_local.m[4 * r + c] * p.to_local.m[4 * r + c];
-  p.stretch = std::sqrt(frob);
-  const double e = 1e-12 * lmax * lmax;
-  p.similarity = std::fabs(l0 - l1) <= 1e-12 * lmax && std::fabs(l0 - l2) <= 1e-12 * lmax &&
-                 std::fabs(dot(c0, c1)) <= e && std::fabs(dot(c1, c2)) <= e && std::fabs(dot(c0, c2)) <= e;
-  p.area_weight_max = std::fabs(p.to_world.det()) * p.stretch;
-  for (double& a : p.area) a = std::numeric_limits<double>::quiet_NaN();
-  p.lo = {kInfinity, kInfinity, kInfinity};
-  p.hi = -p.lo;
-  for (int i = 0; i < 8; ++i) {  // the local box is [-1, 1]^3 for these shapes
-    const DVec3 corner = p.to_world.point({(i & 1) ? 1.0 : -1.0, (i & 2) ? 1.0 : -1.0, (i & 4) ? 1.0 : -1.0});
-    p.lo = csg::min(p.lo, corner);
-    p.hi = csg::max(p.hi, corner);
-  }
-  return p;
-}
+// graph.h: csg::make_primitive without the check and the face areas.
+csg::Primitive trace_primitive(const csg::PrimitiveDesc& desc) { return csg::make_primitive_without_areas(desc); }
 
 namespace {
 
