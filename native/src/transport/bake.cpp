@@ -416,8 +416,11 @@ class PhotonTracer {
 // Runs work(first, count) over [0, total) in groups that take about 0.2 s, so
 // that after(done) -- progress, cancel, steering -- runs several times a
 // second on the calling thread. after returns false to stop early.
+// max_group (0: granule * 1024) caps a group's size.
 template <typename Work, typename After>
-void run_in_groups(tbb::task_arena& arena, uint64_t total, uint64_t granule, Work&& work, After&& after) {
+void run_in_groups(tbb::task_arena& arena, uint64_t total, uint64_t granule, Work&& work, After&& after,
+                   uint64_t max_group = 0) {
+  const uint64_t limit = max_group ? std::max(max_group, granule) : granule * 1024;
   uint64_t group = granule;
   for (uint64_t first = 0; first < total;) {
     const uint64_t n = std::min(group, total - first);
@@ -425,7 +428,7 @@ void run_in_groups(tbb::task_arena& arena, uint64_t total, uint64_t granule, Wor
     arena.execute([&] { work(first, n); });
     first += n;
     const double dt = seconds_since(t0);
-    if (dt < 0.1) group = std::min<uint64_t>(group * 2, granule * 1024);
+    if (dt < 0.1) group = std::min<uint64_t>(group * 2, limit);
     else if (dt > 0.4 && group > granule) group = std::max<uint64_t>(granule, group / 2);
     if (!after(first)) return;
   }
@@ -606,15 +609,23 @@ class Accumulators {
   uint64_t total_hits = 0;
 
   void merge(const BatchOutput& bo) {
+    // Locals: the stores through the arrays could otherwise alias total_sq
+    // (a loop-carried sum kept in memory). Same operations, same order.
+    double* const s = sum.data();
+    double* const s2 = sum_sq.data();
+    uint32_t* const n = hits.data();
+    double total = total_sq;
     for (const Hit& h : bo.hits) {
-      sum[3 * size_t(h.texel)] += h.r;
-      sum[3 * size_t(h.texel) + 1] += h.g;
-      sum[3 * size_t(h.texel) + 2] += h.b;
+      const size_t t = h.texel;
+      s[3 * t] += h.r;
+      s[3 * t + 1] += h.g;
+      s[3 * t + 2] += h.b;
       const double a = (double(h.r) + h.g + h.b) / 3.0;
-      sum_sq[h.texel] += a * a;
-      total_sq += a * a;
-      ++hits[h.texel];
+      s2[t] += a * a;
+      total += a * a;
+      ++n[t];
     }
+    total_sq = total;
     total_hits += bo.hits.size();
   }
 };
@@ -1040,8 +1051,9 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     std::vector<uint32_t> todo(covered.size());
     for (uint32_t i = 0; i < todo.size(); ++i) todo[i] = i;
     // Round 0 gives every texel direct_samples (with a target at most
-    // kFirstTargetSamples, and if that is not enough, round 1 the rest of
-    // direct_samples: loose targets are met sooner). Later rounds:
+    // kFirstTargetSamples, and if that is not enough and the phantom sample
+    // dominates the estimate, round 1 the rest of direct_samples: loose
+    // targets are met sooner). Later rounds:
     // texels without two samples yet get direct_samples * 2^round (texels
     // that see a light rarely, the sky through a window, need thousands);
     // with a target, while the direct part's RMS error is above 0.7 x target
@@ -1083,8 +1095,13 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
       mean /= texels;
       direct_noise.typical = sampled > 0.0 ? std::sqrt(texel_sq / sampled) : 0.0;
       if (round == 0 && settings.sampler != PLM_SAMPLER_RANDOM) direct_noise.scale = calibrate_direct(arena, pass, covered, direct, first);
-      for (const DirectSums& d : direct) mean_var += d.variance_of_mean(direct_noise);
+      double phantom_var = 0.0;
+      for (const DirectSums& d : direct) {
+        mean_var += d.variance_of_mean(direct_noise);
+        phantom_var += d.phantom_variance_of_mean(direct_noise);
+      }
       mean_var /= texels;
+      phantom_var /= texels;
       const double allowed = 0.7 * settings.target_error * mean;
       const bool refine = targeted && std::sqrt(mean_var) > allowed;
       double sum_sigma = 0.0;
@@ -1096,9 +1113,10 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
       const double aim = mean_var > 4.0 * allowed * allowed ? 2.0 : 1.0;
       const double budget = aim * allowed * allowed * texels;
       std::vector<uint32_t> next;
-      // First up to direct_samples everywhere: with few samples the phantom
-      // sample (variance_of_mean) still dominates the estimate of dark texels.
-      const bool top_up = refine && round == 0 && first < settings.direct_samples;
+      // First up to direct_samples everywhere where the phantom sample
+      // (variance_of_mean) is most of the estimate: it is no measure of a
+      // texel's own noise to allocate by (dark texels of an interior).
+      const bool top_up = refine && round == 0 && first < settings.direct_samples && phantom_var > 0.5 * mean_var;
       for (uint32_t i = 0; i < direct.size(); ++i) {
         const DirectSums& d = direct[i];
         double extra = 0.0;
@@ -1138,6 +1156,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     uint64_t ol_hits = 0;
     uint64_t merged = 0, next_check = kCheckBatches;
     bool done = false;
+    auto last_report = t_trace - std::chrono::seconds(1);
     run_in_groups(
         arena, batch_count, threads,
         [&](uint64_t first, uint64_t n) {
@@ -1199,9 +1218,16 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
           if (settings.time_budget > 0.0)
             fraction = std::max(fraction, seconds_since(t_start) / settings.time_budget);
           done = done || over_budget(0.97);
-          report(direct_end + (0.95 - direct_end) * std::min(fraction, 1.0), steered ? "tracing photons to the target" : "tracing photons");
+          if (seconds_since(last_report) >= 0.1) {  // groups are small: progress a few times a second
+            last_report = Clock::now();
+            report(direct_end + (0.95 - direct_end) * std::min(fraction, 1.0), steered ? "tracing photons to the target" : "tracing photons");
+          }
           return !done;
-        });
+        },
+        // One batch a thread per group: the batches' hits are merged while
+        // they are still in cache (measured: +3 % rays/s on one thread against
+        // groups of up to 1024 batches a thread, whose hits had left the cache).
+        threads);
     out.stats.photons_emitted = photons;
     out.stats.photon_hits = acc.total_hits + ol_hits;
     if (truncated_flux > 1e-4 * emitted * double(photons))

@@ -51,6 +51,12 @@ void DirectSums::add(const DirectSums& o) {
   count += o.count;
 }
 
+double DirectSums::phantom_variance_of_mean(const DirectNoise& noise) const {
+  if (paired == 0) return variance_of_mean(noise);
+  const double m = mean(), n = double(count), typical = noise.typical;
+  return noise.scale * (typical - m) * (typical - m) / (n * n);
+}
+
 double DirectSums::variance_of_mean(const DirectNoise& noise) const {
   const double typical = noise.typical;
   if (count == 0) return typical * typical;
@@ -270,7 +276,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
     // it would follow the strata's rows, so each light would be sampled in
     // one band of the texel only -- a shifted shadow). Sobol's index shuffle
     // does the same.
-    float u_pick, u[3], v[2], w[3];  // v: cosine direction (MIS), w: point in sparse texels
+    float u_pick, u[3], v[2] = {0, 0}, w[3] = {0, 0, 0};  // v: cosine direction (MIS), w: point in sparse texels
     if (sobol_) {
       float g[4];
       light_dims.point(j, 4, g);

@@ -34,6 +34,8 @@ struct DirectSums {
   // (the sky through a window) does not look exact. With no pair yet, 100%
   // uncertain.
   double variance_of_mean(const DirectNoise& noise) const;
+  // The phantom sample's part of it (all of it without pairs).
+  double phantom_variance_of_mean(const DirectNoise& noise) const;
   // The same from the stratum pairs alone (0 without pairs), unscaled.
   double pair_variance_of_mean() const;
   void add(const DirectSums& o);

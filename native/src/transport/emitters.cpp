@@ -239,10 +239,71 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
   }
   for (Emitter& e : out) {
     e.pick = average(e.flux);
+    if (e.kind == EmitterKind::Spot || e.kind == EmitterKind::AreaRect || e.kind == EmitterKind::AreaDisk ||
+        e.kind == EmitterKind::Triangle)
+      make_frame(e.normal, e.frame_t, e.frame_b);
     if (!portals.empty() && (e.kind == EmitterKind::Sun || e.kind == EmitterKind::World)) attach_portals(e, portals);
   }
   return out;
 }
+
+namespace {
+
+// Sun and world photons (sample_emitter): out of line, so that the common
+// lights' path keeps its registers and a small frame (they are drawn once
+// per photon, before its first ray).
+__attribute__((noinline)) void sample_sky(const Emitter& e, const float u[4], EmitterSample& s) {
+  // With portals, u[0] first chooses the strategy (and the portal) and is
+  // then reused, rescaled, as the first direction number.
+  float u0 = u[0];
+  const bool through_portal = u0 < e.portal_share;
+  size_t j = 0;
+  if (e.portal_share > 0.0f) {
+    u0 = through_portal ? u0 / e.portal_share : (u0 - e.portal_share) / (1.0f - e.portal_share);
+    if (through_portal) {
+      while (j + 1 < e.portals.size() && u0 >= e.portal_pick[j]) u0 -= e.portal_pick[j++];
+      u0 = std::fmin(u0 / e.portal_pick[j], 0.99999994f);
+    }
+  }
+  Vec3 d = e.normal, t = e.axis_u, b = e.axis_v;
+  if (e.kind == EmitterKind::World) {
+    if (through_portal) {  // cosine-distributed into the interior
+      const Vec3 local = cosine_hemisphere(u0, u[1]);
+      make_frame(e.portals[j].inward, t, b);
+      d = t * local.x + b * local.y + e.portals[j].inward * local.z;
+    } else {
+      d = uniform_sphere(u0, u[1]);
+    }
+    make_frame(d, t, b);
+  } else if (e.cos_half < 1.0f) {
+    // A direction uniform over the sun's disk of directions.
+    const float c = 1.0f - u0 * (1.0f - e.cos_half);
+    const float sn = std::sqrt(std::fmax(0.0f, 1.0f - c * c));
+    const float phi = 2.0f * kPi * u[1];
+    d = t * (sn * std::cos(phi)) + b * (sn * std::sin(phi)) + e.normal * c;
+    make_frame(d, t, b);
+  }
+  if (through_portal) {
+    const Portal& p = e.portals[j];
+    const Vec3 q = p.center + p.half_u * (2.0f * u[2] - 1.0f) + p.half_v * (2.0f * u[3] - 1.0f);
+    s.origin = q - d * (2.0f * e.radius);
+  } else {
+    float x, y;
+    concentric_disk(u[2], u[3], x, y);
+    s.origin = e.origin + (t * x + b * y) * e.radius - d * (2.0f * e.radius);
+  }
+  s.direction = d;
+  if (e.portal_share > 0.0f) {
+    float tc, cos_p;
+    if (through_portal && !portal_crossing(e.portals[j], s.origin, d, 1.0f, tc, cos_p)) {
+      s.weight = {0, 0, 0};  // the sun's cone grazing the portal, or rounding at its rim
+    } else {
+      s.weight = e.radiance * (1.0f / photon_line_density(e, s.origin, d));
+    }
+  }
+}
+
+}  // namespace
 
 EmitterSample sample_emitter(const Emitter& e, const float u[4]) {
   EmitterSample s;
@@ -257,9 +318,7 @@ EmitterSample sample_emitter(const Emitter& e, const float u[4]) {
         const float c = 1.0f - u[0] * (1.0f - e.cos_half);
         const float sn = std::sqrt(std::fmax(0.0f, 1.0f - c * c));
         const float phi = 2.0f * kPi * u[1];
-        Vec3 t, b;
-        make_frame(e.normal, t, b);
-        s.direction = t * (sn * std::cos(phi)) + b * (sn * std::sin(phi)) + e.normal * c;
+        s.direction = e.frame_t * (sn * std::cos(phi)) + e.frame_b * (sn * std::sin(phi)) + e.normal * c;
         s.weight = e.scale * spot_attenuation(c, e.cos_half, e.spot_smooth);
       }
       // Start on the disk of the light's radius across the direction (soft
@@ -282,9 +341,7 @@ EmitterSample sample_emitter(const Emitter& e, const float u[4]) {
       if (e.kind == EmitterKind::AreaDisk) concentric_disk(u[0], u[1], x, y);
       s.origin = e.origin + e.axis_u * x + e.axis_v * y;
       const Vec3 local = cosine_hemisphere(u[2], u[3]);
-      Vec3 t, b;
-      make_frame(e.normal, t, b);
-      s.direction = t * local.x + b * local.y + e.normal * local.z;
+      s.direction = e.frame_t * local.x + e.frame_b * local.y + e.normal * local.z;
       break;
     }
     case EmitterKind::Triangle: {
@@ -300,64 +357,15 @@ EmitterSample sample_emitter(const Emitter& e, const float u[4]) {
       const bool back = u[2] >= 0.5f;
       const float u2 = back ? 2.0f * u[2] - 1.0f : 2.0f * u[2];
       const Vec3 n = back ? -e.normal : e.normal;
+      const Vec3 bt = back ? -e.frame_b : e.frame_b;  // bit for bit make_frame(n)'s second axis
       const Vec3 local = cosine_hemisphere(u2, u[3]);
-      Vec3 t, bt;
-      make_frame(n, t, bt);
-      s.direction = t * local.x + bt * local.y + n * local.z;
+      s.direction = e.frame_t * local.x + bt * local.y + n * local.z;
       break;
     }
     case EmitterKind::Sun:
-    case EmitterKind::World: {
-      // With portals, u[0] first chooses the strategy (and the portal) and is
-      // then reused, rescaled, as the first direction number.
-      float u0 = u[0];
-      const bool through_portal = u0 < e.portal_share;
-      size_t j = 0;
-      if (e.portal_share > 0.0f) {
-        u0 = through_portal ? u0 / e.portal_share : (u0 - e.portal_share) / (1.0f - e.portal_share);
-        if (through_portal) {
-          while (j + 1 < e.portals.size() && u0 >= e.portal_pick[j]) u0 -= e.portal_pick[j++];
-          u0 = std::fmin(u0 / e.portal_pick[j], 0.99999994f);
-        }
-      }
-      Vec3 d = e.normal, t = e.axis_u, b = e.axis_v;
-      if (e.kind == EmitterKind::World) {
-        if (through_portal) {  // cosine-distributed into the interior
-          const Vec3 local = cosine_hemisphere(u0, u[1]);
-          make_frame(e.portals[j].inward, t, b);
-          d = t * local.x + b * local.y + e.portals[j].inward * local.z;
-        } else {
-          d = uniform_sphere(u0, u[1]);
-        }
-        make_frame(d, t, b);
-      } else if (e.cos_half < 1.0f) {
-        // A direction uniform over the sun's disk of directions.
-        const float c = 1.0f - u0 * (1.0f - e.cos_half);
-        const float sn = std::sqrt(std::fmax(0.0f, 1.0f - c * c));
-        const float phi = 2.0f * kPi * u[1];
-        d = t * (sn * std::cos(phi)) + b * (sn * std::sin(phi)) + e.normal * c;
-        make_frame(d, t, b);
-      }
-      if (through_portal) {
-        const Portal& p = e.portals[j];
-        const Vec3 q = p.center + p.half_u * (2.0f * u[2] - 1.0f) + p.half_v * (2.0f * u[3] - 1.0f);
-        s.origin = q - d * (2.0f * e.radius);
-      } else {
-        float x, y;
-        concentric_disk(u[2], u[3], x, y);
-        s.origin = e.origin + (t * x + b * y) * e.radius - d * (2.0f * e.radius);
-      }
-      s.direction = d;
-      if (e.portal_share > 0.0f) {
-        float tc, cos_p;
-        if (through_portal && !portal_crossing(e.portals[j], s.origin, d, 1.0f, tc, cos_p)) {
-          s.weight = {0, 0, 0};  // the sun's cone grazing the portal, or rounding at its rim
-        } else {
-          s.weight = e.radiance * (1.0f / photon_line_density(e, s.origin, d));
-        }
-      }
+    case EmitterKind::World:
+      sample_sky(e, u, s);
       break;
-    }
   }
   return s;
 }

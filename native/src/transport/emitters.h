@@ -28,6 +28,7 @@ struct Emitter {
   Vec3 origin;      // point/spot/area centre, triangle vertex 0, scene centre for sun/world
   Vec3 axis_u, axis_v;  // area: half extents; triangle: edges; sun/world: frame
   Vec3 normal;      // area/triangle: emitting side; spot: cone axis; sun: travel direction
+  Vec3 frame_t, frame_b;  // area/triangle/spot: make_frame(normal), once per emitter (build_emitters)
   float radius = 0;     // point/spot: light radius; sun/world: radius of the scene's bounding sphere
   float cos_half = 1;   // spot: cos(spot_size / 2); sun: cos(angle / 2)
   float spot_smooth = 0;
@@ -78,6 +79,7 @@ class EmitterTable {
   explicit EmitterTable(const std::vector<Emitter>& emitters);
   // The emitter for a uniform number u in [0, 1).
   size_t choose(double u) const {
+    if (cdf_.size() <= 1) return 0;  // one light: no search per photon
     return std::min<size_t>(std::upper_bound(cdf_.begin(), cdf_.end(), u) - cdf_.begin(), cdf_.size() - 1);
   }
   float probability(size_t k) const { return pick_[k]; }
