@@ -44,6 +44,8 @@ constexpr uint64_t kCheckBatches = 16;
 // With a target error the direct pass starts with at most this many samples
 // per texel and adds more where its noise is (bake(), "Direct pass").
 constexpr uint32_t kFirstTargetSamples = 16;
+// ... and gives a texel at most this many times max(16, direct_samples) in all.
+constexpr double kMaxDirectGrowth = 2048.0;
 
 struct Hit {
   uint32_t texel;  // global texel index over all lightmaps
@@ -1064,6 +1066,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     const bool targeted = settings.target_error > 0.0;
     const uint32_t first = targeted ? std::min(settings.direct_samples, kFirstTargetSamples) : settings.direct_samples;
     std::vector<uint32_t> want(covered.size(), first);
+    const double max_total = double(std::max(first, settings.direct_samples)) * kMaxDirectGrowth;
     const uint32_t max_rounds = 16;
     for (uint32_t round = 0; round < max_rounds && !todo.empty(); ++round) {
       const double r0 = 0.05 + (direct_end - 0.05) * round / max_rounds;
@@ -1080,7 +1083,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
           },
           [&](uint64_t done) {
             report(r0 + (r1 - r0) * double(done) / double(todo.size()), "direct light");
-            return true;
+            return !over_budget(photon_pass ? 0.5 : 0.95);
           });
       // typical: a sample's RMS in a typical texel (each texel weighs the
       // same, however many samples the allocation gave it).
@@ -1125,6 +1128,10 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
         } else if (refine) {
           const double sigma = std::sqrt(d.variance_of_mean(direct_noise) * std::max(d.count, 1u));
           extra = sigma * sum_sigma / budget - double(d.count);
+          // At most 5x a texel's samples per round (rounds stay short, so the
+          // time budget and cancelling are checked often) and kMaxDirectGrowth
+          // x direct_samples in all (a target far out of reach ends).
+          extra = std::min({extra, 4.0 * std::max(d.count, first), max_total - double(d.count)});
           if (extra < 1.0) extra = 0.0;
         }
         if (d.count < 2) extra = std::max(extra, double(settings.direct_samples) * double(1u << std::min(round + 1, 8u)));
