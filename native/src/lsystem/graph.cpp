@@ -116,16 +116,9 @@ void transform_box(const Affine& t, DVec3 lo, DVec3 hi, DVec3* out_lo, DVec3* ou
 // bounds it), |m0| + |m1| + |m2| for a box. Not padded.
 void prim_box(ShapeKind shape, const Affine& m, DVec3* lo, DVec3* hi) {
   for (int r = 0; r < 3; ++r) {
-    const double* a = m.m + 4 * r;
-    double e;
-    switch (shape) {
-      case ShapeKind::Sphere: e = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]); break;
-      case ShapeKind::Cylinder:
-      case ShapeKind::Cone: e = std::sqrt(a[0] * a[0] + a[1] * a[1]) + std::fabs(a[2]); break;
-      default: e = std::fabs(a[0]) + std::fabs(a[1]) + std::fabs(a[2]); break;
-    }
-    (*lo)[r] = a[3] - e;
-    (*hi)[r] = a[3] + e;
+    const double e = primitive_extent(shape, m.m, r);
+    (*lo)[r] = m.m[4 * r + 3] - e;
+    (*hi)[r] = m.m[4 * r + 3] + e;
   }
 }
 

@@ -72,16 +72,9 @@ struct Turtle {
     for (double v : prim.to_world)
       if (!std::isfinite(v)) error("the primitive's transform overflowed");
     for (int r = 0; r < 3; ++r) {
-      const double* m = prim.to_world + 4 * r;
-      double e;
-      switch (shape) {
-        case ShapeKind::Sphere: e = std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]); break;
-        case ShapeKind::Cylinder:
-        case ShapeKind::Cone: e = std::sqrt(m[0] * m[0] + m[1] * m[1]) + std::fabs(m[2]); break;
-        default: e = std::fabs(m[0]) + std::fabs(m[1]) + std::fabs(m[2]); break;
-      }
-      out.lo[r] = std::min(out.lo[r], m[3] - e);
-      out.hi[r] = std::max(out.hi[r], m[3] + e);
+      const double c = prim.to_world[4 * r + 3], e = primitive_extent(shape, prim.to_world, r);
+      out.lo[r] = std::min(out.lo[r], c - e);
+      out.hi[r] = std::max(out.hi[r], c + e);
     }
     ++out.count[int(shape)];
     out.primitives.push_back(prim);

@@ -62,6 +62,19 @@ struct TurtlePrimitive {
   double to_world[12];  // row-major 3x4: world = M * (local, 1)
 };
 
+// Half-extent along world axis `row` of a canonical shape placed by the
+// row-major 3x4 map `m` (world = M * (local, 1)): the shape spans
+// m[4*row+3] +- this. Exact for spheres, cylinders and boxes; tight for cones.
+inline double primitive_extent(ShapeKind shape, const double* m, int row) {
+  const double* a = m + 4 * row;
+  switch (shape) {
+    case ShapeKind::Sphere: return std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    case ShapeKind::Cylinder:
+    case ShapeKind::Cone: return std::sqrt(a[0] * a[0] + a[1] * a[1]) + std::fabs(a[2]);
+    default: return std::fabs(a[0]) + std::fabs(a[1]) + std::fabs(a[2]);
+  }
+}
+
 struct TurtleOptions {
   double step = -1;     // < 0: the system's `step:`
   double angle = -1;    // degrees; < 0: the system's `angle:`

@@ -1066,6 +1066,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     const bool targeted = settings.target_error > 0.0;
     const uint32_t first = targeted ? std::min(settings.direct_samples, kFirstTargetSamples) : settings.direct_samples;
     std::vector<uint32_t> want(covered.size(), first);
+    std::vector<double> sigma(covered.size());
     const double max_total = double(std::max(first, settings.direct_samples)) * kMaxDirectGrowth;
     const uint32_t max_rounds = 16;
     for (uint32_t round = 0; round < max_rounds && !todo.empty(); ++round) {
@@ -1098,18 +1099,20 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
       mean /= texels;
       direct_noise.typical = sampled > 0.0 ? std::sqrt(texel_sq / sampled) : 0.0;
       if (round == 0 && settings.sampler != PLM_SAMPLER_RANDOM) direct_noise.scale = calibrate_direct(arena, pass, covered, direct, first);
-      double phantom_var = 0.0;
-      for (const DirectSums& d : direct) {
-        mean_var += d.variance_of_mean(direct_noise);
+      // sigma[i]: texel i's per-sample RMS, from its variance of the mean.
+      double phantom_var = 0.0, sum_sigma = 0.0;
+      for (size_t i = 0; i < direct.size(); ++i) {
+        const DirectSums& d = direct[i];
+        const double v = d.variance_of_mean(direct_noise);
+        mean_var += v;
         phantom_var += d.phantom_variance_of_mean(direct_noise);
+        sigma[i] = std::sqrt(v * std::max(d.count, 1u));
+        sum_sigma += sigma[i];
       }
       mean_var /= texels;
       phantom_var /= texels;
       const double allowed = 0.7 * settings.target_error * mean;
       const bool refine = targeted && std::sqrt(mean_var) > allowed;
-      double sum_sigma = 0.0;
-      if (refine)
-        for (const DirectSums& d : direct) sum_sigma += std::sqrt(d.variance_of_mean(direct_noise) * std::max(d.count, 1u));
       // Far from the target a round aims at twice the allowed variance:
       // stratified samples converge faster than the 1 / n this allocation
       // assumes, so the remainder is left to the next round's new estimate.
@@ -1126,8 +1129,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
         if (top_up) {
           extra = double(settings.direct_samples - first);
         } else if (refine) {
-          const double sigma = std::sqrt(d.variance_of_mean(direct_noise) * std::max(d.count, 1u));
-          extra = sigma * sum_sigma / budget - double(d.count);
+          extra = sigma[i] * sum_sigma / budget - double(d.count);
           // At most 5x a texel's samples per round (rounds stay short, so the
           // time budget and cancelling are checked often) and kMaxDirectGrowth
           // x direct_samples in all (a target far out of reach ends).

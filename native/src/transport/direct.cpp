@@ -304,17 +304,18 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
     }
     float local_p[kLocalChoice];
     size_t k = 0;
-    if (all_lights_) {
-      for (size_t i = 0; i < emitters_.size(); ++i) local_p[i] = 1.0f;
-    } else if (local_choice_) {
+    if (local_choice_) {
       light_probabilities(p, normal, local_p);
       float rest = u_pick;
       while (k + 1 < emitters_.size() && !(rest < local_p[k])) rest -= local_p[k++];
       while (k > 0 && !(local_p[k] > 0.0f)) --k;  // rounding past the end
-    } else {
+    } else if (!all_lights_) {
       k = table_.choose(u_pick);
     }
-    auto probability = [&](size_t i) { return local_choice_ || all_lights_ ? local_p[i] : table_.probability(i); };
+    // Every light is sampled with probability 1 in all-lights mode.
+    auto probability = [&](size_t i) {
+      return all_lights_ ? 1.0f : local_choice_ ? local_p[i] : table_.probability(i);
+    };
     const Vec3 origin = offset_origin(p, normal, offset_scale_);
     tc.skip_prim = tri;
     Vec3 e{0, 0, 0};
