@@ -262,25 +262,44 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   const bool sparse = !csg && !window && areas_[mesh_id].coverage[texel] < 0.5f;
   const uint32_t pick_key = rng.next_u32();
   const uint32_t sobol_key = rng.next_u32();
-  const SobolGroup light_dims(sobol_key, 0), mis_dims(sobol_key, 1), piece_dims(sobol_key, 2);
+  const SobolGroup light_dims(sobol_key, 0), mis_dims(sobol_key, 1), piece_dims(sobol_key, 2), surface_dims(sobol_key, 3);
   void* tex_thread = has_textured_emitters_ ? textures_->thread_info() : nullptr;  // once per texel
-  uint32_t previous = ~0u;  // the last accepted stratum, and its value
+  uint32_t previous = ~0u;  // all lights: the last accepted stratum, and its value
   double previous_value = 0.0;
+  // With one light chosen per sample, pairs are two successive samples of the
+  // same light: the choice is stratified, so the texel's mean does not carry
+  // the lights' differences that a pair of different lights would count as
+  // noise (11 lights: 80x the variance). Slot k % 8 holds light k's unpaired
+  // sample; another light taking the slot drops it.
+  uint32_t slot_light[8];
+  double slot_value[8];
+  std::fill(slot_light, slot_light + 8, ~0u);
   for (uint32_t j = 0; j < n; ++j) {
-    const float x = origin_x + (float(j % m) + rng.next_float()) * side;
-    const float y = origin_y + (float(j / m) + rng.next_float()) * side;
+    float x = origin_x + (float(j % m) + rng.next_float()) * side;
+    float y = origin_y + (float(j / m) + rng.next_float()) * side;
     Vec3 p, normal;
     uint32_t tri;
     // Light choice and light sample: a 4D Sobol point per sample (random
     // otherwise, with the choice stratified through a permutation: tied to j
     // it would follow the strata's rows, so each light would be sampled in
     // one band of the texel only -- a shifted shadow). Sobol's index shuffle
-    // does the same.
+    // does the same. With one light chosen per sample, the choice and the
+    // point in the texel are one 3D Sobol point: each light's samples then
+    // cover the texel evenly (on the jittered grid they fell on a random
+    // subset of strata: 11 point lights over a plane, 1.7x the RMS error).
     float u_pick, u[3], v[2] = {0, 0}, w[3] = {0, 0, 0};  // v: cosine direction (MIS), w: point in sparse texels
     if (sobol_) {
       float g[4];
-      light_dims.point(j, 4, g);
-      u_pick = g[0], u[0] = g[1], u[1] = g[2], u[2] = g[3];
+      if (all_lights_) {
+        light_dims.point(j, 4, g);
+        u_pick = g[0], u[0] = g[1], u[1] = g[2], u[2] = g[3];
+      } else {
+        light_dims.point(j, 3, g);
+        u_pick = g[0];
+        x = origin_x + g[1] * float(m) * side;
+        y = origin_y + g[2] * float(m) * side;
+        surface_dims.point(j, 3, u);
+      }
       if (has_triangle_emitters_) mis_dims.point(j, 2, v);
       if (sparse) piece_dims.point(j, 3, w);
     } else {
@@ -369,12 +388,21 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
     for (int c = 0; c < 3; ++c) sums.rgb[c] += e[c];
     const double a = (double(e.x) + e.y + e.z) / 3.0;
     sums.sum_sq += a * a;
-    if (j % 2 == 1 && previous == j - 1) {  // strata 2i and 2i + 1 are neighbours
-      sums.pair_sq += (a - previous_value) * (a - previous_value);
+    if (all_lights_) {
+      if (j % 2 == 1 && previous == j - 1) {  // strata 2i and 2i + 1 are neighbours
+        sums.pair_sq += (a - previous_value) * (a - previous_value);
+        sums.paired += 2;
+      }
+      previous = j;
+      previous_value = a;
+    } else if (slot_light[k % 8] == uint32_t(k)) {
+      sums.pair_sq += (a - slot_value[k % 8]) * (a - slot_value[k % 8]);
       sums.paired += 2;
+      slot_light[k % 8] = ~0u;
+    } else {
+      slot_light[k % 8] = uint32_t(k);
+      slot_value[k % 8] = a;
     }
-    previous = j;
-    previous_value = a;
     ++sums.count;
   }
 }
