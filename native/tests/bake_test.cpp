@@ -13,6 +13,7 @@
 
 #include "demo_scenes.h"
 #include "test_support.h"
+#include "util/rng.h"
 
 namespace {
 
@@ -243,12 +244,13 @@ TEST(Bake, PointLightOverPlaneIsInverseSquareCosine) {
 }
 
 // Several lights add up, whichever way the direct pass shares its shadow rays
-// among them: one ray to each (up to 4 lights), one to a light chosen by its
-// unoccluded irradiance at the point (5-8), or one chosen by power (more).
+// among them: one ray to each (up to 4 lights), or one to a light chosen by
+// its unoccluded irradiance at the point among all lights (up to 32) or among
+// the 32 brightest at the texel (more).
 // Point lights of different powers and heights plus a tilted sun over a black
 // plane, against the sum of their closed forms, texel by texel.
 TEST(Bake, SeveralLightsAddUpWhateverTheLightChoice) {
-  for (const int count : {3, 6, 11}) {
+  for (const int count : {3, 6, 11, 70}) {  // every light-choice path
     SCOPED_TRACE(std::to_string(count) + " lights");
     SceneBuilder b;
     const uint32_t m = b.material("black", {0, 0, 0});
@@ -281,7 +283,7 @@ TEST(Bake, SeveralLightsAddUpWhateverTheLightChoice) {
       return e / M_PI;
     };
     Baked r;
-    bake(b, settings(1000, 0, count > 8 ? 1024 : 64), r);  // one ray to one of 11 lights: noisier
+    bake(b, settings(1000, 0, count > 8 ? 1024 : 64), r);  // one ray to one of many lights: noisier
     const Lightmap lm = r.map(0);
     double z2 = 0.0;
     for (uint32_t j = 5; j < 15; ++j)
@@ -292,8 +294,9 @@ TEST(Bake, SeveralLightsAddUpWhateverTheLightChoice) {
         z2 += (lm.value(t) - truth) * (lm.value(t) - truth) / (double(lm.error[t]) * lm.error[t]);
       }
     // The reported error is not too small (mean squared z: one ray to each
-    // light 0.02, chosen by irradiance 0.46, by power 0.62; 3.9 before pairs
-    // were formed per light and the choice joined the point's Sobol point).
+    // light 0.02; one chosen per point: 0.33 (6 lights), 0.75 (11), 0.94 (70:
+    // candidates); 3.9 for 11 lights chosen by power before the choice
+    // joined the point's Sobol point and its noise was modelled).
     EXPECT_LT(z2 / 100.0, 2.0) << "mean squared z";
   }
 }
@@ -679,6 +682,61 @@ TEST(Bake, NeedleEmitterGivesFiniteLight) {
   bake(b, settings(46, 10, 3), r);
   for (float v : r.map(0).rgb) EXPECT_TRUE(std::isfinite(v) && v >= 0.0f);
   for (float v : r.map(0).error) EXPECT_TRUE(std::isfinite(v) && v >= 0.0f);
+}
+
+}  // namespace
+
+namespace {
+
+// Many lights at random places, powers and heights over a black plane, few
+// samples per texel: each texel's samples go to the lights that shine on it
+// (relative RMS error 3.6 % with 48 lights, 5.5 % with 100, at 16 samples;
+// 55 % and 68 % when the light was chosen by power alone, reported errors
+// then 2x too small), and the reported error stays honest (mean squared z
+// 0.6). Beyond 256 lights the choice is by power again (72 % error with 300
+// lights), and the error is then reported conservatively (mean squared z 0.04).
+TEST(Bake, ManyLightsAreChosenWhereTheyShine) {
+  for (const int count : {48, 100, 300}) {
+    SCOPED_TRACE(std::to_string(count) + " lights");
+    SceneBuilder b;
+    const uint32_t m = b.material("black", {0, 0, 0});
+    b.quad("plane", {-10, -10, 0}, {20, 0, 0}, {0, 20, 0}, m, 20);
+    struct Point { double x, y, h, power; };
+    std::vector<Point> points;
+    plm::Rng rng(7, uint64_t(count));
+    for (int k = 0; k < count; ++k)
+      points.push_back({-9.0 + 18.0 * rng.next_float(), -9.0 + 18.0 * rng.next_float(), 0.5 + 2.0 * rng.next_float(),
+                        100.0 * (1.0 + 9.0 * rng.next_float())});
+    for (size_t k = 0; k < points.size(); ++k) {
+      plm_light l;
+      plm_light_default(&l, PLM_LIGHT_POINT);
+      l.power = float(points[k].power);
+      l.radius = 0.0f;
+      l.matrix[3] = float(points[k].x), l.matrix[7] = float(points[k].y), l.matrix[11] = float(points[k].h);
+      b.light(l, ("point" + std::to_string(k)).c_str());
+    }
+    auto exact = [&](double x, double y) {
+      double e = 0.0;
+      for (const Point& p : points) {
+        const double dx = x - p.x, dy = y - p.y, d2 = dx * dx + dy * dy + p.h * p.h;
+        e += p.power / (4 * M_PI) * p.h / std::pow(d2, 1.5);
+      }
+      return e / M_PI;
+    };
+    Baked r;
+    bake(b, settings(1000, 0, 16), r);
+    const Lightmap lm = r.map(0);
+    double squared = 0.0, z2 = 0.0;
+    for (uint32_t t = 0; t < 400; ++t) {
+      const double truth = texel_truth(exact, t % 20, t / 20, PLM_TEXEL_CYCLES);
+      squared += (lm.value(t) - truth) * (lm.value(t) - truth) / (truth * truth);
+      z2 += (lm.value(t) - truth) * (lm.value(t) - truth) / (double(lm.error[t]) * lm.error[t]);
+    }
+    if (count <= 256) {
+      EXPECT_LT(std::sqrt(squared / 400.0), count > 64 ? 0.10 : 0.06) << "relative RMS error";
+    }
+    EXPECT_LT(z2 / 400.0, 2.0) << "mean squared z";
+  }
 }
 
 }  // namespace

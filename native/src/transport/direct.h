@@ -27,6 +27,8 @@ struct DirectSums {
   double sum_sq = 0;    // sum of squared mean-RGB samples
   double pair_sq = 0;   // sum over neighbouring stratum pairs of squared mean-RGB differences
   uint32_t paired = 0;  // samples in those pairs
+  double choice_sq = 0; // with one light chosen per sample: the spread of the lights' sample counts
+                        // (n^2 x its variance of the mean), summed over rounds
   uint32_t count = 0;
   double mean() const { return count ? (rgb[0] + rgb[1] + rgb[2]) / (3.0 * count) : 0.0; }
   // Squared standard error of the mean. noise.typical enters as one phantom
@@ -36,7 +38,7 @@ struct DirectSums {
   double variance_of_mean(const DirectNoise& noise) const;
   // The phantom sample's part of it (all of it without pairs).
   double phantom_variance_of_mean(const DirectNoise& noise) const;
-  // The same from the stratum pairs alone (0 without pairs), unscaled.
+  // The same from the stratum pairs and choice_sq alone (0 without pairs), unscaled.
   double pair_variance_of_mean() const;
   void add(const DirectSums& o);
 };
@@ -57,7 +59,27 @@ class DirectPass {
   bool point_in_pieces(uint32_t mesh, uint32_t texel, const float u[3], Vec3& p, Vec3& n, uint32_t& tri) const;
   int64_t centre_owner(uint32_t mesh, uint32_t texel) const;
   Vec3 mirrored_point(uint32_t mesh, uint32_t tri, float x, float y) const;
-  void light_probabilities(Vec3 p, Vec3 n, float* probability) const;
+  // Shares of the local choice among `count` candidate lights at point p,
+  // normal n: share[i] = 0.9 x candidate i's unoccluded irradiance / their
+  // sum. Returns the local part, 0.9, or 0 if no candidate lights p.
+  float local_shares(Vec3 p, Vec3 n, const uint32_t* candidates, size_t count, float* share) const;
+  // Per-thread scratch of sample_texel's light choice.
+  struct ChoiceScratch {
+    struct Tally {  // one light's samples in the current texel
+      double sum = 0.0, unpaired = 0.0;
+      uint32_t count = 0;
+    };
+    std::vector<Tally> tallies;
+    std::vector<uint32_t> touched;  // lights with a tally
+    std::vector<int32_t> slot_of;   // light -> candidate slot, -1 if none
+    std::vector<float> guess;
+    std::vector<uint32_t> order;
+    std::vector<uint32_t> others;      // the lights with power that are not candidates,
+    std::vector<double> others_cdf;    // and their cumulative choice probability
+  };
+  // Fills chosen[0 .. kCandidates) with the lights of most unoccluded
+  // irradiance at p (normal n) and scratch's slot_of, others and others_cdf.
+  void select_candidates(Vec3 p, Vec3 n, uint32_t* chosen, ChoiceScratch& scratch) const;
 
   RTCScene rtc_;
   const std::vector<MeshView>& views_;
@@ -81,12 +103,17 @@ class DirectPass {
   // Which light a sample's shadow ray goes to. Up to kAllLights emitters:
   // every sample point sends one to each (a sun and a sky: 2 rays, and no
   // noise from choosing between them; on the open benchmark scene 2.0 % error
-  // at 16 samples against 3.9 % for one ray to a chosen light). Up to
-  // kLocalChoice: one, chosen in proportion to the lights' unoccluded
-  // irradiance at the point (light_probabilities). More: one, chosen by power.
-  static constexpr size_t kAllLights = 4, kLocalChoice = 8;
+  // at 16 samples against 3.9 % for one ray to a chosen light). More: one,
+  // chosen 90 % in proportion to the candidates' unoccluded irradiance at the
+  // point (local_shares) and 10 % by power (every light keeps a share: no
+  // bias). The candidates are all lights up to kCandidates, else the
+  // kCandidates brightest at the texel's first point (a cost of O(lights)
+  // per texel). Beyond kMaxLocalChoice lights (emissive meshes), one chosen
+  // by power.
+  static constexpr size_t kAllLights = 4, kCandidates = 32, kMaxLocalChoice = 256;
   bool all_lights_;
   bool local_choice_;
+  std::vector<uint32_t> all_candidates_;  // 0 .. lights - 1 when there are at most kCandidates
 };
 
 }  // namespace plm
