@@ -294,11 +294,13 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   const uint32_t sobol_key = rng.next_u32();
   const SobolGroup light_dims(sobol_key, 0), mis_dims(sobol_key, 1), piece_dims(sobol_key, 2), surface_dims(sobol_key, 3);
   void* tex_thread = has_textured_emitters_ ? textures_->thread_info() : nullptr;  // once per texel
-  uint32_t previous = ~0u;  // all lights: the last accepted stratum, and its value
+  uint32_t previous = ~0u;  // the last accepted stratum, and its value
   double previous_value = 0.0;
-  // With one light chosen per sample, pairs are two successive samples of the
-  // same light: the choice is stratified, so pairs of different lights would
-  // count the lights' differences as noise (11 lights: 80x the variance).
+  // With the local choice, pairs are two successive samples of the same
+  // light: the choice is stratified, so pairs of different lights would count
+  // the lights' differences as noise (11 lights: 80x the variance). (With the
+  // choice by power, beyond kMaxLocalChoice lights, a texel has fewer samples
+  // than lights: pairs of neighbouring strata, as with all lights.)
   // What the choice does add is the spread of each light's sample count n_k
   // around n p_k: the stratum of u_pick that holds the boundary between two
   // lights' intervals gives its one sample to either (variance f (1 - f),
@@ -309,7 +311,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   // Per-light tallies live in per-thread scratch (no allocation per texel
   // once it has grown to the light count).
   thread_local ChoiceScratch scratch;
-  if (!all_lights_ && scratch.tallies.size() < emitters_.size()) scratch.tallies.resize(emitters_.size());
+  if (local_choice_ && scratch.tallies.size() < emitters_.size()) scratch.tallies.resize(emitters_.size());
   // The candidates of the local choice: all lights, or with more than
   // kCandidates the brightest (by unoccluded irradiance) at the texel's first
   // point, scratch.slot_of[k] their place (-1: not a candidate).
@@ -328,14 +330,14 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
     // otherwise, with the choice stratified through a permutation: tied to j
     // it would follow the strata's rows, so each light would be sampled in
     // one band of the texel only -- a shifted shadow). Sobol's index shuffle
-    // does the same. With one light chosen per sample, the choice and the
-    // point in the texel are one 3D Sobol point: each light's samples then
-    // cover the texel evenly (on the jittered grid they fell on a random
-    // subset of strata: 11 point lights over a plane, 1.7x the RMS error).
+    // does the same. With the local choice, the choice and the point in the
+    // texel are one 3D Sobol point: each light's samples then cover the
+    // texel evenly (on the jittered grid they fell on a random subset of
+    // strata: 11 point lights over a plane, 1.7x the RMS error).
     float u_pick, u[3], v[2] = {0, 0}, w[3] = {0, 0, 0};  // v: cosine direction (MIS), w: point in sparse texels
     if (sobol_) {
       float g[4];
-      if (all_lights_) {
+      if (!local_choice_) {
         light_dims.point(j, 4, g);
         u_pick = g[0], u[0] = g[1], u[1] = g[2], u[2] = g[3];
       } else {
@@ -458,7 +460,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
     for (int c = 0; c < 3; ++c) sums.rgb[c] += e[c];
     const double a = (double(e.x) + e.y + e.z) / 3.0;
     sums.sum_sq += a * a;
-    if (all_lights_) {
+    if (!local_choice_) {
       if (j % 2 == 1 && previous == j - 1) {  // strata 2i and 2i + 1 are neighbours
         sums.pair_sq += (a - previous_value) * (a - previous_value);
         sums.paired += 2;
