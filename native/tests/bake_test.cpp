@@ -243,6 +243,32 @@ TEST(Bake, PointLightOverPlaneIsInverseSquareCosine) {
   }
 }
 
+// Point lights (radius 0) over the plane z = 0 and their closed form.
+struct PointLight {
+  double x, y, h, power;
+};
+
+void add_point_lights(SceneBuilder& b, const std::vector<PointLight>& points) {
+  for (size_t k = 0; k < points.size(); ++k) {
+    plm_light l;
+    plm_light_default(&l, PLM_LIGHT_POINT);
+    l.power = float(points[k].power);
+    l.radius = 0.0f;
+    l.matrix[3] = float(points[k].x), l.matrix[7] = float(points[k].y), l.matrix[11] = float(points[k].h);
+    b.light(l, ("point" + std::to_string(k)).c_str());
+  }
+}
+
+// Irradiance at (x, y, 0) from the point lights.
+double point_irradiance(const std::vector<PointLight>& points, double x, double y) {
+  double e = 0.0;
+  for (const PointLight& p : points) {
+    const double dx = x - p.x, dy = y - p.y, d2 = dx * dx + dy * dy + p.h * p.h;
+    e += p.power / (4 * M_PI) * p.h / std::pow(d2, 1.5);
+  }
+  return e;
+}
+
 // Several lights add up, whichever way the direct pass shares its shadow rays
 // among them: one ray to each (up to 4 lights), or one to a light chosen by
 // its unoccluded irradiance at the point among all lights (up to 32) or among
@@ -255,18 +281,10 @@ TEST(Bake, SeveralLightsAddUpWhateverTheLightChoice) {
     SceneBuilder b;
     const uint32_t m = b.material("black", {0, 0, 0});
     b.quad("plane", {-10, -10, 0}, {20, 0, 0}, {0, 20, 0}, m, 20);
-    struct Point { double x, y, h, power; };
-    std::vector<Point> points;
+    std::vector<PointLight> points;
     for (int k = 0; k + 1 < count; ++k)
       points.push_back({-3.0 + 1.7 * (k % 4), -2.0 + 1.3 * (k / 4), 1.0 + 0.5 * (k % 3), 200.0 * (1 + k % 5)});
-    for (size_t k = 0; k < points.size(); ++k) {
-      plm_light l;
-      plm_light_default(&l, PLM_LIGHT_POINT);
-      l.power = float(points[k].power);
-      l.radius = 0.0f;
-      l.matrix[3] = float(points[k].x), l.matrix[7] = float(points[k].y), l.matrix[11] = float(points[k].h);
-      b.light(l, ("point" + std::to_string(k)).c_str());
-    }
+    add_point_lights(b, points);
     plm_light sun;
     plm_light_default(&sun, PLM_LIGHT_SUN);
     sun.power = 3.0f;
@@ -274,14 +292,7 @@ TEST(Bake, SeveralLightsAddUpWhateverTheLightChoice) {
     const float a = float(M_PI / 3.0);  // 60 degrees from the zenith: irradiance 1.5
     sun.matrix[5] = std::cos(a), sun.matrix[6] = -std::sin(a), sun.matrix[9] = std::sin(a), sun.matrix[10] = std::cos(a);
     b.light(sun, "sun");
-    auto exact = [&](double x, double y) {
-      double e = 1.5;
-      for (const Point& p : points) {
-        const double dx = x - p.x, dy = y - p.y, d2 = dx * dx + dy * dy + p.h * p.h;
-        e += p.power / (4 * M_PI) * p.h / std::pow(d2, 1.5);
-      }
-      return e / M_PI;
-    };
+    auto exact = [&](double x, double y) { return (1.5 + point_irradiance(points, x, y)) / M_PI; };
     Baked r;
     bake(b, settings(1000, 0, count > 8 ? 1024 : 64), r);  // one ray to one of many lights: noisier
     const Lightmap lm = r.map(0);
@@ -702,28 +713,13 @@ TEST(Bake, ManyLightsAreChosenWhereTheyShine) {
     SceneBuilder b;
     const uint32_t m = b.material("black", {0, 0, 0});
     b.quad("plane", {-10, -10, 0}, {20, 0, 0}, {0, 20, 0}, m, 20);
-    struct Point { double x, y, h, power; };
-    std::vector<Point> points;
+    std::vector<PointLight> points;
     plm::Rng rng(7, uint64_t(count));
     for (int k = 0; k < count; ++k)
       points.push_back({-9.0 + 18.0 * rng.next_float(), -9.0 + 18.0 * rng.next_float(), 0.5 + 2.0 * rng.next_float(),
                         100.0 * (1.0 + 9.0 * rng.next_float())});
-    for (size_t k = 0; k < points.size(); ++k) {
-      plm_light l;
-      plm_light_default(&l, PLM_LIGHT_POINT);
-      l.power = float(points[k].power);
-      l.radius = 0.0f;
-      l.matrix[3] = float(points[k].x), l.matrix[7] = float(points[k].y), l.matrix[11] = float(points[k].h);
-      b.light(l, ("point" + std::to_string(k)).c_str());
-    }
-    auto exact = [&](double x, double y) {
-      double e = 0.0;
-      for (const Point& p : points) {
-        const double dx = x - p.x, dy = y - p.y, d2 = dx * dx + dy * dy + p.h * p.h;
-        e += p.power / (4 * M_PI) * p.h / std::pow(d2, 1.5);
-      }
-      return e / M_PI;
-    };
+    add_point_lights(b, points);
+    auto exact = [&](double x, double y) { return point_irradiance(points, x, y) / M_PI; };
     Baked r;
     bake(b, settings(1000, 0, 16), r);
     const Lightmap lm = r.map(0);
