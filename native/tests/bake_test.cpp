@@ -425,6 +425,80 @@ TEST(Bake, WorldLightOnOpenPlaneIsItsRadiance) {
   }
 }
 
+// An open sunlit scene (a ground, a box on it, sun and sky), where the
+// indirect light is a small part: the final gather (on by default) lowers
+// the error at a given photon count, stays unbiased, and reports its error
+// honestly. Reference: the same scene without the gather (max_bounces 63
+// turns it off) at 32x the photons and 256 direct samples.
+void open_scene(SceneBuilder& b) {
+  const uint32_t ground = b.material("ground", {0.35f, 0.42f, 0.30f});
+  const uint32_t white = b.material("box", {0.8f, 0.8f, 0.8f});
+  b.quad("ground", {-4, -4, 0}, {8, 0, 0}, {0, 8, 0}, ground, 32);
+  b.box("box", {0, 0, 0.75f}, {1.0f, 1.0f, 1.5f}, 0.35f, white, 8);
+  plm_light sun;
+  plm_light_default(&sun, PLM_LIGHT_SUN);
+  sun.power = 4.0f;
+  const float a = float(M_PI / 4.0);  // 45 degrees from the zenith
+  sun.matrix[5] = std::cos(a);
+  sun.matrix[6] = -std::sin(a);
+  sun.matrix[9] = std::sin(a);
+  sun.matrix[10] = std::cos(a);
+  b.light(sun, "sun");
+  const float sky[3] = {0.3f, 0.4f, 0.6f};
+  EXPECT_EQ(plm_scene_set_world(b.scene, sky), PLM_OK);
+}
+
+TEST(Bake, FinalGatherLowersOpenSceneErrorUnbiased) {
+  SceneBuilder b;
+  open_scene(b);
+  plm_bake_settings s = settings(131072, 1024, 64, 2);
+  Baked gather, photons, ref;
+  bake(b, s, gather);
+  s.max_bounces = 63;
+  bake(b, s, photons);
+  s.photon_count = 32 * 131072;
+  s.direct_samples = 256;
+  s.seed = 7;
+  bake(b, s, ref);
+  double sq_g = 0, sq_p = 0, est_g = 0, est_p = 0, sum_g = 0, sum_ref = 0, n = 0;
+  for (uint32_t mesh = 0; mesh < 2; ++mesh) {
+    const Lightmap g = gather.map(mesh), p = photons.map(mesh), r = ref.map(mesh);
+    for (size_t t = 0; t < r.coverage.size(); ++t) {
+      if (r.coverage[t] < 0.999f) continue;
+      sq_g += (g.value(t) - r.value(t)) * (g.value(t) - r.value(t));
+      sq_p += (p.value(t) - r.value(t)) * (p.value(t) - r.value(t));
+      est_g += double(g.error[t]) * g.error[t];
+      est_p += double(p.error[t]) * p.error[t];
+      sum_g += g.value(t);
+      sum_ref += r.value(t);
+      n += 1;
+    }
+  }
+  const double mean = sum_ref / n, err_g = std::sqrt(sq_g / n) / mean, err_p = std::sqrt(sq_p / n) / mean;
+  const double rep_g = std::sqrt(est_g / n) / mean, rep_p = std::sqrt(est_p / n) / mean;
+  std::printf("[ measured ] open scene, 131072 photons: gather %.2f %% (reported %.2f %%), photons only %.2f %% "
+              "(reported %.2f %%)\n", 100 * err_g, 100 * rep_g, 100 * err_p, 100 * rep_p);
+  // Measured: gather 1.16 % (reported 0.75 %), photons only 1.38 % (reported 0.97 %); at 0.25 m
+  // texels and this photon count both estimates are low by about a third (docs/design.md).
+  EXPECT_LT(err_g, 0.9 * err_p);
+  EXPECT_NEAR(sum_g / sum_ref, 1.0, 0.005);
+  EXPECT_GT(rep_g, err_g / 2.0);
+  EXPECT_LT(rep_g, err_g * 1.5);
+  // Under a target the gather runs at the first check; the result depends on the seed alone.
+  plm_bake_settings t = settings(0, 1024, 64, 2);
+  t.target_error = 0.015;
+  Baked one, two;
+  t.thread_count = 1;
+  bake(b, t, one);
+  t.thread_count = 2;
+  bake(b, t, two);
+  EXPECT_EQ(one.stats().photons_emitted, two.stats().photons_emitted);
+  for (uint32_t mesh = 0; mesh < 2; ++mesh) {
+    EXPECT_EQ(one.map(mesh).rgb, two.map(mesh).rgb) << "mesh " << mesh;
+    EXPECT_EQ(one.map(mesh).error, two.map(mesh).error);
+  }
+}
+
 TEST(Bake, SameSeedSameResultWhateverTheThreads) {
   SceneBuilder b;
   plm_demo::build_cornell(b, 16);

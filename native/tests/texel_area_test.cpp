@@ -178,6 +178,37 @@ TEST(Reconstruct, GuideStopsPoolingAtShadowEdges) {
   EXPECT_GT(value[3 * (5 * 16 + 8)], 0.0);
 }
 
+// The local linear fit (the final gather's smoothing) reproduces a linear
+// field exactly, also where the guide cuts the neighbourhood to one side (a
+// wall's foot, where a mean would be biased), and its variance is the
+// intercept's: 1/25 of a texel's over a full 5 x 5 window.
+TEST(Reconstruct, LinearFitIsExactOnLinearFieldsEvenOneSided) {
+  Mesh m;
+  m.positions = {{0, 0, 0}, {16, 0, 0}, {16, 16, 0}, {0, 16, 0}, {}};
+  m.vertex_count = 4;
+  m.indices = {0, 1, 2, 0, 2, 3};
+  m.uv = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
+  m.lightmap_width = m.lightmap_height = 16;
+  const TexelAreas a = compute_texel_areas(m);
+  std::vector<double> mean(3 * 256), var(256, 1.0), guide(256), value, out_var;
+  for (uint32_t t = 0; t < 256; ++t) {
+    const double x = t % 16, y = t / 16;
+    for (int c = 0; c < 3; ++c) mean[3 * t + c] = 2.0 + 0.5 * x - 0.25 * y + c;
+    guide[t] = x < 8 ? 1.0 : 100.0;  // no pooling across x = 7.5
+  }
+  guide[5 * 16 + 5] = -1.0;  // pools with no other
+  mean[3 * (5 * 16 + 5)] = 1000.0;
+  reconstruct_linear(a, 16, 16, mean.data(), var.data(), guide.data(), 2, value, out_var);
+  for (uint32_t t = 0; t < 256; ++t) {
+    if (t == 5 * 16 + 5) continue;
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(value[3 * t + c], mean[3 * t + c], 1e-9) << "texel " << t;
+  }
+  EXPECT_EQ(value[3 * (5 * 16 + 5)], 1000.0);
+  EXPECT_NEAR(out_var[10 * 16 + 3], 1.0 / 25.0, 1e-12);  // full window
+  EXPECT_GT(out_var[10 * 16 + 7], 1.0 / 25.0);            // one-sided: fewer neighbours, more variance
+  EXPECT_LT(out_var[10 * 16 + 7], 1.0);
+}
+
 TEST(Dilate, FillsRingsFromFilledNeighbours) {
   std::vector<float> v(5 * 5, 0.0f);
   std::vector<uint8_t> filled(25, 0);

@@ -38,6 +38,7 @@ struct ReconstructParams {
   // Optional guide per texel (the direct light): texels pool only with
   // neighbours of similar guide, so indirect light does not leak across the
   // contact shadows and shadow edges that the direct light shows.
+  // A texel whose guide is negative (or NaN) pools with no other.
   const double* guide = nullptr;
 };
 
@@ -51,5 +52,14 @@ bool same_surface(const TexelAreas& ta, uint32_t a, uint32_t b, float reach);
 uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t height, const PhotonSums& sums,
                               const ReconstructParams& params, std::vector<double>& value3,
                               std::vector<double>& mse);
+
+// Per texel, a local linear fit (weighted by texel area) of per-texel means
+// `mean3` (3 per texel, independent estimates of variance `variance`) over
+// the same-surface, similar-guide texels within `radius`: its value at the
+// texel's centre, and that value's variance. Unlike a mean, a linear fit has
+// no first-order bias where the neighbourhood is one-sided (a wall's foot).
+void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, const double* mean3,
+                        const double* variance, const double* guide, uint32_t radius, std::vector<double>& value3,
+                        std::vector<double>& var_out);
 
 }  // namespace plm

@@ -46,6 +46,12 @@ constexpr uint64_t kCheckBatches = 16;
 constexpr uint32_t kFirstTargetSamples = 16;
 // ... and gives a texel at most this many times max(16, direct_samples) in all.
 constexpr double kMaxDirectGrowth = 2048.0;
+// Rays per texel of the final gather (at most kMaxGatherSamples under a small target).
+constexpr uint32_t kGatherSamples = 16, kMaxGatherSamples = 256;
+// The final gather runs only when max_bounces does not truncate light (the default is 1024).
+constexpr uint32_t kGatherMinBounces = 64;
+// Radius (texels) of the local linear fit that smooths the gather (reconstruct_linear).
+constexpr uint32_t kGatherRadius = 2;
 
 struct Hit {
   uint32_t texel;  // global texel index over all lightmaps
@@ -643,6 +649,13 @@ struct Estimator {
   const Accumulators& acc;
   uint32_t filter_radius;
   DirectNoise direct_noise;
+  // The final gather per covered texel (empty without it), the count of its
+  // rays that hit what it cannot look up, its lookups' error and its phantom
+  // sample (see "Final gather" in bake()).
+  const std::vector<DirectSums>* gather = nullptr;
+  const std::vector<uint32_t>* gather_unknown = nullptr;
+  const std::vector<double>* gather_lookup = nullptr;  // DirectPass::gather_texel's lookup_error
+  const DirectNoise* gather_noise = nullptr;
 
   // Sub-texel `sub` of CSG solid c: irradiance / pi (3 values) and its
   // estimated mean squared error. No pooling: the photon estimate of the
@@ -664,8 +677,52 @@ struct Estimator {
     return variance;
   }
 
-  // Per texel: irradiance / pi (3 values) and its estimated mean squared error.
-  void texels(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance) const {
+  // Two estimates of a texel's indirect light: the photons' (A, its own
+  // hits) and the final gather's (G: albedo x radiosity of the texels its
+  // rays hit), weighed by inverse variance: w A + (1 - w) G, w = var G /
+  // (var A + var G). The gather's texel means are first smoothed by a local
+  // linear fit over neighbours of similar direct light (reconstruct_linear):
+  // near a wall's foot, where the bounce light changes fastest, a mean over
+  // one side would be biased. Texels whose gather met something it cannot
+  // look up keep A, and pool with no other (a negative guide).
+  // Adds the gather's part of the texels' variances, (1 - w)^2 var G, to *gather_part.
+  void combine_gather(size_t i, std::vector<double>& value3, std::vector<double>& variance,
+                      double* gather_part) const {
+    const Mesh& mesh = *views[i].mesh;
+    const size_t n = variance.size();
+    std::vector<double> g_mean(3 * n, 0.0), g_var(n, 0.0), g_value, g_fit_var;
+    std::vector<double> guide(n, -1.0), lookup_sq(n, 0.0);
+    std::vector<uint8_t> usable(n, 0);
+    size_t k = covered_begin[i];
+    for (size_t t = 0; t < n; ++t) {
+      if (!(areas[i].area[t] > 0.0)) continue;
+      const DirectSums& g = (*gather)[k];
+      const DirectSums& d = direct[k];
+      if ((*gather_unknown)[k++] || g.count == 0) continue;
+      usable[t] = 1;
+      guide[t] = d.mean();
+      for (int c = 0; c < 3; ++c) g_mean[3 * t + c] = g.rgb[c] / g.count;
+      g_var[t] = g.variance_of_mean(*gather_noise);
+      lookup_sq[t] = (*gather_lookup)[k - 1] * (*gather_lookup)[k - 1];
+    }
+    reconstruct_linear(areas[i], mesh.lightmap_width, mesh.lightmap_height, g_mean.data(), g_var.data(), guide.data(),
+                       kGatherRadius, g_value, g_fit_var);
+    for (size_t t = 0; t < n; ++t) {
+      if (!usable[t]) continue;
+      // The lookups' errors are shared by neighbouring texels (their rays hit
+      // the same texels): the fit does not average them down.
+      const double v_photons = variance[t], v_gather = g_fit_var[t] + lookup_sq[t];
+      const double w = v_photons + v_gather > 0.0 ? v_gather / (v_photons + v_gather) : 0.0;
+      for (int c = 0; c < 3; ++c) value3[3 * t + c] = w * value3[3 * t + c] + (1.0 - w) * g_value[3 * t + c];
+      variance[t] = w * w * v_photons + (1.0 - w) * (1.0 - w) * v_gather;
+      if (gather_part) *gather_part += (1.0 - w) * (1.0 - w) * v_gather;
+    }
+  }
+
+  // Per texel: irradiance / pi (3 values) and its estimated mean squared
+  // error; the final gather's part of the variances is added to *gather_part.
+  void texels(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance,
+              double* gather_part = nullptr) const {
     const Mesh& mesh = *views[i].mesh;
     const size_t g0 = views[i].texel_offset;
     ReconstructParams params;
@@ -687,6 +744,7 @@ struct Estimator {
       value3.assign(3 * size_t(mesh.lightmap_width) * mesh.lightmap_height, 0.0);
       variance.assign(size_t(mesh.lightmap_width) * mesh.lightmap_height, 0.0);
     }
+    if (photons > 0 && gather && !gather->empty()) combine_gather(i, value3, variance, gather_part);
     if (direct.empty()) return;
     size_t k = covered_begin[i];
     for (size_t t = 0; t < variance.size(); ++t) {
@@ -704,16 +762,17 @@ struct Estimator {
 struct ErrorEstimate {
   double relative = 0.0;
   double direct = 0.0;  // the same with the direct variance alone
+  double gather = 0.0;  // ... with the final gather's part alone (photons do not lower it)
 };
 
 ErrorEstimate estimate_error(const Estimator& est, uint64_t photons, std::vector<double>* per_texel = nullptr) {
   ErrorEstimate out;
-  double var_sum = 0.0, value_sum = 0.0, var_direct = 0.0, count = 0.0;
+  double var_sum = 0.0, value_sum = 0.0, var_direct = 0.0, var_gather = 0.0, count = 0.0;
   std::vector<double> value3, variance;
   if (per_texel) per_texel->clear();
   for (size_t i = 0; i < est.views.size(); ++i) {
     if (!est.views[i].texel_area) continue;
-    est.texels(i, photons, value3, variance);
+    est.texels(i, photons, value3, variance, &var_gather);
     for (size_t t = 0; t < variance.size(); ++t) {
       if (!(est.areas[i].area[t] > 0.0)) continue;
       const double v = (value3[3 * t] + value3[3 * t + 1] + value3[3 * t + 2]) / 3.0;
@@ -740,6 +799,7 @@ ErrorEstimate estimate_error(const Estimator& est, uint64_t photons, std::vector
     const double mean = value_sum / count;
     out.relative = std::sqrt(var_sum / count) / mean;
     out.direct = std::sqrt(var_direct / count) / mean;
+    out.gather = std::sqrt(var_gather / count) / mean;
   }
   return out;
 }
@@ -916,8 +976,10 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     out.warnings.push_back("target_error ignored: it is measured over ordinary lightmap texels and every mesh "
                            "is lit through an orientation lightmap; the photon count or time budget decides");
   }
+  double reported = 0.0;  // progress never goes back (the final gather reports from inside the photon pass)
   auto report = [&](double fraction, const char* stage) {
-    if (progress && !progress(std::min(1.0, fraction), stage)) fail(PLM_ERROR_CANCELLED, "the bake was cancelled");
+    reported = std::max(reported, std::min(1.0, fraction));
+    if (progress && !progress(reported, stage)) fail(PLM_ERROR_CANCELLED, "the bake was cancelled");
   };
   auto over_budget = [&](double share) {
     return settings.time_budget > 0.0 && seconds_since(t_start) >= share * settings.time_budget;
@@ -1046,10 +1108,18 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   // ---- Direct pass --------------------------------------------------------
   std::vector<DirectSums> direct;
   DirectNoise direct_noise;
+  std::vector<DirectSums> gather;  // final gather per covered texel, if any
+  std::vector<uint32_t> gather_unknown;
+  std::vector<double> gather_lookup;
+  DirectNoise gather_noise;
+  std::vector<std::vector<Vec3>> tri_albedo(scene.meshes.size());
   const auto t_direct = Clock::now();
+  std::unique_ptr<DirectPass> direct_pass;
   if (two_pass) {
     direct.resize(covered.size());
-    DirectPass pass(accel.handle(), views, csg_views, areas, emitters, settings, extent, textures.get());
+    direct_pass = std::make_unique<DirectPass>(accel.handle(), views, csg_views, areas, emitters, settings, extent,
+                                               textures.get());
+    const DirectPass& pass = *direct_pass;
     std::vector<uint32_t> todo(covered.size());
     for (uint32_t i = 0; i < todo.size(); ++i) todo[i] = i;
     // Round 0 gives every texel direct_samples (with a target at most
@@ -1145,13 +1215,15 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
       todo.swap(next);
       if (over_budget(photon_pass ? 0.5 : 0.95)) break;
     }
+
     for (const DirectSums& d : direct) out.stats.direct_samples += d.count;
   }
   out.stats.seconds_direct = seconds_since(t_direct);
 
   // ---- Photon pass ----------------------------------------------------------
   Accumulators acc(texel_count);
-  const Estimator estimator{areas, views, csg_views, covered_begin, direct, acc, settings.filter_radius, direct_noise};
+  const Estimator estimator{areas, views,        csg_views,     covered_begin,   direct, acc, settings.filter_radius,
+                            direct_noise, &gather, &gather_unknown, &gather_lookup, &gather_noise};
   uint64_t photons = 0;
   const auto t_trace = Clock::now();
   if (photon_pass) {
@@ -1162,6 +1234,76 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
                         two_pass ? 1u : 0u, ls_grids, textures.get());
     std::vector<BatchOutput> batches;
     double truncated_flux = 0.0;
+    // ---- Final gather -------------------------------------------------------
+    // Where the indirect light is a small part of the light (an open sunlit
+    // scene), photons pay for it with many photons per texel. A plain final
+    // gather (seed 003) estimates it with few rays per texel: G = albedo x
+    // radiosity (direct + photon estimate) of the texel a cosine ray from the
+    // texel hits (0 for the sky: that is direct light). It runs once, after
+    // kCheckBatches batches (a fixed point: deterministic), from the photon
+    // estimate at that point -- under a target only if those photons alone
+    // do not reach it; each texel then weighs photons and gather by
+    // their variances (Estimator::combine_gather), so scenes where photons do
+    // better (light through a window) lose only the gather's rays. Meshes
+    // only: a CSG solid, an L-system or textures have no radiosity to look up.
+    // Not with few bounces: its lookups carry every bounce, so it would add one.
+    const bool gather_wanted = two_pass && scene.csgs.empty() && scene.lsystems.empty() && !textures &&
+                               settings.max_bounces >= kGatherMinBounces;
+    // Rays per texel: kGatherSamples, 4x as many for half the target error (2 % and above: 16).
+    const uint32_t gather_samples =
+        settings.target_error > 0.0
+            ? uint32_t(std::clamp(kGatherSamples * std::pow(0.02 / settings.target_error, 2.0), double(kGatherSamples),
+                                  double(kMaxGatherSamples)))
+            : kGatherSamples;
+    bool gathered = false;
+    auto run_gather = [&](uint64_t photons_now) {
+      gathered = true;
+      if (over_budget(0.9)) return;
+      std::vector<float> radiosity(3 * texel_count, 0.0f), error(texel_count, 0.0f);
+      std::vector<double> v3, var;
+      for (size_t i = 0; i < scene.meshes.size(); ++i) {
+        if (!views[i].texel_area) continue;
+        estimator.texels(i, photons_now, v3, var);
+        const size_t g0 = views[i].texel_offset;
+        for (size_t t = 0; t < var.size(); ++t)
+          if (areas[i].area[t] > 0.0) {
+            for (int c = 0; c < 3; ++c) radiosity[3 * (g0 + t) + c] = float(v3[3 * t + c]);
+            error[g0 + t] = float(std::sqrt(var[t]));
+          }
+      }
+      for (size_t i = 0; i < scene.meshes.size(); ++i) {
+        const Mesh& mesh = scene.meshes[i];
+        tri_albedo[i].resize(mesh.triangle_count());
+        for (uint32_t t = 0; t < mesh.triangle_count(); ++t)
+          tri_albedo[i][t] = scene.materials.empty() ? Vec3{0.8f, 0.8f, 0.8f} : scene.materials[mesh.material_ids[t]].albedo;
+      }
+      const DirectPass::GatherSource source{radiosity.data(), error.data(), &tri_albedo};
+      std::vector<DirectSums> sums(covered.size());
+      std::vector<uint32_t> unknown(covered.size(), 0);
+      std::vector<double> lookup(covered.size(), 0.0);
+      // In groups, so that cancelling and the time budget are checked several
+      // times a second; texels left without rays keep the photon estimate.
+      run_in_groups(
+          arena, covered.size(), 64,
+          [&](uint64_t first_texel, uint64_t n) {
+            tbb::parallel_for(tbb::blocked_range<uint64_t>(first_texel, first_texel + n, 16), [&](const auto& r) {
+              for (uint64_t k = r.begin(); k < r.end(); ++k)
+                direct_pass->gather_texel(covered[k].mesh, covered[k].texel, 0, gather_samples, source, sums[k],
+                                          unknown[k], lookup[k]);
+            });
+          },
+          [&](uint64_t) {
+            report(direct_end, "final gather");
+            return !over_budget(0.9);
+          });
+      double texel_sq = 0.0, sampled = 0.0;
+      for (const DirectSums& g : sums)
+        if (g.count) texel_sq += g.sum_sq / g.count, sampled += 1.0;
+      gather_noise.typical = sampled > 0.0 ? std::sqrt(texel_sq / sampled) : 0.0;
+      gather.swap(sums);
+      gather_unknown.swap(unknown);
+      gather_lookup.swap(lookup);
+    };
     uint64_t ol_hits = 0;
     uint64_t merged = 0, next_check = kCheckBatches;
     bool done = false;
@@ -1211,16 +1353,25 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
             out.stats.paths_truncated += bo.truncated;
             truncated_flux += bo.truncated_flux;
             photons = std::min(cap, (b + 1) * kBatchPhotons);
-            if (settings.target_error > 0.0 && b + 1 == next_check) {
+            const bool targeted = settings.target_error > 0.0;
+            if (gather_wanted && !gathered && b + 1 == kCheckBatches && !targeted) run_gather(photons);
+            if (targeted && b + 1 == next_check) {
               next_check = std::max(next_check + kCheckBatches, (next_check * 5 / 4) / kCheckBatches * kCheckBatches);
-              const ErrorEstimate e = estimate_error(estimator, photons);
-              const double err = e.relative;
-              // Photons cannot lower the direct part: once theirs is under half
-              // the target, more photons would not reach a target the direct
-              // pass missed (its warning says so).
-              const double photon_err = std::sqrt(std::max(0.0, err * err - e.direct * e.direct));
-              fraction = std::max(fraction, std::min(1.0, std::pow(settings.target_error / std::max(err, 1e-12), 2.0)));
-              done = err <= settings.target_error || photon_err <= 0.5 * settings.target_error;
+              // Photons cannot lower the direct part nor the gather's: once
+              // theirs is under half the target, more photons would not reach
+              // a target the other parts missed (the warning says so). Under a
+              // target the gather runs only where the first photons do not
+              // reach it (loose targets stay as fast as photons alone).
+              ErrorEstimate e;
+              for (int pass = 0; pass < 2; ++pass) {
+                e = estimate_error(estimator, photons);
+                const double photon_err =
+                    std::sqrt(std::max(0.0, e.relative * e.relative - e.direct * e.direct - e.gather * e.gather));
+                done = e.relative <= settings.target_error || photon_err <= 0.5 * settings.target_error;
+                if (done || !gather_wanted || gathered) break;
+                run_gather(photons);
+              }
+              fraction = std::max(fraction, std::min(1.0, std::pow(settings.target_error / std::max(e.relative, 1e-12), 2.0)));
             }
           }
           merged = end;
@@ -1237,6 +1388,8 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
         // they are still in cache (measured: +3 % rays/s on one thread against
         // groups of up to 1024 batches a thread, whose hits had left the cache).
         threads);
+    // Fewer photons than kCheckBatches batches, no target: the gather comes last.
+    if (gather_wanted && !gathered && photons > 0 && settings.target_error <= 0.0) run_gather(photons);
     out.stats.photons_emitted = photons;
     out.stats.photon_hits = acc.total_hits + ol_hits;
     if (truncated_flux > 1e-4 * emitted * double(photons))

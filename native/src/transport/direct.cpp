@@ -223,6 +223,27 @@ Vec3 DirectPass::mirrored_point(uint32_t mesh_id, uint32_t tri, float x, float y
   return p0 * float(u) + p1 * float(v) + p2 * float(1.0 - u - v);
 }
 
+bool DirectPass::window_map(uint32_t mesh_id, uint32_t tri, float ox, float oy, float size, Vec3& base, Vec3& du,
+                            Vec3& dv) const {
+  const Mesh& mesh = *views_[mesh_id].mesh;
+  double a1, a2, x1, x2, y1, y2;  // barycentrics at (ox, oy), (ox + 1, oy), (ox, oy + 1)
+  if (!uv_barycentric(mesh, tri, ox, oy, a1, a2) || !uv_barycentric(mesh, tri, double(ox) + 1.0, oy, x1, x2) ||
+      !uv_barycentric(mesh, tri, ox, double(oy) + 1.0, y1, y2))
+    return false;
+  const double d1x = x1 - a1, d2x = x2 - a2, d1y = y1 - a1, d2y = y2 - a2;
+  for (int c = 0; c < 4; ++c) {
+    const double cx = c & 1 ? size : 0.0, cy = c & 2 ? size : 0.0;
+    const double b1 = a1 + d1x * cx + d1y * cy, b2 = a2 + d2x * cx + d2y * cy;
+    if (!(b1 >= 0.0 && b2 >= 0.0 && b1 + b2 <= 1.0)) return false;
+  }
+  const Vec3 p0 = mesh.vertex(tri, 0), p1 = mesh.vertex(tri, 1), p2 = mesh.vertex(tri, 2);
+  const csg::DVec3 q0 = to_double(p0), e1 = to_double(p1) - q0, e2 = to_double(p2) - q0;
+  base = to_float(q0 + e1 * a1 + e2 * a2);
+  du = to_float(e1 * d1x + e2 * d2x);
+  dv = to_float(e1 * d1y + e2 * d2y);
+  return true;
+}
+
 float DirectPass::local_shares(Vec3 p, Vec3 n, const uint32_t* candidates, size_t count, float* share) const {
   float total = 0.0f;
   for (size_t i = 0; i < count; ++i) {
@@ -290,6 +311,9 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   const float origin_x = window ? x0 + 0.25f : x0, origin_y = window ? y0 + 0.25f : y0;
   const float side = window ? 0.5f / float(m) : 1.0f / float(m);
   const bool sparse = !csg && !window && areas_[mesh_id].coverage[texel] < 0.5f;
+  // A window inside its triangle maps to the surface by two multiply-adds.
+  Vec3 w_base, w_du, w_dv;
+  const bool affine = window && window_map(mesh_id, uint32_t(owner), origin_x, origin_y, 0.5f, w_base, w_du, w_dv);
   const uint32_t pick_key = rng.next_u32();
   const uint32_t sobol_key = rng.next_u32();
   const SobolGroup light_dims(sobol_key, 0), mis_dims(sobol_key, 1), piece_dims(sobol_key, 2), surface_dims(sobol_key, 3);
@@ -363,7 +387,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       if (!point_in_pieces(mesh_id, texel, w, p, normal, tri)) continue;
     } else if (window) {
       tri = uint32_t(owner);
-      p = mirrored_point(mesh_id, tri, x, y);
+      p = affine ? w_base + w_du * (x - origin_x) + w_dv * (y - origin_y) : mirrored_point(mesh_id, tri, x, y);
       normal = views_[mesh_id].normals[tri];
     } else if (!surface_point(mesh_id, texel, x, y, p, normal, tri)) {
       continue;  // outside the islands
@@ -416,7 +440,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       if (em.textured && ds.geometry > 0.0f)  // the texture at the sampled point (0: skip the shadow ray)
         ds.irradiance = textures_->emission(*views_[em.mesh].mesh, em.material, em.triangle, ds.bu, ds.bv, tex_thread) *
                         ds.geometry;
-      if (!(max_component(ds.irradiance) > 0.0f)) continue;
+      if (!(ds.irradiance.x > 0.0f || ds.irradiance.y > 0.0f || ds.irradiance.z > 0.0f)) continue;  // no fmaxf calls
       tc.target_geom = em.kind == EmitterKind::Triangle ? em.mesh : RTC_INVALID_GEOMETRY_ID;
       tc.target_prim = em.kind == EmitterKind::Triangle ? em.triangle : RTC_INVALID_GEOMETRY_ID;
       const float tfar = std::isinf(ds.distance) ? ds.distance : ds.distance * (1.0f - 1e-4f);
@@ -499,6 +523,104 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
     t = ChoiceScratch::Tally{};
   }
   touched.clear();
+}
+
+void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
+                              const GatherSource& source, DirectSums& sums, uint32_t& unknown,
+                              double& lookup_error) const {
+  const Mesh& mesh = *views_[mesh_id].mesh;
+  const uint32_t width = mesh.lightmap_width;
+  const uint64_t global = views_[mesh_id].texel_offset + texel;
+  // A stream of its own: (round | 0x100) is no round of sample_texel's.
+  Rng rng(seed_ ^ 0x7F4A7C15u, (global << 9) | 0x100u | (round & 0xFF));
+  const uint32_t m = std::max(1u, uint32_t(std::ceil(std::sqrt(double(samples)))));
+  const uint32_t n = m * m;
+  const float x0 = float(texel % width), y0 = float(texel / width);
+  TraceContext tc;
+  tc.skip_geom = mesh_id;
+  const int64_t owner = cycles_window_ && areas_[mesh_id].coverage[texel] >= 0.5f ? centre_owner(mesh_id, texel) : -1;
+  const bool window = owner >= 0;
+  const float origin_x = window ? x0 + 0.25f : x0, origin_y = window ? y0 + 0.25f : y0;
+  const float side = window ? 0.5f / float(m) : 1.0f / float(m);
+  const bool sparse = !window && areas_[mesh_id].coverage[texel] < 0.5f;
+  Vec3 w_base, w_du, w_dv;
+  const bool affine = window && window_map(mesh_id, uint32_t(owner), origin_x, origin_y, 0.5f, w_base, w_du, w_dv);
+  const SobolGroup dir_dims(rng.next_u32(), 3), piece_dims(rng.next_u32(), 4);
+  uint32_t previous = ~0u, back = 0, rays = 0;
+  double error_sum = 0.0;
+  double previous_value = 0.0;
+  for (uint32_t j = 0; j < n; ++j) {
+    const float x = origin_x + (float(j % m) + rng.next_float()) * side;
+    const float y = origin_y + (float(j / m) + rng.next_float()) * side;
+    Vec3 p, normal;
+    uint32_t tri;
+    float v[2], w[3] = {0, 0, 0};
+    dir_dims.point(j, 2, v);
+    if (sparse) {
+      piece_dims.point(j, 3, w);
+      if (!point_in_pieces(mesh_id, texel, w, p, normal, tri)) continue;
+    } else if (window) {
+      tri = uint32_t(owner);
+      p = affine ? w_base + w_du * (x - origin_x) + w_dv * (y - origin_y) : mirrored_point(mesh_id, tri, x, y);
+      normal = views_[mesh_id].normals[tri];
+    } else if (!surface_point(mesh_id, texel, x, y, p, normal, tri)) {
+      continue;
+    }
+    const Vec3 local = cosine_hemisphere(v[0], v[1]);
+    Vec3 t, b;
+    make_frame(normal, t, b);
+    const Vec3 dir = t * local.x + b * local.y + normal * local.z;
+    tc.skip_prim = tri;
+    RTCRayHit rh;
+    rh.ray = make_ray(offset_origin(p, normal, offset_scale_), dir, std::numeric_limits<float>::infinity());
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(rtc_, &tc.context, &rh);
+    Vec3 e{0, 0, 0};
+    if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+      // The texel the ray lands in, as the photon pass records a hit.
+      bool known = false;
+      const bool mesh_hit = rh.hit.geomID < views_.size() && views_[rh.hit.geomID].texel_area;
+      if (mesh_hit && !(dot(dir, views_[rh.hit.geomID].normals[rh.hit.primID]) < 0.0f)) {
+        ++back;  // the back of a surface: 0 (the inside of a closed object is dark)
+        known = true;
+      } else if (mesh_hit) {
+        const MeshView& hv = views_[rh.hit.geomID];
+        const Mesh& hm = *hv.mesh;
+        const float bu = rh.hit.u, bv = rh.hit.v, bw = 1.0f - bu - bv;
+        const float* uv = &hm.uv[6 * size_t(rh.hit.primID)];
+        const float sx = (bw * uv[0] + bu * uv[2] + bv * uv[4]) * float(hm.lightmap_width);
+        const float sy = (bw * uv[1] + bu * uv[3] + bv * uv[5]) * float(hm.lightmap_height);
+        if (sx >= 0.0f && sy >= 0.0f && sx < float(hm.lightmap_width) && sy < float(hm.lightmap_height)) {
+          const uint64_t ht = uint64_t(sy) * hm.lightmap_width + uint64_t(sx);
+          if (hv.texel_area[ht] > 0.0) {
+            const float* d = source.radiosity + 3 * (hv.texel_offset + ht);
+            const Vec3 a = (*source.albedo)[rh.hit.geomID][rh.hit.primID];
+            e = {a.x * d[0], a.y * d[1], a.z * d[2]};
+            error_sum += double(average(a)) * source.error[hv.texel_offset + ht];
+            known = true;
+          }
+        }
+      }
+      if (!known) ++unknown;
+    }
+    ++rays;
+    for (int c = 0; c < 3; ++c) sums.rgb[c] += e[c];
+    const double a = (double(e.x) + e.y + e.z) / 3.0;
+    sums.sum_sq += a * a;
+    if (j % 2 == 1 && previous == j - 1) {
+      sums.pair_sq += (a - previous_value) * (a - previous_value);
+      sums.paired += 2;
+    }
+    previous = j;
+    previous_value = a;
+    ++sums.count;
+  }
+  // Points under a box standing on the ground see its inside (no light, as
+  // Cycles bakes them); many back hits are rather a lit surface seen from
+  // behind, whose light no lightmap holds (lightmaps are one-sided).
+  if (4 * back > rays) unknown += back;
+  lookup_error = rays ? error_sum / rays : 0.0;
 }
 
 }  // namespace plm

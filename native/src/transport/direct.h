@@ -54,11 +54,37 @@ class DirectPass {
   // `texel` of CSG solid c. Thread-safe for distinct texels.
   void sample_texel(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums) const;
 
+  // Final gather (see GatherSource): adds `samples` (rounded up to a
+  // square) cosine-distributed rays from the same points as sample_texel's;
+  // each sample is the light reflected by the surface it hits, albedo x that
+  // texel's radiosity (0 for rays that leave the scene: the sky is direct
+  // light); 0 also for the back of a surface (the inside of a box standing on
+  // the ground is dark), unless more than a quarter of the rays see backs. A
+  // ray that hits what the source cannot look up (a mesh without its own
+  // texels, a CSG solid, such backs) counts in `unknown`: such a texel's
+  // gather is not used.
+  // Meshes only (mesh < mesh count). Thread-safe for distinct texels.
+  struct GatherSource {
+    const float* radiosity = nullptr;  // 3 per global texel: irradiance / pi, direct + indirect (0 where uncovered)
+    const float* error = nullptr;      // 1 per global texel: the estimated error of its mean RGB
+    const std::vector<std::vector<Vec3>>* albedo = nullptr;  // per mesh, per triangle
+  };
+  // `lookup_error`: the mean over the samples of albedo x the looked-up
+  // texel's error, the gather's error from the source's own errors (taken as
+  // fully correlated: the source is a pooled photon estimate, and a texel's
+  // rays hit neighbouring texels).
+  void gather_texel(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, const GatherSource& source,
+                    DirectSums& sums, uint32_t& unknown, double& lookup_error) const;
+
  private:
   bool surface_point(uint32_t mesh, uint32_t texel, float x, float y, Vec3& p, Vec3& n, uint32_t& tri) const;
   bool point_in_pieces(uint32_t mesh, uint32_t texel, const float u[3], Vec3& p, Vec3& n, uint32_t& tri) const;
   int64_t centre_owner(uint32_t mesh, uint32_t texel) const;
   Vec3 mirrored_point(uint32_t mesh, uint32_t tri, float x, float y) const;
+  // If the square [ox, ox + size]^2 of texel coordinates lies inside triangle
+  // tri's UVs (mirrored_point is then the point itself): the point at (ox, oy)
+  // and its change per texel in x and y, so a sample costs two multiply-adds.
+  bool window_map(uint32_t mesh, uint32_t tri, float ox, float oy, float size, Vec3& base, Vec3& du, Vec3& dv) const;
   // Shares of the local choice among `count` candidate lights at point p,
   // normal n: share[i] = 0.9 x candidate i's unoccluded irradiance / their
   // sum. Returns the local part, 0.9, or 0 if no candidate lights p.
