@@ -108,16 +108,21 @@ TEST(Reconstruct, PoolsOnlyWithinTheSameSurface) {
   }
 }
 
-// The radius follows the estimated error: noisy sums of a flat field pool
-// widely; exact sums of a steep field stay unpooled.
-TEST(Reconstruct, ChoosesTheRadiusWithTheLeastEstimatedError) {
+// A 16 x 16 m square with a 16 x 16 lightmap: 1 m texels.
+Mesh square16() {
   Mesh m;
   m.positions = {{0, 0, 0}, {16, 0, 0}, {16, 16, 0}, {0, 16, 0}, {}};
   m.vertex_count = 4;
   m.indices = {0, 1, 2, 0, 2, 3};
   m.uv = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
   m.lightmap_width = m.lightmap_height = 16;
-  const TexelAreas a = compute_texel_areas(m);
+  return m;
+}
+
+// The radius follows the estimated error: noisy sums of a flat field pool
+// widely; exact sums of a steep field stay unpooled.
+TEST(Reconstruct, ChoosesTheRadiusWithTheLeastEstimatedError) {
+  const TexelAreas a = compute_texel_areas(square16());
   std::vector<double> flux(3 * 256), sq(256);
   std::vector<uint32_t> hits(256);
   std::mt19937 gen(3);
@@ -146,13 +151,7 @@ TEST(Reconstruct, ChoosesTheRadiusWithTheLeastEstimatedError) {
 // With the direct light as a guide, pooling stops at a contact shadow: a
 // noisy lit half next to a dark half (no light at all) leaks nothing into it.
 TEST(Reconstruct, GuideStopsPoolingAtShadowEdges) {
-  Mesh m;
-  m.positions = {{0, 0, 0}, {16, 0, 0}, {16, 16, 0}, {0, 16, 0}, {}};
-  m.vertex_count = 4;
-  m.indices = {0, 1, 2, 0, 2, 3};
-  m.uv = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
-  m.lightmap_width = m.lightmap_height = 16;
-  const TexelAreas a = compute_texel_areas(m);
+  const TexelAreas a = compute_texel_areas(square16());
   std::vector<double> flux(3 * 256, 0.0), sq(256, 0.0), guide(256, 0.0);
   std::vector<uint32_t> hits(256, 0);
   std::mt19937 gen(5);
@@ -183,13 +182,7 @@ TEST(Reconstruct, GuideStopsPoolingAtShadowEdges) {
 // wall's foot, where a mean would be biased), and its variance is the
 // intercept's: 1/25 of a texel's over a full 5 x 5 window.
 TEST(Reconstruct, LinearFitIsExactOnLinearFieldsEvenOneSided) {
-  Mesh m;
-  m.positions = {{0, 0, 0}, {16, 0, 0}, {16, 16, 0}, {0, 16, 0}, {}};
-  m.vertex_count = 4;
-  m.indices = {0, 1, 2, 0, 2, 3};
-  m.uv = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
-  m.lightmap_width = m.lightmap_height = 16;
-  const TexelAreas a = compute_texel_areas(m);
+  const TexelAreas a = compute_texel_areas(square16());
   std::vector<double> mean(3 * 256), var(256, 1.0), guide(256), value, out_var;
   for (uint32_t t = 0; t < 256; ++t) {
     const double x = t % 16, y = t / 16;

@@ -244,6 +244,29 @@ bool DirectPass::window_map(uint32_t mesh_id, uint32_t tri, float ox, float oy, 
   return true;
 }
 
+DirectPass::TexelWindow DirectPass::texel_window(uint32_t mesh_id, uint32_t texel, uint32_t m) const {
+  const uint32_t width = views_[mesh_id].mesh->lightmap_width;
+  const float x0 = float(texel % width), y0 = float(texel / width);
+  TexelWindow tw;
+  tw.owner = cycles_window_ && areas_[mesh_id].coverage[texel] >= 0.5f ? centre_owner(mesh_id, texel) : -1;
+  const bool window = tw.owner >= 0;
+  tw.origin_x = window ? x0 + 0.25f : x0, tw.origin_y = window ? y0 + 0.25f : y0;
+  tw.side = window ? 0.5f / float(m) : 1.0f / float(m);
+  tw.sparse = !window && areas_[mesh_id].coverage[texel] < 0.5f;
+  tw.affine = window && window_map(mesh_id, uint32_t(tw.owner), tw.origin_x, tw.origin_y, 0.5f, tw.base, tw.du, tw.dv);
+  return tw;
+}
+
+bool DirectPass::texel_point(const TexelWindow& tw, uint32_t mesh_id, uint32_t texel, float x, float y,
+                             const float w[3], Vec3& p, Vec3& n, uint32_t& tri) const {
+  if (tw.sparse) return point_in_pieces(mesh_id, texel, w, p, n, tri);
+  if (tw.owner < 0) return surface_point(mesh_id, texel, x, y, p, n, tri);
+  tri = uint32_t(tw.owner);
+  p = tw.affine ? tw.base + tw.du * (x - tw.origin_x) + tw.dv * (y - tw.origin_y) : mirrored_point(mesh_id, tri, x, y);
+  n = views_[mesh_id].normals[tri];
+  return true;
+}
+
 float DirectPass::local_shares(Vec3 p, Vec3 n, const uint32_t* candidates, size_t count, float* share) const {
   float total = 0.0f;
   for (size_t i = 0; i < count; ++i) {
@@ -292,28 +315,17 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   // A CSG sub-texel: points from its lightmap; rays leave the exact surface by
   // the origin offset alone (a ray may rightly hit the primitive it leaves).
   const CsgView* csg = mesh_id >= views_.size() ? &csgs_[mesh_id - views_.size()] : nullptr;
-  const uint32_t width = csg ? 1u : views_[mesh_id].mesh->lightmap_width;
   const uint64_t global = (csg ? csg->texel_offset : views_[mesh_id].texel_offset) + texel;
   Rng rng(seed_ ^ 0x9E3779B9u, (global << 8) | (round & 0xFF));
   const uint32_t m = std::max(1u, uint32_t(std::ceil(std::sqrt(double(samples)))));
   const uint32_t n = m * m;
-  const float x0 = csg ? 0.0f : float(texel % width), y0 = csg ? 0.0f : float(texel / width);
   TraceContext tc;
   tc.skip_geom = csg ? RTC_INVALID_GEOMETRY_ID : mesh_id;
-  // The strata cover the texel, or with PLM_TEXEL_CYCLES its central half
-  // (x and y within a quarter texel of the centre), if a triangle covers the
-  // centre. Barely covered texels sample their covered pieces directly.
-  // Points in the window are folded into the triangle that owns the centre,
-  // as Cycles does (mirrored_point).
-  const int64_t owner = !csg && cycles_window_ && areas_[mesh_id].coverage[texel] >= 0.5f
-                            ? centre_owner(mesh_id, texel) : -1;
-  const bool window = owner >= 0;
-  const float origin_x = window ? x0 + 0.25f : x0, origin_y = window ? y0 + 0.25f : y0;
-  const float side = window ? 0.5f / float(m) : 1.0f / float(m);
-  const bool sparse = !csg && !window && areas_[mesh_id].coverage[texel] < 0.5f;
-  // A window inside its triangle maps to the surface by two multiply-adds.
-  Vec3 w_base, w_du, w_dv;
-  const bool affine = window && window_map(mesh_id, uint32_t(owner), origin_x, origin_y, 0.5f, w_base, w_du, w_dv);
+  TexelWindow tw;  // a CSG sub-texel: strata over [0, 1]^2 of its lightmap
+  if (csg) tw.side = 1.0f / float(m);
+  else tw = texel_window(mesh_id, texel, m);
+  const bool sparse = tw.sparse;
+  const float origin_x = tw.origin_x, origin_y = tw.origin_y, side = tw.side;
   const uint32_t pick_key = rng.next_u32();
   const uint32_t sobol_key = rng.next_u32();
   const SobolGroup light_dims(sobol_key, 0), mis_dims(sobol_key, 1), piece_dims(sobol_key, 2), surface_dims(sobol_key, 3);
@@ -383,13 +395,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       csg::DVec3 dp, dn;
       csg->lightmap->sample_point(texel, x, y, dp, dn);
       p = to_float(dp), normal = to_float(dn), tri = RTC_INVALID_GEOMETRY_ID;
-    } else if (sparse) {
-      if (!point_in_pieces(mesh_id, texel, w, p, normal, tri)) continue;
-    } else if (window) {
-      tri = uint32_t(owner);
-      p = affine ? w_base + w_du * (x - origin_x) + w_dv * (y - origin_y) : mirrored_point(mesh_id, tri, x, y);
-      normal = views_[mesh_id].normals[tri];
-    } else if (!surface_point(mesh_id, texel, x, y, p, normal, tri)) {
+    } else if (!texel_point(tw, mesh_id, texel, x, y, w, p, normal, tri)) {
       continue;  // outside the islands
     }
     float share[kCandidates], local = 0.0f;
@@ -528,44 +534,27 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
 void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
                               const GatherSource& source, DirectSums& sums, uint32_t& unknown,
                               double& lookup_error) const {
-  const Mesh& mesh = *views_[mesh_id].mesh;
-  const uint32_t width = mesh.lightmap_width;
   const uint64_t global = views_[mesh_id].texel_offset + texel;
   // A stream of its own: (round | 0x100) is no round of sample_texel's.
   Rng rng(seed_ ^ 0x7F4A7C15u, (global << 9) | 0x100u | (round & 0xFF));
   const uint32_t m = std::max(1u, uint32_t(std::ceil(std::sqrt(double(samples)))));
   const uint32_t n = m * m;
-  const float x0 = float(texel % width), y0 = float(texel / width);
   TraceContext tc;
   tc.skip_geom = mesh_id;
-  const int64_t owner = cycles_window_ && areas_[mesh_id].coverage[texel] >= 0.5f ? centre_owner(mesh_id, texel) : -1;
-  const bool window = owner >= 0;
-  const float origin_x = window ? x0 + 0.25f : x0, origin_y = window ? y0 + 0.25f : y0;
-  const float side = window ? 0.5f / float(m) : 1.0f / float(m);
-  const bool sparse = !window && areas_[mesh_id].coverage[texel] < 0.5f;
-  Vec3 w_base, w_du, w_dv;
-  const bool affine = window && window_map(mesh_id, uint32_t(owner), origin_x, origin_y, 0.5f, w_base, w_du, w_dv);
+  const TexelWindow tw = texel_window(mesh_id, texel, m);
   const SobolGroup dir_dims(rng.next_u32(), 3), piece_dims(rng.next_u32(), 4);
   uint32_t previous = ~0u, back = 0, rays = 0;
   double error_sum = 0.0;
   double previous_value = 0.0;
   for (uint32_t j = 0; j < n; ++j) {
-    const float x = origin_x + (float(j % m) + rng.next_float()) * side;
-    const float y = origin_y + (float(j / m) + rng.next_float()) * side;
+    const float x = tw.origin_x + (float(j % m) + rng.next_float()) * tw.side;
+    const float y = tw.origin_y + (float(j / m) + rng.next_float()) * tw.side;
     Vec3 p, normal;
     uint32_t tri;
     float v[2], w[3] = {0, 0, 0};
     dir_dims.point(j, 2, v);
-    if (sparse) {
-      piece_dims.point(j, 3, w);
-      if (!point_in_pieces(mesh_id, texel, w, p, normal, tri)) continue;
-    } else if (window) {
-      tri = uint32_t(owner);
-      p = affine ? w_base + w_du * (x - origin_x) + w_dv * (y - origin_y) : mirrored_point(mesh_id, tri, x, y);
-      normal = views_[mesh_id].normals[tri];
-    } else if (!surface_point(mesh_id, texel, x, y, p, normal, tri)) {
-      continue;
-    }
+    if (tw.sparse) piece_dims.point(j, 3, w);
+    if (!texel_point(tw, mesh_id, texel, x, y, w, p, normal, tri)) continue;
     const Vec3 local = cosine_hemisphere(v[0], v[1]);
     Vec3 t, b;
     make_frame(normal, t, b);

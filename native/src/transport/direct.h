@@ -85,6 +85,23 @@ class DirectPass {
   // tri's UVs (mirrored_point is then the point itself): the point at (ox, oy)
   // and its change per texel in x and y, so a sample costs two multiply-adds.
   bool window_map(uint32_t mesh, uint32_t tri, float ox, float oy, float size, Vec3& base, Vec3& du, Vec3& dv) const;
+  // Where a texel's sample points lie: its strata cover the texel (origin,
+  // side per stratum), or with PLM_TEXEL_CYCLES its central half if a
+  // triangle (owner) covers the centre; points there are folded into the
+  // owner as Cycles does (mirrored_point), or mapped affinely when the window
+  // lies inside it. Barely covered texels (sparse) sample their covered
+  // pieces directly.
+  struct TexelWindow {
+    float origin_x = 0.0f, origin_y = 0.0f, side = 1.0f;
+    int64_t owner = -1;
+    bool sparse = false, affine = false;
+    Vec3 base, du, dv;
+  };
+  TexelWindow texel_window(uint32_t mesh, uint32_t texel, uint32_t strata_per_side) const;
+  // The point for texel coordinates (x, y) (or, sparse, the piece numbers
+  // w); false outside the islands.
+  bool texel_point(const TexelWindow& tw, uint32_t mesh, uint32_t texel, float x, float y, const float w[3], Vec3& p,
+                   Vec3& n, uint32_t& tri) const;
   // Shares of the local choice among `count` candidate lights at point p,
   // normal n: share[i] = 0.9 x candidate i's unoccluded irradiance / their
   // sum. Returns the local part, 0.9, or 0 if no candidate lights p.
