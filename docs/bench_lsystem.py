@@ -2,7 +2,7 @@
 
     PHOTONLM_LIBRARY=build/lib/libphotonlm.so PYTHONPATH=python_bridge \
         /usr/bin/python3 docs/bench_lsystem.py [--depth 15] [--ol-level 4] [--photons 2000000] \
-        [--out docs/images/lsystem_forest.png]
+        [--repeats 3] [--skip-forest] [--out docs/images/lsystem_forest.png]
 
 The tree is the add-on's SYMPODIAL_TREE preset (addon/photonlm_blender/lsystem.py) with its
 parameters rewritten as integer branch counts (i, j): the preset's A(l, w) / B(l*r1, w*wr) form
@@ -12,7 +12,10 @@ beyond depth 13, which the graph (and lsystem_flatten) refuse. The surfaces are 
 
 1. One tree on a 12 x 12 m floor (128 x 128 lightmap), sun at 40 degrees + sky, photons only
    (direct_samples 0): (a) one L-system object (graph, no flattening) and (b) each flattened
-   primitive as its own one-leaf CSG solid (Embree BVH over exact cylinders).
+   primitive as its own one-leaf CSG solid (Embree BVH over exact cylinders). The variants run
+   in turn, --repeats rounds; each round's graph / flattened ratio pairs runs a few seconds apart
+   (on a shared machine the load changes between processes), and the table gives the median and
+   the range over rounds.
 2. A forest of 100 such trees (random position, heading, scale, seed) on a 40 x 40 m floor with a
    256 x 256 lightmap, as 100 L-system objects; the flattened comparison uses 10 trees (100 x 33 k
    one-leaf CSG solids is too heavy for this machine). Error: floor lightmap and tree light
@@ -175,6 +178,7 @@ def main():
     ap.add_argument("--forest-direct", type=int, default=4)
     ap.add_argument("--flat-trees", type=int, default=10)
     ap.add_argument("--skip-forest", action="store_true")
+    ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--out", default=None)
     ap.add_argument("--one", default=None)
     args = ap.parse_args()
@@ -185,26 +189,40 @@ def main():
     n = len(photonlm.lsystem_flatten(TREE, depth=d, step=STEP, width=WIDTH, max_primitives=10 ** 7)[0])
     print("tree: SYMPODIAL_TREE depth %d = %d primitives, ol_level %d" % (d, n, lvl))
 
-    # 1. one tree, photons only.
+    # 1. one tree, photons only: the variants in turn, `repeats` rounds.
     base = dict(trees=1, spread=0, half=6.0, res=128, depth=d, ol_level=lvl, photons=args.photons, direct=0, seed=1)
-    rows = [("graph (L-system object), cache 64 MiB", sub(dict(base, kind="graph")))]
-    rows.append(("flattened (%d one-leaf CSG solids)" % n, sub(dict(base, kind="flat"))))
-    for cb, label in ((1 << 20, "1 MiB"), (64 << 10, "64 KiB")):
-        rows.append(("graph, cache %s" % label, sub(dict(base, kind="graph", cache_bytes=cb))))
-    flat_rate = rows[1][1]["rays_traced"] / rows[1][1]["seconds_trace"]
-    print("\n### One tree, %.0f M photons, photons only\n" % (args.photons / 1e6))
+    variants = [("graph (L-system object), cache 64 MiB", dict(base, kind="graph")),
+                ("flattened (%d one-leaf CSG solids)" % n, dict(base, kind="flat")),
+                ("graph, cache 1 MiB", dict(base, kind="graph", cache_bytes=1 << 20)),
+                ("graph, cache 64 KiB", dict(base, kind="graph", cache_bytes=64 << 10))]
+    runs = {label: [] for label, _ in variants}
+    for _ in range(max(1, args.repeats)):
+        for label, cfg in variants:
+            runs[label].append(sub(cfg))
+    flat_label = variants[1][0]
+
+    def per_ray(r):
+        return r["seconds_trace"] / r["rays_traced"]
+
+    print("\n### One tree, %.0f M photons, photons only (%d rounds: median, range)\n" % (
+        args.photons / 1e6, max(1, args.repeats)))
     print("| variant | rays traced | trace s | M rays/s | trace time per ray vs flattened | set-up s | "
           "peak memory MB | cache hit rate | peak cache MB | stubs |")
     print("|---|---|---|---|---|---|---|---|---|---|")
-    for label, r in rows:
-        rate = r["rays_traced"] / r["seconds_trace"]
+    for label, _ in variants:
+        rs = runs[label]
+        ratios = [per_ray(r) / per_ray(f) for r, f in zip(rs, runs[flat_label])]
+        trace = [r["seconds_trace"] for r in rs]
+        r = rs[0]
         ls = r.get("ls")
         hit = ("%.1f %%" % (100 * ls["cache_hits"] / max(1, ls["cache_hits"] + ls["cache_misses"]))) if ls else "-"
-        print("| %s | %d | %.2f | %.2f | %.2fx | %.2f | %.0f | %s | %s | %s |" % (
-            label, r["rays_traced"], r["seconds_trace"], rate / 1e6, flat_rate / rate, r["seconds_setup"],
-            r["peak_mb"], hit, ("%.1f" % (ls["cache_bytes"] / 2 ** 20)) if ls else "-",
+        print("| %s | %d | %.2f (%.2f-%.2f) | %.2f | %.2fx (%.2f-%.2fx) | %.2f | %.0f | %s | %s | %s |" % (
+            label, r["rays_traced"], np.median(trace), min(trace), max(trace),
+            r["rays_traced"] / np.median(trace) / 1e6, np.median(ratios), min(ratios), max(ratios),
+            np.median([x["seconds_setup"] for x in rs]), max(x["peak_mb"] for x in rs), hit,
+            ("%.1f" % (ls["cache_bytes"] / 2 ** 20)) if ls else "-",
             ("%d of %d" % (ls["stubs"], ls["stub_instances"])) if ls else "-"), flush=True)
-    g = rows[0][1]["ls"]
+    g = runs[variants[0][0]][0]["ls"]
     print("\ngraph: %d node classes, %.2f MB of classes; flux on the tree %.4g W" % (
         g["classes"], g["class_bytes"] / 2 ** 20, g["flux"]))
     if args.skip_forest:
@@ -221,7 +239,7 @@ def main():
     gk = sub(dict(fb, kind="graph", trees=args.flat_trees, lookup=0))
     fk = sub(dict(fb, kind="flat", trees=args.flat_trees, lookup=0))
     ref_map, ref_look = np.array(ref["map"]), np.array(ref["lookup_vals"])
-    print("\n### Forest, %.0f M photons, %d direct samples\n" % (args.forest_photons / 1e6, args.forest_direct))
+    print("\n### Forest, %.1f M photons, %d direct samples\n" % (args.forest_photons / 1e6, args.forest_direct))
     print("| variant | primitives | bake s (engine) | set-up s | photon trace s | direct s | M photon rays/s | peak memory MB | "
           "floor error vs reference | tree light error vs reference |")
     print("|---|---|---|---|---|---|---|---|---|---|")

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <random>
 #include <vector>
 
 #include "csg/primitive.h"
@@ -491,6 +492,43 @@ TEST(CsgPrimitive, AreasMatchClosedFormsAndTessellation) {
     EXPECT_NEAR(p.area[c.face] / ref, 1.0, 1e-8) << shape_name(c.s) << " face " << c.face;
     RecordProperty(std::string("area_rel_error_") + shape_name(c.s) + "_" + std::to_string(c.face),
                    sci(p.area[c.face] / ref - 1));
+  }
+}
+
+// Cylinders and cones of circular section stretched along their axis (what
+// an L-system's turtle draws) take a closed form for the side; elliptic ones
+// the quadrature. Random rotations and scales against the textbook areas: 2 pi
+// r h and pi r sqrt(r^2 + h^2); an elliptic cylinder: Ramanujan's perimeter x h.
+TEST(CsgPrimitive, StretchedCylinderAndConeSidesMatchClosedForms) {
+  std::mt19937_64 rng(77);
+  std::uniform_real_distribution<double> u(0, 1);
+  auto unit = [&] {
+    const double z = 2 * u(rng) - 1, phi = 2 * kPi * u(rng), s = std::sqrt(1 - z * z);
+    return DVec3{s * std::cos(phi), s * std::sin(phi), z};
+  };
+  for (int i = 0; i < 400; ++i) {
+    const DVec3 axis = unit(), l = normalize(cross(axis, unit())), up = cross(axis, l);
+    const double scale = std::exp(4 * u(rng) - 2), a = scale * (0.01 + u(rng)), half = scale * (0.01 + 2 * u(rng));
+    const bool elliptic = i % 10 == 9;
+    const double b = elliptic ? 1.5 * a : a, h = 2 * half;
+    const DVec3 cols[4] = {a * l, b * up, half * axis, 10 * unit()};
+    PrimitiveDesc d;
+    d.shape = i % 2 && !elliptic ? Shape::Cone : Shape::Cylinder;
+    for (int c = 0; c < 4; ++c) {
+      d.to_world[c] = cols[c].x;
+      d.to_world[4 + c] = cols[c].y;
+      d.to_world[8 + c] = cols[c].z;
+    }
+    const Primitive p = make_primitive(d);
+    double side;
+    if (d.shape == Shape::Cone) {
+      side = kPi * a * std::sqrt(a * a + h * h);
+    } else {
+      const double q = (a - b) * (a - b) / ((a + b) * (a + b));  // Ramanujan II: error ~q^5
+      side = kPi * (a + b) * (1 + 3 * q / (10 + std::sqrt(4 - 3 * q))) * h;
+    }
+    ASSERT_NEAR(p.area[0] / side, 1.0, 1e-9) << i << (elliptic ? " elliptic" : "");
+    ASSERT_NEAR(p.area[1] / (kPi * a * b), 1.0, 1e-9) << i;
   }
 }
 

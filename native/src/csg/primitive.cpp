@@ -360,6 +360,18 @@ double face_world_area(const Primitive& prim, int face) {
     return local_area(prim, face) * area_ratio(prim, n, abs_det);
   }
   if (prim.similarity) return local_area(prim, face) * std::cbrt(abs_det * abs_det);
+  if (prim.shape == Shape::Cylinder || prim.shape == Shape::Cone) {
+    // A circular one stretched along its axis (what an L-system's turtle
+    // draws): the side in closed form (integrating it was ~80 % of an
+    // L-system object's set-up). Radius r, height h (the unit shapes' is 2).
+    const DVec3 c0 = prim.to_world.column(0), c1 = prim.to_world.column(1), c2 = prim.to_world.column(2);
+    const double l0 = length(c0), l1 = length(c1), l2 = length(c2), e = 1e-9 * std::fmax(l0, l1);
+    if (std::fabs(l0 - l1) <= e && std::fabs(dot(c0, c1)) <= e * l0 && std::fabs(dot(c0, c2)) <= e * l2 &&
+        std::fabs(dot(c1, c2)) <= e * l2) {
+      const double r = 0.5 * (l0 + l1), h = 2 * l2;
+      return prim.shape == Shape::Cylinder ? 2 * kPi * r * h : kPi * r * std::sqrt(r * r + h * h);
+    }
+  }
   return curved_face_area(prim, abs_det);
 }
 

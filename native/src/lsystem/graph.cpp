@@ -14,6 +14,10 @@
 #include <tuple>
 #include <unordered_map>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "accel/user_geometry.h"
 #include "lsystem/embree_callbacks.h"
 #include "lsystem/expr.h"
@@ -130,6 +134,48 @@ void pad_box(DVec3& lo, DVec3& hi) {
   hi = hi + DVec3{pad, pad, pad};
 }
 
+// v as a float rounded toward -inf / +inf (out of range: -inf / FLT_MAX, -FLT_MAX / +inf).
+inline float float_down(double v) {
+  float f = float(v);
+  if (double(f) > v) {  // f is not -inf; f == -0 only for v < 0
+    uint32_t b;
+    std::memcpy(&b, &f, sizeof b);
+    b = f > 0 ? b - 1 : b + 1;
+    std::memcpy(&f, &b, sizeof b);
+  }
+  return f;
+}
+inline float float_up(double v) {
+  float f = float(v);
+  if (double(f) < v) {  // f is not +inf and not -0
+    uint32_t b;
+    std::memcpy(&b, &f, sizeof b);
+    b = f >= 0 ? b + 1 : b - 1;
+    std::memcpy(&f, &b, sizeof b);
+  }
+  return f;
+}
+
+// Sets box i of blocks (block i / 4, lane i % 4; appends a block of empty
+// lanes at i % 4 == 0) to (lo, hi) rounded outward; lo > hi: empty.
+void set_box4(std::vector<GraphBoxes4>& blocks, size_t i, DVec3 lo, DVec3 hi) {
+  if (i % 4 == 0) {
+    GraphBoxes4 b;
+    for (int a = 0; a < 3; ++a)
+      for (int k = 0; k < 4; ++k) {
+        b.lo[a][k] = std::numeric_limits<float>::infinity();
+        b.hi[a][k] = -std::numeric_limits<float>::infinity();
+      }
+    blocks.push_back(b);
+  }
+  if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) return;
+  GraphBoxes4& b = blocks.back();
+  for (int a = 0; a < 3; ++a) {
+    b.lo[a][i % 4] = float_down(lo[a]);
+    b.hi[a][i % 4] = float_up(hi[a]);
+  }
+}
+
 bool box_hit(DVec3 lo, DVec3 hi, DVec3 o, DVec3 d, double t0, double t1) {
   for (int a = 0; a < 3; ++a) {
     if (!(lo[a] <= hi[a])) return false;
@@ -223,8 +269,18 @@ struct Graph::Impl {
   std::map<ClassKey, uint32_t> index;
   std::map<std::pair<uint32_t, int>, size_t> per_symbol_depth;
   std::vector<double> vars;          // set-up scratch
-  // Per class, per production: each child reference's box in the class frame.
-  std::vector<std::vector<std::vector<GraphBox>>> child_boxes;
+  // A child reference's exact subtree box in the class frame and, for
+  // inlining, the subtree boxes of its descendants down to kGraphInlineDepth - 1
+  // further steps, also in the class frame: sub[production of the child][its
+  // child] (empty where the child is not small enough to be inlined, see
+  // kGraphInlineItems, or the set-up's allowance of such boxes ran out).
+  struct DescBoxes {
+    GraphBox box;
+    std::vector<std::vector<DescBoxes>> sub;
+  };
+  std::vector<std::vector<std::vector<DescBoxes>>> child_desc;  // [class][production][child]
+  size_t desc_left = size_t(1) << 20;  // sub-level boxes the set-up may still make
+  size_t desc_count = 0;               // DescBoxes made (for GraphStats::class_bytes)
   // Set-up only (emptied after): per class, the primitives and child
   // references of all its productions, for the exact child bounds.
   struct SkeletonPrim {
@@ -240,20 +296,27 @@ struct Graph::Impl {
     std::vector<SkeletonChild> children;
   };
   std::vector<std::vector<Skeleton>> skel;  // [class][production]
-  // Per class, per production, per child, per production of the child: the
-  // boxes of the child's children in the class frame (for inlining).
-  std::vector<std::vector<std::vector<std::vector<std::vector<GraphBox>>>>> grand_boxes;
   uint64_t root_key_ = 0;
   DVec3 world_lo{kInf, kInf, kInf}, world_hi{-kInf, -kInf, -kInf};  // see Graph::world_bounds_lo()
   bool inline_views = true;  // see kGraphInlineMinCacheBytes
 
   // A level of the traversal: the node's expansion and the ray in its frame.
+  // The ray in an inlined child's frame (a group's), made at most once per visit.
+  struct GroupRay {
+    DVec3 o, d;
+    uint64_t visit = 0;              // the visit that made it
+  };
   struct Frame {
     const GraphExpansion* e = nullptr;
-    DVec3 o, d, inv;                 // inv = 1 / d per component (+-inf for +-0)
-    uint8_t near[3], far[3];         // per axis: the box coordinate met first / last (see slab)
+    DVec3 o, d;
+    // The ray for the float box tests (see boxes4), per axis (x, y, z, unused):
+    // 1 / d and the origin moved down or up so that the near and the far slab
+    // distances err outward.
+    alignas(16) float inv[4], on[4], of[4];
+    uint8_t near[3], far[3];         // per axis: the float offset in a GraphBoxes4 of the side met first / last
     uint64_t key = 0;                // path key where the class is path dependent (and the root), else 0
     const GraphHop* via = nullptr;   // how the ray got here from the frame above (null at the root)
+    const GroupRay* groups = nullptr;  // per group of e (the running visit's, kept until its hops are entered)
   };
   struct Pending {
     double t;                        // box entry along the ray
@@ -290,6 +353,8 @@ struct Graph::Impl {
     // The running traversal (0: none): its entries are not evicted.
     uint64_t epoch = 0, tick = 0;
     std::vector<Frame> frames;      // kMaxGraphLevels + 1, one per level
+    std::vector<std::vector<GroupRay>> group_rays;  // per level: per group of its node
+    uint64_t visits = 0;
     std::vector<Pending> pending;   // children still to visit, nearest at the back
   };
   mutable tbb::enumerable_thread_specific<Cache> caches;
@@ -316,6 +381,7 @@ struct Graph::Impl {
     cache.epoch = ++cache.tick;
     ready(cache);
     if (cache.frames.size() < size_t(kMaxGraphLevels) + 1) cache.frames.resize(size_t(kMaxGraphLevels) + 1);
+    if (cache.group_rays.size() < size_t(kMaxGraphLevels) + 1) cache.group_rays.resize(size_t(kMaxGraphLevels) + 1);
     if (cache.pending.size() < 256) cache.pending.resize(256);
   }
   void ready(Cache& cache) const {
@@ -349,6 +415,14 @@ struct Graph::Impl {
       for (Cache::Memo& m : cache.memo) m.freq >>= 1;
       cache.lookups = 0;
     }
+  }
+  // Recency is kept (entries moved to the front of the list) only once the
+  // cache is half full: below that nothing is evicted soon, and a move per
+  // entry and ray was ~4 % of a ray's cost; the entries touched meanwhile keep
+  // their insertion order.
+  bool half_full(const Cache& cache) const {
+    return (opt.cache_entries && 2 * cache.lru.size() >= opt.cache_entries) ||
+           (opt.cache_bytes && 2 * cache.bytes >= opt.cache_bytes);
   }
   bool over(const Cache& cache) const {
     return cache.lru.size() > 1 && ((opt.cache_entries && cache.lru.size() > opt.cache_entries) ||
@@ -443,9 +517,8 @@ struct Graph::Impl {
     classes.push_back(std::move(c));
     end.emplace_back();
     end_variable.push_back(0);
-    child_boxes.emplace_back();
+    child_desc.emplace_back();
     skel.emplace_back();
-    grand_boxes.emplace_back();
     index.emplace(std::move(key), id);
     analyse(id);
     return id;
@@ -558,30 +631,16 @@ struct Graph::Impl {
         const GraphNodeClass& cc = classes[cls];
         const Affine t = st.frame();
         if (setup) {
-          const int64_t budget0 = int64_t(std::min<size_t>(opt.bounds_budget, size_t(INT64_MAX)));
-          DVec3 lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
-          int64_t budget = budget0;
-          subtree_box(cls, t, budget, lo, hi);
-          pad_box(lo, hi);
           skel[id][alt].children.push_back({cls, t});
-          child_boxes[id][alt].push_back({lo, hi});
-          std::vector<std::vector<GraphBox>> grand(skel[cls].size());
-          for (size_t a2 = 0; a2 < skel[cls].size(); ++a2)
-            for (const SkeletonChild& gc : skel[cls][a2].children) {
-              DVec3 glo{kInf, kInf, kInf}, ghi{-kInf, -kInf, -kInf};
-              budget = budget0;
-              subtree_box(gc.cls, compose(t, gc.t), budget, glo, ghi);
-              pad_box(glo, ghi);
-              grand[a2].push_back({glo, ghi});
-            }
-          grand_boxes[id][alt].push_back(std::move(grand));
-          grow(r.lo, r.hi, lo, hi);
+          child_desc[id][alt].push_back(desc_boxes(cls, t, kGraphInlineDepth - 1));
+          const GraphBox& b = child_desc[id][alt].back().box;
+          grow(r.lo, r.hi, b.lo, b.hi);
           r.count = cc.max_primitives > std::numeric_limits<uint64_t>::max() - r.count
                         ? std::numeric_limits<uint64_t>::max()
                         : r.count + cc.max_primitives;
           r.path_dependent = r.path_dependent || cc.path_dependent;
         } else {
-          const GraphBox& b = child_boxes[id][alt][out->children.size()];
+          const GraphBox& b = child_desc[id][alt][out->children.size()].box;
           out->children.push_back(GraphChild{cls, cc.path_dependent, t, csg::inverse(t), b.lo, b.hi});
           out->prims_before.push_back(uint32_t(out->prims.size()));
         }
@@ -667,6 +726,29 @@ struct Graph::Impl {
     return r;
   }
 
+  // The DescBoxes of class cls under a, `levels` steps deep (see child_desc).
+  DescBoxes desc_boxes(uint32_t cls, const Affine& a, int levels) {
+    DescBoxes d;
+    ++desc_count;
+    d.box = {{kInf, kInf, kInf}, {-kInf, -kInf, -kInf}};
+    int64_t budget = int64_t(std::min<size_t>(opt.bounds_budget, size_t(INT64_MAX)));
+    subtree_box(cls, a, budget, d.box.lo, d.box.hi);
+    pad_box(d.box.lo, d.box.hi);
+    if (levels <= 0) return d;
+    size_t n = 0;
+    for (const Skeleton& k : skel[cls]) {
+      if (k.prims.size() + k.children.size() > kGraphInlineItems) return d;  // never inlined
+      n += k.children.size();
+    }
+    if (n > desc_left) return d;
+    desc_left -= n;
+    d.sub.resize(skel[cls].size());
+    for (size_t a2 = 0; a2 < skel[cls].size(); ++a2)
+      for (const SkeletonChild& gc : skel[cls][a2].children)
+        d.sub[a2].push_back(desc_boxes(gc.cls, compose(a, gc.t), levels - 1));
+    return d;
+  }
+
   // The box, under a, of every primitive below class cls (see Bounds in
   // graph.h); where budget runs out, the class box mapped by a.
   void subtree_box(uint32_t cls, const Affine& a, int64_t& budget, DVec3& lo, DVec3& hi) const {
@@ -691,9 +773,8 @@ struct Graph::Impl {
 
   void analyse(uint32_t id) {
     const size_t alts = classes[id].symbol == kRoot ? 1 : classes[id].alternatives.size();
-    child_boxes[id].assign(alts, {});
+    child_desc[id].assign(alts, {});
     skel[id].assign(alts, {});
-    grand_boxes[id].assign(alts, {});
     DVec3 lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
     uint64_t count = 0;
     bool path_dependent = alts > 1, variable = false;
@@ -755,8 +836,8 @@ struct Graph::Impl {
     return sizeof(GraphExpansion) + e.prims.capacity() * sizeof(GraphPrimitive) +
            e.children.capacity() * sizeof(GraphChild) + e.prims_before.capacity() * sizeof(uint32_t) +
            e.inlined_prims.capacity() * sizeof(GraphPrimitive) +
-           e.tprims.capacity() * sizeof(GraphTracePrim) + e.prim_boxes.capacity() * sizeof(GraphBox) +
-           e.hops.capacity() * sizeof(GraphHop) + e.hop_boxes.capacity() * sizeof(GraphBox) +
+           e.tprims.capacity() * sizeof(GraphTracePrim) + e.prim_boxes.capacity() * sizeof(GraphBoxes4) +
+           e.hops.capacity() * sizeof(GraphHop) + e.hop_boxes.capacity() * sizeof(GraphBoxes4) +
            e.groups.capacity() * sizeof(GraphGroup) + 64;
   }
 
@@ -768,63 +849,96 @@ struct Graph::Impl {
     return e;
   }
 
-  // The traversal view of expansion e of (cls, key) (graph.h: small children
-  // inlined, unless inline_views is off). Afterwards e holds only the view
-  // (children and prims_before are released: the traversal reads hops).
+  // The traversal view of expansion e of (cls, key) (graph.h: small
+  // descendants inlined, breadth first, unless inline_views is off).
+  // Afterwards e holds only the view (children and prims_before are
+  // released: the traversal reads hops).
   void build_view(GraphExpansion* e, uint32_t cls, uint64_t key) const {
-    const size_t alt = e->alt;
-    auto own_box = [](const GraphPrimitive& gp) {
-      GraphBox b;
-      prim_box(gp.shape, gp.prim.to_world, &b.lo, &b.hi);
-      pad_box(b.lo, b.hi);
-      return b;
-    };
+    const Affine identity{{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}};
+    e->groups.push_back({identity, 0});
     for (size_t i = 0; i < e->prims.size(); ++i) {
-      e->tprims.push_back({nullptr, nullptr, uint32_t(i), 0, 0});
-      e->prim_boxes.push_back(own_box(e->prims[i]));
+      GraphTracePrim tp{};
+      tp.prim = uint32_t(i);
+      e->tprims.push_back(tp);
+      GraphBox b;
+      prim_box(e->prims[i].shape, e->prims[i].prim.to_world, &b.lo, &b.hi);
+      pad_box(b.lo, b.hi);
+      set_box4(e->prim_boxes, i, b.lo, b.hi);
     }
-    // A child's expansion, made here and dropped after (cached entries hold
-    // views only; a miss is cheap: graph.h, trace_primitive).
+    // This node and its inlined descendants, whose children are still to be
+    // placed; a descendant's expansion is made here and dropped after (cached
+    // entries hold views only; a miss is cheap: graph.h, trace_primitive).
+    struct Node {
+      const GraphExpansion* x;
+      const std::vector<DescBoxes>* desc;  // x's children's boxes, in this node's frame
+      Affine to_node;                      // x's frame -> this node's
+      uint64_t key;
+      uint32_t group;
+      uint8_t steps;
+      uint32_t path[kGraphInlineDepth], classes[kGraphInlineDepth];
+    };
     std::vector<std::shared_ptr<GraphExpansion>> made;
-    std::vector<const GraphExpansion*> inlined(e->children.size(), nullptr);
-    for (size_t k = 0; k < e->children.size(); ++k) {
-      const GraphChild& ch = e->children[k];
-      const uint64_t ck = ch.path_dependent ? child_key(key, uint32_t(k)) : 0;
-      const GraphExpansion* ce = nullptr;
-      if (inline_views) {
-        size_t calt = 0;
-        made.push_back(expand_base(ch.cls, ck, &calt));
-        made.back()->alt = uint32_t(calt);
-        ce = made.back().get();
+    std::vector<Node> queue(1);
+    queue[0].x = e;
+    queue[0].desc = &child_desc[cls][e->alt];
+    queue[0].to_node = identity;
+    queue[0].key = key;
+    queue[0].group = 0;
+    queue[0].steps = 0;
+    size_t planned = e->prims.size() + e->children.size();  // primitives and hops of the view so far
+    for (size_t qi = 0; qi < queue.size(); ++qi) {
+      const Node nd = queue[qi];  // a copy: the queue grows
+      for (size_t k = 0; k < nd.x->children.size(); ++k) {
+        const GraphChild& ch = nd.x->children[k];
+        const DescBoxes& db = (*nd.desc)[k];
+        const uint64_t ck = ch.path_dependent ? child_key(nd.key, uint32_t(k)) : 0;
+        Node c = nd;
+        c.steps = uint8_t(nd.steps + 1);
+        c.path[nd.steps] = uint32_t(k);
+        c.classes[nd.steps] = ch.cls;
+        if (inline_views && c.steps < kGraphInlineDepth && !db.sub.empty()) {
+          size_t calt = 0;
+          std::shared_ptr<GraphExpansion> ce = expand_base(ch.cls, ck, &calt);
+          const size_t items = ce->prims.size() + ce->children.size();
+          if (items <= kGraphInlineItems && planned + items - 1 <= kGraphInlineViewItems) {
+            planned += items - 1;
+            ce->alt = uint32_t(calt);
+            c.x = ce.get();
+            c.desc = &db.sub[calt];
+            c.to_node = compose(nd.to_node, ch.to_parent);
+            c.key = ck;
+            c.group = uint32_t(e->groups.size());
+            e->groups.push_back({ch.to_local, nd.group});
+            for (size_t j = 0; j < ce->prims.size(); ++j) {
+              const GraphPrimitive& cp = ce->prims[j];
+              e->inlined_prims.push_back(cp);
+              GraphTracePrim tp{};
+              tp.prim = uint32_t(j);
+              tp.group = c.group;
+              tp.steps = c.steps;
+              std::copy(c.path, c.path + c.steps, tp.path);
+              std::copy(c.classes, c.classes + c.steps, tp.classes);
+              e->tprims.push_back(tp);
+              GraphBox b;  // in this node's frame
+              prim_box(cp.shape, compose(c.to_node, cp.prim.to_world), &b.lo, &b.hi);
+              pad_box(b.lo, b.hi);
+              set_box4(e->prim_boxes, e->tprims.size() - 1, b.lo, b.hi);
+            }
+            made.push_back(std::move(ce));
+            queue.push_back(c);
+            continue;
+          }
+        }
+        GraphHop h{};
+        h.to_local = ch.to_local;
+        h.group = nd.group;
+        h.path_dependent = ch.path_dependent;
+        h.steps = c.steps;
+        std::copy(c.path, c.path + c.steps, h.path);
+        std::copy(c.classes, c.classes + c.steps, h.classes);
+        e->hops.push_back(h);
+        set_box4(e->hop_boxes, e->hops.size() - 1, db.box.lo, db.box.hi);
       }
-      if (ce && ce->prims.size() + ce->children.size() <= kGraphInlineItems) {
-        inlined[k] = ce;
-      } else {
-        e->hops.push_back({ch.to_local, nullptr, ch.cls, ch.path_dependent, 1, {uint32_t(k), 0}, 0});
-        e->hop_boxes.push_back({ch.lo, ch.hi});
-      }
-    }
-    e->groups.push_back({GraphBox{}, uint32_t(e->tprims.size()), uint32_t(e->hops.size()), Affine{}});
-    for (size_t k = 0; k < e->children.size(); ++k) {
-      if (!inlined[k]) continue;
-      const GraphChild& ch = e->children[k];
-      const GraphExpansion& ce = *inlined[k];
-      for (size_t j = 0; j < ce.prims.size(); ++j) {
-        const GraphPrimitive& cp = ce.prims[j];
-        e->inlined_prims.push_back(cp);
-        e->tprims.push_back({nullptr, nullptr, uint32_t(j), uint32_t(k), ch.cls});
-        GraphBox b;  // in this node's frame
-        prim_box(cp.shape, compose(ch.to_parent, cp.prim.to_world), &b.lo, &b.hi);
-        pad_box(b.lo, b.hi);
-        e->prim_boxes.push_back(b);
-      }
-      const std::vector<GraphBox>& gb = grand_boxes[cls][alt][k][ce.alt];
-      for (size_t kk = 0; kk < ce.children.size(); ++kk) {
-        const GraphChild& gc = ce.children[kk];
-        e->hops.push_back({gc.to_local, nullptr, gc.cls, gc.path_dependent, 2, {uint32_t(k), uint32_t(kk)}, ch.cls});
-        e->hop_boxes.push_back(gb[kk]);
-      }
-      e->groups.push_back({GraphBox{ch.lo, ch.hi}, uint32_t(e->tprims.size()), uint32_t(e->hops.size()), ch.to_local});
     }
     e->inlined_prims.shrink_to_fit();
     e->tprims.shrink_to_fit();
@@ -834,12 +948,8 @@ struct Graph::Impl {
     e->groups.shrink_to_fit();
     std::vector<GraphChild>().swap(e->children);
     std::vector<uint32_t>().swap(e->prims_before);
-    // The vectors are final: point the trace primitives and hops at their primitives and groups.
-    const uint32_t own = e->groups[0].prim_end;
-    for (size_t g = 1, i = own, h = e->groups[0].hop_end; g < e->groups.size(); ++g) {
-      for (; i < e->groups[g].prim_end; ++i) e->tprims[i].mid = &e->groups[g].to_child;
-      for (; h < e->groups[g].hop_end; ++h) e->hops[h].mid = &e->groups[g].to_child;
-    }
+    // The vectors are final: point the trace primitives at their primitives.
+    const size_t own = e->prims.size();
     for (size_t i = 0; i < e->tprims.size(); ++i)
       e->tprims[i].gp = i < own ? &e->prims[e->tprims[i].prim] : &e->inlined_prims[i - own];
     e->has_view = true;
@@ -858,7 +968,7 @@ struct Graph::Impl {
       ++cache.hits;
       if (memo.stamp != cache.epoch || cache.epoch == 0) {
         memo.it->stamp = memo.stamp = cache.epoch;
-        if (memo.it != cache.lru.begin()) cache.lru.splice(cache.lru.begin(), cache.lru, memo.it);
+        if (memo.it != cache.lru.begin() && half_full(cache)) cache.lru.splice(cache.lru.begin(), cache.lru, memo.it);
       }
       return memo.it->e;
     }
@@ -907,35 +1017,104 @@ struct Graph::Impl {
     return e;
   }
 
-  // Slab test of the box (lo, hi) against the ray of frame f over [t0, t1];
-  // true with *entry = the entry t if they meet. A zero direction component
-  // gives 0 * inf = NaN on a slab's boundary, which leaves the range as it is
-  // (the closed slab contains the ray); an empty box (lo > hi) never meets.
-  // The frame's near[a] / far[a] pick lo or hi by the sign of inv[a].
-  static bool slab(const GraphBox& box, const Frame& f, double t0, double t1, double* entry) {
-    const double* b = &box.lo.x;  // lo.x lo.y lo.z hi.x hi.y hi.z
-    static_assert(sizeof(GraphBox) == 6 * sizeof(double), "GraphBox is two DVec3");
-    const double nx = (b[f.near[0]] - f.o.x) * f.inv.x, fx = (b[f.far[0]] - f.o.x) * f.inv.x;
-    const double ny = (b[f.near[1]] - f.o.y) * f.inv.y, fy = (b[f.far[1]] - f.o.y) * f.inv.y;
-    const double nz = (b[f.near[2]] - f.o.z) * f.inv.z, fz = (b[f.far[2]] - f.o.z) * f.inv.z;
-    if (nx > t0) t0 = nx;
-    if (ny > t0) t0 = ny;
-    if (nz > t0) t0 = nz;
-    if (fx < t1) t1 = fx;
-    if (fy < t1) t1 = fy;
-    if (fz < t1) t1 = fz;
-    *entry = t0;
-    return t0 <= t1;
+  // Box tests in float, four boxes (a GraphBoxes4) at a time, conservative: a
+  // box that the ray meets in [t0, t1] in exact arithmetic always passes.
+  // The boxes are rounded outward; a near side's slab distance uses the origin
+  // rounded so that the distance errs low, a far side's so that it errs high
+  // (Frame::on, of); what is left (1 / d from a double division rounded to
+  // float, the float subtraction and product) are relative errors of at most
+  // ~3 float ulps, which widening the far distance by 2^-20 relative covers
+  // (the entry is narrowed by as much: the front-to-back order and the skip
+  // beyond the closest hit stay conservative). A zero direction component gives
+  // 0 * inf = NaN on a slab's boundary, which max / min drop (the closed slab
+  // contains the ray); an empty box (lo = +inf, hi = -inf) gives a far distance
+  // of -inf, widened to NaN, and never passes (unless the origin is NaN).
+  // Returns the mask of the boxes met; entry[k]: box k's entry.
+#if defined(__SSE2__)
+  // A frame's float ray, each value broadcast to four lanes (made once per visit).
+  struct Ray4 {
+    __m128 inv[3], on[3], of[3];
+    explicit Ray4(const Frame& f) {
+      const __m128 i = _mm_load_ps(f.inv), n = _mm_load_ps(f.on), o = _mm_load_ps(f.of);
+      inv[0] = _mm_shuffle_ps(i, i, 0x00), inv[1] = _mm_shuffle_ps(i, i, 0x55), inv[2] = _mm_shuffle_ps(i, i, 0xAA);
+      on[0] = _mm_shuffle_ps(n, n, 0x00), on[1] = _mm_shuffle_ps(n, n, 0x55), on[2] = _mm_shuffle_ps(n, n, 0xAA);
+      of[0] = _mm_shuffle_ps(o, o, 0x00), of[1] = _mm_shuffle_ps(o, o, 0x55), of[2] = _mm_shuffle_ps(o, o, 0xAA);
+    }
+  };
+#else
+  struct Ray4 {
+    const Frame& f;
+    explicit Ray4(const Frame& fr) : f(fr) {}
+  };
+#endif
+  static int boxes4(const GraphBoxes4& b, const Frame& f, const Ray4& r, float t0, float t1, float* entry) {
+    constexpr float kWiden = 1.0f / 1048576.0f;  // 2^-20
+    const float* p = &b.lo[0][0];
+#if defined(__SSE2__)
+    __m128 tn = _mm_set1_ps(t0), tf = _mm_set1_ps(t1);
+    for (int a = 0; a < 3; ++a) {
+      const __m128 n = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(p + f.near[a]), r.on[a]), r.inv[a]);
+      const __m128 x = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(p + f.far[a]), r.of[a]), r.inv[a]);
+      tn = _mm_max_ps(n, tn);  // NaN in n: tn
+      tf = _mm_min_ps(x, tf);
+    }
+    const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7FFFFFFF)), k = _mm_set1_ps(kWiden);
+    tf = _mm_add_ps(tf, _mm_mul_ps(_mm_and_ps(tf, abs_mask), k));
+    _mm_store_ps(entry, _mm_sub_ps(tn, _mm_mul_ps(_mm_and_ps(tn, abs_mask), k)));
+    return _mm_movemask_ps(_mm_cmple_ps(tn, tf));
+#else
+    int mask = 0;
+    for (int l = 0; l < 4; ++l) {
+      float tn = t0, tf = t1;
+      for (int a = 0; a < 3; ++a) {
+        const float n = (p[f.near[a] + l] - r.f.on[a]) * r.f.inv[a];
+        const float x = (p[f.far[a] + l] - r.f.of[a]) * r.f.inv[a];
+        tn = n > tn ? n : tn;  // as _mm_max_ps / _mm_min_ps: NaN in n / x is dropped
+        tf = x < tf ? x : tf;
+      }
+      tf = tf + std::fabs(tf) * kWiden;
+      entry[l] = tn - std::fabs(tn) * kWiden;
+      if (tn <= tf) mask |= 1 << l;
+    }
+    return mask;
+#endif
   }
 
+  // The frame's ray: o, d and, for boxes4, 1 / d (a double division rounded
+  // to float) and the origin in float moved down and up by more than its
+  // rounding (|o| 2^-23 + FLT_MIN, also with denormals flushed), branch free.
   static void set_ray(Frame& f, DVec3 o, DVec3 d) {
     f.o = o;
     f.d = d;
-    f.inv = DVec3{1.0 / d.x, 1.0 / d.y, 1.0 / d.z};
+#if defined(__SSE2__)
+    const __m128d one = _mm_set1_pd(1.0);
+    const __m128 inv4 = _mm_movelh_ps(_mm_cvtpd_ps(_mm_div_pd(one, _mm_setr_pd(d.x, d.y))),
+                                      _mm_cvtpd_ps(_mm_div_sd(one, _mm_set_sd(d.z))));
+    const __m128 o4 = _mm_movelh_ps(_mm_cvtpd_ps(_mm_setr_pd(o.x, o.y)), _mm_cvtpd_ps(_mm_set_sd(o.z)));
+    const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7FFFFFFF));
+    const __m128 slack = _mm_add_ps(_mm_mul_ps(_mm_and_ps(o4, abs_mask), _mm_set1_ps(1.0f / 8388608.0f)),
+                                    _mm_set1_ps(std::numeric_limits<float>::min()));
+    const __m128 up = _mm_add_ps(o4, slack), down = _mm_sub_ps(o4, slack);
+    const __m128 neg = _mm_castsi128_ps(_mm_srai_epi32(_mm_castps_si128(inv4), 31));  // sign of 1 / d
+    _mm_store_ps(f.inv, inv4);
+    _mm_store_ps(f.on, _mm_or_ps(_mm_and_ps(neg, down), _mm_andnot_ps(neg, up)));
+    _mm_store_ps(f.of, _mm_or_ps(_mm_and_ps(neg, up), _mm_andnot_ps(neg, down)));
+    const int signs = _mm_movemask_ps(inv4);
+#else
+    int signs = 0;
     for (int a = 0; a < 3; ++a) {
-      const bool neg = f.inv[a] < 0;  // -0 gives -inf: negative
-      f.near[a] = uint8_t(neg ? 3 + a : a);
-      f.far[a] = uint8_t(neg ? a : 3 + a);
+      f.inv[a] = float(1.0 / d[a]);
+      const float of0 = float(o[a]), slack = std::fabs(of0) * (1.0f / 8388608.0f) + std::numeric_limits<float>::min();
+      const bool neg = std::signbit(f.inv[a]);
+      f.on[a] = neg ? of0 - slack : of0 + slack;
+      f.of[a] = neg ? of0 + slack : of0 - slack;
+      signs |= int(neg) << a;
+    }
+#endif
+    for (int a = 0; a < 3; ++a) {
+      const int neg = (signs >> a) & 1;
+      f.near[a] = uint8_t(4 * a + 12 * neg);  // hi[a] : lo[a]
+      f.far[a] = uint8_t(4 * a + 12 * (1 - neg));
     }
   }
 
@@ -952,43 +1131,60 @@ struct Graph::Impl {
     size_t npend = 0;
     double best = tfar;
     bool found = false;
+    const float t0 = float_down(tnear);
     // The closest hit so far; the hit record is made once at the end.
     const GraphTracePrim* hit_tp = nullptr;
     int hit_level = 0, hit_face = 0;
     DVec3 hit_p;  // in the hit primitive's frame
     const GraphHop* hit_via[kMaxGraphLevels + 1];
+    const GraphExpansion* hit_from[kMaxGraphLevels + 1];  // the expansion holding hit_via[level]
+    const GraphExpansion* hit_e = nullptr;                // the one holding hit_tp
     csg::Crossing cr[csg::kMaxPrimitiveCrossings];
     // Tests the primitives of the node at `level` and queues the hops that
     // the ray meets before `best`, nearest last; true to stop (occlusion found).
     auto visit = [&](int level) {
-      const Frame& f = frames[level];
+      Frame& f = frames[level];
       const GraphExpansion& e = *f.e;
-      const size_t nh = e.hops.size();
-      if (npend + nh > cache.pending.size()) {
-        cache.pending.resize(2 * (npend + nh));
-        pend = cache.pending.data();
+      const uint64_t vid = ++cache.visits;
+      GroupRay* gr = nullptr;
+      if (e.groups.size() > 1) {
+        std::vector<GroupRay>& v = cache.group_rays[size_t(level)];
+        if (v.size() < e.groups.size()) v.resize(e.groups.size());
+        gr = v.data();
       }
-      const size_t first = npend;
-      const GraphBox* pboxes = e.prim_boxes.data();
-      const GraphBox* hboxes = e.hop_boxes.data();
-      uint32_t p = 0, h = 0;
-      for (size_t gi = 0; gi < e.groups.size(); ++gi) {
-        const GraphGroup& grp = e.groups[gi];
-        double entry;
-        if (gi > 0 && !slab(grp.box, f, tnear, best, &entry)) {
-          p = grp.prim_end;
-          h = grp.hop_end;
-          continue;
+      f.groups = gr;
+      // The ray in group g's frame (an inlined descendant's), mapped frame by
+      // frame from this node's as the plain traversal maps it.
+      auto group_ray = [&](uint32_t g) -> const GroupRay& {
+        if (gr[g].visit != vid) {
+          uint32_t chain[kGraphInlineDepth];
+          int n = 0;
+          for (uint32_t x = g; x != 0 && gr[x].visit != vid; x = e.groups[x].parent) chain[n++] = x;
+          while (n > 0) {
+            const uint32_t x = chain[--n];
+            const GraphGroup& grp = e.groups[x];
+            const DVec3 po = grp.parent ? gr[grp.parent].o : f.o, pd = grp.parent ? gr[grp.parent].d : f.d;
+            gr[x].o = grp.to_child.point(po);
+            gr[x].d = grp.to_child.vector(pd);
+            gr[x].visit = vid;
+          }
         }
-        DVec3 co = f.o, cd = f.d;  // the ray in the primitives' frame (an inlined child's: made when needed)
-        bool mapped = gi == 0;
-        for (; p < grp.prim_end; ++p) {
-          if (!slab(pboxes[p], f, tnear, best, &entry)) continue;
+        return gr[g];
+      };
+      alignas(16) float entry[4];
+      const Ray4 r4(f);
+      float t1 = float(best);  // its rounding is within the 2^-20 of boxes4
+      const size_t np = e.tprims.size();
+      for (size_t b = 0; b < e.prim_boxes.size(); ++b) {
+        for (int mask = boxes4(e.prim_boxes[b], f, r4, t0, t1, entry); mask; mask &= mask - 1) {
+          const size_t p = 4 * b + size_t(__builtin_ctz(unsigned(mask)));
+          if (p >= np) break;  // an unused lane (NaN origin)
           const GraphTracePrim& tp = e.tprims[p];
-          if (!mapped) {
-            co = grp.to_child.point(f.o);
-            cd = grp.to_child.vector(f.d);
-            mapped = true;
+          DVec3 co = f.o, cd = f.d;  // the ray in the primitive's frame
+          if (tp.group) {
+            const GroupRay& r = group_ray(tp.group);
+            co = r.o;
+            cd = r.d;
           }
           const int n = csg::intersect(tp.gp->prim, co, cd, 0.0, cr);
           for (int k = 0; k < n; ++k) {
@@ -998,27 +1194,44 @@ struct Graph::Impl {
             found = true;
             if (!hit) return true;
             best = t;
+            t1 = float(best);
             hit_tp = &tp;
+            hit_e = &e;
             hit_level = level;
             hit_face = cr[k].face;
             hit_p = co + t * cd;
-            for (int lev = 1; lev <= level; ++lev) hit_via[lev] = frames[lev].via;
+            for (int lev = 1; lev <= level; ++lev) {
+              hit_via[lev] = frames[lev].via;
+              hit_from[lev] = frames[lev - 1].e;
+            }
             break;
           }
         }
-        for (; h < grp.hop_end; ++h) {
-          if (!slab(hboxes[h], f, tnear, best, &entry)) continue;
+      }
+      const size_t nh = e.hops.size();
+      if (npend + nh > cache.pending.size()) {
+        cache.pending.resize(2 * (npend + nh));
+        pend = cache.pending.data();
+      }
+      const size_t first = npend;
+      for (size_t b = 0; b < e.hop_boxes.size(); ++b) {
+        for (int mask = boxes4(e.hop_boxes[b], f, r4, t0, t1, entry); mask; mask &= mask - 1) {
+          const int lane = __builtin_ctz(unsigned(mask));
+          const size_t h = 4 * b + size_t(lane);
+          if (h >= nh) break;
+          if (e.hops[h].group) group_ray(e.hops[h].group);  // for entering the hop
+          const double t = entry[lane];
           // Insertion into this node's queued run, kept sorted with the nearest at the back.
           size_t j = npend++;
-          while (j > first && pend[j - 1].t < entry) {
+          while (j > first && pend[j - 1].t < t) {
             pend[j].t = pend[j - 1].t;
             pend[j].level = pend[j - 1].level;
             pend[j].hop = pend[j - 1].hop;
             --j;
           }
-          pend[j].t = entry;
+          pend[j].t = t;
           pend[j].level = uint32_t(level);
-          pend[j].hop = h;
+          pend[j].hop = uint32_t(h);
         }
       }
       return false;
@@ -1042,21 +1255,20 @@ struct Graph::Impl {
       }
       const GraphHop& c = f.e->hops[phop];
       Frame& g = frames[level];
-      if (c.mid) {  // through the inlined child's frame, as without inlining
-        const DVec3 mo = c.mid->point(f.o), md = c.mid->vector(f.d);
-        set_ray(g, c.to_local.point(mo), c.to_local.vector(md));
+      if (c.group) {  // through the inlined child's frame (mapped by the visit), as without inlining
+        const GroupRay& r = f.groups[c.group];
+        set_ray(g, c.to_local.point(r.o), c.to_local.vector(r.d));
       } else {
         set_ray(g, c.to_local.point(f.o), c.to_local.vector(f.d));
       }
       uint64_t key = 0;
       if (c.path_dependent) {  // then so are the nodes above it
         key = f.key;
-        if (c.steps == 2) key = child_key(key, c.index[0]);
-        key = child_key(key, c.index[c.steps - 1]);
+        for (int s = 0; s < c.steps; ++s) key = child_key(key, c.path[s]);
       }
       g.key = key;
       g.via = &c;
-      g.e = find(cache, c.cls, key, c.path_dependent);
+      g.e = find(cache, c.classes[c.steps - 1], key, c.path_dependent);
       stop = visit(level);
     }
     if (found && hit) {
@@ -1065,27 +1277,30 @@ struct Graph::Impl {
       hit->classes[0] = 0;
       for (int lev = 1; lev <= hit_level; ++lev) {
         const GraphHop& v = *hit_via[lev];
-        if (v.steps == 2) {
-          hit->path[lv] = v.index[0];
-          hit->classes[++lv] = v.mid_cls;
+        for (int s = 0; s < v.steps; ++s) {
+          hit->path[lv] = v.path[s];
+          hit->classes[++lv] = v.classes[s];
         }
-        hit->path[lv] = v.index[v.steps - 1];
-        hit->classes[++lv] = v.cls;
       }
-      if (tp.mid) {
-        hit->path[lv] = tp.child;
-        hit->classes[++lv] = tp.child_cls;
+      for (int s = 0; s < tp.steps; ++s) {
+        hit->path[lv] = tp.path[s];
+        hit->classes[++lv] = tp.classes[s];
       }
       hit->t = best;
       hit->levels = lv;
       hit->shape = tp.gp->shape;
       hit->material = tp.gp->material;
       hit->prim = tp.prim;
+      // The normal back up the frames: the inlined chain in the hit node's
+      // view, then each hop and the inlined chain above it.
       DVec3 nl = csg::normal(tp.gp->prim, hit_face, hit_p);
-      if (tp.mid) nl = tp.mid->transpose_vector(nl);
+      for (uint32_t x = tp.group; x != 0; x = hit_e->groups[x].parent)
+        nl = hit_e->groups[x].to_child.transpose_vector(nl);
       for (int lev = hit_level; lev > 0; --lev) {
-        nl = hit_via[lev]->to_local.transpose_vector(nl);
-        if (hit_via[lev]->mid) nl = hit_via[lev]->mid->transpose_vector(nl);
+        const GraphHop& v = *hit_via[lev];
+        nl = v.to_local.transpose_vector(nl);
+        for (uint32_t x = v.group; x != 0; x = hit_from[lev]->groups[x].parent)
+          nl = hit_from[lev]->groups[x].to_child.transpose_vector(nl);
       }
       hit->n = csg::normalize(nl);
       hit->node_key = ancestor_key(*hit, hit->levels);
@@ -1198,9 +1413,8 @@ Graph::Graph(const LSystem& system, const GraphOptions& options) : impl_(std::ma
   g.classes.push_back(root);
   g.end.emplace_back();
   g.end_variable.push_back(0);
-  g.child_boxes.emplace_back();
+  g.child_desc.emplace_back();
   g.skel.emplace_back();
-  g.grand_boxes.emplace_back();
   g.analyse(0);
   int64_t budget = int64_t(std::min<size_t>(o.bounds_budget, size_t(INT64_MAX)));
   g.subtree_box(0, o.world, budget, g.world_lo, g.world_hi);
@@ -1238,7 +1452,8 @@ GraphStats Graph::stats() const {
   GraphStats s;
   s.classes = g.classes.size();
   s.levels = g.levels;
-  s.class_bytes = g.classes.size() * (sizeof(GraphNodeClass) + sizeof(State) + 96);
+  s.class_bytes = g.classes.size() * (sizeof(GraphNodeClass) + sizeof(State) + 96) +
+                  g.desc_count * sizeof(Graph::Impl::DescBoxes);
   for (const GraphNodeClass& c : g.classes)
     s.class_bytes += c.params.capacity() * 8 * 2 + c.alternatives.capacity() * sizeof(c.alternatives[0]);
   for (const Impl::Cache& c : g.caches) {

@@ -65,10 +65,15 @@
 // its primitives' and children's boxes.
 //
 // Traversal: an expansion's traversal view (GraphExpansion::tprims, hops,
-// groups) inlines its small children, so one visit covers two derivation
-// steps: a node's cache entry is looked up once per two levels. Every primitive, inlined child and hop has
-// its box in the node's frame, tested with the frame's inverse direction
-// before any transform or intersection. Hops are entered front to back
+// groups) inlines its small descendants (kGraphInlineDepth: children and
+// grandchildren), so one visit covers up to three derivation steps: a node's
+// cache entry is looked up and a hop queued once per up to three levels.
+// Every primitive and hop has its box in the node's frame (the exact box,
+// for inlined levels from set-up unfoldings per class, rounded outward to
+// float), tested four at a time in float SIMD (conservative: a box the ray
+// meets always passes, see boxes4 in graph.cpp) before any transform or
+// intersection; a ray is mapped into an inlined descendant's frame only when
+// one of its primitives or hops passes. Hops are entered front to back
 // (sorted by box entry, skipped once the entry lies beyond the closest hit so
 // far). The hit record (path, classes per level, keys, normal) is made once
 // per ray, from the hops that led to the closest hit.
@@ -141,52 +146,62 @@ struct GraphChild {
   csg::DVec3 lo, hi;             // child bounds in the parent frame (exact subtree box, see Bounds)
 };
 
-// The traversal's view of an expansion. Small children (at most
-// kGraphInlineItems primitives and children) are inlined: their primitives
-// (boxes in the node's frame) are tested within the node's visit, and their
-// children become the node's hops (two steps down), so a cache entry is
-// looked up and the queue of hops grows once per two levels. Groups: 0 holds the node's own primitives
-// and its children that are not inlined; each further group an inlined child,
-// tested against that child's box first. The view is made when a ray first
-// enters an expansion; a cache entry then holds the view only (children and
-// prims_before are released; flatten() makes its own expansions). With
-// inlining a miss costs the expansion of the node and of its children (each
-// ~1 us: primitives are made by trace_primitive, without face areas) and an
-// entry holds ~2x the bytes, so with GraphOptions::cache_bytes below
-// kGraphInlineMinCacheBytes views inline nothing (one visit per level).
-// Results do not depend on it.
+// The traversal's view of an expansion. Small descendants (at most
+// kGraphInlineItems primitives and children each, down to kGraphInlineDepth - 1
+// steps below the node, at most kGraphInlineViewItems primitives and hops in
+// all) are inlined: their primitives (boxes in the node's frame) are tested
+// within the node's visit, and the children of the deepest inlined ones become
+// the node's hops (up to kGraphInlineDepth steps down), so a cache entry is
+// looked up and the queue of hops grows once per up to kGraphInlineDepth
+// levels. Groups: 0 is the node itself; each further group an inlined
+// descendant (its frame, reached from its parent group's frame). The view is
+// made when a ray first enters an expansion; a cache entry then holds the
+// view only (children and prims_before are released; flatten() makes its own
+// expansions). With inlining a miss costs the expansion of the node and of
+// its inlined descendants (each ~1 us: primitives are made by
+// trace_primitive, without face areas) and an entry holds several times the
+// bytes, so with GraphOptions::cache_bytes below kGraphInlineMinCacheBytes
+// views inline nothing (one visit per level). Results do not depend on it.
 constexpr size_t kGraphInlineItems = 16;
+constexpr int kGraphInlineDepth = 3;
+constexpr size_t kGraphInlineViewItems = 64;
+static_assert(kGraphInlineDepth >= 2, "a view inlines at least its children");
 constexpr size_t kGraphInlineMinCacheBytes = size_t(1) << 20;
 
-// Rays and primitives keep the frames of the graph: an inlined child's
-// primitive is intersected in the child's frame and a grandchild's ray is
-// mapped through the child's frame, with the same arithmetic as without
-// inlining, so hits are bit for bit those of the plain traversal (up to which
-// of two coincident primitives wins a tie in t).
+// Rays and primitives keep the frames of the graph: an inlined descendant's
+// primitive is intersected in its own frame and a hop's ray is mapped frame by
+// frame down the inlined chain, with the same arithmetic as without inlining,
+// so hits are bit for bit those of the plain traversal (up to which of two
+// coincident primitives wins a tie in t).
 
 // A node below this one that the traversal enters.
 struct GraphHop {
-  csg::Affine to_local;          // the frame one step above the target -> the target's frame
-  const csg::Affine* mid;        // steps 2: this node's frame -> the inlined child's (its group's to_child)
-  uint32_t cls;                  // the target's class
+  csg::Affine to_local;          // its group's frame -> the target's frame
+  uint32_t group;                // the group it hangs from (0: a child of this node)
   bool path_dependent;           // the target class's path_dependent
-  uint8_t steps;                 // 1: a child; 2: a grandchild through an inlined child
-  uint32_t index[2];             // child index at each step
-  uint32_t mid_cls;              // steps 2: the inlined child's class
+  uint8_t steps;                 // derivation steps from this node to the target (group depth + 1)
+  uint32_t path[kGraphInlineDepth];     // child index at each step
+  uint32_t classes[kGraphInlineDepth];  // class at each step (classes[steps - 1]: the target's)
 };
 
 // A primitive the traversal tests (its box in this node's frame).
 struct GraphTracePrim {
-  const GraphPrimitive* gp;      // the node's own (prims), or an inlined child's, in that child's frame
-  const csg::Affine* mid;        // an inlined child's: this node's frame -> the child's, else null
+  const GraphPrimitive* gp;      // the node's own (prims) or an inlined descendant's (a copy), in that frame
   uint32_t prim;                 // its index in its own node's expansion
-  uint32_t child, child_cls;     // an inlined child's: the child's index and class
+  uint32_t group;                // its node's group (0: this node's own)
+  uint8_t steps;                 // derivation steps from this node to the primitive's node
+  uint32_t path[kGraphInlineDepth - 1], classes[kGraphInlineDepth - 1];  // as GraphHop's, `steps` of them
+};
+
+// Four boxes as a structure of arrays of floats, rounded outward from the
+// exact (double, padded) boxes; an unused lane is empty (lo = +inf, hi = -inf).
+struct alignas(16) GraphBoxes4 {
+  float lo[3][4], hi[3][4];      // [axis][box]
 };
 
 struct GraphGroup {
-  GraphBox box;                  // group 0: not tested
-  uint32_t prim_end, hop_end;    // its primitives and hops: from the previous group's ends to these
-  csg::Affine to_child;          // an inlined child's: this node's frame -> the child's
+  csg::Affine to_child;          // the parent group's frame -> this group's (group 0: unused)
+  uint32_t parent;               // group 0: 0
 };
 
 // One expanded instance: what the turtle drew and the child references.
@@ -199,11 +214,11 @@ struct GraphExpansion {
   // The traversal's view (see above; made when a ray first enters the
   // expansion, not by flatten()); boxes in the node frame, padded.
   bool has_view = false;
-  std::vector<GraphPrimitive> inlined_prims;  // inlined children's primitives (copies, in their frames)
+  std::vector<GraphPrimitive> inlined_prims;  // inlined descendants' primitives (copies, in their frames)
   std::vector<GraphTracePrim> tprims;
-  std::vector<GraphBox> prim_boxes;    // per tprim: its exact box
+  std::vector<GraphBoxes4> prim_boxes; // tprim i: block i / 4, lane i % 4 (its exact box, rounded outward)
   std::vector<GraphHop> hops;
-  std::vector<GraphBox> hop_boxes;     // per hop: the target's subtree box
+  std::vector<GraphBoxes4> hop_boxes;  // likewise per hop: the target's subtree box
   std::vector<GraphGroup> groups;
   size_t bytes = 0;
 };
