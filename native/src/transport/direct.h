@@ -1,7 +1,8 @@
 // The direct pass (thesis 3.5.2, two-pass use of lightmaps): each texel's
 // direct light is estimated from stratified points inside the part of the
-// texel its triangles cover, one shadow ray per point towards a light chosen
-// in proportion to power. Rounds can be added to texels that stay noisy.
+// texel its triangles cover, shadow rays from each point towards every light
+// or a chosen one (see all_lights_). Rounds can be added to texels that stay
+// noisy.
 #pragma once
 
 #include <cstdint>
@@ -148,11 +149,10 @@ class DirectPass {
   // noise from choosing between them; on the open benchmark scene 2.0 % error
   // at 16 samples against 3.9 % for one ray to a chosen light). More: one,
   // chosen 90 % in proportion to the candidates' unoccluded irradiance at the
-  // point (local_shares) and 10 % by power (every light keeps a share: no
-  // bias). The candidates are all lights up to kCandidates, else the
-  // kCandidates brightest at the texel's first point (a cost of O(lights)
-  // per texel). Beyond kMaxLocalChoice lights (emissive meshes), one chosen
-  // by power.
+  // texel's first point (local_shares) and 10 % by power (every light keeps a
+  // share: no bias). The candidates are all lights up to kCandidates, else
+  // the kCandidates brightest there (a cost of O(lights) per texel). Beyond
+  // kMaxLocalChoice lights (emissive meshes), one chosen by power.
   static constexpr size_t kAllLights = 4, kCandidates = 32, kMaxLocalChoice = 256;
   bool all_lights_;
   bool local_choice_;
