@@ -352,7 +352,6 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   // kCandidates the brightest (by unoccluded irradiance) at the texel's first
   // point, scratch.slot_of[k] their place (-1: not a candidate).
   const bool select = local_choice_ && emitters_.size() > kCandidates;
-  bool selected = false;
   // The local choice's shares, from the lights' unoccluded irradiance at the
   // texel's first point: per point they cost 2.5x the direct pass's time
   // with 48-100 lights for no lower error.
@@ -407,7 +406,6 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
     if (local_choice_) {
       if (!chosen_here) {
         if (select) select_candidates(p, normal, chosen, scratch);
-        selected = select;
         local = local_shares(p, normal, candidates, candidate_count, share);
         chosen_here = true;
       }
@@ -518,7 +516,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   // The lights in the order of their intervals of u_pick: candidates, then
   // the others, each by index.
   std::vector<uint32_t>& touched = scratch.touched;
-  if (selected) {
+  if (select && chosen_here) {  // candidates were selected
     auto place = [&](uint32_t k) { return scratch.slot_of[k] >= 0 ? uint64_t(scratch.slot_of[k]) : kCandidates + uint64_t(k); };
     std::sort(touched.begin(), touched.end(), [&](uint32_t a, uint32_t b) { return place(a) < place(b); });
     for (const uint32_t k : chosen) scratch.slot_of[k] = -1;
