@@ -160,12 +160,15 @@ void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, c
   for (uint32_t t = 0; t < n; ++t) {
     if (!(ta.area[t] > 0.0)) continue;
     const int64_t x = t % width, y = t / width;
+    auto pools = [&](uint32_t k) {  // texel k takes part in t's fit
+      return k == t || (same_surface(ta, t, k, reach) && (!guide || similar_guide(guide, k, t, floor)));
+    };
     // Normal equations of the fit v = a + b dx + c dy, weights = texel areas.
     double m[6] = {0, 0, 0, 0, 0, 0};  // s1, sx, sy, sxx, sxy, syy
     for (int64_t yy = std::max<int64_t>(y - r, 0); yy <= std::min<int64_t>(y + r, int64_t(height) - 1); ++yy)
       for (int64_t xx = std::max<int64_t>(x - r, 0); xx <= std::min<int64_t>(x + r, int64_t(width) - 1); ++xx) {
         const uint32_t k = uint32_t(yy * width + xx);
-        if (k != t && (!same_surface(ta, t, k, reach) || (guide && !similar_guide(guide, k, t, floor)))) continue;
+        if (!pools(k)) continue;
         const double w = ta.area[k], dx = double(xx - x), dy = double(yy - y);
         m[0] += w, m[1] += w * dx, m[2] += w * dy, m[3] += w * dx * dx, m[4] += w * dx * dy, m[5] += w * dy * dy;
       }
@@ -179,7 +182,7 @@ void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, c
     for (int64_t yy = std::max<int64_t>(y - r, 0); yy <= std::min<int64_t>(y + r, int64_t(height) - 1); ++yy)
       for (int64_t xx = std::max<int64_t>(x - r, 0); xx <= std::min<int64_t>(x + r, int64_t(width) - 1); ++xx) {
         const uint32_t k = uint32_t(yy * width + xx);
-        if (k != t && (!same_surface(ta, t, k, reach) || (guide && !similar_guide(guide, k, t, floor)))) continue;
+        if (!pools(k)) continue;
         const double l = ta.area[k] * (e[0] + e[1] * double(xx - x) + e[2] * double(yy - y));
         for (int c = 0; c < 3; ++c) sum3[c] += l * mean3[3 * size_t(k) + c];
         var += l * l * variance[k];

@@ -112,6 +112,9 @@ class PhotonTracer {
     build_hit_tables();
   }
 
+  // A triangle's material (grey 0.8 in a scene without materials).
+  const Material& material(const Mesh& mesh, uint32_t tri) const { return material_by_id(mesh.material_ids[tri]); }
+
   void trace_batch(uint64_t first, uint64_t count, BatchOutput& out) const {
     out.hits.clear();
     out.ol_hits.clear();
@@ -129,7 +132,6 @@ class PhotonTracer {
   const Material& material_by_id(uint32_t id) const {
     return scene_.materials.empty() ? default_material_ : scene_.materials[id];
   }
-  const Material& material(const Mesh& mesh, uint32_t tri) const { return material_by_id(mesh.material_ids[tri]); }
 
   // A photon's random numbers: group 0 = light choice + emission, group
   // 1 + depth = that bounce. Sobol points are keyed per batch of kBatchPhotons
@@ -375,15 +377,9 @@ class PhotonTracer {
     }
     const HitMesh& hm = hit_meshes_[rh.hit.geomID];
     if (!hm.covered) return;
-    const float bu = rh.hit.u, bv = rh.hit.v, bw = 1.0f - bu - bv;
-    const float* uv = hm.uv + 6 * size_t(rh.hit.primID);
-    const float tu = bw * uv[0] + bu * uv[2] + bv * uv[4];
-    const float tv = bw * uv[1] + bu * uv[3] + bv * uv[5];
-    // On [0, width) truncation is the floor (std::floor is a libm-like
-    // sequence without SSE4.1); outside, and for NaN, nothing is recorded.
-    const float sx = tu * float(hm.width), sy = tv * float(hm.height);
-    if (sx >= 0.0f && sy >= 0.0f && sx < float(hm.width) && sy < float(hm.height)) {
-      const uint64_t texel = uint64_t(sy) * hm.width + uint64_t(sx);
+    // Outside the lightmap, and for NaN, nothing is recorded.
+    const int64_t texel = uv_texel(hm.uv + 6 * size_t(rh.hit.primID), rh.hit.u, rh.hit.v, hm.width, hm.height);
+    if (texel >= 0) {
       if (hm.covered[texel]) {
         // Fields stored in place: a Hit built on the stack and copied is
         // reloaded as one 16-byte word right after four 4-byte stores, which
@@ -1112,7 +1108,6 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   std::vector<uint32_t> gather_unknown;
   std::vector<double> gather_lookup;
   DirectNoise gather_noise;
-  std::vector<std::vector<Vec3>> tri_albedo(scene.meshes.size());
   const auto t_direct = Clock::now();
   std::unique_ptr<DirectPass> direct_pass;
   if (two_pass) {
@@ -1271,11 +1266,11 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
             error[g0 + t] = float(std::sqrt(var[t]));
           }
       }
+      std::vector<std::vector<Vec3>> tri_albedo(scene.meshes.size());
       for (size_t i = 0; i < scene.meshes.size(); ++i) {
         const Mesh& mesh = scene.meshes[i];
         tri_albedo[i].resize(mesh.triangle_count());
-        for (uint32_t t = 0; t < mesh.triangle_count(); ++t)
-          tri_albedo[i][t] = scene.materials.empty() ? Vec3{0.8f, 0.8f, 0.8f} : scene.materials[mesh.material_ids[t]].albedo;
+        for (uint32_t t = 0; t < mesh.triangle_count(); ++t) tri_albedo[i][t] = tracer.material(mesh, t).albedo;
       }
       const DirectPass::GatherSource source{radiosity.data(), error.data(), &tri_albedo};
       std::vector<DirectSums> sums(covered.size());

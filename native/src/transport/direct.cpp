@@ -35,6 +35,13 @@ bool uv_barycentric(const Mesh& mesh, uint32_t t, double x, double y, double& b1
   return true;
 }
 
+// A light's unoccluded irradiance at p, 0 where the guess is not a finite
+// non-negative number.
+float irradiance_guess(const Emitter& e, Vec3 p, Vec3 n) {
+  const float g = unoccluded_irradiance(e, p, n);
+  return g >= 0.0f && g < 1e30f ? g : 0.0f;
+}
+
 }  // namespace
 
 double DirectSums::pair_variance_of_mean() const {
@@ -270,8 +277,7 @@ bool DirectPass::texel_point(const TexelWindow& tw, uint32_t mesh_id, uint32_t t
 float DirectPass::local_shares(Vec3 p, Vec3 n, const uint32_t* candidates, size_t count, float* share) const {
   float total = 0.0f;
   for (size_t i = 0; i < count; ++i) {
-    share[i] = unoccluded_irradiance(emitters_[candidates[i]], p, n);
-    if (!(share[i] >= 0.0f && share[i] < 1e30f)) share[i] = 0.0f;
+    share[i] = irradiance_guess(emitters_[candidates[i]], p, n);
     total += share[i];
   }
   if (!(total > 0.0f)) return 0.0f;
@@ -286,8 +292,7 @@ void DirectPass::select_candidates(Vec3 p, Vec3 n, uint32_t* chosen, ChoiceScrat
   guess.resize(emitters_.size());
   order.resize(emitters_.size());
   for (uint32_t i = 0; i < emitters_.size(); ++i) {
-    guess[i] = unoccluded_irradiance(emitters_[i], p, n);
-    if (!(guess[i] >= 0.0f && guess[i] < 1e30f)) guess[i] = 0.0f;
+    guess[i] = irradiance_guess(emitters_[i], p, n);
     order[i] = i;
   }
   std::nth_element(order.begin(), order.begin() + kCandidates, order.end(), [&](uint32_t a, uint32_t b) {
@@ -579,12 +584,9 @@ void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       } else if (mesh_hit) {
         const MeshView& hv = views_[rh.hit.geomID];
         const Mesh& hm = *hv.mesh;
-        const float bu = rh.hit.u, bv = rh.hit.v, bw = 1.0f - bu - bv;
-        const float* uv = &hm.uv[6 * size_t(rh.hit.primID)];
-        const float sx = (bw * uv[0] + bu * uv[2] + bv * uv[4]) * float(hm.lightmap_width);
-        const float sy = (bw * uv[1] + bu * uv[3] + bv * uv[5]) * float(hm.lightmap_height);
-        if (sx >= 0.0f && sy >= 0.0f && sx < float(hm.lightmap_width) && sy < float(hm.lightmap_height)) {
-          const uint64_t ht = uint64_t(sy) * hm.lightmap_width + uint64_t(sx);
+        const int64_t ht = uv_texel(&hm.uv[6 * size_t(rh.hit.primID)], rh.hit.u, rh.hit.v, hm.lightmap_width,
+                                    hm.lightmap_height);
+        if (ht >= 0) {
           if (hv.texel_area[ht] > 0.0) {
             const float* d = source.radiosity + 3 * (hv.texel_offset + ht);
             const Vec3 a = (*source.albedo)[rh.hit.geomID][rh.hit.primID];

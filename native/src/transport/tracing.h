@@ -38,6 +38,18 @@ inline csg::DVec3 to_double(Vec3 v) { return {v.x, v.y, v.z}; }
 // Unit normals of a mesh's triangles, (0, 0, 0) for degenerate ones.
 std::vector<Vec3> triangle_normals(const Mesh& mesh);
 
+// The texel (row-major, of a width x height lightmap) that barycentric
+// (bu, bv) of a triangle with corner UVs uv[0..5] lands in; -1 outside the
+// map and for NaN. On [0, width) truncation is the floor (std::floor is a
+// libm-like sequence without SSE4.1).
+inline int64_t uv_texel(const float* uv, float bu, float bv, uint32_t width, uint32_t height) {
+  const float bw = 1.0f - bu - bv;
+  const float sx = (bw * uv[0] + bu * uv[2] + bv * uv[4]) * float(width);
+  const float sy = (bw * uv[1] + bu * uv[3] + bv * uv[5]) * float(height);
+  if (!(sx >= 0.0f && sy >= 0.0f && sx < float(width) && sy < float(height))) return -1;
+  return int64_t(uint64_t(sy) * width + uint64_t(sx));
+}
+
 struct TraceContext {
   RTCIntersectContext context;  // first member: Embree hands back this pointer
   unsigned skip_geom = RTC_INVALID_GEOMETRY_ID;  // the triangle the ray leaves
