@@ -1,6 +1,9 @@
 #include "lightmap/reconstruct.h"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace plm {
@@ -14,6 +17,17 @@ bool same_surface(const TexelAreas& ta, uint32_t a, uint32_t b, float reach) {
 namespace {
 
 constexpr uint32_t kMaxRadius = 16;
+
+// Rows of texels per parallel task. Sums over texels add up per block of
+// rows, then the blocks in order: the same result for any thread count.
+constexpr uint32_t kBlockRows = 4;
+
+template <typename Row>
+void for_rows(uint32_t height, Row&& row) {
+  tbb::parallel_for(uint32_t(0), (height + kBlockRows - 1) / kBlockRows, [&](uint32_t b) {
+    for (uint32_t y = b * kBlockRows; y < std::min(height, (b + 1) * kBlockRows); ++y) row(b, y);
+  });
+}
 
 // Texels pool only where their guides (the direct light) differ by at most
 // half the larger one plus a floor; a negative (or NaN) guide pools with none.
@@ -108,20 +122,32 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
   auto is_sparse = [&](size_t t) { return ta.coverage[t] < params.min_coverage; };
 
   // Pass 1: the estimated mean squared error of the whole lightmap per radius.
+  struct Totals {
+    double var[kMaxRadius + 1] = {}, bias[kMaxRadius + 1] = {};
+    double counted = 0.0;
+  };
+  std::vector<Totals> blocks((height + kBlockRows - 1) / kBlockRows);
+  for_rows(height, [&](uint32_t b, uint32_t y) {
+    Totals& s = blocks[b];
+    for (uint32_t t = y * width; t < (y + 1) * width; ++t) {
+      if (!(ta.area[t] > 0.0) || is_sparse(t)) continue;
+      s.counted += 1.0;
+      double v0 = 0.0, var0 = 0.0;
+      pool_rings(ta, width, height, sums, t, r_max, texel_width, params.guide, guide_floor, [&](uint32_t r, const Pooled& p) {
+        if (r == 0) {
+          v0 = mean_value(p);
+          var0 = hit_variance(p);
+        }
+        s.var[r] += variance(p);
+        s.bias[r] += bias_sq(p, v0, var0);
+      });
+    }
+  });
   double total_var[kMaxRadius + 1] = {}, total_bias[kMaxRadius + 1] = {};
   double counted = 0.0;
-  for (uint32_t t = 0; t < n; ++t) {
-    if (!(ta.area[t] > 0.0) || is_sparse(t)) continue;
-    counted += 1.0;
-    double v0 = 0.0, var0 = 0.0;
-    pool_rings(ta, width, height, sums, t, r_max, texel_width, params.guide, guide_floor, [&](uint32_t r, const Pooled& p) {
-      if (r == 0) {
-        v0 = mean_value(p);
-        var0 = hit_variance(p);
-      }
-      total_var[r] += variance(p);
-      total_bias[r] += bias_sq(p, v0, var0);
-    });
+  for (const Totals& s : blocks) {
+    for (uint32_t r = 0; r <= r_max; ++r) total_var[r] += s.var[r], total_bias[r] += s.bias[r];
+    counted += s.counted;
   }
   uint32_t chosen = 0;
   auto total_mse = [&](uint32_t r) { return total_var[r] + std::max(0.0, total_bias[r]); };
@@ -131,16 +157,18 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
 
   // Pass 2: every texel at the chosen radius (barely covered ones at least 1);
   // its error: its own variance plus the lightmap's mean squared bias.
-  for (uint32_t t = 0; t < n; ++t) {
-    if (!(ta.area[t] > 0.0)) continue;
-    const uint32_t r_t = is_sparse(t) ? std::max(chosen, 1u) : chosen;
-    pool_rings(ta, width, height, sums, t, r_t, texel_width, params.guide, guide_floor, [&](uint32_t r, const Pooled& p) {
-      if (r != r_t) return;
-      const double k = to_value / p.area;
-      for (int c = 0; c < 3; ++c) value3[3 * size_t(t) + c] = p.flux[c] * k;
-      mse[t] = variance(p) + mean_bias_sq;
-    });
-  }
+  for_rows(height, [&](uint32_t, uint32_t y) {
+    for (uint32_t t = y * width; t < (y + 1) * width; ++t) {
+      if (!(ta.area[t] > 0.0)) continue;
+      const uint32_t r_t = is_sparse(t) ? std::max(chosen, 1u) : chosen;
+      pool_rings(ta, width, height, sums, t, r_t, texel_width, params.guide, guide_floor, [&](uint32_t r, const Pooled& p) {
+        if (r != r_t) return;
+        const double k = to_value / p.area;
+        for (int c = 0; c < 3; ++c) value3[3 * size_t(t) + c] = p.flux[c] * k;
+        mse[t] = variance(p) + mean_bias_sq;
+      });
+    }
+  });
   return chosen;
 }
 
@@ -157,39 +185,41 @@ void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, c
   const float reach = 1.5f * float(radius + 1) * texel_width;
   const double floor = guide ? guide_floor_of(ta, guide, n) : 0.0;
   const int64_t r = std::min(radius, kMaxRadius);
-  for (uint32_t t = 0; t < n; ++t) {
-    if (!(ta.area[t] > 0.0)) continue;
-    const int64_t x = t % width, y = t / width;
-    auto pools = [&](uint32_t k) {  // texel k takes part in t's fit
-      return k == t || (same_surface(ta, t, k, reach) && (!guide || similar_guide(guide, k, t, floor)));
-    };
-    // Normal equations of the fit v = a + b dx + c dy, weights = texel areas.
-    double m[6] = {0, 0, 0, 0, 0, 0};  // s1, sx, sy, sxx, sxy, syy
-    for (int64_t yy = std::max<int64_t>(y - r, 0); yy <= std::min<int64_t>(y + r, int64_t(height) - 1); ++yy)
-      for (int64_t xx = std::max<int64_t>(x - r, 0); xx <= std::min<int64_t>(x + r, int64_t(width) - 1); ++xx) {
-        const uint32_t k = uint32_t(yy * width + xx);
-        if (!pools(k)) continue;
-        const double w = ta.area[k], dx = double(xx - x), dy = double(yy - y);
-        m[0] += w, m[1] += w * dx, m[2] += w * dy, m[3] += w * dx * dx, m[4] += w * dx * dy, m[5] += w * dy * dy;
-      }
-    // First row of the inverse (cofactors / determinant): the weights of the intercept.
-    const double c0 = m[3] * m[5] - m[4] * m[4], c1 = m[2] * m[4] - m[1] * m[5], c2 = m[1] * m[4] - m[2] * m[3];
-    const double det = m[0] * c0 + m[1] * c1 + m[2] * c2;
-    // An ill-posed fit (neighbours along a line, or none): the weighted mean.
-    const bool linear = det > 1e-6 * m[0] * m[0] * m[0];
-    double e[3] = {linear ? c0 / det : 1.0 / m[0], linear ? c1 / det : 0.0, linear ? c2 / det : 0.0};
-    double sum3[3] = {0, 0, 0}, var = 0.0;
-    for (int64_t yy = std::max<int64_t>(y - r, 0); yy <= std::min<int64_t>(y + r, int64_t(height) - 1); ++yy)
-      for (int64_t xx = std::max<int64_t>(x - r, 0); xx <= std::min<int64_t>(x + r, int64_t(width) - 1); ++xx) {
-        const uint32_t k = uint32_t(yy * width + xx);
-        if (!pools(k)) continue;
-        const double l = ta.area[k] * (e[0] + e[1] * double(xx - x) + e[2] * double(yy - y));
-        for (int c = 0; c < 3; ++c) sum3[c] += l * mean3[3 * size_t(k) + c];
-        var += l * l * variance[k];
-      }
-    for (int c = 0; c < 3; ++c) value3[3 * size_t(t) + c] = sum3[c];
-    var_out[t] = var;
-  }
+  for_rows(height, [&](uint32_t, uint32_t row) {
+    for (uint32_t t = row * width; t < (row + 1) * width; ++t) {
+      if (!(ta.area[t] > 0.0)) continue;
+      const int64_t x = t % width, y = t / width;
+      auto pools = [&](uint32_t k) {  // texel k takes part in t's fit
+        return k == t || (same_surface(ta, t, k, reach) && (!guide || similar_guide(guide, k, t, floor)));
+      };
+      // Normal equations of the fit v = a + b dx + c dy, weights = texel areas.
+      double m[6] = {0, 0, 0, 0, 0, 0};  // s1, sx, sy, sxx, sxy, syy
+      for (int64_t yy = std::max<int64_t>(y - r, 0); yy <= std::min<int64_t>(y + r, int64_t(height) - 1); ++yy)
+        for (int64_t xx = std::max<int64_t>(x - r, 0); xx <= std::min<int64_t>(x + r, int64_t(width) - 1); ++xx) {
+          const uint32_t k = uint32_t(yy * width + xx);
+          if (!pools(k)) continue;
+          const double w = ta.area[k], dx = double(xx - x), dy = double(yy - y);
+          m[0] += w, m[1] += w * dx, m[2] += w * dy, m[3] += w * dx * dx, m[4] += w * dx * dy, m[5] += w * dy * dy;
+        }
+      // First row of the inverse (cofactors / determinant): the weights of the intercept.
+      const double c0 = m[3] * m[5] - m[4] * m[4], c1 = m[2] * m[4] - m[1] * m[5], c2 = m[1] * m[4] - m[2] * m[3];
+      const double det = m[0] * c0 + m[1] * c1 + m[2] * c2;
+      // An ill-posed fit (neighbours along a line, or none): the weighted mean.
+      const bool linear = det > 1e-6 * m[0] * m[0] * m[0];
+      double e[3] = {linear ? c0 / det : 1.0 / m[0], linear ? c1 / det : 0.0, linear ? c2 / det : 0.0};
+      double sum3[3] = {0, 0, 0}, var = 0.0;
+      for (int64_t yy = std::max<int64_t>(y - r, 0); yy <= std::min<int64_t>(y + r, int64_t(height) - 1); ++yy)
+        for (int64_t xx = std::max<int64_t>(x - r, 0); xx <= std::min<int64_t>(x + r, int64_t(width) - 1); ++xx) {
+          const uint32_t k = uint32_t(yy * width + xx);
+          if (!pools(k)) continue;
+          const double l = ta.area[k] * (e[0] + e[1] * double(xx - x) + e[2] * double(yy - y));
+          for (int c = 0; c < 3; ++c) sum3[c] += l * mean3[3 * size_t(k) + c];
+          var += l * l * variance[k];
+        }
+      for (int c = 0; c < 3; ++c) value3[3 * size_t(t) + c] = sum3[c];
+      var_out[t] = var;
+    }
+  });
 }
 
 }  // namespace plm

@@ -753,29 +753,61 @@ struct Estimator {
   }
 };
 
+double percentile(std::vector<double>& v, double q) {
+  if (v.empty()) return 0.0;
+  const size_t k = std::min(v.size() - 1, size_t(q * double(v.size())));
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[k];
+}
+
 // Estimated error over all covered texels: sqrt(mean variance) / mean value,
-// texels weighted equally; per-texel relative errors on request.
+// texels weighted equally.
 struct ErrorEstimate {
   double relative = 0.0;
   double direct = 0.0;  // the same with the direct variance alone
   double gather = 0.0;  // ... with the final gather's part alone (photons do not lower it)
+  double median = 0.0, p95 = 0.0;  // of the per-texel relative errors
 };
 
-ErrorEstimate estimate_error(const Estimator& est, uint64_t photons, std::vector<double>* per_texel = nullptr) {
-  ErrorEstimate out;
+// The ordinary lightmaps' texels at one state of the bake: per mesh with own
+// texels R, G, B and error per texel (the images before dilation, 0 where
+// uncovered), and the error over all texels. One estimate serves the error
+// check, the final gather's lookups and the final images: each costs a
+// reconstruction of every lightmap (open scene at 2 %: five took a fifth of
+// the bake).
+struct Estimate {
+  uint64_t photons = ~uint64_t(0);  // the state it was made from (~0: none yet)
+  size_t gather_size = 0;
+  ErrorEstimate error;
+  std::vector<std::vector<float>> values;
+
+  bool current(uint64_t p, const std::vector<DirectSums>& gather) const {
+    return photons == p && gather_size == gather.size();
+  }
+};
+
+void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Estimate& out) {
+  out.photons = photons;
+  out.gather_size = est.gather ? est.gather->size() : 0;
+  out.values.resize(est.views.size());
+  ErrorEstimate& e = out.error;
+  e = ErrorEstimate{};
   double var_sum = 0.0, value_sum = 0.0, var_direct = 0.0, var_gather = 0.0, count = 0.0;
-  std::vector<double> value3, variance;
-  if (per_texel) per_texel->clear();
+  std::vector<double> value3, variance, per_texel;
   for (size_t i = 0; i < est.views.size(); ++i) {
     if (!est.views[i].texel_area) continue;
-    est.texels(i, photons, value3, variance, &var_gather);
+    arena.execute([&] { est.texels(i, photons, value3, variance, &var_gather); });
+    std::vector<float>& img = out.values[i];
+    img.assign(4 * variance.size(), 0.0f);
     for (size_t t = 0; t < variance.size(); ++t) {
       if (!(est.areas[i].area[t] > 0.0)) continue;
+      for (int c = 0; c < 3; ++c) img[4 * t + c] = float(value3[3 * t + c]);
+      img[4 * t + 3] = float(std::sqrt(variance[t]));
       const double v = (value3[3 * t] + value3[3 * t + 1] + value3[3 * t + 2]) / 3.0;
       value_sum += v;
       var_sum += variance[t];
       count += 1.0;
-      if (per_texel && v > 0.0) per_texel->push_back(std::sqrt(variance[t]) / v);
+      if (v > 0.0) per_texel.push_back(std::sqrt(variance[t]) / v);
     }
   }
   for (size_t c = 0; c < est.csgs.size(); ++c) {
@@ -787,25 +819,20 @@ ErrorEstimate estimate_error(const Estimator& est, uint64_t photons, std::vector
       value_sum += v;
       var_sum += var;
       count += 1.0;
-      if (per_texel && v > 0.0) per_texel->push_back(std::sqrt(var) / v);
+      if (v > 0.0) per_texel.push_back(std::sqrt(var) / v);
     }
   }
   for (const DirectSums& d : est.direct) var_direct += d.variance_of_mean(est.direct_noise);
   if (count > 0.0 && value_sum > 0.0) {
     const double mean = value_sum / count;
-    out.relative = std::sqrt(var_sum / count) / mean;
-    out.direct = std::sqrt(var_direct / count) / mean;
-    out.gather = std::sqrt(var_gather / count) / mean;
+    e.relative = std::sqrt(var_sum / count) / mean;
+    e.direct = std::sqrt(var_direct / count) / mean;
+    e.gather = std::sqrt(var_gather / count) / mean;
   }
-  return out;
+  e.median = percentile(per_texel, 0.5);
+  e.p95 = percentile(per_texel, 0.95);
 }
 
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  const size_t k = std::min(v.size() - 1, size_t(q * double(v.size())));
-  std::nth_element(v.begin(), v.begin() + k, v.end());
-  return v[k];
-}
 
 // A lightmap resolved from an OL: each covered texel shows the OL at its
 // normal (bilinear over the bins), with that bin's error and hit count.
@@ -1220,6 +1247,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   const Estimator estimator{areas, views,        csg_views,     covered_begin,   direct, acc, settings.filter_radius,
                             direct_noise, &gather, &gather_unknown, &gather_lookup, &gather_noise};
   uint64_t photons = 0;
+  Estimate last;  // the latest estimate
   const auto t_trace = Clock::now();
   if (photon_pass) {
     const bool steered = settings.target_error > 0.0 || settings.time_budget > 0.0;
@@ -1251,20 +1279,18 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
                                   double(kMaxGatherSamples)))
             : kGatherSamples;
     bool gathered = false;
-    auto run_gather = [&](uint64_t photons_now) {
+    // Looks up `now`, the estimate before the gather.
+    auto run_gather = [&](const Estimate& now) {
       gathered = true;
       if (over_budget(0.9)) return;
       std::vector<float> radiosity(3 * texel_count, 0.0f), error(texel_count, 0.0f);
-      std::vector<double> v3, var;
       for (size_t i = 0; i < scene.meshes.size(); ++i) {
-        if (!views[i].texel_area) continue;
-        estimator.texels(i, photons_now, v3, var);
+        const std::vector<float>& img = now.values[i];
         const size_t g0 = views[i].texel_offset;
-        for (size_t t = 0; t < var.size(); ++t)
-          if (areas[i].area[t] > 0.0) {
-            for (int c = 0; c < 3; ++c) radiosity[3 * (g0 + t) + c] = float(v3[3 * t + c]);
-            error[g0 + t] = float(std::sqrt(var[t]));
-          }
+        for (size_t t = 0; 4 * t < img.size(); ++t) {
+          for (int c = 0; c < 3; ++c) radiosity[3 * (g0 + t) + c] = img[4 * t + c];
+          error[g0 + t] = img[4 * t + 3];
+        }
       }
       std::vector<std::vector<Vec3>> tri_albedo(scene.meshes.size());
       for (size_t i = 0; i < scene.meshes.size(); ++i) {
@@ -1349,7 +1375,10 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
             truncated_flux += bo.truncated_flux;
             photons = std::min(cap, (b + 1) * kBatchPhotons);
             const bool targeted = settings.target_error > 0.0;
-            if (gather_wanted && !gathered && b + 1 == kCheckBatches && !targeted) run_gather(photons);
+            if (gather_wanted && !gathered && b + 1 == kCheckBatches && !targeted) {
+              estimate(arena, estimator, photons, last);
+              run_gather(last);
+            }
             if (targeted && b + 1 == next_check) {
               next_check = std::max(next_check + kCheckBatches, (next_check * 5 / 4) / kCheckBatches * kCheckBatches);
               // Photons cannot lower the direct part nor the gather's: once
@@ -1357,14 +1386,14 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
               // a target the other parts missed (the warning says so). Under a
               // target the gather runs only where the first photons do not
               // reach it (loose targets stay as fast as photons alone).
-              ErrorEstimate e;
+              const ErrorEstimate& e = last.error;
               for (int pass = 0; pass < 2; ++pass) {
-                e = estimate_error(estimator, photons);
+                estimate(arena, estimator, photons, last);
                 const double photon_err =
                     std::sqrt(std::max(0.0, e.relative * e.relative - e.direct * e.direct - e.gather * e.gather));
                 done = e.relative <= settings.target_error || photon_err <= 0.5 * settings.target_error;
                 if (done || !gather_wanted || gathered) break;
-                run_gather(photons);
+                run_gather(last);
               }
               fraction = std::max(fraction, std::min(1.0, std::pow(settings.target_error / std::max(e.relative, 1e-12), 2.0)));
             }
@@ -1384,7 +1413,10 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
         // groups of up to 1024 batches a thread, whose hits had left the cache).
         threads);
     // Fewer photons than kCheckBatches batches, no target: the gather comes last.
-    if (gather_wanted && !gathered && photons > 0 && settings.target_error <= 0.0) run_gather(photons);
+    if (gather_wanted && !gathered && photons > 0 && settings.target_error <= 0.0) {
+      estimate(arena, estimator, photons, last);
+      run_gather(last);
+    }
     out.stats.photons_emitted = photons;
     out.stats.photon_hits = acc.total_hits + ol_hits;
     if (truncated_flux > 1e-4 * emitted * double(photons))
@@ -1395,12 +1427,12 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   }
   out.stats.seconds_trace = seconds_since(t_trace);
 
-  std::vector<double> per_texel;
-  const ErrorEstimate err = estimate_error(estimator, photons, &per_texel);
+  if (!last.current(photons, gather)) estimate(arena, estimator, photons, last);
+  const ErrorEstimate& err = last.error;
   out.stats.error_estimate = err.relative;
   out.stats.error_direct = err.direct;
-  out.stats.error_median = percentile(per_texel, 0.5);
-  out.stats.error_p95 = percentile(per_texel, 0.95);
+  out.stats.error_median = err.median;
+  out.stats.error_p95 = err.p95;
   if (settings.target_error > 0.0 && err.relative > settings.target_error)
     out.warnings.push_back("the target error " + std::to_string(100.0 * settings.target_error) +
                            "% was not reached (estimated " + std::to_string(100.0 * err.relative) + "% after " +
@@ -1481,13 +1513,19 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
       transfer_csg(estimator, size_t(mesh.csg_carrier), photons, areas[i], acc, values, img.hits, filled,
                    out.warnings, mesh);
     } else {
-      estimator.texels(i, photons, value3, variance);
-      if (backed_up && ols[size_t(mesh.ol_group)].finalized())
+      if (backed_up && ols[size_t(mesh.ol_group)].finalized()) {
+        arena.execute([&] { estimator.texels(i, photons, value3, variance); });
         blend_backup(ols[size_t(mesh.ol_group)], areas[i], direct, covered_begin[i], direct_noise, value3, variance);
+        for (size_t t = 0; t < n; ++t) {
+          if (!(areas[i].area[t] > 0.0)) continue;
+          for (int c = 0; c < 3; ++c) values[4 * t + c] = float(value3[3 * t + c]);
+          values[4 * t + 3] = float(std::sqrt(variance[t]));
+        }
+      } else {
+        values.swap(last.values[i]);  // the final estimate's texels
+      }
       for (size_t t = 0; t < n; ++t) {
         if (!(areas[i].area[t] > 0.0)) continue;
-        for (int c = 0; c < 3; ++c) values[4 * t + c] = float(value3[3 * t + c]);
-        values[4 * t + 3] = float(std::sqrt(variance[t]));
         img.hits[t] = float(acc.hits[views[i].texel_offset + t]);
         filled[t] = 1;
       }
