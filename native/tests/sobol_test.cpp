@@ -89,3 +89,29 @@ TEST(Sobol, ByteTablesMatchTheDirectionNumbers) {
   EXPECT_EQ(sobol(2, 1), 0xC0000000u);
   EXPECT_EQ(sobol(3, 1), 0x40000000u);
 }
+
+// SobolGroup::point works on reversed bits (no reversal between the index
+// shuffle and the scrambles): the same floats as the plain definition.
+TEST(Sobol, PointsMatchThePlainDefinition) {
+  using namespace plm::sobol_detail;
+  plm::Rng rng(11, 2);
+  for (uint32_t x : {0u, 1u, 0x80000000u, 0x12345678u, 0xFFFFFFFFu, rng.next_u32()}) {
+    uint32_t r = 0;
+    for (int bit = 0; bit < 32; ++bit) r |= ((x >> bit) & 1u) << (31 - bit);
+    ASSERT_EQ(reverse_bits(x), r) << x;
+  }
+  for (uint32_t key : {0u, 1u, 0xDEADBEEFu, rng.next_u32()})
+    for (uint32_t group = 0; group < 4; ++group) {
+      const plm::SobolGroup points(key, group);
+      const uint32_t index_key = hash(key, group);
+      for (int n = 0; n < 5000; ++n) {
+        const uint32_t index = n < 4096 ? uint32_t(n) : rng.next_u32();
+        float fast[4];
+        points.point(index, 4, fast);
+        const uint32_t i = owen_scramble(index, index_key);
+        for (int d = 0; d < 4; ++d)
+          ASSERT_EQ(fast[d], to_float(owen_scramble(sobol(i, d), hash(index_key, uint32_t(d) + 1))))
+              << "key " << key << " group " << group << " index " << index << " dimension " << d;
+      }
+    }
+}

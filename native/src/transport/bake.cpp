@@ -44,6 +44,11 @@ constexpr uint64_t kCheckBatches = 16;
 // With a target error the direct pass starts with at most this many samples
 // per texel and adds more where its noise is (bake(), "Direct pass").
 constexpr uint32_t kFirstTargetSamples = 16;
+// How fast a texel's direct-light variance falls with its sample count n
+// (n^-a) in the allocation of samples: stratified samples over a shadow edge
+// give n^-1.5 (open scene, 16 -> 64 samples everywhere: error 1.96 -> 0.70 %,
+// n^-0.74), plain noise n^-1 (the next round then adds the rest).
+constexpr double kDirectConvergence = 1.5;
 // ... and gives a texel at most this many times max(16, direct_samples) in all.
 constexpr double kMaxDirectGrowth = 2048.0;
 // Rays per texel of the final gather (at most kMaxGatherSamples under a small target).
@@ -1152,13 +1157,17 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     // that see a light rarely, the sky through a window, need thousands);
     // with a target, while the direct part's RMS error is above 0.7 x target
     // (the rest of the budget is the photons'), each texel gets its share of
-    // the fewest samples that reach it: n_i = sigma_i * sum_j sigma_j / budget
-    // for per-sample deviations sigma_i (minimises sum n_i for sum sigma_i^2 /
-    // n_i = budget), re-estimated after each round.
+    // the fewest samples that reach it, re-estimated after each round. A
+    // texel's variance v_i after n_i samples is taken to fall as
+    // n^-kDirectConvergence (stratified samples over a shadow edge: n^-1.5;
+    // plain noise: n^-1), so sum_i v_i (n_i / m_i)^a = budget is met with
+    // the fewest samples by m_i = c w_i, w_i = (v_i n_i^a)^(1 / (a + 1)),
+    // c = (sum_j w_j / budget)^(1 / a) (for a = 1: m_i ~ the per-sample
+    // deviation). Where the noise is plainer, the next round adds the rest.
     const bool targeted = settings.target_error > 0.0;
     const uint32_t first = targeted ? std::min(settings.direct_samples, kFirstTargetSamples) : settings.direct_samples;
     std::vector<uint32_t> want(covered.size(), first);
-    std::vector<double> sigma(covered.size());
+    std::vector<double> weight(covered.size());
     const double max_total = double(std::max(first, settings.direct_samples)) * kMaxDirectGrowth;
     const uint32_t max_rounds = 16;
     for (uint32_t round = 0; round < max_rounds && !todo.empty(); ++round) {
@@ -1191,23 +1200,22 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
       mean /= texels;
       direct_noise.typical = sampled > 0.0 ? std::sqrt(texel_sq / sampled) : 0.0;
       if (round == 0 && settings.sampler != PLM_SAMPLER_RANDOM) direct_noise.scale = calibrate_direct(arena, pass, covered, direct, first);
-      // sigma[i]: texel i's per-sample RMS, from its variance of the mean.
-      double phantom_var = 0.0, sum_sigma = 0.0;
+      double phantom_var = 0.0, sum_weight = 0.0;
       for (size_t i = 0; i < direct.size(); ++i) {
         const DirectSums& d = direct[i];
         const double v = d.variance_of_mean(direct_noise);
         mean_var += v;
         phantom_var += d.phantom_variance_of_mean(direct_noise);
-        sigma[i] = std::sqrt(v * std::max(d.count, 1u));
-        sum_sigma += sigma[i];
+        weight[i] = std::pow(v * std::pow(double(std::max(d.count, 1u)), kDirectConvergence),
+                             1.0 / (kDirectConvergence + 1.0));
+        sum_weight += weight[i];
       }
       mean_var /= texels;
       phantom_var /= texels;
       const double allowed = 0.7 * settings.target_error * mean;
       const bool refine = targeted && std::sqrt(mean_var) > allowed;
-      // Far from the target a round aims at twice the allowed variance:
-      // stratified samples converge faster than the 1 / n this allocation
-      // assumes, so the remainder is left to the next round's new estimate.
+      // Far from the target a round aims at twice the allowed variance (the
+      // rest is left to the next round's new estimate).
       const double aim = mean_var > 4.0 * allowed * allowed ? 2.0 : 1.0;
       const double budget = aim * allowed * allowed * texels;
       std::vector<uint32_t> next;
@@ -1221,7 +1229,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
         if (top_up) {
           extra = double(settings.direct_samples - first);
         } else if (refine) {
-          extra = sigma[i] * sum_sigma / budget - double(d.count);
+          extra = weight[i] * std::pow(sum_weight / budget, 1.0 / kDirectConvergence) - double(d.count);
           // At most 5x a texel's samples per round (rounds stay short, so the
           // time budget and cancelling are checked often) and kMaxDirectGrowth
           // x direct_samples in all (a target far out of reach ends).

@@ -376,10 +376,11 @@ namespace {
 Vec3 sample_cone(Vec3 axis, float cos_half, float u0, float u1) {
   const float c = 1.0f - u0 * (1.0f - cos_half);
   const float sn = std::sqrt(std::fmax(0.0f, 1.0f - c * c));
-  const float phi = 2.0f * kPi * u1;
+  float sp, cp;
+  sincos_2pi(u1, sp, cp);
   Vec3 t, b;
   make_frame(axis, t, b);
-  return t * (sn * std::cos(phi)) + b * (sn * std::sin(phi)) + axis * c;
+  return t * (sn * cp) + b * (sn * sp) + axis * c;
 }
 
 // Irradiance from a point q on an emitting surface of radiance L and area A

@@ -20,8 +20,7 @@ namespace plm {
 namespace sobol_detail {
 
 inline uint32_t reverse_bits(uint32_t x) {
-  x = (x << 16) | (x >> 16);
-  x = ((x & 0x00FF00FFu) << 8) | ((x & 0xFF00FF00u) >> 8);
+  x = __builtin_bswap32(x);
   x = ((x & 0x0F0F0F0Fu) << 4) | ((x & 0xF0F0F0F0u) >> 4);
   x = ((x & 0x33333333u) << 2) | ((x & 0xCCCCCCCCu) >> 2);
   return ((x & 0x55555555u) << 1) | ((x & 0xAAAAAAAAu) >> 1);
@@ -64,6 +63,30 @@ constexpr std::array<std::array<uint32_t, 1024>, 3> byte_tables() {
 }
 inline constexpr std::array<std::array<uint32_t, 1024>, 3> kByteTables = byte_tables();
 
+constexpr uint32_t reverse_constexpr(uint32_t x) {
+  uint32_t r = 0;
+  for (int bit = 0; bit < 32; ++bit) r |= ((x >> bit) & 1u) << (31 - bit);
+  return r;
+}
+
+// The same coordinates bit-reversed, looked up by the bytes of the
+// bit-reversed index: reverse_bits(sobol(reverse_bits(r), dim)). The scramble
+// works on reversed bits, so a point needs no reversal between the index
+// shuffle and the coordinates' scrambles.
+constexpr std::array<std::array<uint32_t, 1024>, 3> reversed_byte_tables() {
+  std::array<std::array<uint32_t, 1024>, 3> t{};
+  for (int d = 0; d < 3; ++d)
+    for (int byte = 0; byte < 4; ++byte)
+      for (uint32_t value = 0; value < 256; ++value) {
+        uint32_t x = 0;
+        for (int bit = 0; bit < 8; ++bit)  // bit 8 byte + bit of r is bit 31 - (8 byte + bit) of the index
+          if ((value >> bit) & 1u) x ^= reverse_constexpr(kDirections[d][31 - (8 * byte + bit)]);
+        t[d][256 * byte + value] = x;
+      }
+  return t;
+}
+inline constexpr std::array<std::array<uint32_t, 1024>, 3> kReversedByteTables = reversed_byte_tables();
+
 // Sobol coordinate `dim` (0-3) of point `index`, as a 32-bit fraction: the
 // XOR of the direction numbers of the index's set bits.
 inline uint32_t sobol(uint32_t index, int dim) {
@@ -75,14 +98,22 @@ inline uint32_t sobol(uint32_t index, int dim) {
 // Nested uniform scrambling (an Owen scramble) of a 32-bit fraction: each bit
 // is flipped by a hash of the bits above it (Vegdahl's Laine-Karras-style hash
 // on the reversed bits).
-inline uint32_t owen_scramble(uint32_t x, uint32_t key) {
-  x = reverse_bits(x);
+// On reversed bits, the hash flips each bit by the bits below it.
+inline uint32_t scramble_reversed(uint32_t x, uint32_t key) {
   x ^= x * 0x3d20adeau;
   x += key;
   x *= (key >> 16) | 1u;
   x ^= x * 0x05526c56u;
   x ^= x * 0x53a22864u;
-  return reverse_bits(x);
+  return x;
+}
+
+inline uint32_t owen_scramble(uint32_t x, uint32_t key) { return reverse_bits(scramble_reversed(reverse_bits(x), key)); }
+
+// reverse_bits(sobol(reverse_bits(r), dim)), dim 1-3.
+inline uint32_t sobol_reversed(uint32_t r, int dim) {
+  const uint32_t* t = kReversedByteTables[dim - 1].data();
+  return t[r & 255u] ^ t[256 + ((r >> 8) & 255u)] ^ t[512 + ((r >> 16) & 255u)] ^ t[768 + (r >> 24)];
 }
 
 inline uint32_t hash(uint32_t a, uint32_t b) { return uint32_t(splitmix64((uint64_t(a) << 32) | b)); }
@@ -103,10 +134,15 @@ class SobolGroup {
     index_key_ = hash(key, group);
     for (uint32_t d = 0; d < 4; ++d) dim_key_[d] = hash(index_key_, d + 1);
   }
+  // Coordinate d is owen_scramble(sobol(i, d), dim key) of the shuffled index
+  // i = owen_scramble(index, index key), computed on reversed bits: with
+  // r = reverse_bits(i), reverse_bits(sobol(i, 0)) = i and
+  // reverse_bits(sobol(i, d)) = sobol_reversed(r, d).
   void point(uint32_t index, int dims, float* out) const {
     using namespace sobol_detail;
-    const uint32_t i = owen_scramble(index, index_key_);
-    for (int d = 0; d < dims; ++d) out[d] = to_float(owen_scramble(sobol(i, d), dim_key_[d]));
+    const uint32_t r = scramble_reversed(reverse_bits(index), index_key_);
+    out[0] = to_float(reverse_bits(scramble_reversed(reverse_bits(r), dim_key_[0])));
+    for (int d = 1; d < dims; ++d) out[d] = to_float(reverse_bits(scramble_reversed(sobol_reversed(r, d), dim_key_[d])));
   }
 
  private:
