@@ -249,6 +249,16 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
 
 namespace {
 
+// Direction uniform in the cone of half-angle acos(cos_half) around unit
+// axis, whose frame t, b, axis is given.
+Vec3 cone_direction(Vec3 axis, Vec3 t, Vec3 b, float cos_half, float u0, float u1) {
+  const float c = 1.0f - u0 * (1.0f - cos_half);
+  const float sn = std::sqrt(std::fmax(0.0f, 1.0f - c * c));
+  float sp, cp;
+  sincos_2pi(u1, sp, cp);
+  return t * (sn * cp) + b * (sn * sp) + axis * c;
+}
+
 // Sun and world photons (sample_emitter): out of line, so that the common
 // lights' path keeps its registers and a small frame (they are drawn once
 // per photon, before its first ray).
@@ -276,11 +286,7 @@ __attribute__((noinline)) void sample_sky(const Emitter& e, const float u[4], Em
     }
     make_frame(d, t, b);
   } else if (e.cos_half < 1.0f) {
-    // A direction uniform over the sun's disk of directions.
-    const float c = 1.0f - u0 * (1.0f - e.cos_half);
-    const float sn = std::sqrt(std::fmax(0.0f, 1.0f - c * c));
-    const float phi = 2.0f * kPi * u[1];
-    d = t * (sn * std::cos(phi)) + b * (sn * std::sin(phi)) + e.normal * c;
+    d = cone_direction(e.normal, t, b, e.cos_half, u0, u[1]);  // over the sun's disk of directions
     make_frame(d, t, b);
   }
   if (through_portal) {
@@ -314,12 +320,8 @@ EmitterSample sample_emitter(const Emitter& e, const float u[4]) {
       if (e.kind == EmitterKind::Point) {
         s.direction = uniform_sphere(u[0], u[1]);
       } else {
-        // Uniform in the cone around the axis.
-        const float c = 1.0f - u[0] * (1.0f - e.cos_half);
-        const float sn = std::sqrt(std::fmax(0.0f, 1.0f - c * c));
-        const float phi = 2.0f * kPi * u[1];
-        s.direction = e.frame_t * (sn * std::cos(phi)) + e.frame_b * (sn * std::sin(phi)) + e.normal * c;
-        s.weight = e.scale * spot_attenuation(c, e.cos_half, e.spot_smooth);
+        s.direction = cone_direction(e.normal, e.frame_t, e.frame_b, e.cos_half, u[0], u[1]);
+        s.weight = e.scale * spot_attenuation(1.0f - u[0] * (1.0f - e.cos_half), e.cos_half, e.spot_smooth);
       }
       // Start on the disk of the light's radius across the direction (soft
       // shadows); the distance falloff of the disk is applied at the first hit.
@@ -371,17 +373,6 @@ EmitterSample sample_emitter(const Emitter& e, const float u[4]) {
 }
 
 namespace {
-
-// Direction uniform in the cone of half-angle acos(cos_half) around axis.
-Vec3 sample_cone(Vec3 axis, float cos_half, float u0, float u1) {
-  const float c = 1.0f - u0 * (1.0f - cos_half);
-  const float sn = std::sqrt(std::fmax(0.0f, 1.0f - c * c));
-  float sp, cp;
-  sincos_2pi(u1, sp, cp);
-  Vec3 t, b;
-  make_frame(axis, t, b);
-  return t * (sn * cp) + b * (sn * sp) + axis * c;
-}
 
 // Irradiance from a point q on an emitting surface of radiance L and area A
 // (density 1/A), with emitter normal nl (two_sided: either side emits).
@@ -469,7 +460,7 @@ DirectSample sample_direct(const Emitter& e, Vec3 p, Vec3 n, const float u[3]) {
       return s;
     }
     case EmitterKind::Sun: {
-      const Vec3 travel = e.cos_half < 1.0f ? sample_cone(e.normal, e.cos_half, u[0], u[1]) : e.normal;
+      const Vec3 travel = e.cos_half < 1.0f ? cone_direction(e.normal, e.axis_u, e.axis_v, e.cos_half, u[0], u[1]) : e.normal;
       s.dir = -travel;
       const float cos_s = dot(n, s.dir);
       if (cos_s > 0.0f) s.irradiance = e.radiance * cos_s;

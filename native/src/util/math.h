@@ -92,8 +92,9 @@ inline Vec3 cosine_hemisphere(float u1, float u2) {
 inline Vec3 uniform_sphere(float u1, float u2) {
   const float z = 1.0f - 2.0f * u1;
   const float r = std::sqrt(std::fmax(0.0f, 1.0f - z * z));
-  const float phi = 2.0f * kPi * u2;
-  return {r * std::cos(phi), r * std::sin(phi), z};
+  float s, c;
+  sincos_2pi(u2, s, c);
+  return {r * c, r * s, z};
 }
 
 // Uniform point in the unit disk (concentric mapping keeps strata compact).
