@@ -484,7 +484,9 @@ TEST(Bake, FinalGatherLowersOpenSceneErrorUnbiased) {
   EXPECT_NEAR(sum_g / sum_ref, 1.0, 0.005);
   EXPECT_GT(rep_g, err_g / 2.0);
   EXPECT_LT(rep_g, err_g * 1.5);
-  // Under a target the gather runs at the first check; the result depends on the seed alone.
+  // Under a target the gather runs at the first check (here with a second
+  // round where it is noisy: 1.5 % asks for 28 rays per texel on average);
+  // the result depends on the seed alone and stays unbiased.
   plm_bake_settings t = settings(0, 1024, 64, 2);
   t.target_error = 0.015;
   Baked one, two;
@@ -493,10 +495,15 @@ TEST(Bake, FinalGatherLowersOpenSceneErrorUnbiased) {
   t.thread_count = 2;
   bake(b, t, two);
   EXPECT_EQ(one.stats().photons_emitted, two.stats().photons_emitted);
+  double sum_t = 0;
   for (uint32_t mesh = 0; mesh < 2; ++mesh) {
     EXPECT_EQ(one.map(mesh).rgb, two.map(mesh).rgb) << "mesh " << mesh;
     EXPECT_EQ(one.map(mesh).error, two.map(mesh).error);
+    const Lightmap o = one.map(mesh), r = ref.map(mesh);
+    for (size_t k = 0; k < r.coverage.size(); ++k)
+      if (r.coverage[k] >= 0.999f) sum_t += o.value(k);
   }
+  EXPECT_NEAR(sum_t / sum_ref, 1.0, 0.005);
 }
 
 TEST(Bake, SameSeedSameResultWhateverTheThreads) {
