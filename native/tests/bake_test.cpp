@@ -484,9 +484,8 @@ TEST(Bake, FinalGatherLowersOpenSceneErrorUnbiased) {
   EXPECT_NEAR(sum_g / sum_ref, 1.0, 0.005);
   EXPECT_GT(rep_g, err_g / 2.0);
   EXPECT_LT(rep_g, err_g * 1.5);
-  // Under a target the gather runs at the first check (here with a second
-  // round where it is noisy: 1.5 % asks for 28 rays per texel on average);
-  // the result depends on the seed alone and stays unbiased.
+  // Under a target the gather runs at the first check; the result depends on
+  // the seed alone and stays unbiased.
   plm_bake_settings t = settings(0, 1024, 64, 2);
   t.target_error = 0.015;
   Baked one, two;

@@ -51,8 +51,7 @@ constexpr uint32_t kFirstTargetSamples = 16;
 constexpr double kDirectConvergence = 1.5;
 // ... and gives a texel at most this many times max(16, direct_samples) in all.
 constexpr double kMaxDirectGrowth = 2048.0;
-// Rays per texel of the final gather's first round; under a small target
-// texels get more where its noise is, at most kMaxGatherSamples in all.
+// Rays per texel of the final gather (at most kMaxGatherSamples under a small target).
 constexpr uint32_t kGatherSamples = 16, kMaxGatherSamples = 256;
 // The final gather runs only when max_bounces does not truncate light (the default is 1024).
 constexpr uint32_t kGatherMinBounces = 64;
@@ -1281,8 +1280,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     // Not with few bounces: its lookups carry every bounce, so it would add one.
     const bool gather_wanted = two_pass && scene.csgs.empty() && scene.lsystems.empty() && !textures &&
                                settings.max_bounces >= kGatherMinBounces;
-    // Rays per texel on average: kGatherSamples, 4x as many for half the
-    // target error (2 % and above: 16).
+    // Rays per texel: kGatherSamples, 4x as many for half the target error (2 % and above: 16).
     const uint32_t gather_samples =
         settings.target_error > 0.0
             ? uint32_t(std::clamp(kGatherSamples * std::pow(0.02 / settings.target_error, 2.0), double(kGatherSamples),
@@ -1312,58 +1310,25 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
       std::vector<DirectSums> sums(covered.size());
       std::vector<uint32_t> unknown(covered.size(), 0);
       std::vector<double> lookup(covered.size(), 0.0);
-      std::vector<uint32_t> todo(covered.size()), want(covered.size(), std::min(gather_samples, kGatherSamples));
-      for (uint32_t k = 0; k < todo.size(); ++k) todo[k] = k;
-      // Round 0: kGatherSamples rays per texel. With more asked for, round 1
-      // gives them where the gather is noisy: the uniform gather_samples
-      // would leave a variance sum_i sigma_i^2 / gather_samples (sigma_i: a
-      // texel's per-ray deviation, with the phantom sample); the fewest rays
-      // for that give texel i m_i ~ sigma_i (an open ground whose rays all
-      // leave for the sky needs few).
-      for (uint32_t round = 0; round < 2 && !todo.empty(); ++round) {
-        // In groups, so that cancelling and the time budget are checked several
-        // times a second; texels left without rays keep the photon estimate.
-        bool stopped = false;
-        run_in_groups(
-            arena, todo.size(), 64,
-            [&](uint64_t first_texel, uint64_t n) {
-              tbb::parallel_for(tbb::blocked_range<uint64_t>(first_texel, first_texel + n, 16), [&](const auto& r) {
-                for (uint64_t i = r.begin(); i < r.end(); ++i) {
-                  const uint32_t k = todo[i];
-                  direct_pass->gather_texel(covered[k].mesh, covered[k].texel, round, want[k], source, sums[k],
-                                            unknown[k], lookup[k]);
-                }
-              });
-            },
-            [&](uint64_t) {
-              report(direct_end, "final gather");
-              stopped = over_budget(0.9);
-              return !stopped;
+      // In groups, so that cancelling and the time budget are checked several
+      // times a second; texels left without rays keep the photon estimate.
+      run_in_groups(
+          arena, covered.size(), 64,
+          [&](uint64_t first_texel, uint64_t n) {
+            tbb::parallel_for(tbb::blocked_range<uint64_t>(first_texel, first_texel + n, 16), [&](const auto& r) {
+              for (uint64_t k = r.begin(); k < r.end(); ++k)
+                direct_pass->gather_texel(covered[k].mesh, covered[k].texel, 0, gather_samples, source, sums[k],
+                                          unknown[k], lookup[k]);
             });
-        double texel_sq = 0.0, sampled = 0.0;
-        for (const DirectSums& g : sums)
-          if (g.count) texel_sq += g.sum_sq / g.count, sampled += 1.0;
-        gather_noise.typical = sampled > 0.0 ? std::sqrt(texel_sq / sampled) : 0.0;
-        std::vector<uint32_t> next;
-        if (round == 0 && gather_samples > kGatherSamples && !stopped) {
-          std::vector<double> sigma(sums.size());
-          double sum_sigma = 0.0, uniform_var = 0.0;
-          for (size_t k = 0; k < sums.size(); ++k) {
-            sigma[k] = std::sqrt(sums[k].variance_of_mean(gather_noise) * std::max(sums[k].count, 1u));
-            sum_sigma += sigma[k];
-            uniform_var += sigma[k] * sigma[k] / gather_samples;
-          }
-          for (uint32_t k = 0; k < sums.size(); ++k) {
-            const double extra = std::min(sigma[k] * sum_sigma / uniform_var, double(kMaxGatherSamples)) - sums[k].count;
-            if (uniform_var > 0.0 && extra >= 1.0 && !unknown[k]) {
-              want[k] = uint32_t(std::ceil(extra));
-              next.push_back(k);
-            }
-          }
-        }
-        todo.swap(next);
-      }
-      for (size_t k = 0; k < sums.size(); ++k) lookup[k] = sums[k].count ? lookup[k] / sums[k].count : 0.0;
+          },
+          [&](uint64_t) {
+            report(direct_end, "final gather");
+            return !over_budget(0.9);
+          });
+      double texel_sq = 0.0, sampled = 0.0;
+      for (const DirectSums& g : sums)
+        if (g.count) texel_sq += g.sum_sq / g.count, sampled += 1.0;
+      gather_noise.typical = sampled > 0.0 ? std::sqrt(texel_sq / sampled) : 0.0;
       gather.swap(sums);
       gather_unknown.swap(unknown);
       gather_lookup.swap(lookup);

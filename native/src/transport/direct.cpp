@@ -541,7 +541,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
 
 void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
                               const GatherSource& source, DirectSums& sums, uint32_t& unknown,
-                              double& lookup_sum) const {
+                              double& lookup_error) const {
   const uint64_t global = views_[mesh_id].texel_offset + texel;
   // A stream of its own: (round | 0x100) is no round of sample_texel's.
   Rng rng(seed_ ^ 0x7F4A7C15u, (global << 9) | 0x100u | (round & 0xFF));
@@ -614,7 +614,7 @@ void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   // Cycles bakes them); many back hits are rather a lit surface seen from
   // behind, whose light no lightmap holds (lightmaps are one-sided).
   if (4 * back > rays) unknown += back;
-  lookup_sum += error_sum;
+  lookup_error = rays ? error_sum / rays : 0.0;
 }
 
 }  // namespace plm

@@ -70,12 +70,12 @@ class DirectPass {
     const float* error = nullptr;      // 1 per global texel: the estimated error of its mean RGB
     const std::vector<std::vector<Vec3>>* albedo = nullptr;  // per mesh, per triangle
   };
-  // `lookup_sum`: adds albedo x the looked-up texel's error per sample; over
-  // sums.count, the gather's error from the source's own errors (taken as
+  // `lookup_error`: the mean over the samples of albedo x the looked-up
+  // texel's error, the gather's error from the source's own errors (taken as
   // fully correlated: the source is a pooled photon estimate, and a texel's
   // rays hit neighbouring texels).
   void gather_texel(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, const GatherSource& source,
-                    DirectSums& sums, uint32_t& unknown, double& lookup_sum) const;
+                    DirectSums& sums, uint32_t& unknown, double& lookup_error) const;
 
  private:
   bool surface_point(uint32_t mesh, uint32_t texel, float x, float y, Vec3& p, Vec3& n, uint32_t& tri) const;
