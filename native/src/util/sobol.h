@@ -46,46 +46,35 @@ constexpr std::array<uint32_t, 32> directions(uint32_t s, uint32_t a, std::array
 constexpr std::array<std::array<uint32_t, 32>, 3> kDirections = {
     directions(1, 0, {1, 0, 0}), directions(2, 1, {1, 3, 0}), directions(3, 1, {1, 3, 1})};
 
-// The XOR of the direction numbers selected by each byte value at each byte
-// position of the index: a coordinate is then four lookups, not a loop over
-// the (shuffled, so ~32-bit) index's bits. 12 KiB for dimensions 2-4.
-constexpr std::array<std::array<uint32_t, 1024>, 3> byte_tables() {
-  std::array<std::array<uint32_t, 1024>, 3> t{};
-  for (int d = 0; d < 3; ++d)
-    for (int byte = 0; byte < 4; ++byte)
-      for (uint32_t value = 0; value < 256; ++value) {
-        uint32_t x = 0;
-        for (int bit = 0; bit < 8; ++bit)
-          if ((value >> bit) & 1u) x ^= kDirections[d][8 * byte + bit];
-        t[d][256 * byte + value] = x;
-      }
-  return t;
-}
-inline constexpr std::array<std::array<uint32_t, 1024>, 3> kByteTables = byte_tables();
-
 constexpr uint32_t reverse_constexpr(uint32_t x) {
   uint32_t r = 0;
   for (int bit = 0; bit < 32; ++bit) r |= ((x >> bit) & 1u) << (31 - bit);
   return r;
 }
 
-// The same coordinates bit-reversed, looked up by the bytes of the
-// bit-reversed index: reverse_bits(sobol(reverse_bits(r), dim)). The scramble
-// works on reversed bits, so a point needs no reversal between the index
-// shuffle and the coordinates' scrambles.
-constexpr std::array<std::array<uint32_t, 1024>, 3> reversed_byte_tables() {
+// The XOR of the direction numbers selected by each byte value at each byte
+// position of the index: a coordinate is then four lookups, not a loop over
+// the (shuffled, so ~32-bit) index's bits. 12 KiB for dimensions 2-4.
+// reversed: the same coordinates bit-reversed, looked up by the bytes of the
+// bit-reversed index (bit 8 byte + bit of it is bit 31 - (8 byte + bit) of the
+// index): reverse_bits(sobol(reverse_bits(r), dim)). The scramble works on
+// reversed bits, so a point needs no reversal between the index shuffle and
+// the coordinates' scrambles.
+constexpr std::array<std::array<uint32_t, 1024>, 3> byte_tables(bool reversed) {
   std::array<std::array<uint32_t, 1024>, 3> t{};
   for (int d = 0; d < 3; ++d)
     for (int byte = 0; byte < 4; ++byte)
       for (uint32_t value = 0; value < 256; ++value) {
         uint32_t x = 0;
-        for (int bit = 0; bit < 8; ++bit)  // bit 8 byte + bit of r is bit 31 - (8 byte + bit) of the index
-          if ((value >> bit) & 1u) x ^= reverse_constexpr(kDirections[d][31 - (8 * byte + bit)]);
+        for (int bit = 0; bit < 8; ++bit)
+          if ((value >> bit) & 1u)
+            x ^= reversed ? reverse_constexpr(kDirections[d][31 - (8 * byte + bit)]) : kDirections[d][8 * byte + bit];
         t[d][256 * byte + value] = x;
       }
   return t;
 }
-inline constexpr std::array<std::array<uint32_t, 1024>, 3> kReversedByteTables = reversed_byte_tables();
+inline constexpr std::array<std::array<uint32_t, 1024>, 3> kByteTables = byte_tables(false);
+inline constexpr std::array<std::array<uint32_t, 1024>, 3> kReversedByteTables = byte_tables(true);
 
 // Sobol coordinate `dim` (0-3) of point `index`, as a 32-bit fraction: the
 // XOR of the direction numbers of the index's set bits.
