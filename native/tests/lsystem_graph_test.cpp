@@ -5,6 +5,7 @@
 #include <embree3/rtcore.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <functional>
@@ -751,7 +752,11 @@ TEST(LSystemGraph, SmallByteBudgetDegradesGracefully) {
   const Graph gb(sys, big), gs(sys, small);
   const FlattenResult f = gb.flatten();
   const auto rays = make_rays(gb, &f.primitives, 6000, 51);
-  size_t hits = 0;
+  // A big cache's views inline descendants (primitives placed in the view's
+  // frame, composed transforms) and a small one's do not: the hits agree up
+  // to rounding (graph.h, "Frames"); the same primitive wins on these rays.
+  size_t hits = 0, same_bits = 0;
+  double max_dt = 0, max_dn = 0;
   for (const Ray& r : rays) {
     GraphHit hb, hs;
     const bool b = gb.first_hit(r.o, r.d, 0, r.tfar, &hb), s = gs.first_hit(r.o, r.d, 0, r.tfar, &hs);
@@ -759,10 +764,18 @@ TEST(LSystemGraph, SmallByteBudgetDegradesGracefully) {
     ASSERT_EQ(gs.occluded(r.o, r.d, 0, r.tfar), b);
     if (!b) continue;
     ++hits;
-    ASSERT_EQ(hb.t, hs.t);
+    max_dt = std::max(max_dt, std::fabs(hb.t - hs.t) / std::max(1.0, std::fabs(hb.t)));
+    ASSERT_NEAR(hb.t, hs.t, 1e-12 * std::max(1.0, std::fabs(hb.t)));
     ASSERT_EQ(hb.instance_key, hs.instance_key);
-    for (int a = 0; a < 3; ++a) ASSERT_EQ(hb.n[a], hs.n[a]);
+    ASSERT_EQ(hb.levels, hs.levels);
+    for (int a = 0; a < 3; ++a) {
+      max_dn = std::max(max_dn, std::fabs(hb.n[a] - hs.n[a]));
+      ASSERT_NEAR(hb.n[a], hs.n[a], 1e-9);
+    }
+    same_bits += hb.t == hs.t;
   }
+  std::cout << "[small cache] inlined vs not: max |dt| / max(1, t) " << max_dt << ", max |dn| " << max_dn << ", "
+            << same_bits << " of " << hits << " hits with the same t bits\n";
   const GraphStats sb = gb.stats(), ss = gs.stats();
   const double rate = double(ss.cache_hits) / double(ss.cache_hits + ss.cache_misses);
   std::cout << "[small cache] " << hits << " hits; 32 KiB: hit rate " << rate << ", " << ss.cache_misses

@@ -156,24 +156,96 @@ inline float float_up(double v) {
   return f;
 }
 
-// Sets box i of blocks (block i / 4, lane i % 4; appends a block of empty
-// lanes at i % 4 == 0) to (lo, hi) rounded outward; lo > hi: empty.
-void set_box4(std::vector<GraphBoxes4>& blocks, size_t i, DVec3 lo, DVec3 hi) {
-  if (i % 4 == 0) {
-    GraphBoxes4 b;
-    for (int a = 0; a < 3; ++a)
-      for (int k = 0; k < 4; ++k) {
-        b.lo[a][k] = std::numeric_limits<float>::infinity();
-        b.hi[a][k] = -std::numeric_limits<float>::infinity();
-      }
-    blocks.push_back(b);
-  }
-  if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) return;
-  GraphBoxes4& b = blocks.back();
+// A view item's box (double, padded) for the clusters; ref: its item index.
+struct ViewItem {
+  DVec3 lo, hi;
+  double c[3];  // centroid
+  uint32_t ref;
+};
+
+double half_area(DVec3 lo, DVec3 hi) {
+  const DVec3 e = hi - lo;
+  return e.x * e.y + e.y * e.z + e.z * e.x;
+}
+
+// Reorders it[0, n) (n >= 2) along the axis and at the split of least
+// surface area heuristic cost (centroid order); returns the size of the left part.
+size_t sah_split(ViewItem* it, size_t n, std::vector<double>& right_area) {
+  double best = kInf;
+  int best_axis = 0;
+  size_t best_m = n / 2;
+  right_area.resize(n + 1);
   for (int a = 0; a < 3; ++a) {
-    b.lo[a][i % 4] = float_down(lo[a]);
-    b.hi[a][i % 4] = float_up(hi[a]);
+    std::sort(it, it + n, [a](const ViewItem& x, const ViewItem& y) {
+      return x.c[a] < y.c[a] || (x.c[a] == y.c[a] && x.ref < y.ref);
+    });
+    DVec3 lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
+    for (size_t i = n; i > 0; --i) {
+      grow(lo, hi, it[i - 1].lo, it[i - 1].hi);
+      right_area[i - 1] = half_area(lo, hi);
+    }
+    lo = {kInf, kInf, kInf};
+    hi = {-kInf, -kInf, -kInf};
+    for (size_t m = 1; m < n; ++m) {
+      grow(lo, hi, it[m - 1].lo, it[m - 1].hi);
+      const double cost = half_area(lo, hi) * double(m) + right_area[m] * double(n - m);
+      if (cost < best) {
+        best = cost;
+        best_axis = a;
+        best_m = m;
+      }
+    }
   }
+  if (best_axis != 2)
+    std::sort(it, it + n, [best_axis](const ViewItem& x, const ViewItem& y) {
+      return x.c[best_axis] < y.c[best_axis] || (x.c[best_axis] == y.c[best_axis] && x.ref < y.ref);
+    });
+  return best_m;
+}
+
+GraphBoxes4 empty_boxes4() {
+  GraphBoxes4 b;
+  for (int a = 0; a < 3; ++a)
+    for (int l = 0; l < 4; ++l) {
+      b.lo[a][l] = std::numeric_limits<float>::infinity();
+      b.hi[a][l] = -std::numeric_limits<float>::infinity();
+    }
+  return b;
+}
+
+// Sets lane l of b to (lo, hi) rounded outward (lo > hi: left empty).
+void set_lane(GraphBoxes4& b, int l, DVec3 lo, DVec3 hi) {
+  if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) return;
+  for (int a = 0; a < 3; ++a) {
+    b.lo[a][l] = float_down(lo[a]);
+    b.hi[a][l] = float_up(hi[a]);
+  }
+}
+
+// Splits it[0, n) by SAH until at most four items are left: each such part
+// becomes a cluster and its box the cluster's lane in boxes (cluster c: block
+// c / 4, lane c % 4).
+void build_clusters(std::vector<GraphCluster>& clusters, std::vector<GraphBoxes4>& boxes, ViewItem* it, size_t n,
+                    std::vector<double>& scratch) {
+  if (n > 4) {
+    const size_t m = sah_split(it, n, scratch);
+    build_clusters(clusters, boxes, it, m, scratch);
+    build_clusters(clusters, boxes, it + m, n - m, scratch);
+    return;
+  }
+  GraphCluster c;
+  c.box = empty_boxes4();
+  DVec3 lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
+  for (int l = 0; l < 4; ++l) {
+    c.item[l] = std::numeric_limits<uint32_t>::max();
+    if (size_t(l) >= n) continue;
+    c.item[l] = it[l].ref;
+    set_lane(c.box, l, it[l].lo, it[l].hi);
+    grow(lo, hi, it[l].lo, it[l].hi);
+  }
+  if (clusters.size() % 4 == 0) boxes.push_back(empty_boxes4());
+  set_lane(boxes.back(), int(clusters.size() % 4), lo, hi);
+  clusters.push_back(c);
 }
 
 bool box_hit(DVec3 lo, DVec3 hi, DVec3 o, DVec3 d, double t0, double t1) {
@@ -301,11 +373,6 @@ struct Graph::Impl {
   bool inline_views = true;  // see kGraphInlineMinCacheBytes
 
   // A level of the traversal: the node's expansion and the ray in its frame.
-  // The ray in an inlined child's frame (a group's), made at most once per visit.
-  struct GroupRay {
-    DVec3 o, d;
-    uint64_t visit = 0;              // the visit that made it
-  };
   struct Frame {
     const GraphExpansion* e = nullptr;
     DVec3 o, d;
@@ -316,7 +383,6 @@ struct Graph::Impl {
     uint8_t near[3], far[3];         // per axis: the float offset in a GraphBoxes4 of the side met first / last
     uint64_t key = 0;                // path key where the class is path dependent (and the root), else 0
     const GraphHop* via = nullptr;   // how the ray got here from the frame above (null at the root)
-    const GroupRay* groups = nullptr;  // per group of e (the running visit's, kept until its hops are entered)
   };
   struct Pending {
     double t;                        // box entry along the ray
@@ -353,9 +419,13 @@ struct Graph::Impl {
     // The running traversal (0: none): its entries are not evicted.
     uint64_t epoch = 0, tick = 0;
     std::vector<Frame> frames;      // kMaxGraphLevels + 1, one per level
-    std::vector<std::vector<GroupRay>> group_rays;  // per level: per group of its node
-    uint64_t visits = 0;
     std::vector<Pending> pending;   // children still to visit, nearest at the back
+    // build_view's scratch (a miss allocates only what the entry keeps).
+    std::vector<GraphBox> prim_boxes, hop_boxes;
+    std::vector<ViewItem> items;
+    std::vector<double> areas;
+    std::vector<GraphCluster> clusters;
+    std::vector<GraphBoxes4> cluster_boxes;
   };
   mutable tbb::enumerable_thread_specific<Cache> caches;
   // Never reused, so a thread's remembered (id, cache) can only be this graph's.
@@ -381,7 +451,6 @@ struct Graph::Impl {
     cache.epoch = ++cache.tick;
     ready(cache);
     if (cache.frames.size() < size_t(kMaxGraphLevels) + 1) cache.frames.resize(size_t(kMaxGraphLevels) + 1);
-    if (cache.group_rays.size() < size_t(kMaxGraphLevels) + 1) cache.group_rays.resize(size_t(kMaxGraphLevels) + 1);
     if (cache.pending.size() < 256) cache.pending.resize(256);
   }
   void ready(Cache& cache) const {
@@ -836,9 +905,9 @@ struct Graph::Impl {
     return sizeof(GraphExpansion) + e.prims.capacity() * sizeof(GraphPrimitive) +
            e.children.capacity() * sizeof(GraphChild) + e.prims_before.capacity() * sizeof(uint32_t) +
            e.inlined_prims.capacity() * sizeof(GraphPrimitive) +
-           e.tprims.capacity() * sizeof(GraphTracePrim) + e.prim_boxes.capacity() * sizeof(GraphBoxes4) +
-           e.hops.capacity() * sizeof(GraphHop) + e.hop_boxes.capacity() * sizeof(GraphBoxes4) +
-           e.groups.capacity() * sizeof(GraphGroup) + 64;
+           e.tprims.capacity() * sizeof(GraphTracePrim) + e.clusters.capacity() * sizeof(GraphCluster) +
+           e.cluster_boxes.capacity() * sizeof(GraphBoxes4) +
+           e.hops.capacity() * sizeof(GraphHop) + 64;
   }
 
   std::shared_ptr<const GraphExpansion> expand(uint32_t cls, uint64_t key) const {
@@ -853,9 +922,14 @@ struct Graph::Impl {
   // descendants inlined, breadth first, unless inline_views is off).
   // Afterwards e holds only the view (children and prims_before are
   // released: the traversal reads hops).
-  void build_view(GraphExpansion* e, uint32_t cls, uint64_t key) const {
+  void build_view(Cache& cache, GraphExpansion* e, uint32_t cls, uint64_t key) const {
     const Affine identity{{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}};
-    e->groups.push_back({identity, 0});
+    std::vector<GraphBox>& prim_boxes = cache.prim_boxes;  // per tprim / hop, in this node's frame
+    std::vector<GraphBox>& hop_boxes = cache.hop_boxes;
+    prim_boxes.clear();
+    hop_boxes.clear();
+    e->tprims.reserve(e->prims.size());  // enough without inlining
+    e->hops.reserve(e->children.size());
     for (size_t i = 0; i < e->prims.size(); ++i) {
       GraphTracePrim tp{};
       tp.prim = uint32_t(i);
@@ -863,7 +937,7 @@ struct Graph::Impl {
       GraphBox b;
       prim_box(e->prims[i].shape, e->prims[i].prim.to_world, &b.lo, &b.hi);
       pad_box(b.lo, b.hi);
-      set_box4(e->prim_boxes, i, b.lo, b.hi);
+      prim_boxes.push_back(b);
     }
     // This node and its inlined descendants, whose children are still to be
     // placed; a descendant's expansion is made here and dropped after (cached
@@ -872,8 +946,8 @@ struct Graph::Impl {
       const GraphExpansion* x;
       const std::vector<DescBoxes>* desc;  // x's children's boxes, in this node's frame
       Affine to_node;                      // x's frame -> this node's
+      Affine from_node;                    // this node's frame -> x's
       uint64_t key;
-      uint32_t group;
       uint8_t steps;
       uint32_t path[kGraphInlineDepth], classes[kGraphInlineDepth];
     };
@@ -882,8 +956,8 @@ struct Graph::Impl {
     queue[0].x = e;
     queue[0].desc = &child_desc[cls][e->alt];
     queue[0].to_node = identity;
+    queue[0].from_node = identity;
     queue[0].key = key;
-    queue[0].group = 0;
     queue[0].steps = 0;
     size_t planned = e->prims.size() + e->children.size();  // primitives and hops of the view so far
     for (size_t qi = 0; qi < queue.size(); ++qi) {
@@ -906,23 +980,25 @@ struct Graph::Impl {
             c.x = ce.get();
             c.desc = &db.sub[calt];
             c.to_node = compose(nd.to_node, ch.to_parent);
+            c.from_node = compose(ch.to_local, nd.from_node);
             c.key = ck;
-            c.group = uint32_t(e->groups.size());
-            e->groups.push_back({ch.to_local, nd.group});
             for (size_t j = 0; j < ce->prims.size(); ++j) {
               const GraphPrimitive& cp = ce->prims[j];
-              e->inlined_prims.push_back(cp);
+              const Affine w = compose(c.to_node, cp.prim.to_world);  // placed in this node's frame
+              csg::PrimitiveDesc d;
+              d.shape = csg_shape(cp.shape);
+              std::copy(w.m, w.m + 12, d.to_world);
+              e->inlined_prims.push_back(GraphPrimitive{cp.shape, cp.material, trace_primitive(d)});
               GraphTracePrim tp{};
               tp.prim = uint32_t(j);
-              tp.group = c.group;
               tp.steps = c.steps;
               std::copy(c.path, c.path + c.steps, tp.path);
               std::copy(c.classes, c.classes + c.steps, tp.classes);
               e->tprims.push_back(tp);
               GraphBox b;  // in this node's frame
-              prim_box(cp.shape, compose(c.to_node, cp.prim.to_world), &b.lo, &b.hi);
+              prim_box(cp.shape, w, &b.lo, &b.hi);
               pad_box(b.lo, b.hi);
-              set_box4(e->prim_boxes, e->tprims.size() - 1, b.lo, b.hi);
+              prim_boxes.push_back(b);
             }
             made.push_back(std::move(ce));
             queue.push_back(c);
@@ -930,22 +1006,39 @@ struct Graph::Impl {
           }
         }
         GraphHop h{};
-        h.to_local = ch.to_local;
-        h.group = nd.group;
+        h.to_local = compose(ch.to_local, nd.from_node);
         h.path_dependent = ch.path_dependent;
         h.steps = c.steps;
         std::copy(c.path, c.path + c.steps, h.path);
         std::copy(c.classes, c.classes + c.steps, h.classes);
         e->hops.push_back(h);
-        set_box4(e->hop_boxes, e->hops.size() - 1, db.box.lo, db.box.hi);
+        hop_boxes.push_back(db.box);
       }
     }
     e->inlined_prims.shrink_to_fit();
     e->tprims.shrink_to_fit();
-    e->prim_boxes.shrink_to_fit();
     e->hops.shrink_to_fit();
-    e->hop_boxes.shrink_to_fit();
-    e->groups.shrink_to_fit();
+    // The clusters of items; an item with an empty box (a hop to a subtree
+    // that draws nothing) is never met and left out.
+    std::vector<ViewItem>& items = cache.items;
+    items.clear();
+    auto add_item = [&](const GraphBox& b, size_t ref) {
+      if (!(b.lo.x <= b.hi.x && b.lo.y <= b.hi.y && b.lo.z <= b.hi.z)) return;
+      ViewItem it;
+      it.lo = b.lo;
+      it.hi = b.hi;
+      for (int a = 0; a < 3; ++a) it.c[a] = 0.5 * (b.lo[a] + b.hi[a]);
+      it.ref = uint32_t(ref);
+      items.push_back(it);
+    };
+    for (size_t i = 0; i < prim_boxes.size(); ++i) add_item(prim_boxes[i], i);
+    for (size_t i = 0; i < hop_boxes.size(); ++i) add_item(hop_boxes[i], prim_boxes.size() + i);
+    cache.clusters.clear();
+    cache.cluster_boxes.clear();
+    if (!items.empty()) build_clusters(cache.clusters, cache.cluster_boxes, items.data(), items.size(), cache.areas);
+    e->clusters.assign(cache.clusters.begin(), cache.clusters.end());
+    if (cache.clusters.size() > 1)  // one cluster is tested without its box
+      e->cluster_boxes.assign(cache.cluster_boxes.begin(), cache.cluster_boxes.end());
     std::vector<GraphChild>().swap(e->children);
     std::vector<uint32_t>().swap(e->prims_before);
     // The vectors are final: point the trace primitives at their primitives.
@@ -1008,7 +1101,7 @@ struct Graph::Impl {
     GraphExpansion* e = const_cast<GraphExpansion*>(get(cache, cls, path, path_dependent).get());
     if (!e->has_view) {  // the thread's own entry: no other thread sees it
       const size_t before = e->bytes;
-      build_view(e, cls, path);
+      build_view(cache, e, cls, path);
       if (!cache.memo[cls].transient) {
         cache.bytes = cache.bytes - before + e->bytes;
         cache.peak = std::max(cache.peak, cache.bytes);
@@ -1135,58 +1228,30 @@ struct Graph::Impl {
     // The closest hit so far; the hit record is made once at the end.
     const GraphTracePrim* hit_tp = nullptr;
     int hit_level = 0, hit_face = 0;
-    DVec3 hit_p;  // in the hit primitive's frame
+    DVec3 hit_p;  // in the frame of the hit primitive's view
     const GraphHop* hit_via[kMaxGraphLevels + 1];
-    const GraphExpansion* hit_from[kMaxGraphLevels + 1];  // the expansion holding hit_via[level]
-    const GraphExpansion* hit_e = nullptr;                // the one holding hit_tp
     csg::Crossing cr[csg::kMaxPrimitiveCrossings];
     // Tests the primitives of the node at `level` and queues the hops that
     // the ray meets before `best`, nearest last; true to stop (occlusion found).
     auto visit = [&](int level) {
-      Frame& f = frames[level];
+      const Frame& f = frames[level];
       const GraphExpansion& e = *f.e;
-      const uint64_t vid = ++cache.visits;
-      GroupRay* gr = nullptr;
-      if (e.groups.size() > 1) {
-        std::vector<GroupRay>& v = cache.group_rays[size_t(level)];
-        if (v.size() < e.groups.size()) v.resize(e.groups.size());
-        gr = v.data();
-      }
-      f.groups = gr;
-      // The ray in group g's frame (an inlined descendant's), mapped frame by
-      // frame from this node's as the plain traversal maps it.
-      auto group_ray = [&](uint32_t g) -> const GroupRay& {
-        if (gr[g].visit != vid) {
-          uint32_t chain[kGraphInlineDepth];
-          int n = 0;
-          for (uint32_t x = g; x != 0 && gr[x].visit != vid; x = e.groups[x].parent) chain[n++] = x;
-          while (n > 0) {
-            const uint32_t x = chain[--n];
-            const GraphGroup& grp = e.groups[x];
-            const DVec3 po = grp.parent ? gr[grp.parent].o : f.o, pd = grp.parent ? gr[grp.parent].d : f.d;
-            gr[x].o = grp.to_child.point(po);
-            gr[x].d = grp.to_child.vector(pd);
-            gr[x].visit = vid;
-          }
-        }
-        return gr[g];
-      };
       alignas(16) float entry[4];
       const Ray4 r4(f);
       float t1 = float(best);  // its rounding is within the 2^-20 of boxes4
-      const size_t np = e.tprims.size();
-      for (size_t b = 0; b < e.prim_boxes.size(); ++b) {
-        for (int mask = boxes4(e.prim_boxes[b], f, r4, t0, t1, entry); mask; mask &= mask - 1) {
-          const size_t p = 4 * b + size_t(__builtin_ctz(unsigned(mask)));
-          if (p >= np) break;  // an unused lane (NaN origin)
-          const GraphTracePrim& tp = e.tprims[p];
-          DVec3 co = f.o, cd = f.d;  // the ray in the primitive's frame
-          if (tp.group) {
-            const GroupRay& r = group_ray(tp.group);
-            co = r.o;
-            cd = r.d;
-          }
-          const int n = csg::intersect(tp.gp->prim, co, cd, 0.0, cr);
+      const size_t np = e.tprims.size(), nh = e.hops.size();
+      if (e.clusters.empty()) return false;
+      if (npend + nh > cache.pending.size()) {
+        cache.pending.resize(2 * (npend + nh));
+        pend = cache.pending.data();
+      }
+      const size_t first = npend;  // this visit's run of queued hops
+      // Item `item` (a tprim, then the hops; else an unused lane, NaN origin)
+      // whose box the ray enters at te (before best); true to stop (occluded).
+      auto item_met = [&](size_t item, float te) -> bool {
+        if (item < np) {
+          const GraphTracePrim& tp = e.tprims[item];
+          const int n = csg::intersect(tp.gp->prim, f.o, f.d, 0.0, cr);
           for (int k = 0; k < n; ++k) {
             const double t = cr[k].t;
             if (t < tnear) continue;
@@ -1196,32 +1261,16 @@ struct Graph::Impl {
             best = t;
             t1 = float(best);
             hit_tp = &tp;
-            hit_e = &e;
             hit_level = level;
             hit_face = cr[k].face;
-            hit_p = co + t * cd;
-            for (int lev = 1; lev <= level; ++lev) {
-              hit_via[lev] = frames[lev].via;
-              hit_from[lev] = frames[lev - 1].e;
-            }
+            hit_p = f.o + t * f.d;
+            for (int lev = 1; lev <= level; ++lev) hit_via[lev] = frames[lev].via;
             break;
           }
-        }
-      }
-      const size_t nh = e.hops.size();
-      if (npend + nh > cache.pending.size()) {
-        cache.pending.resize(2 * (npend + nh));
-        pend = cache.pending.data();
-      }
-      const size_t first = npend;
-      for (size_t b = 0; b < e.hop_boxes.size(); ++b) {
-        for (int mask = boxes4(e.hop_boxes[b], f, r4, t0, t1, entry); mask; mask &= mask - 1) {
-          const int lane = __builtin_ctz(unsigned(mask));
-          const size_t h = 4 * b + size_t(lane);
-          if (h >= nh) break;
-          if (e.hops[h].group) group_ray(e.hops[h].group);  // for entering the hop
-          const double t = entry[lane];
-          // Insertion into this node's queued run, kept sorted with the nearest at the back.
+        } else if (item < np + nh) {
+          const size_t h = item - np;
+          const double t = te;
+          // Insertion into this visit's queued run, kept sorted with the nearest at the back.
           size_t j = npend++;
           while (j > first && pend[j - 1].t < t) {
             pend[j].t = pend[j - 1].t;
@@ -1232,6 +1281,29 @@ struct Graph::Impl {
           pend[j].t = t;
           pend[j].level = uint32_t(level);
           pend[j].hop = uint32_t(h);
+        }
+        return false;
+      };
+      // The clusters met (a single one directly), then the items met in
+      // them; the closest hit so far culls both.
+      auto cluster_met = [&](const GraphCluster& cl) -> bool {
+        alignas(16) float item_entry[4];
+        for (int m = boxes4(cl.box, f, r4, t0, t1, item_entry); m; m &= m - 1) {
+          const int l = __builtin_ctz(unsigned(m));
+          if (double(item_entry[l]) > best) continue;
+          if (item_met(cl.item[l], item_entry[l])) return true;
+        }
+        return false;
+      };
+      const size_t nc = e.clusters.size();
+      if (nc == 1) return cluster_met(e.clusters[0]);
+      for (size_t b = 0; b < e.cluster_boxes.size(); ++b) {
+        for (int mask = boxes4(e.cluster_boxes[b], f, r4, t0, t1, entry); mask; mask &= mask - 1) {
+          const int lane = __builtin_ctz(unsigned(mask));
+          const size_t c = 4 * b + size_t(lane);
+          if (c >= nc) break;  // an unused lane (NaN origin)
+          if (double(entry[lane]) > best) continue;
+          if (cluster_met(e.clusters[c])) return true;
         }
       }
       return false;
@@ -1255,12 +1327,7 @@ struct Graph::Impl {
       }
       const GraphHop& c = f.e->hops[phop];
       Frame& g = frames[level];
-      if (c.group) {  // through the inlined child's frame (mapped by the visit), as without inlining
-        const GroupRay& r = f.groups[c.group];
-        set_ray(g, c.to_local.point(r.o), c.to_local.vector(r.d));
-      } else {
-        set_ray(g, c.to_local.point(f.o), c.to_local.vector(f.d));
-      }
+      set_ray(g, c.to_local.point(f.o), c.to_local.vector(f.d));
       uint64_t key = 0;
       if (c.path_dependent) {  // then so are the nodes above it
         key = f.key;
@@ -1291,17 +1358,9 @@ struct Graph::Impl {
       hit->shape = tp.gp->shape;
       hit->material = tp.gp->material;
       hit->prim = tp.prim;
-      // The normal back up the frames: the inlined chain in the hit node's
-      // view, then each hop and the inlined chain above it.
+      // The normal (in the frame of the view that holds the primitive) back up the hops.
       DVec3 nl = csg::normal(tp.gp->prim, hit_face, hit_p);
-      for (uint32_t x = tp.group; x != 0; x = hit_e->groups[x].parent)
-        nl = hit_e->groups[x].to_child.transpose_vector(nl);
-      for (int lev = hit_level; lev > 0; --lev) {
-        const GraphHop& v = *hit_via[lev];
-        nl = v.to_local.transpose_vector(nl);
-        for (uint32_t x = v.group; x != 0; x = hit_from[lev]->groups[x].parent)
-          nl = hit_from[lev]->groups[x].to_child.transpose_vector(nl);
-      }
+      for (int lev = hit_level; lev > 0; --lev) nl = hit_via[lev]->to_local.transpose_vector(nl);
       hit->n = csg::normalize(nl);
       hit->node_key = ancestor_key(*hit, hit->levels);
       hit->instance_key = child_key(hit->node_key, hit->prim);

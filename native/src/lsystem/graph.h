@@ -65,18 +65,22 @@
 // its primitives' and children's boxes.
 //
 // Traversal: an expansion's traversal view (GraphExpansion::tprims, hops,
-// groups) inlines its small descendants (kGraphInlineDepth: children and
-// grandchildren), so one visit covers up to three derivation steps: a node's
-// cache entry is looked up and a hop queued once per up to three levels.
-// Every primitive and hop has its box in the node's frame (the exact box,
-// for inlined levels from set-up unfoldings per class, rounded outward to
-// float), tested four at a time in float SIMD (conservative: a box the ray
-// meets always passes, see boxes4 in graph.cpp) before any transform or
-// intersection; a ray is mapped into an inlined descendant's frame only when
-// one of its primitives or hops passes. Hops are entered front to back
-// (sorted by box entry, skipped once the entry lies beyond the closest hit so
-// far). The hit record (path, classes per level, keys, normal) is made once
-// per ray, from the hops that led to the closest hit.
+// clusters) inlines its small descendants (kGraphInlineDepth: down to four
+// steps below the node), so one visit covers up to five derivation steps: a
+// node's cache entry is looked up and a hop queued once per up to five
+// levels. Inlined primitives are placed in the node's frame (their transforms
+// composed) and a hop maps the ray from the node's frame straight into its
+// target's (composed), so a visit transforms nothing and entering a hop is
+// one map whatever the steps. Every primitive and hop has its box in the
+// node's frame (the exact box, for inlined levels from set-up unfoldings per
+// class, rounded outward to float); the boxes are grouped by SAH into
+// clusters of four, and a visit tests the clusters' boxes, then the boxes in
+// the clusters met, four at a time in float SIMD (conservative: a box the ray
+// meets always passes, see boxes4 in graph.cpp), before any intersection.
+// Hops are entered front to back (sorted by box entry, skipped once the entry
+// lies beyond the closest hit so far). The hit record (path, classes per
+// level, keys, normal) is made once per ray, from the hops that led to the
+// closest hit.
 //
 // Threads: the graph (classes, bounds) is immutable after set-up. Each thread
 // that traces gets its own LRU cache of expansions (tbb::enumerable_thread_
@@ -153,42 +157,41 @@ struct GraphChild {
 // within the node's visit, and the children of the deepest inlined ones become
 // the node's hops (up to kGraphInlineDepth steps down), so a cache entry is
 // looked up and the queue of hops grows once per up to kGraphInlineDepth
-// levels. Groups: 0 is the node itself; each further group an inlined
-// descendant (its frame, reached from its parent group's frame). The view is
-// made when a ray first enters an expansion; a cache entry then holds the
-// view only (children and prims_before are released; flatten() makes its own
-// expansions). With inlining a miss costs the expansion of the node and of
+// levels. The view is made when a ray first enters an expansion; a cache
+// entry then holds the view only (children and prims_before are released;
+// flatten() makes its own expansions). With inlining a miss costs the expansion of the node and of
 // its inlined descendants (each ~1 us: primitives are made by
 // trace_primitive, without face areas) and an entry holds several times the
 // bytes, so with GraphOptions::cache_bytes below kGraphInlineMinCacheBytes
-// views inline nothing (one visit per level). Results do not depend on it.
+// views inline nothing (one visit per level).
 constexpr size_t kGraphInlineItems = 16;
-constexpr int kGraphInlineDepth = 3;
+constexpr int kGraphInlineDepth = 5;
 constexpr size_t kGraphInlineViewItems = 64;
 static_assert(kGraphInlineDepth >= 2, "a view inlines at least its children");
 constexpr size_t kGraphInlineMinCacheBytes = size_t(1) << 20;
 
-// Rays and primitives keep the frames of the graph: an inlined descendant's
-// primitive is intersected in its own frame and a hop's ray is mapped frame by
-// frame down the inlined chain, with the same arithmetic as without inlining,
-// so hits are bit for bit those of the plain traversal (up to which of two
-// coincident primitives wins a tie in t).
+// Frames: an inlined primitive is intersected in the view's frame (its
+// transform composed with those of the inlined steps) and a hop's ray is
+// mapped by the composed transform, so hits of an inlining view differ from
+// those of the plain traversal (small caches, kGraphInlineMinCacheBytes) by
+// rounding only (t within ~1e-14 relative, the normal within ~1e-11; which
+// of two coincident primitives wins a tie in t may differ), as the flattened
+// object (world transforms composed) does
+// (LSystemGraph.SmallByteBudgetDegradesGracefully).
 
 // A node below this one that the traversal enters.
 struct GraphHop {
-  csg::Affine to_local;          // its group's frame -> the target's frame
-  uint32_t group;                // the group it hangs from (0: a child of this node)
+  csg::Affine to_local;          // this node's frame -> the target's frame (composed over the steps)
   bool path_dependent;           // the target class's path_dependent
-  uint8_t steps;                 // derivation steps from this node to the target (group depth + 1)
+  uint8_t steps;                 // derivation steps from this node to the target
   uint32_t path[kGraphInlineDepth];     // child index at each step
   uint32_t classes[kGraphInlineDepth];  // class at each step (classes[steps - 1]: the target's)
 };
 
 // A primitive the traversal tests (its box in this node's frame).
 struct GraphTracePrim {
-  const GraphPrimitive* gp;      // the node's own (prims) or an inlined descendant's (a copy), in that frame
+  const GraphPrimitive* gp;      // the node's own (prims) or an inlined descendant's (inlined_prims), in this node's frame
   uint32_t prim;                 // its index in its own node's expansion
-  uint32_t group;                // its node's group (0: this node's own)
   uint8_t steps;                 // derivation steps from this node to the primitive's node
   uint32_t path[kGraphInlineDepth - 1], classes[kGraphInlineDepth - 1];  // as GraphHop's, `steps` of them
 };
@@ -199,9 +202,12 @@ struct alignas(16) GraphBoxes4 {
   float lo[3][4], hi[3][4];      // [axis][box]
 };
 
-struct GraphGroup {
-  csg::Affine to_child;          // the parent group's frame -> this group's (group 0: unused)
-  uint32_t parent;               // group 0: 0
+// Up to four items of a view (items: the tprims, then the hops), near each
+// other: their boxes and, per lane, the item (an unused lane: an empty box and
+// UINT32_MAX).
+struct alignas(16) GraphCluster {
+  GraphBoxes4 box;
+  uint32_t item[4];
 };
 
 // One expanded instance: what the turtle drew and the child references.
@@ -214,12 +220,16 @@ struct GraphExpansion {
   // The traversal's view (see above; made when a ray first enters the
   // expansion, not by flatten()); boxes in the node frame, padded.
   bool has_view = false;
-  std::vector<GraphPrimitive> inlined_prims;  // inlined descendants' primitives (copies, in their frames)
+  std::vector<GraphPrimitive> inlined_prims;  // inlined descendants' primitives, placed in this node's frame
   std::vector<GraphTracePrim> tprims;
-  std::vector<GraphBoxes4> prim_boxes; // tprim i: block i / 4, lane i % 4 (its exact box, rounded outward)
   std::vector<GraphHop> hops;
-  std::vector<GraphBoxes4> hop_boxes;  // likewise per hop: the target's subtree box
-  std::vector<GraphGroup> groups;
+  // The items' boxes (a tprim's: the primitive's exact box; a hop's: the
+  // target's subtree box; in this node's frame, rounded outward) in clusters
+  // (SAH splits down to four items; an item with an empty box is in none),
+  // and the clusters' boxes (cluster c: block c / 4, lane c % 4; none when
+  // there is only one cluster).
+  std::vector<GraphCluster> clusters;
+  std::vector<GraphBoxes4> cluster_boxes;
   size_t bytes = 0;
 };
 
