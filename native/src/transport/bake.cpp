@@ -838,7 +838,6 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
   e.p95 = percentile(per_texel, 0.95);
 }
 
-
 // A lightmap resolved from an OL: each covered texel shows the OL at its
 // normal (bilinear over the bins), with that bin's error and hit count.
 void resolve_ol(const ol::OrientationLightmap& map, const TexelAreas& areas, std::vector<float>& values,
