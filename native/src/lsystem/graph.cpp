@@ -29,10 +29,6 @@ namespace plm::lsystem {
 using csg::Affine;
 using csg::DVec3;
 
-namespace {
-constexpr double kInfinity = std::numeric_limits<double>::infinity();
-}  // namespace
-
 // graph.h: csg::make_primitive without the check and the face areas.
 csg::Primitive trace_primitive(const csg::PrimitiveDesc& desc) { return csg::make_primitive_without_areas(desc); }
 

@@ -758,6 +758,13 @@ struct Estimator {
   }
 };
 
+// Texel t of a lightmap image (R, G, B, error: 4 floats a texel) from an
+// estimate's value3 / variance.
+void store_texel(const std::vector<double>& value3, const std::vector<double>& variance, size_t t, float* image) {
+  for (int c = 0; c < 3; ++c) image[4 * t + c] = float(value3[3 * t + c]);
+  image[4 * t + 3] = float(std::sqrt(variance[t]));
+}
+
 double percentile(std::vector<double>& v, double q) {
   if (v.empty()) return 0.0;
   const size_t k = std::min(v.size() - 1, size_t(q * double(v.size())));
@@ -806,8 +813,7 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
     img.assign(4 * variance.size(), 0.0f);
     for (size_t t = 0; t < variance.size(); ++t) {
       if (!(est.areas[i].area[t] > 0.0)) continue;
-      for (int c = 0; c < 3; ++c) img[4 * t + c] = float(value3[3 * t + c]);
-      img[4 * t + 3] = float(std::sqrt(variance[t]));
+      store_texel(value3, variance, t, img.data());
       const double v = (value3[3 * t] + value3[3 * t + 1] + value3[3 * t + 2]) / 3.0;
       value_sum += v;
       var_sum += variance[t];
@@ -1244,7 +1250,6 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
       todo.swap(next);
       if (over_budget(photon_pass ? 0.5 : 0.95)) break;
     }
-
     for (const DirectSums& d : direct) out.stats.direct_samples += d.count;
   }
   out.stats.seconds_direct = seconds_since(t_direct);
@@ -1523,11 +1528,8 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
       if (backed_up && ols[size_t(mesh.ol_group)].finalized()) {
         arena.execute([&] { estimator.texels(i, photons, value3, variance); });
         blend_backup(ols[size_t(mesh.ol_group)], areas[i], direct, covered_begin[i], direct_noise, value3, variance);
-        for (size_t t = 0; t < n; ++t) {
-          if (!(areas[i].area[t] > 0.0)) continue;
-          for (int c = 0; c < 3; ++c) values[4 * t + c] = float(value3[3 * t + c]);
-          values[4 * t + 3] = float(std::sqrt(variance[t]));
-        }
+        for (size_t t = 0; t < n; ++t)
+          if (areas[i].area[t] > 0.0) store_texel(value3, variance, t, values.data());
       } else {
         values.swap(last.values[i]);  // the final estimate's texels
       }
