@@ -1,4 +1,5 @@
-// Photon-pass throughput against raw Embree on statistically the same rays.
+// Photon-pass throughput against raw Embree on statistically the same rays,
+// and the direct pass's rays one by one against packets of eight.
 //   build/bin/photonlm_bench_throughput
 // 1. The engine bakes the Cornell box, photons only, one thread: rays/s of the
 //    photon pass (emission, intersection, deposit, bounce, merge).
@@ -138,6 +139,93 @@ void BM_PhotonPassVersusRawEmbree(benchmark::State& state) {
 }
 BENCHMARK(BM_PhotonPassVersusRawEmbree)->Arg(2000000)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);
 
+// Rays as the direct pass and the final gather cast them: 16 points in each
+// of the Cornell floor's 32 x 32 texels, a shadow ray from each to a point on
+// the ceiling light and a cosine-distributed gather ray; one by one
+// (rtcOccluded1 / rtcIntersect1) against plm::RayPacket (eight rays of one
+// texel per call). Counters: ns per ray, best of the iterations.
+void BM_TexelRaysOneByOneVersusPackets(benchmark::State& state) {
+  using namespace plm;
+  plm_demo::SceneBuilder b;
+  plm_demo::build_cornell(b, 32);
+  const Scene& scene = b.scene->scene;
+  EmbreeScene accel(scene, 1);
+  std::vector<Vec3> org, to_light, gather;
+  Rng rng(11, 0);
+  for (int texel = 0; texel < 32 * 32; ++texel) {
+    for (int j = 0; j < 16; ++j) {
+      const Vec3 p{-1.0f + (float(texel % 32) + rng.next_float()) / 16.0f,
+                   -1.0f + (float(texel / 32) + rng.next_float()) / 16.0f, 1e-4f};
+      const Vec3 q{0.5f * rng.next_float() - 0.25f, 0.5f * rng.next_float() - 0.25f, 1.98f};
+      org.push_back(p);
+      to_light.push_back(q - p);  // tfar 1: up to the light
+      gather.push_back(cosine_hemisphere(rng.next_float(), rng.next_float()));
+    }
+  }
+  const float inf = std::numeric_limits<float>::infinity();
+  double best[4] = {inf, inf, inf, inf};
+  uint64_t counts[4] = {};
+  auto time = [&](int slot, auto&& cast) {
+    const auto t0 = std::chrono::steady_clock::now();
+    counts[slot] = cast();
+    best[slot] = std::min(best[slot], std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  };
+  for (auto _ : state) {
+    TraceContext tc;
+    RayPacket packet;
+    time(0, [&] {
+      uint64_t n = 0;
+      for (size_t i = 0; i < org.size(); ++i) {
+        RTCRay r = make_ray(org[i], to_light[i], 0.9999f);
+        rtcOccluded1(accel.handle(), &tc.context, &r);
+        n += r.tfar < 0.0f;
+      }
+      return n;
+    });
+    time(1, [&] {
+      uint64_t n = 0;
+      for (size_t i = 0; i < org.size(); i += RayPacket::kLanes) {
+        for (size_t l = i; l < i + RayPacket::kLanes; ++l)
+          packet.add(org[l], to_light[l], 0.9999f, RTC_INVALID_GEOMETRY_ID, RTC_INVALID_GEOMETRY_ID);
+        packet.occluded(accel.handle());
+        for (unsigned l = 0; l < RayPacket::kLanes; ++l) n += packet.blocked(l);
+      }
+      return n;
+    });
+    time(2, [&] {
+      uint64_t n = 0;
+      for (size_t i = 0; i < org.size(); ++i) {
+        RTCRayHit rh;
+        rh.ray = make_ray(org[i], gather[i], inf);
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(accel.handle(), &tc.context, &rh);
+        n += rh.hit.geomID;
+      }
+      return n;
+    });
+    time(3, [&] {
+      uint64_t n = 0;
+      for (size_t i = 0; i < org.size(); i += RayPacket::kLanes) {
+        for (size_t l = i; l < i + RayPacket::kLanes; ++l)
+          packet.add(org[l], gather[l], inf, RTC_INVALID_GEOMETRY_ID, RTC_INVALID_GEOMETRY_ID);
+        packet.intersect(accel.handle());
+        for (unsigned l = 0; l < RayPacket::kLanes; ++l) n += packet.rh.hit.geomID[l];
+      }
+      return n;
+    });
+  }
+  if (counts[0] != counts[1] || counts[2] != counts[3]) state.SkipWithError("packets and single rays disagree");
+  const double ns = 1e9 / double(org.size());
+  state.counters["shadow_one_ns"] = best[0] * ns;
+  state.counters["shadow_packet_ns"] = best[1] * ns;
+  state.counters["gather_one_ns"] = best[2] * ns;
+  state.counters["gather_packet_ns"] = best[3] * ns;
+  state.counters["shadow_speedup"] = best[0] / best[1];
+  state.counters["gather_speedup"] = best[2] / best[3];
+}
+BENCHMARK(BM_TexelRaysOneByOneVersusPackets)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(20);
+
 }  // namespace
 
 BENCHMARK_MAIN();
+

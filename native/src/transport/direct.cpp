@@ -366,157 +366,197 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   const uint32_t* const candidates = select ? chosen : all_candidates_.data();
   const size_t candidate_count = select ? kCandidates : all_candidates_.size();
   if (select && scratch.slot_of.size() < emitters_.size()) scratch.slot_of.resize(emitters_.size(), -1);
-  for (uint32_t j = 0; j < n; ++j) {
-    float x = origin_x + (float(j % m) + rng.next_float()) * side;
-    float y = origin_y + (float(j / m) + rng.next_float()) * side;
-    Vec3 p, normal;
+  // Every light is sampled with probability 1 in all-lights mode.
+  auto probability = [&](size_t i) {
+    if (all_lights_) return 1.0f;
+    if (!local_choice_) return table_.probability(i);
+    const int32_t slot = select ? scratch.slot_of[i] : int32_t(i);
+    return (slot >= 0 ? share[slot] : 0.0f) + (1.0f - local) * table_.probability(i);
+  };
+  // Samples go in chunks: first their shadow rays, traced in packets, then
+  // each sample in turn (the MIS ray, the sums), so every sum adds the same
+  // numbers in the same order as sample by sample.
+  constexpr uint32_t kChunk = 8;
+  struct Pending {
+    Vec3 origin, normal, e;
+    float v[2];
+    size_t k;
     uint32_t tri;
-    // Light choice and light sample: a 4D Sobol point per sample (random
-    // otherwise, with the choice stratified through a permutation: tied to j
-    // it would follow the strata's rows, so each light would be sampled in
-    // one band of the texel only -- a shifted shadow). Sobol's index shuffle
-    // does the same. With the local choice, the choice and the point in the
-    // texel are one 3D Sobol point: each light's samples then cover the
-    // texel evenly (on the jittered grid they fell on a random subset of
-    // strata: 11 point lights over a plane, 1.7x the RMS error).
-    float u_pick, u[3], v[2] = {0, 0}, w[3] = {0, 0, 0};  // v: cosine direction (MIS), w: point in sparse texels
-    if (sobol_) {
-      float g[4];
-      if (!local_choice_) {
-        light_dims.point(j, 4, g);
-        u_pick = g[0], u[0] = g[1], u[1] = g[2], u[2] = g[3];
+    bool inside;
+  };
+  Pending chunk[kChunk];
+  RayPacket packet;
+  Vec3 lane_value[RayPacket::kLanes];  // a lane's irradiance if nothing blocks it
+  uint32_t lane_sample[RayPacket::kLanes];
+  auto trace_packet = [&] {
+    const unsigned lanes = packet.size;
+    packet.occluded(rtc_);
+    for (unsigned l = 0; l < lanes; ++l)
+      if (!packet.blocked(l)) chunk[lane_sample[l]].e += lane_value[l];
+  };
+  for (uint32_t j0 = 0; j0 < n; j0 += kChunk) {
+    const uint32_t chunk_size = std::min(kChunk, n - j0);
+    for (uint32_t c = 0; c < chunk_size; ++c) {
+      const uint32_t j = j0 + c;
+      Pending& ps = chunk[c];
+      ps.inside = false;
+      ps.e = {0, 0, 0};
+      float x = origin_x + (float(j % m) + rng.next_float()) * side;
+      float y = origin_y + (float(j / m) + rng.next_float()) * side;
+      Vec3 p, normal;
+      uint32_t tri;
+      // Light choice and light sample: a 4D Sobol point per sample (random
+      // otherwise, with the choice stratified through a permutation: tied to j
+      // it would follow the strata's rows, so each light would be sampled in
+      // one band of the texel only -- a shifted shadow). Sobol's index shuffle
+      // does the same. With the local choice, the choice and the point in the
+      // texel are one 3D Sobol point: each light's samples then cover the
+      // texel evenly (on the jittered grid they fell on a random subset of
+      // strata: 11 point lights over a plane, 1.7x the RMS error).
+      float u_pick, u[3], w[3] = {0, 0, 0};  // w: point in sparse texels; ps.v: cosine direction (MIS)
+      if (sobol_) {
+        float g[4];
+        if (!local_choice_) {
+          light_dims.point(j, 4, g);
+          u_pick = g[0], u[0] = g[1], u[1] = g[2], u[2] = g[3];
+        } else {
+          light_dims.point(j, 3, g);
+          u_pick = g[0];
+          x = origin_x + g[1] * float(m) * side;
+          y = origin_y + g[2] * float(m) * side;
+          surface_dims.point(j, 3, u);
+        }
+        if (has_triangle_emitters_) mis_dims.point(j, 2, ps.v);
+        if (sparse) piece_dims.point(j, 3, w);
       } else {
-        light_dims.point(j, 3, g);
-        u_pick = g[0];
-        x = origin_x + g[1] * float(m) * side;
-        y = origin_y + g[2] * float(m) * side;
-        surface_dims.point(j, 3, u);
+        u_pick = (float(permute(j, n, pick_key)) + rng.next_float()) / float(n);
+        for (float& r : u) r = rng.next_float();
+        for (float& r : ps.v) r = rng.next_float();
+        for (float& r : w) r = rng.next_float();  // drawn always: streams stay as they were
       }
-      if (has_triangle_emitters_) mis_dims.point(j, 2, v);
-      if (sparse) piece_dims.point(j, 3, w);
-    } else {
-      u_pick = (float(permute(j, n, pick_key)) + rng.next_float()) / float(n);
-      for (float& r : u) r = rng.next_float();
-      for (float& r : v) r = rng.next_float();
-      for (float& r : w) r = rng.next_float();  // drawn always: streams stay as they were
+      if (csg) {
+        csg::DVec3 dp, dn;
+        csg->lightmap->sample_point(texel, x, y, dp, dn);
+        p = to_float(dp), normal = to_float(dn), tri = RTC_INVALID_GEOMETRY_ID;
+      } else if (!texel_point(tw, mesh_id, texel, x, y, w, p, normal, tri)) {
+        continue;  // outside the islands
+      }
+      size_t k = 0;
+      if (local_choice_) {
+        if (!chosen_here) {
+          if (select) select_candidates(p, normal, chosen, scratch);
+          local = local_shares(p, normal, candidates, candidate_count, share);
+          chosen_here = true;
+        }
+        // One interval of u_pick per light (the choice's stratification then
+        // leaves each light's sample count within about one of n p_k):
+        // candidates first, then the others by power.
+        float rest = u_pick;
+        size_t i = 0, last = 0;
+        for (; i < candidate_count; ++i) {
+          const float q = share[i] + (1.0f - local) * table_.probability(candidates[i]);
+          if (rest < q) break;
+          rest -= q;
+          if (q > 0.0f) last = i;
+        }
+        if (i < candidate_count) {
+          k = candidates[i];
+        } else if (select && !scratch.others.empty()) {
+          const std::vector<double>& cdf = scratch.others_cdf;
+          const double target = double(rest) / (1.0f - local);
+          const size_t o = size_t(std::upper_bound(cdf.begin(), cdf.end(), target) - cdf.begin());
+          k = scratch.others[std::min(o, scratch.others.size() - 1)];
+        } else {
+          k = candidates[last];  // rounding past the end
+        }
+      } else if (!all_lights_) {
+        k = table_.choose(u_pick);
+      }
+      ps.inside = true;
+      ps.k = k;
+      ps.normal = normal;
+      ps.tri = tri;
+      ps.origin = offset_origin(p, normal, offset_scale_);
+      for (size_t kk = all_lights_ ? 0 : k, end = all_lights_ ? emitters_.size() : k + 1; kk < end; ++kk) {
+        const Emitter& em = emitters_[kk];
+        DirectSample ds = sample_direct(em, p, normal, u);
+        if (em.textured && ds.geometry > 0.0f)  // the texture at the sampled point (0: skip the shadow ray)
+          ds.irradiance = textures_->emission(*views_[em.mesh].mesh, em.material, em.triangle, ds.bu, ds.bv, tex_thread) *
+                          ds.geometry;
+        if (!(ds.irradiance.x > 0.0f || ds.irradiance.y > 0.0f || ds.irradiance.z > 0.0f)) continue;  // no fmaxf calls
+        float weight = 1.0f;
+        if (em.kind == EmitterKind::Triangle) {  // balance heuristic against cosine sampling
+          const float cos_l = std::fabs(dot(em.normal, ds.dir)), cos_s = dot(normal, ds.dir);
+          weight = 1.0f / (1.0f + cos_weight_ratio(cos_s, cos_l * em.area, probability(kk), ds.distance));
+        }
+        lane_value[packet.size] = ds.irradiance * (weight / (kPi * probability(kk)));
+        lane_sample[packet.size] = c;
+        const bool triangle = em.kind == EmitterKind::Triangle;
+        packet.add(ps.origin, ds.dir, std::isinf(ds.distance) ? ds.distance : ds.distance * (1.0f - 1e-4f), tc.skip_geom,
+                   tri, triangle ? em.mesh : RTC_INVALID_GEOMETRY_ID, triangle ? em.triangle : RTC_INVALID_GEOMETRY_ID);
+        if (packet.full()) trace_packet();
+      }
     }
-    if (csg) {
-      csg::DVec3 dp, dn;
-      csg->lightmap->sample_point(texel, x, y, dp, dn);
-      p = to_float(dp), normal = to_float(dn), tri = RTC_INVALID_GEOMETRY_ID;
-    } else if (!texel_point(tw, mesh_id, texel, x, y, w, p, normal, tri)) {
-      continue;  // outside the islands
-    }
-    size_t k = 0;
-    if (local_choice_) {
-      if (!chosen_here) {
-        if (select) select_candidates(p, normal, chosen, scratch);
-        local = local_shares(p, normal, candidates, candidate_count, share);
-        chosen_here = true;
-      }
-      // One interval of u_pick per light (the choice's stratification then
-      // leaves each light's sample count within about one of n p_k):
-      // candidates first, then the others by power.
-      float rest = u_pick;
-      size_t i = 0, last = 0;
-      for (; i < candidate_count; ++i) {
-        const float q = share[i] + (1.0f - local) * table_.probability(candidates[i]);
-        if (rest < q) break;
-        rest -= q;
-        if (q > 0.0f) last = i;
-      }
-      if (i < candidate_count) {
-        k = candidates[i];
-      } else if (select && !scratch.others.empty()) {
-        const std::vector<double>& cdf = scratch.others_cdf;
-        const double target = double(rest) / (1.0f - local);
-        const size_t o = size_t(std::upper_bound(cdf.begin(), cdf.end(), target) - cdf.begin());
-        k = scratch.others[std::min(o, scratch.others.size() - 1)];
-      } else {
-        k = candidates[last];  // rounding past the end
-      }
-    } else if (!all_lights_) {
-      k = table_.choose(u_pick);
-    }
-    // Every light is sampled with probability 1 in all-lights mode.
-    auto probability = [&](size_t i) {
-      if (all_lights_) return 1.0f;
-      if (!local_choice_) return table_.probability(i);
-      const int32_t slot = select ? scratch.slot_of[i] : int32_t(i);
-      return (slot >= 0 ? share[slot] : 0.0f) + (1.0f - local) * table_.probability(i);
-    };
-    const Vec3 origin = offset_origin(p, normal, offset_scale_);
-    tc.skip_prim = tri;
-    Vec3 e{0, 0, 0};
-    for (size_t kk = all_lights_ ? 0 : k, end = all_lights_ ? emitters_.size() : k + 1; kk < end; ++kk) {
-      const Emitter& em = emitters_[kk];
-      DirectSample ds = sample_direct(em, p, normal, u);
-      if (em.textured && ds.geometry > 0.0f)  // the texture at the sampled point (0: skip the shadow ray)
-        ds.irradiance = textures_->emission(*views_[em.mesh].mesh, em.material, em.triangle, ds.bu, ds.bv, tex_thread) *
-                        ds.geometry;
-      if (!(ds.irradiance.x > 0.0f || ds.irradiance.y > 0.0f || ds.irradiance.z > 0.0f)) continue;  // no fmaxf calls
-      tc.target_geom = em.kind == EmitterKind::Triangle ? em.mesh : RTC_INVALID_GEOMETRY_ID;
-      tc.target_prim = em.kind == EmitterKind::Triangle ? em.triangle : RTC_INVALID_GEOMETRY_ID;
-      const float tfar = std::isinf(ds.distance) ? ds.distance : ds.distance * (1.0f - 1e-4f);
-      if (occluded(rtc_, tc, origin, ds.dir, tfar)) continue;
-      float weight = 1.0f;
-      if (em.kind == EmitterKind::Triangle) {  // balance heuristic against cosine sampling
-        const float cos_l = std::fabs(dot(em.normal, ds.dir)), cos_s = dot(normal, ds.dir);
-        weight = 1.0f / (1.0f + cos_weight_ratio(cos_s, cos_l * em.area, probability(kk), ds.distance));
-      }
-      e += ds.irradiance * (weight / (kPi * probability(kk)));
-    }
-    if (has_triangle_emitters_) {
-      const Vec3 local = cosine_hemisphere(v[0], v[1]);
-      Vec3 t, b;
-      make_frame(normal, t, b);
-      const Vec3 dir = t * local.x + b * local.y + normal * local.z;
-      tc.target_geom = tc.target_prim = RTC_INVALID_GEOMETRY_ID;
-      RTCRayHit rh;
-      rh.ray = make_ray(origin, dir, std::numeric_limits<float>::infinity());
-      rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-      rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-      rtcIntersect1(rtc_, &tc.context, &rh);
-      if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
-        const bool mesh_hit = rh.hit.geomID < triangle_emitter_.size();  // not a CSG solid
-        const int32_t hit_emitter =
-            mesh_hit && !triangle_emitter_[rh.hit.geomID].empty() ? triangle_emitter_[rh.hit.geomID][rh.hit.primID] : -1;
-        if (hit_emitter >= 0) {
-          const Emitter& he = emitters_[size_t(hit_emitter)];
-          const float cos_l = std::fabs(dot(he.normal, dir)), cos_s = local.z;
-          // Irradiance estimate L cos / p_cos = pi L, weighted; stored as irradiance / pi.
-          const float r = cos_weight_ratio(cos_s, cos_l * he.area, probability(size_t(hit_emitter)), rh.ray.tfar);
-          if (cos_l > 0.0f && cos_s > 0.0f && r > 0.0f) {
-            const Vec3 L = he.textured ? textures_->emission(*views_[rh.hit.geomID].mesh, he.material, he.triangle,
-                                                             rh.hit.u, rh.hit.v, tex_thread)
-                                       : he.radiance;
-            e += L * (r / (1.0f + r));
+    if (packet.size > 0) trace_packet();
+    for (uint32_t c = 0; c < chunk_size; ++c) {
+      const uint32_t j = j0 + c;
+      Pending& ps = chunk[c];
+      if (!ps.inside) continue;
+      const size_t k = ps.k;
+      const Vec3 normal = ps.normal;
+      Vec3& e = ps.e;
+      if (has_triangle_emitters_) {
+        const Vec3 local = cosine_hemisphere(ps.v[0], ps.v[1]);
+        Vec3 t, b;
+        make_frame(normal, t, b);
+        const Vec3 dir = t * local.x + b * local.y + normal * local.z;
+        tc.skip_prim = ps.tri;
+        RTCRayHit rh;
+        rh.ray = make_ray(ps.origin, dir, std::numeric_limits<float>::infinity());
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(rtc_, &tc.context, &rh);
+        if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+          const bool mesh_hit = rh.hit.geomID < triangle_emitter_.size();  // not a CSG solid
+          const int32_t hit_emitter =
+              mesh_hit && !triangle_emitter_[rh.hit.geomID].empty() ? triangle_emitter_[rh.hit.geomID][rh.hit.primID] : -1;
+          if (hit_emitter >= 0) {
+            const Emitter& he = emitters_[size_t(hit_emitter)];
+            const float cos_l = std::fabs(dot(he.normal, dir)), cos_s = local.z;
+            // Irradiance estimate L cos / p_cos = pi L, weighted; stored as irradiance / pi.
+            const float r = cos_weight_ratio(cos_s, cos_l * he.area, probability(size_t(hit_emitter)), rh.ray.tfar);
+            if (cos_l > 0.0f && cos_s > 0.0f && r > 0.0f) {
+              const Vec3 L = he.textured ? textures_->emission(*views_[rh.hit.geomID].mesh, he.material, he.triangle,
+                                                               rh.hit.u, rh.hit.v, tex_thread)
+                                         : he.radiance;
+              e += L * (r / (1.0f + r));
+            }
           }
         }
       }
-    }
-    for (int c = 0; c < 3; ++c) sums.rgb[c] += e[c];
-    const double a = (double(e.x) + e.y + e.z) / 3.0;
-    sums.sum_sq += a * a;
-    if (!local_choice_) {
-      if (j % 2 == 1 && previous == j - 1) {  // strata 2i and 2i + 1 are neighbours
-        sums.pair_sq += (a - previous_value) * (a - previous_value);
-        sums.paired += 2;
+      for (int ch = 0; ch < 3; ++ch) sums.rgb[ch] += e[ch];
+      const double a = (double(e.x) + e.y + e.z) / 3.0;
+      sums.sum_sq += a * a;
+      if (!local_choice_) {
+        if (j % 2 == 1 && previous == j - 1) {  // strata 2i and 2i + 1 are neighbours
+          sums.pair_sq += (a - previous_value) * (a - previous_value);
+          sums.paired += 2;
+        }
+        previous = j;
+        previous_value = a;
+      } else {
+        ChoiceScratch::Tally& t = scratch.tallies[k];
+        if (t.count == 0) scratch.touched.push_back(uint32_t(k));
+        if (t.count % 2 == 1) {
+          sums.pair_sq += (a - t.unpaired) * (a - t.unpaired);
+          sums.paired += 2;
+        }
+        t.unpaired = a;
+        t.sum += a;
+        ++t.count;
       }
-      previous = j;
-      previous_value = a;
-    } else {
-      ChoiceScratch::Tally& t = scratch.tallies[k];
-      if (t.count == 0) scratch.touched.push_back(uint32_t(k));
-      if (t.count % 2 == 1) {
-        sums.pair_sq += (a - t.unpaired) * (a - t.unpaired);
-        sums.paired += 2;
-      }
-      t.unpaired = a;
-      t.sum += a;
-      ++t.count;
+      ++sums.count;
     }
-    ++sums.count;
   }
   // The lights in the order of their intervals of u_pick: candidates, then
   // the others, each by index.
@@ -547,68 +587,74 @@ void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   Rng rng(seed_ ^ 0x7F4A7C15u, (global << 9) | 0x100u | (round & 0xFF));
   const uint32_t m = std::max(1u, uint32_t(std::ceil(std::sqrt(double(samples)))));
   const uint32_t n = m * m;
-  TraceContext tc;
-  tc.skip_geom = mesh_id;
   const TexelWindow tw = texel_window(mesh_id, texel, m);
   const SobolGroup dir_dims(rng.next_u32(), 3), piece_dims(rng.next_u32(), 4);
   uint32_t previous = ~0u, back = 0, rays = 0;
   double error_sum = 0.0;
   double previous_value = 0.0;
-  for (uint32_t j = 0; j < n; ++j) {
-    const float x = tw.origin_x + (float(j % m) + rng.next_float()) * tw.side;
-    const float y = tw.origin_y + (float(j / m) + rng.next_float()) * tw.side;
-    Vec3 p, normal;
-    uint32_t tri;
-    float v[2], w[3] = {0, 0, 0};
-    dir_dims.point(j, 2, v);
-    if (tw.sparse) piece_dims.point(j, 3, w);
-    if (!texel_point(tw, mesh_id, texel, x, y, w, p, normal, tri)) continue;
-    const Vec3 local = cosine_hemisphere(v[0], v[1]);
-    Vec3 t, b;
-    make_frame(normal, t, b);
-    const Vec3 dir = t * local.x + b * local.y + normal * local.z;
-    tc.skip_prim = tri;
-    RTCRayHit rh;
-    rh.ray = make_ray(offset_origin(p, normal, offset_scale_), dir, std::numeric_limits<float>::infinity());
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(rtc_, &tc.context, &rh);
-    Vec3 e{0, 0, 0};
-    if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
-      // The texel the ray lands in, as the photon pass records a hit.
-      bool known = false;
-      const bool mesh_hit = rh.hit.geomID < views_.size() && views_[rh.hit.geomID].texel_area;
-      if (mesh_hit && !(dot(dir, views_[rh.hit.geomID].normals[rh.hit.primID]) < 0.0f)) {
-        ++back;  // the back of a surface: 0 (the inside of a closed object is dark)
-        known = true;
-      } else if (mesh_hit) {
-        const MeshView& hv = views_[rh.hit.geomID];
-        const Mesh& hm = *hv.mesh;
-        const int64_t ht = uv_texel(&hm.uv[6 * size_t(rh.hit.primID)], rh.hit.u, rh.hit.v, hm.lightmap_width,
-                                    hm.lightmap_height);
-        if (ht >= 0) {
-          if (hv.texel_area[ht] > 0.0) {
-            const float* d = source.radiosity + 3 * (hv.texel_offset + ht);
-            const Vec3 a = (*source.albedo)[rh.hit.geomID][rh.hit.primID];
-            e = {a.x * d[0], a.y * d[1], a.z * d[2]};
-            error_sum += double(average(a)) * source.error[hv.texel_offset + ht];
-            known = true;
+  // Rays go in packets of eight points; then each is looked up in turn.
+  RayPacket packet;
+  uint32_t lane_sample[RayPacket::kLanes];
+  Vec3 lane_dir[RayPacket::kLanes];
+  for (uint32_t j0 = 0; j0 < n; j0 += RayPacket::kLanes) {
+    for (uint32_t j = j0; j < std::min(n, j0 + RayPacket::kLanes); ++j) {
+      const float x = tw.origin_x + (float(j % m) + rng.next_float()) * tw.side;
+      const float y = tw.origin_y + (float(j / m) + rng.next_float()) * tw.side;
+      Vec3 p, normal;
+      uint32_t tri;
+      float v[2], w[3] = {0, 0, 0};
+      dir_dims.point(j, 2, v);
+      if (tw.sparse) piece_dims.point(j, 3, w);
+      if (!texel_point(tw, mesh_id, texel, x, y, w, p, normal, tri)) continue;
+      const Vec3 local = cosine_hemisphere(v[0], v[1]);
+      Vec3 t, b;
+      make_frame(normal, t, b);
+      lane_sample[packet.size] = j;
+      lane_dir[packet.size] = t * local.x + b * local.y + normal * local.z;
+      packet.add(offset_origin(p, normal, offset_scale_), lane_dir[packet.size], std::numeric_limits<float>::infinity(),
+                 mesh_id, tri);
+    }
+    const unsigned lanes = packet.size;
+    if (lanes > 0) packet.intersect(rtc_);
+    const RTCHit8& hit = packet.rh.hit;
+    for (unsigned l = 0; l < lanes; ++l) {
+      const uint32_t j = lane_sample[l], geom = hit.geomID[l], prim = hit.primID[l];
+      Vec3 e{0, 0, 0};
+      if (geom != RTC_INVALID_GEOMETRY_ID) {
+        // The texel the ray lands in, as the photon pass records a hit.
+        bool known = false;
+        const bool mesh_hit = geom < views_.size() && views_[geom].texel_area;
+        if (mesh_hit && !(dot(lane_dir[l], views_[geom].normals[prim]) < 0.0f)) {
+          ++back;  // the back of a surface: 0 (the inside of a closed object is dark)
+          known = true;
+        } else if (mesh_hit) {
+          const MeshView& hv = views_[geom];
+          const Mesh& hm = *hv.mesh;
+          const int64_t ht = uv_texel(&hm.uv[6 * size_t(prim)], hit.u[l], hit.v[l], hm.lightmap_width, hm.lightmap_height);
+          if (ht >= 0) {
+            if (hv.texel_area[ht] > 0.0) {
+              const float* d = source.radiosity + 3 * (hv.texel_offset + ht);
+              const Vec3 a = (*source.albedo)[geom][prim];
+              e = {a.x * d[0], a.y * d[1], a.z * d[2]};
+              error_sum += double(average(a)) * source.error[hv.texel_offset + ht];
+              known = true;
+            }
           }
         }
+        if (!known) ++unknown;
       }
-      if (!known) ++unknown;
+      ++rays;
+      for (int c = 0; c < 3; ++c) sums.rgb[c] += e[c];
+      const double a = (double(e.x) + e.y + e.z) / 3.0;
+      sums.sum_sq += a * a;
+      if (j % 2 == 1 && previous == j - 1) {
+        sums.pair_sq += (a - previous_value) * (a - previous_value);
+        sums.paired += 2;
+      }
+      previous = j;
+      previous_value = a;
+      ++sums.count;
     }
-    ++rays;
-    for (int c = 0; c < 3; ++c) sums.rgb[c] += e[c];
-    const double a = (double(e.x) + e.y + e.z) / 3.0;
-    sums.sum_sq += a * a;
-    if (j % 2 == 1 && previous == j - 1) {
-      sums.pair_sq += (a - previous_value) * (a - previous_value);
-      sums.paired += 2;
-    }
-    previous = j;
-    previous_value = a;
-    ++sums.count;
   }
   // Points under a box standing on the ground see its inside (no light, as
   // Cycles bakes them); many back hits are rather a lit surface seen from
