@@ -571,7 +571,7 @@ def main():
                     photonlm=[(0.08, 20.0), (0.04, 20.0), (0.02, 20.0)])
     else:
         plan = dict(ref_samples=4096, cycles_samples=(1, 4, 16, 64, 256, 1024),
-                    photonlm=[(0.08, 60.0), (0.04, 60.0), (0.02, 60.0), (0.01, 60.0)])
+                    photonlm=[(0.08, 60.0), (0.04, 60.0), (0.02, 60.0), (0.01, 60.0), (0.007, 60.0)])
     if args.ref_samples:
         plan["ref_samples"] = args.ref_samples
     t0 = time.perf_counter()
