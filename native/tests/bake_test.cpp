@@ -505,6 +505,45 @@ TEST(Bake, FinalGatherLowersOpenSceneErrorUnbiased) {
   EXPECT_NEAR(sum_t / sum_ref, 1.0, 0.005);
 }
 
+// A texel's value is its central square (what a Cycles bake gives). Ground
+// texels whose central square lies under a box standing on the ground are
+// dark also where the box's rotated footprint cuts the texel and the part
+// outside it is lit: their gather rays see the box's inside from both sides
+// of each point (enclosed: known zeros), where the photons' mean over the
+// whole texel also holds light from outside the box.
+TEST(Bake, TexelsWhoseCentreIsUnderABoxAreDark) {
+  SceneBuilder b;
+  open_scene(b);  // box 1 x 1 m at the origin, turned 0.35 rad; ground texels 0.25 m
+  Baked r;
+  bake(b, settings(131072, 1024, 64, 2), r);
+  const Lightmap g = r.map(0);
+  const float c = std::cos(0.35f), s = std::sin(0.35f);
+  auto under = [&](float x, float y) { return std::fabs(c * x + s * y) < 0.5f && std::fabs(-s * x + c * y) < 0.5f; };
+  double lit = 0.0, lit_n = 0.0, worst = 0.0;
+  int cut = 0;
+  for (uint32_t row = 0; row < 32; ++row) {
+    for (uint32_t col = 0; col < 32; ++col) {
+      const float x = -4.0f + 0.25f * (col + 0.5f), y = -4.0f + 0.25f * (row + 0.5f);
+      int centre = 0, whole = 0;  // corners of the central square / of the whole texel under the box
+      for (int k = 0; k < 4; ++k) {
+        const float dx = (k & 1) ? 0.5f : -0.5f, dy = (k & 2) ? 0.5f : -0.5f;
+        centre += under(x + 0.125f * dx, y + 0.125f * dy);
+        whole += under(x + 0.25f * dx, y + 0.25f * dy);
+      }
+      const double v = g.value(row * 32 + col);
+      if (whole == 0) lit += v, lit_n += 1;
+      if (centre == 4 && whole < 4) {
+        ++cut;
+        worst = std::max(worst, v);
+      }
+    }
+  }
+  std::printf("[ measured ] %d texels cut by the box with their centre under it: at most %.4f (lit ground %.3f)\n",
+              cut, worst, lit / lit_n);
+  EXPECT_GE(cut, 4);
+  EXPECT_LT(worst, 0.002 * lit / lit_n);
+}
+
 TEST(Bake, SameSeedSameResultWhateverTheThreads) {
   SceneBuilder b;
   plm_demo::build_cornell(b, 16);

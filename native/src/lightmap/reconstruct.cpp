@@ -173,7 +173,7 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
 
 void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, const double* mean3,
                         const double* variance, const double* guide, uint32_t radius, std::vector<double>& value3,
-                        std::vector<double>& var_out) {
+                        std::vector<double>& var_out, const uint8_t* texel_radius) {
   const size_t n = size_t(width) * height;
   value3.assign(3 * n, 0.0);
   var_out.assign(n, 0.0);
@@ -183,10 +183,11 @@ void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, c
   const float texel_width = float(std::sqrt(total_area / total_cover));
   const float reach = 1.5f * float(radius + 1) * texel_width;
   const double floor = guide ? guide_floor_of(ta, guide, n) : 0.0;
-  const int64_t r = std::min(radius, kMaxRadius);
+  const uint32_t r_max = std::min(radius, kMaxRadius);
   for_rows(height, [&](uint32_t, uint32_t row) {
     for (uint32_t t = row * width; t < (row + 1) * width; ++t) {
       if (!(ta.area[t] > 0.0)) continue;
+      const int64_t r = texel_radius ? std::min<uint32_t>(texel_radius[t], r_max) : r_max;
       const int64_t x = t % width, y = t / width;
       auto pools = [&](uint32_t k) {  // texel k takes part in t's fit
         return k == t || (same_surface(ta, t, k, reach) && (!guide || similar_guide(guide, k, t, floor)));

@@ -58,8 +58,9 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
 // the same-surface, similar-guide texels within `radius`: its value at the
 // texel's centre, and that value's variance. Unlike a mean, a linear fit has
 // no first-order bias where the neighbourhood is one-sided (a wall's foot).
+// `texel_radius` (optional) caps the radius per texel.
 void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, const double* mean3,
                         const double* variance, const double* guide, uint32_t radius, std::vector<double>& value3,
-                        std::vector<double>& var_out);
+                        std::vector<double>& var_out, const uint8_t* texel_radius = nullptr);
 
 }  // namespace plm

@@ -580,8 +580,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
 }
 
 void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
-                              const GatherSource& source, DirectSums& sums, uint32_t& unknown,
-                              double& lookup_error) const {
+                              const GatherSource& source, DirectSums& sums, GatherInfo& info) const {
   const uint64_t global = views_[mesh_id].texel_offset + texel;
   // A stream of its own: (round | 0x100) is no round of sample_texel's.
   Rng rng(seed_ ^ 0x7F4A7C15u, (global << 9) | 0x100u | (round & 0xFF));
@@ -590,12 +589,18 @@ void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   const TexelWindow tw = texel_window(mesh_id, texel, m);
   const SobolGroup dir_dims(rng.next_u32(), 3), piece_dims(rng.next_u32(), 4);
   uint32_t previous = ~0u, back = 0, rays = 0;
-  double error_sum = 0.0;
+  double error_sum = 0.0, inverse_distance = 0.0;
   double previous_value = 0.0;
   // Rays go in packets of eight points; then each is looked up in turn.
   RayPacket packet;
   uint32_t lane_sample[RayPacket::kLanes];
-  Vec3 lane_dir[RayPacket::kLanes];
+  Vec3 lane_dir[RayPacket::kLanes], lane_normal[RayPacket::kLanes];
+  TraceContext tc;  // the second ray of a back hit
+  tc.skip_geom = mesh_id;
+  // True if a ray along dir that hit triangle prim of mesh geom met its back.
+  auto sees_back = [&](unsigned geom, unsigned prim, Vec3 dir) {
+    return geom < views_.size() && !(dot(dir, views_[geom].normals[prim]) < 0.0f);
+  };
   for (uint32_t j0 = 0; j0 < n; j0 += RayPacket::kLanes) {
     for (uint32_t j = j0; j < std::min(n, j0 + RayPacket::kLanes); ++j) {
       const float x = tw.origin_x + (float(j % m) + rng.next_float()) * tw.side;
@@ -610,6 +615,7 @@ void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       Vec3 t, b;
       make_frame(normal, t, b);
       lane_sample[packet.size] = j;
+      lane_normal[packet.size] = normal;
       lane_dir[packet.size] = t * local.x + b * local.y + normal * local.z;
       packet.add(offset_origin(p, normal, offset_scale_), lane_dir[packet.size], std::numeric_limits<float>::infinity(),
                  mesh_id, tri);
@@ -621,11 +627,26 @@ void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       const uint32_t j = lane_sample[l], geom = hit.geomID[l], prim = hit.primID[l];
       Vec3 e{0, 0, 0};
       if (geom != RTC_INVALID_GEOMETRY_ID) {
+        inverse_distance += 1.0 / std::max(double(packet.rh.ray.tfar[l]), 1e-30);
         // The texel the ray lands in, as the photon pass records a hit.
         bool known = false;
         const bool mesh_hit = geom < views_.size() && views_[geom].texel_area;
-        if (mesh_hit && !(dot(lane_dir[l], views_[geom].normals[prim]) < 0.0f)) {
-          ++back;  // the back of a surface: 0 (the inside of a closed object is dark)
+        if (mesh_hit && sees_back(geom, prim, lane_dir[l])) {
+          // The back of a surface: 0 (the inside of a closed object is dark).
+          // A point that sees backs along the ray mirrored about its normal
+          // too is taken as enclosed (under a box standing on the ground).
+          const Vec3 nl = lane_normal[l], d = lane_dir[l];
+          const Vec3 mirrored = nl * (2.0f * dot(nl, d)) - d;
+          const RTCRay8& r8 = packet.rh.ray;
+          tc.skip_prim = packet.skip_prim[l];
+          RTCRayHit rh;
+          rh.ray = make_ray({r8.org_x[l], r8.org_y[l], r8.org_z[l]}, mirrored, std::numeric_limits<float>::infinity());
+          rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+          rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+          rtcIntersect1(rtc_, &tc.context, &rh);
+          const bool enclosed =
+              rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && sees_back(rh.hit.geomID, rh.hit.primID, mirrored);
+          ++(enclosed ? info.enclosed : back);
           known = true;
         } else if (mesh_hit) {
           const MeshView& hv = views_[geom];
@@ -641,7 +662,7 @@ void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
             }
           }
         }
-        if (!known) ++unknown;
+        if (!known) ++info.unknown;
       }
       ++rays;
       for (int c = 0; c < 3; ++c) sums.rgb[c] += e[c];
@@ -657,10 +678,12 @@ void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
     }
   }
   // Points under a box standing on the ground see its inside (no light, as
-  // Cycles bakes them); many back hits are rather a lit surface seen from
-  // behind, whose light no lightmap holds (lightmaps are one-sided).
-  if (4 * back > rays) unknown += back;
-  lookup_error = rays ? error_sum / rays : 0.0;
+  // Cycles bakes them); many other back hits (`back`: not enclosed) are
+  // rather a lit surface seen from behind, whose light no lightmap holds
+  // (lightmaps are one-sided).
+  if (4 * back > rays) info.unknown += back;
+  info.lookup_error = rays ? error_sum / rays : 0.0;
+  if (inverse_distance > 0.0) info.hit_distance = float(rays / inverse_distance);
 }
 
 }  // namespace plm

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "lightmap/texel_area.h"
@@ -60,22 +61,33 @@ class DirectPass {
   // each sample is the light reflected by the surface it hits, albedo x that
   // texel's radiosity (0 for rays that leave the scene: the sky is direct
   // light); 0 also for the back of a surface (the inside of a box standing on
-  // the ground is dark), unless more than a quarter of the rays see backs. A
-  // ray that hits what the source cannot look up (a mesh without its own
-  // texels, a CSG solid, such backs) counts in `unknown`: such a texel's
-  // gather is not used.
+  // the ground is dark: a point that sees backs along its ray mirrored about
+  // the normal too is enclosed), unless more than a quarter of the rays see
+  // backs from points not enclosed. A ray that hits what the source cannot
+  // look up (a mesh without its own texels, a CSG solid, such backs) counts
+  // in `unknown`: such a texel's gather is not used.
   // Meshes only (mesh < mesh count). Thread-safe for distinct texels.
   struct GatherSource {
     const float* radiosity = nullptr;  // 3 per global texel: irradiance / pi, direct + indirect (0 where uncovered)
     const float* error = nullptr;      // 1 per global texel: the estimated error of its mean RGB
     const std::vector<std::vector<Vec3>>* albedo = nullptr;  // per mesh, per triangle
   };
-  // `lookup_error`: the mean over the samples of albedo x the looked-up
-  // texel's error, the gather's error from the source's own errors (taken as
-  // fully correlated: the source is a pooled photon estimate, and a texel's
-  // rays hit neighbouring texels).
+  // What a texel's gather met, besides its sums.
+  struct GatherInfo {
+    uint32_t unknown = 0;   // rays that hit what the source cannot look up
+    uint32_t enclosed = 0;  // rays from enclosed points (see above): known zeros
+    // The mean over the samples of albedo x the looked-up texel's error, the
+    // gather's error from the source's own errors (taken as fully
+    // correlated: the source is a pooled photon estimate, and a texel's rays
+    // hit neighbouring texels).
+    double lookup_error = 0.0;
+    // The harmonic mean of the rays' hit distances, rays that leave the scene
+    // counted as infinitely far (Ward's irradiance-cache radius): how far the
+    // bounce light stays smooth.
+    float hit_distance = std::numeric_limits<float>::infinity();
+  };
   void gather_texel(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, const GatherSource& source,
-                    DirectSums& sums, uint32_t& unknown, double& lookup_error) const;
+                    DirectSums& sums, GatherInfo& info) const;
 
  private:
   bool surface_point(uint32_t mesh, uint32_t texel, float x, float y, Vec3& p, Vec3& n, uint32_t& tri) const;
