@@ -3,6 +3,7 @@
     PHOTONLM_LIBRARY=build/lib/libphotonlm.so PYTHONPATH=python_bridge \
         /usr/bin/python3 docs/bench_lsystem.py [--depth 15] [--ol-level 4] [--photons 2000000] \
         [--repeats 3] [--skip-forest] [--out docs/images/lsystem_forest.png]
+    ... docs/bench_lsystem.py --forest-pair-only [--repeats 3]   # only part 2's 10 trees, graph vs flattened
 
 The tree is the add-on's SYMPODIAL_TREE preset (addon/photonlm_blender/lsystem.py) with its
 parameters rewritten as integer branch counts (i, j): the preset's A(l, w) / B(l*r1, w*wr) form
@@ -169,6 +170,31 @@ def rrmse(a, b):
     return float(np.sqrt(np.mean((a - b) ** 2)) / np.mean(b))
 
 
+def forest_pair(args):
+    """The forest's flat-trees trees as L-system objects and flattened, in turn, `repeats` rounds."""
+    fb = dict(trees=args.flat_trees, spread=18.0, half=20.0, res=256, depth=args.depth, ol_level=args.ol_level,
+              photons=args.forest_photons, direct=args.forest_direct, seed=1, map=False, lookup=0)
+    runs = {"graph": [], "flat": []}
+    for _ in range(max(1, args.repeats)):
+        for kind in runs:
+            runs[kind].append(sub(dict(fb, kind=kind)))
+    print("\n### Forest pair: %d trees, %.1f M photons, %d direct samples (%d rounds: median, range)\n" % (
+        args.flat_trees, args.forest_photons / 1e6, args.forest_direct, max(1, args.repeats)))
+    print("| variant | photon rays | photon trace s | photon trace vs flattened | direct s | set-up s | bake s |")
+    print("|---|---|---|---|---|---|---|")
+    for kind, label in (("graph", "graph"), ("flat", "flattened CSG")):
+        rs = runs[kind]
+        tr = [r["seconds_trace"] for r in rs]
+        ratio = [r["seconds_trace"] / f["seconds_trace"] for r, f in zip(rs, runs["flat"])]
+
+        def med(key):
+            v = [r[key] for r in rs]
+            return "%.2f (%.2f-%.2f)" % (np.median(v), min(v), max(v))
+        print("| %d trees, %s | %d | %.3f (%.3f-%.3f) | %.2fx (%.2f-%.2fx) | %s | %s | %s |" % (
+            args.flat_trees, label, rs[0]["rays_traced"], np.median(tr), min(tr), max(tr), np.median(ratio),
+            min(ratio), max(ratio), med("seconds_direct"), med("seconds_setup"), med("seconds_total")), flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--depth", type=int, default=15)
@@ -178,6 +204,9 @@ def main():
     ap.add_argument("--forest-direct", type=int, default=4)
     ap.add_argument("--flat-trees", type=int, default=10)
     ap.add_argument("--skip-forest", action="store_true")
+    ap.add_argument("--forest-pair-only", action="store_true",
+                    help="only the forest's --flat-trees trees, graph against flattened, --repeats rounds "
+                         "(no one-tree part, no reference, no 100-tree bakes)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--out", default=None)
     ap.add_argument("--one", default=None)
@@ -188,6 +217,10 @@ def main():
     d, lvl = args.depth, args.ol_level
     n = len(photonlm.lsystem_flatten(TREE, depth=d, step=STEP, width=WIDTH, max_primitives=10 ** 7)[0])
     print("tree: SYMPODIAL_TREE depth %d = %d primitives, ol_level %d" % (d, n, lvl))
+
+    if args.forest_pair_only:
+        forest_pair(args)
+        return
 
     # 1. one tree, photons only: the variants in turn, `repeats` rounds.
     base = dict(trees=1, spread=0, half=6.0, res=128, depth=d, ol_level=lvl, photons=args.photons, direct=0, seed=1)

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "lsystem/embree_callbacks.h"
 #include "lsystem/graph.h"
 #include "lsystem/lsystem.h"
 #include "lsystem/lsystem_object.h"
@@ -451,6 +452,87 @@ TEST(LSystemGraph, EmbreeUserGeometryMatchesDirectCalls) {
   }
   EXPECT_GT(hits, 300u);
   rtcReleaseScene(scene);
+  rtcReleaseDevice(device);
+}
+
+// The L-system user geometry has a sentinel primitive (accel/user_geometry.h)
+// so that Embree tests the object's box before calling it: a ray that misses
+// the box never reaches the callbacks, a ray through the sentinel's corner
+// gets no hit from it. (With one primitive Embree calls the callback for every
+// ray of the scene: printed, not asserted, as it is Embree's behaviour.)
+struct CountingObject {
+  mutable int calls = 0;
+  mutable GraphHit last;
+  bool first_hit(DVec3, DVec3, double, double, GraphHit*) const { ++calls; return false; }
+  bool occluded(DVec3, DVec3, double, double) const { ++calls; return false; }
+};
+
+void counting_bounds(const RTCBoundsFunctionArguments* args) {
+  plm::write_user_bounds(args, DVec3{0, 0, 0}, DVec3{1, 1, 1}, 0.0);
+}
+void counting_bounds_one(const RTCBoundsFunctionArguments* args) {
+  plm::write_user_bounds(args, DVec3{0, 0, 0}, DVec3{1, 1, 1}, 0.0);  // primitive 0 only
+}
+void counting_intersect(const RTCIntersectFunctionNArguments* args) {
+  intersect_n<CountingObject>(args, [](const CountingObject& o) -> GraphHit& { return o.last; });
+}
+
+TEST(LSystemGraph, EmbreeTestsTheObjectBoxBeforeTheCallback) {
+  RTCDevice device = rtcNewDevice(nullptr);
+  int calls_one = 0;
+  for (const bool sentinel : {true, false}) {
+    CountingObject obj;
+    RTCScene scene = rtcNewScene(device);
+    if (sentinel) {
+      plm::attach_user_geometry(device, scene, &obj, counting_bounds, counting_intersect, occluded_n<CountingObject>);
+    } else {  // one primitive, as before the sentinel
+      RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
+      rtcSetGeometryUserPrimitiveCount(geom, 1);
+      rtcSetGeometryUserData(geom, &obj);
+      rtcSetGeometryBoundsFunction(geom, counting_bounds_one, nullptr);
+      rtcSetGeometryIntersectFunction(geom, counting_intersect);
+      rtcSetGeometryOccludedFunction(geom, occluded_n<CountingObject>);
+      rtcCommitGeometry(geom);
+      rtcAttachGeometry(scene, geom);
+      rtcReleaseGeometry(geom);
+    }
+    rtcCommitScene(scene);
+    // 100 rays that miss the unit box, 50 through its centre, 10 through the
+    // lower corner (the sentinel's point), each traced closest and occluded.
+    std::mt19937_64 gen(3);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    int through_box = 0, hits = 0;
+    for (int i = 0; i < 160; ++i) {
+      const DVec3 target = i < 100 ? DVec3{5 + u(gen), 5 + u(gen), 5 + u(gen)}
+                                   : i < 150 ? DVec3{0.5, 0.5, 0.5} : DVec3{0, 0, 0};
+      const DVec3 o = target + 10.0 * DVec3{u(gen), u(gen), 1.5};
+      const DVec3 d = target - o;
+      through_box += i >= 100;
+      RTCIntersectContext ctx;
+      rtcInitIntersectContext(&ctx);
+      RTCRayHit rh{};
+      rh.ray.org_x = float(o.x), rh.ray.org_y = float(o.y), rh.ray.org_z = float(o.z);
+      rh.ray.dir_x = float(d.x), rh.ray.dir_y = float(d.y), rh.ray.dir_z = float(d.z);
+      rh.ray.tnear = 0;
+      rh.ray.tfar = INFINITY;
+      rh.ray.mask = 0xFFFFFFFF;
+      rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+      RTCRay occ = rh.ray;
+      rtcIntersect1(scene, &ctx, &rh);
+      rtcOccluded1(scene, &ctx, &occ);
+      hits += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+      hits += occ.tfar < 0;
+    }
+    EXPECT_EQ(hits, 0);
+    if (sentinel) {
+      EXPECT_EQ(obj.calls, 2 * through_box);  // one closest and one occlusion query per ray through the box
+    } else {
+      calls_one = obj.calls;
+    }
+    rtcReleaseScene(scene);
+  }
+  std::cout << "[ measured ] callbacks for 160 rays (60 through the box), closest + occluded: one primitive "
+            << calls_one << ", with the sentinel 120\n";
   rtcReleaseDevice(device);
 }
 

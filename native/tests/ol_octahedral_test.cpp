@@ -3,7 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <iterator>
+#include <memory>
 #include <random>
+#include <thread>
+#include <vector>
 
 #include "util/error.h"
 
@@ -124,6 +130,36 @@ TEST(OlOctahedral, WrapFindsTheNeighbourAcrossTheFold) {
   // Corners: the four bins around the -z pole.
   EXPECT_EQ(grid.wrap(-1, -1), grid.index(n - 1, n - 1));
   EXPECT_EQ(grid.wrap(n, n), grid.index(0, 0));
+}
+
+// The solid angles are made once per process and resolution (OctGrid's
+// constructor), then copied: grids made at the same time on several threads
+// agree bit for bit, each resolution keeps its own values, and a second grid
+// costs a copy (509: a resolution no other test uses, ~10^6 cells to make).
+TEST(OlOctahedral, SolidAnglesAreMadeOncePerResolution) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const OctGrid first(509);
+  const auto t1 = std::chrono::steady_clock::now();
+  const OctGrid again(509);
+  const auto t2 = std::chrono::steady_clock::now();
+  const double made = std::chrono::duration<double>(t1 - t0).count(), copied = std::chrono::duration<double>(t2 - t1).count();
+  std::printf("[ measured ] OctGrid(509): first %.2f ms, again %.3f ms\n", 1e3 * made, 1e3 * copied);
+  EXPECT_LT(copied, 0.25 * made);
+  for (uint32_t b = 0; b < first.bins(); ++b) ASSERT_EQ(first.solid_angle(b), again.solid_angle(b)) << "bin " << b;
+  const uint32_t res[] = {5, 7, 5, 7, 5, 7};
+  std::vector<std::unique_ptr<OctGrid>> grids(std::size(res));
+  std::vector<std::thread> threads;
+  for (size_t i = 0; i < grids.size(); ++i) threads.emplace_back([&, i] { grids[i] = std::make_unique<OctGrid>(res[i]); });
+  for (std::thread& t : threads) t.join();
+  for (size_t i = 0; i < grids.size(); ++i) {
+    ASSERT_EQ(grids[i]->bins(), size_t(res[i]) * res[i]);
+    double sum = 0.0;
+    for (uint32_t b = 0; b < grids[i]->bins(); ++b) {
+      sum += grids[i]->solid_angle(b);
+      ASSERT_EQ(grids[i]->solid_angle(b), grids[i % 2]->solid_angle(b)) << "grid " << i << " bin " << b;
+    }
+    EXPECT_NEAR(sum, 4.0 * kPiD, 1e-9) << "N = " << res[i];
+  }
 }
 
 TEST(OlOctahedral, RejectsBadResolution) {

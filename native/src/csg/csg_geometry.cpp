@@ -14,15 +14,7 @@ const CsgObject& object(void* user) { return *static_cast<const CsgObject*>(user
 
 void bounds(const RTCBoundsFunctionArguments* args) {
   const CsgObject& obj = object(args->geometryUserPtr);
-  const DVec3 lo = obj.bounds_lo(), hi = obj.bounds_hi();
-  RTCBounds* b = args->bounds_o;
-  // Rounded outwards: float bounds must contain the double ones.
-  b->lower_x = std::nextafter(float(lo.x), -INFINITY);
-  b->lower_y = std::nextafter(float(lo.y), -INFINITY);
-  b->lower_z = std::nextafter(float(lo.z), -INFINITY);
-  b->upper_x = std::nextafter(float(hi.x), INFINITY);
-  b->upper_y = std::nextafter(float(hi.y), INFINITY);
-  b->upper_z = std::nextafter(float(hi.z), INFINITY);
+  write_user_bounds(args, obj.bounds_lo(), obj.bounds_hi(), 0.0);  // float bounds must contain the double ones
 }
 
 struct LaneRay {
@@ -55,6 +47,7 @@ float float_t(double t, const LaneRay& r) {
 }
 
 void intersect(const RTCIntersectFunctionNArguments* args) {
+  if (args->primID != kObjectPrimitive) return;  // the sentinel (accel/user_geometry.h)
   const CsgObject& obj = object(args->geometryUserPtr);
   const unsigned N = args->N;
   RTCRayN* rays = RTCRayHitN_RayN(args->rayhit, N);
@@ -93,6 +86,7 @@ void intersect(const RTCIntersectFunctionNArguments* args) {
 }
 
 void occluded(const RTCOccludedFunctionNArguments* args) {
+  if (args->primID != kObjectPrimitive) return;  // the sentinel
   const CsgObject& obj = object(args->geometryUserPtr);
   const unsigned N = args->N;
   RTCRayN* rays = args->ray;

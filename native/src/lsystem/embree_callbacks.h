@@ -9,29 +9,15 @@
 #include <algorithm>
 #include <cmath>
 
+#include "accel/user_geometry.h"
 #include "lsystem/graph.h"
 
 namespace plm::lsystem {
 
-// Bounds [lo - pad, hi + pad] rounded outwards to float; an empty box (lo > hi)
-// becomes one Embree skips.
-inline void write_bounds(csg::DVec3 lo, csg::DVec3 hi, double pad, RTCBounds* b) {
-  if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) {  // nothing drawn
-    b->lower_x = b->lower_y = b->lower_z = INFINITY;
-    b->upper_x = b->upper_y = b->upper_z = -INFINITY;
-    return;
-  }
-  b->lower_x = std::nextafter(float(lo.x - pad), -INFINITY);
-  b->lower_y = std::nextafter(float(lo.y - pad), -INFINITY);
-  b->lower_z = std::nextafter(float(lo.z - pad), -INFINITY);
-  b->upper_x = std::nextafter(float(hi.x + pad), INFINITY);
-  b->upper_y = std::nextafter(float(hi.y + pad), INFINITY);
-  b->upper_z = std::nextafter(float(hi.z + pad), INFINITY);
-}
-
 // A hit writes tfar, Ng, u = ShapeKind, v = 0, primID = the turtle material.
 template <typename T, typename Slot>
 void intersect_n(const RTCIntersectFunctionNArguments* args, Slot slot) {
+  if (args->primID != kObjectPrimitive) return;  // the sentinel (accel/user_geometry.h)
   const T& obj = *static_cast<const T*>(args->geometryUserPtr);
   const unsigned N = args->N;
   RTCRayN* rays = RTCRayHitN_RayN(args->rayhit, N);
@@ -60,6 +46,7 @@ void intersect_n(const RTCIntersectFunctionNArguments* args, Slot slot) {
 
 template <typename T>
 void occluded_n(const RTCOccludedFunctionNArguments* args) {
+  if (args->primID != kObjectPrimitive) return;  // the sentinel (accel/user_geometry.h)
   const T& obj = *static_cast<const T*>(args->geometryUserPtr);
   const unsigned N = args->N;
   RTCRayN* rays = args->ray;

@@ -18,7 +18,6 @@
 #include <emmintrin.h>
 #endif
 
-#include "accel/user_geometry.h"
 #include "lsystem/embree_callbacks.h"
 #include "lsystem/expr.h"
 #include "util/error.h"
@@ -1562,7 +1561,7 @@ namespace {
 
 void graph_bounds(const RTCBoundsFunctionArguments* args) {
   const Graph& g = *static_cast<const Graph*>(args->geometryUserPtr);
-  write_bounds(g.bounds_lo(), g.bounds_hi(), 0.0, args->bounds_o);
+  write_user_bounds(args, g.bounds_lo(), g.bounds_hi(), 0.0);
 }
 
 void graph_intersect(const RTCIntersectFunctionNArguments* args) {

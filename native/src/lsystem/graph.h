@@ -333,11 +333,12 @@ class Graph {
 // expansion's cost; the traversal never reads them).
 csg::Primitive trace_primitive(const csg::PrimitiveDesc& desc);
 
-// Attaches the graph to scene as one user geometry of one primitive (not yet
-// committed) and returns its geometry id. The hit carries tfar, a unit Ng,
-// u = the ShapeKind, v = 0, primID = the material; the path key and the rest
-// are in graph.last_embree_hit() on the calling thread. Filter functions are
-// not called for this geometry. The graph must outlive the scene's use.
+// Attaches the graph to scene as one user geometry (not yet committed; with
+// a sentinel primitive, accel/user_geometry.h) and returns its geometry id.
+// The hit carries tfar, a unit Ng, u = the ShapeKind, v = 0, primID = the
+// material; the path key and the rest are in graph.last_embree_hit() on the
+// calling thread. Filter functions are not called for this geometry. The
+// graph must outlive the scene's use.
 unsigned attach_graph(RTCDevice device, RTCScene scene, const Graph& graph);
 
 }  // namespace plm::lsystem

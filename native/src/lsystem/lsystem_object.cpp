@@ -8,7 +8,6 @@
 #include <cmath>
 #include <limits>
 
-#include "accel/user_geometry.h"
 #include "csg/primitive.h"
 #include "lsystem/embree_callbacks.h"
 #include "util/error.h"
@@ -313,7 +312,7 @@ void object_bounds(const RTCBoundsFunctionArguments* args) {
   const DVec3 lo = obj.bounds_lo(), hi = obj.bounds_hi();
   // Padded by a relative 1e-7 beyond float rounding: the box maps corners in double.
   const double pad = 1e-7 * std::max(max_abs(hi - lo), std::max(max_abs(lo), max_abs(hi)));
-  write_bounds(lo, hi, pad, args->bounds_o);
+  write_user_bounds(args, lo, hi, pad);
 }
 
 void object_intersect(const RTCIntersectFunctionNArguments* args) {
