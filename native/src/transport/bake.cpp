@@ -86,6 +86,7 @@ struct BatchOutput {
   std::vector<Hit> hits;
   std::vector<OlHit> ol_hits;
   std::vector<LsHit> ls_hits;
+  std::vector<uint32_t> back_meshes;  // meshes whose back a photon reached (the final gather's dark backs)
   uint64_t rays = 0;
   uint64_t truncated = 0;
   double truncated_flux = 0.0;
@@ -129,6 +130,7 @@ class PhotonTracer {
     out.hits.clear();
     out.ol_hits.clear();
     out.ls_hits.clear();
+    out.back_meshes.clear();
     out.rays = out.truncated = 0;
     out.truncated_flux = 0.0;
     void* tex_thread = textures_ ? textures_->thread_info() : nullptr;  // once per batch, not per ray
@@ -337,6 +339,8 @@ class PhotonTracer {
       if (front && is_lsystem)
         out.ls_hits.push_back({rh.hit.geomID - uint32_t(ls_base_), ls_bin, ls_key, flux.x, flux.y, flux.z});
       if (front && !is_lsystem && depth >= first_recorded_) record(rh, is_csg, hit, flux, out);
+      if (!front && !is_csg && !is_lsystem && (out.back_meshes.empty() || out.back_meshes.back() != rh.hit.geomID))
+        out.back_meshes.push_back(rh.hit.geomID);
       if (front && !is_csg && !is_lsystem) {
         const HitMesh& hm = hit_meshes_[rh.hit.geomID];
         const uint32_t bin = hm.tris[tri].ol_bin;
@@ -616,9 +620,11 @@ double calibrate_direct(tbb::task_arena& arena, const DirectPass& pass, const st
 // Photon sums per texel over all lightmaps, merged batch by batch in order.
 class Accumulators {
  public:
-  explicit Accumulators(uint64_t texels) : sum(3 * texels, 0.0), sum_sq(texels, 0.0), hits(texels, 0) {}
+  Accumulators(uint64_t texels, size_t meshes)
+      : sum(3 * texels, 0.0), sum_sq(texels, 0.0), hits(texels, 0), back_lit(meshes, 0) {}
   std::vector<double> sum, sum_sq;  // flux / pick probability (not yet divided by the photon count)
   std::vector<uint32_t> hits;
+  std::vector<uint8_t> back_lit;  // per mesh: a photon reached its back
   double total_sq = 0.0;
   uint64_t total_hits = 0;
 
@@ -641,6 +647,7 @@ class Accumulators {
     }
     total_sq = total;
     total_hits += bo.hits.size();
+    for (const uint32_t m : bo.back_meshes) back_lit[m] = 1;
   }
 };
 
@@ -690,7 +697,7 @@ struct Estimator {
   // one side would be biased; the fit reaches no further than the gather's
   // hits are near (kGatherReach). Texels whose gather met something it
   // cannot look up keep A, and pool with no other (a negative guide), as do
-  // texels with enclosed points (their G is their own). Where the fit is
+  // texels whose rays met dark backs (their G is their own). Where the fit is
   // narrowed, A (a mean over the whole texel, G over its central square) is
   // tested against G for bias.
   // Adds the gather's part of the texels' variances, (1 - w)^2 var G, to *gather_part.
@@ -712,17 +719,18 @@ struct Estimator {
       const DirectSums& d = direct[k++];
       // The fit reaches no further than kGatherReach x the harmonic mean
       // distance of the texel's gather hits: near a wall the bounce light
-      // changes faster than a plane follows. A texel with enclosed points
-      // (partly under a box) keeps its own gather and pools with none: its
-      // neighbours' light is not its own.
+      // changes faster than a plane follows. A texel whose rays met dark
+      // backs (partly under a box) keeps its own gather and pools with none:
+      // its neighbours' light is not its own.
       radius[t] = uint8_t(std::min(double(kGatherRadius), std::floor(kGatherReach * info.hit_distance / texel_width)));
-      if (info.enclosed) radius[t] = 0;
+      if (info.dark) radius[t] = 0;
       if (info.unknown || g.count == 0) continue;
       usable[t] = 1;
-      guide[t] = info.enclosed ? -1.0 : d.mean();
+      guide[t] = info.dark ? -1.0 : d.mean();
       for (int c = 0; c < 3; ++c) g_mean[3 * t + c] = g.rgb[c] / g.count;
-      // All points enclosed: no light can reach them, exactly.
-      g_var[t] = info.enclosed == g.count ? 0.0 : g.variance_of_mean(*gather_noise);
+      // Every ray met a dark back (the texel's points are under a box): no
+      // light reaches them.
+      g_var[t] = info.dark == g.count ? 0.0 : g.variance_of_mean(*gather_noise);
       lookup_sq[t] = info.lookup_error * info.lookup_error;
     }
     reconstruct_linear(areas[i], mesh.lightmap_width, mesh.lightmap_height, g_mean.data(), g_var.data(), guide.data(),
@@ -1285,7 +1293,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   out.stats.seconds_direct = seconds_since(t_direct);
 
   // ---- Photon pass ----------------------------------------------------------
-  Accumulators acc(texel_count);
+  Accumulators acc(texel_count, scene.meshes.size());
   const Estimator estimator{areas, views,        csg_views,     covered_begin,   direct, acc, settings.filter_radius,
                             direct_noise, &gather, &gather_info, &gather_noise};
   uint64_t photons = 0;
@@ -1340,7 +1348,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
         tri_albedo[i].resize(mesh.triangle_count());
         for (uint32_t t = 0; t < mesh.triangle_count(); ++t) tri_albedo[i][t] = tracer.material(mesh, t).albedo;
       }
-      const DirectPass::GatherSource source{radiosity.data(), error.data(), &tri_albedo};
+      const DirectPass::GatherSource source{radiosity.data(), error.data(), &tri_albedo, acc.back_lit.data()};
       std::vector<DirectSums> sums(covered.size());
       std::vector<DirectPass::GatherInfo> info(covered.size());
       // In groups, so that cancelling and the time budget are checked several

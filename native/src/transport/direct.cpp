@@ -594,13 +594,7 @@ void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   // Rays go in packets of eight points; then each is looked up in turn.
   RayPacket packet;
   uint32_t lane_sample[RayPacket::kLanes];
-  Vec3 lane_dir[RayPacket::kLanes], lane_normal[RayPacket::kLanes];
-  TraceContext tc;  // the second ray of a back hit
-  tc.skip_geom = mesh_id;
-  // True if a ray along dir that hit triangle prim of mesh geom met its back.
-  auto sees_back = [&](unsigned geom, unsigned prim, Vec3 dir) {
-    return geom < views_.size() && !(dot(dir, views_[geom].normals[prim]) < 0.0f);
-  };
+  Vec3 lane_dir[RayPacket::kLanes];
   for (uint32_t j0 = 0; j0 < n; j0 += RayPacket::kLanes) {
     for (uint32_t j = j0; j < std::min(n, j0 + RayPacket::kLanes); ++j) {
       const float x = tw.origin_x + (float(j % m) + rng.next_float()) * tw.side;
@@ -615,7 +609,6 @@ void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       Vec3 t, b;
       make_frame(normal, t, b);
       lane_sample[packet.size] = j;
-      lane_normal[packet.size] = normal;
       lane_dir[packet.size] = t * local.x + b * local.y + normal * local.z;
       packet.add(offset_origin(p, normal, offset_scale_), lane_dir[packet.size], std::numeric_limits<float>::infinity(),
                  mesh_id, tri);
@@ -630,24 +623,17 @@ void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
         inverse_distance += 1.0 / std::max(double(packet.rh.ray.tfar[l]), 1e-30);
         // The texel the ray lands in, as the photon pass records a hit.
         bool known = false;
-        const bool mesh_hit = geom < views_.size() && views_[geom].texel_area;
-        if (mesh_hit && sees_back(geom, prim, lane_dir[l])) {
-          // The back of a surface: 0 (the inside of a closed object is dark).
-          // A point that sees backs along the ray mirrored about its normal
-          // too is taken as enclosed (under a box standing on the ground).
-          const Vec3 nl = lane_normal[l], d = lane_dir[l];
-          const Vec3 mirrored = nl * (2.0f * dot(nl, d)) - d;
-          const RTCRay8& r8 = packet.rh.ray;
-          tc.skip_prim = packet.skip_prim[l];
-          RTCRayHit rh;
-          rh.ray = make_ray({r8.org_x[l], r8.org_y[l], r8.org_z[l]}, mirrored, std::numeric_limits<float>::infinity());
-          rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-          rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-          rtcIntersect1(rtc_, &tc.context, &rh);
-          const bool enclosed =
-              rh.hit.geomID != RTC_INVALID_GEOMETRY_ID && sees_back(rh.hit.geomID, rh.hit.primID, mirrored);
-          ++(enclosed ? info.enclosed : back);
-          known = true;
+        const bool is_mesh = geom < views_.size(), mesh_hit = is_mesh && views_[geom].texel_area;
+        if (is_mesh && !(dot(lane_dir[l], views_[geom].normals[prim]) < 0.0f)) {
+          // The back of a surface: 0, exactly where no photon reached the
+          // mesh's backs (the inside of a box standing on the ground).
+          if (!source.back_lit[geom]) {
+            ++info.dark;
+            known = true;
+          } else if (mesh_hit) {
+            ++back;
+            known = true;
+          }
         } else if (mesh_hit) {
           const MeshView& hv = views_[geom];
           const Mesh& hm = *hv.mesh;
@@ -677,9 +663,7 @@ void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       ++sums.count;
     }
   }
-  // Points under a box standing on the ground see its inside (no light, as
-  // Cycles bakes them); many other back hits (`back`: not enclosed) are
-  // rather a lit surface seen from behind, whose light no lightmap holds
+  // Many backs lit from behind are a surface whose light no lightmap holds
   // (lightmaps are one-sided).
   if (4 * back > rays) info.unknown += back;
   info.lookup_error = rays ? error_sum / rays : 0.0;

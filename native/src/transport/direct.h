@@ -61,21 +61,22 @@ class DirectPass {
   // each sample is the light reflected by the surface it hits, albedo x that
   // texel's radiosity (0 for rays that leave the scene: the sky is direct
   // light); 0 also for the back of a surface (the inside of a box standing on
-  // the ground is dark: a point that sees backs along its ray mirrored about
-  // the normal too is enclosed), unless more than a quarter of the rays see
-  // backs from points not enclosed. A ray that hits what the source cannot
-  // look up (a mesh without its own texels, a CSG solid, such backs) counts
-  // in `unknown`: such a texel's gather is not used.
+  // the ground is dark: no photon reaches the back of its faces), and so
+  // does the back of a surface lit from behind unless more than a quarter of
+  // the rays see such backs (lightmaps are one-sided). A ray that hits what
+  // the source cannot look up (a mesh without its own texels, a CSG solid,
+  // such backs) counts in `unknown`: such a texel's gather is not used.
   // Meshes only (mesh < mesh count). Thread-safe for distinct texels.
   struct GatherSource {
     const float* radiosity = nullptr;  // 3 per global texel: irradiance / pi, direct + indirect (0 where uncovered)
     const float* error = nullptr;      // 1 per global texel: the estimated error of its mean RGB
     const std::vector<std::vector<Vec3>>* albedo = nullptr;  // per mesh, per triangle
+    const uint8_t* back_lit = nullptr;  // per mesh: a photon reached its back (else its backs are dark)
   };
   // What a texel's gather met, besides its sums.
   struct GatherInfo {
     uint32_t unknown = 0;   // rays that hit what the source cannot look up
-    uint32_t enclosed = 0;  // rays from enclosed points (see above): known zeros
+    uint32_t dark = 0;      // rays that met a dark back: known zeros
     // The mean over the samples of albedo x the looked-up texel's error, the
     // gather's error from the source's own errors (taken as fully
     // correlated: the source is a pooled photon estimate, and a texel's rays
