@@ -7,6 +7,12 @@
 
 namespace plm {
 
+double texel_width(const TexelAreas& ta) {
+  double total_area = 0.0, total_cover = 0.0;
+  for (size_t t = 0; t < ta.area.size(); ++t) total_area += ta.area[t], total_cover += ta.coverage[t];
+  return total_cover > 0.0 ? std::sqrt(total_area / total_cover) : 0.0;
+}
+
 bool same_surface(const TexelAreas& ta, uint32_t a, uint32_t b, float reach) {
   if (!(ta.area[b] > 0.0)) return false;
   const Vec3 gap = ta.position[b] - ta.position[a];
@@ -86,13 +92,8 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
   const size_t n = size_t(width) * height;
   value3.assign(3 * n, 0.0);
   mse.assign(n, 0.0);
-  double total_area = 0.0, total_cover = 0.0;
-  for (size_t t = 0; t < n; ++t) {
-    total_area += ta.area[t];
-    total_cover += ta.coverage[t];
-  }
-  if (!(total_cover > 0.0)) return 0;
-  const float texel_width = float(std::sqrt(total_area / total_cover));
+  const float texel_width = float(plm::texel_width(ta));
+  if (!(texel_width > 0.0f)) return 0;
   const double to_value = 1.0 / (kPiD * params.photons);
   const uint32_t r_max = std::min(params.max_radius, kMaxRadius);
   // guide differences below 5% of its mean always pool
@@ -177,10 +178,8 @@ void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, c
   const size_t n = size_t(width) * height;
   value3.assign(3 * n, 0.0);
   var_out.assign(n, 0.0);
-  double total_area = 0.0, total_cover = 0.0;
-  for (size_t t = 0; t < n; ++t) total_area += ta.area[t], total_cover += ta.coverage[t];
-  if (!(total_cover > 0.0)) return;
-  const float texel_width = float(std::sqrt(total_area / total_cover));
+  const float texel_width = float(plm::texel_width(ta));
+  if (!(texel_width > 0.0f)) return;
   const float reach = 1.5f * float(radius + 1) * texel_width;
   const double floor = guide ? guide_floor_of(ta, guide, n) : 0.0;
   const uint32_t r_max = std::min(radius, kMaxRadius);

@@ -42,6 +42,10 @@ struct ReconstructParams {
   const double* guide = nullptr;
 };
 
+// The lightmap's texel side in world units: sqrt(total area / total
+// coverage); 0 when nothing is covered.
+double texel_width(const TexelAreas& ta);
+
 // True if texel b continues texel a's surface: normals within ~25 degrees,
 // world positions within `reach` (m).
 bool same_surface(const TexelAreas& ta, uint32_t a, uint32_t b, float reach);

@@ -708,9 +708,7 @@ struct Estimator {
     std::vector<double> g_mean(3 * n, 0.0), g_var(n, 0.0), g_value, g_fit_var;
     std::vector<double> guide(n, -1.0), lookup_sq(n, 0.0);
     std::vector<uint8_t> usable(n, 0), radius(n, uint8_t(kGatherRadius));
-    double total_area = 0.0, total_cover = 0.0;
-    for (size_t t = 0; t < n; ++t) total_area += areas[i].area[t], total_cover += areas[i].coverage[t];
-    const double texel_width = total_cover > 0.0 ? std::sqrt(total_area / total_cover) : 0.0;
+    const double width = texel_width(areas[i]);
     size_t k = covered_begin[i];
     for (size_t t = 0; t < n; ++t) {
       if (!(areas[i].area[t] > 0.0)) continue;
@@ -722,7 +720,7 @@ struct Estimator {
       // changes faster than a plane follows. A texel whose rays met dark
       // backs (partly under a box) keeps its own gather and pools with none:
       // its neighbours' light is not its own.
-      radius[t] = uint8_t(std::min(double(kGatherRadius), std::floor(kGatherReach * info.hit_distance / texel_width)));
+      radius[t] = uint8_t(std::min(double(kGatherRadius), std::floor(kGatherReach * info.hit_distance / width)));
       if (info.dark) radius[t] = 0;
       if (info.unknown || g.count == 0) continue;
       usable[t] = 1;
