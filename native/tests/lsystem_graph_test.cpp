@@ -468,10 +468,7 @@ struct CountingObject {
 };
 
 void counting_bounds(const RTCBoundsFunctionArguments* args) {
-  plm::write_user_bounds(args, DVec3{0, 0, 0}, DVec3{1, 1, 1}, 0.0);
-}
-void counting_bounds_one(const RTCBoundsFunctionArguments* args) {
-  plm::write_user_bounds(args, DVec3{0, 0, 0}, DVec3{1, 1, 1}, 0.0);  // primitive 0 only
+  plm::write_bounds(DVec3{0, 0, 0}, DVec3{1, 1, 1}, 0.0, args->bounds_o);
 }
 void counting_intersect(const RTCIntersectFunctionNArguments* args) {
   intersect_n<CountingObject>(args, [](const CountingObject& o) -> GraphHit& { return o.last; });
@@ -484,12 +481,12 @@ TEST(LSystemGraph, EmbreeTestsTheObjectBoxBeforeTheCallback) {
     CountingObject obj;
     RTCScene scene = rtcNewScene(device);
     if (sentinel) {
-      plm::attach_user_geometry(device, scene, &obj, counting_bounds, counting_intersect, occluded_n<CountingObject>);
+      plm::attach_user_geometry<counting_bounds, counting_intersect, occluded_n<CountingObject>>(device, scene, &obj);
     } else {  // one primitive, as before the sentinel
       RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
       rtcSetGeometryUserPrimitiveCount(geom, 1);
       rtcSetGeometryUserData(geom, &obj);
-      rtcSetGeometryBoundsFunction(geom, counting_bounds_one, nullptr);
+      rtcSetGeometryBoundsFunction(geom, counting_bounds, nullptr);
       rtcSetGeometryIntersectFunction(geom, counting_intersect);
       rtcSetGeometryOccludedFunction(geom, occluded_n<CountingObject>);
       rtcCommitGeometry(geom);

@@ -8,6 +8,7 @@
 // callbacks ran for every ray of the scene (one L-system tree in the bake of
 // docs/benchmarks.md: 2.33 M calls, 1.83 M of them for rays that miss the
 // tree's box). With two, the root is an inner node whose box test culls them.
+// The sentinel lives here alone: the object's callbacks never see it.
 #pragma once
 
 #include <embree3/rtcore.h>
@@ -16,20 +17,15 @@
 
 namespace plm {
 
-constexpr unsigned kObjectPrimitive = 0;  // callbacks for any other primitive return at once
-
-// Bounds of primitive args->primID: the object's [lo - pad, hi + pad]
-// rounded outwards to float, or the sentinel's point at lo. An empty box
-// (lo > hi) becomes one Embree skips, for both. V has double x, y, z.
+// Bounds [lo - pad, hi + pad] rounded outwards to float (V has double x, y,
+// z); an empty box (lo > hi) becomes one Embree skips.
 template <typename V>
-void write_user_bounds(const RTCBoundsFunctionArguments* args, V lo, V hi, double pad) {
-  RTCBounds* b = args->bounds_o;
+void write_bounds(V lo, V hi, double pad, RTCBounds* b) {
   if (!(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z)) {  // nothing there
     b->lower_x = b->lower_y = b->lower_z = INFINITY;
     b->upper_x = b->upper_y = b->upper_z = -INFINITY;
     return;
   }
-  if (args->primID != kObjectPrimitive) hi = lo, pad = 0.0;
   b->lower_x = std::nextafter(float(lo.x - pad), -INFINITY);
   b->lower_y = std::nextafter(float(lo.y - pad), -INFINITY);
   b->lower_z = std::nextafter(float(lo.z - pad), -INFINITY);
@@ -38,17 +34,40 @@ void write_user_bounds(const RTCBoundsFunctionArguments* args, V lo, V hi, doubl
   b->upper_z = std::nextafter(float(hi.z + pad), INFINITY);
 }
 
+namespace user_geometry_detail {
+
+// The object's callbacks run for primitive 0 only; the sentinel's box is the
+// point at the object's lower corner (an empty object leaves both empty).
+template <RTCBoundsFunction Bounds>
+void bounds(const RTCBoundsFunctionArguments* args) {
+  Bounds(args);
+  RTCBounds* b = args->bounds_o;
+  if (args->primID != 0 && b->lower_x <= b->upper_x)
+    b->upper_x = b->lower_x, b->upper_y = b->lower_y, b->upper_z = b->lower_z;
+}
+template <RTCIntersectFunctionN Intersect>
+void intersect(const RTCIntersectFunctionNArguments* args) {
+  if (args->primID == 0) Intersect(args);
+}
+template <RTCOccludedFunctionN Occluded>
+void occluded(const RTCOccludedFunctionNArguments* args) {
+  if (args->primID == 0) Occluded(args);
+}
+
+}  // namespace user_geometry_detail
+
 // Attaches a user geometry (the object and its sentinel) whose callbacks
 // receive `object` as their user pointer; returns its geometry id. The object
 // is referenced, not copied.
-inline unsigned attach_user_geometry(RTCDevice device, RTCScene scene, const void* object, RTCBoundsFunction bounds,
-                                     RTCIntersectFunctionN intersect, RTCOccludedFunctionN occluded) {
+template <RTCBoundsFunction Bounds, RTCIntersectFunctionN Intersect, RTCOccludedFunctionN Occluded>
+unsigned attach_user_geometry(RTCDevice device, RTCScene scene, const void* object) {
+  namespace d = user_geometry_detail;
   RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
   rtcSetGeometryUserPrimitiveCount(geom, 2);
   rtcSetGeometryUserData(geom, const_cast<void*>(object));
-  rtcSetGeometryBoundsFunction(geom, bounds, nullptr);
-  rtcSetGeometryIntersectFunction(geom, intersect);
-  rtcSetGeometryOccludedFunction(geom, occluded);
+  rtcSetGeometryBoundsFunction(geom, d::bounds<Bounds>, nullptr);
+  rtcSetGeometryIntersectFunction(geom, d::intersect<Intersect>);
+  rtcSetGeometryOccludedFunction(geom, d::occluded<Occluded>);
   rtcCommitGeometry(geom);
   const unsigned id = rtcAttachGeometry(scene, geom);
   rtcReleaseGeometry(geom);

@@ -14,7 +14,7 @@ const CsgObject& object(void* user) { return *static_cast<const CsgObject*>(user
 
 void bounds(const RTCBoundsFunctionArguments* args) {
   const CsgObject& obj = object(args->geometryUserPtr);
-  write_user_bounds(args, obj.bounds_lo(), obj.bounds_hi(), 0.0);  // float bounds must contain the double ones
+  write_bounds(obj.bounds_lo(), obj.bounds_hi(), 0.0, args->bounds_o);  // float bounds must contain the double ones
 }
 
 struct LaneRay {
@@ -47,7 +47,6 @@ float float_t(double t, const LaneRay& r) {
 }
 
 void intersect(const RTCIntersectFunctionNArguments* args) {
-  if (args->primID != kObjectPrimitive) return;  // the sentinel (accel/user_geometry.h)
   const CsgObject& obj = object(args->geometryUserPtr);
   const unsigned N = args->N;
   RTCRayN* rays = RTCRayHitN_RayN(args->rayhit, N);
@@ -86,7 +85,6 @@ void intersect(const RTCIntersectFunctionNArguments* args) {
 }
 
 void occluded(const RTCOccludedFunctionNArguments* args) {
-  if (args->primID != kObjectPrimitive) return;  // the sentinel
   const CsgObject& obj = object(args->geometryUserPtr);
   const unsigned N = args->N;
   RTCRayN* rays = args->ray;
@@ -123,7 +121,7 @@ void occluded(const RTCOccludedFunctionNArguments* args) {
 }  // namespace
 
 unsigned attach_csg(RTCDevice device, RTCScene scene, const CsgObject& obj) {
-  return attach_user_geometry(device, scene, &obj, bounds, intersect, occluded);
+  return attach_user_geometry<bounds, intersect, occluded>(device, scene, &obj);
 }
 
 }  // namespace plm::csg

@@ -17,7 +17,6 @@ namespace plm::lsystem {
 // A hit writes tfar, Ng, u = ShapeKind, v = 0, primID = the turtle material.
 template <typename T, typename Slot>
 void intersect_n(const RTCIntersectFunctionNArguments* args, Slot slot) {
-  if (args->primID != kObjectPrimitive) return;  // the sentinel (accel/user_geometry.h)
   const T& obj = *static_cast<const T*>(args->geometryUserPtr);
   const unsigned N = args->N;
   RTCRayN* rays = RTCRayHitN_RayN(args->rayhit, N);
@@ -46,7 +45,6 @@ void intersect_n(const RTCIntersectFunctionNArguments* args, Slot slot) {
 
 template <typename T>
 void occluded_n(const RTCOccludedFunctionNArguments* args) {
-  if (args->primID != kObjectPrimitive) return;  // the sentinel (accel/user_geometry.h)
   const T& obj = *static_cast<const T*>(args->geometryUserPtr);
   const unsigned N = args->N;
   RTCRayN* rays = args->ray;

@@ -1561,7 +1561,7 @@ namespace {
 
 void graph_bounds(const RTCBoundsFunctionArguments* args) {
   const Graph& g = *static_cast<const Graph*>(args->geometryUserPtr);
-  write_user_bounds(args, g.bounds_lo(), g.bounds_hi(), 0.0);
+  write_bounds(g.bounds_lo(), g.bounds_hi(), 0.0, args->bounds_o);
 }
 
 void graph_intersect(const RTCIntersectFunctionNArguments* args) {
@@ -1571,7 +1571,7 @@ void graph_intersect(const RTCIntersectFunctionNArguments* args) {
 }  // namespace
 
 unsigned attach_graph(RTCDevice device, RTCScene scene, const Graph& graph) {
-  return attach_user_geometry(device, scene, &graph, graph_bounds, graph_intersect, occluded_n<Graph>);
+  return attach_user_geometry<graph_bounds, graph_intersect, occluded_n<Graph>>(device, scene, &graph);
 }
 
 }  // namespace plm::lsystem

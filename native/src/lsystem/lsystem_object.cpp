@@ -312,7 +312,7 @@ void object_bounds(const RTCBoundsFunctionArguments* args) {
   const DVec3 lo = obj.bounds_lo(), hi = obj.bounds_hi();
   // Padded by a relative 1e-7 beyond float rounding: the box maps corners in double.
   const double pad = 1e-7 * std::max(max_abs(hi - lo), std::max(max_abs(lo), max_abs(hi)));
-  write_user_bounds(args, lo, hi, pad);
+  write_bounds(lo, hi, pad, args->bounds_o);
 }
 
 void object_intersect(const RTCIntersectFunctionNArguments* args) {
@@ -322,7 +322,7 @@ void object_intersect(const RTCIntersectFunctionNArguments* args) {
 }  // namespace
 
 unsigned attach_lsystem(RTCDevice device, RTCScene scene, const LSystemObject& object) {
-  return attach_user_geometry(device, scene, &object, object_bounds, object_intersect, occluded_n<LSystemObject>);
+  return attach_user_geometry<object_bounds, object_intersect, occluded_n<LSystemObject>>(device, scene, &object);
 }
 
 }  // namespace plm::lsystem
