@@ -706,7 +706,10 @@ TEST(Api, ExrIsWrittenAtomicallyAndReadsBack) {
 namespace {
 
 // Accumulation is in double: 17.6 million equal hits on one texel still sum
-// exactly (a float sum would stall at 2^24 hits, 16% short).
+// exactly (a float sum would stall at 2^24 hits, 16% short). The tolerance,
+// 0.1 %, is about 7 standard deviations of the photon count on the plane:
+// seeds 1-8 gave errors of 0.01-0.04 %, and the earlier 0.01 % failed five
+// of them (it held for the default seed only).
 TEST(Bake, MillionsOfHitsOnOneTexelLoseNothing) {
   SceneBuilder b;
   const uint32_t m = b.material("black", {0, 0, 0});
@@ -720,7 +723,7 @@ TEST(Bake, MillionsOfHitsOnOneTexelLoseNothing) {
   bake(b, raw_photons(28000000, 0), r);  // 63% land on the plane
   const Lightmap lm = r.map(0);
   EXPECT_GT(lm.hits[0], 16777216.0f);
-  EXPECT_NEAR(lm.value(0), 1.0 / M_PI, 1e-4 / M_PI);
+  EXPECT_NEAR(lm.value(0), 1.0 / M_PI, 1e-3 / M_PI);
 }
 
 // With a target error the bake stops once the estimate reaches it, and the
