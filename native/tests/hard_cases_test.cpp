@@ -207,8 +207,8 @@ TEST(HardCases, GrazingSunOverPlaneHasNoSpeckles) {
 // (+y); dark faces 0 up to a few photons: the faces' UV islands touch, and
 // a UV edge such as 4/6 rounds a few 1e-7 of a texel into the neighbouring
 // island, so now and then a photon on the edge of the lit +y face lands in
-// the dark -y face's texel (1.5e-5 against 3.18 lit with seed 12, where the
-// earlier "exactly 0" failed; the default seed happened to miss the edge).
+// the dark -y face's texel (one photon: 1.5e-5 against 3.18 lit). Seed 12
+// failed the earlier "exactly 0"; the default seed happened to miss the edge.
 TEST(HardCases, BoxFacesUnderGrazingSunAreExact) {
   for (const Mode mode : kModes) {
     SCOPED_TRACE(name(mode));
