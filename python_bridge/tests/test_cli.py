@@ -137,3 +137,17 @@ def test_interrupt_leaves_no_files(tmp_path):
     _, err = p.communicate(timeout=60)
     assert p.returncode == 130, err
     assert os.listdir(out) == []
+
+
+def test_demo_commands_create_the_output_folder(tmp_path):
+    out = tmp_path / "new" / "folder"
+    r = subprocess.run([CLI, "cornell", "--photons", "20000", "--res", "8", "-o", str(out)], capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert len([f for f in os.listdir(out) if f.endswith("_lightmap.exr")]) == 7
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    r = subprocess.run([CLI, "furnace", "--photons", "1000", "-o", str(blocker / "x")], capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 1
+    assert "cannot create the output folder" in r.stderr and str(blocker) in r.stderr
