@@ -498,13 +498,13 @@ TEST(LSystemGraph, EmbreeTestsTheObjectBoxBeforeTheCallback) {
     // lower corner (the sentinel's point), each traced closest and occluded.
     std::mt19937_64 gen(3);
     std::uniform_real_distribution<double> u(-1.0, 1.0);
-    int through_box = 0, hits = 0;
+    int hits = 0, miss_calls = 0, centre_calls = 0, corner_calls = 0;
     for (int i = 0; i < 160; ++i) {
+      const int calls_before = obj.calls;
       const DVec3 target = i < 100 ? DVec3{5 + u(gen), 5 + u(gen), 5 + u(gen)}
                                    : i < 150 ? DVec3{0.5, 0.5, 0.5} : DVec3{0, 0, 0};
       const DVec3 o = target + 10.0 * DVec3{u(gen), u(gen), 1.5};
       const DVec3 d = target - o;
-      through_box += i >= 100;
       RTCIntersectContext ctx;
       rtcInitIntersectContext(&ctx);
       RTCRayHit rh{};
@@ -519,17 +519,24 @@ TEST(LSystemGraph, EmbreeTestsTheObjectBoxBeforeTheCallback) {
       rtcOccluded1(scene, &ctx, &occ);
       hits += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
       hits += occ.tfar < 0;
+      (i < 100 ? miss_calls : i < 150 ? centre_calls : corner_calls) += obj.calls - calls_before;
     }
     EXPECT_EQ(hits, 0);
     if (sentinel) {
-      EXPECT_EQ(obj.calls, 2 * through_box);  // one closest and one occlusion query per ray through the box
+      // One closest and one occlusion query per ray through the box, none for
+      // a ray that misses it. A ray aimed at the box's corner passes it by
+      // float rounding, inside or out, and Embree's box test (its code path
+      // differs per CPU) may go either way: at most two calls each.
+      EXPECT_EQ(miss_calls, 0);
+      EXPECT_EQ(centre_calls, 2 * 50);
+      EXPECT_LE(corner_calls, 2 * 10);
     } else {
       calls_one = obj.calls;
     }
     rtcReleaseScene(scene);
   }
   std::cout << "[ measured ] callbacks for 160 rays (60 through the box), closest + occluded: one primitive "
-            << calls_one << ", with the sentinel 120\n";
+            << calls_one << "\n";
   rtcReleaseDevice(device);
 }
 
