@@ -206,6 +206,14 @@ struct ResultGuard {
 
 }  // namespace
 
+bool make_output_folder(const std::string& dir, std::string& error) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (!ec && std::filesystem::is_directory(dir)) return true;
+  error = dir + ": cannot create the output folder" + (ec ? ": " + ec.message() : "");
+  return false;
+}
+
 int bake_command(int argc, char** argv) {
   Args a;
   const std::string arg_error = parse_args(argc, argv, a);
@@ -221,10 +229,7 @@ int bake_command(int argc, char** argv) {
   if (a.has_seed) s.seed = a.seed;
   if (a.has_threads) s.thread_count = a.threads;
 
-  std::error_code ec;
-  std::filesystem::create_directories(a.out_dir, ec);
-  if (ec || !std::filesystem::is_directory(a.out_dir))
-    return bad_input(a.out_dir + ": cannot create the output folder" + (ec ? ": " + ec.message() : ""));
+  if (!make_output_folder(a.out_dir, error)) return bad_input(error);
 
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);

@@ -10,7 +10,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -90,14 +89,10 @@ int run(const Options& o) {
     std::fprintf(stderr, "photonlm: cannot build the scene: %s\n", b.error.c_str());
     return 1;
   }
-  if (!o.out_dir.empty()) {  // before the bake, not after it
-    std::error_code ec;
-    std::filesystem::create_directories(o.out_dir, ec);
-    if (ec || !std::filesystem::is_directory(o.out_dir)) {
-      std::fprintf(stderr, "photonlm: %s: cannot create the output folder%s%s\n", o.out_dir.c_str(), ec ? ": " : "",
-                   ec ? ec.message().c_str() : "");
-      return 1;
-    }
+  std::string error;
+  if (!o.out_dir.empty() && !plm_cli::make_output_folder(o.out_dir, error)) {  // before the bake, not after it
+    std::fprintf(stderr, "photonlm: %s\n", error.c_str());
+    return 1;
   }
   plm_bake_settings s;
   plm_bake_settings_default(&s);
