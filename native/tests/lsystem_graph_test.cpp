@@ -712,6 +712,61 @@ TEST(LSystemGraph, ExactBoundsHoldThePlantAndAreTighter) {
   }
 }
 
+// A stochastic class's bounds unfold the union of its productions: here 10
+// X children between three productions, so a class's subtree holds ~10^depth
+// nodes while one derivation holds ~3.3^depth. Each child reference's
+// unfolding (with the boxes views inline) stops at bounds_budget nodes and
+// the set-up's at bounds_total; before that cap, set-up at depth 12 of a
+// grammar half as wide took 110 s (ctest's timeout is the guard here). Boxes
+// past a budget are the looser mapped ones; the hits stay those of the
+// flattened plant.
+TEST(LSystemGraph, WideStochasticSetUpIsBounded) {
+  const char* wide =
+      "angle: 30\nwidth: 0.1\naxiom: X\n"
+      "X -> (1) F[+X][-X]F[&X]X\n"
+      "X -> (1) F[^X][/X]X\n"
+      "X -> (1) F[+X]F[-X]X\n"
+      "F -> FF\n";
+  const LSystem sys = parse(wide);
+  GraphOptions o = options(7, 9), tiny = o;
+  tiny.bounds_total = 500;
+  const Graph g(sys, o), gt(sys, tiny);
+  const GraphStats s = g.stats(), st = gt.stats();
+  EXPECT_LE(s.bounds_visits, o.bounds_total);
+  EXPECT_GT(s.bounds_visits, tiny.bounds_total);
+  EXPECT_LE(st.bounds_visits, tiny.bounds_total);
+  const FlattenResult f = g.flatten();
+  ASSERT_FALSE(f.truncated);
+  DVec3 lo, hi;
+  exact_box(f.primitives, &lo, &hi);
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_LE(g.bounds_lo()[a], lo[a]);
+    EXPECT_GE(g.bounds_hi()[a], hi[a]);
+    EXPECT_LE(gt.bounds_lo()[a], g.bounds_lo()[a]);
+    EXPECT_GE(gt.bounds_hi()[a], g.bounds_hi()[a]);
+  }
+  std::cout << "[wide stochastic] depth 7: " << s.classes << " classes, " << f.primitives.size()
+            << " primitives flattened; set-up unfoldings visited " << s.bounds_visits << " nodes (" << st.bounds_visits
+            << " with bounds_total 500); root box volume " << volume(g.bounds_lo(), g.bounds_hi()) << " against "
+            << volume(lo, hi) << " exact, " << volume(gt.bounds_lo(), gt.bounds_hi()) << " with bounds_total 500\n";
+  const Flat flat(f.primitives);
+  const auto rays = make_rays(g, &flat.src, 400, 53);
+  size_t hits = 0, mismatches = 0;
+  for (const Ray& r : rays) {
+    GraphHit h, ht;
+    const bool gh = g.first_hit(r.o, r.d, 0.0, r.tfar, &h), th = gt.first_hit(r.o, r.d, 0.0, r.tfar, &ht);
+    double t = 0;
+    size_t which = 0;
+    const bool bh = flat.first_hit(r.o, r.d, 0.0, r.tfar, &t, &which, false);
+    bool ok = gh == bh && th == bh && gt.occluded(r.o, r.d, 0.0, r.tfar) == bh;
+    if (ok && gh) ok = std::fabs(h.t - t) <= 1e-9 * std::max(1.0, t) && h.t == ht.t;
+    hits += gh;
+    mismatches += !ok;
+  }
+  EXPECT_EQ(mismatches, 0u);
+  EXPECT_GT(hits, 100u);
+}
+
 // The graph's expansions hold trace_primitive(d): make_primitive(d) without
 // the (numerically integrated) face areas; every other field bit for bit.
 TEST(LSystemGraph, TracePrimitiveMatchesMakePrimitive) {

@@ -347,6 +347,9 @@ struct Graph::Impl {
   };
   std::vector<std::vector<std::vector<DescBoxes>>> child_desc;  // [class][production][child]
   size_t desc_left = size_t(1) << 20;  // sub-level boxes the set-up may still make
+  int64_t bounds_budget = 0;           // GraphOptions::bounds_budget (capped to int64)
+  int64_t bounds_total = 0;            // GraphOptions::bounds_total (capped to int64)
+  int64_t bounds_visits = 0;           // nodes the set-up's unfoldings visited so far
   size_t desc_count = 0;               // DescBoxes made (for GraphStats::class_bytes)
   // Set-up only (emptied after): per class, the primitives and child
   // references of all its productions, for the exact child bounds.
@@ -696,9 +699,13 @@ struct Graph::Impl {
         const Affine t = st.frame();
         if (setup) {
           skel[id][alt].children.push_back({cls, t});
-          child_desc[id][alt].push_back(desc_boxes(cls, t, kGraphInlineDepth - 1));
-          const GraphBox& b = child_desc[id][alt].back().box;
-          grow(r.lo, r.hi, b.lo, b.hi);
+          const int64_t given = std::min(bounds_budget, bounds_total - bounds_visits);
+          int64_t budget = given;
+          DescBoxes d = desc_boxes(cls, t, kGraphInlineDepth - 1, budget);
+          bounds_visits += given - budget;
+          pad_box(d.box.lo, d.box.hi);
+          grow(r.lo, r.hi, d.box.lo, d.box.hi);
+          child_desc[id][alt].push_back(std::move(d));
           r.count = cc.max_primitives > std::numeric_limits<uint64_t>::max() - r.count
                         ? std::numeric_limits<uint64_t>::max()
                         : r.count + cc.max_primitives;
@@ -790,26 +797,44 @@ struct Graph::Impl {
     return r;
   }
 
-  // The DescBoxes of class cls under a, `levels` steps deep (see child_desc).
-  DescBoxes desc_boxes(uint32_t cls, const Affine& a, int levels) {
+  // A child reference's DescBoxes (see child_desc): class cls under a, with
+  // its descendants' boxes `levels` steps deep, all from one unfolding of at
+  // most `budget` nodes (see subtree_box). Boxes are left unpadded (the
+  // parent grows by them); a descendant's box is padded once it is placed.
+  DescBoxes desc_boxes(uint32_t cls, const Affine& a, int levels, int64_t& budget) {
     DescBoxes d;
     ++desc_count;
     d.box = {{kInf, kInf, kInf}, {-kInf, -kInf, -kInf}};
-    int64_t budget = int64_t(std::min<size_t>(opt.bounds_budget, size_t(INT64_MAX)));
-    subtree_box(cls, a, budget, d.box.lo, d.box.hi);
-    pad_box(d.box.lo, d.box.hi);
-    if (levels <= 0) return d;
     size_t n = 0;
     for (const Skeleton& k : skel[cls]) {
-      if (k.prims.size() + k.children.size() > kGraphInlineItems) return d;  // never inlined
+      if (k.prims.size() + k.children.size() > kGraphInlineItems) levels = 0;  // never inlined
       n += k.children.size();
     }
-    if (n > desc_left) return d;
+    if (levels <= 0 || n > desc_left) {
+      subtree_box(cls, a, budget, d.box.lo, d.box.hi);
+      return d;
+    }
     desc_left -= n;
+    const bool exact = budget > 0;
+    if (exact)
+      --budget;
+    else
+      subtree_box(cls, a, budget, d.box.lo, d.box.hi);  // budget spent: the class box mapped
     d.sub.resize(skel[cls].size());
-    for (size_t a2 = 0; a2 < skel[cls].size(); ++a2)
-      for (const SkeletonChild& gc : skel[cls][a2].children)
-        d.sub[a2].push_back(desc_boxes(gc.cls, compose(a, gc.t), levels - 1));
+    for (size_t a2 = 0; a2 < skel[cls].size(); ++a2) {
+      for (const SkeletonPrim& p : skel[cls][a2].prims) {
+        if (!exact) break;
+        DVec3 l, h;
+        prim_box(p.shape, compose(a, p.m), &l, &h);
+        grow(d.box.lo, d.box.hi, l, h);
+      }
+      for (const SkeletonChild& gc : skel[cls][a2].children) {
+        DescBoxes c = desc_boxes(gc.cls, compose(a, gc.t), levels - 1, budget);
+        if (exact) grow(d.box.lo, d.box.hi, c.box.lo, c.box.hi);
+        pad_box(c.box.lo, c.box.hi);
+        d.sub[a2].push_back(std::move(c));
+      }
+    }
     return d;
   }
 
@@ -1458,6 +1483,8 @@ Graph::Graph(const LSystem& system, const GraphOptions& options) : impl_(std::ma
   g.vars.assign(slots + 1, 0.0);
   g.root_key_ = splitmix64(o.seed);
   g.inline_views = o.cache_bytes == 0 || o.cache_bytes >= kGraphInlineMinCacheBytes;
+  g.bounds_budget = int64_t(std::min<size_t>(o.bounds_budget, size_t(INT64_MAX)));
+  g.bounds_total = int64_t(std::min<size_t>(o.bounds_total, size_t(INT64_MAX)));
   // The root: the axiom at depth D (its class depth is D + 1).
   GraphNodeClass root;
   root.symbol = kRoot;
@@ -1470,7 +1497,7 @@ Graph::Graph(const LSystem& system, const GraphOptions& options) : impl_(std::ma
   g.child_desc.emplace_back();
   g.skel.emplace_back();
   g.analyse(0);
-  int64_t budget = int64_t(std::min<size_t>(o.bounds_budget, size_t(INT64_MAX)));
+  int64_t budget = g.bounds_budget;
   g.subtree_box(0, o.world, budget, g.world_lo, g.world_hi);
   pad_box(g.world_lo, g.world_hi);
   g.skel = {};  // set-up only
@@ -1506,6 +1533,7 @@ GraphStats Graph::stats() const {
   GraphStats s;
   s.classes = g.classes.size();
   s.levels = g.levels;
+  s.bounds_visits = uint64_t(g.bounds_visits);
   s.class_bytes = g.classes.size() * (sizeof(GraphNodeClass) + sizeof(State) + 96) +
                   g.desc_count * sizeof(Graph::Impl::DescBoxes);
   for (const GraphNodeClass& c : g.classes)

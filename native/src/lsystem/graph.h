@@ -58,11 +58,16 @@
 // depend on the path. A child's bounds are the exact box, in the parent's
 // frame, of every primitive of the child's subtree (each primitive's exact
 // extent: sphere, cylinder / cone hull, box), found by unfolding the subtree
-// under the composed transforms; an unfolding that would visit more than
-// GraphOptions::bounds_budget nodes uses, where the budget runs out, the
-// class's own box mapped by its transform (8 corners): conservative, looser
-// only there. Boxes are padded by 1e-9 relative. A class box is the union of
-// its primitives' and children's boxes.
+// under the composed transforms. The same unfolding gives the boxes of the
+// child's descendants that views may inline (see Traversal), so a child
+// reference costs one unfolding of at most GraphOptions::bounds_budget
+// nodes, and the set-up's unfoldings together visit at most
+// GraphOptions::bounds_total (a stochastic class unfolds every production:
+// its subtree grows as the sum of the productions' children to the power of
+// the depth). Where a budget runs out, a box is the class's own box mapped by
+// its transform (8 corners): conservative, looser only there. Boxes are
+// padded by 1e-9 relative. A class box is the union of its primitives' and
+// children's boxes.
 //
 // Traversal: an expansion's traversal view (GraphExpansion::tprims, hops,
 // clusters) inlines its small descendants (kGraphInlineDepth: down to four
@@ -126,6 +131,7 @@ struct GraphOptions {
   size_t cache_entries = 4096;    // per thread; 0: no limit on entries
   size_t cache_bytes = 64u << 20; // per thread; 0: no limit on bytes
   size_t bounds_budget = 1u << 15; // nodes one child's exact-bounds unfolding may visit (see Bounds)
+  size_t bounds_total = 1u << 22;  // nodes all the set-up's unfoldings may visit together (see Bounds)
   // The object's placement (graph frame -> world, any affine map): only for
   // world_bounds_lo() / hi(), the exact box of the placed primitives.
   csg::Affine world{{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}};
@@ -269,6 +275,7 @@ struct GraphStats {
   size_t cached_entries = 0, cached_bytes = 0, peak_cached_bytes = 0;  // summed over thread caches
   uint64_t flattened_primitives = 0;  // exact when the root is not path dependent, else an upper bound
   uint64_t truncated = 0;        // traversals cut by the stack bound (0 by construction: depth is checked)
+  uint64_t bounds_visits = 0;    // nodes the set-up's child-bounds unfoldings visited (<= bounds_total)
 };
 
 struct FlattenResult {
