@@ -358,7 +358,7 @@ TEST(LSystemGraph, DeepPlantStaysSmall) {
   const GraphStats ss = sg.stats();
   EXPECT_LE(ss.cached_entries, 2048u);
   EXPECT_GT(shits, 100u);
-  std::cout << "[deep stochastic] depth 12: " << ss.classes << " classes, <= " << ss.flattened_primitives
+  std::cout << "[deep stochastic] depth 12: " << ss.classes << " classes (" << ss.class_bytes << " bytes), <= " << ss.flattened_primitives
             << " primitives if flattened; " << srays.size() << " rays, " << shits << " hits, "
             << double(srays.size()) / ssecs << " rays/s; cache " << ss.cached_entries << " entries / "
             << ss.cached_bytes << " bytes (peak " << ss.peak_cached_bytes << "), hit rate "
