@@ -716,10 +716,10 @@ TEST(LSystemGraph, ExactBoundsHoldThePlantAndAreTighter) {
 // X children between three productions, so a class's subtree holds ~10^depth
 // nodes while one derivation holds ~3.3^depth. Each child reference's
 // unfolding (with the boxes views inline) stops at bounds_budget nodes and
-// the set-up's at bounds_total; before that cap, set-up at depth 12 of a
-// grammar half as wide took 110 s (ctest's timeout is the guard here). Boxes
-// past a budget are the looser mapped ones; the hits stay those of the
-// flattened plant.
+// the set-up's at bounds_total. Before those caps this set-up took 23 s at
+// depth 8 and 141 s at depth 9 (Release), so at depth 10 ctest's timeout
+// guards them; now it takes well under a second. Boxes past a cap are the
+// looser mapped ones; the hits stay those of the flattened plant.
 TEST(LSystemGraph, WideStochasticSetUpIsBounded) {
   const char* wide =
       "angle: 30\nwidth: 0.1\naxiom: X\n"
@@ -728,7 +728,7 @@ TEST(LSystemGraph, WideStochasticSetUpIsBounded) {
       "X -> (1) F[+X]F[-X]X\n"
       "F -> FF\n";
   const LSystem sys = parse(wide);
-  GraphOptions o = options(7, 9), tiny = o;
+  GraphOptions o = options(10, 9), tiny = o;
   tiny.bounds_total = 500;
   const Graph g(sys, o), gt(sys, tiny);
   const GraphStats s = g.stats(), st = gt.stats();
@@ -745,12 +745,12 @@ TEST(LSystemGraph, WideStochasticSetUpIsBounded) {
     EXPECT_LE(gt.bounds_lo()[a], g.bounds_lo()[a]);
     EXPECT_GE(gt.bounds_hi()[a], g.bounds_hi()[a]);
   }
-  std::cout << "[wide stochastic] depth 7: " << s.classes << " classes, " << f.primitives.size()
+  std::cout << "[wide stochastic] depth 10: " << s.classes << " classes, " << f.primitives.size()
             << " primitives flattened; set-up unfoldings visited " << s.bounds_visits << " nodes (" << st.bounds_visits
             << " with bounds_total 500); root box volume " << volume(g.bounds_lo(), g.bounds_hi()) << " against "
             << volume(lo, hi) << " exact, " << volume(gt.bounds_lo(), gt.bounds_hi()) << " with bounds_total 500\n";
   const Flat flat(f.primitives);
-  const auto rays = make_rays(g, &flat.src, 400, 53);
+  const auto rays = make_rays(g, &flat.src, 160, 53);
   size_t hits = 0, mismatches = 0;
   for (const Ray& r : rays) {
     GraphHit h, ht;
@@ -764,7 +764,7 @@ TEST(LSystemGraph, WideStochasticSetUpIsBounded) {
     mismatches += !ok;
   }
   EXPECT_EQ(mismatches, 0u);
-  EXPECT_GT(hits, 100u);
+  EXPECT_GT(hits, 50u);
 }
 
 // The graph's expansions hold trace_primitive(d): make_primitive(d) without
