@@ -346,6 +346,9 @@ struct Graph::Impl {
     std::vector<std::vector<DescBoxes>> sub;
   };
   std::vector<std::vector<std::vector<DescBoxes>>> child_desc;  // [class][production][child]
+  // Set-up only: per class, the DescBoxes a reference's boxes down L steps
+  // would take (the union over productions; saturating), for L < kGraphInlineDepth.
+  std::vector<std::array<uint64_t, kGraphInlineDepth>> desc_nodes;
   size_t desc_left = size_t(1) << 20;  // sub-level boxes the set-up may still make
   int64_t bounds_budget = 0;           // GraphOptions::bounds_budget (capped to int64)
   int64_t bounds_total = 0;            // GraphOptions::bounds_total (capped to int64)
@@ -586,6 +589,7 @@ struct Graph::Impl {
     end_variable.push_back(0);
     child_desc.emplace_back();
     skel.emplace_back();
+    desc_nodes.emplace_back();
     index.emplace(std::move(key), id);
     analyse(id);
     return id;
@@ -701,7 +705,9 @@ struct Graph::Impl {
           skel[id][alt].children.push_back({cls, t});
           const int64_t given = std::min(bounds_budget, bounds_total - bounds_visits);
           int64_t budget = given;
-          DescBoxes d = desc_boxes(cls, t, kGraphInlineDepth - 1, budget);
+          int levels = kGraphInlineDepth - 1;  // as deep as kGraphInlineDescBoxes allow
+          while (levels > 0 && desc_nodes[cls][levels] > kGraphInlineDescBoxes) --levels;
+          DescBoxes d = desc_boxes(cls, t, levels, budget);
           bounds_visits += given - budget;
           pad_box(d.box.lo, d.box.hi);
           grow(r.lo, r.hi, d.box.lo, d.box.hi);
@@ -889,6 +895,13 @@ struct Graph::Impl {
     c.path_dependent = path_dependent;
     end[id] = first_end;
     end_variable[id] = variable ? 1 : 0;
+    bool inlined = true;
+    for (const Skeleton& k : skel[id]) inlined = inlined && k.prims.size() + k.children.size() <= kGraphInlineItems;
+    std::array<uint64_t, kGraphInlineDepth>& dn = desc_nodes[id];
+    dn.fill(1);
+    for (int l = 1; l < kGraphInlineDepth && inlined; ++l)
+      for (const Skeleton& k : skel[id])
+        for (const SkeletonChild& ch : k.children) dn[l] = std::min(dn[l] + desc_nodes[ch.cls][l - 1], uint64_t(1) << 62);
   }
 
   // ---- tracing ----
@@ -1496,11 +1509,13 @@ Graph::Graph(const LSystem& system, const GraphOptions& options) : impl_(std::ma
   g.end_variable.push_back(0);
   g.child_desc.emplace_back();
   g.skel.emplace_back();
+  g.desc_nodes.emplace_back();
   g.analyse(0);
   int64_t budget = g.bounds_budget;
   g.subtree_box(0, o.world, budget, g.world_lo, g.world_hi);
   pad_box(g.world_lo, g.world_hi);
   g.skel = {};  // set-up only
+  g.desc_nodes = {};
 }
 
 Graph::~Graph() = default;

@@ -173,6 +173,11 @@ struct GraphChild {
 constexpr size_t kGraphInlineItems = 16;
 constexpr int kGraphInlineDepth = 5;
 constexpr size_t kGraphInlineViewItems = 64;
+// A child reference keeps its descendants' boxes (for inlining) only down to
+// the deepest step at which they number at most this many: a view inlines at
+// most ~kGraphInlineViewItems of them, while a stochastic class's union over
+// its productions grows as the sum of their children per step.
+constexpr uint64_t kGraphInlineDescBoxes = 256;
 static_assert(kGraphInlineDepth >= 2, "a view inlines at least its children");
 constexpr size_t kGraphInlineMinCacheBytes = size_t(1) << 20;
 
