@@ -322,6 +322,7 @@ TEST(LSystemGraph, DeepPlantStaysSmall) {
   EXPECT_EQ(s.flattened_primitives, x);
   EXPECT_GT(x, 2'000'000u);
   EXPECT_LE(s.classes, 1u + 2u * depth);  // root + X and F per depth
+  EXPECT_LE(s.class_bytes, size_t(1) << 20);
   // Aim at a sample of the plant (the first primitives in string order) and at its bounds.
   const FlattenResult sample = g.flatten(20000);
   const auto rays = make_rays(g, &sample.primitives, 4000, 21);
@@ -357,6 +358,9 @@ TEST(LSystemGraph, DeepPlantStaysSmall) {
   const double ssecs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
   const GraphStats ss = sg.stats();
   EXPECT_LE(ss.cached_entries, 2048u);
+  // Its classes' boxes for inlining are the union over productions, kept
+  // only as deep as kGraphInlineDescBoxes allow (45 MB before, down four steps).
+  EXPECT_LE(ss.class_bytes, size_t(8) << 20);
   EXPECT_GT(shits, 100u);
   std::cout << "[deep stochastic] depth 12: " << ss.classes << " classes (" << ss.class_bytes << " bytes), <= " << ss.flattened_primitives
             << " primitives if flattened; " << srays.size() << " rays, " << shits << " hits, "
