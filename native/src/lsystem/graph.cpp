@@ -828,12 +828,12 @@ struct Graph::Impl {
       subtree_box(cls, a, budget, d.box.lo, d.box.hi);  // budget spent: the class box mapped
     d.sub.resize(skel[cls].size());
     for (size_t a2 = 0; a2 < skel[cls].size(); ++a2) {
-      for (const SkeletonPrim& p : skel[cls][a2].prims) {
-        if (!exact) break;
-        DVec3 l, h;
-        prim_box(p.shape, compose(a, p.m), &l, &h);
-        grow(d.box.lo, d.box.hi, l, h);
-      }
+      if (exact)
+        for (const SkeletonPrim& p : skel[cls][a2].prims) {
+          DVec3 l, h;
+          prim_box(p.shape, compose(a, p.m), &l, &h);
+          grow(d.box.lo, d.box.hi, l, h);
+        }
       for (const SkeletonChild& gc : skel[cls][a2].children) {
         DescBoxes c = desc_boxes(gc.cls, compose(a, gc.t), levels - 1, budget);
         if (exact) grow(d.box.lo, d.box.hi, c.box.lo, c.box.hi);
