@@ -803,6 +803,13 @@ struct Graph::Impl {
     return r;
   }
 
+  // Can a view inline class cls (set-up: every production small enough)?
+  bool inlinable(uint32_t cls) const {
+    for (const Skeleton& k : skel[cls])
+      if (k.prims.size() + k.children.size() > kGraphInlineItems) return false;
+    return true;
+  }
+
   // A child reference's DescBoxes (see child_desc): class cls under a, with
   // its descendants' boxes `levels` steps deep, all from one unfolding of at
   // most `budget` nodes (see subtree_box). Boxes are left unpadded (the
@@ -812,11 +819,8 @@ struct Graph::Impl {
     ++desc_count;
     d.box = {{kInf, kInf, kInf}, {-kInf, -kInf, -kInf}};
     size_t n = 0;
-    for (const Skeleton& k : skel[cls]) {
-      if (k.prims.size() + k.children.size() > kGraphInlineItems) levels = 0;  // never inlined
-      n += k.children.size();
-    }
-    if (levels <= 0 || n > desc_left) {
+    for (const Skeleton& k : skel[cls]) n += k.children.size();
+    if (levels <= 0 || !inlinable(cls) || n > desc_left) {
       subtree_box(cls, a, budget, d.box.lo, d.box.hi);
       return d;
     }
@@ -895,11 +899,9 @@ struct Graph::Impl {
     c.path_dependent = path_dependent;
     end[id] = first_end;
     end_variable[id] = variable ? 1 : 0;
-    bool inlined = true;
-    for (const Skeleton& k : skel[id]) inlined = inlined && k.prims.size() + k.children.size() <= kGraphInlineItems;
     std::array<uint64_t, kGraphInlineDepth>& dn = desc_nodes[id];
     dn.fill(1);
-    for (int l = 1; l < kGraphInlineDepth && inlined; ++l)
+    for (int l = 1; l < kGraphInlineDepth && inlinable(id); ++l)  // else no boxes below it
       for (const Skeleton& k : skel[id])
         for (const SkeletonChild& ch : k.children) dn[l] = std::min(dn[l] + desc_nodes[ch.cls][l - 1], uint64_t(1) << 62);
   }
