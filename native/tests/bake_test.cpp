@@ -603,15 +603,17 @@ TEST(Bake, CancelReturnsPromptlyWithoutResult) {
   EXPECT_NE(std::string(plm_last_error()).find("cancel"), std::string::npos);
 }
 
-TEST(Bake, NoLightsWarnsAndGivesBlack) {
+// Nothing lights the scene: the bake is refused with a message that says so,
+// and no result is made.
+TEST(Bake, NoLightsIsRefused) {
   SceneBuilder b;
   const uint32_t m = b.material("white", {0.8f, 0.8f, 0.8f});
   b.quad("plane", {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, m, 4);
-  Baked r;
-  bake(b, settings(1000), r);
-  EXPECT_TRUE(!r.warning("no lights").empty());
-  const Lightmap lm = r.map(0);
-  for (float v : lm.rgb) EXPECT_EQ(v, 0.0f);
+  const plm_bake_settings s = settings(1000);
+  plm_result* r = nullptr;
+  EXPECT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &r), PLM_ERROR_INVALID_SCENE);
+  EXPECT_EQ(r, nullptr);
+  EXPECT_NE(std::string(plm_last_error()).find("nothing lights the scene"), std::string::npos) << plm_last_error();
 }
 
 TEST(Api, BadInputNamesWhatAndWhere) {
@@ -821,10 +823,10 @@ TEST(Bake, DenormalEmissionIsNoLight) {
   SceneBuilder b;
   const uint32_t m = b.material("faint", {0.5f, 0.5f, 0.5f}, {0, 0, 1.4013e-45f});
   b.quad("quad", {0, 0, 0}, {1e-2f, 0, 0}, {0, 1e-2f, 0}, m, 2);
-  Baked r;
-  bake(b, settings(1000, 16, 0), r);
-  EXPECT_FALSE(r.warning("no lights").empty());
-  for (float v : r.map(0).rgb) EXPECT_EQ(v, 0.0f);
+  const plm_bake_settings s = settings(1000, 16, 0);
+  plm_result* r = nullptr;
+  EXPECT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &r), PLM_ERROR_INVALID_SCENE);
+  EXPECT_NE(std::string(plm_last_error()).find("nothing lights the scene"), std::string::npos) << plm_last_error();
 }
 
 }  // namespace

@@ -683,22 +683,20 @@ TEST(HardCases, EmptySceneIsAnError) {
   EXPECT_TRUE(contains(plm_last_error(), "no meshes")) << plm_last_error();
 }
 
-// No light, no emission, a black world: it bakes, warns "no lights", every
-// texel is exactly 0 and no photon is emitted.
-TEST(HardCases, NoLightsWarnsAndIsBlack) {
+// No light with power, no emission, a black world: the bake is refused (every
+// lightmap would be black) and no result is made.
+TEST(HardCases, NoLightsIsRefused) {
   SceneBuilder b;
   const uint32_t white = b.material("white", {0.8f, 0.8f, 0.8f});
   b.box("box", {0, 0, 0}, {1, 1, 1}, 0.0f, white, 4);
   const float black[3] = {0, 0, 0};
   ASSERT_EQ(plm_scene_set_world(b.scene, black), PLM_OK);
   b.light(point(0.0f, {0, 0, 3}), "off");  // a light of power 0 emits nothing
-  BakeResult r;
-  bake(b, settings(1000), r);
-  EXPECT_NE(r.warning("no lights"), "") << r.all_warnings();
-  EXPECT_EQ(r.stats().photons_emitted, 0u);
-  const Map m = r.map(0);
-  for (float v : m.rgb) ASSERT_EQ(v, 0.0f);
-  for (float v : m.error) ASSERT_EQ(v, 0.0f);
+  const plm_bake_settings st = settings(1000);
+  plm_result* r = nullptr;
+  EXPECT_EQ(plm_bake(b.scene, &st, nullptr, nullptr, &r), PLM_ERROR_INVALID_SCENE);
+  EXPECT_EQ(r, nullptr);
+  EXPECT_NE(std::string(plm_last_error()).find("nothing lights the scene"), std::string::npos) << plm_last_error();
 }
 
 // ---- bad input through the C API -------------------------------------------
@@ -808,9 +806,9 @@ TEST_F(BadInput, NonFiniteLightOrWorldIsRejected) {
   const float uv[12] = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
   ASSERT_EQ(plm_scene_add_mesh(s, "ok", pos, 4, idx, 2, uv, nullptr, 2, 2, nullptr), PLM_OK);
   const plm_bake_settings st = settings(1000);
-  BakeResult r;
-  ASSERT_EQ(plm_bake(s, &st, nullptr, nullptr, &r.r), PLM_OK) << plm_last_error();
-  EXPECT_NE(r.warning("no lights"), "");
+  plm_result* r = nullptr;
+  EXPECT_EQ(plm_bake(s, &st, nullptr, nullptr, &r), PLM_ERROR_INVALID_SCENE);
+  EXPECT_NE(std::string(plm_last_error()).find("nothing lights the scene"), std::string::npos) << plm_last_error();
 }
 
 // Counts over the limits: photon_count above 2^40 (or 0), a lightmap side

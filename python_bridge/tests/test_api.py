@@ -203,15 +203,15 @@ def test_empty_scene_cannot_be_baked():
 
 
 def test_scene_without_any_light():
-    """No lights, emission or world: the engine bakes black lightmaps and says why in a warning."""
+    """No lights, emission or world: the engine refuses the bake and says why."""
     with photonlm.Scene() as scene:
         scene.add_material(albedo=0.5)
         pos, tri, uv = plane()
-        mesh = scene.add_mesh("dark", pos, tri, uv, resolution=4)
-        with scene.bake(photons=1000) as result:
-            assert any("no lights" in w.lower() for w in result.warnings), result.warnings
-            assert np.all(result.lightmap(mesh).rgb == 0)
-            assert result.stats["emitted_power"] == 0
+        scene.add_mesh("dark", pos, tri, uv, resolution=4)
+        with pytest.raises(photonlm.PhotonlmError) as e:
+            scene.bake(photons=1000)
+        assert e.value.status == "PLM_ERROR_INVALID_SCENE"
+        assert "nothing lights the scene" in e.value.message
 
 
 def test_result_arrays_and_coverage():

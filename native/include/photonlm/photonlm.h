@@ -104,6 +104,17 @@ PLM_API plm_status plm_scene_set_material_texture(plm_scene* scene, uint32_t mat
  * and the first non-finite value. */
 PLM_API plm_status plm_scene_set_mesh_texture_uv(plm_scene* scene, uint32_t mesh_id, const float* uv);
 
+/* Shading normals of a mesh (smooth shading, custom split normals):
+ * triangle_count * 3 * 3 floats, the normal of each corner in world space
+ * (any length; normalised by the engine). A corner given (0, 0, 0) shades
+ * with its triangle's geometric normal, as a flat-shaded face does. Texels
+ * are lit as Cycles bakes them: the cosine of each light's direction is taken
+ * with the interpolated normal, and light from below the triangle's own
+ * plane does not count. NULL (or normals that all equal the geometric ones)
+ * leaves the mesh flat. Errors name the mesh, triangle and corner of the
+ * first non-finite value. */
+PLM_API plm_status plm_scene_set_mesh_normals(plm_scene* scene, uint32_t mesh_id, const float* normals);
+
 /* A triangle mesh in world space.
  *   positions      vertex_count * 3 floats (x, y, z)
  *   indices        triangle_count * 3 vertex indices

@@ -174,6 +174,13 @@ plm_status plm_scene_set_mesh_texture_uv(plm_scene* scene, uint32_t mesh_id, con
   });
 }
 
+plm_status plm_scene_set_mesh_normals(plm_scene* scene, uint32_t mesh_id, const float* normals) {
+  return guarded("plm_scene_set_mesh_normals", [&] {
+    require(scene, "plm_scene_set_mesh_normals", "scene");
+    scene->scene.set_mesh_normals(mesh_id, normals);
+  });
+}
+
 plm_status plm_scene_add_mesh(plm_scene* scene, const char* name, const float* positions, uint32_t vertex_count,
                               const uint32_t* indices, uint32_t triangle_count, const float* lightmap_uv,
                               const uint32_t* material_ids, uint32_t lightmap_width, uint32_t lightmap_height,

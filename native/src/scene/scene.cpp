@@ -233,6 +233,34 @@ void Scene::set_mesh_texture_uv(uint32_t mesh, const float* uv) {
   m.texture_uv.swap(values);
 }
 
+void Scene::set_mesh_normals(uint32_t mesh, const float* normals) {
+  if (mesh >= meshes.size())
+    fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh normals: mesh ", mesh, " does not exist (the scene has ",
+         meshes.size(), " meshes)");
+  Mesh& m = meshes[mesh];
+  m.normals.clear();
+  if (!normals) return;
+  std::vector<Vec3> values(size_t(m.triangle_count()) * 3);
+  bool flat = true;
+  for (uint32_t t = 0; t < m.triangle_count(); ++t) {
+    const Vec3 p0 = m.vertex(t, 0), p1 = m.vertex(t, 1), p2 = m.vertex(t, 2);
+    const Vec3 g = degenerate_triangle(p0, p1, p2) ? Vec3{} : normalize(cross(p1 - p0, p2 - p0));
+    for (int c = 0; c < 3; ++c) {
+      const float* v = &normals[9 * size_t(t) + 3 * size_t(c)];
+      Vec3 n{v[0], v[1], v[2]};
+      if (!is_finite(n))
+        fail(PLM_ERROR_INVALID_ARGUMENT, "mesh '", m.name, "' (", mesh, "): triangle ", t, " corner ", c,
+             " has a non-finite normal (", n.x, ", ", n.y, ", ", n.z, ")");
+      const float len2 = dot(n, n);
+      // A zero normal (a flat-shaded face, a degenerate one) shades with the geometric one.
+      n = len2 > 1e-20f ? n * (1.0f / std::sqrt(len2)) : g;
+      flat = flat && (dot(g, g) == 0.0f || dot(n - g, n - g) < 1e-12f);
+      values[3 * size_t(t) + size_t(c)] = n;
+    }
+  }
+  if (!flat) m.normals.swap(values);
+}
+
 void Scene::set_mesh_ol_group(uint32_t mesh, uint32_t group) {
   if (mesh >= meshes.size())
     fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh OL group: mesh ", mesh, " does not exist (the scene has ",

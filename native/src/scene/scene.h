@@ -3,6 +3,7 @@
 // only sees legal data; degenerate triangles are kept and counted.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -42,6 +43,10 @@ struct Mesh {
   std::vector<float> uv;          // 6 per triangle, empty when no lightmap
   std::vector<uint32_t> material_ids;  // 1 per triangle
   std::vector<float> texture_uv;       // 6 per triangle, empty when none (textures use their mean)
+  // Shading normals (smooth shading, custom split normals): one unit normal
+  // per triangle corner, empty where every corner has its triangle's
+  // geometric normal (a flat mesh pays nothing).
+  std::vector<Vec3> normals;
   uint32_t lightmap_width = 0, lightmap_height = 0;
   int32_t csg_carrier = -1;  // the CSG solid this mesh tessellates (not traced), -1 for none
   int32_t ol_group = -1;  // orientation-lightmap group, -1 for none (a mesh has a lightmap or a group, not both)
@@ -52,6 +57,16 @@ struct Mesh {
   uint32_t triangle_count() const { return static_cast<uint32_t>(indices.size() / 3); }
   bool has_lightmap() const { return lightmap_width > 0; }
   Vec3 vertex(uint32_t tri, int corner) const { return positions[indices[3 * tri + corner]]; }
+  bool smooth() const { return !normals.empty(); }
+  // The shading normal at barycentrics (b1, b2) of corners 1 and 2 (Embree's
+  // u, v): the corners' normals interpolated and normalised, or `geometric`
+  // where they cancel out.
+  Vec3 shading_normal(uint32_t tri, float b1, float b2, Vec3 geometric) const {
+    const Vec3* c = &normals[3 * size_t(tri)];
+    const Vec3 n = c[0] * (1.0f - b1 - b2) + c[1] * b1 + c[2] * b2;
+    const float len2 = dot(n, n);
+    return len2 > 1e-12f ? n * (1.0f / std::sqrt(len2)) : geometric;
+  }
 };
 
 struct Light {
@@ -93,6 +108,8 @@ struct Scene {
   // slot: plm_texture_slot; path NULL or "" removes. Throws for a bad index or an unreadable file.
   void set_material_texture(uint32_t material, int slot, const char* path, uint32_t flags);
   void set_mesh_texture_uv(uint32_t mesh, const float* uv);
+  // 9 floats per triangle (x, y, z of each corner's normal); NULL removes them.
+  void set_mesh_normals(uint32_t mesh, const float* normals);
   bool has_textures() const {
     for (const Material& m : materials)
       if (!m.albedo_texture.empty() || !m.emission_texture.empty()) return true;

@@ -35,6 +35,17 @@ bool uv_barycentric(const Mesh& mesh, uint32_t t, double x, double y, double& b1
   return true;
 }
 
+// The shading normal at point p of triangle tri of a smooth mesh, from p's
+// barycentric coordinates.
+Vec3 shading_normal_at(const Mesh& mesh, uint32_t tri, Vec3 p, Vec3 geometric) {
+  const Vec3 p0 = mesh.vertex(tri, 0), e1 = mesh.vertex(tri, 1) - p0, e2 = mesh.vertex(tri, 2) - p0, d = p - p0;
+  const float d11 = dot(e1, e1), d12 = dot(e1, e2), d22 = dot(e2, e2), d1 = dot(d, e1), d2 = dot(d, e2);
+  const float det = d11 * d22 - d12 * d12;
+  if (!(det > 0.0f)) return geometric;
+  const float b1 = (d22 * d1 - d12 * d2) / det, b2 = (d11 * d2 - d12 * d1) / det;
+  return mesh.shading_normal(tri, std::clamp(b1, 0.0f, 1.0f), std::clamp(b2, 0.0f, 1.0f), geometric);
+}
+
 // A light's unoccluded irradiance at p, 0 where the guess is not a finite
 // non-negative number.
 float irradiance_guess(const Emitter& e, Vec3 p, Vec3 n) {
@@ -333,6 +344,8 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   const float origin_x = tw.origin_x, origin_y = tw.origin_y, side = tw.side;
   const uint32_t pick_key = rng.next_u32();
   const uint32_t sobol_key = rng.next_u32();
+  const Mesh* smooth = !csg && views_[mesh_id].mesh->smooth() ? views_[mesh_id].mesh : nullptr;
+  const uint8_t* contact = csg ? nullptr : views_[mesh_id].contact;
   const SobolGroup light_dims(sobol_key, 0), mis_dims(sobol_key, 1), piece_dims(sobol_key, 2), surface_dims(sobol_key, 3);
   void* tex_thread = has_textured_emitters_ ? textures_->thread_info() : nullptr;  // once per texel
   uint32_t previous = ~0u;  // the last accepted stratum, and its value
@@ -378,11 +391,11 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   // numbers in the same order as sample by sample.
   constexpr uint32_t kChunk = 8;
   struct Pending {
-    Vec3 origin, normal, e;
+    Vec3 origin, normal, shading, e;  // normal: geometric; shading: the interpolated one (smooth meshes)
     float v[2];
     size_t k;
     uint32_t tri;
-    bool inside;
+    bool inside, contact;
   };
   Pending chunk[kChunk];
   RayPacket packet;
@@ -399,7 +412,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
     for (uint32_t c = 0; c < chunk_size; ++c) {
       const uint32_t j = j0 + c;
       Pending& ps = chunk[c];
-      ps.inside = false;
+      ps.inside = ps.contact = false;
       ps.e = {0, 0, 0};
       float x = origin_x + (float(j % m) + rng.next_float()) * side;
       float y = origin_y + (float(j / m) + rng.next_float()) * side;
@@ -441,11 +454,22 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       } else if (!texel_point(tw, mesh_id, texel, x, y, w, p, normal, tri)) {
         continue;  // outside the islands
       }
+      ps.inside = true;
+      ps.normal = normal;
+      ps.shading = smooth ? shading_normal_at(*smooth, tri, p, normal) : normal;
+      ps.tri = tri;
+      ps.k = 0;
+      // A point pressed against another surface gets no light (in_contact).
+      if (contact && contact[tri] && in_contact(rtc_, views_, p, normal, mesh_id, tri, offset_scale_)) {
+        ps.contact = true;
+        continue;
+      }
+      const Vec3 shading = ps.shading;
       size_t k = 0;
       if (local_choice_) {
         if (!chosen_here) {
-          if (select) select_candidates(p, normal, chosen, scratch);
-          local = local_shares(p, normal, candidates, candidate_count, share);
+          if (select) select_candidates(p, shading, chosen, scratch);
+          local = local_shares(p, shading, candidates, candidate_count, share);
           chosen_here = true;
         }
         // One interval of u_pick per light (the choice's stratification then
@@ -472,21 +496,20 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       } else if (!all_lights_) {
         k = table_.choose(u_pick);
       }
-      ps.inside = true;
       ps.k = k;
-      ps.normal = normal;
-      ps.tri = tri;
       ps.origin = offset_origin(p, normal, offset_scale_);
       for (size_t kk = all_lights_ ? 0 : k, end = all_lights_ ? emitters_.size() : k + 1; kk < end; ++kk) {
         const Emitter& em = emitters_[kk];
-        DirectSample ds = sample_direct(em, p, normal, u);
+        DirectSample ds = sample_direct(em, p, shading, u);
+        // Light from below the triangle's own plane does not count (Cycles' reflection test on Ng).
+        if (smooth && !(dot(normal, ds.dir) > 0.0f)) continue;
         if (em.textured && ds.geometry > 0.0f)  // the texture at the sampled point (0: skip the shadow ray)
           ds.irradiance = textures_->emission(*views_[em.mesh].mesh, em.material, em.triangle, ds.bu, ds.bv, tex_thread) *
                           ds.geometry;
         if (!(ds.irradiance.x > 0.0f || ds.irradiance.y > 0.0f || ds.irradiance.z > 0.0f)) continue;  // no fmaxf calls
         float weight = 1.0f;
         if (em.kind == EmitterKind::Triangle) {  // balance heuristic against cosine sampling
-          const float cos_l = std::fabs(dot(em.normal, ds.dir)), cos_s = dot(normal, ds.dir);
+          const float cos_l = std::fabs(dot(em.normal, ds.dir)), cos_s = dot(shading, ds.dir);
           weight = 1.0f / (1.0f + cos_weight_ratio(cos_s, cos_l * em.area, probability(kk), ds.distance));
         }
         lane_value[packet.size] = ds.irradiance * (weight / (kPi * probability(kk)));
@@ -503,19 +526,19 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       Pending& ps = chunk[c];
       if (!ps.inside) continue;
       const size_t k = ps.k;
-      const Vec3 normal = ps.normal;
       Vec3& e = ps.e;
-      if (has_triangle_emitters_) {
+      if (has_triangle_emitters_ && !ps.contact) {
         const Vec3 local = cosine_hemisphere(ps.v[0], ps.v[1]);
         Vec3 t, b;
-        make_frame(normal, t, b);
-        const Vec3 dir = t * local.x + b * local.y + normal * local.z;
+        make_frame(ps.shading, t, b);
+        const Vec3 dir = t * local.x + b * local.y + ps.shading * local.z;
         tc.skip_prim = ps.tri;
         RTCRayHit rh;
         rh.ray = make_ray(ps.origin, dir, std::numeric_limits<float>::infinity());
         rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-        rtcIntersect1(rtc_, &tc.context, &rh);
+        if (smooth && !(dot(ps.normal, dir) > 0.0f)) rh.ray.tfar = -1.0f;  // below the triangle's plane: no light
+        else rtcIntersect1(rtc_, &tc.context, &rh);
         if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
           const bool mesh_hit = rh.hit.geomID < triangle_emitter_.size();  // not a CSG solid
           const int32_t hit_emitter =
@@ -591,11 +614,17 @@ void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   uint32_t previous = ~0u, back = 0, rays = 0;
   double error_sum = 0.0, inverse_distance = 0.0;
   double previous_value = 0.0;
+  const Mesh* smooth = views_[mesh_id].mesh->smooth() ? views_[mesh_id].mesh : nullptr;
+  const uint8_t* contact = views_[mesh_id].contact;
   // Rays go in packets of eight points; then each is looked up in turn.
+  // Points pressed against another surface (in_contact) and, on smooth
+  // meshes, directions below the triangle's plane are known zeros: their
+  // lanes are marked with a negative tfar and not traced.
   RayPacket packet;
   uint32_t lane_sample[RayPacket::kLanes];
   Vec3 lane_dir[RayPacket::kLanes];
   for (uint32_t j0 = 0; j0 < n; j0 += RayPacket::kLanes) {
+    uint32_t zero_lanes = 0, contact_lanes = 0;  // bit l: lane l is a known zero; ... a point in contact
     for (uint32_t j = j0; j < std::min(n, j0 + RayPacket::kLanes); ++j) {
       const float x = tw.origin_x + (float(j % m) + rng.next_float()) * tw.side;
       const float y = tw.origin_y + (float(j / m) + rng.next_float()) * tw.side;
@@ -605,21 +634,28 @@ void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       dir_dims.point(j, 2, v);
       if (tw.sparse) piece_dims.point(j, 3, w);
       if (!texel_point(tw, mesh_id, texel, x, y, w, p, normal, tri)) continue;
+      const Vec3 shading = smooth ? shading_normal_at(*smooth, tri, p, normal) : normal;
       const Vec3 local = cosine_hemisphere(v[0], v[1]);
       Vec3 t, b;
-      make_frame(normal, t, b);
+      make_frame(shading, t, b);
       lane_sample[packet.size] = j;
-      lane_dir[packet.size] = t * local.x + b * local.y + normal * local.z;
+      lane_dir[packet.size] = t * local.x + b * local.y + shading * local.z;
+      if (contact && contact[tri] && in_contact(rtc_, views_, p, normal, mesh_id, tri, offset_scale_))
+        contact_lanes |= 1u << packet.size;
+      if (smooth && !(dot(normal, lane_dir[packet.size]) > 0.0f)) zero_lanes |= 1u << packet.size;
       packet.add(offset_origin(p, normal, offset_scale_), lane_dir[packet.size], std::numeric_limits<float>::infinity(),
                  mesh_id, tri);
     }
     const unsigned lanes = packet.size;
-    if (lanes > 0) packet.intersect(rtc_);
+    zero_lanes |= contact_lanes;
+    if (lanes > 0) packet.intersect(rtc_, zero_lanes);
     const RTCHit8& hit = packet.rh.hit;
     for (unsigned l = 0; l < lanes; ++l) {
       const uint32_t j = lane_sample[l], geom = hit.geomID[l], prim = hit.primID[l];
       Vec3 e{0, 0, 0};
-      if (geom != RTC_INVALID_GEOMETRY_ID) {
+      if (contact_lanes & (1u << l)) {
+        ++info.dark;
+      } else if (geom != RTC_INVALID_GEOMETRY_ID) {
         inverse_distance += 1.0 / std::max(double(packet.rh.ray.tfar[l]), 1e-30);
         // The texel the ray lands in, as the photon pass records a hit.
         bool known = false;

@@ -1,5 +1,7 @@
 #include "transport/tracing.h"
 
+#include <tbb/parallel_for.h>
+
 namespace plm {
 namespace {
 
@@ -32,7 +34,144 @@ void skip_lane_triangles(const RTCFilterFunctionNArguments* args) {
   }
 }
 
+// The contact ray of in_contact: it skips its own triangle, and a surface
+// whose back faces the ray counts only from back_t_min on.
+struct ContactContext {
+  RTCIntersectContext context;  // first member: Embree hands back this pointer
+  unsigned skip_geom, skip_prim;
+  const std::vector<MeshView>* views;
+  Vec3 dir;
+  float back_t_min;
+};
+
+void contact_filter(const RTCFilterFunctionNArguments* args) {
+  const auto* cc = reinterpret_cast<const ContactContext*>(args->context);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] == 0) continue;
+    const unsigned geom = RTCHitN_geomID(args->hit, args->N, i), prim = RTCHitN_primID(args->hit, args->N, i);
+    if (geom == cc->skip_geom && prim == cc->skip_prim) {
+      args->valid[i] = 0;
+      continue;
+    }
+    const Vec3 ng = geom < cc->views->size() ? (*cc->views)[geom].normals[prim]
+                                             : Vec3{RTCHitN_Ng_x(args->hit, args->N, i), RTCHitN_Ng_y(args->hit, args->N, i),
+                                                    RTCHitN_Ng_z(args->hit, args->N, i)};
+    if (dot(ng, cc->dir) >= 0.0f && RTCRayN_tfar(args->ray, args->N, i) < cc->back_t_min) args->valid[i] = 0;
+  }
+}
+
+// Whether 2D triangles a and b (x, y pairs) overlap by more than tol along
+// every separating axis (their edges' normals): touching edges do not count.
+bool triangles_overlap(const float a[6], const float b[6], float tol) {
+  for (int k = 0; k < 6; ++k) {
+    const float* t = k < 3 ? a : b;
+    const int e = k % 3, f = (e + 1) % 3;
+    float ax = t[2 * f + 1] - t[2 * e + 1], ay = t[2 * e] - t[2 * f];
+    const float len = std::sqrt(ax * ax + ay * ay);
+    if (!(len > 0.0f)) continue;
+    ax /= len, ay /= len;
+    float lo_a = INFINITY, hi_a = -INFINITY, lo_b = INFINITY, hi_b = -INFINITY;
+    for (int c = 0; c < 3; ++c) {
+      const float pa = a[2 * c] * ax + a[2 * c + 1] * ay, pb = b[2 * c] * ax + b[2 * c + 1] * ay;
+      lo_a = std::min(lo_a, pa), hi_a = std::max(hi_a, pa), lo_b = std::min(lo_b, pb), hi_b = std::max(hi_b, pb);
+    }
+    if (std::min(hi_a, hi_b) - std::max(lo_a, lo_b) <= tol) return false;
+  }
+  return true;
+}
+
+// One triangle's search for a contact partner (contact_candidates).
+struct ContactQuery {
+  const Scene* scene;
+  const std::vector<MeshView>* views;
+  unsigned geom, prim;
+  Vec3 origin, n, t, b;  // the triangle's vertex 0 and frame
+  float tri2d[6];        // its corners in the frame
+  float slab;            // how far from its plane a partner may lie
+  float tol;             // overlap below this is touching
+  bool found = false;
+};
+
+bool contact_query(RTCPointQueryFunctionArguments* args) {
+  auto* q = static_cast<ContactQuery*>(args->userPtr);
+  const unsigned geom = args->geomID, prim = args->primID;
+  if (q->found || (geom == q->geom && prim == q->prim)) return false;
+  if (geom >= q->views->size()) {  // a CSG solid or an L-system object: its surface may lie anywhere in its box
+    q->found = true;
+    return false;
+  }
+  const Vec3 n2 = (*q->views)[geom].normals[prim];
+  if (std::fabs(dot(n2, q->n)) < 0.99f) return false;  // not lying flat against it
+  const Mesh& m = *(*q->views)[geom].mesh;
+  float other[6], lo = INFINITY, hi = -INFINITY;
+  for (int c = 0; c < 3; ++c) {
+    const Vec3 d = m.vertex(prim, c) - q->origin;
+    const float h = dot(d, q->n);
+    lo = std::min(lo, h), hi = std::max(hi, h);
+    other[2 * c] = dot(d, q->t), other[2 * c + 1] = dot(d, q->b);
+  }
+  if (lo > q->slab || hi < -q->slab) return false;
+  q->found = triangles_overlap(q->tri2d, other, q->tol);
+  return false;
+}
+
 }  // namespace
+
+bool in_contact(RTCScene scene, const std::vector<MeshView>& views, Vec3 p, Vec3 n, unsigned geom, unsigned prim,
+                float offset_scale) {
+  const float d = offset_distance(p, offset_scale);
+  ContactContext cc;
+  rtcInitIntersectContext(&cc.context);
+  cc.context.filter = contact_filter;
+  cc.skip_geom = geom, cc.skip_prim = prim, cc.views = &views, cc.dir = n;
+  cc.back_t_min = 1.5f * d;  // half an offset in front of p
+  RTCRay ray = make_ray(p - n * (2.0f * d), n, 4.0f * d);
+  rtcOccluded1(scene, &cc.context, &ray);
+  return ray.tfar < 0.0f;
+}
+
+std::vector<std::vector<uint8_t>> contact_candidates(RTCScene scene, const Scene& s, const std::vector<MeshView>& views,
+                                                     float offset_scale) {
+  std::vector<std::vector<uint8_t>> flags(views.size());
+  for (size_t i = 0; i < views.size(); ++i) {
+    const Mesh& mesh = *views[i].mesh;
+    if (!s.own_texels(mesh)) continue;
+    std::vector<uint8_t> f(mesh.triangle_count(), 0);
+    tbb::parallel_for(tbb::blocked_range<uint32_t>(0, mesh.triangle_count(), 256), [&](const auto& r) {
+      for (uint32_t tri = r.begin(); tri < r.end(); ++tri) {
+        const Vec3 n = views[i].normals[tri];
+        if (dot(n, n) == 0.0f) continue;
+        ContactQuery q;
+        q.scene = &s, q.views = &views, q.geom = unsigned(i), q.prim = tri, q.n = n;
+        make_frame(n, q.t, q.b);
+        const Vec3 v[3] = {mesh.vertex(tri, 0), mesh.vertex(tri, 1), mesh.vertex(tri, 2)};
+        q.origin = v[0];
+        const Vec3 c = (v[0] + v[1] + v[2]) * (1.0f / 3.0f);
+        float radius = 0.0f, d = 0.0f;
+        for (int k = 0; k < 3; ++k) {
+          const Vec3 e = v[k] - v[0];
+          q.tri2d[2 * k] = dot(e, q.t), q.tri2d[2 * k + 1] = dot(e, q.b);
+          radius = std::max(radius, length(v[k] - c));
+          d = std::max(d, offset_distance(v[k], offset_scale));
+        }
+        q.slab = 4.0f * d;
+        q.tol = 1e-5f * radius;
+        RTCPointQuery pq;
+        pq.x = c.x, pq.y = c.y, pq.z = c.z, pq.time = 0.0f, pq.radius = radius + q.slab;
+        RTCPointQueryContext pc;
+        rtcInitPointQueryContext(&pc);
+        rtcPointQuery(scene, &pq, &pc, contact_query, &q);
+        f[tri] = q.found ? 1 : 0;
+      }
+    });
+    for (uint8_t v : f)
+      if (v) {
+        flags[i].swap(f);
+        break;
+      }
+  }
+  return flags;
+}
 
 std::vector<Vec3> triangle_normals(const Mesh& mesh) {
   std::vector<Vec3> normals(mesh.triangle_count());
@@ -60,9 +199,9 @@ void RayPacket::occluded(RTCScene scene) {
   size = 0;
 }
 
-void RayPacket::intersect(RTCScene scene) {
+void RayPacket::intersect(RTCScene scene, uint32_t skip_lanes) {
   alignas(32) int valid[kLanes];
-  for (unsigned i = 0; i < kLanes; ++i) valid[i] = i < size ? -1 : 0;
+  for (unsigned i = 0; i < kLanes; ++i) valid[i] = i < size && !(skip_lanes >> i & 1u) ? -1 : 0;
   rtcIntersect8(valid, scene, &context, &rh);
   size = 0;
 }

@@ -23,6 +23,9 @@ struct MeshView {
   uint64_t texel_offset;     // into the global texel arrays
   const double* texel_area;  // world area per texel, null without lightmap
   const Vec3* normals;       // unit geometric normal per triangle; (0, 0, 0) if degenerate
+  // Per triangle: 1 where another surface may lie pressed against its front
+  // (contact_candidates); null where none does.
+  const uint8_t* contact = nullptr;
 };
 
 // A CSG solid as the passes see it (Embree geometry id = mesh count + index).
@@ -59,12 +62,36 @@ struct TraceContext {
   TraceContext();
 };
 
-// Ray origin just off the surface at p on the side of unit normal n.
-// (std::max, not max_abs_component's fmaxf call: p is finite, and a NaN gives NaN either way.)
-inline Vec3 offset_origin(Vec3 p, Vec3 n, float offset_scale) {
+// How far a ray origin leaves the surface at p: beyond the rounding of p's
+// coordinates. (std::max, not max_abs_component's fmaxf call: p is finite,
+// and a NaN gives NaN either way.)
+inline float offset_distance(Vec3 p, float offset_scale) {
   const float m = std::max(std::fabs(p.x), std::max(std::fabs(p.y), std::fabs(p.z)));
-  return p + n * (offset_scale + 2.5e-7f * m);
+  return offset_scale + 2.5e-7f * m;
 }
+
+// Ray origin just off the surface at p on the side of unit normal n.
+inline Vec3 offset_origin(Vec3 p, Vec3 n, float offset_scale) { return p + n * offset_distance(p, offset_scale); }
+
+// Whether point p of triangle (geom, prim), unit geometric normal n, lies
+// pressed against another surface, which its rays' origin offset would jump
+// over: a surface facing p within twice the offset distance on either side of
+// p, or one facing away from p (its back towards p) in front of p beyond the
+// rounding of p's coordinates. Such a point gets no light, as in Cycles,
+// whose rays leave the surface itself and meet the other surface at once: the
+// bottom of a box standing on the floor, the floor under it, the top of a
+// column touching the ceiling. A box standing a little above the floor is not
+// in contact.
+bool in_contact(RTCScene scene, const std::vector<MeshView>& views, Vec3 p, Vec3 n, unsigned geom, unsigned prim,
+                float offset_scale);
+
+// Per mesh, per triangle: 1 where in_contact can be true somewhere on the
+// triangle (another triangle nearly opposite its normal reaches within a few
+// offset distances of its plane, near it), so that only those pay for the
+// contact ray. Empty vectors for meshes without own texels (own_texels) or
+// without such triangles.
+std::vector<std::vector<uint8_t>> contact_candidates(RTCScene scene, const Scene& s, const std::vector<MeshView>& views,
+                                                     float offset_scale);
 
 inline RTCRay make_ray(Vec3 org, Vec3 dir, float tfar) {
   RTCRay r;
@@ -112,7 +139,8 @@ struct RayPacket {
   // Trace the lanes added, then empty the packet (their results stay until
   // the next add): lane i is occluded if blocked(i); hits are in rh.hit.
   void occluded(RTCScene scene);
-  void intersect(RTCScene scene);
+  // skip_lanes: bit i set leaves lane i untraced (its hit stays none).
+  void intersect(RTCScene scene, uint32_t skip_lanes = 0);
   bool blocked(unsigned i) const { return rh.ray.tfar[i] < 0.0f; }
 };
 
