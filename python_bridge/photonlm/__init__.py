@@ -368,10 +368,8 @@ class Scene(_Handle):
     def set_mesh_texture_uv(self, mesh, uv):
         """Set a mesh's texture UVs: (T, 3, 2) or (3T, 2) float32, one (u, v) per triangle corner
         ((0, 0) = the image's bottom-left corner, as in Blender); None removes them."""
-        mesh = _uint(mesh, "mesh")
-        t = self.__dict__.get("_mesh_triangles", {}).get(mesh)
-        if t is None:
-            raise ValueError("mesh %d does not exist" % mesh)
+        mesh = self._mesh(mesh)
+        t = self._mesh_triangles[mesh]
         if uv is None:
             _check(_C.plm_scene_set_mesh_texture_uv(self._h, mesh, None))
             return
@@ -380,6 +378,32 @@ class Scene(_Handle):
             raise ValueError("texture uv of mesh %d must have shape (T, 3, 2) or (3T, 2) with T = %d triangles, "
                              "got %s" % (mesh, t, arr.shape))
         _check(_C.plm_scene_set_mesh_texture_uv(self._h, mesh, _ptr(arr, ctypes.c_float)))
+
+    def set_mesh_normals(self, mesh, normals):
+        """Set a mesh's shading normals (smooth shading, custom split normals): (T, 3, 3) or (3T, 3)
+        float32, one normal per triangle corner (any length); a (0, 0, 0) corner shades with its
+        triangle's geometric normal (a flat face). None removes them."""
+        mesh = self._mesh(mesh)
+        if normals is None:
+            _check(_C.plm_scene_set_mesh_normals(self._h, mesh, None))
+            return
+        t = self._mesh_triangles[mesh]
+        arr = np.ascontiguousarray(normals, dtype=np.float32)
+        if arr.shape not in ((t, 3, 3), (3 * t, 3)):
+            raise ValueError("normals of mesh %d must have shape (T, 3, 3) or (3T, 3) with T = %d triangles, "
+                             "got %s" % (mesh, t, arr.shape))
+        _check(_C.plm_scene_set_mesh_normals(self._h, mesh, _ptr(arr, ctypes.c_float)))
+
+    def set_mesh_smooth(self, mesh, smooth=True):
+        """Shade a mesh smooth with normals the engine computes (angle-weighted vertex normals, as
+        Blender's; for a subdivision mesh those of the refined mesh), or flat (smooth=False)."""
+        _check(_C.plm_scene_set_mesh_smooth(self._h, self._mesh(mesh), 1 if smooth else 0))
+
+    def _mesh(self, mesh):
+        mesh = _uint(mesh, "mesh")
+        if mesh not in self.__dict__.get("_mesh_triangles", {}):
+            raise ValueError("mesh %d does not exist" % mesh)
+        return mesh
 
     def add_light(self, type, *, name=None, color=None, power=None, matrix=None, radius=None,
                   angle=None, size=None, size_y=None, spot_size=None, spot_blend=None):

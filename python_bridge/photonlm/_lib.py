@@ -201,6 +201,8 @@ _SIGNATURES = {
     "plm_scene_set_mesh_ol_group": (status_t, [ScenePtr, c_uint32, c_uint32]),
     "plm_scene_set_material_texture": (status_t, [ScenePtr, c_uint32, c_int, c_char_p, c_uint32]),
     "plm_scene_set_mesh_texture_uv": (status_t, [ScenePtr, c_uint32, FloatPtr]),
+    "plm_scene_set_mesh_normals": (status_t, [ScenePtr, c_uint32, FloatPtr]),
+    "plm_scene_set_mesh_smooth": (status_t, [ScenePtr, c_uint32, c_int]),
     "plm_scene_set_ol_group_backup": (status_t, [ScenePtr, c_uint32, c_int]),
     "plm_scene_set_ol_group_limit_area": (status_t, [ScenePtr, c_uint32, c_int]),
     "plm_scene_add_csg": (status_t, [ScenePtr, c_char_p, POINTER(plm_csg_primitive), c_uint32,

@@ -2,7 +2,8 @@
 
 SceneFileWriter has the scene-building methods of photonlm.Scene (add_material, add_mesh,
 add_subdiv_mesh, add_light, set_world, add_csg, set_csg_carrier, add_ol_group, set_ol_group_backup,
-set_mesh_ol_group, set_material_texture, set_mesh_texture_uv) with the same arguments and the
+set_mesh_ol_group, set_material_texture, set_mesh_texture_uv, set_mesh_normals, set_mesh_smooth) with the
+same arguments and the
 same returned ids, so code that builds a
 photonlm.Scene can build a file instead:
 
@@ -18,7 +19,8 @@ Numbers are written so that the reader gets back the same float32 values the bri
 pass to the engine: a file bake with the same settings and seed gives the same lightmaps.
 Meshes are inline unless they have more than `obj_threshold` triangles; those go to OBJ files
 beside the scene file (exact floats, one `vt` per triangle corner, `usemtl` per material run).
-Meshes with texture UVs stay inline (the reader takes texture_uv for inline meshes only).
+Meshes with texture UVs or normals stay inline (the reader takes texture_uv and normals for inline
+meshes only).
 Subdivision cages (add_subdiv_mesh) are always inline, as the cage with a "subdivision" object
 (level, face sizes, creases): `photonlm bake` refines them as the bridge does; they take no
 texture UVs (the reader refuses texture_uv on a cage).
@@ -155,7 +157,8 @@ class SceneFileWriter:
                 raise ValueError("mesh %r: material id %d is out of range (%d materials)"
                                  % (name, int(mats.max()), len(self.materials)))
         self.meshes.append({"name": str(name), "positions": pos, "triangles": tri, "uv": uv, "materials": mats,
-                            "resolution": (width, height), "ol_group": None, "texture_uv": None})
+                            "resolution": (width, height), "ol_group": None, "texture_uv": None,
+                            "normals": None, "smooth": False})
         return len(self.meshes) - 1
 
     def add_subdiv_mesh(self, name, positions, face_sizes, face_indices, level, lightmap_uv=None,
@@ -227,6 +230,7 @@ class SceneFileWriter:
                                  % (name, f, int(mats[f]), len(self.materials)))
         self.meshes.append({"name": str(name), "positions": pos, "triangles": None, "uv": uv, "materials": mats,
                             "resolution": (width, height), "ol_group": None, "texture_uv": None,
+                            "normals": None, "smooth": False,
                             "subdivision": {"level": level, "face_sizes": sizes, "face_indices": fidx,
                                             "crease_edges": edges, "crease_weights": weights}})
         return len(self.meshes) - 1
@@ -357,6 +361,27 @@ class SceneFileWriter:
         _floats(arr, "mesh %r texture uv" % m["name"])
         m["texture_uv"] = arr.reshape(3 * t, 2)
 
+    def set_mesh_normals(self, mesh, normals):
+        mesh = self._index(mesh, self.meshes, "mesh")
+        m = self.meshes[mesh]
+        if normals is None:
+            m["normals"] = None
+            return
+        if "subdivision" in m:
+            raise SceneFileUnsupported("mesh %r is a subdivision cage: the scene file format takes no normals for "
+                                       "subdivision meshes (set_mesh_smooth, or export the refined mesh)" % m["name"])
+        t = len(m["triangles"])
+        arr = np.ascontiguousarray(normals, dtype=np.float32)
+        if arr.shape not in ((t, 3, 3), (3 * t, 3)):
+            raise ValueError("normals of mesh %r must have shape (T, 3, 3) or (3T, 3) with T = %d, got %s"
+                             % (m["name"], t, arr.shape))
+        _floats(arr, "mesh %r normals" % m["name"])
+        m["normals"], m["smooth"] = arr.reshape(3 * t, 3), False
+
+    def set_mesh_smooth(self, mesh, smooth=True):
+        m = self.meshes[self._index(mesh, self.meshes, "mesh")]
+        m["smooth"], m["normals"] = bool(smooth), None
+
     def set_world(self, radiance):
         self.world = {"radiance": _floats(_rgb(radiance, "radiance"), "world radiance")}
 
@@ -434,7 +459,7 @@ class SceneFileWriter:
                         copied[src] = (texture_dir_rel + "/" if texture_dir_rel else "") + fname
                 m[key] = {"path": copied[src], "colorspace": m[key]["colorspace"]}
         big = [i for i, m in enumerate(self.meshes) if mesh_dir is not None and "subdivision" not in m
-               and m["texture_uv"] is None and len(m["triangles"]) > self.obj_threshold]
+               and m["texture_uv"] is None and m["normals"] is None and len(m["triangles"]) > self.obj_threshold]
         if big:  # usemtl takes one whitespace-free token: give every material a unique one
             used = set()
             for i, m in enumerate(materials):
@@ -482,6 +507,10 @@ class SceneFileWriter:
                 e["lightmap_resolution"] = [w, h] if w != h else w
             if m["texture_uv"] is not None:
                 e["texture_uv"] = _floats(m["texture_uv"], "texture_uv")
+            if m["normals"] is not None:
+                e["normals"] = _floats(m["normals"], "normals")
+            if m["smooth"]:
+                e["smooth"] = True
             if m["ol_group"] is not None:
                 e["ol_group"] = m["ol_group"]
             meshes.append(e)

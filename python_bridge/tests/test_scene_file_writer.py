@@ -1,7 +1,8 @@
 """photonlm.scene_file.SceneFileWriter: the same calls as photonlm.Scene, written to a scene file
 and baked by `photonlm bake`, give the lightmaps the bridge bakes in memory, bit for bit (the
 file holds the bridge's float32 values exactly; results depend on the seed only). Inline and OBJ
-sidecar meshes alike, and subdivision cages (written as cages, refined by the CLI). Unsupported
+sidecar meshes alike, shading normals and smooth meshes, and subdivision cages (written as cages,
+refined by the CLI). Unsupported
 calls and bad input fail with a message naming the call or the mesh."""
 import json
 import os
@@ -49,6 +50,7 @@ def build(s, texture):
     tilt = (pos * np.float32(0.3) + np.float32([0.1, 0.2, 0.7])).astype(np.float32)
     tilt[:, 2] += rng.random(4, dtype=np.float32) * np.float32(0.1)
     quad = s.add_mesh("tilted/quad", tilt, tri, lightmap_uv=uv, material_ids=[grey, red], resolution=(8, 4))
+    s.set_mesh_normals(quad, (rng.random((2, 3, 3)) - np.float32(0.5)) * np.float32(0.4) + np.float32([0, 0, 1]))
     g = s.add_ol_group("props", 8)
     s.set_ol_group_backup(g, True)
     s.set_mesh_ol_group(quad, g)
@@ -83,8 +85,9 @@ def test_file_bake_equals_bridge_bake(tmp_path, threshold):
     w.set_settings(**SETTINGS)
     path = w.write(str(tmp_path / "scene.json"))
     doc = json.loads(open(path).read())
-    # Meshes with texture UVs stay inline (the reader takes texture_uv for inline meshes only).
-    assert [("obj" in m) for m in doc["meshes"]] == [False] + [threshold == 0] * 2
+    # Meshes with texture UVs or normals stay inline (the reader takes them for inline meshes only).
+    assert [("obj" in m) for m in doc["meshes"]] == [False, False, threshold == 0]
+    assert len(doc["meshes"][1]["normals"]) == 18
     assert doc["materials"][0]["albedo_texture"] == {"path": "scene_textures/checker.ppm", "colorspace": "srgb"}
     assert (tmp_path / "scene_textures" / "checker.ppm").read_bytes() == open(tex, "rb").read()
     assert doc["ol_groups"][0]["backup"] is True and doc["csg"][0]["carrier"] == 2
@@ -126,6 +129,7 @@ def build_cages(s):
     blob = s.add_subdiv_mesh("blob", cage, np.full(6, 4), FACES.ravel(), 3, lightmap_uv=cube_uv(),
                              material_ids=[grey, red, grey, red, grey, grey], crease_edges=[[0, 4], [4, 6]],
                              crease_weights=[1.0, 0.5], resolution=(24, 16))
+    s.set_mesh_smooth(blob)
     g = s.add_ol_group("pebbles", 8)
     pebble = s.add_subdiv_mesh("pebble", CUBE * np.float32(0.2) + np.float32([-0.9, 0.7, 0.25]), np.full(6, 4),
                                FACES.ravel(), 2, material_ids=np.full(6, red))
@@ -149,7 +153,7 @@ def test_file_bake_of_subdivision_cages_equals_bridge_bake(tmp_path):
     assert "obj" in floor and "obj" not in blob and "obj" not in pebble
     assert blob["subdivision"] == {"level": 3, "face_sizes": [4] * 6, "creases": [[0, 4, 1.0], [4, 6, 0.5]]}
     assert blob["indices"] == FACES.ravel().tolist() and blob["materials"] == [0, 1, 0, 1, 0, 0]
-    assert len(blob["lightmap_uv"]) == 48 and blob["lightmap_resolution"] == [24, 16]
+    assert len(blob["lightmap_uv"]) == 48 and blob["lightmap_resolution"] == [24, 16] and blob["smooth"] is True
     assert pebble["subdivision"] == {"level": 2, "face_sizes": [4] * 6} and pebble["material"] == 1
     assert "lightmap_uv" not in pebble and "lightmap_resolution" not in pebble and pebble["ol_group"] == 0
     out = tmp_path / "out"

@@ -115,6 +115,13 @@ PLM_API plm_status plm_scene_set_mesh_texture_uv(plm_scene* scene, uint32_t mesh
  * first non-finite value. */
 PLM_API plm_status plm_scene_set_mesh_normals(plm_scene* scene, uint32_t mesh_id, const float* normals);
 
+/* Smooth shading without given normals (smooth != 0): each corner takes its
+ * vertex's normal, the mean of the normals of the triangles around the vertex
+ * weighted by their angle there, as Blender computes the normals of smooth
+ * faces; for subdivision meshes (plm_scene_add_subdiv_mesh) those of the
+ * refined mesh. smooth = 0 removes shading normals. */
+PLM_API plm_status plm_scene_set_mesh_smooth(plm_scene* scene, uint32_t mesh_id, int smooth);
+
 /* A triangle mesh in world space.
  *   positions      vertex_count * 3 floats (x, y, z)
  *   indices        triangle_count * 3 vertex indices

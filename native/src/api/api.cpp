@@ -181,6 +181,13 @@ plm_status plm_scene_set_mesh_normals(plm_scene* scene, uint32_t mesh_id, const 
   });
 }
 
+plm_status plm_scene_set_mesh_smooth(plm_scene* scene, uint32_t mesh_id, int smooth) {
+  return guarded("plm_scene_set_mesh_smooth", [&] {
+    require(scene, "plm_scene_set_mesh_smooth", "scene");
+    scene->scene.set_mesh_smooth(mesh_id, smooth != 0);
+  });
+}
+
 plm_status plm_scene_add_mesh(plm_scene* scene, const char* name, const float* positions, uint32_t vertex_count,
                               const uint32_t* indices, uint32_t triangle_count, const float* lightmap_uv,
                               const uint32_t* material_ids, uint32_t lightmap_width, uint32_t lightmap_height,

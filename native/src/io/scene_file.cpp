@@ -467,13 +467,34 @@ struct Reader {
   // A Catmull-Clark cage: inline "positions", "indices" = the polygons' vertex indices one face
   // after another, "subdivision": {"level": n, "face_sizes": [...] (default: all quads),
   // "creases": [[v0, v1, crease], ...]}, "lightmap_uv" per face corner, "materials" per face.
+  // A mesh's "smooth" flag and, for inline meshes (triangles > 0), its "normals".
+  void shading(const json& m, const std::string& p, uint32_t id, size_t triangles) {
+    const SceneFileLimits& lim = options.limits;
+    if (const json* jn = optional(m, "normals")) {
+      const std::string pn = p + ".normals";
+      if (optional(m, "obj") || optional(m, "gltf")) fail(pn, "only allowed for inline meshes (positions, indices)");
+      if (optional(m, "smooth")) fail(pn, "give either \"normals\" or \"smooth\", not both");
+      array(*jn, pn, uint64_t(lim.max_triangles) * 9, "numbers");
+      if (jn->size() != triangles * 9)
+        fail(pn, "expected 3 numbers (x, y, z) per triangle corner: " + std::to_string(triangles * 9) + " for " +
+                     std::to_string(triangles) + " triangles, got " + std::to_string(jn->size()));
+      std::vector<float> normals(jn->size());
+      for (size_t k = 0; k < jn->size(); ++k) normals[k] = to_float((*jn)[k], index_path(pn, k));
+      engine(plm_scene_set_mesh_normals(out.scene, id, normals.data()), pn);
+    }
+    if (const json* js = optional(m, "smooth")) {
+      if (!js->is_boolean()) expected(p + ".smooth", "true or false", *js);
+      engine(plm_scene_set_mesh_smooth(out.scene, id, js->get<bool>() ? 1 : 0), p + ".smooth");
+    }
+  }
+
   uint32_t subdivision_mesh(const json& m, const json& sd, const std::string& p, const SceneFileMesh& info,
                             bool lightmap, const uint32_t* one_material, const json* per_face) {
     const SceneFileLimits& lim = options.limits;
     const std::string ps = p + ".subdivision";
     object(sd, ps);
     check_keys(sd, ps, {"level", "face_sizes", "creases"});
-    for (const char* k : {"obj", "gltf", "gltf_mesh", "gltf_node", "gltf_texcoord", "texture_uv"})
+    for (const char* k : {"obj", "gltf", "gltf_mesh", "gltf_node", "gltf_texcoord", "texture_uv", "normals"})
       if (optional(m, k)) fail(p + "." + k, "not allowed together with \"subdivision\" (give the cage inline)");
     const uint32_t level = uint32_t(integer(required(sd, ps, "level"), ps + ".level", 10));
     if (level < 1) fail(ps + ".level", "must be in [1, 10]");
@@ -611,7 +632,7 @@ struct Reader {
       check_keys(m, p,
                  {"name", "positions", "indices", "lightmap_uv", "obj", "material", "materials",
                   "lightmap_resolution", "ol_group", "gltf", "gltf_mesh", "gltf_node", "gltf_texcoord",
-                  "texture_uv", "subdivision"});
+                  "texture_uv", "normals", "smooth", "subdivision"});
       SceneFileMesh info;
       info.name = name_or(m, p, "mesh" + std::to_string(i));
       if (const json* r = optional(m, "lightmap_resolution")) resolution(*r, p + ".lightmap_resolution", info.width, info.height);
@@ -624,6 +645,7 @@ struct Reader {
 
       if (const json* sd = optional(m, "subdivision")) {  // a polygon cage refined by the engine
         info.id = subdivision_mesh(m, *sd, p, info, lightmap, one_material ? &material : nullptr, per_triangle);
+        shading(m, p, info.id, 0);
         if (const json* g = optional(m, "ol_group")) {
           const uint32_t group = reference(*g, p + ".ol_group", ol_names, "scene.ol_groups");
           engine(plm_scene_set_mesh_ol_group(out.scene, info.id, out.ol_groups[group].id), p + ".ol_group");
@@ -713,6 +735,7 @@ struct Reader {
         for (size_t k = 0; k < jt->size(); ++k) tuv[k] = to_float((*jt)[k], index_path(pt, k));
         engine(plm_scene_set_mesh_texture_uv(out.scene, id, tuv.data()), pt);
       }
+      shading(m, p, id, indices.size() / 3);
       if (const json* g = optional(m, "ol_group")) {
         const uint32_t group = reference(*g, p + ".ol_group", ol_names, "scene.ol_groups");
         engine(plm_scene_set_mesh_ol_group(out.scene, id, out.ol_groups[group].id), p + ".ol_group");

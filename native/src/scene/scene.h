@@ -110,6 +110,10 @@ struct Scene {
   void set_mesh_texture_uv(uint32_t mesh, const float* uv);
   // 9 floats per triangle (x, y, z of each corner's normal); NULL removes them.
   void set_mesh_normals(uint32_t mesh, const float* normals);
+  // Smooth: every corner takes its vertex's normal, the mean of the normals
+  // of the triangles around the vertex weighted by their angle there (as
+  // Blender computes a smooth face's normals); flat: no shading normals.
+  void set_mesh_smooth(uint32_t mesh, bool smooth);
   bool has_textures() const {
     for (const Material& m : materials)
       if (!m.albedo_texture.empty() || !m.emission_texture.empty()) return true;

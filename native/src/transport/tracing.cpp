@@ -124,7 +124,7 @@ bool in_contact(RTCScene scene, const std::vector<MeshView>& views, Vec3 p, Vec3
   rtcInitIntersectContext(&cc.context);
   cc.context.filter = contact_filter;
   cc.skip_geom = geom, cc.skip_prim = prim, cc.views = &views, cc.dir = n;
-  cc.back_t_min = 1.5f * d;  // half an offset in front of p
+  cc.back_t_min = 2.5f * d;  // half an offset in front of p
   RTCRay ray = make_ray(p - n * (2.0f * d), n, 4.0f * d);
   rtcOccluded1(scene, &cc.context, &ray);
   return ray.tfar < 0.0f;

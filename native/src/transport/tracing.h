@@ -77,11 +77,12 @@ inline Vec3 offset_origin(Vec3 p, Vec3 n, float offset_scale) { return p + n * o
 // pressed against another surface, which its rays' origin offset would jump
 // over: a surface facing p within twice the offset distance on either side of
 // p, or one facing away from p (its back towards p) in front of p beyond the
-// rounding of p's coordinates. Such a point gets no light, as in Cycles,
-// whose rays leave the surface itself and meet the other surface at once: the
-// bottom of a box standing on the floor, the floor under it, the top of a
-// column touching the ceiling. A box standing a little above the floor is not
-// in contact.
+// rounding of p's coordinates and within twice the offset. Such a point gets
+// no light, as in Cycles, whose rays leave the surface itself and meet the
+// other surface at once: the bottom of a box standing on the floor, the floor
+// under it, the top of a column touching the ceiling. A box standing a little
+// above the floor is not in contact, nor are two faces in one plane facing
+// the same way (a duplicated object: both are lit).
 bool in_contact(RTCScene scene, const std::vector<MeshView>& views, Vec3 p, Vec3 n, unsigned geom, unsigned prim,
                 float offset_scale);
 
