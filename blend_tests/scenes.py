@@ -367,3 +367,211 @@ def coverage_weighted_mean(rgb, coverage):
     inside the object this is the area-weighted mean of irradiance / pi over its surface."""
     w = coverage[..., None]
     return (rgb * w).sum(axis=(0, 1)) / max(float(coverage.sum()), 1e-30)
+
+
+# ---- an artist's room: modifiers everywhere, automatic lightmap UVs ---------------------------------
+
+ARTIST_ROOM_OBJECTS = ("Walls", "Floor", "Books", "Bench", "Cabinet", "Suzanne", "Ball", "SideTable")
+
+
+def _bmesh_object(name, build, material):
+    """A mesh object from a function that fills a bmesh (with a default 'UVMap' like Blender's
+    primitives have); linked to the scene."""
+    import bmesh
+    bm = bmesh.new()
+    build(bm)
+    mesh = bpy.data.meshes.new(name)
+    bm.to_mesh(mesh)
+    bm.free()
+    mesh.uv_layers.new(name="UVMap")
+    if material is not None:
+        mesh.materials.append(material)
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def _box(bm, lo, hi, skip=()):
+    """Add an axis-aligned box lo..hi to a bmesh, faces outward; `skip` names faces to leave out
+    ('-x', '+x', '-y', '+y', '-z', '+z')."""
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    v = [bm.verts.new(p) for p in ((x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0),
+                                   (x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1))]
+    faces = {'-z': (0, 3, 2, 1), '+z': (4, 5, 6, 7), '-y': (0, 1, 5, 4), '+y': (2, 3, 7, 6),
+             '-x': (3, 0, 4, 7), '+x': (1, 2, 6, 5)}
+    for key, idx in faces.items():
+        if key not in skip:
+            bm.faces.new([v[i] for i in idx])
+
+
+def write_texture_png(path, size=64):
+    """A small wood-plank-like PNG (8-bit sRGB) for the floor's image texture."""
+    img = bpy.data.images.new("floor_planks_src", size, size, alpha=False)
+    y, x = np.mgrid[0:size, 0:size]
+    plank = (y // (size // 4)) % 2
+    grain = 0.04 * np.sin(x * 0.7 + 3.0 * plank) + 0.03 * ((x + 7 * plank) % (size // 2) == 0)
+    base = np.where(plank[..., None] == 1, [0.55, 0.36, 0.2], [0.62, 0.42, 0.24])
+    rgb = np.clip(base - grain[..., None], 0, 1)
+    px = np.concatenate([rgb, np.ones((size, size, 1))], axis=2).astype(np.float32)
+    img.pixels.foreach_set(px.ravel())
+    img.filepath_raw = path
+    img.file_format = 'PNG'
+    img.save()
+    bpy.data.images.remove(img)
+    return path
+
+
+def textured_material(name, image_path):
+    """Principled BSDF whose Base Color is an Image Texture on the mesh's 'UVMap'."""
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    nt = mat.node_tree
+    bsdf = nt.nodes["Principled BSDF"]
+    bsdf.inputs["Specular"].default_value = 0.2
+    bsdf.inputs["Roughness"].default_value = 0.8
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = bpy.data.images.load(image_path, check_existing=True)
+    tex.location = (-600, 200)
+    uv = nt.nodes.new("ShaderNodeUVMap")
+    uv.uv_map = "UVMap"
+    uv.location = (-850, 200)
+    nt.links.new(uv.outputs["UV"], tex.inputs["Vector"])
+    nt.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    return mat
+
+
+def artist_room(texture_dir):
+    """A room the way artists build one, every object with its own material and no 'lightmap' UV
+    map of its own (the add-on makes them):
+      Walls      a box (4 walls and a ceiling, 6 x 5 x 3 m inside) with Solidify (0.2 m, outwards)
+                 and a Boolean window (1.6 x 1.2 m) cut by 'WindowCutter' (hidden from render)
+                 into the +x wall, which the sun shines on;
+      Floor      a plane with an image texture (a PNG written to texture_dir) on a Principled BSDF;
+      Books      one book with an Array modifier (10 books) on the cabinet;
+      Bench      half a bench with a Mirror modifier (merged at x = 0);
+      Cabinet    a box with a Bevel modifier;
+      Suzanne    smooth-shaded, Subdivision Surface level 2 as its last modifier;
+      Ball       a smooth-shaded UV sphere;
+      SideTable  a table top and four legs with a Boolean hole cut by 'HoleCutter' (hidden).
+    A sun shines in through the window; the world is a uniform sky colour. Returns {name: object}."""
+    objs = {}
+    white = diffuse_material("mat_walls", (0.8, 0.8, 0.78), principled=True)
+
+    def walls(bm):
+        _box(bm, (-3, -2.5, 0), (3, 2.5, 3), skip=('-z',))
+    objs["Walls"] = w = _bmesh_object("Walls", walls, white)
+    sol = w.modifiers.new("Solidify", 'SOLIDIFY')
+    sol.thickness = 0.2
+    sol.offset = 1.0  # outwards: the inside stays 6 x 5 x 3 m
+    sol.use_even_offset = True
+    cutter = _bmesh_object("WindowCutter", lambda bm: _box(bm, (2.7, -0.8, 0.9), (3.5, 0.8, 2.1)), None)
+    cutter.hide_render = True
+    cutter.display_type = 'WIRE'
+    cut = w.modifiers.new("Window", 'BOOLEAN')
+    cut.operation = 'DIFFERENCE'
+    cut.object = cutter
+    objs["WindowCutter"] = cutter
+
+    png = write_texture_png(os.path.join(texture_dir, "floor_planks.png"))
+
+    def floor(bm):
+        v = [bm.verts.new(p) for p in ((-3, -2.5, 0), (3, -2.5, 0), (3, 2.5, 0), (-3, 2.5, 0))]
+        bm.faces.new(v)
+    objs["Floor"] = f = _bmesh_object("Floor", floor, textured_material("mat_floor", png))
+    uv = np.array([(0, 0), (6, 0), (6, 5), (0, 5)], np.float32) / 2.0  # planks 2 m per tile
+    f.data.uv_layers["UVMap"].data.foreach_set("uv", uv.ravel())
+
+    objs["Books"] = b = _bmesh_object("Books", lambda bm: _box(bm, (0, 0, 0), (0.05, 0.22, 0.3)),
+                                      diffuse_material("mat_books", (0.5, 0.15, 0.12)))
+    b.location = (-2.6, 2.1, 0.8)
+    arr = b.modifiers.new("Array", 'ARRAY')
+    arr.count = 10
+    arr.relative_offset_displace = (1.6, 0, 0)
+
+    def bench(bm):
+        _box(bm, (0, -0.2, 0.4), (0.7, 0.2, 0.46), skip=('-x',))
+        _box(bm, (0.55, -0.15, 0.0), (0.63, 0.15, 0.4), skip=('+z',))
+    objs["Bench"] = be = _bmesh_object("Bench", bench, diffuse_material("mat_bench", (0.45, 0.3, 0.2)))
+    be.location = (0.0, 1.8, 0.0)
+    mir = be.modifiers.new("Mirror", 'MIRROR')
+    mir.use_mirror_merge = True
+    mir.use_clip = True
+
+    objs["Cabinet"] = c = _bmesh_object("Cabinet", lambda bm: _box(bm, (-0.6, -0.2, 0), (0.6, 0.2, 0.8)),
+                                        diffuse_material("mat_cabinet", (0.3, 0.45, 0.6)))
+    c.location = (-1.9, 2.25, 0.0)
+    bev = c.modifiers.new("Bevel", 'BEVEL')
+    bev.width = 0.03
+    bev.segments = 3
+
+    bpy.ops.mesh.primitive_monkey_add(size=0.7, location=(1.6, 0.9, 0.3), rotation=(0, 0, math.radians(150)))
+    s = bpy.context.active_object
+    s.name = "Suzanne"
+    s.data.name = "Suzanne"
+    s.data.polygons.foreach_set("use_smooth", np.ones(len(s.data.polygons), bool))
+    s.data.materials.append(diffuse_material("mat_suzanne", (0.75, 0.6, 0.2)))
+    sub = s.modifiers.new("Subdivision", 'SUBSURF')
+    sub.levels = 2
+    sub.render_levels = 2
+    objs["Suzanne"] = s
+
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.3, location=(-0.6, -1.4, 0.3))
+    ball = bpy.context.active_object
+    ball.name = "Ball"
+    ball.data.polygons.foreach_set("use_smooth", np.ones(len(ball.data.polygons), bool))
+    ball.data.materials.append(diffuse_material("mat_ball", (0.7, 0.7, 0.7)))
+    objs["Ball"] = ball
+
+    def table(bm):
+        _box(bm, (-0.35, -0.35, 0.55), (0.35, 0.35, 0.6))
+        for sx in (-1, 1):
+            for sy in (-1, 1):
+                x, y = 0.28 * sx, 0.28 * sy
+                _box(bm, (x - 0.03, y - 0.03, 0.0), (x + 0.03, y + 0.03, 0.55), skip=('+z',))
+    objs["SideTable"] = t = _bmesh_object("SideTable", table, diffuse_material("mat_table", (0.55, 0.5, 0.45)))
+    t.location = (1.0, -1.2, 0.0)
+    bpy.ops.mesh.primitive_cylinder_add(radius=0.06, depth=0.4, location=(1.0, -1.2, 0.58))
+    hole = bpy.context.active_object
+    hole.name = "HoleCutter"
+    hole.hide_render = True
+    hole.display_type = 'WIRE'
+    tb = t.modifiers.new("Hole", 'BOOLEAN')
+    tb.operation = 'DIFFERENCE'
+    tb.object = hole
+    objs["HoleCutter"] = hole
+
+    add_light("Sun", 'SUN', (6, -1, 5), rotation=(math.radians(50), 0, math.radians(100)), energy=4.0,
+              angle=math.radians(2.0))
+    set_world_color((0.35, 0.45, 0.65), 1.0)
+    for o in bpy.context.view_layer.objects:
+        o.select_set(False)
+    bpy.context.view_layer.update()
+    return objs
+
+
+def evaluated_lightmap_triangles(obj):
+    """World positions (T, 3, 3) and 'lightmap' UVs (T, 3, 2) of obj's evaluated mesh (None
+    without that UV map)."""
+    dg = bpy.context.evaluated_depsgraph_get()
+    ev = obj.evaluated_get(dg)
+    me = ev.to_mesh()
+    try:
+        me.calc_loop_triangles()
+        nt = len(me.loop_triangles)
+        co = np.empty(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+        m = np.array(ev.matrix_world, np.float64)
+        pos = co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
+        tv = np.empty(nt * 3, np.int32)
+        me.loop_triangles.foreach_get("vertices", tv)
+        tl = np.empty(nt * 3, np.int32)
+        me.loop_triangles.foreach_get("loops", tl)
+        layer = me.uv_layers.get("lightmap")
+        uv = None
+        if layer is not None:
+            a = np.empty(len(me.loops) * 2, np.float32)
+            layer.data.foreach_get("uv", a)
+            uv = a.reshape(-1, 2)[tl].reshape(nt, 3, 2)
+        return pos[tv].reshape(nt, 3, 3), uv
+    finally:
+        ev.to_mesh_clear()

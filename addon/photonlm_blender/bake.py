@@ -6,7 +6,7 @@
     job.abort(context)               # main thread, instead of finish: undo what prepare did
 
 Nothing outside the job changes before finish(): a cancelled or failed bake leaves the
-earlier lightmap images and files as they were (the UV maps it created are removed).
+earlier lightmap images and files as they were (what it did to lightmap UV maps is undone).
 
 The last finished bake is described by LAST (a dict: stats, warnings and per object the
 mesh id, image name, EXR path and the coverage mask), for scripts and tests.
@@ -94,12 +94,8 @@ class BakeJob:
 
     # -- main thread again -------------------------------------------------------------------
     def abort(self, context):
-        """Undo prepare: remove the UV maps this job created; release native objects."""
-        for mesh, name in self.created_uvs:
-            try:
-                uvmaps.remove_uv(mesh, name)
-            except ReferenceError:
-                pass
+        """Undo prepare: undo what it did to the lightmap UV maps; release native objects."""
+        uvmaps.undo(self.created_uvs)
         self.created_uvs = []
         if self.export is not None:
             self.export.scene.close()
@@ -114,7 +110,7 @@ class BakeJob:
         try:
             stats = result.stats
             warnings = result.warnings
-            for w in warnings:
+            for w in uvmaps.summarise_warnings(warnings):
                 self.reports.warning("engine: " + w)
             out_dir = output_directory(context.scene)
             scene = context.scene
@@ -176,7 +172,8 @@ class BakeJob:
                     csg_objects=list(self.export.csg_objects),
                     lsystems=[name for name, _ in self.export.lsystems],
                     reports=list(self.reports.items))
-        self.created_uvs = []  # kept: they belong to the baked lightmaps now
+        uvmaps.commit(self.created_uvs)  # kept: they belong to the baked lightmaps now
+        self.created_uvs = []
         return LAST
 
     def _wire(self, context, images):

@@ -15,7 +15,6 @@ What is exported
 - World: Background colour x strength (a uniform radiance), or world.color without nodes.
 """
 import contextlib
-import math
 import re
 
 import numpy as np
@@ -128,55 +127,13 @@ def lightmap_objects(context):
 
 
 def ensure_lightmap_uvs(context, objects, reports):
-    """Create missing `lightmap` UV maps. Returns [(mesh, layer name)] of the maps created."""
-    created = []
+    """Make or refresh the automatic `lightmap` UV maps of the objects that have no map of the user's
+    (uvmaps.py): made for the evaluated mesh, at the resolution the export will give each object.
+    Returns a uvmaps.Changes list (undo() for a cancelled or failed bake, commit() to keep them)."""
     density = context.scene.photonlm.texel_density
-    depsgraph = context.evaluated_depsgraph_get()
-    missing = [o for o in objects if not uvmaps.has_lightmap_uv(o.data)]
-    done_meshes = set()
-    for obj in missing:
-        if obj.data.name in done_meshes:
-            continue
-        if obj.data.library is not None or getattr(obj.data, "override_library", None) is not None:
-            reports.warning("object '%s': mesh '%s' is linked from a library and has no '%s' UV map: "
-                            "baked as geometry only" % (obj.name, obj.data.name, uvmaps.LIGHTMAP_UV))
-            continue
-        with evaluated_mesh(obj, depsgraph) as (obj_eval, mesh):
-            area = 0.0
-            if mesh is not None:
-                pos, tris, _, _ = mesh_arrays(mesh, obj_eval.matrix_world, False)
-                area = surface_area(pos, tris)
-        res = object_resolution(obj, area, density)
-        try:
-            name = uvmaps.create_lightmap_uv(context, obj, res)
-        except Exception as e:  # noqa: BLE001 -- an add-on must not take Blender down
-            reports.warning("object '%s': could not create a lightmap UV map (%s): baked as geometry only"
-                            % (obj.name, e))
-            continue
-        created.append((obj.data, name))
-        done_meshes.add(obj.data.name)
-        reports.info("object '%s': created UV map '%s' (Smart UV Project)" % (obj.name, name))
-        # Boolean operands give the result some of its faces, with their own 'lightmap' UVs:
-        # unwrap those too, each object in its own tile of the map.
-        operands = [o for o in uvmaps.boolean_operands(obj)
-                    if not uvmaps.has_lightmap_uv(o.data) and o.data.name not in done_meshes]
-        if operands:
-            tiles = math.ceil(math.sqrt(len(operands) + 1))
-            uvmaps.tile_uv(obj.data, name, 0, tiles)
-            for k, op in enumerate(operands):
-                try:
-                    op_name = uvmaps.create_lightmap_uv(context, op, res)
-                except Exception as e:  # noqa: BLE001
-                    reports.warning("object '%s': could not unwrap Boolean operand '%s' (%s)" % (obj.name, op.name, e))
-                    continue
-                uvmaps.tile_uv(op.data, op_name, k + 1, tiles)
-                created.append((op.data, op_name))
-                done_meshes.add(op.data.name)
-            reports.info("object '%s': unwrapped its Boolean operands %s into tiles of its lightmap"
-                         % (obj.name, ", ".join("'%s'" % o.name for o in operands)))
-    if created:
-        context.view_layer.update()
-    return created
+    return uvmaps.ensure_lightmap_uvs(
+        context, objects, reports, lambda obj, area: object_resolution(obj, area, density),
+        native_subdivision=getattr(context.scene.photonlm, "native_subdivision", True))
 
 
 class SceneExport:

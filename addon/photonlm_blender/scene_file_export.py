@@ -5,8 +5,8 @@ The export runs the bake's own export (export.export_scene) against
 photonlm.scene_file.SceneFileWriter, which has photonlm.Scene's methods and records the calls,
 so the file holds exactly what a bake in Blender would trace: the same meshes (modifiers
 applied, world space), materials, lights, world, CSG solids and OL groups, plus the scene's
-bake settings. Missing `lightmap` UV maps are created first, as a bake does (they are kept:
-the lightmaps baked from the file belong to them).
+bake settings. Automatic `lightmap` UV maps are made or refreshed first, as a bake does (they
+are kept: the lightmaps baked from the file belong to them).
 
 Where the lightmaps go: each object with a lightmap is a mesh named after the object, and
 `photonlm bake` writes it to <object name>_lightmap.exr (unsafe characters as '_'). The file's
@@ -38,7 +38,7 @@ def export_scene_file(context, path, reports=None, obj_threshold=200_000):
         raise ExportError(str(e)) from e
     from photonlm.scene_file import SceneFileWriter  # noqa: E402 -- the bridge is on sys.path now
     objects = export.lightmap_objects(context)
-    export.ensure_lightmap_uvs(context, objects, reports)
+    uvmaps.commit(export.ensure_lightmap_uvs(context, objects, reports))
     writer = SceneFileWriter(obj_threshold=obj_threshold)
     factory = types.SimpleNamespace(Scene=lambda: writer)
     result = export.export_scene(context, factory, reports)
