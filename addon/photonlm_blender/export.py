@@ -94,6 +94,33 @@ def mesh_arrays(mesh, matrix_world, want_uv):
     return pos, tris.reshape(nt, 3).astype(np.uint32), mat_index, uv
 
 
+def shading_normals(mesh, matrix_world):
+    """World-space shading normals per triangle corner (T, 3, 3) float32 for the smooth faces
+    (their split normals: smooth shading, Auto Smooth, custom normals), (0, 0, 0) on flat faces
+    (the engine then shades with the triangle's own normal); None when every face is flat."""
+    npoly, nt = len(mesh.polygons), len(mesh.loop_triangles)
+    smooth = np.zeros(npoly, dtype=bool)
+    if npoly:
+        mesh.polygons.foreach_get("use_smooth", smooth)
+    if not smooth.any():
+        return None
+    mesh.calc_normals_split()
+    n = np.empty(nt * 9, np.float32)
+    mesh.loop_triangles.foreach_get("split_normals", n)
+    n = n.reshape(nt, 3, 3).astype(np.float64)
+    poly = np.empty(nt, np.int32)
+    mesh.loop_triangles.foreach_get("polygon_index", poly)
+    # Normals transform with the inverse transpose of the object's linear part.
+    m = np.array(matrix_world, dtype=np.float64)[:3, :3]
+    try:
+        normal_matrix = np.linalg.inv(m).T
+    except np.linalg.LinAlgError:
+        return None  # a flattened object: no direction to shade with
+    n = n @ normal_matrix.T
+    n[~smooth[poly]] = 0.0
+    return n.astype(np.float32)
+
+
 def surface_area(pos, tris):
     if len(tris) == 0:
         return 0.0
@@ -250,6 +277,7 @@ def _add_object(export, plm, orig, obj_eval, matrix, is_instance, with_lightmap,
         if len(mesh.loop_triangles) == 0:
             return
         pos, tris, mat_index, uv = mesh_arrays(mesh, matrix, with_lightmap)
+        normals = shading_normals(mesh, matrix)
         mats = _object_materials(obj_eval, mesh)
         slot_ids = np.array([_add_material(export, plm, m, reports) if m is not None else default_id
                              for m in mats] or [default_id], dtype=np.uint32)
@@ -273,6 +301,8 @@ def _add_object(export, plm, orig, obj_eval, matrix, is_instance, with_lightmap,
         return
     if tex_uv is not None and hasattr(plm, "set_mesh_texture_uv"):
         plm.set_mesh_texture_uv(mesh_id, tex_uv)
+    if normals is not None:
+        plm.set_mesh_normals(mesh_id, normals)
     group = _ol_group(export, plm, orig, len(tris), resolution if with_lightmap else 0, reports)
     if group is not None:
         plm.set_mesh_ol_group(mesh_id, group.group_id)

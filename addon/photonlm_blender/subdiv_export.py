@@ -20,7 +20,7 @@ class Cage:
     """A cage read into numpy: everything add_subdiv_mesh needs, in world space."""
 
     def __init__(self, positions, face_sizes, face_indices, uv, material_index, crease_edges, crease_weights,
-                 level, area):
+                 level, area, smooth=False):
         self.positions = positions
         self.face_sizes = face_sizes
         self.face_indices = face_indices
@@ -30,6 +30,7 @@ class Cage:
         self.crease_weights = crease_weights
         self.level = level
         self.area = area  # of the cage (a slight overestimate of the limit surface's)
+        self.smooth = smooth  # every face shaded smooth (else every face flat)
 
     def triangle_count(self):
         return 2 * int(self.face_sizes.sum()) * 4 ** (self.level - 1)
@@ -93,6 +94,12 @@ def _read_cage(mesh, matrix_world, level, use_creases):
         mesh.vertex_creases[0].data.foreach_get("value", vc)
         if np.any(vc > 0):
             raise NotImplementedError("vertex creases are not supported")
+    smooth = np.zeros(nf, dtype=bool)
+    mesh.polygons.foreach_get("use_smooth", smooth)
+    if smooth.any() and not smooth.all():
+        raise NotImplementedError("some of its faces are shaded smooth and some flat")
+    if smooth.any() and getattr(mesh, "has_custom_normals", False):
+        raise NotImplementedError("it has custom normals")
     co = np.empty(nv * 3, np.float32)
     mesh.vertices.foreach_get("co", co)
     m = np.array(matrix_world, dtype=np.float64)
@@ -137,7 +144,7 @@ def _read_cage(mesh, matrix_world, level, use_creases):
         area = float(pa.sum()) * scale
     except (AttributeError, RuntimeError):
         pass
-    return Cage(pos, sizes, face_indices, uv, mat, edges, weights, level, area)
+    return Cage(pos, sizes, face_indices, uv, mat, edges, weights, level, area, bool(smooth.all()))
 
 
 def read_cages(context, cands, reports):
@@ -187,7 +194,10 @@ def read_cages(context, cands, reports):
 def add_cage(plm, name, cage, with_lightmap, slot_ids, resolution):
     """Add the cage to the photonlm scene; returns the mesh id (raises the engine's error)."""
     mat_ids = slot_ids[np.clip(cage.material_index, 0, len(slot_ids) - 1)]
-    return plm.add_subdiv_mesh(name, cage.positions, cage.face_sizes, cage.face_indices, cage.level,
-                               lightmap_uv=cage.uv if with_lightmap else None, material_ids=mat_ids,
-                               crease_edges=cage.crease_edges, crease_weights=cage.crease_weights,
-                               resolution=resolution)
+    mesh_id = plm.add_subdiv_mesh(name, cage.positions, cage.face_sizes, cage.face_indices, cage.level,
+                                  lightmap_uv=cage.uv if with_lightmap else None, material_ids=mat_ids,
+                                  crease_edges=cage.crease_edges, crease_weights=cage.crease_weights,
+                                  resolution=resolution)
+    if cage.smooth:
+        plm.set_mesh_smooth(mesh_id)
+    return mesh_id

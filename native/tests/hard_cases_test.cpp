@@ -980,3 +980,46 @@ TEST(HardCases, NearlyDegenerateTriangleDoesNotAbort) {
 }
 
 }  // namespace
+
+namespace {
+
+// Lightmaps far larger than any machine's memory (4 meshes of 16384 x 16384
+// texels: about 400 GB) are refused before anything is allocated, with a
+// message that names the largest lightmap and the memory free.
+TEST(HardCases, BakeThatCannotFitIsRefused) {
+  SceneBuilder b;
+  const uint32_t white = b.material("white", {0.8f, 0.8f, 0.8f});
+  (void)white;
+  const float pos[12] = {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+  const uint32_t idx[6] = {0, 1, 2, 0, 2, 3};
+  const float uv[12] = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
+  for (int k = 0; k < 4; ++k) {
+    const std::string name = "huge" + std::to_string(k);
+    ASSERT_EQ(plm_scene_add_mesh(b.scene, name.c_str(), pos, 4, idx, 2, uv, nullptr, 16384, 16384, nullptr), PLM_OK);
+  }
+  b.light(point(100.0f, {0.5f, 0.5f, 1}), "lamp");
+  const plm_bake_settings st = settings(1000);
+  plm_result* r = nullptr;
+  EXPECT_EQ(plm_bake(b.scene, &st, nullptr, nullptr, &r), PLM_ERROR_OUT_OF_MEMORY);
+  EXPECT_EQ(r, nullptr);
+  const std::string msg = plm_last_error();
+  EXPECT_TRUE(contains(msg, "mesh 'huge0', 16384 x 16384 texels")) << msg;
+  EXPECT_TRUE(contains(msg, "are free: lower the lightmap resolution of 'huge0'")) << msg;
+}
+
+// The estimate is reported and is of the right size: a 512 x 512 lightmap
+// wholly covered needs about 170 MB with the process (a measured 1024 x 1024
+// one: 490 MB).
+TEST(HardCases, MemoryEstimateIsReported) {
+  SceneBuilder b;
+  b.material("white", {0.8f, 0.8f, 0.8f});
+  b.quad("floor", {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, 0, 512);
+  b.light(point(100.0f, {0.5f, 0.5f, 1}), "lamp");
+  BakeResult r;
+  bake(b, settings(1000), r);
+  const uint64_t bytes = r.stats().memory_estimate;
+  EXPECT_GT(bytes, uint64_t(120) << 20);
+  EXPECT_LT(bytes, uint64_t(250) << 20);
+}
+
+}  // namespace

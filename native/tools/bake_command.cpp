@@ -271,7 +271,9 @@ int bake_command(int argc, char** argv) {
   report["stats"] = {{"error_estimate", stats.error_estimate},
                      {"error_direct", stats.error_direct},
                      {"median", stats.error_median},
-                     {"p95", stats.error_p95}};
+                     {"p95", stats.error_p95},
+                     {"above_twice_target", stats.error_above},
+                     {"memory_estimate", stats.memory_estimate}};
   ordered_json warnings = ordered_json::array();
   for (uint32_t i = 0; i < plm_result_warning_count(result.r); ++i) {
     const char* w = plm_result_warning(result.r, i);

@@ -613,7 +613,7 @@ hits (h, w) photon hits; coverage (h, w) fraction of the texel inside UV islands
 
 _STAT_KEYS = ("photons_emitted", "photon_hits", "rays_traced", "paths_truncated", "emitted_power",
               "seconds_setup", "seconds_trace", "seconds_total", "direct_samples", "seconds_direct",
-              "error_estimate", "error_direct", "error_median", "error_p95")
+              "error_estimate", "error_direct", "error_median", "error_p95", "error_above", "memory_estimate")
 
 
 class Result(_Handle):
@@ -623,7 +623,9 @@ class Result(_Handle):
     @property
     def stats(self):
         """dict: photons_emitted, photon_hits, rays_traced, paths_truncated, emitted_power (W),
-        seconds_setup, seconds_trace, seconds_total."""
+        seconds_setup, seconds_trace, seconds_total, direct_samples, seconds_direct, error_estimate
+        (relative RMS), error_direct, error_median and error_p95 (of the per-texel relative errors),
+        error_above (the share of texels above twice the target error), memory_estimate (bytes)."""
         s = _lib.plm_bake_stats()
         _check(_C.plm_result_stats(self._h, ctypes.byref(s)))
         return {k: getattr(s, k) for k in _STAT_KEYS}

@@ -100,6 +100,8 @@ class plm_bake_stats(ctypes.Structure):
         ("error_direct", c_double),
         ("error_median", c_double),
         ("error_p95", c_double),
+        ("error_above", c_double),
+        ("memory_estimate", c_uint64),
     ]
 
 

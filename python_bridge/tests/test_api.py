@@ -264,7 +264,9 @@ def test_stats_keys():
             stats = result.stats
     assert set(stats) == {"photons_emitted", "photon_hits", "rays_traced", "paths_truncated", "emitted_power",
                           "seconds_setup", "seconds_trace", "seconds_total", "direct_samples", "seconds_direct",
-                          "error_estimate", "error_direct", "error_median", "error_p95"}
+                          "error_estimate", "error_direct", "error_median", "error_p95", "error_above",
+                          "memory_estimate"}
     assert stats["photons_emitted"] == 5000
+    assert 0 <= stats["error_above"] <= 1 and stats["memory_estimate"] > 0
     assert stats["rays_traced"] >= stats["photons_emitted"]
     assert 0 <= stats["seconds_setup"] <= stats["seconds_total"] and 0 <= stats["seconds_trace"] <= stats["seconds_total"]

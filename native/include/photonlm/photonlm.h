@@ -367,6 +367,11 @@ typedef struct plm_bake_stats {
   double error_direct;       /* the part of error_estimate due to the direct pass */
   double error_median;       /* median over covered texels of (standard error / value) */
   double error_p95;          /* its 95th percentile */
+  double error_above;        /* the share of covered texels whose (standard error / value) is above
+                                twice the target error (twice error_estimate without a target) */
+  uint64_t memory_estimate;  /* bytes the bake was estimated to need before it began; a bake
+                                estimated to need more than the memory free is refused
+                                (PLM_ERROR_OUT_OF_MEMORY, naming the largest lightmap) */
 } plm_bake_stats;
 
 PLM_API plm_status plm_result_stats(const plm_result* result, plm_bake_stats* out_stats);

@@ -22,6 +22,7 @@
 #include "texture/texture.h"
 #include "transport/direct.h"
 #include "transport/emitters.h"
+#include "transport/memory.h"
 #include "transport/tracing.h"
 #include "util/error.h"
 #include "util/rng.h"
@@ -852,6 +853,8 @@ struct ErrorEstimate {
   double direct = 0.0;  // the same with the direct variance alone
   double gather = 0.0;  // ... with the final gather's part alone (photons do not lower it)
   double median = 0.0, p95 = 0.0;  // of the per-texel relative errors
+  std::vector<double> per_texel;    // the per-texel relative errors (of texels with light)
+  size_t dark_texels = 0;           // covered texels with no light (no relative error)
 };
 
 // The ordinary lightmaps' texels at one state of the bake: per mesh with own
@@ -892,6 +895,7 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
       var_sum += variance[t];
       count += 1.0;
       if (v > 0.0) per_texel.push_back(std::sqrt(variance[t]) / v);
+      else ++e.dark_texels;
     }
   }
   for (size_t c = 0; c < est.csgs.size(); ++c) {
@@ -904,6 +908,7 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
       var_sum += var;
       count += 1.0;
       if (v > 0.0) per_texel.push_back(std::sqrt(var) / v);
+      else ++e.dark_texels;
     }
   }
   for (const DirectSums& d : est.direct) var_direct += d.variance_of_mean(est.direct_noise);
@@ -915,6 +920,15 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
   }
   e.median = percentile(per_texel, 0.5);
   e.p95 = percentile(per_texel, 0.95);
+  e.per_texel.swap(per_texel);
+}
+
+// The share of texels whose relative error is above `threshold` (dark texels count as below).
+double share_above(const ErrorEstimate& e, double threshold) {
+  const size_t n = e.per_texel.size() + e.dark_texels;
+  if (n == 0) return 0.0;
+  return double(std::count_if(e.per_texel.begin(), e.per_texel.end(), [&](double r) { return r > threshold; })) /
+         double(n);
 }
 
 // A lightmap resolved from an OL: each covered texel shows the OL at its
@@ -1071,6 +1085,22 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   const auto t_start = Clock::now();
   validate(scene, requested);
   BakeOutput out;
+  // Refuse a bake that cannot fit before allocating for it.
+  const MemoryEstimate memory = estimate_bake_memory(scene);
+  out.stats.memory_estimate = memory.bytes;
+  if (const uint64_t free = available_memory()) {
+    const Mesh& largest = scene.meshes[memory.largest_mesh];
+    const std::string where = memory.largest_bytes == 0 ? std::string()
+        : " (mesh '" + largest.name + "', " + std::to_string(largest.lightmap_width) + " x " +
+          std::to_string(largest.lightmap_height) + " texels: about " + format_bytes(memory.largest_bytes) + ")";
+    if (memory.bytes > free)
+      fail(PLM_ERROR_OUT_OF_MEMORY, "the bake would need about ", format_bytes(memory.bytes), " of memory", where,
+           " but only ", format_bytes(free), " are free: lower the lightmap resolution",
+           memory.largest_bytes ? " of '" + largest.name + "'" : std::string(), " or bake fewer objects at once");
+    if (double(memory.bytes) > 0.6 * double(free))
+      out.warnings.push_back("the bake may need about " + format_bytes(memory.bytes) + " of memory" + where +
+                             ", close to the " + format_bytes(free) + " free");
+  }
   // Orientation lightmaps do not steer: with no ordinary texel, the photon
   // count (or the time budget) decides.
   plm_bake_settings settings = requested;
@@ -1523,6 +1553,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   out.stats.error_direct = err.direct;
   out.stats.error_median = err.median;
   out.stats.error_p95 = err.p95;
+  out.stats.error_above = share_above(err, 2.0 * (settings.target_error > 0.0 ? settings.target_error : err.relative));
   if (settings.target_error > 0.0 && err.relative > settings.target_error)
     out.warnings.push_back("the target error " + std::to_string(100.0 * settings.target_error) +
                            "% was not reached (estimated " + std::to_string(100.0 * err.relative) + "% after " +

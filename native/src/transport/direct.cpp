@@ -674,7 +674,17 @@ void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
           const MeshView& hv = views_[geom];
           const Mesh& hm = *hv.mesh;
           const int64_t ht = uv_texel(&hm.uv[6 * size_t(prim)], hit.u[l], hit.v[l], hm.lightmap_width, hm.lightmap_height);
-          if (ht >= 0) {
+          // A texel of a face that other objects stand on (a contact candidate)
+          // may be partly pressed against them, and its value (its central
+          // square's, or the mean over it) then says little of the lit part
+          // next to them: a ray that lands within a texel's width of its
+          // origin there is not looked up (the wall of a box at the box's
+          // foot sees the floor right beside it).
+          const bool unreliable = ht >= 0 && hv.contact && hv.contact[prim] &&
+                                  double(packet.rh.ray.tfar[l]) * double(packet.rh.ray.tfar[l]) *
+                                          std::max(double(areas_[geom].coverage[ht]), 1e-3) <
+                                      hv.texel_area[ht];
+          if (ht >= 0 && !unreliable) {
             if (hv.texel_area[ht] > 0.0) {
               const float* d = source.radiosity + 3 * (hv.texel_offset + ht);
               const Vec3 a = (*source.albedo)[geom][prim];
