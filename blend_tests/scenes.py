@@ -483,7 +483,7 @@ def artist_room(texture_dir):
 
     objs["Books"] = b = _bmesh_object("Books", lambda bm: _box(bm, (0, 0, 0), (0.05, 0.22, 0.3)),
                                       diffuse_material("mat_books", (0.5, 0.15, 0.12)))
-    b.location = (-2.6, 2.1, 0.8)
+    b.location = (-2.45, 2.1, 0.8)
     arr = b.modifiers.new("Array", 'ARRAY')
     arr.count = 10
     arr.relative_offset_displace = (1.6, 0, 0)
@@ -513,6 +513,10 @@ def artist_room(texture_dir):
     sub = s.modifiers.new("Subdivision", 'SUBSURF')
     sub.levels = 2
     sub.render_levels = 2
+    bpy.context.view_layer.update()
+    ev = s.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    lowest = min((ev.matrix_world @ v.co).z for v in ev.data.vertices)
+    s.location.z -= lowest - 0.002  # resting on the floor
     objs["Suzanne"] = s
 
     bpy.ops.mesh.primitive_uv_sphere_add(radius=0.3, location=(-0.6, -1.4, 0.3))

@@ -1,7 +1,7 @@
 """Render Properties > PhotonLM Lightmaps."""
 import bpy
 
-from . import bridge, operators
+from . import bridge, operators, uvmaps
 
 
 class PHOTONLM_PT_lightmaps(bpy.types.Panel):
@@ -95,9 +95,8 @@ class PHOTONLM_PT_object(bpy.types.Panel):
         for coll in obj.users_collection:
             if coll != context.scene.collection:
                 col.prop(coll.photonlm, "orientation_lightmap", text="Collection '%s': One OL" % coll.name)
-        has_uv = "lightmap" in obj.data.uv_layers
-        col.label(text="UV map 'lightmap': %s" % ("present" if has_uv else "created when baking"),
-                  icon='CHECKMARK' if has_uv else 'UV')
+        text, icon = uvmaps.status(obj)
+        col.label(text=text, icon=icon)
         image = bpy.data.images.get(obj.name + "_lightmap")
         if image is not None:
             col.label(text="Lightmap: %s (%d x %d)" % (image.name, image.size[0], image.size[1]),

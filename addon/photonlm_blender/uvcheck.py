@@ -174,15 +174,31 @@ def texel_coverage(uv, res, labels=None, overlapping=None):
     px = lo[pair_tri, 0] + local % np.repeat(nx, per)
     py = lo[pair_tri, 1] + local // np.repeat(nx, per)
     pieces_texel, pieces_area, pieces_label, pieces_tri = [], [], [], []
+    # A texel whose four corners lie inside the triangle is covered completely; only the others
+    # are clipped.
+    e0, e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 1], tri[:, 0] - tri[:, 2]
+    orient = np.sign(e0[:, 0] * (-e2[:, 1]) - e0[:, 1] * (-e2[:, 0]))
     for s in range(0, len(pair_tri), _CHUNK):
         tt, xx, yy = pair_tri[s:s + _CHUNK], px[s:s + _CHUNK], py[s:s + _CHUNK]
-        poly = tri[tt].copy()
-        count = np.full(len(tt), 3)
-        poly, count = _clip(poly, count, 0, xx.astype(np.float64), True)
-        poly, count = _clip(poly, count, 0, xx + 1.0, False)
-        poly, count = _clip(poly, count, 1, yy.astype(np.float64), True)
-        poly, count = _clip(poly, count, 1, yy + 1.0, False)
-        area = _polygon_areas(poly, count)
+        full = np.ones(len(tt), bool)
+        empty = np.zeros(len(tt), bool)
+        for start, edge in ((0, e0), (1, e1), (2, e2)):
+            v = tri[tt, start]
+            beyond = np.ones(len(tt), bool)  # all four corners outside this edge
+            for cx, cy in ((0, 0), (1, 0), (0, 1), (1, 1)):
+                side = (edge[tt, 0] * (yy + cy - v[:, 1]) - edge[tt, 1] * (xx + cx - v[:, 0])) * orient[tt]
+                full &= side > 0
+                beyond &= side < 0
+            empty |= beyond
+        area = np.where(full, 1.0, 0.0)
+        part = np.flatnonzero(~full & ~empty)
+        poly = tri[tt[part]].copy()
+        count = np.full(len(part), 3)
+        poly, count = _clip(poly, count, 0, xx[part].astype(np.float64), True)
+        poly, count = _clip(poly, count, 0, xx[part] + 1.0, False)
+        poly, count = _clip(poly, count, 1, yy[part].astype(np.float64), True)
+        poly, count = _clip(poly, count, 1, yy[part] + 1.0, False)
+        area[part] = _polygon_areas(poly, count)
         texel = yy * res + xx
         keep = area > 0
         pieces_texel.append(texel[keep])
@@ -368,12 +384,16 @@ def bad_triangles(uv, res, positions=None, quads=False):
 def clean(stats, min_margin=2.0):
     """True when a layout bakes cleanly: nothing lost, nothing shared, margins kept."""
     return (stats["zero_area"] == 0 and stats["outside"] == 0 and stats["overlap_texels"] == 0
-            and stats["shared_texels"] == 0 and stats["flipped"] == 0 and stats["margin"] >= min_margin)
+            and stats["shared_texels"] == 0 and stats["flipped"] == 0 and stats["margin"] >= min_margin
+            and not stats.get("concave_quads", 0))
 
 
 def describe(stats):
     """One line for reports and logs."""
-    return ("%d islands, margin %.1f texels, %.0f %% of the map used, %d overlapping texels, %d shared texels, "
+    text = ("%d islands, margin %.1f texels, %.0f %% of the map used, %d overlapping texels, %d shared texels, "
             "%d zero-area and %d outside triangles, %d folded"
             % (stats["islands"], stats["margin"], 100 * stats["utilisation"], stats["overlap_texels"],
                stats["shared_texels"], stats["zero_area"], stats["outside"], stats["flipped"]))
+    if stats.get("concave_quads"):
+        text += ", concave quads after subdivision"
+    return text

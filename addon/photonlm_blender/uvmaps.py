@@ -144,6 +144,18 @@ def kind(obj):
     return 'user' if _has_area(uv) else None
 
 
+def status(obj):
+    """A short line for the panel (cheap: no hashing): whose `lightmap` UV map the object has."""
+    mesh = getattr(obj, "data", None)
+    if mesh is None or not hasattr(mesh, "uv_layers"):
+        return "", 'UV'
+    if automatic_modifier(obj) is not None or (LIGHTMAP_UV in mesh.uv_layers and mesh.get(MESH_TAG) is not None):
+        return "UV map 'lightmap': automatic (made for the evaluated mesh)", 'CHECKMARK'
+    if LIGHTMAP_UV in mesh.uv_layers:
+        return "UV map 'lightmap': yours (used as it is)", 'CHECKMARK'
+    return "UV map 'lightmap': made when baking", 'UV'
+
+
 # ---- undo -----------------------------------------------------------------------------------------------
 
 class Changes(list):
@@ -306,6 +318,8 @@ def _check_flat(mesh, matrix, res):
     """Measure the copy's map as it is exported (Blender's triangles): stats and the bad polygons."""
     pos, uv, poly = _triangles(mesh, matrix)
     stats = uvcheck.analyse(uv, res, pos)
+    if uvcheck.clean(stats):
+        return stats, np.zeros(0, np.int64)
     bad = uvcheck.bad_triangles(uv, res, pos)
     return stats, np.unique(poly[bad])
 
@@ -322,7 +336,8 @@ def _check_cage(mesh, matrix, res, levels, use_creases):
                                               crease_weights=cage.crease_weights)
         p = pos[tri.astype(np.int64)]
         stats = uvcheck.analyse(uv, res, p)
-        bad = uvcheck.bad_triangles(uv, res, p, quads=True)
+        bad = uvcheck.bad_triangles(uv, res, p, quads=True)  # concave quads too: any split must be valid
+        stats["concave_quads"] = int(bad.any() and uvcheck.clean(stats))  # bad, yet clean: concave quads
         per_face = cage.face_sizes.astype(np.int64) * 2 * 4 ** (level - 1)
         face_of = np.repeat(np.arange(len(cage.face_sizes)), per_face)
         if len(face_of) == len(bad):
@@ -336,7 +351,7 @@ def _check_cage(mesh, matrix, res, levels, use_creases):
 
 def _badness(stats):
     return (stats["overlap_texels"] + stats["shared_texels"] + stats["zero_area"] + stats["outside"]
-            + stats["flipped"] + (stats["margin"] < 2.0))
+            + stats["flipped"] + stats.get("concave_quads", 0) + (stats["margin"] < 2.0))
 
 
 def _unwrap(context, mesh, matrix, res, subsurf=None, levels=()):
@@ -359,7 +374,6 @@ def _unwrap(context, mesh, matrix, res, subsurf=None, levels=()):
     view_layer = context.view_layer
     best = None
     try:
-        view_layer.update()
         with context.temp_override(active_object=obj, object=obj, edit_object=obj, selected_objects=[obj],
                                    selected_editable_objects=[obj]):
             for rnd in range(ROUNDS):
@@ -580,27 +594,26 @@ def _ensure(context, todo, reports, resolution_of, native_subdivision, changes):
 
     requests = [(o, CAGE if o.name in cage_objs else FULL) for o in todo]
     requests += [(o, FULL) for o in todo if o.name in cage_objs and fell_back(o) is not None]
-    shared = {}     # (stage, fingerprint, resolution) -> ('mesh', mesh name) or ('helper', helper object)
+    shared = {}     # (stage, fingerprint, resolution) -> ('mesh', mesh name, uv) or ('helper', helper object, None)
     made = []       # objects whose map is in place
     retry = []
     copies = _copies(context, requests)
     try:
-        depsgraph = context.evaluated_depsgraph_get()
         for obj in todo:
             if obj.name in cage_objs:
                 cage_fp = _fingerprint(copies[(obj.name, CAGE)])
                 tag = fell_back(obj)
                 if tag is not None and tag.get("cage_fingerprint") == cage_fp:
-                    outcome = _make_one(context, obj, copies.pop((obj.name, FULL)), FULL, depsgraph, resolution_of,
+                    outcome = _make_one(context, obj, copies.pop((obj.name, FULL)), FULL, resolution_of,
                                         changes, reports, shared, str(tag.get("fallback", "")), cage_fp)
                 else:
-                    outcome = _make_one(context, obj, copies.pop((obj.name, CAGE)), CAGE, depsgraph, resolution_of,
+                    outcome = _make_one(context, obj, copies.pop((obj.name, CAGE)), CAGE, resolution_of,
                                         changes, reports, shared)
                     if isinstance(outcome, tuple):  # ('retry', why): make it for Blender's subdivided mesh
                         retry.append((obj, cage_fp, outcome[1]))
                         continue
             else:
-                outcome = _make_one(context, obj, copies.pop((obj.name, FULL)), FULL, depsgraph, resolution_of,
+                outcome = _make_one(context, obj, copies.pop((obj.name, FULL)), FULL, resolution_of,
                                     changes, reports, shared)
             if outcome is not None:
                 made.append(obj)
@@ -611,9 +624,8 @@ def _ensure(context, todo, reports, resolution_of, native_subdivision, changes):
     if retry:
         copies = _copies(context, [(o, FULL) for o, _, _ in retry])
         try:
-            depsgraph = context.evaluated_depsgraph_get()
             for obj, cage_fp, why in retry:
-                if _make_one(context, obj, copies.pop((obj.name, FULL)), FULL, depsgraph, resolution_of, changes,
+                if _make_one(context, obj, copies.pop((obj.name, FULL)), FULL, resolution_of, changes,
                              reports, shared, why, cage_fp) is not None:
                     made.append(obj)
         finally:
@@ -625,7 +637,7 @@ def _ensure(context, todo, reports, resolution_of, native_subdivision, changes):
     _verify(context, made, reports)
 
 
-def _resolution(obj, copy, stage, depsgraph, resolution_of):
+def _resolution(obj, copy, stage, resolution_of):
     """The lightmap size the exporter will give obj: from the cage's area for a cage the engine
     refines (subdiv_export.py), else from the evaluated mesh's triangles."""
     m = np.array(obj.matrix_world, np.float64)
@@ -636,13 +648,13 @@ def _resolution(obj, copy, stage, depsgraph, resolution_of):
     return resolution_of(obj, triangle_area(copy, m))
 
 
-def _make_one(context, obj, copy, stage, depsgraph, resolution_of, changes, reports, shared, why_full=None,
+def _make_one(context, obj, copy, stage, resolution_of, changes, reports, shared, why_full=None,
               cage_fp=None):
     """Reuse, make or refresh obj's automatic map from `copy` (its evaluated mesh at `stage`, which this
     function owns). Returns 'reused', 'mesh', 'transfer', ('retry', why) (a cage that cannot keep a
     map: make it for the full mesh) or None (no map)."""
     mesh = obj.data
-    res = _resolution(obj, copy, stage, depsgraph, resolution_of)
+    res = _resolution(obj, copy, stage, resolution_of)
     fingerprint = _fingerprint(copy)
     lv_copy, sizes_copy = _topology(copy)
     lv_mesh, sizes_mesh = _topology(mesh)
@@ -669,10 +681,17 @@ def _make_one(context, obj, copy, stage, depsgraph, resolution_of, changes, repo
             drop_copy()
             changes.made.append((obj.name, 'reused'))
             return 'reused'
+    writable = same_topology and now is None and not any(w == 'mesh' and n == mesh.name for w, n, _ in shared.values())
     if key in shared:
-        where, what = shared[key]
+        where, what, uv = shared[key]
         if where == 'mesh' and what == mesh.name and now is None and same_topology:
             drop_copy()
+            changes.made.append((obj.name, 'reused'))
+            return 'reused'
+        if where == 'mesh' and writable:  # another mesh with the same geometry: the same map
+            _write_into_mesh(mesh, uv, changes, dict(stage=stage, fingerprint=fingerprint, resolution=res))
+            drop_copy()
+            shared[key] = ('mesh', mesh.name, uv)
             changes.made.append((obj.name, 'reused'))
             return 'reused'
         if where == 'helper':
@@ -714,12 +733,10 @@ def _make_one(context, obj, copy, stage, depsgraph, resolution_of, changes, repo
         reports.warning("object '%s': lightmap UV map made %s is not clean at %d x %d: %s"
                         % (obj.name, how, res, res, uvcheck.describe(stats)))
     try:
-        writable = same_topology and now is None and not any(
-            w == 'mesh' and n == mesh.name for w, n in shared.values())
         if writable:
             _write_into_mesh(mesh, result.uv, changes, dict(stage=stage, fingerprint=fingerprint, resolution=res))
             drop_copy()
-            shared[key] = ('mesh', mesh.name)
+            shared[key] = ('mesh', mesh.name, result.uv)
             changes.made.append((obj.name, 'mesh'))
             return 'mesh'
         helper = _new_helper(obj, copy, changes, dict(stage=stage, fingerprint=fingerprint, resolution=res,
@@ -728,7 +745,7 @@ def _make_one(context, obj, copy, stage, depsgraph, resolution_of, changes, repo
             helper[HELPER_TAG]["fallback"] = why_full
             helper[HELPER_TAG]["cage_fingerprint"] = cage_fp or ""
         _transfer(obj, helper, stage, changes)
-        shared[key] = ('helper', helper)
+        shared[key] = ('helper', helper, None)
         changes.made.append((obj.name, 'transfer'))
         return 'transfer'
     except Exception as e:  # noqa: BLE001
