@@ -219,7 +219,8 @@ class PhotonTracer {
     const uint32_t* indices;
     const Vec3* positions;
     const Vec3* shading;  // 3 corner normals per triangle (Mesh::normals); null for flat meshes
-    const uint8_t* contact;  // per triangle: may be pressed against another surface (MeshView::contact), or null
+    const uint8_t* contact;  // per texel: may be pressed against another surface (MeshView::contact), or null
+    bool special;            // shading or contact is set: hits go through special_hit
     const uint8_t* covered;  // per texel: area > 0; null when the mesh records no texel hits
     uint64_t texel_offset;
     uint32_t width, height;
@@ -243,8 +244,8 @@ class PhotonTracer {
       const OlMeshView& ol = ol_views_[m];
       HitMesh& hm = hit_meshes_[m];
       hm = {hit_tris_.data() + t0, mesh.uv.data(), mesh.indices.data(), mesh.positions.data(),
-            mesh.smooth() ? mesh.normals.data() : nullptr, v.contact, nullptr, v.texel_offset, mesh.lightmap_width,
-            mesh.lightmap_height, ol.group, ol.backup};
+            mesh.smooth() ? mesh.normals.data() : nullptr, v.contact, mesh.smooth() || v.contact, nullptr,
+            v.texel_offset, mesh.lightmap_width, mesh.lightmap_height, ol.group, ol.backup};
       for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
         HitTri& h = hit_tris_[t0 + t];
         h.normal = v.normals[t];
@@ -316,8 +317,8 @@ class PhotonTracer {
       Vec3 normal, hit, albedo;
       float q = -1.0f;  // survival probability; set here for mesh hits, below for the others
       const HitTri* flat = nullptr;  // an untextured mesh triangle: albedo, frame and weight from the table
-      Vec3 shading{};  // a smooth mesh's interpolated normal at the hit; (0, 0, 0) elsewhere
-      bool contact = false;  // the triangle may be pressed against another surface
+      const HitMesh* special = nullptr;  // a mesh hit that needs shading normals or a contact test
+      float bu = 0.0f, bv = 0.0f;
       uint32_t ls_bin = 0;
       uint64_t ls_key = 0;
       if (is_lsystem) {
@@ -340,14 +341,11 @@ class PhotonTracer {
       } else {
         const HitMesh& hm = hit_meshes_[rh.hit.geomID];
         const HitTri& ht = hm.tris[tri];
-        const float bu = rh.hit.u, bv = rh.hit.v, bw = 1.0f - bu - bv;
+        bu = rh.hit.u, bv = rh.hit.v;
+        const float bw = 1.0f - bu - bv;
         if (ht.degenerate) return;  // the photon stops
         normal = ht.normal;
-        contact = hm.contact && hm.contact[tri];
-        if (hm.shading) {
-          const Vec3* c = hm.shading + 3 * size_t(tri);
-          shading = c[0] * bw + c[1] * bu + c[2] * bv;
-        }
+        if (hm.special) special = &hm;
         const uint32_t* ix = hm.indices + 3 * size_t(tri);
         hit = hm.positions[ix[0]] * bw + hm.positions[ix[1]] * bu + hm.positions[ix[2]] * bv;
         if (!kMeshOnly && textures_ && !scene_.materials.empty()) {
@@ -366,16 +364,7 @@ class PhotonTracer {
       }
       const bool front = dot(dir, normal) < 0.0f;
       if (!front) normal = -normal;  // the side the photon arrived on
-      // A photon that finds a face pressed against another surface came
-      // through that surface (both lie at the same distance): it is absorbed.
-      if (contact && front && in_contact(rtc_, views_, hit, normal, rh.hit.geomID, tri, offset_scale_)) return;
-      if (shading.x != 0.0f || shading.y != 0.0f || shading.z != 0.0f) {
-        // cos(shading) / cos(geometric), the shading normal turned to the arrival side.
-        const float cos_s = -dot(dir, front ? shading : -shading) / length(shading), cos_g = -dot(dir, normal);
-        const float w = cos_s > 0.0f ? std::fmin(cos_s / cos_g, kMaxShadingRatio) : 0.0f;
-        if (!(w > 0.0f)) return;  // light from behind the shading normal: no irradiance about it
-        flux *= w;
-      }
+      if (special && !special_hit(*special, rh.hit.geomID, tri, bu, bv, dir, front, normal, hit, flux)) return;
       if (front && is_lsystem)
         out.ls_hits.push_back({rh.hit.geomID - uint32_t(ls_base_), ls_bin, ls_key, flux.x, flux.y, flux.z});
       if (front && !is_lsystem && depth >= first_recorded_) record(rh, is_csg, hit, flux, out);
@@ -415,6 +404,30 @@ class PhotonTracer {
       tc.skip_geom = analytic ? RTC_INVALID_GEOMETRY_ID : rh.hit.geomID;
       tc.skip_prim = analytic ? RTC_INVALID_GEOMETRY_ID : tri;
     }
+  }
+
+  // A hit on a smooth mesh, or on a triangle that may be pressed against
+  // another surface. A photon that finds a face in contact came through the
+  // other surface (both lie at the same distance): it is absorbed. On a smooth
+  // mesh the flux is weighted by cos(shading) / cos(geometric) at the hit
+  // (normal: the geometric normal turned to the side the photon arrived on).
+  // Returns false where the photon stops.
+  bool special_hit(const HitMesh& hm, unsigned geom, uint32_t tri, float bu, float bv, Vec3 dir, bool front,
+                   Vec3 normal, Vec3 hit, Vec3& flux) const {
+    if (front && hm.contact) {
+      const int64_t texel = uv_texel(hm.uv + 6 * size_t(tri), bu, bv, hm.width, hm.height);
+      if (texel >= 0 && hm.contact[texel] && in_contact(rtc_, views_, hit, normal, geom, tri, offset_scale_))
+        return false;
+    }
+    if (!hm.shading) return true;
+    const Vec3* c = hm.shading + 3 * size_t(tri);
+    const Vec3 shading = c[0] * (1.0f - bu - bv) + c[1] * bu + c[2] * bv;
+    const float len = length(shading);
+    if (!(len > 0.0f)) return true;
+    const float cos_s = -dot(dir, front ? shading : -shading) / len, cos_g = -dot(dir, normal);
+    const float w = cos_s > 0.0f ? std::fmin(cos_s / cos_g, kMaxShadingRatio) : 0.0f;
+    flux *= w;
+    return w > 0.0f;  // light from behind the shading normal: no irradiance about it
   }
 
   // A front-side hit into the texel (or CSG sub-texel) it falls in, if any.
@@ -1240,7 +1253,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
 
   // Faces pressed against other surfaces (tracing.h: in_contact).
   report(0.05, "finding faces in contact");
-  std::vector<std::vector<uint8_t>> contact;  // per mesh: triangles that may be pressed against another surface
+  std::vector<std::vector<uint8_t>> contact;  // per mesh: texels that may be pressed against another surface
   arena.execute([&] { contact = contact_candidates(accel.handle(), scene, views, 1e-6f * extent); });
   for (size_t i = 0; i < views.size(); ++i)
     if (!contact[i].empty()) views[i].contact = contact[i].data();

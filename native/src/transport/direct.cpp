@@ -460,7 +460,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       ps.tri = tri;
       ps.k = 0;
       // A point pressed against another surface gets no light (in_contact).
-      if (contact && contact[tri] && in_contact(rtc_, views_, p, normal, mesh_id, tri, offset_scale_)) {
+      if (contact && contact[texel] && in_contact(rtc_, views_, p, normal, mesh_id, tri, offset_scale_)) {
         ps.contact = true;
         continue;
       }
@@ -640,7 +640,7 @@ void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       make_frame(shading, t, b);
       lane_sample[packet.size] = j;
       lane_dir[packet.size] = t * local.x + b * local.y + shading * local.z;
-      if (contact && contact[tri] && in_contact(rtc_, views_, p, normal, mesh_id, tri, offset_scale_))
+      if (contact && contact[texel] && in_contact(rtc_, views_, p, normal, mesh_id, tri, offset_scale_))
         contact_lanes |= 1u << packet.size;
       if (smooth && !(dot(normal, lane_dir[packet.size]) > 0.0f)) zero_lanes |= 1u << packet.size;
       packet.add(offset_origin(p, normal, offset_scale_), lane_dir[packet.size], std::numeric_limits<float>::infinity(),
@@ -674,13 +674,12 @@ void DirectPass::gather_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
           const MeshView& hv = views_[geom];
           const Mesh& hm = *hv.mesh;
           const int64_t ht = uv_texel(&hm.uv[6 * size_t(prim)], hit.u[l], hit.v[l], hm.lightmap_width, hm.lightmap_height);
-          // A texel of a face that other objects stand on (a contact candidate)
-          // may be partly pressed against them, and its value (its central
-          // square's, or the mean over it) then says little of the lit part
-          // next to them: a ray that lands within a texel's width of its
-          // origin there is not looked up (the wall of a box at the box's
-          // foot sees the floor right beside it).
-          const bool unreliable = ht >= 0 && hv.contact && hv.contact[prim] &&
+          // A texel that other objects may be pressed against may be partly
+          // in contact, and its value (its central square's, or the mean over
+          // it) then says little of the lit part next to them: a ray that
+          // lands within a texel's width of its origin there is not looked up
+          // (the wall of a box at the box's foot sees the floor right beside it).
+          const bool unreliable = ht >= 0 && hv.contact && hv.contact[ht] &&
                                   double(packet.rh.ray.tfar[l]) * double(packet.rh.ray.tfar[l]) *
                                           std::max(double(areas_[geom].coverage[ht]), 1e-3) <
                                       hv.texel_area[ht];

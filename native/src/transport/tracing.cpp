@@ -1,6 +1,9 @@
 #include "transport/tracing.h"
 
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+
+#include <algorithm>
 
 namespace plm {
 namespace {
@@ -80,24 +83,53 @@ bool triangles_overlap(const float a[6], const float b[6], float tol) {
   return true;
 }
 
-// One triangle's search for a contact partner (contact_candidates).
+// A rectangle of texels [x0, x1) x [y0, y1) of one mesh's lightmap.
+struct TexelRect {
+  int32_t x0, y0, x1, y1;
+};
+
+// One triangle's search for contact partners (contact_candidates): the
+// texels of its lightmap that a partner may press against.
 struct ContactQuery {
-  const Scene* scene;
   const std::vector<MeshView>* views;
   unsigned geom, prim;
   Vec3 origin, n, t, b;  // the triangle's vertex 0 and frame
   float tri2d[6];        // its corners in the frame
+  float uv[6];           // its lightmap UVs, in texels
+  TexelRect own;         // the texels its UVs reach
   float slab;            // how far from its plane a partner may lie
   float tol;             // overlap below this is touching
-  bool found = false;
+  std::vector<TexelRect>* rects;
 };
+
+// The texels of q's triangle under a partner whose corners are other[] in the
+// triangle's frame: the box of the partner's corners mapped through the
+// triangle's UVs, clipped to the triangle's own texels, one texel wider.
+TexelRect partner_texels(const ContactQuery& q, const float other[6]) {
+  const float* a = q.tri2d;
+  const float e1x = a[2] - a[0], e1y = a[3] - a[1], e2x = a[4] - a[0], e2y = a[5] - a[1];
+  const float det = e1x * e2y - e2x * e1y;
+  if (!(std::fabs(det) > 0.0f)) return q.own;
+  float lo_u = INFINITY, hi_u = -INFINITY, lo_v = INFINITY, hi_v = -INFINITY;
+  for (int c = 0; c < 3; ++c) {
+    const float dx = other[2 * c] - a[0], dy = other[2 * c + 1] - a[1];
+    const float b1 = (dx * e2y - e2x * dy) / det, b2 = (e1x * dy - dx * e1y) / det, b0 = 1.0f - b1 - b2;
+    const float u = b0 * q.uv[0] + b1 * q.uv[2] + b2 * q.uv[4], v = b0 * q.uv[1] + b1 * q.uv[3] + b2 * q.uv[5];
+    lo_u = std::min(lo_u, u), hi_u = std::max(hi_u, u), lo_v = std::min(lo_v, v), hi_v = std::max(hi_v, v);
+  }
+  auto clampi = [](float x, int32_t lo, int32_t hi) {
+    return x != x ? lo : int32_t(std::clamp(x, float(lo), float(hi)));
+  };
+  return {clampi(std::floor(lo_u) - 1.0f, q.own.x0, q.own.x1), clampi(std::floor(lo_v) - 1.0f, q.own.y0, q.own.y1),
+          clampi(std::floor(hi_u) + 2.0f, q.own.x0, q.own.x1), clampi(std::floor(hi_v) + 2.0f, q.own.y0, q.own.y1)};
+}
 
 bool contact_query(RTCPointQueryFunctionArguments* args) {
   auto* q = static_cast<ContactQuery*>(args->userPtr);
   const unsigned geom = args->geomID, prim = args->primID;
-  if (q->found || (geom == q->geom && prim == q->prim)) return false;
+  if (geom == q->geom && prim == q->prim) return false;
   if (geom >= q->views->size()) {  // a CSG solid or an L-system object: its surface may lie anywhere in its box
-    q->found = true;
+    q->rects->push_back(q->own);
     return false;
   }
   const Vec3 n2 = (*q->views)[geom].normals[prim];
@@ -110,8 +142,8 @@ bool contact_query(RTCPointQueryFunctionArguments* args) {
     lo = std::min(lo, h), hi = std::max(hi, h);
     other[2 * c] = dot(d, q->t), other[2 * c + 1] = dot(d, q->b);
   }
-  if (lo > q->slab || hi < -q->slab) return false;
-  q->found = triangles_overlap(q->tri2d, other, q->tol);
+  if (lo > q->slab || hi < -q->slab || !triangles_overlap(q->tri2d, other, q->tol)) return false;
+  q->rects->push_back(partner_texels(*q, other));
   return false;
 }
 
@@ -136,24 +168,34 @@ std::vector<std::vector<uint8_t>> contact_candidates(RTCScene scene, const Scene
   for (size_t i = 0; i < views.size(); ++i) {
     const Mesh& mesh = *views[i].mesh;
     if (!s.own_texels(mesh)) continue;
-    std::vector<uint8_t> f(mesh.triangle_count(), 0);
+    const int32_t w = int32_t(mesh.lightmap_width), h = int32_t(mesh.lightmap_height);
+    tbb::enumerable_thread_specific<std::vector<TexelRect>> found;
     tbb::parallel_for(tbb::blocked_range<uint32_t>(0, mesh.triangle_count(), 256), [&](const auto& r) {
+      std::vector<TexelRect>& rects = found.local();
       for (uint32_t tri = r.begin(); tri < r.end(); ++tri) {
         const Vec3 n = views[i].normals[tri];
         if (dot(n, n) == 0.0f) continue;
         ContactQuery q;
-        q.scene = &s, q.views = &views, q.geom = unsigned(i), q.prim = tri, q.n = n;
+        q.views = &views, q.geom = unsigned(i), q.prim = tri, q.n = n, q.rects = &rects;
         make_frame(n, q.t, q.b);
         const Vec3 v[3] = {mesh.vertex(tri, 0), mesh.vertex(tri, 1), mesh.vertex(tri, 2)};
         q.origin = v[0];
         const Vec3 c = (v[0] + v[1] + v[2]) * (1.0f / 3.0f);
         float radius = 0.0f, d = 0.0f;
+        float lo_u = INFINITY, hi_u = -INFINITY, lo_v = INFINITY, hi_v = -INFINITY;
         for (int k = 0; k < 3; ++k) {
           const Vec3 e = v[k] - v[0];
           q.tri2d[2 * k] = dot(e, q.t), q.tri2d[2 * k + 1] = dot(e, q.b);
           radius = std::max(radius, length(v[k] - c));
           d = std::max(d, offset_distance(v[k], offset_scale));
+          q.uv[2 * k] = mesh.uv[6 * size_t(tri) + 2 * size_t(k)] * float(w);
+          q.uv[2 * k + 1] = mesh.uv[6 * size_t(tri) + 2 * size_t(k) + 1] * float(h);
+          lo_u = std::min(lo_u, q.uv[2 * k]), hi_u = std::max(hi_u, q.uv[2 * k]);
+          lo_v = std::min(lo_v, q.uv[2 * k + 1]), hi_v = std::max(hi_v, q.uv[2 * k + 1]);
         }
+        q.own = {std::clamp(int32_t(std::floor(lo_u)), 0, w), std::clamp(int32_t(std::floor(lo_v)), 0, h),
+                 std::clamp(int32_t(std::floor(hi_u)) + 1, 0, w), std::clamp(int32_t(std::floor(hi_v)) + 1, 0, h)};
+        if (q.own.x0 >= q.own.x1 || q.own.y0 >= q.own.y1) continue;  // outside the lightmap
         q.slab = 4.0f * d;
         q.tol = 1e-5f * radius;
         RTCPointQuery pq;
@@ -161,14 +203,15 @@ std::vector<std::vector<uint8_t>> contact_candidates(RTCScene scene, const Scene
         RTCPointQueryContext pc;
         rtcInitPointQueryContext(&pc);
         rtcPointQuery(scene, &pq, &pc, contact_query, &q);
-        f[tri] = q.found ? 1 : 0;
       }
     });
-    for (uint8_t v : f)
-      if (v) {
-        flags[i].swap(f);
-        break;
+    for (const std::vector<TexelRect>& rects : found) {
+      for (const TexelRect& r : rects) {
+        if (flags[i].empty()) flags[i].assign(size_t(w) * size_t(h), 0);
+        for (int32_t y = r.y0; y < r.y1; ++y)
+          for (int32_t x = r.x0; x < r.x1; ++x) flags[i][size_t(y) * size_t(w) + size_t(x)] = 1;
       }
+    }
   }
   return flags;
 }

@@ -23,8 +23,8 @@ struct MeshView {
   uint64_t texel_offset;     // into the global texel arrays
   const double* texel_area;  // world area per texel, null without lightmap
   const Vec3* normals;       // unit geometric normal per triangle; (0, 0, 0) if degenerate
-  // Per triangle: 1 where another surface may lie pressed against its front
-  // (contact_candidates); null where none does.
+  // Per texel: 1 where another surface may lie pressed against the mesh's
+  // front there (contact_candidates); null where none does.
   const uint8_t* contact = nullptr;
 };
 
@@ -86,11 +86,12 @@ inline Vec3 offset_origin(Vec3 p, Vec3 n, float offset_scale) { return p + n * o
 bool in_contact(RTCScene scene, const std::vector<MeshView>& views, Vec3 p, Vec3 n, unsigned geom, unsigned prim,
                 float offset_scale);
 
-// Per mesh, per triangle: 1 where in_contact can be true somewhere on the
-// triangle (another triangle nearly opposite its normal reaches within a few
-// offset distances of its plane, near it), so that only those pay for the
-// contact ray. Empty vectors for meshes without own texels (own_texels) or
-// without such triangles.
+// Per mesh, per lightmap texel: 1 where in_contact can be true (another
+// triangle nearly parallel to one of the texel's triangles lies within a few
+// offset distances of its plane and overlaps it there, or a CSG solid or an
+// L-system object is near), so that only those texels pay for the contact
+// ray. Empty vectors for meshes without own texels (own_texels) or without
+// such texels.
 std::vector<std::vector<uint8_t>> contact_candidates(RTCScene scene, const Scene& s, const std::vector<MeshView>& views,
                                                      float offset_scale);
 
