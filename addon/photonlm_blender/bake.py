@@ -8,16 +8,29 @@
 Nothing outside the job changes before finish(): a cancelled or failed bake leaves the
 earlier lightmap images and files as they were (what it did to lightmap UV maps is undone).
 
+Before anything changes, the job refuses a scene that nothing lights (no visible light with
+power, no emissive material, a black world); the engine refuses it too, and refuses a bake
+that would not fit in the memory free (both come back as .error, the scene unchanged).
+
 The last finished bake is described by LAST (a dict: stats, warnings and per object the
-mesh id, image name, EXR path and the coverage mask), for scripts and tests.
+mesh id, image names, EXR paths, the coverage mask and its share of noisy texels), for
+scripts and tests. Next to each <object>_lightmap.exr, finish() writes <object>_error.exr:
+the texels' relative error (standard error / value; 0 where the texel has no light) in R, G
+and B, loaded as the image <object>_error for the heat-map preview.
 """
 import os
 import tempfile
 import time
 
 import bpy
+import numpy as np
 
 from . import bridge, export, lsystem, materials, properties, uvmaps
+
+# Heat-map images larger than this per side hold the RMS of blocks of texels.
+ERROR_IMAGE_MAX = 2048
+# Engine statuses that refuse a bake before it begins (the message says why and what to do).
+REFUSALS = ("PLM_ERROR_INVALID_SCENE", "PLM_ERROR_OUT_OF_MEMORY")
 
 LAST = {}
 
@@ -53,6 +66,84 @@ def bake_settings(scene):
                 texel_value=settings.texel_value)
 
 
+class _Quiet:
+    """A Reports stand-in that keeps nothing (for looking at the scene as the export would)."""
+
+    def info(self, text):
+        pass
+
+    warning = error = add = info
+
+
+class _LightRecorder:
+    """A photonlm.Scene stand-in for export._add_light / _set_world: records what would emit."""
+
+    def __init__(self):
+        self.emitting = []
+
+    def add_light(self, kind, name="", **settings):
+        if kind != 'PORTAL':
+            self.emitting.append("light '%s'" % name)
+
+    def set_world(self, radiance):
+        if max(radiance) > 0.0:
+            self.emitting.append("the world")
+
+
+def light_sources(context, limit=1):
+    """What would light the scene, as the export sees it: visible lights with power and a colour,
+    visible objects with an emissive material, a world that is not black. Stops after `limit`
+    finds (0 = all). A list of descriptions; empty when nothing lights the scene."""
+    recorder, quiet = _LightRecorder(), _Quiet()
+    export._set_world(recorder, context.scene.world, quiet)
+    view_layer = context.view_layer
+    emissive = {}
+    depsgraph = context.evaluated_depsgraph_get()
+    for inst in depsgraph.object_instances:
+        if limit and len(recorder.emitting) >= limit:
+            break
+        obj = inst.object
+        parent = inst.parent.original if inst.is_instance and inst.parent else obj.original
+        if not export.is_renderable(parent, view_layer):
+            continue
+        if obj.type == 'LIGHT':
+            export._add_light(recorder, obj, inst.matrix_world, quiet)
+        elif obj.type in export.GEOMETRY_TYPES:
+            for slot in obj.material_slots:
+                mat = slot.material
+                if mat is None:
+                    continue
+                if mat.name_full not in emissive:
+                    emissive[mat.name_full] = max(materials.read_material(mat).emission) > 0.0
+                if emissive[mat.name_full]:
+                    recorder.emitting.append("material '%s' on '%s'" % (mat.name, obj.original.name))
+                    break
+    return recorder.emitting
+
+
+def unlit_scene_message(context):
+    """Why nothing lights the scene, naming lights that do not count (hidden, no power, black)."""
+    view_layer = context.view_layer
+    idle = []
+    for obj in context.scene.objects:
+        if obj.type != 'LIGHT':
+            continue
+        light = obj.data
+        if light.type == 'AREA' and getattr(getattr(light, "cycles", None), "is_portal", False):
+            continue
+        if not export.is_renderable(obj, view_layer):
+            idle.append("'%s' is hidden" % obj.name)
+        elif light.energy <= 0.0:
+            idle.append("'%s' has no power" % obj.name)
+        elif max(light.color) <= 0.0:
+            idle.append("'%s' is black" % obj.name)
+    text = ("nothing lights the scene: no visible light with power, no emissive material and a black world, "
+            "so every lightmap would be black. Add a light, an emissive material or a world colour")
+    if idle:
+        text += " (light %s%s)" % (", ".join(idle[:3]), ", ..." if len(idle) > 3 else "")
+    return text
+
+
 class BakeJob:
     def __init__(self, context):
         self.reports = export.Reports()
@@ -64,9 +155,12 @@ class BakeJob:
         self.error = None
         self.cancelled = False
         self.created_uvs = []
+        self.notices = []  # warnings to show last (after the summary): memory, noisy texels
         objects = export.lightmap_objects(context)
         if not objects and not any(lsystem.is_lsystem(o) for o in context.view_layer.objects):
             raise BakeError("nothing to bake: no visible mesh object with 'Bake Lightmap' enabled")
+        if not light_sources(context):
+            raise BakeError(unlit_scene_message(context))
         t0 = time.perf_counter()
         try:
             self.created_uvs = export.ensure_lightmap_uvs(context, objects, self.reports)
@@ -87,7 +181,8 @@ class BakeJob:
         except self.photonlm.BakeCancelled:
             self.cancelled = True
         except Exception as e:  # noqa: BLE001 -- reported to the user by the operator
-            self.error = "bake failed: %s" % (getattr(e, "message", None) or e)
+            refused = getattr(e, "status", None) in REFUSALS
+            self.error = "bake %s: %s" % ("refused" if refused else "failed", getattr(e, "message", None) or e)
         finally:
             self.export.scene.close()
             self.export.texture_files.cleanup()  # the engine copied the images at the bake's start
@@ -110,13 +205,20 @@ class BakeJob:
         try:
             stats = result.stats
             warnings = result.warnings
-            for w in uvmaps.summarise_warnings(warnings):
+            memory_warnings = [w for w in warnings if is_memory_warning(w)]
+            for w in uvmaps.summarise_warnings([w for w in warnings if not is_memory_warning(w)]):
                 self.reports.warning("engine: " + w)
+            self.notices = ["engine: " + w for w in memory_warnings]
             out_dir = output_directory(context.scene)
             scene = context.scene
+            # The heat map's scale and the engine's error_above: twice the target (twice the RMS error
+            # without a target).
+            target = self.settings["target_error"] if self.settings["target_error"] > 0.0 \
+                else float(stats["error_estimate"])
             per_object = {}
             used_files = set()
             images = {}
+            error_images = {}
             for b in self.export.baked:
                 base = export.safe_file_name(b.object_name)
                 fname = base + "_lightmap.exr"
@@ -130,11 +232,24 @@ class BakeJob:
                 lm = result.lightmap(b.mesh_id)
                 image = load_image(b.object_name + "_lightmap", path)
                 images[b.object_name] = image
+                relative = relative_error(lm.rgb, lm.error)
+                error_path = path[:-len("_lightmap.exr")] + "_error.exr"
+                write_error_exr(error_path, error_image_pixels(relative))
+                error_image = load_image(b.object_name + "_error", error_path)
+                error_image[materials.TAG] = materials.ERROR_IMAGE_TAG
+                error_images[b.object_name] = error_image
+                covered = lm.coverage > 0.0
+                texels = int(np.count_nonzero(covered))
+                above = int(np.count_nonzero(relative[covered] > 2.0 * target))
                 small = b.width * b.height <= 1024 * 1024
                 per_object[b.object_name] = dict(mesh_id=b.mesh_id, image=image.name, path=path,
                                                  size=(b.width, b.height), coverage=lm.coverage,
-                                                 rgb=lm.rgb if small else None)
-            self._wire(context, images)
+                                                 rgb=lm.rgb if small else None,
+                                                 error=lm.error if small else None,
+                                                 error_image=error_image.name, error_path=error_path,
+                                                 texels=texels, texels_above=above,
+                                                 error_above=above / texels if texels else 0.0)
+            self._wire(context, images, error_images, target)
             for name, lid in self.export.lsystems:
                 obj = bpy.data.objects.get(name)
                 if obj is not None:
@@ -157,6 +272,9 @@ class BakeJob:
         # The photon pass's own rate (the whole bake also holds set-up, the direct pass and writing).
         photons_per_second = stats["photons_emitted"] / max(stats["seconds_trace"], 1e-9) \
             if stats["photons_emitted"] else 0.0
+        noisiest = noisiest_objects(per_object)
+        if float(stats["error_above"]) > properties.NOISY_SHARE:
+            self.notices.append(noisy_message(stats, noisiest, per_object, self.settings["target_error"] > 0.0))
         scene[properties.STATS_KEY] = dict(
             photons_emitted=int(stats["photons_emitted"]), seconds_total=float(stats["seconds_total"]),
             seconds_export=float(self.seconds_export), photons_per_second=float(photons_per_second),
@@ -164,21 +282,25 @@ class BakeJob:
             photon_hits=int(stats["photon_hits"]), rays_traced=int(stats["rays_traced"]),
             error_estimate=float(stats["error_estimate"]), error_direct=float(stats["error_direct"]),
             error_median=float(stats["error_median"]),
-            error_p95=float(stats["error_p95"]), direct_samples=int(stats["direct_samples"]))
+            error_p95=float(stats["error_p95"]), error_above=float(stats["error_above"]),
+            target_error=float(self.settings["target_error"]), error_target=float(target),
+            memory_estimate=float(stats["memory_estimate"]),
+            noisiest=noisiest[0] if noisiest else "",
+            noisiest_above=float(per_object[noisiest[0]]["error_above"]) if noisiest else 0.0, direct_samples=int(stats["direct_samples"]))
         LAST.clear()
         LAST.update(stats=dict(stats, seconds_export=self.seconds_export,
-                               photons_per_second=photons_per_second),
+                               photons_per_second=photons_per_second, error_target=target),
                     warnings=list(warnings), objects=per_object, output_dir=out_dir, ols=ol_info,
                     csg_objects=list(self.export.csg_objects),
-                    lsystems=[name for name, _ in self.export.lsystems],
-                    reports=list(self.reports.items))
+                    lsystems=[name for name, _ in self.export.lsystems], noisiest=noisiest,
+                    reports=list(self.reports.items) + [('WARNING', n) for n in self.notices])
         uvmaps.commit(self.created_uvs)  # kept: they belong to the baked lightmaps now
         self.created_uvs = []
         return LAST
 
-    def _wire(self, context, images):
-        """Wire each baked object's materials to its lightmap image (first object wins for a
-        material shared by several baked objects)."""
+    def _wire(self, context, images, error_images, target):
+        """Wire each baked object's materials to its lightmap image and its heat map (first object
+        wins for a material shared by several baked objects)."""
         engine = context.scene.render.engine
         owners = {}
         for b in sorted(self.export.baked, key=lambda b: b.object_name):
@@ -198,9 +320,10 @@ class BakeJob:
                 self.reports.warning("material '%s' is shared by %s: its preview shows the lightmap of "
                                      "'%s' only (give each object its own material)"
                                      % (name, ", ".join("'%s'" % o for o in objs), objs[0]))
-            for note in materials.wire_material(mat, images[objs[0]], engine):
+            for note in materials.wire_material(mat, images[objs[0]], engine, error_image=error_images[objs[0]],
+                                                target_error=target):
                 self.reports.warning(note)
-            materials.set_preview(mat, context.scene.photonlm.preview)
+            materials.set_preview(mat, context.scene.photonlm.preview_mode)
 
 
     def _wire_ol(self, context, group, image):
@@ -220,8 +343,74 @@ class BakeJob:
                     continue
                 for note in materials.wire_material(mat, image, engine, orientation=True):
                     self.reports.warning(note)
-                materials.set_preview(mat, context.scene.photonlm.preview)
+                materials.set_preview(mat, context.scene.photonlm.preview_mode)
                 owned.add(mat.name)
+
+
+def is_memory_warning(text):
+    """The engine's warning that a bake comes close to the memory free."""
+    return text.startswith("the bake may need about")
+
+
+def relative_error(rgb, error):
+    """Per-texel relative error: standard error / mean RGB value, 0 where the value is not above 0
+    (a texel without light: the engine counts it as below any threshold)."""
+    value = rgb.astype(np.float64).mean(axis=2)
+    out = np.zeros(value.shape, np.float32)
+    lit = value > 0.0
+    out[lit] = error[lit] / value[lit]
+    return out
+
+
+def error_image_pixels(relative):
+    """The heat-map image of an object: its relative errors, or for a lightmap wider than
+    ERROR_IMAGE_MAX the root mean square over blocks of k x k texels (k a power of two)."""
+    h, w = relative.shape
+    k = 1
+    while max(h, w) > ERROR_IMAGE_MAX * k and h % (2 * k) == 0 and w % (2 * k) == 0:
+        k *= 2
+    if k == 1:
+        return relative
+    r2 = relative.astype(np.float64) ** 2
+    return np.sqrt(r2.reshape(h // k, k, w // k, k).mean(axis=(1, 3))).astype(np.float32)
+
+
+def write_error_exr(path, relative):
+    """Write a (h, w) float32 array (row 0 = bottom) into R, G and B of a float EXR, atomically."""
+    h, w = relative.shape
+    tmp = path[:-4] + ".tmp.exr"
+    image = bpy.data.images.new("PhotonLM error (writing)", w, h, alpha=False, float_buffer=True)
+    try:
+        image.colorspace_settings.name = 'Non-Color'  # before the pixels: changing it regenerates them
+        px = np.ones((h, w, 4), np.float32)
+        px[..., :3] = relative[..., None]
+        image.pixels.foreach_set(px.ravel())
+        image.filepath_raw = tmp
+        image.file_format = 'OPEN_EXR'
+        image.save()
+    finally:
+        bpy.data.images.remove(image)
+    os.replace(tmp, path)
+
+
+def noisiest_objects(per_object, count=3):
+    """Names of the objects with the largest share of texels above twice the target, among those
+    holding at least 5 % of all such texels (an object of a few texels does not decide), worst first."""
+    total = sum(o["texels_above"] for o in per_object.values())
+    if total == 0:
+        return []
+    big = [(o["error_above"], name) for name, o in per_object.items() if o["texels_above"] >= 0.05 * total]
+    return [name for _, name in sorted(big, key=lambda t: (-t[0], t[1]))][:count]
+
+
+def noisy_message(stats, noisiest, per_object, has_target):
+    """The warning for a bake with much of its lightmap above twice the target error."""
+    names = ", ".join("'%s' (%.0f %%)" % (n, 100.0 * per_object[n]["error_above"]) for n in noisiest)
+    return ("%.0f %% of the lightmap texels are above twice the %s (95th percentile %.0f %%)%s: lower "
+            "the Resolution of the noisiest objects, or raise the Time Budget or Max Photons%s"
+            % (100.0 * float(stats["error_above"]), "target error" if has_target else "RMS error",
+               100.0 * float(stats["error_p95"]), "; noisiest " + names if names else "",
+               " or lower the Target Error" if has_target else ""))
 
 
 def load_image(name, path):

@@ -21,10 +21,17 @@ tagged node["photonlm"] = role inside a frame labelled "PhotonLM Lightmap":
     with the base colour: its default value, or a link from the socket that feeds the
     BSDF's colour input) -> Emission (Strength 1) -> Add Shader (+ Emission of the
     original emission colour x strength) -> a NEW Material Output.
-The preview toggle only switches which Material Output is active; the original nodes and
-links are never changed, and switching the preview off re-activates the original output
-(its name is kept in the node tree's ID property "photonlm_original_output"). Baking
-again reuses the tagged nodes.
+With an error image (<object>_error: the texels' relative error, standard error / value, in
+R, G and B) the frame also holds the heat map:
+    UV Map -> Image Texture (<object>_error) -> Math Divide (by 4 x the target error) ->
+    Color Ramp (green up to the target, yellow at 2x, red at 4x and above) -> x a shading
+    factor (Layer Weight Facing: 1 facing the view, 0.6 at grazing angles) -> Emission ->
+    a second NEW Material Output (tagged "output_error").
+The preview mode (OFF / LIGHTMAP / ERROR) only switches which Material Output is active;
+the original nodes and links are never changed, and switching the preview off
+re-activates the original output (its name is kept in the node tree's ID property
+"photonlm_original_output"). A material without the heat map (an orientation-lightmap
+lookup) shows its lightmap in ERROR mode. Baking again reuses the tagged nodes.
 
 A material used by several baked objects can show only one lightmap: it is wired to the
 first of those objects (by name) and the bake reports the others. Give each object its
@@ -36,6 +43,11 @@ import bpy
 
 TAG = "photonlm"
 ORIGINAL_OUTPUT_KEY = "photonlm_original_output"
+ERROR_IMAGE_TAG = "error"  # image[TAG] of the heat-map images the bake loads (<object>_error)
+# The heat map's colours at 0, 1, 2 and 4 times the target error (linear RGB).
+HEAT_RAMP = ((0.0, (0.02, 0.55, 0.05)), (0.25, (0.02, 0.55, 0.05)), (0.5, (0.9, 0.75, 0.0)),
+             (1.0, (0.85, 0.03, 0.02)))
+HEAT_GRAZING_DARKEN = 0.4  # the heat map's brightness falls from 1 facing the view to 0.6 at grazing angles
 FALLBACK_ALBEDO = (0.8, 0.8, 0.8)
 LIGHTMAP_UV = "lightmap"
 
@@ -324,9 +336,10 @@ def ol_lookup_group():
     return g
 
 
-def wire_material(mat, image, render_engine, orientation=False):
+def wire_material(mat, image, render_engine, orientation=False, error_image=None, target_error=0.02):
     """Add (or update) the preview nodes of `mat` for lightmap `image` (orientation=True: an
-    orientation lightmap looked up by the world normal). Returns report strings.
+    orientation lightmap looked up by the world normal) and, with error_image, the heat map of
+    its relative errors against target_error. Returns report strings.
     The active output is not changed here (see set_preview)."""
     notes = []
     if mat is None:
@@ -387,15 +400,80 @@ def wire_material(mat, image, render_engine, orientation=False):
     for link in list(out.inputs['Volume'].links) + list(out.inputs['Displacement'].links):
         links.remove(link)
 
+    heat_out = None
+    if error_image is not None and not orientation:
+        heat_out = _wire_heat_map(tree, frame, uv, error_image, target_error, x0, y0 - 360.0)
+    else:
+        for n in [n for n in tree.nodes if str(n.get(TAG, "")).startswith("error_") or n.get(TAG) == "output_error"]:
+            tree.nodes.remove(n)
+
     targets = {n.target for n in _output_nodes(tree)}
     if targets - {'ALL'}:
         engine = 'CYCLES' if render_engine == 'CYCLES' else 'EEVEE'
-        out.target = engine
+        target = engine
         notes.append("material '%s' has engine-specific outputs: the lightmap preview shows in %s only"
                      % (mat.name, engine.title()))
     else:
-        out.target = 'ALL'
+        target = 'ALL'
+    for n in (out, heat_out):
+        if n is not None:
+            n.target = target
     return notes
+
+
+def _wire_heat_map(tree, frame, uv, error_image, target_error, x0, y0):
+    """UV Map -> error image -> / (4 x target) -> colour ramp -> Emission -> the heat map's output."""
+    tex = _node(tree, "error_image", 'ShaderNodeTexImage', frame)
+    scale = _node(tree, "error_scale", 'ShaderNodeMath', frame)
+    ramp = _node(tree, "error_ramp", 'ShaderNodeValToRGB', frame)
+    emit = _node(tree, "error_emission", 'ShaderNodeEmission', frame)
+    out = _node(tree, "output_error", 'ShaderNodeOutputMaterial', frame)
+    for i, n in enumerate((tex, scale, ramp, emit, out)):
+        n.location = (x0 + 260.0 * (i + 1), y0)
+    tex.image = error_image
+    tex.interpolation = 'Linear'
+    tex.extension = 'EXTEND'
+    scale.operation = 'DIVIDE'
+    scale.use_clamp = False
+    scale.inputs[1].default_value = 4.0 * max(float(target_error), 1e-6)
+    scale.label = "PhotonLM error / (4 x %.3g %%)" % (100.0 * target_error)
+    ramp.color_ramp.interpolation = 'LINEAR'
+    ramp.color_ramp.color_mode = 'RGB'
+    elements = ramp.color_ramp.elements
+    while len(elements) > 1:
+        elements.remove(elements[-1])
+    elements[0].position = HEAT_RAMP[0][0]
+    elements[0].color = tuple(HEAT_RAMP[0][1]) + (1.0,)
+    for position, colour in HEAT_RAMP[1:]:
+        elements.new(position).color = tuple(colour) + (1.0,)
+    links = tree.links
+    links.new(uv.outputs['UV'], tex.inputs['Vector'])
+    links.new(tex.outputs['Color'], scale.inputs[0])
+    links.new(scale.outputs['Value'], ramp.inputs['Fac'])
+    # Faces seen at a grazing angle a little darker, so that the shapes read under flat colours.
+    facing = _node(tree, "error_facing", 'ShaderNodeLayerWeight', frame)
+    shade = _node(tree, "error_shade", 'ShaderNodeMath', frame)
+    mix = _node(tree, "error_shading", 'ShaderNodeMixRGB', frame)
+    facing.location = (x0 + 260.0 * 2, y0 - 220.0)
+    shade.location = (x0 + 260.0 * 3, y0 - 220.0)
+    mix.location = (x0 + 260.0 * 3.5, y0 - 110.0)
+    facing.inputs['Blend'].default_value = 0.5
+    shade.operation = 'MULTIPLY_ADD'
+    shade.use_clamp = True
+    shade.inputs[1].default_value = -HEAT_GRAZING_DARKEN
+    shade.inputs[2].default_value = 1.0
+    mix.blend_type = 'MULTIPLY'
+    mix.use_clamp = False
+    mix.inputs['Fac'].default_value = 1.0
+    links.new(facing.outputs['Facing'], shade.inputs[0])
+    links.new(ramp.outputs['Color'], mix.inputs['Color1'])
+    links.new(shade.outputs['Value'], mix.inputs['Color2'])
+    links.new(mix.outputs['Color'], emit.inputs['Color'])
+    emit.inputs['Strength'].default_value = 1.0
+    links.new(emit.outputs['Emission'], out.inputs['Surface'])
+    for link in list(out.inputs['Volume'].links) + list(out.inputs['Displacement'].links):
+        links.remove(link)
+    return out
 
 
 def _remember_active(tree):
@@ -416,13 +494,28 @@ def is_wired(mat):
             and any(n.get(TAG) == "output" for n in mat.node_tree.nodes))
 
 
-def set_preview(mat, on):
-    """Activate the preview output (on) or the original output (off) of a wired material."""
+PREVIEW_MODES = ('OFF', 'LIGHTMAP', 'ERROR')
+
+
+def preview_mode(value):
+    """A preview mode from a mode name or a bool (True = LIGHTMAP, False = OFF)."""
+    if value in PREVIEW_MODES:
+        return value
+    return 'LIGHTMAP' if value else 'OFF'
+
+
+def set_preview(mat, mode):
+    """Activate the output of preview `mode` of a wired material: 'LIGHTMAP' (or True) its lightmap
+    output, 'ERROR' its heat-map output (the lightmap output where it has none), 'OFF' (or False)
+    the original output."""
     if not is_wired(mat):
         return
+    mode = preview_mode(mode)
     tree = mat.node_tree
     ours = next(n for n in tree.nodes if n.get(TAG) == "output")
-    if on:
+    if mode == 'ERROR':
+        ours = next((n for n in tree.nodes if n.get(TAG) == "output_error"), ours)
+    if mode != 'OFF':
         if ours.is_active_output:
             return
         _remember_active(tree)
@@ -436,32 +529,44 @@ def set_preview(mat, on):
         if orig is None or _is_ours(orig):
             candidates = _output_nodes(tree)
             orig = candidates[0] if candidates else None
-        ours.is_active_output = False
+        for n in _output_nodes(tree, True):
+            if _is_ours(n):
+                n.is_active_output = False
         if orig is not None:
             orig.is_active_output = True
 
 
-def set_preview_all(on):
+def set_preview_all(mode):
     for mat in bpy.data.materials:
-        set_preview(mat, on)
+        set_preview(mat, mode)
 
 
 def remove_wiring(mat):
-    """Remove the preview nodes from a material and re-activate its original output."""
+    """Remove the preview nodes (lightmap and heat map) from a material and re-activate its
+    original output."""
     if mat is None or mat.node_tree is None:
         return False
-    set_preview(mat, False)
+    set_preview(mat, 'OFF')
     tree = mat.node_tree
     ours = [n for n in tree.nodes if _is_ours(n)]
+    frames = [n for n in ours if n.bl_idname == 'NodeFrame']
     for n in ours:
         if n.bl_idname != 'NodeFrame':
             tree.nodes.remove(n)
-    for n in ours:
-        if n.bl_idname == 'NodeFrame':
-            tree.nodes.remove(n)
+    for n in frames:  # after their children
+        tree.nodes.remove(n)
     if ORIGINAL_OUTPUT_KEY in tree:
         del tree[ORIGINAL_OUTPUT_KEY]
     return bool(ours)
+
+
+def remove_error_images():
+    """Remove the heat-map images (<object>_error) no material uses any more; their files stay.
+    Returns how many were removed."""
+    unused = [im for im in bpy.data.images if im.get(TAG) == ERROR_IMAGE_TAG and im.users == 0]
+    for im in unused:
+        bpy.data.images.remove(im)
+    return len(unused)
 
 
 # ---- image textures for the engine ---------------------------------------------------------

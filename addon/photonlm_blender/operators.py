@@ -60,9 +60,16 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
             return {'CANCELLED'}
         _report_all(self, job.reports)
         s = last["stats"]
-        self.report({'INFO'}, "Baked %d lightmaps: %s photons in %.2f s (%.2f M photons/s), %d warnings"
+        self.report({'INFO'}, "Baked %d lightmaps: %s photons in %.2f s (%.2f M photons/s), error %.2f %% "
+                    "(%.1f %% of the texels above %.3g %%), %d warnings"
                     % (len(last["objects"]), "{:,}".format(int(s["photons_emitted"])), s["seconds_total"],
-                       s["photons_per_second"] / 1e6, len(last["warnings"])))
+                       s["photons_per_second"] / 1e6, 100.0 * s["error_estimate"], 100.0 * s["error_above"],
+                       200.0 * s["error_target"], len(last["warnings"])))
+        # Last, so that the status bar shows them: the bake came close to the memory free, or much
+        # of the lightmap is noisy.
+        for text in job.notices:
+            print("PhotonLM warning: %s" % text)
+            self.report({'WARNING'}, text)
         return {'FINISHED'}
 
     def execute(self, context):
@@ -144,15 +151,16 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
 
 
 class PHOTONLM_OT_remove_preview(bpy.types.Operator):
-    """Remove the PhotonLM lightmap preview nodes from all materials (the lightmap images and
-    files are kept)"""
+    """Remove the PhotonLM preview nodes (lightmaps and error heat map) from all materials and the
+    heat-map images (the lightmap images and all files are kept)"""
     bl_idname = "photonlm.remove_preview"
     bl_label = "Remove Preview Nodes"
     bl_options = {'REGISTER', 'UNDO'}
 
     def execute(self, context):
         n = sum(1 for mat in bpy.data.materials if materials.remove_wiring(mat))
-        self.report({'INFO'}, "Removed the lightmap preview from %d materials" % n)
+        k = materials.remove_error_images()
+        self.report({'INFO'}, "Removed the lightmap preview from %d materials (and %d heat-map images)" % (n, k))
         return {'FINISHED'}
 
 

@@ -37,21 +37,59 @@ class PHOTONLM_PT_lightmaps(bpy.types.Panel):
         if bridge.error():
             layout.label(text=bridge.error(), icon='ERROR')
         layout.operator_menu_enum("photonlm.add_lsystem", "preset", text="Add L-System", icon='OUTLINER_OB_CURVES')
-        row = layout.row(align=True)
-        row.prop(settings, "preview", toggle=True, icon='HIDE_OFF' if settings.preview else 'HIDE_ON')
+        col = layout.column(align=True)
+        col.use_property_split = False
+        col.label(text="Viewport Preview")
+        row = col.row(align=True)
+        row.prop(settings, "preview_mode", expand=True)
         row.operator("photonlm.remove_preview", text="", icon='TRASH')
+        if settings.preview_mode == 'ERROR':
+            col.label(text=_heat_legend(context.scene))
         layout.operator("photonlm.export_scene_file", text="Export Scene File...", icon='EXPORT')
 
         if settings.last_photons:
             box = layout.box()
             box.label(text="Last Bake", icon='INFO')
             col = box.column(align=True)
-            for label, prop in (("Objects", "last_objects"), ("Photons", "last_photons"), ("Time", "last_time"), ("Error", "last_error"),
-                                ("Photon Speed", "last_rate"), ("Warnings", "last_warnings")):
+            stats = _stats(context.scene)
+            rows = [("Objects", "last_objects"), ("Photons", "last_photons"), ("Time", "last_time"),
+                    ("Error", "last_error")]
+            if "error_above" in stats:
+                rows += [("Above %.3g %%" % (200.0 * float(stats.get("error_target", 0.0))), "last_error_above"),
+                         ("Percentile 95", "last_error_p95")]
+            if settings.last_hint:
+                rows.append(("Noisiest", "last_noisiest"))
+            rows += [("Memory", "last_memory"), ("Photon Speed", "last_rate"), ("Warnings", "last_warnings")]
+            for label, prop in rows:
+                value = getattr(settings, prop)
+                if not value:
+                    continue
                 split = col.split(factor=0.4)
                 split.alignment = 'RIGHT'
                 split.label(text=label)
-                split.label(text=getattr(settings, prop))
+                split.label(text=value + _suffix(stats, prop))
+            if settings.last_hint:
+                box.label(text=settings.last_hint, icon='ERROR')
+
+
+def _stats(scene):
+    from .properties import STATS_KEY
+    return scene.get(STATS_KEY) or {}
+
+
+def _suffix(stats, prop):
+    """What a Last Bake figure is measured against."""
+    if prop == "last_error" and float(stats.get("target_error", 0.0)) > 0.0:
+        return "  (target %.3g %%)" % (100.0 * float(stats["target_error"]))
+    if prop == "last_error_above":
+        return " of texels"
+    return ""
+
+
+def _heat_legend(scene):
+    """The heat map's colours in words, at the last bake's target error."""
+    target = float(_stats(scene).get("error_target", 0.0)) or scene.photonlm.target_error
+    return "Green %.3g%%  yellow %.3g%%  red %.3g%%" % (100.0 * target, 200.0 * target, 400.0 * target)
 
 
 class PHOTONLM_PT_object(bpy.types.Panel):
@@ -75,7 +113,7 @@ class PHOTONLM_PT_object(bpy.types.Panel):
         layout.prop(obj.photonlm, "enabled")
         col = layout.column()
         col.enabled = obj.photonlm.enabled
-        col.prop(obj.photonlm, "resolution", text="Resolution (0 = Auto)")
+        col.prop(obj.photonlm, "resolution")
         col.prop(obj.photonlm, "mode")
         layout.prop(obj.photonlm, "primitive")
         ls = obj.photonlm.lsystem

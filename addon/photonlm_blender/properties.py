@@ -1,4 +1,4 @@
-"""Settings: scene.photonlm (bake settings, preview toggle, last bake's statistics) and
+"""Settings: scene.photonlm (bake settings, preview mode, last bake's statistics) and
 object.photonlm (per-object lightmap resolution).
 
 Lightmap resolution of an object (object.photonlm.resolution = 0, the default):
@@ -13,6 +13,16 @@ import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
 STATS_KEY = "photonlm_last_bake"  # ID property on the scene: the last bake's statistics
+
+# A bake holds about 240 bytes for every lightmap texel and 160 more for each covered one
+# (the engine's memory estimate): an object's Resolution is capped where one lightmap alone
+# would need tens of gigabytes.
+RESOLUTION_MAX = 8192
+RESOLUTION_SOFT_MAX = 4096
+
+# The Last Bake box suggests what to do when more than this share of the texels is above
+# twice the target error.
+NOISY_SHARE = 0.10
 
 
 def resolution_from_area(area, density):
@@ -53,9 +63,52 @@ def _fmt_rate(x):
     return "%.0f k photons/s" % (x / 1e3)
 
 
+def _fmt_bytes(x):
+    x = float(x)
+    if x >= 1e9:
+        return "%.1f GB" % (x / 1e9)
+    return "%.0f MB" % (x / 1e6)
+
+
 def _preview_update(self, context):
     from . import materials
-    materials.set_preview_all(bool(self.preview))
+    materials.set_preview_all(self.preview_mode)
+
+
+def _preview_get(self):
+    return self.preview_mode != 'OFF'
+
+
+def _preview_set(self, value):
+    if not value:
+        self.preview_mode = 'OFF'
+    elif self.preview_mode == 'OFF':
+        self.preview_mode = 'LIGHTMAP'
+
+
+def _error_above_get(self):
+    """'12.3 %': the share of covered texels above twice the target (or twice the RMS error)."""
+    stats = self.id_data.get(STATS_KEY)
+    if not stats or "error_above" not in stats:
+        return ""
+    return "%.1f %%" % (100.0 * float(stats["error_above"]))
+
+
+def _noisy_hint_get(self):
+    """A one-line suggestion when much of the lightmap is above twice the target error ('' when not)."""
+    stats = self.id_data.get(STATS_KEY)
+    if not stats or float(stats.get("error_above", 0.0)) <= NOISY_SHARE:
+        return ""
+    return "Lower Resolution or add time"
+
+
+def _noisiest_get(self):
+    """'Sphere (72 %)': the object with the largest share of noisy texels, when much is noisy."""
+    stats = self.id_data.get(STATS_KEY)
+    if not stats or not stats.get("noisiest"):
+        return ""
+    share = stats.get("noisiest_above")
+    return "%s (%.0f %%)" % (stats["noisiest"], 100.0 * float(share)) if share is not None else str(stats["noisiest"])
 
 
 class PhotonlmSceneSettings(bpy.types.PropertyGroup):
@@ -98,14 +151,37 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
         default=1024, min=0, soft_max=1024)
     seed: IntProperty(name="Seed", description="Random seed; the result depends on the seed only, "
                       "not on the number of threads", default=0, min=0)
+    preview_mode: EnumProperty(
+        name="Preview", description="What the materials of the baked objects show in Material Preview and "
+        "Rendered view (a separate Material Output; the original nodes stay untouched)",
+        items=[('OFF', "Off", "The materials as they were: the original Material Output"),
+               ('LIGHTMAP', "Lightmaps", "The baked light: albedo x lightmap + emission"),
+               ('ERROR', "Error", "Each texel's relative error (standard error / value) as a heat map: "
+                "green up to the target error, yellow at twice it, red at four times and above")],
+        default='OFF', update=_preview_update)
     preview: BoolProperty(
-        name="Preview Lightmaps", description="Show the baked lightmaps in the materials of the baked "
-        "objects (switches to a separate Material Output; the original nodes stay untouched)",
-        default=False, update=_preview_update)
+        name="Preview Lightmaps", description="Preview on (Lightmaps, or the Error heat map when chosen) or off; "
+        "the same as Preview other than Off", get=_preview_get, set=_preview_set)
     # Read-only statistics of the last bake (stored in the scene's ID property STATS_KEY).
     last_photons: StringProperty(name="Photons", get=_stat_getter("photons_emitted", _fmt_count))
     last_time: StringProperty(name="Time", get=_stat_getter("seconds_total", _fmt_seconds))
-    last_error: StringProperty(name="Error", get=_stat_getter("error_estimate", _fmt_percent))
+    last_error: StringProperty(name="Error", description="Estimated relative RMS error over all texels",
+                               get=_stat_getter("error_estimate", _fmt_percent))
+    last_error_above: StringProperty(
+        name="Above 2x", description="Share of the lightmap texels whose relative error is above twice the "
+        "target error (twice the RMS error without a target)", get=_error_above_get)
+    last_error_p95: StringProperty(
+        name="95th %", description="95th percentile of the texels' relative errors: 5 % of the texels are "
+        "noisier than this", get=_stat_getter("error_p95", _fmt_percent))
+    last_error_median: StringProperty(name="Median", description="Median of the texels' relative errors",
+                                      get=_stat_getter("error_median", _fmt_percent))
+    last_memory: StringProperty(name="Memory", description="Memory the engine estimated for the bake",
+                                get=_stat_getter("memory_estimate", _fmt_bytes))
+    last_hint: StringProperty(name="Hint", description="What to do when much of the lightmap is above twice "
+                              "the target error: lower the Resolution of the noisiest objects, or give the bake "
+                              "more time (Time Budget, Max Photons) or a lower Target Error", get=_noisy_hint_get)
+    last_noisiest: StringProperty(name="Noisiest", description="The object with the largest share of its texels "
+                                  "above twice the target error", get=_noisiest_get)
     last_rate: StringProperty(name="Photon Speed", description="Photons per second of the photon pass",
                               get=_stat_getter("photons_per_second", _fmt_rate))
     last_warnings: StringProperty(name="Warnings", get=_stat_getter("warning_count", _fmt_count))
@@ -135,7 +211,9 @@ class PhotonlmObjectSettings(bpy.types.PropertyGroup):
         "and reflects light but gets no lightmap", default=True)
     resolution: IntProperty(
         name="Resolution", description="Lightmap width and height in texels; 0 = Auto from the scene's "
-        "texel density and the object's surface area", default=0, min=0, max=16384, soft_max=4096)
+        "texel density and the object's surface area. A bake needs about 400 bytes per texel "
+        "(4096: about 7 GB, 8192: about 27 GB); a bake that does not fit in the memory free is refused",
+        default=0, min=0, max=RESOLUTION_MAX, soft_max=RESOLUTION_SOFT_MAX)
     mode: EnumProperty(
         name="Lighting", description="How the object's light is stored",
         items=[('LIGHTMAP', "Lightmap", "An ordinary lightmap: light per texel"),
