@@ -92,6 +92,7 @@ struct TexelRect {
 // texels of its lightmap that a partner may press against.
 struct ContactQuery {
   const std::vector<MeshView>* views;
+  const Mesh* mesh;  // the triangle's
   unsigned geom, prim;
   Vec3 origin, n, t, b;  // the triangle's vertex 0 and frame
   float tri2d[6];        // its corners in the frame
@@ -127,7 +128,12 @@ TexelRect partner_texels(const ContactQuery& q, const float other[6]) {
 bool contact_query(RTCPointQueryFunctionArguments* args) {
   auto* q = static_cast<ContactQuery*>(args->userPtr);
   const unsigned geom = args->geomID, prim = args->primID;
-  if (geom == q->geom && prim == q->prim) return false;
+  if (geom == q->geom) {  // the triangle itself and its neighbours in the mesh cannot lie on it
+    const uint32_t* a = &q->mesh->indices[3 * size_t(q->prim)];
+    const uint32_t* b = &q->mesh->indices[3 * size_t(prim)];
+    for (int i = 0; i < 3; ++i)
+      if (a[i] == b[0] || a[i] == b[1] || a[i] == b[2]) return false;
+  }
   if (geom >= q->views->size()) {  // a CSG solid or an L-system object: its surface may lie anywhere in its box
     q->rects->push_back(q->own);
     return false;
@@ -176,7 +182,7 @@ std::vector<std::vector<uint8_t>> contact_candidates(RTCScene scene, const Scene
         const Vec3 n = views[i].normals[tri];
         if (dot(n, n) == 0.0f) continue;
         ContactQuery q;
-        q.views = &views, q.geom = unsigned(i), q.prim = tri, q.n = n, q.rects = &rects;
+        q.views = &views, q.mesh = &mesh, q.geom = unsigned(i), q.prim = tri, q.n = n, q.rects = &rects;
         make_frame(n, q.t, q.b);
         const Vec3 v[3] = {mesh.vertex(tri, 0), mesh.vertex(tri, 1), mesh.vertex(tri, 2)};
         q.origin = v[0];
