@@ -28,7 +28,7 @@ OUT = os.path.abspath(argv[0]) if argv else "/tmp/artist_room_shots"
 
 # name: (eye, target, lens)
 VIEWS = {
-    "room_inside": ((-2.75, -2.25, 1.75), (1.2, 0.4, 0.9), 20.0),
+    "room_inside": ((-2.85, -1.5, 1.65), (1.8, 0.5, 0.8), 18.0),
     "room_window": ((-1.0, 0.2, 1.4), (3.0, -0.2, 1.4), 22.0),
     "room_objects": ((0.6, -0.2, 1.5), (-1.2, 1.6, 0.5), 22.0),
     "room_outside": ((9.0, -7.0, 6.0), (0.0, 0.0, 1.2), 35.0),

@@ -104,10 +104,35 @@ def main():
         if "UV" in text or "subdivi" in text:
             print("report:", text)
     if args.bake:
-        last = scenes.photonlm_bake(300_000, 4, seed=1, target_error=0.0)
+        last = scenes.photonlm_bake(2_000_000, 8, seed=1, target_error=0.0, direct_samples=16)
         for w in last["warnings"]:
             print("engine:", w)
         print("bake: %.1f s, %d engine warnings" % (last["wall_seconds"], len(last["warnings"])))
+        inside, outside = window_wall(bpy.data.objects["Walls"], np.asarray(last["objects"]["Walls"]["rgb"]))
+        print("window wall: inside %.4f, outside %.4f, inside / outside %.3f" % (inside, outside, inside / outside))
+
+
+def window_wall(walls, rgb):
+    """Area-weighted mean lightmap value over the inside (x = 3) and outside (x = 3.2) of the
+    sunlit window wall, sampled at points inside each of their triangles."""
+    pos, uv = scenes.evaluated_lightmap_triangles(walls)
+    n = np.cross(pos[:, 1] - pos[:, 0], pos[:, 2] - pos[:, 0])
+    area = 0.5 * np.linalg.norm(n, axis=1)
+    nx = np.abs(n[:, 0]) / np.maximum(2 * area, 1e-30)
+    cx = pos[:, :, 0].mean(axis=1)
+    h, w = rgb.shape[:2]
+    k = 8
+    bary = np.array([(i + 1 / 3, j + 1 / 3) for i in range(k) for j in range(k - i)]) / k
+    bary = np.column_stack([1 - bary.sum(axis=1), bary])
+    out = []
+    for x in (3.0, 3.2):
+        sel = (nx > 0.99) & (np.abs(cx - x) < 0.01) & (area > 1e-6)
+        pts = np.einsum("sk,tkd->tsd", bary, uv[sel])
+        ix = np.clip((pts[..., 0] * w).astype(int), 0, w - 1)
+        iy = np.clip((pts[..., 1] * h).astype(int), 0, h - 1)
+        vals = rgb[iy, ix].mean(axis=-1).mean(axis=1)
+        out.append(float((vals * area[sel]).sum() / area[sel].sum()))
+    return out
 
 
 main()
