@@ -1,15 +1,19 @@
 // Image textures (texture/texture.h) through the scene file and the C API: a
 // furnace box whose albedo texture is one colour c bakes to E / (1 - c) per
-// channel, and malformed texture fields are refused with their JSON path.
+// channel, and malformed texture fields are refused with their JSON path; the
+// bilinear lookup's conventions (pixel centres, periodic wrap, v = 0 at the
+// bottom row, 8-bit sRGB decoded after filtering) on a small image.
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <string>
 
 #include "io/scene_file.h"
+#include "texture/texture.h"
 #include "test_support.h"
 
 namespace {
@@ -145,4 +149,47 @@ TEST(Texture, CApiRejectsBadArguments) {
   EXPECT_EQ(plm_scene_set_mesh_texture_uv(s, 0, nullptr), PLM_ERROR_INVALID_ARGUMENT);  // no mesh 0
   EXPECT_EQ(plm_scene_set_mesh_texture_uv(nullptr, 0, nullptr), PLM_ERROR_INVALID_ARGUMENT);
   plm_scene_release(s);
+}
+
+TEST(Texture, BilinearLookupConventions) {
+  // 4 x 2 pixels, row 0 = the image's top row; pixel (x, y) = (x + 10 y, 1, y).
+  plm::TextureSet::Texture t;
+  t.width = 4;
+  t.height = 2;
+  for (int y = 0; y < 2; ++y)
+    for (int x = 0; x < 4; ++x) t.rgb.insert(t.rgb.end(), {float(x + 10 * y), 1.0f, float(y)});
+  t.mean = {7.0f, 1.0f, 0.5f};
+  auto at = [&](float u, float v) { return plm::TextureSet::sample(t, u, v); };
+  // Pixel centres ((x + 0.5) / 4, v) give the pixel itself; v = 0.75 is the top row, 0.25 the bottom one.
+  for (int x = 0; x < 4; ++x) {
+    EXPECT_FLOAT_EQ(at((float(x) + 0.5f) / 4.0f, 0.75f).x, float(x)) << x;
+    EXPECT_FLOAT_EQ(at((float(x) + 0.5f) / 4.0f, 0.25f).x, float(x + 10)) << x;
+    EXPECT_FLOAT_EQ(at((float(x) + 0.5f) / 4.0f, 0.25f).z, 1.0f) << x;
+  }
+  // Between centres: linear in u and v.
+  EXPECT_FLOAT_EQ(at(0.25f, 0.75f).x, 0.5f);
+  EXPECT_FLOAT_EQ(at(0.5f, 0.5f).x, 6.5f);  // 0.25 x (1 + 2 + 11 + 12)
+  // Periodic: u = 0 lies halfway between the last column and the first, v = 0 (and 1) between
+  // the bottom row and the top one; whole periods change nothing.
+  EXPECT_FLOAT_EQ(at(0.0f, 0.75f).x, 1.5f);
+  EXPECT_FLOAT_EQ(at(1.0f, 0.75f).x, 1.5f);
+  EXPECT_FLOAT_EQ(at(0.125f, 0.0f).x, 5.0f);
+  EXPECT_FLOAT_EQ(at(0.125f, 1.0f).x, 5.0f);
+  EXPECT_FLOAT_EQ(at(0.375f - 3.0f, 0.25f + 7.0f).x, 11.0f);
+  EXPECT_FLOAT_EQ(at(0.375f + 1024.0f, 0.25f - 4096.0f).x, 11.0f);
+  // Far out and non-finite coordinates: a pixel value or the mean, never out of bounds.
+  const plm::Vec3 far = at(3e30f, -1e25f);
+  EXPECT_TRUE(far.x >= 0.0f && far.x <= 13.0f) << far.x;
+  EXPECT_FLOAT_EQ(at(std::nanf(""), 0.5f).x, 7.0f);
+  EXPECT_FLOAT_EQ(at(0.5f, INFINITY).x, 7.0f);
+
+  // 8-bit sRGB images are filtered encoded and decoded after the lookup: halfway between
+  // encoded 0 and 1 is encoded 0.5, i.e. linear 0.214, not the 0.5 of decoding first.
+  plm::TextureSet::Texture e;
+  e.width = 2;
+  e.height = 1;
+  e.rgb = {0, 0, 0, 1, 1, 1};
+  e.decode_after = true;
+  EXPECT_NEAR(plm::TextureSet::sample(e, 0.5f, 0.5f).x, 0.21404f, 1e-5f);
+  EXPECT_NEAR(plm::TextureSet::sample(e, 0.75f, 0.5f).x, 1.0f, 1e-6f);
 }

@@ -1,19 +1,21 @@
-// Image textures on materials (albedo, emission), looked up through one
-// OpenImageIO TextureSystem per bake. Only a scene with textures creates one:
-// an untextured bake holds a null TextureSet pointer and pays one predictable
-// branch per hit.
+// Image textures on materials (albedo, emission), decoded once per bake into
+// memory and looked up by the engine itself. Only a scene with textures
+// creates a TextureSet: an untextured bake holds a null TextureSet pointer and
+// pays one predictable branch per hit.
 //
-// Set-up decodes every image once into linear float RGB (8/16-bit integer
-// images are sRGB unless told otherwise, float images are linear: Blender's
-// defaults), clamps albedo images to [0, 1] (energy), keeps their mean and
-// writes them as tiled, mip-mapped float textures into a private temporary
-// directory that the destructor removes. Lookups: bilinear on the full
-// resolution level with repeat wrapping (a photon hit has no ray
-// differentials; Cycles' Linear interpolation does the same on the CPU).
+// Set-up reads every image once through OpenImageIO's ImageInput into linear
+// float RGB (8/16-bit integer images are sRGB unless told otherwise, float
+// images are linear: Blender's defaults), clamps albedo images to [0, 1]
+// (energy) and keeps their mean. Lookups: bilinear on the full-resolution
+// pixels (12 bytes each) with periodic wrapping, pixel centres at
+// ((i + 0.5) / width, (j + 0.5) / height), Blender's v = 0 the image's bottom
+// row (a photon hit has no ray differentials; Cycles' Linear interpolation
+// does the same on the CPU). 8-bit sRGB images are filtered encoded and
+// decoded after the lookup, as Cycles does. Lookups only read the set: any
+// number of threads may share it, no per-thread state and no files.
 #pragma once
 
 #include <cstdint>
-#include <memory>
 #include <string>
 #include <vector>
 
@@ -34,8 +36,9 @@ class TextureSet {
   TextureSet(const TextureSet&) = delete;
   TextureSet& operator=(const TextureSet&) = delete;
 
-  // The calling thread's OIIO lookup state (get once per thread or batch, never per ray).
-  void* thread_info() const;
+  // Per-thread lookup state: there is none (lookups only read the set), so
+  // this is null; the `thread` arguments below are ignored.
+  void* thread_info() const { return nullptr; }
 
   // Albedo at barycentrics (bu, bv) of triangle tri of mesh (Embree's u, v):
   // the material's constant times its texture at the interpolated texture
@@ -68,20 +71,26 @@ class TextureSet {
   std::vector<std::string> warnings;
   size_t texture_count() const { return textures_.size(); }
 
+  // One decoded image.
+  struct Texture {
+    std::vector<float> rgb;  // width x height x 3, row 0 = the image's top row
+    uint32_t width = 0, height = 0;
+    Vec3 mean;
+    bool decode_after = false;  // 8-bit sRGB: filtered encoded, decoded after the lookup (as Cycles does)
+  };
+  // The bilinear lookup at texture coordinates (u, v) (periodic; v = 0 is the
+  // bottom row); the texture's mean where u or v is not finite.
+  static Vec3 sample(const Texture& texture, float u, float v);
+
  private:
   struct Slot {
     int32_t texture = -1;  // index into textures_, -1 for none
     Vec3 constant, flat;   // the material's colour; colour x texture mean
   };
-  struct Texture;
 
   Vec3 lookup(int32_t texture, const Mesh& mesh, uint32_t tri, float bu, float bv, void* thread) const;
-  Vec3 lookup_st(int32_t texture, float u, float v, void* thread) const;
-  int32_t load(const std::string& path, uint32_t flags, bool clamp, const std::string& owner);
 
-  struct Impl;
-  std::unique_ptr<Impl> impl_;
-  std::vector<Texture*> textures_;
+  std::vector<Texture> textures_;
   std::vector<Slot> albedo_, emission_;
 };
 
