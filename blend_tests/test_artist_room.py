@@ -18,7 +18,7 @@ Expected:
 4. Native Subdivision off: Suzanne's map is made for Blender's subdivided mesh; no UV warnings.
 5. Eight objects sharing a user-made 'lightmap' map whose islands overlap: the map is used as
    it is and the engine's eight identical warnings come back as one summary line.
-About 40 s.
+About 20 s.
 """
 import math
 import os

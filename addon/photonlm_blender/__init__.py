@@ -9,7 +9,8 @@ in Python.
 Modules
     bridge      finds and imports the `photonlm` package (beside the add-on when installed)
     properties  scene / object settings and the last bake's statistics
-    uvmaps      creates missing `lightmap` UV maps without disturbing other UV maps
+    uvcheck     measures a lightmap UV layout as the engine uses it (overlaps, margins, map use)
+    uvmaps      automatic `lightmap` UV maps made for the evaluated mesh (user maps are kept)
     csg_export  objects marked as primitives + Boolean modifiers -> exact CSG solids
     lsystem     L-system objects: presets, engine-made previews, light stored on the preview
     export      Blender scene -> photonlm.Scene (numpy, foreach_get)
@@ -32,7 +33,7 @@ bl_info = {
 
 if "bpy" in locals():  # re-running register() after a reload in the same session
     import importlib
-    for _name in ("bridge", "properties", "uvmaps", "csg_export", "lsystem", "export", "materials", "bake",
+    for _name in ("bridge", "properties", "uvcheck", "uvmaps", "csg_export", "lsystem", "export", "materials", "bake",
                   "operators", "scene_file_export", "panel"):
         if _name in locals():
             importlib.reload(locals()[_name])

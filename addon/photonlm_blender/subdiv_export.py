@@ -8,8 +8,9 @@ modifier's render level; the engine refines it with OpenSubdiv
 Anything else (SIMPLE type, adaptive subdivision, non-default options, vertex creases,
 image-textured materials, instances) falls back to Blender's refined mesh, with the reason in the bake report.
 
-The lightmap UV is made by Smart UV Project on the original mesh (uvmaps.py), i.e. on the
-cage; Blender's subdivided UV (uv_smooth PRESERVE_BOUNDARIES) is what the engine computes.
+An automatic lightmap UV is made for the cage (uvmaps.py: a Data Transfer modifier just before
+the last Subdivision Surface, or the mesh's own map) and checked after the engine's refinement;
+Blender's subdivided UV (uv_smooth PRESERVE_BOUNDARIES) is what the engine computes.
 """
 import numpy as np
 
