@@ -394,22 +394,23 @@ def write_error_exr(path, relative):
 
 
 def noisiest_objects(per_object, count=3):
-    """Names of the objects with the largest share of texels above twice the target, among those
-    holding at least 5 % of all such texels (an object of a few texels does not decide), worst first."""
-    total = sum(o["texels_above"] for o in per_object.values())
-    if total == 0:
-        return []
-    big = [(o["error_above"], name) for name, o in per_object.items() if o["texels_above"] >= 0.05 * total]
-    return [name for _, name in sorted(big, key=lambda t: (-t[0], t[1]))][:count]
+    """Names of the noisy objects (more than properties.NOISY_SHARE of their texels above twice the
+    target) holding the most such texels, first the one holding most: lowering its resolution
+    helps the whole bake most."""
+    noisy = [(o["texels_above"], name) for name, o in per_object.items()
+             if o["texels_above"] > 0 and o["error_above"] > properties.NOISY_SHARE]
+    return [name for _, name in sorted(noisy, key=lambda t: (-t[0], t[1]))][:count]
 
 
 def noisy_message(stats, noisiest, per_object, has_target):
     """The warning for a bake with much of its lightmap above twice the target error."""
-    names = ", ".join("'%s' (%.0f %%)" % (n, 100.0 * per_object[n]["error_above"]) for n in noisiest)
+    names = ", ".join("'%s' (%.0f %%%s)" % (n, 100.0 * per_object[n]["error_above"], " of its texels" if i == 0 else "")
+                      for i, n in enumerate(noisiest))
     return ("%.0f %% of the lightmap texels are above twice the %s (95th percentile %.0f %%)%s: lower "
-            "the Resolution of the noisiest objects, or raise the Time Budget or Max Photons%s"
+            "the Resolution of %s, or raise the Time Budget or Max Photons%s"
             % (100.0 * float(stats["error_above"]), "target error" if has_target else "RMS error",
-               100.0 * float(stats["error_p95"]), "; noisiest " + names if names else "",
+               100.0 * float(stats["error_p95"]), ", most of them on " + names if names else "",
+               "these objects" if len(noisiest) > 1 else "this object" if noisiest else "the objects",
                " or lower the Target Error" if has_target else ""))
 
 

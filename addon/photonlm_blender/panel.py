@@ -89,7 +89,7 @@ def _suffix(stats, prop):
 def _heat_legend(scene):
     """The heat map's colours in words, at the last bake's target error."""
     target = float(_stats(scene).get("error_target", 0.0)) or scene.photonlm.target_error
-    return "Green %.3g%%  yellow %.3g%%  red %.3g%%" % (100.0 * target, 200.0 * target, 400.0 * target)
+    return "Green \u2264%.3g%%  yellow %.3g%%  red \u2265%.3g%%" % (100.0 * target, 200.0 * target, 400.0 * target)
 
 
 class PHOTONLM_PT_object(bpy.types.Panel):
@@ -132,12 +132,12 @@ class PHOTONLM_PT_object(bpy.types.Panel):
             col.prop(obj.photonlm, "ol_resolution")
         for coll in obj.users_collection:
             if coll != context.scene.collection:
-                col.prop(coll.photonlm, "orientation_lightmap", text="Collection '%s': One OL" % coll.name)
+                col.prop(coll.photonlm, "orientation_lightmap", text="One OL: %s" % coll.name)
         text, icon = uvmaps.status(obj)
         col.label(text=text, icon=icon)
         image = bpy.data.images.get(obj.name + "_lightmap")
         if image is not None:
-            col.label(text="Lightmap: %s (%d x %d)" % (image.name, image.size[0], image.size[1]),
+            col.label(text="Lightmap %d x %d" % (image.size[0], image.size[1]),
                       icon='IMAGE_DATA')
 
 

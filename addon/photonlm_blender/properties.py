@@ -103,7 +103,7 @@ def _noisy_hint_get(self):
 
 
 def _noisiest_get(self):
-    """'Sphere (72 %)': the object with the largest share of noisy texels, when much is noisy."""
+    """'Sphere (72 %)': the noisy object holding the most noisy texels, with its share of them."""
     stats = self.id_data.get(STATS_KEY)
     if not stats or not stats.get("noisiest"):
         return ""
@@ -180,8 +180,8 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
     last_hint: StringProperty(name="Hint", description="What to do when much of the lightmap is above twice "
                               "the target error: lower the Resolution of the noisiest objects, or give the bake "
                               "more time (Time Budget, Max Photons) or a lower Target Error", get=_noisy_hint_get)
-    last_noisiest: StringProperty(name="Noisiest", description="The object with the largest share of its texels "
-                                  "above twice the target error", get=_noisiest_get)
+    last_noisiest: StringProperty(name="Noisiest", description="The noisy object holding the most texels above "
+                                  "twice the target error, with the share of its texels above", get=_noisiest_get)
     last_rate: StringProperty(name="Photon Speed", description="Photons per second of the photon pass",
                               get=_stat_getter("photons_per_second", _fmt_rate))
     last_warnings: StringProperty(name="Warnings", get=_stat_getter("warning_count", _fmt_count))
