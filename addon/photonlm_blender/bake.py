@@ -355,10 +355,9 @@ def is_memory_warning(text):
 def relative_error(rgb, error):
     """Per-texel relative error: standard error / mean RGB value, 0 where the value is not above 0
     (a texel without light: the engine counts it as below any threshold)."""
-    value = rgb.astype(np.float64).mean(axis=2)
+    value = rgb.sum(axis=2, dtype=np.float32) / np.float32(3.0)
     out = np.zeros(value.shape, np.float32)
-    lit = value > 0.0
-    out[lit] = error[lit] / value[lit]
+    np.divide(error, value, out=out, where=value > 0.0)
     return out
 
 
@@ -376,20 +375,26 @@ def error_image_pixels(relative):
 
 
 def write_error_exr(path, relative):
-    """Write a (h, w) float32 array (row 0 = bottom) into R, G and B of a float EXR, atomically."""
+    """Write a (h, w) float32 array (row 0 = bottom) into R, G and B of an EXR of 16-bit floats (ZIP),
+    atomically. Half floats keep 3 significant digits: plenty for a heat map, a tenth of the size."""
     h, w = relative.shape
     tmp = path[:-4] + ".tmp.exr"
     image = bpy.data.images.new("PhotonLM error (writing)", w, h, alpha=False, float_buffer=True)
+    settings_scene = bpy.data.scenes.new("PhotonLM error (writing)")  # its file settings, not the user's
     try:
         image.colorspace_settings.name = 'Non-Color'  # before the pixels: changing it regenerates them
         px = np.ones((h, w, 4), np.float32)
         px[..., :3] = relative[..., None]
         image.pixels.foreach_set(px.ravel())
-        image.filepath_raw = tmp
-        image.file_format = 'OPEN_EXR'
-        image.save()
+        fmt = settings_scene.render.image_settings
+        fmt.file_format = 'OPEN_EXR'
+        fmt.color_mode = 'RGB'
+        fmt.color_depth = '16'
+        fmt.exr_codec = 'ZIP'
+        image.save_render(tmp, scene=settings_scene)  # EXR is written linear: no view transform
     finally:
         bpy.data.images.remove(image)
+        bpy.data.scenes.remove(settings_scene)
     os.replace(tmp, path)
 
 
