@@ -4,9 +4,9 @@ texture of the same constant colour (so both have the analytic answer E / (1 - c
     PHOTONLM_LIBRARY=build/lib/libphotonlm.so PYTHONPATH=python_bridge \
         /usr/bin/python3 docs/bench_texture.py [--photons 4000000] [--size 1024]
 
-Prints, per variant, the set-up time (texture loading: decode, mip-map, write to the private
-temporary folder), the photon pass time, photons per second and the RMS texel error relative to
-the exact value, all channels. The texture is size x size pixels (8-bit, read as linear).
+Prints, per variant, the set-up time (texture loading: decode to linear float RGB in memory),
+the photon pass time, photons per second and the RMS texel error relative to the exact value,
+all channels. The texture is size x size pixels (8-bit, read as linear).
 """
 import argparse
 import os
