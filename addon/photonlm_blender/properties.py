@@ -259,15 +259,35 @@ AUTO_TRIANGLES_PER_TEXEL = 4
 _CLASSES = (PhotonlmSceneSettings, PhotonlmLSystemSettings, PhotonlmObjectSettings, PhotonlmCollectionSettings)
 
 
+PREVIEW_MODE_INDEX = {'OFF': 0, 'LIGHTMAP': 1, 'ERROR': 2}  # how preview_mode is stored in a file
+
+
+@bpy.app.handlers.persistent
+def migrate_preview(_=None):
+    """Files saved when the preview was an on/off toggle stored scene.photonlm.preview (0 / 1):
+    they open with the preview mode that toggle showed (Lightmaps or Off)."""
+    for scene in bpy.data.scenes:
+        group = scene.get("photonlm")
+        if group is None or "preview" not in group:
+            continue
+        if "preview_mode" not in group:
+            group["preview_mode"] = PREVIEW_MODE_INDEX['LIGHTMAP' if group["preview"] else 'OFF']
+        del group["preview"]
+
+
 def register():
     for cls in _CLASSES:
         bpy.utils.register_class(cls)
     bpy.types.Scene.photonlm = PointerProperty(type=PhotonlmSceneSettings)
     bpy.types.Object.photonlm = PointerProperty(type=PhotonlmObjectSettings)
     bpy.types.Collection.photonlm = PointerProperty(type=PhotonlmCollectionSettings)
+    if migrate_preview not in bpy.app.handlers.load_post:
+        bpy.app.handlers.load_post.append(migrate_preview)
 
 
 def unregister():
+    if migrate_preview in bpy.app.handlers.load_post:
+        bpy.app.handlers.load_post.remove(migrate_preview)
     del bpy.types.Collection.photonlm
     del bpy.types.Object.photonlm
     del bpy.types.Scene.photonlm
