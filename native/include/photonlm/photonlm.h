@@ -83,8 +83,8 @@ PLM_API plm_status plm_scene_add_material(plm_scene* scene, const char* name,
  * PLM_TEXTURE_COLOR_LINEAR (Blender "Non-Color"/"Linear") or
  * PLM_TEXTURE_COLOR_SRGB force one; 8-bit sRGB images are filtered encoded and
  * decoded after the lookup, as Cycles does. Albedo images are clamped to
- * [0, 1]. The images are read when the bake starts (into a private temporary
- * folder it removes), so the files must stay until plm_bake begins.
+ * [0, 1]. The images are read into memory when the bake starts (as float
+ * RGB: 12 bytes a pixel), so the files must stay until plm_bake begins.
  * Surfaces without texture UVs (a mesh without them, CSG solids, L-systems)
  * use the image's mean colour (a mesh gets a warning at bake time).
  * Emission textures: light leaves each point with the texture's colour there

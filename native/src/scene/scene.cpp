@@ -211,8 +211,9 @@ void Scene::set_material_texture(uint32_t material, int slot, const char* path, 
     fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": texture flags ", flags,
          " are not a PLM_TEXTURE_COLOR_* value (0, 1, 2)");
   const std::string file = path ? path : "";
-  if (!file.empty()) check_texture_file(file, owner);
+  const uint64_t pixels = file.empty() ? 0 : check_texture_file(file, owner);
   (slot == PLM_TEXTURE_ALBEDO ? m.albedo_texture : m.emission_texture) = file;
+  (slot == PLM_TEXTURE_ALBEDO ? m.albedo_texture_pixels : m.emission_texture_pixels) = pixels;
   (slot == PLM_TEXTURE_ALBEDO ? m.albedo_texture_flags : m.emission_texture_flags) = flags;
 }
 

@@ -32,6 +32,7 @@ struct Material {
   // Image textures (texture/texture.h), multiplied by albedo / emission; empty = none.
   std::string albedo_texture, emission_texture;
   uint32_t albedo_texture_flags = 0, emission_texture_flags = 0;  // PLM_TEXTURE_COLOR_*
+  uint64_t albedo_texture_pixels = 0, emission_texture_pixels = 0;  // their sizes (the memory estimate)
 };
 
 struct Mesh {

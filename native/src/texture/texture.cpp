@@ -111,7 +111,7 @@ Vec3 texture_mean(const TextureSet::Texture& t) {
 
 }  // namespace
 
-void check_texture_file(const std::string& path, const std::string& owner) {
+uint64_t check_texture_file(const std::string& path, const std::string& owner) {
   auto in = OIIO::ImageInput::open(path);
   if (!in) {
     std::string why = OIIO::geterror();
@@ -121,6 +121,7 @@ void check_texture_file(const std::string& path, const std::string& owner) {
   const OIIO::ImageSpec& spec = in->spec();
   if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
     fail(PLM_ERROR_IO, owner, ": texture '", path, "' has no pixels");
+  return uint64_t(spec.width) * uint64_t(spec.height);
 }
 
 TextureSet::TextureSet(const Scene& scene) {
@@ -192,14 +193,14 @@ Vec3 TextureSet::sample(const Texture& t, float u, float v) {
   return {rgb[0], rgb[1], rgb[2]};
 }
 
-Vec3 TextureSet::lookup(int32_t texture, const Mesh& mesh, uint32_t tri, float bu, float bv, void*) const {
+Vec3 TextureSet::lookup(int32_t texture, const Mesh& mesh, uint32_t tri, float bu, float bv) const {
   const float bw = 1.0f - bu - bv;
   const float* uv = &mesh.texture_uv[6 * size_t(tri)];
   return sample(textures_[size_t(texture)], bw * uv[0] + bu * uv[2] + bv * uv[4],
                 bw * uv[1] + bu * uv[3] + bv * uv[5]);
 }
 
-Vec3 TextureSet::triangle_emission(const Mesh& mesh, uint32_t material, uint32_t tri, void* thread) const {
+Vec3 TextureSet::triangle_emission(const Mesh& mesh, uint32_t material, uint32_t tri) const {
   const Slot& s = emission_[material];
   if (s.texture < 0) return s.constant;
   if (mesh.texture_uv.empty()) return s.flat;
@@ -216,9 +217,9 @@ Vec3 TextureSet::triangle_emission(const Mesh& mesh, uint32_t material, uint32_t
   const float inv = 1.0f / float(k);
   for (int i = 0; i < k; ++i) {
     for (int j = 0; j < k - i; ++j) {
-      sum += lookup(s.texture, mesh, tri, (float(i) + 1.0f / 3.0f) * inv, (float(j) + 1.0f / 3.0f) * inv, thread);
+      sum += lookup(s.texture, mesh, tri, (float(i) + 1.0f / 3.0f) * inv, (float(j) + 1.0f / 3.0f) * inv);
       if (j < k - i - 1)
-        sum += lookup(s.texture, mesh, tri, (float(i) + 2.0f / 3.0f) * inv, (float(j) + 2.0f / 3.0f) * inv, thread);
+        sum += lookup(s.texture, mesh, tri, (float(i) + 2.0f / 3.0f) * inv, (float(j) + 2.0f / 3.0f) * inv);
     }
   }
   return s.constant * (sum / float(k * k));

@@ -24,8 +24,9 @@
 
 namespace plm {
 
-// Throws plm::Error (PLM_ERROR_IO) naming owner when path cannot be opened as an image.
-void check_texture_file(const std::string& path, const std::string& owner);
+// The image's pixel count; throws plm::Error (PLM_ERROR_IO) naming owner when
+// path cannot be opened as an image.
+uint64_t check_texture_file(const std::string& path, const std::string& owner);
 
 class TextureSet {
  public:
@@ -36,25 +37,22 @@ class TextureSet {
   TextureSet(const TextureSet&) = delete;
   TextureSet& operator=(const TextureSet&) = delete;
 
-  // Per-thread lookup state: there is none (lookups only read the set), so
-  // this is null; the `thread` arguments below are ignored.
-  void* thread_info() const { return nullptr; }
 
   // Albedo at barycentrics (bu, bv) of triangle tri of mesh (Embree's u, v):
   // the material's constant times its texture at the interpolated texture
   // UV; times the texture's mean where the mesh has no texture UVs.
-  Vec3 albedo(const Mesh& mesh, uint32_t material, uint32_t tri, float bu, float bv, void* thread) const {
+  Vec3 albedo(const Mesh& mesh, uint32_t material, uint32_t tri, float bu, float bv) const {
     const Slot& s = albedo_[material];
     if (s.texture < 0) return s.constant;
     if (mesh.texture_uv.empty()) return s.flat;
-    return s.constant * lookup(s.texture, mesh, tri, bu, bv, thread);
+    return s.constant * lookup(s.texture, mesh, tri, bu, bv);
   }
   // Albedo where no texture UV exists (CSG solids, L-systems): constant x mean.
   Vec3 flat_albedo(uint32_t material) const { return albedo_[material].flat; }
 
   // Mean emitted radiance over a triangle (the material's emission times the
   // texture's mean over the triangle's texture-UV footprint).
-  Vec3 triangle_emission(const Mesh& mesh, uint32_t material, uint32_t tri, void* thread) const;
+  Vec3 triangle_emission(const Mesh& mesh, uint32_t material, uint32_t tri) const;
   // True where the emitted radiance varies over the mesh's triangles: an
   // emission texture and texture UVs to look it up with.
   bool emission_varies(const Mesh& mesh, uint32_t material) const {
@@ -62,9 +60,9 @@ class TextureSet {
   }
   // Emitted radiance at barycentrics (bu, bv) of triangle tri (Embree's u, v):
   // the material's emission times its texture there. Only where emission_varies.
-  Vec3 emission(const Mesh& mesh, uint32_t material, uint32_t tri, float bu, float bv, void* thread) const {
+  Vec3 emission(const Mesh& mesh, uint32_t material, uint32_t tri, float bu, float bv) const {
     const Slot& s = emission_[material];
-    return s.constant * lookup(s.texture, mesh, tri, bu, bv, thread);
+    return s.constant * lookup(s.texture, mesh, tri, bu, bv);
   }
 
   // Mesh names whose textured materials fall back to the mean (no texture UVs).
@@ -88,7 +86,7 @@ class TextureSet {
     Vec3 constant, flat;   // the material's colour; colour x texture mean
   };
 
-  Vec3 lookup(int32_t texture, const Mesh& mesh, uint32_t tri, float bu, float bv, void* thread) const;
+  Vec3 lookup(int32_t texture, const Mesh& mesh, uint32_t tri, float bu, float bv) const;
 
   std::vector<Texture> textures_;
   std::vector<Slot> albedo_, emission_;

@@ -143,11 +143,10 @@ class PhotonTracer {
     out.back_meshes.clear();
     out.rays = out.truncated = 0;
     out.truncated_flux = 0.0;
-    void* tex_thread = textures_ ? textures_->thread_info() : nullptr;  // once per batch, not per ray
     if (mesh_only_)
-      for (uint64_t i = first; i < first + count; ++i) trace_photon<true>(i, out, tex_thread);
+      for (uint64_t i = first; i < first + count; ++i) trace_photon<true>(i, out);
     else
-      for (uint64_t i = first; i < first + count; ++i) trace_photon<false>(i, out, tex_thread);
+      for (uint64_t i = first; i < first + count; ++i) trace_photon<false>(i, out);
   }
 
  private:
@@ -274,7 +273,7 @@ class PhotonTracer {
   // kMeshOnly: no CSG solid, no L-system object, no texture (mesh_only_);
   // the compiler then drops their branches from the loop.
   template <bool kMeshOnly>
-  void trace_photon(uint64_t index, BatchOutput& out, void* tex_thread) const {
+  void trace_photon(uint64_t index, BatchOutput& out) const {
     PhotonSampler sampler(index, settings_, pick_offset_, seed_hash_);
     float u_pick, u[4];
     sampler.emission(u_pick, u);
@@ -282,7 +281,7 @@ class PhotonTracer {
     const Emitter& em = emitters_[k];
     EmitterSample s = sample_emitter(em, u);
     if (!kMeshOnly && em.textured)  // the texture at the photon's origin: flux 2 pi L(x) A, unbiased whatever the mean
-      s.weight = textures_->emission(*views_[em.mesh].mesh, em.material, em.triangle, s.bu, s.bv, tex_thread) *
+      s.weight = textures_->emission(*views_[em.mesh].mesh, em.material, em.triangle, s.bu, s.bv) *
                  (2.0f * kPi * em.area);
     Vec3 flux = s.weight * (1.0f / table_.probability(k));
     if (!(flux.x > 0.0f || flux.y > 0.0f || flux.z > 0.0f)) return;  // max_component(flux) <= 0 without a libm fmaxf call
@@ -350,7 +349,7 @@ class PhotonTracer {
         hit = hm.positions[ix[0]] * bw + hm.positions[ix[1]] * bu + hm.positions[ix[2]] * bv;
         if (!kMeshOnly && textures_ && !scene_.materials.empty()) {
           const Mesh& mesh = *views_[rh.hit.geomID].mesh;
-          albedo = textures_->albedo(mesh, mesh.material_ids[tri], tri, bu, bv, tex_thread);
+          albedo = textures_->albedo(mesh, mesh.material_ids[tri], tri, bu, bv);
           q = std::fmin(1.0f, max_component(albedo));
         } else {
           flat = &ht;
@@ -1102,14 +1101,18 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   const MemoryEstimate memory = estimate_bake_memory(scene);
   out.stats.memory_estimate = memory.bytes;
   if (const uint64_t free = available_memory()) {
-    const Mesh& largest = scene.meshes[memory.largest_mesh];
-    const std::string where = memory.largest_bytes == 0 ? std::string()
-        : " (mesh '" + largest.name + "', " + std::to_string(largest.lightmap_width) + " x " +
-          std::to_string(largest.lightmap_height) + " texels: about " + format_bytes(memory.largest_bytes) + ")";
+    // The largest lightmap, if any (a scene of L-system objects alone has no mesh).
+    std::string where, which;
+    if (memory.largest_bytes > 0) {
+      const Mesh& largest = scene.meshes[memory.largest_mesh];
+      where = " (mesh '" + largest.name + "', " + std::to_string(largest.lightmap_width) + " x " +
+              std::to_string(largest.lightmap_height) + " texels: about " + format_bytes(memory.largest_bytes) + ")";
+      which = " of '" + largest.name + "'";
+    }
     if (memory.bytes > free)
       fail(PLM_ERROR_OUT_OF_MEMORY, "the bake would need about ", format_bytes(memory.bytes), " of memory", where,
-           " but only ", format_bytes(free), " are free: lower the lightmap resolution",
-           memory.largest_bytes ? " of '" + largest.name + "'" : std::string(), " or bake fewer objects at once");
+           " but only ", format_bytes(free), " are free: lower the lightmap resolution", which,
+           " or bake fewer objects at once");
     if (double(memory.bytes) > 0.6 * double(free))
       out.warnings.push_back("the bake may need about " + format_bytes(memory.bytes) + " of memory" + where +
                              ", close to the " + format_bytes(free) + " free");
@@ -1232,7 +1235,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     lo.stats.area = lo.root->total_area();
   }
 
-  // Image textures: a TextureSystem only when a material names one.
+  // Image textures: a TextureSet only when a material names one.
   std::unique_ptr<TextureSet> textures;
   if (scene.has_textures()) {
     report(0.04, "loading textures");

@@ -347,7 +347,6 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   const Mesh* smooth = !csg && views_[mesh_id].mesh->smooth() ? views_[mesh_id].mesh : nullptr;
   const uint8_t* contact = csg ? nullptr : views_[mesh_id].contact;
   const SobolGroup light_dims(sobol_key, 0), mis_dims(sobol_key, 1), piece_dims(sobol_key, 2), surface_dims(sobol_key, 3);
-  void* tex_thread = has_textured_emitters_ ? textures_->thread_info() : nullptr;  // once per texel
   uint32_t previous = ~0u;  // the last accepted stratum, and its value
   double previous_value = 0.0;
   // With the local choice, pairs are two successive samples of the same
@@ -504,7 +503,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
         // Light from below the triangle's own plane does not count (Cycles' reflection test on Ng).
         if (smooth && !(dot(normal, ds.dir) > 0.0f)) continue;
         if (em.textured && ds.geometry > 0.0f)  // the texture at the sampled point (0: skip the shadow ray)
-          ds.irradiance = textures_->emission(*views_[em.mesh].mesh, em.material, em.triangle, ds.bu, ds.bv, tex_thread) *
+          ds.irradiance = textures_->emission(*views_[em.mesh].mesh, em.material, em.triangle, ds.bu, ds.bv) *
                           ds.geometry;
         if (!(ds.irradiance.x > 0.0f || ds.irradiance.y > 0.0f || ds.irradiance.z > 0.0f)) continue;  // no fmaxf calls
         float weight = 1.0f;
@@ -550,7 +549,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
             const float r = cos_weight_ratio(cos_s, cos_l * he.area, probability(size_t(hit_emitter)), rh.ray.tfar);
             if (cos_l > 0.0f && cos_s > 0.0f && r > 0.0f) {
               const Vec3 L = he.textured ? textures_->emission(*views_[rh.hit.geomID].mesh, he.material, he.triangle,
-                                                               rh.hit.u, rh.hit.v, tex_thread)
+                                                               rh.hit.u, rh.hit.v)
                                          : he.radiance;
               e += L * (r / (1.0f + r));
             }

@@ -175,7 +175,6 @@ void attach_portals(Emitter& e, const std::vector<Portal>& portals) {
 }  // namespace
 
 std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radius, const TextureSet* textures) {
-  void* tex_thread = textures ? textures->thread_info() : nullptr;
   std::vector<Emitter> out;
   const std::vector<Portal> portals = scene_portals(scene);
   for (const Portal& p : portals)  // the disk of sun and world photons covers the portals too
@@ -202,7 +201,7 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
       const uint32_t material = mesh.material_ids.empty() ? 0u : mesh.material_ids[t];
       Vec3 emission = scene.materials.empty() ? Vec3{} : scene.materials[material].emission;
       if (max_component(emission) <= 0.0f) continue;
-      if (textures) emission = textures->triangle_emission(mesh, material, t, tex_thread);
+      if (textures) emission = textures->triangle_emission(mesh, material, t);
       if (max_component(emission) <= 0.0f) continue;
       if (degenerate_triangle(mesh.vertex(t, 0), mesh.vertex(t, 1), mesh.vertex(t, 2))) continue;
       Emitter e{};

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <set>
 #include <string>
 
 namespace plm {
@@ -16,6 +17,9 @@ namespace {
 // mesh, Embree's BVH, the hit tables) and 64 MB besides.
 constexpr uint64_t kBytesPerTexel = 240, kBytesPerCoveredTexel = 160, kBytesPerTriangle = 300;
 constexpr uint64_t kBaseBytes = uint64_t(64) << 20;
+// Image textures: float RGB for the bake (12 bytes a pixel), and while one is
+// read, its pixels as read (up to 4 float channels: 16 bytes).
+constexpr uint64_t kBytesPerTexturePixel = 12, kBytesPerReadPixel = 16;
 
 // A number from a "key: value kB" line of a /proc file, in bytes; 0 if absent.
 uint64_t proc_field(const char* path, const std::string& key) {
@@ -41,6 +45,18 @@ uint64_t file_number(const char* path) {
 MemoryEstimate estimate_bake_memory(const Scene& scene) {
   MemoryEstimate e;
   e.bytes = kBaseBytes;
+  std::set<std::string> images;
+  uint64_t largest_image = 0;
+  for (const Material& m : scene.materials) {
+    for (int k = 0; k < 2; ++k) {
+      const std::string& path = k ? m.emission_texture : m.albedo_texture;
+      const uint64_t pixels = k ? m.emission_texture_pixels : m.albedo_texture_pixels;
+      if (path.empty() || !images.insert(path).second) continue;
+      e.bytes += kBytesPerTexturePixel * pixels;
+      largest_image = std::max(largest_image, pixels);
+    }
+  }
+  e.bytes += kBytesPerReadPixel * largest_image;
   for (size_t i = 0; i < scene.meshes.size(); ++i) {
     const Mesh& m = scene.meshes[i];
     e.bytes += kBytesPerTriangle * m.triangle_count();

@@ -18,7 +18,7 @@ struct MemoryEstimate {
 };
 
 // Per lightmap texel, per covered texel (estimated from the UV triangles'
-// areas) and per triangle, measured on Release builds (docs/benchmarks.md).
+// areas), per triangle and per texture pixel, measured on Release builds.
 MemoryEstimate estimate_bake_memory(const Scene& scene);
 
 // Bytes this process can still allocate: MemAvailable, or the cgroup's limit
