@@ -19,10 +19,15 @@ import time
 import bpy
 from mathutils import Vector
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import window_shots as ws  # noqa: E402
+from window_shots import biggest_area, fail  # noqa: E402
+
+ws.NAME = "make_artist_room_screenshot"
 PHOTONS = int(os.environ.get("PHOTONLM_DOC_PHOTONS", 30_000_000))
 TARGET = float(os.environ.get("PHOTONLM_DOC_TARGET", 0.03))
 SHADER_WAIT = float(os.environ.get("PHOTONLM_DOC_WAIT", 15.0))
-SRC = os.path.abspath(os.environ.get("PHOTONLM_SOURCE_DIR") or os.path.dirname(os.path.dirname(__file__)))
+SRC = ws.SRC
 argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 OUT = os.path.abspath(argv[0]) if argv else "/tmp/artist_room_shots"
 
@@ -36,11 +41,6 @@ VIEWS = {
     "room_table": ((0.4, -1.9, 1.3), (1.0, -1.2, 0.55), 35.0),
     "room_reveal": ((1.6, -1.3, 1.8), (3.0, 0.0, 2.4), 30.0),
 }
-
-
-def fail(message):
-    print("make_artist_room_screenshot: ERROR: %s" % message, file=sys.stderr, flush=True)
-    os._exit(1)
 
 
 def setup():
@@ -76,11 +76,6 @@ def setup():
         print("make_artist_room_screenshot: report %s: %s" % (level, text), flush=True)
 
 
-def view3d_area(screen):
-    areas = [a for a in screen.areas if a.type == 'VIEW_3D']
-    return max(areas, key=lambda a: a.width * a.height) if areas else None
-
-
 def look(space, eye, target, lens):
     eye, target = Vector(eye), Vector(target)
     r3d = space.region_3d
@@ -93,20 +88,13 @@ def look(space, eye, target, lens):
 
 
 def shot(win, screen, area, name):
-    path = os.path.join(OUT, name + ".png")
-    with bpy.context.temp_override(window=win, screen=screen, area=area,
-                                   region=next(r for r in area.regions if r.type == 'WINDOW')):
-        bpy.ops.screen.screenshot_area(filepath=path, check_existing=False)
-    if not os.path.isfile(path):
-        fail("screenshot %s was not written" % path)
-    print("make_artist_room_screenshot: wrote %s" % path, flush=True)
-    return path
+    return ws.shot(win, screen, area, os.path.join(OUT, name + ".png"))
 
 
 def steps():
     win = bpy.context.window_manager.windows[0]
     screen = win.screen
-    area = view3d_area(screen)
+    area = biggest_area(screen, 'VIEW_3D')
     if area is None:
         fail("no 3D viewport")
     # One big viewport: close the other areas' space by maximising the viewport.
@@ -114,7 +102,7 @@ def steps():
         bpy.ops.screen.screen_full_area()
     yield 1.0
     screen = win.screen
-    area = view3d_area(screen)
+    area = biggest_area(screen, 'VIEW_3D')
     space = area.spaces.active
     space.shading.type = 'MATERIAL'
     space.overlay.show_overlays = False
@@ -143,29 +131,10 @@ def steps():
     bpy.ops.wm.quit_blender()
 
 
-_steps = None
-
-
-def tick():
-    global _steps
-    try:
-        if _steps is None:
-            _steps = steps()
-        return next(_steps)
-    except StopIteration:
-        return None
-    except Exception as e:  # noqa: BLE001
-        import traceback
-        traceback.print_exc()
-        fail("screenshot step failed: %s" % e)
-
-
 def main():
-    if bpy.app.background:
-        fail("run with a window (xvfb-run blender --python ...), not with -b")
     bpy.context.preferences.view.show_splash = False
     setup()
-    bpy.app.timers.register(tick, first_interval=2.0)
+    ws.run(steps)
 
 
 main()

@@ -25,39 +25,16 @@ import time
 
 import bpy
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import window_shots as ws  # noqa: E402
+from window_shots import area_move, biggest_area, fail, register_addon  # noqa: E402
+
+ws.NAME = "make_heatmap_screenshots"
 SHADER_WAIT = float(os.environ.get("PHOTONLM_DOC_WAIT", 15.0))  # seconds for Eevee to compile shaders
 WIDEN = int(os.environ.get("PHOTONLM_DOC_WIDEN", 0))  # pixels added to the Properties editor's width
 
 
-def fail(message):
-    print("make_heatmap_screenshots: ERROR: %s" % message, file=sys.stderr, flush=True)
-    os._exit(1)
-
-
-def source_dir():
-    src = os.environ.get("PHOTONLM_SOURCE_DIR")
-    if src:
-        return os.path.abspath(src)
-    return os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-
-SRC = source_dir()
-SHOTS = os.environ.get("PHOTONLM_SHOT_DIR") or os.path.join(SRC, "docs", "images")
-
-
-def register_addon():
-    for sub in ("addon", "python_bridge"):
-        p = os.path.join(SRC, sub)
-        if p not in sys.path:
-            sys.path.insert(0, p)
-    import photonlm_blender
-    if not hasattr(bpy.types.Scene, "photonlm"):
-        photonlm_blender.register()
-    from photonlm_blender import bridge
-    try:
-        bridge.get()
-    except RuntimeError as e:
-        fail(str(e))
+SHOTS = os.environ.get("PHOTONLM_SHOT_DIR") or os.path.join(ws.SRC, "docs", "images")
 
 
 def principled(name, color):
@@ -132,15 +109,6 @@ def bake():
         print("make_heatmap_screenshots: report %s: %s" % (level, text), flush=True)
 
 
-def biggest_area(screen, kind):
-    areas = [a for a in screen.areas if a.type == kind]
-    return max(areas, key=lambda a: a.width * a.height) if areas else None
-
-
-def window_region(area):
-    return next(r for r in area.regions if r.type == 'WINDOW')
-
-
 def setup_ui():
     win = bpy.context.window_manager.windows[0]
     screen = win.screen
@@ -168,35 +136,8 @@ def setup_ui():
     return win, screen, view3d, props
 
 
-def area_move(win, screen, x, y, delta):
-    with bpy.context.temp_override(window=win, screen=screen):
-        try:
-            bpy.ops.screen.area_move(x=x, y=y, delta=delta)
-        except RuntimeError as e:
-            print("make_heatmap_screenshots: could not move an edge: %s" % e, flush=True)
-
-
-def scroll(win, screen, props, down):
-    region = window_region(props)
-    with bpy.context.temp_override(window=win, screen=screen, area=props, region=region):
-        for _ in range(40):
-            if down:
-                bpy.ops.view2d.scroll_down(deltax=0, deltay=100)
-            else:
-                bpy.ops.view2d.scroll_up(deltax=0, deltay=100)
-
-
 def shot(win, screen, area, name):
-    path = os.path.join(SHOTS, name)
-    if area is None:
-        with bpy.context.temp_override(window=win, screen=screen, area=biggest_area(screen, 'VIEW_3D')):
-            bpy.ops.screen.screenshot(filepath=path, check_existing=False)
-    else:
-        with bpy.context.temp_override(window=win, screen=screen, area=area, region=window_region(area)):
-            bpy.ops.screen.screenshot_area(filepath=path, check_existing=False)
-    if not os.path.isfile(path):
-        fail("screenshot %s was not written" % path)
-    print("make_heatmap_screenshots: wrote %s" % path, flush=True)
+    ws.shot(win, screen, area, os.path.join(SHOTS, name))
 
 
 def steps():
@@ -214,7 +155,7 @@ def steps():
         win.cursor_warp(outliner.x + outliner.width // 2, outliner.y + outliner.height // 2)
     yield 1.0
     bpy.context.scene.photonlm.preview_mode = 'ERROR'
-    scroll(win, screen, props, down=True)
+    ws.scroll(win, screen, props)
     yield SHADER_WAIT
     shot(win, screen, props, "panel_quality.png")
     shot(win, screen, view3d, "error_heatmap.png")
@@ -225,32 +166,13 @@ def steps():
     bpy.ops.wm.quit_blender()
 
 
-_steps = None
-
-
-def tick():
-    global _steps
-    try:
-        if _steps is None:
-            _steps = steps()
-        return next(_steps)
-    except StopIteration:
-        return None
-    except Exception as e:  # noqa: BLE001
-        import traceback
-        traceback.print_exc()
-        fail("screenshot step failed: %s" % e)
-
-
 def main():
-    if bpy.app.background:
-        fail("run with a window (xvfb-run blender --python ...), not with -b")
     bpy.context.preferences.view.show_splash = False
     register_addon()
     os.makedirs(SHOTS, exist_ok=True)
     build_scene()
     bake()
-    bpy.app.timers.register(tick, first_interval=2.0)
+    ws.run(steps)
 
 
 main()

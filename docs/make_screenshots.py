@@ -9,7 +9,7 @@ the viewport and saves into docs/images/:
     viewport_preview_on.png   the viewport, Material Preview, Preview Lightmaps on
     viewport_preview_off.png  the same view with Preview Lightmaps off (Eevee, no GI)
 
-Run (needs an X display; Xvfb is enough):
+Run (needs an X display; Xvfb is enough; $PHOTONLM_SHOT_DIR writes elsewhere than docs/images):
 
     PHOTONLM_LIBRARY=/path/to/build/lib/libphotonlm.so PHOTONLM_SOURCE_DIR=/path/to/repo \\
     xvfb-run -a -s "-screen 0 1600x1000x24" \\
@@ -25,50 +25,18 @@ import time
 
 import bpy
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import window_shots as ws  # noqa: E402
+from window_shots import biggest_area, fail, register_addon, window_region  # noqa: E402
+
+ws.NAME = "make_screenshots"
 PHOTONS = int(os.environ.get("PHOTONLM_DOC_PHOTONS", 20_000_000))
 WIDEN = 260  # pixels added to the Properties editor's width
 SHADER_WAIT = float(os.environ.get("PHOTONLM_DOC_WAIT", 20.0))  # seconds for Eevee to compile shaders
 
 
-def fail(message):
-    print("make_screenshots: ERROR: %s" % message, file=sys.stderr, flush=True)
-    os._exit(1)
-
-
-def source_dir():
-    src = os.environ.get("PHOTONLM_SOURCE_DIR")
-    if src:
-        return os.path.abspath(src)
-    try:
-        return os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    except NameError:
-        return os.getcwd()
-
-
-SRC = source_dir()
-try:  # docs/images beside this script
-    IMAGES = os.path.join(os.path.dirname(os.path.abspath(__file__)), "images")
-except NameError:
-    IMAGES = os.path.join(SRC, "docs", "images")
-
-
-def register_addon():
-    for sub in ("addon", "python_bridge"):
-        p = os.path.join(SRC, sub)
-        if p not in sys.path:
-            sys.path.insert(0, p)
-    try:
-        import photonlm_blender
-    except Exception as e:  # noqa: BLE001
-        fail("cannot import the add-on photonlm_blender from %s/addon: %s" % (SRC, e))
-    if not hasattr(bpy.types.Scene, "photonlm"):
-        photonlm_blender.register()
-    from photonlm_blender import bridge
-    try:
-        bridge.get()
-    except RuntimeError as e:
-        fail(str(e))
-    return photonlm_blender
+SRC = ws.SRC
+IMAGES = os.environ.get("PHOTONLM_SHOT_DIR") or os.path.join(os.path.dirname(os.path.abspath(__file__)), "images")
 
 
 # ---- the scene ---------------------------------------------------------------------------------
@@ -164,15 +132,6 @@ def bake():
 
 # ---- the UI ------------------------------------------------------------------------------------
 
-def biggest_area(screen, kind):
-    areas = [a for a in screen.areas if a.type == kind]
-    return max(areas, key=lambda a: a.width * a.height) if areas else None
-
-
-def window_region(area):
-    return next(r for r in area.regions if r.type == 'WINDOW')
-
-
 def setup_ui():
     """Render tab in the Properties editor, the viewport looking into the box."""
     win = bpy.context.window_manager.windows[0]
@@ -210,47 +169,18 @@ def setup_ui():
 
 def widen(win, screen, props):
     """Move the edge between the viewport and the Properties editor WIDEN pixels to the left,
-    so that the panel's labels are not cut off. screen.area_move runs only while the mouse
-    is over no region: the cursor is warped onto the edge first (one step earlier)."""
-    x, y = props.x - 1, props.y + props.height // 2
-    with bpy.context.temp_override(window=win, screen=screen):
-        try:
-            bpy.ops.screen.area_move(x=x, y=y, delta=-WIDEN)
-            return True
-        except RuntimeError as e:
-            print("make_screenshots: could not widen the Properties editor: %s" % e, flush=True)
-            return False
+    so that the panel's labels are not cut off (the cursor is warped onto the edge a step before)."""
+    return ws.area_move(win, screen, props.x - 1, props.y + props.height // 2, -WIDEN)
 
 
 def heighten(win, screen, props, pixels):
     """Move the edge between the Outliner and the Properties editor up, so the whole panel fits
     (the cursor must sit on that edge: see widen)."""
-    x, y = props.x + props.width // 2, props.y + props.height
-    with bpy.context.temp_override(window=win, screen=screen):
-        try:
-            bpy.ops.screen.area_move(x=x, y=y, delta=pixels)
-        except RuntimeError as e:
-            print("make_screenshots: could not heighten the Properties editor: %s" % e, flush=True)
-
-
-def scroll_to_bottom(win, screen, props):
-    region = window_region(props)
-    with bpy.context.temp_override(window=win, screen=screen, area=props, region=region):
-        for _ in range(40):
-            bpy.ops.view2d.scroll_down(deltax=0, deltay=100)
+    ws.area_move(win, screen, props.x + props.width // 2, props.y + props.height, pixels)
 
 
 def shot(win, screen, area, name):
-    path = os.path.join(IMAGES, name)
-    if area is None:
-        with bpy.context.temp_override(window=win, screen=screen, area=biggest_area(screen, 'VIEW_3D')):
-            bpy.ops.screen.screenshot(filepath=path, check_existing=False)
-    else:
-        with bpy.context.temp_override(window=win, screen=screen, area=area, region=window_region(area)):
-            bpy.ops.screen.screenshot_area(filepath=path, check_existing=False)
-    if not os.path.isfile(path):
-        fail("screenshot %s was not written" % path)
-    print("make_screenshots: wrote %s" % path, flush=True)
+    ws.shot(win, screen, area, os.path.join(IMAGES, name))
 
 
 def steps():
@@ -268,7 +198,7 @@ def steps():
     if outliner is not None:
         win.cursor_warp(outliner.x + outliner.width // 2, outliner.y + outliner.height // 2)
     yield 1.0
-    scroll_to_bottom(win, screen, props)
+    ws.scroll(win, screen, props)
     bpy.context.scene.photonlm.preview = True
     yield SHADER_WAIT
     shot(win, screen, None, "window.png")
@@ -281,32 +211,13 @@ def steps():
     bpy.ops.wm.quit_blender()
 
 
-_steps = None
-
-
-def tick():
-    global _steps
-    try:
-        if _steps is None:
-            _steps = steps()
-        return next(_steps)
-    except StopIteration:
-        return None
-    except Exception as e:  # noqa: BLE001
-        import traceback
-        traceback.print_exc()
-        fail("screenshot step failed: %s" % e)
-
-
 def main():
-    if bpy.app.background:
-        fail("run with a window (xvfb-run blender --python ...), not with -b")
     bpy.context.preferences.view.show_splash = False
     register_addon()
     os.makedirs(IMAGES, exist_ok=True)
     cornell_box()
     bake()
-    bpy.app.timers.register(tick, first_interval=2.0)
+    ws.run(steps)
 
 
 main()

@@ -1,0 +1,114 @@
+"""What the screenshot scripts in docs/ share: they run in a real Blender window (Xvfb is enough),
+register the add-on from the source tree, and take screenshots from a timer once the window is
+drawn, step by step (a generator yields the seconds to wait before its next step).
+
+    import window_shots as ws
+    ws.NAME = "make_x"                       # prefixes every message
+    ws.register_addon()
+    ...build and bake...
+    ws.run(steps)                            # steps(): a generator of waits; ws.shot(...) inside
+"""
+import os
+import sys
+
+import bpy
+
+NAME = "screenshots"
+SRC = os.path.abspath(os.environ.get("PHOTONLM_SOURCE_DIR") or os.path.dirname(os.path.dirname(
+    os.path.abspath(__file__))))
+
+
+def log(message):
+    print("%s: %s" % (NAME, message), flush=True)
+
+
+def fail(message):
+    print("%s: ERROR: %s" % (NAME, message), file=sys.stderr, flush=True)
+    os._exit(1)
+
+
+def register_addon():
+    """Import and register the add-on from SRC/addon (bridge from SRC/python_bridge); fail with a
+    message if it or the engine library cannot be loaded."""
+    for sub in ("addon", "python_bridge"):
+        p = os.path.join(SRC, sub)
+        if p not in sys.path:
+            sys.path.insert(0, p)
+    try:
+        import photonlm_blender
+    except Exception as e:  # noqa: BLE001
+        fail("cannot import the add-on photonlm_blender from %s/addon: %s" % (SRC, e))
+    if not hasattr(bpy.types.Scene, "photonlm"):
+        photonlm_blender.register()
+    from photonlm_blender import bridge
+    try:
+        bridge.get()
+    except RuntimeError as e:
+        fail(str(e))
+    return photonlm_blender
+
+
+def biggest_area(screen, kind):
+    areas = [a for a in screen.areas if a.type == kind]
+    return max(areas, key=lambda a: a.width * a.height) if areas else None
+
+
+def window_region(area):
+    return next(r for r in area.regions if r.type == 'WINDOW')
+
+
+def area_move(win, screen, x, y, delta):
+    """Move the edge between two editors that passes through (x, y) by delta pixels. The mouse
+    must be over no region: move it onto the edge a step before."""
+    with bpy.context.temp_override(window=win, screen=screen):
+        try:
+            bpy.ops.screen.area_move(x=x, y=y, delta=delta)
+            return True
+        except RuntimeError as e:
+            log("could not move an edge: %s" % e)
+            return False
+
+
+def scroll(win, screen, area, down=True, steps=40):
+    with bpy.context.temp_override(window=win, screen=screen, area=area, region=window_region(area)):
+        for _ in range(steps):
+            if down:
+                bpy.ops.view2d.scroll_down(deltax=0, deltay=100)
+            else:
+                bpy.ops.view2d.scroll_up(deltax=0, deltay=100)
+
+
+def shot(win, screen, area, path):
+    """Save a screenshot of `area` (None: the whole window) to path."""
+    if area is None:
+        with bpy.context.temp_override(window=win, screen=screen, area=biggest_area(screen, 'VIEW_3D')):
+            bpy.ops.screen.screenshot(filepath=path, check_existing=False)
+    else:
+        with bpy.context.temp_override(window=win, screen=screen, area=area, region=window_region(area)):
+            bpy.ops.screen.screenshot_area(filepath=path, check_existing=False)
+    if not os.path.isfile(path):
+        fail("screenshot %s was not written" % path)
+    log("wrote %s" % path)
+    return path
+
+
+def run(steps):
+    """Run the generator function steps() from a timer in the window, each yield the seconds to wait;
+    any error ends Blender with a message."""
+    if bpy.app.background:
+        fail("run with a window (xvfb-run blender --python ...), not with -b")
+    state = {}
+
+    def tick():
+        try:
+            if "gen" not in state:
+                state["gen"] = steps()
+            return next(state["gen"])
+        except StopIteration:
+            return None
+        except Exception as e:  # noqa: BLE001
+            import traceback
+            traceback.print_exc()
+            fail("screenshot step failed: %s" % e)
+
+    bpy.app.timers.register(tick, first_interval=2.0)
