@@ -215,5 +215,20 @@ TEST(Dilate, FillsRingsFromFilledNeighbours) {
   for (float x : v) EXPECT_EQ(x, 4.0f);
 }
 
+// A texel between two islands that touches one by an edge and the other by a
+// corner takes the first alone: bilinear filtering at the first island's
+// border then reads its own value, not a blend with its neighbour's.
+TEST(Dilate, EdgeNeighboursBeforeCorners) {
+  std::vector<float> v(3 * 3, 0.0f);
+  std::vector<uint8_t> filled(9, 0);
+  v[3] = 1.0f, filled[3] = 1;  // (0, 1): an edge neighbour of the centre
+  v[2] = 9.0f, filled[2] = 1;  // (2, 0): a corner neighbour of the centre
+  dilate(v, 1, filled, 3, 3, 1);
+  EXPECT_EQ(v[4], 1.0f);
+  EXPECT_EQ(v[1], 9.0f);  // (1, 0): (2, 0) by an edge, (0, 1) by a corner
+  EXPECT_EQ(v[8], 0.0f);  // (2, 2): no filled neighbour yet
+  EXPECT_EQ(filled[8], 0);
+}
+
 }  // namespace
 }  // namespace plm

@@ -13,16 +13,21 @@ void dilate(std::vector<float>& values, int channels, std::vector<uint8_t>& fill
       for (uint32_t x = 0; x < width; ++x) {
         const uint32_t i = y * width + x;
         if (filled[i]) continue;
+        // Edge neighbours first: a texel between two islands that touches one
+        // by an edge and the other by a corner takes the first's value alone.
         float sum[8] = {0, 0, 0, 0, 0, 0, 0, 0};
         int count = 0;
-        for (int dy = -1; dy <= 1; ++dy) {
-          for (int dx = -1; dx <= 1; ++dx) {
-            const int64_t nx = int64_t(x) + dx, ny = int64_t(y) + dy;
-            if (nx < 0 || ny < 0 || nx >= width || ny >= height) continue;
-            const uint32_t j = uint32_t(ny) * width + uint32_t(nx);
-            if (!filled[j]) continue;
-            for (int c = 0; c < channels; ++c) sum[c] += values[size_t(j) * channels + c];
-            ++count;
+        for (int diagonal = 0; diagonal < 2 && count == 0; ++diagonal) {
+          for (int dy = -1; dy <= 1; ++dy) {
+            for (int dx = -1; dx <= 1; ++dx) {
+              if ((dx != 0 && dy != 0) != (diagonal == 1) || (dx == 0 && dy == 0)) continue;
+              const int64_t nx = int64_t(x) + dx, ny = int64_t(y) + dy;
+              if (nx < 0 || ny < 0 || nx >= width || ny >= height) continue;
+              const uint32_t j = uint32_t(ny) * width + uint32_t(nx);
+              if (!filled[j]) continue;
+              for (int c = 0; c < channels; ++c) sum[c] += values[size_t(j) * channels + c];
+              ++count;
+            }
           }
         }
         if (count == 0) continue;

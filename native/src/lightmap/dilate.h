@@ -9,7 +9,8 @@
 namespace plm {
 
 // values: channels floats per texel; filled: 1 where a texel holds a value.
-// Each pass gives every empty texel with filled 8-neighbours their average.
+// Each pass gives every empty texel the average of its filled edge neighbours,
+// or where it has none, of its filled corner neighbours.
 void dilate(std::vector<float>& values, int channels, std::vector<uint8_t>& filled, uint32_t width,
             uint32_t height, uint32_t passes);
 
