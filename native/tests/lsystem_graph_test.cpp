@@ -359,7 +359,7 @@ TEST(LSystemGraph, DeepPlantStaysSmall) {
   const GraphStats ss = sg.stats();
   EXPECT_LE(ss.cached_entries, 2048u);
   // Its classes' boxes for inlining are the union over productions, kept
-  // only as deep as kGraphInlineDescBoxes allow (45 MB before, down four steps).
+  // only as deep as kGraphInlineDescBoxes allow.
   EXPECT_LE(ss.class_bytes, size_t(8) << 20);
   EXPECT_GT(shits, 100u);
   std::cout << "[deep stochastic] depth 12: " << ss.classes << " classes (" << ss.class_bytes << " bytes), <= " << ss.flattened_primitives
@@ -631,7 +631,7 @@ double volume(DVec3 lo, DVec3 hi) { return (hi.x - lo.x) * (hi.y - lo.y) * (hi.z
 
 }  // namespace
 
-// Bounds (graph.h, Bounds): child boxes are the exact boxes of their subtrees,
+// Bounds (lsystem/graph_bounds.h): child boxes are the exact boxes of their subtrees,
 // found by unfolding; GraphOptions::bounds_budget = 0 gives the looser boxes
 // of mapped child boxes (8 corners, level by level), a small budget lies in
 // between. The root box holds every flattened primitive (for a deterministic
@@ -720,9 +720,8 @@ TEST(LSystemGraph, ExactBoundsHoldThePlantAndAreTighter) {
 // X children between three productions, so a class's subtree holds ~10^depth
 // nodes while one derivation holds ~3.3^depth. Each child reference's
 // unfolding (with the boxes views inline) stops at bounds_budget nodes and
-// the set-up's at bounds_total. Before those caps this set-up took 23 s at
-// depth 8 and 141 s at depth 9 (Release), so at depth 10 ctest's timeout
-// guards them; now it takes well under a second. Boxes past a cap are the
+// the set-up's at bounds_total; without those caps the set-up's time grows
+// as ~10^depth, so ctest's timeout guards them. Boxes past a cap are the
 // looser mapped ones; the hits stay those of the flattened plant.
 TEST(LSystemGraph, WideStochasticSetUpIsBounded) {
   const char* wide =
@@ -880,11 +879,9 @@ TEST(LSystemGraph, WorldBoundsAreTheExactBoxOfThePlacedPlant) {
   }
 }
 
-// A byte budget far below the working set (the sympodial tree at depth 12,
-// whose entries without inlining take ~140 KB, in 32 KiB): the same hits as an
-// unbounded cache, the cache within its budget between rays, and a hit rate
-// that does not collapse (measured 0.846; plain LRU 0.835; the bench's depth
-// 15 tree at 64 KiB: 0.930 against 0.881).
+// A byte budget far below the working set (the sympodial tree at depth 12 in
+// 32 KiB): the same hits as an unbounded cache, the cache within its budget
+// between rays, and a hit rate that does not collapse.
 TEST(LSystemGraph, SmallByteBudgetDegradesGracefully) {
   const char* sympodial =
       "const r1 = 0.9\nconst r2 = 0.7\nconst a1 = 10\nconst a2 = 60\nconst wr = 0.707\n"
@@ -899,7 +896,7 @@ TEST(LSystemGraph, SmallByteBudgetDegradesGracefully) {
   const auto rays = make_rays(gb, &f.primitives, 6000, 51);
   // A big cache's views inline descendants (primitives placed in the view's
   // frame, composed transforms) and a small one's do not: the hits agree up
-  // to rounding (graph.h, "Frames"); the same primitive wins on these rays.
+  // to rounding (lsystem/graph_view.h); the same primitive wins on these rays.
   size_t hits = 0, same_bits = 0;
   double max_dt = 0, max_dn = 0;
   for (const Ray& r : rays) {

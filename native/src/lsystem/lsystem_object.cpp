@@ -10,6 +10,7 @@
 
 #include "csg/primitive.h"
 #include "lsystem/embree_callbacks.h"
+#include "lsystem/geometry.h"
 #include "util/error.h"
 #include "util/rng.h"
 
@@ -18,29 +19,6 @@ namespace {
 
 using csg::Affine;
 using csg::DVec3;
-
-Affine compose(const Affine& a, const Affine& b) {
-  Affine r;
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 4; ++j) {
-      double v = a.m[4 * i] * b.m[j] + a.m[4 * i + 1] * b.m[4 + j] + a.m[4 * i + 2] * b.m[8 + j];
-      if (j == 3) v += a.m[4 * i + 3];
-      r.m[4 * i + j] = v;
-    }
-  }
-  return r;
-}
-
-// The plm_csg_shape code of a turtle shape.
-csg::Shape csg_shape(ShapeKind k) {
-  switch (k) {
-    case ShapeKind::Cylinder: return csg::Shape::Cylinder;
-    case ShapeKind::Sphere: return csg::Shape::Sphere;
-    case ShapeKind::Cone: return csg::Shape::Cone;
-    case ShapeKind::Box: return csg::Shape::Box;
-  }
-  return csg::Shape::Sphere;
-}
 
 // Checks that the placement is a similarity; returns its scale.
 double check_placement(const double* m, const std::string& label) {
