@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "../src/io/scene_file.h"
+#include "io/scene_file.h"
 #include "photonlm/photonlm.h"
 
 namespace plm_cli {
