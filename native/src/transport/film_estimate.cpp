@@ -1,0 +1,203 @@
+#include "transport/film_estimate.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "lightmap/reconstruct.h"
+#include "util/math.h"
+
+namespace plm {
+namespace {
+
+// Radius (texels) of the local linear fit that smooths the gather (reconstruct_linear).
+constexpr uint32_t kGatherRadius = 2;
+// A texel's fit reaches at most kGatherReach x the harmonic mean distance of
+// its gather rays' hits (docs/design.md, "Final gather").
+constexpr double kGatherReach = 1.0;
+
+double percentile(std::vector<double>& v, double q) {
+  if (v.empty()) return 0.0;
+  const size_t k = std::min(v.size() - 1, size_t(q * double(v.size())));
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[k];
+}
+
+}  // namespace
+
+double Estimator::csg_texel(size_t c, uint32_t sub, uint64_t photons, double value3[3]) const {
+  const size_t g = space.csg_views[c].texel_offset + sub;
+  const double k = 1.0 / (kPiD * double(std::max<uint64_t>(photons, 1)) * space.csg_views[c].lightmap->area(sub));
+  const double phantom_sq = acc.phantom_sq();
+  double variance = 0.0;
+  for (int ch = 0; ch < 3; ++ch) value3[ch] = photons ? acc.sum[3 * g + ch] * k : 0.0;
+  if (photons) variance = (acc.sum_sq[g] + phantom_sq) * k * k;
+  if (!direct.empty()) {
+    const DirectSums& d = direct[space.covered_begin[space.views.size() + c] + sub];
+    if (d.count)
+      for (int ch = 0; ch < 3; ++ch) value3[ch] += d.rgb[ch] / d.count;
+    variance += d.variance_of_mean(direct_noise);
+  }
+  return variance;
+}
+
+// Two estimates of a texel's indirect light: the photons' (A, its own
+// hits) and the final gather's (G: albedo x radiosity of the texels its
+// rays hit), weighed by inverse variance: w A + (1 - w) G, w = var G /
+// (var A + var G). The gather's texel means are first smoothed by a local
+// linear fit over neighbours of similar direct light (reconstruct_linear):
+// near a wall's foot, where the bounce light changes fastest, a mean over
+// one side would be biased; the fit reaches no further than the gather's
+// hits are near (kGatherReach). Texels whose gather met something it
+// cannot look up keep A, and pool with no other (a negative guide), as do
+// texels whose rays met dark backs (their G is their own). Where the fit is
+// narrowed, A (a mean over the whole texel, G over its central square) is
+// tested against G for bias.
+// Adds the gather's part of the texels' variances, (1 - w)^2 var G, to *gather_part.
+void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vector<double>& variance,
+                               double* gather_part) const {
+  const Mesh& mesh = *space.views[i].mesh;
+  const size_t n = variance.size();
+  std::vector<double> g_mean(3 * n, 0.0), g_var(n, 0.0), g_value, g_fit_var;
+  std::vector<double> guide(n, -1.0), lookup_sq(n, 0.0);
+  std::vector<uint8_t> usable(n, 0), radius(n, uint8_t(kGatherRadius));
+  const double width = texel_width(space.areas[i]);
+  size_t k = space.covered_begin[i];
+  for (size_t t = 0; t < n; ++t) {
+    if (!(space.areas[i].area[t] > 0.0)) continue;
+    const GatherInfo& info = gather->info[k];
+    const GatherSums& g = gather->sums[k];
+    const DirectSums& d = direct[k++];
+    // The fit reaches no further than kGatherReach x the harmonic mean
+    // distance of the texel's gather hits: near a wall the bounce light
+    // changes faster than a plane follows. A texel whose rays met dark
+    // backs (partly under a box) keeps its own gather and pools with none:
+    // its neighbours' light is not its own.
+    radius[t] = uint8_t(std::min(double(kGatherRadius), std::floor(kGatherReach * info.hit_distance / width)));
+    if (info.dark) radius[t] = 0;
+    if (info.unknown || g.count == 0) continue;
+    usable[t] = 1;
+    guide[t] = info.dark ? -1.0 : d.mean();
+    for (int c = 0; c < 3; ++c) g_mean[3 * t + c] = g.rgb[c] / g.count;
+    // Every ray met a dark back (the texel's points are under a box): no
+    // light reaches them.
+    g_var[t] = info.dark == g.count ? 0.0 : g.variance_of_mean(gather->typical);
+    lookup_sq[t] = info.lookup_error * info.lookup_error;
+  }
+  reconstruct_linear(space.areas[i], mesh.lightmap_width, mesh.lightmap_height, g_mean.data(), g_var.data(), guide.data(),
+                     kGatherRadius, g_value, g_fit_var, radius.data());
+  for (size_t t = 0; t < n; ++t) {
+    if (!usable[t]) continue;
+    // The lookups' errors are shared by neighbouring texels (their rays hit
+    // the same texels): the fit does not average them down.
+    double v_photons = variance[t];
+    const double v_gather = g_fit_var[t] + lookup_sq[t];
+    if (radius[t] < kGatherRadius) {
+      // Near a wall the photons' mean over the whole texel is biased
+      // against the value over the points the direct light and the gather
+      // sample (the central square): where the two disagree by more than
+      // their noise, the excess squared difference (an unbiased estimate of
+      // the squared bias) joins the photons' variance.
+      const double* pv = &value3[3 * t];
+      const double* gv = &g_value[3 * t];
+      const double diff = (pv[0] + pv[1] + pv[2] - gv[0] - gv[1] - gv[2]) / 3.0;
+      v_photons += std::max(0.0, diff * diff - v_photons - v_gather);
+    }
+    const double w = v_photons + v_gather > 0.0 ? v_gather / (v_photons + v_gather) : 0.0;
+    for (int c = 0; c < 3; ++c) value3[3 * t + c] = w * value3[3 * t + c] + (1.0 - w) * g_value[3 * t + c];
+    variance[t] = w * w * v_photons + (1.0 - w) * (1.0 - w) * v_gather;
+    if (gather_part) *gather_part += (1.0 - w) * (1.0 - w) * v_gather;
+  }
+}
+
+void Estimator::texels(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance,
+                       double* gather_part) const {
+  const Mesh& mesh = *space.views[i].mesh;
+  const size_t g0 = space.views[i].texel_offset;
+  ReconstructParams params;
+  params.max_radius = filter_radius;
+  params.photons = double(std::max<uint64_t>(photons, 1));
+  params.phantom_sq = acc.phantom_sq();
+  std::vector<double> guide;
+  if (!direct.empty()) {  // the direct light guides the reconstruction
+    guide.assign(space.areas[i].area.size(), 0.0);
+    size_t k = space.covered_begin[i];
+    for (size_t t = 0; t < guide.size(); ++t)
+      if (space.areas[i].area[t] > 0.0) guide[t] = direct[k++].mean();
+    params.guide = guide.data();
+  }
+  if (photons > 0) {
+    reconstruct_indirect(space.areas[i], mesh.lightmap_width, mesh.lightmap_height,
+                         {&acc.sum[3 * g0], &acc.sum_sq[g0], &acc.hits[g0]}, params, value3, variance);
+  } else {
+    value3.assign(3 * size_t(mesh.lightmap_width) * mesh.lightmap_height, 0.0);
+    variance.assign(size_t(mesh.lightmap_width) * mesh.lightmap_height, 0.0);
+  }
+  if (photons > 0 && gather && !gather->sums.empty()) combine_gather(i, value3, variance, gather_part);
+  if (direct.empty()) return;
+  size_t k = space.covered_begin[i];
+  for (size_t t = 0; t < variance.size(); ++t) {
+    if (!(space.areas[i].area[t] > 0.0)) continue;
+    const DirectSums& d = direct[k++];
+    if (d.count)
+      for (int c = 0; c < 3; ++c) value3[3 * t + c] += d.rgb[c] / d.count;
+    variance[t] += d.variance_of_mean(direct_noise);
+  }
+}
+
+void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Estimate& out) {
+  out.photons = photons;
+  out.gather_size = est.gather ? est.gather->sums.size() : 0;
+  out.values.resize(est.space.views.size());
+  ErrorEstimate& e = out.error;
+  e = ErrorEstimate{};
+  double var_sum = 0.0, value_sum = 0.0, var_direct = 0.0, var_gather = 0.0, count = 0.0;
+  std::vector<double> value3, variance, per_texel;
+  for (size_t i = 0; i < est.space.views.size(); ++i) {
+    if (!est.space.views[i].texel_area) continue;
+    arena.execute([&] { est.texels(i, photons, value3, variance, &var_gather); });
+    std::vector<float>& img = out.values[i];
+    img.assign(4 * variance.size(), 0.0f);
+    for (size_t t = 0; t < variance.size(); ++t) {
+      if (!(est.space.areas[i].area[t] > 0.0)) continue;
+      store_texel(value3, variance, t, img.data());
+      const double v = (value3[3 * t] + value3[3 * t + 1] + value3[3 * t + 2]) / 3.0;
+      value_sum += v;
+      var_sum += variance[t];
+      count += 1.0;
+      if (v > 0.0) per_texel.push_back(std::sqrt(variance[t]) / v);
+      else ++e.dark_texels;
+    }
+  }
+  for (size_t c = 0; c < est.space.csg_views.size(); ++c) {
+    if (!est.space.csg_views[c].lightmap) continue;
+    for (uint32_t sub = 0; sub < est.space.csg_views[c].lightmap->sub_texel_count(); ++sub) {
+      double v3[3];
+      const double var = est.csg_texel(c, sub, photons, v3);
+      const double v = (v3[0] + v3[1] + v3[2]) / 3.0;
+      value_sum += v;
+      var_sum += var;
+      count += 1.0;
+      if (v > 0.0) per_texel.push_back(std::sqrt(var) / v);
+      else ++e.dark_texels;
+    }
+  }
+  for (const DirectSums& d : est.direct) var_direct += d.variance_of_mean(est.direct_noise);
+  if (count > 0.0 && value_sum > 0.0) {
+    const double mean = value_sum / count;
+    e.relative = std::sqrt(var_sum / count) / mean;
+    e.direct = std::sqrt(var_direct / count) / mean;
+    e.gather = std::sqrt(var_gather / count) / mean;
+  }
+  e.median = percentile(per_texel, 0.5);
+  e.p95 = percentile(per_texel, 0.95);
+  e.per_texel.swap(per_texel);
+}
+
+double share_above(const ErrorEstimate& e, double threshold) {
+  const size_t n = e.per_texel.size() + e.dark_texels;
+  if (n == 0) return 0.0;
+  return double(std::count_if(e.per_texel.begin(), e.per_texel.end(), [&](double r) { return r > threshold; })) /
+         double(n);
+}
+
+}  // namespace plm

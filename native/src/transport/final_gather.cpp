@@ -1,0 +1,155 @@
+#include "transport/final_gather.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "transport/scheduler.h"
+#include "util/rng.h"
+#include "util/sobol.h"
+
+namespace plm {
+
+FinalGather::FinalGather(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<TexelAreas>& areas,
+                         const plm_bake_settings& settings, float scene_extent)
+    : rtc_(rtc), views_(views), areas_(areas), points_(views, areas, settings), seed_(settings.seed),
+      offset_scale_(1e-6f * scene_extent) {}
+
+void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
+                               const GatherSource& source, GatherSums& sums, GatherInfo& info) const {
+  const uint64_t global = views_[mesh_id].texel_offset + texel;
+  // A stream of its own: (round | 0x100) is no round of the direct pass's.
+  Rng rng(seed_ ^ 0x7F4A7C15u, (global << 9) | 0x100u | (round & 0xFF));
+  const uint32_t m = std::max(1u, uint32_t(std::ceil(std::sqrt(double(samples)))));
+  const uint32_t n = m * m;
+  const TexelPoints::TexelWindow tw = points_.texel_window(mesh_id, texel, m);
+  const SobolGroup dir_dims(rng.next_u32(), 3), piece_dims(rng.next_u32(), 4);
+  uint32_t back = 0, rays = 0;
+  double error_sum = 0.0, inverse_distance = 0.0;
+  StratumPairs pairs;
+  const Mesh* smooth = views_[mesh_id].mesh->smooth() ? views_[mesh_id].mesh : nullptr;
+  const uint8_t* contact = views_[mesh_id].contact;
+  // Rays go in packets of eight points; then each is looked up in turn.
+  // Points pressed against another surface (in_contact) and, on smooth
+  // meshes, directions below the triangle's plane are known zeros: their
+  // lanes are marked with a negative tfar and not traced.
+  RayPacket packet;
+  uint32_t lane_sample[RayPacket::kLanes];
+  Vec3 lane_dir[RayPacket::kLanes];
+  for (uint32_t j0 = 0; j0 < n; j0 += RayPacket::kLanes) {
+    uint32_t zero_lanes = 0, contact_lanes = 0;  // bit l: lane l is a known zero; ... a point in contact
+    for (uint32_t j = j0; j < std::min(n, j0 + RayPacket::kLanes); ++j) {
+      const float x = tw.origin_x + (float(j % m) + rng.next_float()) * tw.side;
+      const float y = tw.origin_y + (float(j / m) + rng.next_float()) * tw.side;
+      Vec3 p, normal;
+      uint32_t tri;
+      float v[2], w[3] = {0, 0, 0};
+      dir_dims.point(j, 2, v);
+      if (tw.sparse) piece_dims.point(j, 3, w);
+      if (!points_.texel_point(tw, mesh_id, texel, x, y, w, p, normal, tri)) continue;
+      const Vec3 shading = smooth ? shading_normal_at(*smooth, tri, p, normal) : normal;
+      const Vec3 local = cosine_hemisphere(v[0], v[1]);
+      Vec3 t, b;
+      make_frame(shading, t, b);
+      lane_sample[packet.size] = j;
+      lane_dir[packet.size] = t * local.x + b * local.y + shading * local.z;
+      if (contact && contact[texel] && in_contact(rtc_, views_, p, normal, mesh_id, tri, offset_scale_))
+        contact_lanes |= 1u << packet.size;
+      if (smooth && !(dot(normal, lane_dir[packet.size]) > 0.0f)) zero_lanes |= 1u << packet.size;
+      packet.add(offset_origin(p, normal, offset_scale_), lane_dir[packet.size], std::numeric_limits<float>::infinity(),
+                 mesh_id, tri);
+    }
+    const unsigned lanes = packet.size;
+    zero_lanes |= contact_lanes;
+    if (lanes > 0) packet.intersect(rtc_, zero_lanes);
+    const RTCHit8& hit = packet.rh.hit;
+    for (unsigned l = 0; l < lanes; ++l) {
+      const uint32_t j = lane_sample[l], geom = hit.geomID[l], prim = hit.primID[l];
+      Vec3 e{0, 0, 0};
+      if (contact_lanes & (1u << l)) {
+        ++info.dark;
+      } else if (geom != RTC_INVALID_GEOMETRY_ID) {
+        inverse_distance += 1.0 / std::max(double(packet.rh.ray.tfar[l]), 1e-30);
+        // The texel the ray lands in, as the photon pass records a hit.
+        bool known = false;
+        const bool is_mesh = geom < views_.size(), mesh_hit = is_mesh && views_[geom].texel_area;
+        if (is_mesh && !(dot(lane_dir[l], views_[geom].normals[prim]) < 0.0f)) {
+          // The back of a surface: 0, exactly where no photon reached the
+          // mesh's backs (the inside of a box standing on the ground).
+          if (!source.back_lit[geom]) {
+            ++info.dark;
+            known = true;
+          } else if (mesh_hit) {
+            ++back;
+            known = true;
+          }
+        } else if (mesh_hit) {
+          const MeshView& hv = views_[geom];
+          const Mesh& hm = *hv.mesh;
+          const int64_t ht = uv_texel(&hm.uv[6 * size_t(prim)], hit.u[l], hit.v[l], hm.lightmap_width, hm.lightmap_height);
+          // A texel that other objects may be pressed against may be partly
+          // in contact, and its value (its central square's, or the mean over
+          // it) then says little of the lit part next to them: a ray that
+          // lands within a texel's width of its origin there is not looked up
+          // (the wall of a box at the box's foot sees the floor right beside it).
+          const bool unreliable = ht >= 0 && hv.contact && hv.contact[ht] &&
+                                  double(packet.rh.ray.tfar[l]) * double(packet.rh.ray.tfar[l]) *
+                                          std::max(double(areas_[geom].coverage[ht]), 1e-3) <
+                                      hv.texel_area[ht];
+          if (ht >= 0 && !unreliable) {
+            if (hv.texel_area[ht] > 0.0) {
+              const float* d = source.radiosity + 3 * (hv.texel_offset + ht);
+              const Vec3 a = (*source.albedo)[geom][prim];
+              e = {a.x * d[0], a.y * d[1], a.z * d[2]};
+              error_sum += double(average(a)) * source.error[hv.texel_offset + ht];
+              known = true;
+            }
+          }
+        }
+        if (!known) ++info.unknown;
+      }
+      ++rays;
+      pairs.add(j, sums.add(e), sums);
+    }
+  }
+  // Many backs lit from behind are a surface whose light no lightmap holds
+  // (lightmaps are one-sided).
+  if (4 * back > rays) info.unknown += back;
+  info.lookup_error = rays ? error_sum / rays : 0.0;
+  if (inverse_distance > 0.0) info.hit_distance = float(rays / inverse_distance);
+}
+
+GatherResult run_final_gather(tbb::task_arena& arena, const FinalGather& gather, const TexelSpace& space,
+                              const std::vector<std::vector<float>>& images,
+                              const std::vector<std::vector<Vec3>>& albedo, const uint8_t* back_lit, uint32_t samples,
+                              const std::function<bool()>& after_group) {
+  std::vector<float> radiosity(3 * space.texel_count, 0.0f), error(space.texel_count, 0.0f);
+  for (size_t i = 0; i < images.size(); ++i) {
+    const std::vector<float>& img = images[i];
+    const size_t g0 = space.views[i].texel_offset;
+    for (size_t t = 0; 4 * t < img.size(); ++t) {
+      for (int c = 0; c < 3; ++c) radiosity[3 * (g0 + t) + c] = img[4 * t + c];
+      error[g0 + t] = img[4 * t + 3];
+    }
+  }
+  const GatherSource source{radiosity.data(), error.data(), &albedo, back_lit};
+  const std::vector<CoveredTexel>& covered = space.covered;
+  GatherResult out;
+  out.sums.resize(covered.size());
+  out.info.resize(covered.size());
+  run_in_groups(
+      arena, covered.size(), 64,
+      [&](uint64_t first_texel, uint64_t n) {
+        tbb::parallel_for(tbb::blocked_range<uint64_t>(first_texel, first_texel + n, 16), [&](const auto& r) {
+          for (uint64_t k = r.begin(); k < r.end(); ++k)
+            gather.sample_texel(covered[k].mesh, covered[k].texel, 0, samples, source, out.sums[k], out.info[k]);
+        });
+      },
+      [&](uint64_t) { return after_group(); });
+  out.typical = typical_sample(out.sums);
+  return out;
+}
+
+}  // namespace plm

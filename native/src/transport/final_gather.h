@@ -1,0 +1,99 @@
+// The final gather: a texel's indirect light estimated from the texels its
+// rays see. From the direct pass's points (texel_points.h), cosine rays look
+// up albedo x radiosity (direct + photon estimate) of the texel they hit;
+// rays that leave the scene count 0 (the sky is direct light). Where the
+// indirect light is a small part of the light (an open sunlit scene) this
+// needs far fewer rays per texel than photons need photons. The estimator
+// (film_estimate.h) weighs it against the photons' estimate by variance.
+#pragma once
+
+#include <tbb/task_arena.h>
+
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <vector>
+
+#include "lightmap/texel_area.h"
+#include "photonlm/photonlm.h"
+#include "transport/film.h"
+#include "transport/stratified_sums.h"
+#include "transport/texel_points.h"
+#include "transport/tracing.h"
+
+namespace plm {
+
+// Per covered texel: sums of the gather's samples (albedo x radiosity / pi of
+// what each ray sees). Their variance of the mean takes the gather's typical
+// sample as the phantom (StratifiedSums::variance_of_mean).
+struct GatherSums : StratifiedSums {};
+
+// What a texel's gather met, besides its sums.
+struct GatherInfo {
+  uint32_t unknown = 0;   // rays that hit what the source cannot look up
+  uint32_t dark = 0;      // rays that met a dark back: known zeros
+  // The mean over the samples of albedo x the looked-up texel's error, the
+  // gather's error from the source's own errors (taken as fully
+  // correlated: the source is a pooled photon estimate, and a texel's rays
+  // hit neighbouring texels).
+  double lookup_error = 0.0;
+  // The harmonic mean of the rays' hit distances, rays that leave the scene
+  // counted as infinitely far (Ward's irradiance-cache radius): how far the
+  // bounce light stays smooth.
+  float hit_distance = std::numeric_limits<float>::infinity();
+};
+
+// What the gather's rays look up.
+struct GatherSource {
+  const float* radiosity = nullptr;  // 3 per global texel: irradiance / pi, direct + indirect (0 where uncovered)
+  const float* error = nullptr;      // 1 per global texel: the estimated error of its mean RGB
+  const std::vector<std::vector<Vec3>>* albedo = nullptr;  // per mesh, per triangle
+  const uint8_t* back_lit = nullptr;  // per mesh: a photon reached its back (else its backs are dark)
+};
+
+class FinalGather {
+ public:
+  FinalGather(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<TexelAreas>& areas,
+              const plm_bake_settings& settings, float scene_extent);
+
+  // Adds `samples` (rounded up to a square) cosine-distributed rays from the
+  // direct pass's points of texel `texel` of mesh `mesh` (meshes only). Each
+  // sample is the light reflected by the surface it hits, albedo x that
+  // texel's radiosity; 0 for rays that leave the scene, and for the back of a
+  // surface no photon reached from behind (the inside of a box standing on
+  // the ground is dark), and so for backs that photons reached unless more
+  // than a quarter of the rays see such backs (lightmaps are one-sided). A ray
+  // that hits what the source cannot look up (a mesh without its own texels,
+  // a CSG solid, such backs) counts in info.unknown: such a texel's gather is
+  // not used. Thread-safe for distinct texels.
+  void sample_texel(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, const GatherSource& source,
+                    GatherSums& sums, GatherInfo& info) const;
+
+ private:
+  RTCScene rtc_;
+  const std::vector<MeshView>& views_;
+  const std::vector<TexelAreas>& areas_;
+  TexelPoints points_;
+  uint32_t seed_;
+  float offset_scale_;
+};
+
+// The gather of every covered texel, in the film's covered order.
+struct GatherResult {
+  std::vector<GatherSums> sums;  // empty: no gather
+  std::vector<GatherInfo> info;
+  double typical = 0.0;  // the phantom sample (typical_sample)
+};
+
+// Runs the gather with `samples` rays per covered texel (meshes only), looking
+// up `images` (per mesh: R, G, B, error per texel, as film_estimate.h's
+// Estimate holds them) with each triangle's `albedo` and the meshes whose
+// backs photons reached (`back_lit`). after_group() runs on the calling
+// thread between groups of texels; false stops the gather (texels left
+// without rays keep the photon estimate).
+GatherResult run_final_gather(tbb::task_arena& arena, const FinalGather& gather, const TexelSpace& space,
+                              const std::vector<std::vector<float>>& images,
+                              const std::vector<std::vector<Vec3>>& albedo, const uint8_t* back_lit, uint32_t samples,
+                              const std::function<bool()>& after_group);
+
+}  // namespace plm

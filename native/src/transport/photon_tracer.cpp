@@ -1,0 +1,288 @@
+#include "transport/photon_tracer.h"
+
+#include <cmath>
+#include <limits>
+
+#include "lsystem/lsystem_object.h"
+#include "transport/photon_sampler.h"
+
+namespace plm {
+namespace {
+
+// A photon that reaches a smooth surface is weighted by cos(shading normal) /
+// cos(geometric normal) of its arrival direction (the irradiance a texel holds
+// is taken about the shading normal), at most this much: near grazing
+// incidence the ratio has no bound, and its variance with it (what the cap
+// loses: docs/design.md, "Shading normals").
+constexpr float kMaxShadingRatio = 16.0f;
+
+}  // namespace
+
+PhotonTracer::PhotonTracer(const Scene& scene, RTCScene rtc, const std::vector<MeshView>& views,
+                           const std::vector<CsgView>& csg_views, const std::vector<OlMeshView>& ol_views,
+                           const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent,
+                           uint32_t first_recorded_depth, const std::vector<ol::OctGrid>& ls_grids,
+                           const TextureSet* textures)
+    : scene_(scene), textures_(textures), rtc_(rtc), views_(views), csg_views_(csg_views), ol_views_(ol_views),
+      emitters_(emitters),
+      ls_grids_(ls_grids), ls_base_(views.size() + csg_views.size()),
+      settings_(settings),
+      offset_scale_(1e-6f * scene_extent), first_recorded_(first_recorded_depth), table_(emitters) {
+  pick_offset_ = double(Rng(settings.seed, ~0ull).next_float());
+  seed_hash_ = {splitmix64(settings.seed)};
+  default_material_.albedo = {0.8f, 0.8f, 0.8f};
+  mesh_only_ = !textures && csg_views.empty() && scene.lsystems.empty();
+  build_hit_tables();
+}
+
+std::vector<std::vector<Vec3>> PhotonTracer::triangle_albedos() const {
+  std::vector<std::vector<Vec3>> albedo(scene_.meshes.size());
+  for (size_t i = 0; i < scene_.meshes.size(); ++i) {
+    const Mesh& mesh = scene_.meshes[i];
+    albedo[i].resize(mesh.triangle_count());
+    for (uint32_t t = 0; t < mesh.triangle_count(); ++t) albedo[i][t] = material(mesh, t).albedo;
+  }
+  return albedo;
+}
+
+void PhotonTracer::trace_batch(uint64_t first, uint64_t count, BatchOutput& out) const {
+  out.hits.clear();
+  out.ol_hits.clear();
+  out.ls_hits.clear();
+  out.back_meshes.clear();
+  out.rays = out.truncated = 0;
+  out.truncated_flux = 0.0;
+  if (mesh_only_)
+    for (uint64_t i = first; i < first + count; ++i) trace_photon<true>(i, out);
+  else
+    for (uint64_t i = first; i < first + count; ++i) trace_photon<false>(i, out);
+}
+
+void PhotonTracer::build_hit_tables() {
+  size_t tris = 0, texels = 0;
+  for (const MeshView& v : views_) {
+    tris += v.mesh->triangle_count();
+    if (v.texel_area) texels += size_t(v.mesh->lightmap_width) * v.mesh->lightmap_height;
+  }
+  hit_tris_.resize(tris);
+  covered_.resize(texels);
+  hit_meshes_.resize(views_.size());
+  size_t t0 = 0, c0 = 0;
+  for (size_t m = 0; m < views_.size(); ++m) {
+    const MeshView& v = views_[m];
+    const Mesh& mesh = *v.mesh;
+    const OlMeshView& ol = ol_views_[m];
+    HitMesh& hm = hit_meshes_[m];
+    hm = {hit_tris_.data() + t0, mesh.uv.data(), mesh.indices.data(), mesh.positions.data(),
+          mesh.smooth() ? mesh.normals.data() : nullptr, v.contact, mesh.smooth() || v.contact, nullptr,
+          v.texel_offset, mesh.lightmap_width, mesh.lightmap_height, ol.group, ol.backup};
+    for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
+      HitTri& h = hit_tris_[t0 + t];
+      h.normal = v.normals[t];
+      h.degenerate = h.normal.x == 0.0f && h.normal.y == 0.0f && h.normal.z == 0.0f;
+      if (!h.degenerate) make_frame(h.normal, h.frame_t, h.frame_b);
+      const Vec3 albedo = material(mesh, t).albedo;
+      h.roulette = std::fmin(1.0f, max_component(albedo));
+      h.bounce = h.roulette > 0.0f ? albedo / h.roulette : Vec3{};
+      h.ol_bin = ol.group >= 0 ? ol.bins[t] : kNoBin;
+    }
+    t0 += mesh.triangle_count();
+    if (v.texel_area) {
+      const size_t n = size_t(mesh.lightmap_width) * mesh.lightmap_height;
+      for (size_t k = 0; k < n; ++k) covered_[c0 + k] = v.texel_area[k] > 0.0 ? 1 : 0;
+      hm.covered = covered_.data() + c0;
+      c0 += n;
+    }
+  }
+}
+
+
+Vec3 PhotonTracer::flat_albedo(uint32_t id) const {
+  return textures_ && !scene_.materials.empty() ? textures_->flat_albedo(id) : material_by_id(id).albedo;
+}
+
+template <bool kMeshOnly>
+void PhotonTracer::trace_photon(uint64_t index, BatchOutput& out) const {
+  PhotonSampler sampler(index, settings_, pick_offset_, seed_hash_);
+  float u_pick, u[4];
+  sampler.emission(u_pick, u);
+  const size_t k = table_.choose(u_pick);
+  const Emitter& em = emitters_[k];
+  EmitterSample s = sample_emitter(em, u);
+  if (!kMeshOnly && em.textured)  // the texture at the photon's origin: flux 2 pi L(x) A, unbiased whatever the mean
+    s.weight = textures_->emission(*views_[em.mesh].mesh, em.material, em.triangle, s.bu, s.bv) *
+               (2.0f * kPi * em.area);
+  Vec3 flux = s.weight * (1.0f / table_.probability(k));
+  if (!(flux.x > 0.0f || flux.y > 0.0f || flux.z > 0.0f)) return;  // max_component(flux) <= 0 without a libm fmaxf call
+
+  TraceContext tc;
+  Vec3 org = s.origin, dir = s.direction;
+  for (uint32_t depth = 0;; ++depth) {
+    RTCRayHit rh;
+    rh.ray = make_ray(org, dir, std::numeric_limits<float>::infinity());
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    // The numbers of the bounce at this ray's hit and its direction in the
+    // hit's frame do not depend on the hit: drawn here, before the ray is
+    // cast, their latency (two square roots, the sine) overlaps Embree's
+    // traversal instead of lying between the hit and the next ray. A path
+    // that ends here drew them for nothing; the stream is the same either way.
+    float v[3];
+    sampler.bounce(depth, v);
+    const Vec3 local = cosine_hemisphere(v[0], v[1]);
+    rtcIntersect1(rtc_, &tc.context, &rh);
+    ++out.rays;
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return;
+
+    // The hit: a mesh triangle, the exact surface of a CSG solid (its
+    // primitive in primID, the face id in u, the solid's outward normal),
+    // or an L-system object (its GraphHit kept on this thread).
+    const bool is_lsystem = !kMeshOnly && rh.hit.geomID >= ls_base_;
+    const bool is_csg = !kMeshOnly && !is_lsystem && rh.hit.geomID >= views_.size();
+    const uint32_t tri = rh.hit.primID;
+    Vec3 normal, hit, albedo;
+    float q = -1.0f;  // survival probability; set here for mesh hits, below for the others
+    const HitTri* flat = nullptr;  // an untextured mesh triangle: albedo, frame and weight from the table
+    const HitMesh* special = nullptr;  // a mesh hit that needs shading normals or a contact test
+    float bu = 0.0f, bv = 0.0f;
+    uint32_t ls_bin = 0;
+    uint64_t ls_key = 0;
+    if (is_lsystem) {
+      const uint32_t l = rh.hit.geomID - ls_base_;
+      const lsystem::LSystemObject& obj = *scene_.lsystems[l];
+      const lsystem::GraphHit& gh = obj.last_hit();
+      const ol::Vec3d nd = lsystem::ol_normal(gh.n);
+      if (!std::isfinite(nd.x) || !std::isfinite(nd.y) || !std::isfinite(nd.z)) return;
+      normal = {float(nd.x), float(nd.y), float(nd.z)};
+      hit = org + dir * rh.ray.tfar;
+      albedo = flat_albedo(obj.scene_material(gh.material));
+      ls_bin = ls_grids_[l].bin(nd);
+      ls_key = obj.stub_key(gh);
+    } else if (is_csg) {
+      const CsgView& cv = csg_views_[rh.hit.geomID - views_.size()];
+      normal = normalize(Vec3{rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z});
+      if (!is_finite(normal)) return;
+      hit = org + dir * rh.ray.tfar;
+      albedo = flat_albedo(cv.object->material(tri));
+    } else {
+      const HitMesh& hm = hit_meshes_[rh.hit.geomID];
+      const HitTri& ht = hm.tris[tri];
+      bu = rh.hit.u, bv = rh.hit.v;
+      const float bw = 1.0f - bu - bv;
+      if (ht.degenerate) return;  // the photon stops
+      normal = ht.normal;
+      if (hm.special) special = &hm;
+      const uint32_t* ix = hm.indices + 3 * size_t(tri);
+      hit = hm.positions[ix[0]] * bw + hm.positions[ix[1]] * bu + hm.positions[ix[2]] * bv;
+      if (!kMeshOnly && textures_ && !scene_.materials.empty()) {
+        const Mesh& mesh = *views_[rh.hit.geomID].mesh;
+        albedo = textures_->albedo(mesh, mesh.material_ids[tri], tri, bu, bv);
+        q = std::fmin(1.0f, max_component(albedo));
+      } else {
+        flat = &ht;
+        q = ht.roulette;
+      }
+    }
+    if (depth == 0 && s.radius2 > 0.0f) {
+      const Vec3 to_hit = hit - s.center;
+      const float d2 = dot(to_hit, to_hit);
+      flux *= d2 / (d2 + s.radius2);
+    }
+    const bool front = dot(dir, normal) < 0.0f;
+    if (!front) normal = -normal;  // the side the photon arrived on
+    if (special && !special_hit(*special, rh.hit.geomID, tri, bu, bv, dir, front, normal, hit, flux)) return;
+    if (front && is_lsystem)
+      out.ls_hits.push_back({rh.hit.geomID - uint32_t(ls_base_), ls_bin, ls_key, flux.x, flux.y, flux.z});
+    if (front && !is_lsystem && depth >= first_recorded_) record(rh, is_csg, hit, flux, out);
+    if (!front && !is_csg && !is_lsystem && (out.back_meshes.empty() || out.back_meshes.back() != rh.hit.geomID))
+      out.back_meshes.push_back(rh.hit.geomID);
+    if (front && !is_csg && !is_lsystem) {
+      const HitMesh& hm = hit_meshes_[rh.hit.geomID];
+      const uint32_t bin = hm.tris[tri].ol_bin;
+      if (bin != kNoBin && (!hm.ol_backup || depth >= first_recorded_))
+        out.ol_hits.push_back({uint32_t(hm.ol_group), bin, flux.x, flux.y, flux.z});
+    }
+
+    if (q < 0.0f) q = std::fmin(1.0f, max_component(albedo));
+    if (q <= 0.0f || settings_.max_bounces == 0) return;
+    if (depth >= settings_.max_bounces) {
+      if (flat) albedo = material(*views_[rh.hit.geomID].mesh, tri).albedo;
+      ++out.truncated;
+      out.truncated_flux += average(flux * albedo);
+      return;
+    }
+    if (v[2] >= q) return;  // Russian roulette
+    flux *= flat ? flat->bounce : albedo / q;
+
+    Vec3 t, b;
+    if (flat) {
+      t = flat->frame_t;
+      b = front ? flat->frame_b : -flat->frame_b;
+    } else {
+      make_frame(normal, t, b);
+    }
+    dir = t * local.x + b * local.y + normal * local.z;
+    org = offset_origin(hit, normal, offset_scale_);
+    // Leaving a triangle, skip it; leaving a CSG or L-system surface, only
+    // the offset (a ray may rightly hit the primitive it leaves: the inside
+    // of a bowl, a neighbouring branch).
+    const bool analytic = is_csg || is_lsystem;
+    tc.skip_geom = analytic ? RTC_INVALID_GEOMETRY_ID : rh.hit.geomID;
+    tc.skip_prim = analytic ? RTC_INVALID_GEOMETRY_ID : tri;
+  }
+}
+
+// A hit on a smooth mesh, or on a triangle that may be pressed against
+// another surface. A photon that finds a face in contact came through the
+// other surface (both lie at the same distance): it is absorbed. On a smooth
+// mesh the flux is weighted by cos(shading) / cos(geometric) at the hit
+// (normal: the geometric normal turned to the side the photon arrived on).
+// Returns false where the photon stops.
+inline bool PhotonTracer::special_hit(const HitMesh& hm, unsigned geom, uint32_t tri, float bu, float bv, Vec3 dir,
+                               bool front, Vec3 normal, Vec3 hit, Vec3& flux) const {
+  if (front && hm.contact) {
+    const int64_t texel = uv_texel(hm.uv + 6 * size_t(tri), bu, bv, hm.width, hm.height);
+    if (texel >= 0 && hm.contact[texel] && in_contact(rtc_, views_, hit, normal, geom, tri, offset_scale_))
+      return false;
+  }
+  if (!hm.shading) return true;
+  const Vec3* c = hm.shading + 3 * size_t(tri);
+  const Vec3 shading = c[0] * (1.0f - bu - bv) + c[1] * bu + c[2] * bv;
+  const float len = length(shading);
+  if (!(len > 0.0f)) return true;
+  const float cos_s = -dot(dir, front ? shading : -shading) / len, cos_g = -dot(dir, normal);
+  const float w = cos_s > 0.0f ? std::fmin(cos_s / cos_g, kMaxShadingRatio) : 0.0f;
+  flux *= w;
+  return w > 0.0f;  // light from behind the shading normal: no irradiance about it
+}
+
+// A front-side hit into the texel (or CSG sub-texel) it falls in, if any.
+inline void PhotonTracer::record(const RTCRayHit& rh, bool is_csg, Vec3 hit, Vec3 flux, BatchOutput& out) const {
+  if (is_csg) {
+    const CsgView& cv = csg_views_[rh.hit.geomID - views_.size()];
+    if (!cv.lightmap) return;
+    const int64_t sub = cv.lightmap->sub_texel_of_hit(rh.hit.primID, int(rh.hit.u), to_double(hit));
+    if (sub >= 0) out.hits.push_back({uint32_t(cv.texel_offset + uint64_t(sub)), flux.x, flux.y, flux.z});
+    return;
+  }
+  const HitMesh& hm = hit_meshes_[rh.hit.geomID];
+  if (!hm.covered) return;
+  // Outside the lightmap, and for NaN, nothing is recorded.
+  const int64_t texel = uv_texel(hm.uv + 6 * size_t(rh.hit.primID), rh.hit.u, rh.hit.v, hm.width, hm.height);
+  if (texel >= 0) {
+    if (hm.covered[texel]) {
+      // Fields stored in place: a Hit built on the stack and copied is
+      // reloaded as one 16-byte word right after four 4-byte stores, which
+      // store forwarding cannot serve (the loop's largest stall).
+      const Hit zero{};
+      out.hits.push_back(zero);  // an lvalue: the inlined push_back (an rvalue calls emplace_back)
+      Hit& h = out.hits.back();
+      h.texel = uint32_t(hm.texel_offset + texel);
+      h.r = flux.x;
+      h.g = flux.y;
+      h.b = flux.z;
+    }
+  }
+}
+
+}  // namespace plm

@@ -1,0 +1,152 @@
+// The photon tracer (thesis 3.5.2): photons leave the lights in proportion to
+// their power, bounce diffusely with Russian roulette, and every front-side
+// hit on a lightmapped surface is recorded for the texel it lands in. A batch
+// of photons writes its hits into a BatchOutput; the caller merges batches in
+// order (transport/film.h, transport/ol_film.h).
+#pragma once
+
+#include <embree3/rtcore.h>
+
+#include <cstdint>
+#include <vector>
+
+#include "ol/octahedral.h"
+#include "photonlm/photonlm.h"
+#include "scene/scene.h"
+#include "texture/texture.h"
+#include "transport/emitters.h"
+#include "transport/tracing.h"
+#include "util/rng.h"
+
+namespace plm {
+
+struct Hit {
+  uint32_t texel;  // global texel index over all lightmaps
+  float r, g, b;   // flux / pick probability; divided by the photon count at the end
+};
+
+// A hit on an OL mesh: the bin of the triangle's normal (OlMeshView::bins).
+struct OlHit {
+  uint32_t group, bin;
+  float r, g, b;
+};
+
+// A hit on an L-system object: its root-OL bin and the stub key of the
+// instance hit (LSystemObject::stub_key).
+struct LsHit {
+  uint32_t object, bin;
+  uint64_t key;
+  float r, g, b;
+};
+
+// What one batch of photons recorded, in photon order.
+struct BatchOutput {
+  std::vector<Hit> hits;
+  std::vector<OlHit> ol_hits;
+  std::vector<LsHit> ls_hits;
+  std::vector<uint32_t> back_meshes;  // meshes whose back a photon reached (the final gather's dark backs)
+  uint64_t rays = 0;
+  uint64_t truncated = 0;
+  double truncated_flux = 0.0;
+};
+
+constexpr uint32_t kNoBin = ~0u;
+
+// A mesh as the photon tracer sees its OL group: group -1 for none, else the
+// OL bin of each triangle's normal (kNoBin for degenerate triangles).
+struct OlMeshView {
+  int32_t group = -1;
+  const uint32_t* bins = nullptr;
+  bool backup = false;  // a backup OL: it records what the mesh's texels record (the indirect hits)
+};
+
+class PhotonTracer {
+ public:
+  // Hits on lightmapped meshes are recorded from depth first_recorded_depth
+  // on, hits on OL meshes at every depth (they get no direct pass).
+  PhotonTracer(const Scene& scene, RTCScene rtc, const std::vector<MeshView>& views,
+               const std::vector<CsgView>& csg_views, const std::vector<OlMeshView>& ol_views,
+               const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent,
+               uint32_t first_recorded_depth, const std::vector<ol::OctGrid>& ls_grids,
+               const TextureSet* textures = nullptr);
+
+  // A triangle's material (grey 0.8 in a scene without materials).
+  const Material& material(const Mesh& mesh, uint32_t tri) const { return material_by_id(mesh.material_ids[tri]); }
+  // Per mesh, per triangle: its material's albedo.
+  std::vector<std::vector<Vec3>> triangle_albedos() const;
+
+  // Traces photons [first, first + count) into out (cleared first).
+  void trace_batch(uint64_t first, uint64_t count, BatchOutput& out) const;
+
+ private:
+  const Material& material_by_id(uint32_t id) const {
+    return scene_.materials.empty() ? default_material_ : scene_.materials[id];
+  }
+
+  // What a photon needs at a mesh hit, flattened per triangle into one cache
+  // line (HitTri) and per mesh (HitMesh), so a bounce reads one line instead
+  // of the normal, material and OL-bin arrays and divides nothing. The values
+  // are those the loop computed per hit, so results are bit for bit the same:
+  // make_frame(-n) is exactly (t, -b) for make_frame(n) = (t, b), and
+  // albedo * (1 / q) is what albedo / q evaluates.
+  struct alignas(64) HitTri {
+    Vec3 normal;       // unit geometric normal
+    Vec3 frame_t, frame_b;  // make_frame(normal)
+    Vec3 bounce;       // albedo / roulette: the flux factor of a surviving photon (untextured scenes)
+    float roulette;    // survival probability min(1, max_component(albedo))
+    uint32_t ol_bin;   // OL bin of the normal, kNoBin if none
+    uint32_t degenerate;  // 1: the photon stops here
+    uint32_t pad_;
+  };
+  static_assert(sizeof(HitTri) == 64, "HitTri fills one cache line");
+  struct HitMesh {
+    const HitTri* tris;
+    const float* uv;  // 6 per triangle (Mesh::uv)
+    const uint32_t* indices;
+    const Vec3* positions;
+    const Vec3* shading;  // 3 corner normals per triangle (Mesh::normals); null for flat meshes
+    const uint8_t* contact;  // per texel: may be pressed against another surface (MeshView::contact), or null
+    bool special;            // shading or contact is set: hits go through special_hit
+    const uint8_t* covered;  // per texel: area > 0; null when the mesh records no texel hits
+    uint64_t texel_offset;
+    uint32_t width, height;
+    int32_t ol_group;
+    bool ol_backup;
+  };
+
+  void build_hit_tables();
+  // Albedo of a material where no texture UV exists (textures: their mean).
+  Vec3 flat_albedo(uint32_t id) const;
+  // kMeshOnly: no CSG solid, no L-system object, no texture (mesh_only_);
+  // the compiler then drops their branches from the loop.
+  template <bool kMeshOnly>
+  void trace_photon(uint64_t index, BatchOutput& out) const;
+  // Per-hit steps of trace_photon, inline in photon_tracer.cpp (the only
+  // place that calls them).
+  inline bool special_hit(const HitMesh& hm, unsigned geom, uint32_t tri, float bu, float bv, Vec3 dir, bool front,
+                          Vec3 normal, Vec3 hit, Vec3& flux) const;
+  inline void record(const RTCRayHit& rh, bool is_csg, Vec3 hit, Vec3 flux, BatchOutput& out) const;
+
+  const Scene& scene_;
+  const TextureSet* textures_;  // null for an untextured scene
+  RTCScene rtc_;
+  const std::vector<MeshView>& views_;
+  const std::vector<CsgView>& csg_views_;
+  const std::vector<OlMeshView>& ol_views_;
+  const std::vector<Emitter>& emitters_;
+  const std::vector<ol::OctGrid>& ls_grids_;  // per L-system object: its OLs' grid
+  size_t ls_base_;                            // Embree id of the first L-system object
+  plm_bake_settings settings_;
+  float offset_scale_;
+  uint32_t first_recorded_;
+  EmitterTable table_;
+  double pick_offset_ = 0.0;
+  Material default_material_;
+  std::vector<HitTri> hit_tris_;    // all meshes' triangles, mesh after mesh
+  std::vector<HitMesh> hit_meshes_;  // per mesh (Embree geometry id)
+  std::vector<uint8_t> covered_;     // per texel of the meshes that record hits
+  bool mesh_only_ = false;           // trace_photon<true> applies
+  Rng::SeedHash seed_hash_{};        // of settings_.seed, for the photons' Rng
+};
+
+}  // namespace plm

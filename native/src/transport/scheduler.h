@@ -1,0 +1,201 @@
+// How much work a bake does next and when it stops: groups of work sized by
+// the clock (progress and cancel stay prompt), the photon pass's checks at
+// fixed batch counts (where a bake stops depends on the seed, never on
+// timing), the target and time-budget rules, and the direct pass's share of
+// samples per texel. Rules are plain functions of their inputs, so they are
+// unit-tested without a bake (native/tests/scheduler_test.cpp).
+#pragma once
+
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+namespace plm {
+
+using Clock = std::chrono::steady_clock;
+
+inline double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// ---- Time budget ------------------------------------------------------------
+// Each stage ends once this share of the time budget is spent, leaving the
+// rest to the stages after it.
+constexpr double kDirectBudgetShare = 0.5;       // the direct pass, photons to follow
+constexpr double kDirectOnlyBudgetShare = 0.95;  // the direct pass as the whole bake
+constexpr double kGatherBudgetShare = 0.9;       // the final gather: texels without rays keep the photons'
+constexpr double kPhotonBudgetShare = 0.97;      // the photon pass: estimates and outputs follow
+
+// True once `share` of a budget of `budget` seconds has passed after
+// `elapsed` seconds; never without a budget (0).
+inline bool budget_spent(double elapsed, double budget, double share) {
+  return budget > 0.0 && elapsed >= share * budget;
+}
+
+// The bake's clock against its time budget (settings.time_budget).
+class TimeBudget {
+ public:
+  TimeBudget(double budget_seconds, Clock::time_point start) : budget_(budget_seconds), start_(start) {}
+  bool spent(double share) const { return budget_spent(elapsed(), budget_, share); }
+  double elapsed() const { return seconds_since(start_); }
+  double seconds() const { return budget_; }  // 0: no budget
+
+ private:
+  double budget_;
+  Clock::time_point start_;
+};
+
+// ---- Progress ---------------------------------------------------------------
+// Forwards progress to the caller's callback, never going back; a callback
+// that returns false cancels the bake (plm::Error PLM_ERROR_CANCELLED).
+class Progress {
+ public:
+  explicit Progress(const std::function<bool(double, const char*)>& callback) : callback_(callback) {}
+  void operator()(double fraction, const char* stage);
+
+ private:
+  const std::function<bool(double, const char*)>& callback_;
+  double reported_ = 0.0;
+};
+
+// ---- Groups of work ---------------------------------------------------------
+// Group sizes that take between kGroupSecondsLow and kGroupSecondsHigh: a
+// group twice as large after a quick one, half as large after a slow one,
+// between `granule` and `limit` (0: granule x 1024) units.
+class GroupSizer {
+ public:
+  static constexpr double kGroupSecondsLow = 0.1, kGroupSecondsHigh = 0.4;
+  GroupSizer(uint64_t granule, uint64_t limit)
+      : granule_(granule), limit_(limit ? std::max(limit, granule) : granule * 1024), size_(granule) {}
+  uint64_t size() const { return size_; }
+  // The last group took `seconds`.
+  void finished(double seconds) {
+    if (seconds < kGroupSecondsLow) size_ = std::min<uint64_t>(size_ * 2, limit_);
+    else if (seconds > kGroupSecondsHigh && size_ > granule_) size_ = std::max<uint64_t>(granule_, size_ / 2);
+  }
+
+ private:
+  uint64_t granule_, limit_, size_;
+};
+
+// Runs work(first, count) over [0, total) in groups sized by GroupSizer, so
+// that after(done) -- progress, cancel, steering -- runs several times a
+// second on the calling thread. after returns false to stop early.
+template <typename Work, typename After>
+void run_in_groups(tbb::task_arena& arena, uint64_t total, uint64_t granule, Work&& work, After&& after,
+                   uint64_t max_group = 0) {
+  GroupSizer sizer(granule, max_group);
+  for (uint64_t first = 0; first < total;) {
+    const uint64_t n = std::min(sizer.size(), total - first);
+    const auto t0 = Clock::now();
+    arena.execute([&] { work(first, n); });
+    first += n;
+    sizer.finished(seconds_since(t0));
+    if (!after(first)) return;
+  }
+}
+
+// ---- Photon pass --------------------------------------------------------------
+// The error target is checked after kCheckBatches batches, then at fixed
+// batch counts growing by a quarter (multiples of kCheckBatches); the final
+// gather runs at the first check, or without a target after kCheckBatches.
+constexpr uint64_t kCheckBatches = 16;
+// The photon pass stops when the photons' own part of the error is under this
+// share of the target: photons lower neither the direct nor the gather's part.
+constexpr double kPhotonShareOfTarget = 0.5;
+
+// The check after the one at `check` batches.
+inline uint64_t next_check(uint64_t check) {
+  return std::max(check + kCheckBatches, (check * 5 / 4) / kCheckBatches * kCheckBatches);
+}
+
+// The parts of the estimated relative error (film_estimate.h, ErrorEstimate).
+struct ErrorParts {
+  double relative = 0.0;  // all of it
+  double direct = 0.0;    // the direct pass's part
+  double gather = 0.0;    // the final gather's part
+};
+
+// Whether the photon pass stops at a check: the target is reached, or the
+// photons' part of the error is under kPhotonShareOfTarget x the target.
+bool target_reached(const ErrorParts& e, double target);
+
+// Progress towards the target at a check: (target / error)^2 (the error falls
+// as 1 / sqrt(photons)), at most 1.
+double target_progress(double relative, double target);
+
+// When the photon pass checks its error: at fixed batch counts only.
+class CheckSchedule {
+ public:
+  // Whether the error is checked once `batches` batches are merged; moves on
+  // to the next check when it is. Batches are merged one at a time, in order.
+  bool due(uint64_t batches) {
+    if (batches != next_) return false;
+    next_ = next_check(next_);
+    return true;
+  }
+
+ private:
+  uint64_t next_ = kCheckBatches;
+};
+
+// ---- Final gather -------------------------------------------------------------
+// Rays per texel: kGatherSamples, 4x as many for half the target error under
+// a target below 2 % (at most kMaxGatherSamples).
+constexpr uint32_t kGatherSamples = 16, kMaxGatherSamples = 256;
+uint32_t gather_samples(double target_error);
+
+// ---- Direct pass --------------------------------------------------------------
+// What the allocation of a texel's next samples reads: its sample count, its
+// variance of the mean and the phantom sample's part of it (direct.h).
+struct DirectTexelNoise {
+  uint32_t count = 0;
+  double variance = 0.0, phantom = 0.0;
+};
+
+// How many direct samples each texel gets in each round. Round 0 gives every
+// texel direct_samples (with a target at most kFirstTargetSamples). Then, with
+// a target, while the direct part's RMS error is above kDirectShareOfTarget x
+// target (the rest is the photons'), each texel gets its share of the fewest
+// samples that reach it, re-estimated after each round: a texel's variance v_i
+// after n_i samples is taken to fall as n^-a (a = kDirectConvergence), so
+// sum_i v_i (n_i / m_i)^a = budget is met with the fewest samples by
+// m_i = c w_i, w_i = (v_i n_i^a)^(1 / (a + 1)), c = (sum_j w_j / budget)^(1 / a)
+// (for a = 1: m_i ~ the per-sample deviation). Where the noise is plainer, the
+// next round adds the rest. After round 0, if the phantom sample is most of
+// the estimate, every texel is first topped up to direct_samples. Texels
+// without two samples get direct_samples x 2^round (texels that see a light
+// rarely, the sky through a window, need thousands).
+class DirectSchedule {
+ public:
+  static constexpr uint32_t kMaxRounds = 16;
+  static constexpr uint32_t kFirstTargetSamples = 16;
+  // Stratified samples over a shadow edge: n^-1.5; plain noise: n^-1.
+  static constexpr double kDirectConvergence = 1.5;
+  static constexpr double kDirectShareOfTarget = 0.7;
+  // A texel gets at most this many times max(first, direct_samples) in all
+  // (a target far out of reach ends) ...
+  static constexpr double kMaxDirectGrowth = 2048.0;
+  // ... and at most kMaxRoundGrowth times its samples more in one round
+  // (rounds stay short: the time budget and cancel are checked often).
+  static constexpr double kMaxRoundGrowth = 4.0;
+
+  DirectSchedule(double target_error, uint32_t direct_samples);
+  // Samples per texel of round 0.
+  uint32_t first() const { return first_; }
+  // After round `round`: `mean` is the mean texel value, `texels` every
+  // covered texel's noise. Sets want[i] for the texels that get more samples
+  // and returns them in order.
+  std::vector<uint32_t> next_round(uint32_t round, double mean, const std::vector<DirectTexelNoise>& texels,
+                                   std::vector<uint32_t>& want) const;
+
+ private:
+  double target_;
+  uint32_t direct_samples_, first_;
+};
+
+}  // namespace plm

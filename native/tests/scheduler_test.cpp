@@ -1,0 +1,224 @@
+// The bake's scheduling rules (transport/scheduler.h) as functions of their
+// inputs: group sizes, the check schedule, the stopping rule, the time-budget
+// shares and the direct pass's allocation of samples.
+#include "transport/scheduler.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+namespace plm {
+namespace {
+
+TEST(Scheduler, GroupsGrowWhenQuickAndShrinkWhenSlowWithinBounds) {
+  GroupSizer sizer(64, 0);
+  EXPECT_EQ(sizer.size(), 64u);
+  for (int i = 0; i < 20; ++i) sizer.finished(0.01);
+  EXPECT_EQ(sizer.size(), 64u * 1024);  // at most granule x 1024 by default
+  sizer.finished(0.2);                  // between the bounds: unchanged
+  EXPECT_EQ(sizer.size(), 64u * 1024);
+  sizer.finished(1.0);
+  EXPECT_EQ(sizer.size(), 32u * 1024);
+  for (int i = 0; i < 20; ++i) sizer.finished(1.0);
+  EXPECT_EQ(sizer.size(), 64u);  // never below the granule
+
+  GroupSizer capped(2, 8);
+  for (int i = 0; i < 10; ++i) capped.finished(0.0);
+  EXPECT_EQ(capped.size(), 8u);
+  GroupSizer below(16, 4);  // a cap under the granule is the granule
+  below.finished(0.0);
+  EXPECT_EQ(below.size(), 16u);
+}
+
+TEST(Scheduler, RunInGroupsCoversEverythingInOrderAndStopsWhenAsked) {
+  tbb::task_arena arena(1);
+  std::vector<int> seen(1000, 0);
+  uint64_t next = 0, calls = 0, last_done = 0;
+  run_in_groups(
+      arena, seen.size(), 3,
+      [&](uint64_t first, uint64_t n) {
+        EXPECT_EQ(first, next);
+        for (uint64_t i = first; i < first + n; ++i) ++seen[i];
+        next = first + n;
+      },
+      [&](uint64_t done) {
+        EXPECT_GT(done, last_done);
+        last_done = done;
+        ++calls;
+        return true;
+      });
+  EXPECT_EQ(last_done, seen.size());
+  for (int s : seen) EXPECT_EQ(s, 1);
+
+  uint64_t done_at_stop = 0;
+  run_in_groups(
+      arena, 1000, 3, [](uint64_t, uint64_t) {},
+      [&](uint64_t done) {
+        done_at_stop = done;
+        return false;
+      });
+  EXPECT_EQ(done_at_stop, 3u);  // one group, then stopped
+}
+
+TEST(Scheduler, ChecksAreAtFixedBatchCountsWhateverTheGroups) {
+  // The checks come at the same batch counts however the batches are grouped
+  // (group sizes follow the clock): merges go batch by batch.
+  auto checks_with_groups = [](const std::vector<uint64_t>& groups) {
+    CheckSchedule schedule;
+    std::vector<uint64_t> at;
+    uint64_t merged = 0;
+    for (uint64_t g : groups)
+      for (uint64_t end = merged + g; merged < end; ++merged)
+        if (schedule.due(merged + 1)) at.push_back(merged + 1);
+    return at;
+  };
+  const std::vector<uint64_t> one_by_one(400, 1), uneven = {1, 7, 64, 3, 100, 25, 200};
+  const std::vector<uint64_t> a = checks_with_groups(one_by_one), b = checks_with_groups(uneven);
+  EXPECT_EQ(a, b);
+  const std::vector<uint64_t> expected = {16, 32, 48, 64, 80, 96, 112, 128, 160, 192, 240, 288, 352};
+  EXPECT_EQ(a, expected);
+  // Multiples of kCheckBatches, each at most a quarter (plus one step) after the last.
+  uint64_t check = kCheckBatches;
+  for (int i = 0; i < 60; ++i) {
+    const uint64_t next = next_check(check);
+    EXPECT_EQ(next % kCheckBatches, 0u);
+    EXPECT_GE(next, check + kCheckBatches);
+    EXPECT_LE(next, std::max(check + kCheckBatches, check * 5 / 4));
+    check = next;
+  }
+}
+
+TEST(Scheduler, StopsAtTheTargetAndNotOnALooseEstimate) {
+  const double target = 0.02;
+  EXPECT_TRUE(target_reached({0.02, 0.0, 0.0}, target));
+  EXPECT_TRUE(target_reached({0.015, 0.01, 0.0}, target));
+  EXPECT_FALSE(target_reached({0.0201, 0.0, 0.0}, target));
+  // Above the target, but the photons' part is under half of it: more
+  // photons would not reach a target that the direct and gather parts miss.
+  EXPECT_TRUE(target_reached({0.03, 0.025, 0.014}, target));
+  // Above the target with the photons' part above half of it: go on.
+  EXPECT_FALSE(target_reached({0.03, 0.01, 0.0}, target));
+  EXPECT_FALSE(target_reached({0.5, 0.0, 0.0}, target));
+  // Parts larger than the whole (rounding): the photons' part is 0, not NaN.
+  EXPECT_TRUE(target_reached({0.03, 0.04, 0.0}, target));
+  EXPECT_DOUBLE_EQ(target_progress(0.04, target), 0.25);
+  EXPECT_DOUBLE_EQ(target_progress(0.01, target), 1.0);
+  EXPECT_DOUBLE_EQ(target_progress(0.0, target), 1.0);
+}
+
+TEST(Scheduler, BudgetSharesAreRespected) {
+  EXPECT_FALSE(budget_spent(1e9, 0.0, 0.5));  // no budget: never spent
+  EXPECT_FALSE(budget_spent(4.99, 10.0, kDirectBudgetShare));
+  EXPECT_TRUE(budget_spent(5.0, 10.0, kDirectBudgetShare));
+  // The stages end in order and leave time for what follows them.
+  EXPECT_LT(kDirectBudgetShare, kGatherBudgetShare);
+  EXPECT_LT(kGatherBudgetShare, kPhotonBudgetShare);
+  EXPECT_LT(kPhotonBudgetShare, 1.0);
+  EXPECT_LT(kDirectOnlyBudgetShare, 1.0);
+  for (double share : {kDirectBudgetShare, kGatherBudgetShare, kPhotonBudgetShare, kDirectOnlyBudgetShare}) {
+    EXPECT_FALSE(budget_spent(share * 100.0 - 1e-9, 100.0, share));
+    EXPECT_TRUE(budget_spent(share * 100.0, 100.0, share));
+  }
+  const TimeBudget none(0.0, Clock::now());
+  EXPECT_FALSE(none.spent(0.0));
+  const TimeBudget past(1.0, Clock::now() - std::chrono::seconds(2));
+  EXPECT_TRUE(past.spent(kPhotonBudgetShare));
+}
+
+TEST(Scheduler, GatherRaysGrowWithTheSquareOfTheTarget) {
+  EXPECT_EQ(gather_samples(0.0), kGatherSamples);
+  EXPECT_EQ(gather_samples(0.05), kGatherSamples);
+  EXPECT_EQ(gather_samples(0.02), kGatherSamples);
+  EXPECT_EQ(gather_samples(0.01), 4 * kGatherSamples);
+  EXPECT_EQ(gather_samples(0.001), kMaxGatherSamples);
+}
+
+// Texels after a round: n samples each, variance of the mean v.
+std::vector<DirectTexelNoise> texels(const std::vector<double>& variances, uint32_t n, double phantom = 0.0) {
+  std::vector<DirectTexelNoise> out;
+  for (double v : variances) out.push_back({n, v, phantom * v});
+  return out;
+}
+
+TEST(Scheduler, DirectRoundsWithoutTargetOnlyFillTexelsWithoutPairs) {
+  const DirectSchedule s(0.0, 64);
+  EXPECT_EQ(s.first(), 64u);
+  std::vector<DirectTexelNoise> t = texels({1.0, 1.0, 1.0}, 64);
+  t[1].count = 1;  // a texel whose samples mostly missed its islands
+  t[2].count = 0;
+  std::vector<uint32_t> want(3, 0);
+  EXPECT_EQ(s.next_round(0, 1.0, t, want), (std::vector<uint32_t>{1, 2}));
+  EXPECT_EQ(want[1], 128u);  // direct_samples x 2^(round + 1)
+  EXPECT_EQ(s.next_round(5, 1.0, t, want), (std::vector<uint32_t>{1, 2}));
+  EXPECT_EQ(want[2], 64u * 64);
+  EXPECT_EQ(s.next_round(12, 1.0, t, want), (std::vector<uint32_t>{1, 2}));
+  EXPECT_EQ(want[2], 64u * 256);  // at most 2^8
+}
+
+TEST(Scheduler, DirectRoundsStopAtTheTarget) {
+  const DirectSchedule s(0.02, 64);
+  EXPECT_EQ(s.first(), DirectSchedule::kFirstTargetSamples);
+  // RMS error under 0.7 x target of a mean of 1: met, nothing more.
+  const double a2 = std::pow(DirectSchedule::kDirectShareOfTarget * 0.02, 2.0);
+  std::vector<uint32_t> want(4, 0);
+  EXPECT_TRUE(s.next_round(1, 1.0, texels({0.9 * a2, 0.5 * a2, 0.8 * a2, 1.5 * a2}, 16), want).empty());
+  // The same noise over a mean half as bright is twice the relative error: more samples.
+  EXPECT_EQ(s.next_round(1, 0.5, texels({0.9 * a2, 0.5 * a2, 0.8 * a2, 1.5 * a2}, 16), want).size(), 4u);
+}
+
+TEST(Scheduler, DirectRoundsMeetTheBudgetWithSamplesWhereTheNoiseIs) {
+  const DirectSchedule s(0.02, 16);
+  const double allowed = DirectSchedule::kDirectShareOfTarget * 0.02;
+  // Mean variance 2 x allowed^2 (near the target: the round aims at the target itself).
+  const std::vector<double> v = {1.0 * allowed * allowed, 1.0 * allowed * allowed, 3.0 * allowed * allowed,
+                                 3.0 * allowed * allowed};
+  const std::vector<DirectTexelNoise> t = texels(v, 16);
+  std::vector<uint32_t> want(4, 0);
+  const std::vector<uint32_t> more = s.next_round(1, 1.0, t, want);
+  ASSERT_EQ(more.size(), 4u);
+  EXPECT_EQ(want[0], want[1]);
+  EXPECT_GT(want[2], want[0]);  // noisier texels get more
+  // The model's variance after the round meets the budget (within the
+  // rounding up of each texel's samples).
+  const double a = DirectSchedule::kDirectConvergence;
+  double after = 0.0;
+  for (size_t i = 0; i < v.size(); ++i) after += v[i] * std::pow(16.0 / (16.0 + want[i]), a);
+  EXPECT_LE(after / 4.0, allowed * allowed * 1.0001);
+  EXPECT_GT(after / 4.0, 0.9 * allowed * allowed);
+  // Deterministic: the same inputs give the same samples.
+  std::vector<uint32_t> again(4, 0);
+  EXPECT_EQ(s.next_round(1, 1.0, t, again), more);
+  EXPECT_EQ(again, want);
+}
+
+TEST(Scheduler, DirectRoundsGrowBoundedPerRoundAndInAll) {
+  const DirectSchedule s(0.001, 16);
+  std::vector<uint32_t> want(2, 0);
+  // Far from the target: at most kMaxRoundGrowth x a texel's samples in a round.
+  s.next_round(1, 1.0, texels({1.0, 1.0}, 16), want);
+  EXPECT_EQ(want[0], uint32_t(DirectSchedule::kMaxRoundGrowth * 16));
+  // ... and at most kMaxDirectGrowth x direct_samples in all.
+  const uint32_t most = uint32_t(16 * DirectSchedule::kMaxDirectGrowth);
+  s.next_round(9, 1.0, texels({1.0, 1.0}, most - 10), want);
+  EXPECT_EQ(want[0], 10u);
+  EXPECT_TRUE(s.next_round(10, 1.0, texels({1.0, 1.0}, most), want).empty());
+}
+
+TEST(Scheduler, DirectRoundZeroTopsUpWhereThePhantomDominates) {
+  const DirectSchedule s(0.02, 64);
+  const double a2 = std::pow(DirectSchedule::kDirectShareOfTarget * 0.02, 2.0);
+  std::vector<uint32_t> want(3, 0);
+  // Most of the variance is the phantom sample's: every texel gets the rest
+  // of direct_samples, whatever its own variance.
+  const std::vector<DirectTexelNoise> t = texels({0.5 * a2, 1.0 * a2, 2.0 * a2}, 16, 0.9);
+  EXPECT_EQ(s.next_round(0, 1.0, t, want).size(), 3u);
+  EXPECT_EQ(want, (std::vector<uint32_t>{48, 48, 48}));
+  // Only in round 0; later rounds follow the texels' noise.
+  std::vector<uint32_t> later(3, 0);
+  EXPECT_EQ(s.next_round(1, 1.0, t, later), (std::vector<uint32_t>{2}));
+  EXPECT_GT(later[2], 0u);
+}
+
+}  // namespace
+}  // namespace plm
