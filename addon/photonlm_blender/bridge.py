@@ -39,6 +39,15 @@ def error():
     return _error
 
 
+def engine_defaults():
+    """The engine's default bake settings by the names of photonlm.Scene.bake's arguments (the one
+    place they are defined, plm_bake_settings_default); {} when the engine cannot be loaded."""
+    try:
+        return get().default_settings()
+    except RuntimeError:
+        return {}
+
+
 def available():
     try:
         get()

@@ -12,7 +12,14 @@ import math
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
+from . import bridge
+
 STATS_KEY = "photonlm_last_bake"  # ID property on the scene: the last bake's statistics
+# The engine's own defaults (0 where the engine cannot be loaded: nothing bakes then). The add-on
+# differs in two: it bakes to a quality (a target error, photons only a cap), not a photon count.
+ENGINE = bridge.engine_defaults()
+TARGET_ERROR_DEFAULT = 0.02
+PHOTON_CAP_DEFAULT = 50_000_000
 
 # A bake holds about 240 bytes for every lightmap texel and 160 more for each covered one
 # (the engine's memory estimate): an object's Resolution is capped where one lightmap alone
@@ -116,24 +123,25 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
         name="Target Error", description="Relative noise to reach (0.02 = 2%): photons are traced and "
         "noisy texels get more direct-light samples until the estimated relative RMS error over all "
         "texels is this low, the time budget is spent or Max Photons are traced. 0 = trace exactly "
-        "Max Photons", default=0.02, min=0.0, max=0.5, soft_min=0.002, precision=3, step=0.1)
+        "Max Photons", default=TARGET_ERROR_DEFAULT, min=0.0, max=0.5, soft_min=0.002, precision=3, step=0.1)
     time_budget: FloatProperty(
-        name="Time Budget", description="Seconds the bake may take; 0 = no limit", default=0.0, min=0.0,
+        name="Time Budget", description="Seconds the bake may take; 0 = no limit",
+        default=float(ENGINE.get("time_budget", 0.0)), min=0.0,
         soft_max=3600.0, unit='TIME_ABSOLUTE')
     photons: IntProperty(
         name="Max Photons", description="Photons emitted from all lights together: the cap with a target "
         "error or time budget, the exact count without (noise falls as 1/sqrt(photons)); 0 = no cap",
-        default=50_000_000, min=0, soft_max=1_000_000_000)
+        default=PHOTON_CAP_DEFAULT, min=0, soft_max=1_000_000_000)
     direct_samples: IntProperty(
         name="Direct Samples", description="Shadow-ray points per texel for direct light (more are added "
         "to noisy texels when a target error is set); 0 = photons carry direct light too",
-        default=64, min=0, max=65536, soft_max=1024)
+        default=ENGINE.get("direct_samples", 0), min=0, max=65536, soft_max=1024)
     texel_value: EnumProperty(
         name="Texel Value", description="What a lightmap texel holds",
         items=[('CYCLES', "Like Cycles", "Direct light averaged over the texel's central half, as a "
                 "Cycles bake converges to (sharper shadow edges)"),
                ('AREA', "Texel Average", "Direct light averaged over the whole texel (smoother shadow edges)")],
-        default='CYCLES')
+        default=ENGINE.get("texel_value", 'CYCLES'))
     texel_density: IntProperty(
         name="Texel Density", description="Lightmap texels per metre for objects whose resolution is Auto "
         "(n = clamp(next power of two of sqrt(surface area) x density, 16, 4096))",
@@ -148,9 +156,9 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
                     "them in the engine (OpenSubdiv, the modifier's render level); off: Blender's subdivided mesh")
     max_bounces: IntProperty(
         name="Max Bounces", description="Diffuse bounces after the first hit; 0 bakes direct light only",
-        default=1024, min=0, soft_max=1024)
+        default=ENGINE.get("max_bounces", 0), min=0, soft_max=1024)
     seed: IntProperty(name="Seed", description="Random seed; the result depends on the seed only, "
-                      "not on the number of threads", default=0, min=0)
+                      "not on the number of threads", default=ENGINE.get("seed", 0), min=0)
     preview_mode: EnumProperty(
         name="Preview", description="What the materials of the baked objects show in Material Preview and "
         "Rendered view (a separate Material Output; the original nodes stay untouched)",

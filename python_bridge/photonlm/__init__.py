@@ -26,7 +26,7 @@ from ._lib import LibraryNotFoundError, library_path
 
 __all__ = ["version", "PhotonlmError", "BakeCancelled", "LibraryNotFoundError", "Scene", "Result",
            "Lightmap", "OrientationLightmap", "library_path", "lsystem_flatten", "LSYSTEM_SHAPES",
-           "subdiv_refine"]
+           "subdiv_refine", "default_settings"]
 
 _C = _lib.lib
 _OK = 0
@@ -541,10 +541,11 @@ class Scene(_Handle):
         rad = _rgb(radiance, "radiance")
         _check(_C.plm_scene_set_world(self._h, _ptr(rad, ctypes.c_float)))
 
-    def bake(self, photons=1_000_000, max_bounces=1024, seed=0, threads=0, dilation=8, progress=None,
-             target_error=0.0, time_budget=0.0, direct_samples=64, filter_radius=2,
-             texel_value="CYCLES", sampler="DEFAULT"):
+    def bake(self, photons=None, max_bounces=None, seed=None, threads=None, dilation=None, progress=None,
+             target_error=None, time_budget=None, direct_samples=None, filter_radius=None,
+             texel_value=None, sampler=None):
         """Bake all lightmaps and return a Result. The GIL is released while the engine runs.
+        A setting left None takes the engine's default (default_settings()).
 
         Two passes: direct light from direct_samples shadow-ray points per texel (0 = photons
         carry direct light too), indirect light from photons. With target_error (relative RMS
@@ -562,20 +563,22 @@ class Scene(_Handle):
         """
         settings = _lib.plm_bake_settings()
         _C.plm_bake_settings_default(ctypes.byref(settings))
-        settings.photon_count = _uint(photons, "photons", 64)
-        settings.max_bounces = _uint(max_bounces, "max_bounces")
-        settings.seed = _uint(seed, "seed")
-        settings.thread_count = _uint(threads, "threads")
-        settings.dilation = _uint(dilation, "dilation")
-        settings.direct_samples = _uint(direct_samples, "direct_samples")
-        settings.filter_radius = _uint(filter_radius, "filter_radius")
-        settings.texel_value = _choice(texel_value, "texel_value", ("CYCLES", "AREA"))
-        settings.sampler = _choice(sampler, "sampler", ("DEFAULT", "RANDOM", "SOBOL"))
-        for name, value in (("target_error", target_error), ("time_budget", time_budget)):
-            value = float(value)
-            if not value >= 0.0:
-                raise ValueError("%s must be a number >= 0, got %r" % (name, value))
-            setattr(settings, name, value)
+        given = dict(photons=photons, max_bounces=max_bounces, seed=seed, threads=threads, dilation=dilation,
+                     target_error=target_error, time_budget=time_budget, direct_samples=direct_samples,
+                     filter_radius=filter_radius, texel_value=texel_value, sampler=sampler)
+        for name, value in given.items():
+            if value is None:
+                continue
+            field = _SETTING_FIELDS[name]
+            if name in _SETTING_CHOICES:
+                value = _choice(value, name, _SETTING_CHOICES[name])
+            elif name in ("target_error", "time_budget"):
+                value = float(value)
+                if not value >= 0.0:
+                    raise ValueError("%s must be a number >= 0, got %r" % (name, value))
+            else:
+                value = _uint(value, name, 64 if name == "photons" else 32)
+            setattr(settings, field, value)
         raised = []
 
         def on_progress(_user_data, fraction, stage):
@@ -614,6 +617,26 @@ hits (h, w) photon hits; coverage (h, w) fraction of the texel inside UV islands
 _STAT_KEYS = ("photons_emitted", "photon_hits", "rays_traced", "paths_truncated", "emitted_power",
               "seconds_setup", "seconds_trace", "seconds_total", "direct_samples", "seconds_direct",
               "error_estimate", "error_direct", "error_median", "error_p95", "error_above", "memory_estimate")
+
+
+# Scene.bake's arguments -> plm_bake_settings fields, and the names of the enumerated ones.
+_SETTING_FIELDS = {"photons": "photon_count", "max_bounces": "max_bounces", "seed": "seed", "threads": "thread_count",
+                   "dilation": "dilation", "target_error": "target_error", "time_budget": "time_budget",
+                   "direct_samples": "direct_samples", "filter_radius": "filter_radius",
+                   "texel_value": "texel_value", "sampler": "sampler"}
+_SETTING_CHOICES = {"texel_value": ("CYCLES", "AREA"), "sampler": ("DEFAULT", "RANDOM", "SOBOL")}
+
+
+def default_settings():
+    """The engine's default bake settings (plm_bake_settings_default), by the names of Scene.bake's
+    arguments: the one place they are defined."""
+    settings = _lib.plm_bake_settings()
+    _C.plm_bake_settings_default(ctypes.byref(settings))
+    out = {}
+    for name, field in _SETTING_FIELDS.items():
+        value = getattr(settings, field)
+        out[name] = _SETTING_CHOICES[name][value] if name in _SETTING_CHOICES else value
+    return out
 
 
 class Result(_Handle):

@@ -37,7 +37,7 @@ import tempfile
 
 import numpy as np
 
-from . import _cage, _indices, _rgb, _uint
+from . import _SETTING_FIELDS, _cage, _indices, _rgb, _uint
 from . import _resolution as _bridge_resolution
 
 __all__ = ["SceneFileWriter", "SceneFileUnsupported", "file_name"]
@@ -47,11 +47,8 @@ _TEXTURE_SLOTS = ("albedo", "emission")
 _COLORSPACES = ("auto", "linear", "srgb")
 _CSG_SHAPES = ("SPHERE", "BOX", "CYLINDER", "CONE", "TORUS", "PARABOLOID", "HALF_SPACE")
 _CSG_OPS = ("UNION", "INTERSECTION", "DIFFERENCE")
-# Scene.bake argument -> scene file settings field.
-_SETTINGS = {"photons": "photon_count", "max_bounces": "max_bounces", "seed": "seed", "threads": "thread_count",
-             "dilation": "dilation", "target_error": "target_error", "time_budget": "time_budget",
-             "direct_samples": "direct_samples", "filter_radius": "filter_radius",
-             "texel_value": "texel_value", "sampler": "sampler"}
+# Scene.bake argument -> scene file settings field (the C struct's field names).
+_SETTINGS = _SETTING_FIELDS
 
 
 class SceneFileUnsupported(NotImplementedError, AttributeError):

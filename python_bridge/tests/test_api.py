@@ -270,3 +270,17 @@ def test_stats_keys():
     assert 0 <= stats["error_above"] <= 1 and stats["memory_estimate"] > 0
     assert stats["rays_traced"] >= stats["photons_emitted"]
     assert 0 <= stats["seconds_setup"] <= stats["seconds_total"] and 0 <= stats["seconds_trace"] <= stats["seconds_total"]
+
+
+def test_defaults_come_from_the_engine():
+    """Scene.bake's settings left None are the engine's (plm_bake_settings_default), and
+    default_settings() names exactly Scene.bake's settings."""
+    import inspect
+    d = photonlm.default_settings()
+    params = set(inspect.signature(photonlm.Scene.bake).parameters) - {"self", "progress"}
+    assert set(d) == params
+    assert d["photons"] > 0 and d["max_bounces"] > 0 and d["texel_value"] in ("CYCLES", "AREA")
+    with photonlm.Scene() as scene:
+        simple_scene(scene)
+        with scene.bake(direct_samples=4) as result:  # everything else from the engine
+            assert result.stats["photons_emitted"] == d["photons"]
