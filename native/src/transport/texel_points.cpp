@@ -200,14 +200,4 @@ TexelPoints::TexelWindow TexelPoints::texel_window(uint32_t mesh_id, uint32_t te
   return tw;
 }
 
-bool TexelPoints::texel_point(const TexelWindow& tw, uint32_t mesh_id, uint32_t texel, float x, float y,
-                             const float w[3], Vec3& p, Vec3& n, uint32_t& tri) const {
-  if (tw.sparse) return point_in_pieces(mesh_id, texel, w, p, n, tri);
-  if (tw.owner < 0) return surface_point(mesh_id, texel, x, y, p, n, tri);
-  tri = uint32_t(tw.owner);
-  p = tw.affine ? tw.base + tw.du * (x - tw.origin_x) + tw.dv * (y - tw.origin_y) : mirrored_point(mesh_id, tri, x, y);
-  n = views_[mesh_id].normals[tri];
-  return true;
-}
-
 }  // namespace plm

@@ -39,7 +39,14 @@ class TexelPoints {
   // The point for texel coordinates (x, y) (or, sparse, the piece numbers
   // w); false outside the islands.
   bool texel_point(const TexelWindow& tw, uint32_t mesh, uint32_t texel, float x, float y, const float w[3], Vec3& p,
-                   Vec3& n, uint32_t& tri) const;
+                   Vec3& n, uint32_t& tri) const {
+    if (tw.sparse) return point_in_pieces(mesh, texel, w, p, n, tri);
+    if (tw.owner < 0) return surface_point(mesh, texel, x, y, p, n, tri);
+    tri = uint32_t(tw.owner);
+    p = tw.affine ? tw.base + tw.du * (x - tw.origin_x) + tw.dv * (y - tw.origin_y) : mirrored_point(mesh, tri, x, y);
+    n = views_[mesh].normals[tri];
+    return true;
+  }
 
  private:
   bool surface_point(uint32_t mesh, uint32_t texel, float x, float y, Vec3& p, Vec3& n, uint32_t& tri) const;
