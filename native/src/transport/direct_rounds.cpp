@@ -79,8 +79,10 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
     out.noise.typical = typical_sample(direct);
     if (round == 0 && settings.sampler != PLM_SAMPLER_RANDOM)
       out.noise.scale = calibrate_direct(arena, pass, covered, direct, schedule.first());
-    for (size_t i = 0; i < direct.size(); ++i)
-      noise[i] = {direct[i].count, direct[i].variance_of_mean(out.noise), direct[i].phantom_variance_of_mean(out.noise)};
+    for (size_t i = 0; i < direct.size(); ++i) {
+      const DirectSums& d = direct[i];
+      noise[i] = {d.count, d.variance_of_mean(out.noise), d.phantom_variance_of_mean(out.noise)};
+    }
     todo = schedule.next_round(round, mean, noise, want);
     if (control.stop()) break;
   }

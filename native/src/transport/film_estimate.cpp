@@ -83,8 +83,8 @@ void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vecto
     g_var[t] = info.dark == g.count ? 0.0 : g.variance_of_mean(gather->typical);
     lookup_sq[t] = info.lookup_error * info.lookup_error;
   }
-  reconstruct_linear(space.areas[i], mesh.lightmap_width, mesh.lightmap_height, g_mean.data(), g_var.data(), guide.data(),
-                     kGatherRadius, g_value, g_fit_var, radius.data());
+  reconstruct_linear(space.areas[i], mesh.lightmap_width, mesh.lightmap_height, g_mean.data(), g_var.data(),
+                     guide.data(), kGatherRadius, g_value, g_fit_var, radius.data());
   for (size_t t = 0; t < n; ++t) {
     if (!usable[t]) continue;
     // The lookups' errors are shared by neighbouring texels (their rays hit

@@ -158,8 +158,8 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
     } else {
       if (backed_up && ols[size_t(mesh.ol_group)].finalized()) {
         arena.execute([&] { est.texels(i, photons, value3, variance); });
-        blend_backup(ols[size_t(mesh.ol_group)], areas[i], est.direct, est.space.covered_begin[i], est.direct_noise, value3,
-                     variance);
+        blend_backup(ols[size_t(mesh.ol_group)], areas[i], est.direct, est.space.covered_begin[i], est.direct_noise,
+                     value3, variance);
         for (size_t t = 0; t < n; ++t)
           if (areas[i].area[t] > 0.0) store_texel(value3, variance, t, values.data());
       } else {
@@ -179,7 +179,6 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
       img.error[t] = values[4 * t + 3];
     }
   }
-
 }
 
 }  // namespace plm

@@ -61,9 +61,10 @@ OlGroups build_ol_groups(const Scene& scene, std::vector<std::string>& warnings)
                          ") has no meshes: its orientation lightmap is black");
   }
   out.views.resize(scene.meshes.size());
-  for (size_t i = 0; i < scene.meshes.size(); ++i)
-    if (scene.meshes[i].ol_group >= 0)
-      out.views[i] = {scene.meshes[i].ol_group, bins[i].data(), scene.ol_groups[size_t(scene.meshes[i].ol_group)].backup};
+  for (size_t i = 0; i < scene.meshes.size(); ++i) {
+    const int32_t g = scene.meshes[i].ol_group;
+    if (g >= 0) out.views[i] = {g, bins[i].data(), scene.ol_groups[size_t(g)].backup};
+  }
   return out;
 }
 

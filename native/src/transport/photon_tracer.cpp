@@ -96,7 +96,6 @@ void PhotonTracer::build_hit_tables() {
   }
 }
 
-
 Vec3 PhotonTracer::flat_albedo(uint32_t id) const {
   return textures_ && !scene_.materials.empty() ? textures_->flat_albedo(id) : material_by_id(id).albedo;
 }

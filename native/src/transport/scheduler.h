@@ -50,8 +50,9 @@ class TimeBudget {
 };
 
 // ---- Progress ---------------------------------------------------------------
-// Forwards progress to the caller's callback, never going back; a callback
-// that returns false cancels the bake (plm::Error PLM_ERROR_CANCELLED).
+// Forwards progress to the caller's callback (held by reference), never going
+// back; a callback that returns false cancels the bake (plm::Error
+// PLM_ERROR_CANCELLED).
 class Progress {
  public:
   explicit Progress(const std::function<bool(double, const char*)>& callback) : callback_(callback) {}
