@@ -1,4 +1,4 @@
-"""Exact CSG against tessellated meshes (issue 4): a riveted plate.
+"""Exact CSG against tessellated meshes: a riveted plate.
 
     PHOTONLM_LIBRARY=build/lib/libphotonlm.so PYTHONPATH=python_bridge \
         /usr/bin/python3 docs/bench_csg.py [--rivets 2500] [--out docs/images/csg_rivets.png]

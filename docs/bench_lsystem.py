@@ -1,4 +1,4 @@
-"""L-system objects (issue 6): a plant traced as a cyclic scene graph against the same plant flattened.
+"""L-system objects: a plant traced as a cyclic scene graph against the same plant flattened.
 
     PHOTONLM_LIBRARY=build/lib/libphotonlm.so PYTHONPATH=python_bridge \
         /usr/bin/python3 docs/bench_lsystem.py [--depth 15] [--ol-level 4] [--photons 2000000] \

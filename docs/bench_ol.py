@@ -1,4 +1,4 @@
-"""Orientation lightmaps (issue 5): OL-resolved lightmaps against ordinary lightmaps, and OL set-up cost.
+"""Orientation lightmaps: OL-resolved lightmaps against ordinary lightmaps, and OL set-up cost.
 
     PHOTONLM_LIBRARY=$PWD/build/lib/libphotonlm.so PYTHONPATH=python_bridge:python_bridge/tests \
         /usr/bin/python3 docs/bench_ol.py [--quick] [--out docs/images/ol_torus.png]

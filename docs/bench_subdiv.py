@@ -1,4 +1,4 @@
-"""Subdivision surfaces (issue 8): exporting the cage (refined by the engine with OpenSubdiv)
+"""Subdivision surfaces: exporting the cage (refined by the engine with OpenSubdiv)
 against exporting Blender's refined mesh. Runs in headless Blender:
 
     PHOTONLM_LIBRARY=$PWD/build/lib/libphotonlm.so PHOTONLM_SOURCE_DIR=$PWD \
