@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 import photonlm
-from scenes import plane, translation, QUAD_TRIANGLES, QUAD_UV, box_faces
+from scenes import plane, texel_average, translation, QUAD_TRIANGLES, QUAD_UV, box_faces
 
 sys.path.insert(0, __file__.rsplit("/", 1)[0])
 from bench_furnace import furnace_scene  # noqa: E402
@@ -41,19 +41,15 @@ def area_light_case(samples, sampler, seed, res=32):
             lm = r.lightmap(mesh)
     radiance = power / (4 * a * a)
 
-    def irradiance(px, py):
+    def irradiance(px, py):  # a rectangle's irradiance / pi at points (px, py) of the plane, arrays
         def f(x, y):
-            return (x / math.hypot(x, h) * math.atan(y / math.hypot(x, h))
-                    + y / math.hypot(y, h) * math.atan(x / math.hypot(y, h)))
+            return (x / np.hypot(x, h) * np.arctan(y / np.hypot(x, h))
+                    + y / np.hypot(y, h) * np.arctan(x / np.hypot(y, h)))
         x0, x1, y0, y1 = -a / 2 - px, a / 2 - px, -a / 2 - py, a / 2 - py
         return radiance / 2 * (f(x1, y1) - f(x0, y1) - f(x1, y0) + f(x0, y0)) / math.pi
-    # The texel value: the average over the texel's central half (texel_value CYCLES), by an
-    # 8 x 8 midpoint rule (its own error is far below the errors measured here).
-    w = 4.0 / res
-    offsets = (np.arange(8) + 0.5) / 8 * 0.5 * w - 0.25 * w
-    c = -2.0 + (np.arange(res) + 0.5) * w
-    truth = np.array([[np.mean([irradiance(x + dx, y + dy) for dx in offsets for dy in offsets]) for x in c]
-                      for y in c])
+    # The texel value: the average over the texel's central half (texel_value CYCLES), points
+    # folded into the quad's triangle that owns the texel centre as Cycles folds them.
+    truth = texel_average(irradiance, -2.0, 2.0, -2.0, 2.0, res, res, window=0.5, fold_quad=(-2.0, 2.0, -2.0, 2.0))
     return lm.rgb.mean(axis=2), truth, lm.error, seconds
 
 
@@ -130,7 +126,7 @@ def main():
             for sampler in samplers:
                 err, rep, sec = measure(case, setting, sampler, args.seeds)
                 base = base or err
-                print("| %s | %s | %s | %.3f %% | %.3f %% | %.3f | %.2f |"
+                print("| %s | %s | %s | %.3f %% | %.3f %% | %.3f | %.2g |"
                       % (label, setting, sampler, 100 * err, 100 * rep, sec, (err / base) ** 2), flush=True)
 
 
