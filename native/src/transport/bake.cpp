@@ -105,7 +105,6 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   if (emitters.empty())
     fail(PLM_ERROR_INVALID_SCENE, "nothing lights the scene: it has no light with power, no emissive material and "
          "no world light, so every lightmap would be black");
-  out.stats.seconds_setup = seconds_since(t_start);
   out.stats.emitted_power = emitted;
 
   // Faces pressed against other surfaces (tracing.h: in_contact).
@@ -114,6 +113,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   arena.execute([&] { contact = contact_candidates(accel.handle(), scene, space.views, 1e-6f * extent); });
   for (size_t i = 0; i < space.views.size(); ++i)
     if (!contact[i].empty()) space.views[i].contact = contact[i].data();
+  out.stats.seconds_setup = seconds_since(t_start);
 
   const bool two_pass = settings.direct_samples > 0;
   const bool photon_pass = !two_pass || settings.max_bounces > 0;

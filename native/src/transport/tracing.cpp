@@ -134,10 +134,7 @@ bool contact_query(RTCPointQueryFunctionArguments* args) {
     for (int i = 0; i < 3; ++i)
       if (a[i] == b[0] || a[i] == b[1] || a[i] == b[2]) return false;
   }
-  if (geom >= q->views->size()) {  // a CSG solid or an L-system object: its surface may lie anywhere in its box
-    q->rects->push_back(q->own);
-    return false;
-  }
+  if (geom >= q->views->size()) return false;  // CSG solids and L-system objects: meshes press against meshes
   const Vec3 n2 = (*q->views)[geom].normals[prim];
   if (std::fabs(dot(n2, q->n)) < 0.99f) return false;  // not lying flat against it
   const Mesh& m = *(*q->views)[geom].mesh;

@@ -87,11 +87,12 @@ bool in_contact(RTCScene scene, const std::vector<MeshView>& views, Vec3 p, Vec3
                 float offset_scale);
 
 // Per mesh, per lightmap texel: 1 where in_contact can be true (another
-// triangle nearly parallel to one of the texel's triangles lies within a few
-// offset distances of its plane and overlaps it there, or a CSG solid or an
-// L-system object is near), so that only those texels pay for the contact
-// ray. Empty vectors for meshes without own texels (own_texels) or without
-// such texels.
+// mesh triangle nearly parallel to one of the texel's triangles lies within a
+// few offset distances of its plane and overlaps it there), so that only those
+// texels pay for the contact ray. CSG solids and L-system objects are not
+// searched: a point a ray offset puts inside one meets its inside surface.
+// Empty vectors for meshes without own texels (own_texels) or without such
+// texels.
 std::vector<std::vector<uint8_t>> contact_candidates(RTCScene scene, const Scene& s, const std::vector<MeshView>& views,
                                                      float offset_scale);
 
