@@ -19,6 +19,7 @@ namespace {
 
 using plm_demo::SceneBuilder;
 using plm_demo::V3;
+using plm_test::bake;
 
 using Lightmap = plm_test::Map;
 using Baked = plm_test::BakeResult;
@@ -37,11 +38,6 @@ plm_bake_settings settings(uint64_t photons, uint32_t max_bounces = 1024, uint32
 // Photons only, every texel on its own: sums of value * area are exactly the recorded flux.
 plm_bake_settings raw_photons(uint64_t photons, uint32_t max_bounces = 1024) {
   return settings(photons, max_bounces, 0, 0);
-}
-
-void bake(SceneBuilder& b, const plm_bake_settings& s, Baked& out) {
-  ASSERT_TRUE(b.ok()) << b.error;
-  ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &out.r), PLM_OK) << plm_last_error();
 }
 
 // Flux recorded on a lightmap: sum of value * pi * texel area (world area = coverage * area per texel).

@@ -38,11 +38,7 @@ uint32_t add_difference(SceneBuilder& b, const char* name, plm_csg_primitive a, 
 }
 
 plm_bake_settings settings(uint64_t photons, uint32_t direct_samples) {
-  plm_bake_settings s;
-  plm_bake_settings_default(&s);
-  s.photon_count = photons;
-  s.direct_samples = direct_samples;
-  return s;
+  return plm_test::settings_with(photons, direct_samples);
 }
 
 double recorded_flux(const plm_test::Map& m, double world_area_per_texel) {

@@ -22,6 +22,7 @@ namespace {
 
 using plm_demo::SceneBuilder;
 using plm_demo::V3;
+using plm_test::bake;
 using plm_test::BakeResult;
 using plm_test::Map;
 
@@ -49,11 +50,6 @@ plm_bake_settings settings(uint64_t photons, uint32_t max_bounces = 1024, Mode m
     s.filter_radius = 0;
   }
   return s;
-}
-
-void bake(SceneBuilder& b, const plm_bake_settings& s, BakeResult& out) {
-  ASSERT_TRUE(b.ok()) << b.error;
-  ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &out.r), PLM_OK) << plm_last_error();
 }
 
 // A sun of strength S shining from zenith angle theta, coming from the +y side

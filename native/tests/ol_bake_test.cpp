@@ -18,14 +18,11 @@ namespace {
 
 using plm_demo::SceneBuilder;
 using plm_demo::V3;
+using plm_test::bake;
 using Baked = plm_test::BakeResult;
 
 plm_bake_settings settings(uint64_t photons, uint32_t direct_samples) {
-  plm_bake_settings s;
-  plm_bake_settings_default(&s);
-  s.photon_count = photons;
-  s.direct_samples = direct_samples;
-  return s;
+  return plm_test::settings_with(photons, direct_samples);
 }
 
 bool contains(const char* text, const std::string& needle) { return std::string(text).find(needle) != std::string::npos; }
@@ -116,11 +113,6 @@ uint32_t add_sphere(SceneBuilder& b, const SphereMesh& s, uint32_t mat, bool lig
     EXPECT_EQ(plm_scene_set_mesh_ol_group(b.scene, mesh, *group), PLM_OK) << plm_last_error();
   }
   return mesh;
-}
-
-void bake(SceneBuilder& b, const plm_bake_settings& s, Baked& out) {
-  ASSERT_TRUE(b.ok()) << b.error;
-  ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &out.r), PLM_OK) << plm_last_error();
 }
 
 // Every bin with area reads E / (1 - rho) within its reported error.

@@ -15,21 +15,12 @@ namespace {
 
 using plm_demo::SceneBuilder;
 using plm_demo::V3;
+using plm_test::bake;
 using Map = plm_test::Map;
 using Baked = plm_test::BakeResult;
 
 plm_bake_settings settings(uint64_t photons, uint32_t max_bounces, uint32_t direct_samples) {
-  plm_bake_settings s;
-  plm_bake_settings_default(&s);
-  s.photon_count = photons;
-  s.max_bounces = max_bounces;
-  s.direct_samples = direct_samples;
-  return s;
-}
-
-void bake(SceneBuilder& b, const plm_bake_settings& s, Baked& out) {
-  ASSERT_TRUE(b.ok()) << b.error;
-  ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &out.r), PLM_OK) << plm_last_error();
+  return plm_test::settings_with(photons, direct_samples, max_bounces);
 }
 
 // A sun of strength `power` whose light travels along (0, sin a, -cos a).

@@ -53,4 +53,22 @@ struct BakeResult {
   }
 };
 
+// The engine's default settings with a photon count (the cap with a target) and direct samples.
+inline plm_bake_settings settings_with(uint64_t photons, uint32_t direct_samples, uint32_t max_bounces = 1024) {
+  plm_bake_settings s;
+  plm_bake_settings_default(&s);
+  s.photon_count = photons;
+  s.direct_samples = direct_samples;
+  s.max_bounces = max_bounces;
+  return s;
+}
+
+// Bakes a scene built with a plm_demo::SceneBuilder (or anything with ok(), error and scene),
+// failing the test with the engine's message.
+template <typename Builder>
+void bake(Builder& b, const plm_bake_settings& s, BakeResult& out) {
+  ASSERT_TRUE(b.ok()) << b.error;
+  ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &out.r), PLM_OK) << plm_last_error();
+}
+
 }  // namespace plm_test
