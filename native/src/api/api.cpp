@@ -76,26 +76,6 @@ const plm::LSystemOutput& lsystem_of(const plm_result* r, uint32_t id, const cha
   return ls[id];
 }
 
-// The light of an L-system object at a surface point (plm_result_lsystem_lookup).
-plm::Vec3 lsystem_light(const plm::LSystemOutput& lo, plm::csg::DVec3 p, plm::csg::DVec3 n) {
-  const plm::ol::OrientationLightmap& root = *lo.root;
-  const plm::Vec3 nf{float(n.x), float(n.y), float(n.z)};
-  if (!root.finalized()) return {0, 0, 0};
-  const plm::lsystem::LSystemObject& obj = *lo.object;
-  if (obj.ol_level() > 0 && !lo.stubs.empty()) {
-    const plm::csg::DVec3 size = obj.bounds_hi() - obj.bounds_lo();
-    const double eps = 1e-3 * std::max({size.x, size.y, size.z, 1e-30});
-    plm::lsystem::GraphHit hit;
-    if (obj.first_hit(p + n * eps, -n, 0.0, 2.0 * eps, &hit)) {
-      const auto it = lo.stubs.find(obj.stub_key(hit));
-      if (it != lo.stubs.end() && it->second.finalized() &&
-          it->second.hits(it->second.bin_of(nf)) >= plm::kStubMinHits)
-        return it->second.lookup(nf);
-    }
-  }
-  return root.lookup(nf);
-}
-
 }  // namespace
 
 namespace {
@@ -511,7 +491,7 @@ plm_status plm_result_lsystem_lookup(const plm_result* result, uint32_t lsystem,
         plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_result_lsystem_lookup: item ", i,
                   " has a non-finite point or a zero or non-finite normal");
       n = n / len;
-      const plm::Vec3 v = lsystem_light(lo, p, n);
+      const plm::Vec3 v = lo.light_at(p, n);
       for (int c = 0; c < 3; ++c) out_rgb[3 * i + c] = v[c];
     }
   });

@@ -65,6 +65,10 @@ struct LSystemOutput {
   std::unique_ptr<ol::OrientationLightmap> root;
   std::unordered_map<uint64_t, ol::OrientationLightmap> stubs;
   plm_lsystem_stats stats{};
+  // The light (irradiance / pi) at surface point p with unit normal n: its
+  // stub's OL where the stub holds enough hits in that bin (kStubMinHits),
+  // else the root's; black before photons were traced.
+  Vec3 light_at(csg::DVec3 p, csg::DVec3 n) const;
 };
 
 // A lookup uses a stub's bin when it holds at least this many hits, else the root.

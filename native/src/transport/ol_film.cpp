@@ -1,5 +1,6 @@
 #include "transport/ol_film.h"
 
+#include <algorithm>
 #include <memory>
 
 #include "ol/area_estimation.h"
@@ -170,6 +171,23 @@ void finish_lsystems(uint64_t photons, std::vector<LSystemOutput>& lsystems) {
     lo.stats.cache_bytes = gs.peak_cached_bytes;
     lo.stats.class_bytes = gs.class_bytes;
   }
+}
+
+Vec3 LSystemOutput::light_at(csg::DVec3 p, csg::DVec3 n) const {
+  const Vec3 nf{float(n.x), float(n.y), float(n.z)};
+  if (!root->finalized()) return {0, 0, 0};
+  if (object->ol_level() > 0 && !stubs.empty()) {
+    // The stub of the instance under p: the first hit of a short ray back through the surface.
+    const csg::DVec3 size = object->bounds_hi() - object->bounds_lo();
+    const double eps = 1e-3 * std::max({size.x, size.y, size.z, 1e-30});
+    lsystem::GraphHit hit;
+    if (object->first_hit(p + n * eps, -n, 0.0, 2.0 * eps, &hit)) {
+      const auto it = stubs.find(object->stub_key(hit));
+      if (it != stubs.end() && it->second.finalized() && it->second.hits(it->second.bin_of(nf)) >= kStubMinHits)
+        return it->second.lookup(nf);
+    }
+  }
+  return root->lookup(nf);
 }
 
 }  // namespace plm
