@@ -40,6 +40,7 @@
 
 #include <time.h>
 
+#include "accel/surface_hit.h"
 #include "csg/csg.h"
 #include "csg/csg_geometry.h"
 #include "lsystem/graph.h"
@@ -277,8 +278,8 @@ Setup& setup() {
 
 // Traces all rays; returns hits (closest) or occluded count.
 size_t trace(RTCScene scene, const Rays& rays, bool occlusion, std::vector<float>* t_out = nullptr) {
-  RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
+  plm::HitContext hits;  // the graph's closest-hit callback reads it (no GraphHit wanted)
+  RTCIntersectContext& ctx = hits.context;
   size_t n = 0;
   for (size_t i = 0; i < rays.r.size(); ++i) {
     if (occlusion) {

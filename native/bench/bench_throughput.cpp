@@ -71,7 +71,7 @@ Recorded record_rays(const plm::Scene& scene, const plm::EmbreeScene& accel, uin
       RTCRayHit rh;
       rh.ray = make_ray(org, dir, std::numeric_limits<float>::infinity());
       rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-      rtcIntersect1(accel.handle(), &tc.context, &rh);
+      rtcIntersect1(accel.handle(), tc.context(), &rh);
       if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) break;
       const Mesh& mesh = scene.meshes[rh.hit.geomID];
       const uint32_t tri = rh.hit.primID;
@@ -135,7 +135,7 @@ void BM_PhotonPassVersusRawEmbree(benchmark::State& state) {
         RTCRayHit rh;
         rh.ray = plm::make_ray(rays.org[i], rays.dir[i], std::numeric_limits<float>::infinity());
         rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        rtcIntersect1(accel.handle(), &tc.context, &rh);
+        rtcIntersect1(accel.handle(), tc.context(), &rh);
         hits += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
       }
       const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -195,7 +195,7 @@ void BM_TexelRaysOneByOneVersusPackets(benchmark::State& state) {
       uint64_t n = 0;
       for (size_t i = 0; i < org.size(); ++i) {
         RTCRay r = make_ray(org[i], to_light[i], 0.9999f);
-        rtcOccluded1(accel.handle(), &tc.context, &r);
+        rtcOccluded1(accel.handle(), tc.context(), &r);
         n += r.tfar < 0.0f;
       }
       return n;
@@ -216,7 +216,7 @@ void BM_TexelRaysOneByOneVersusPackets(benchmark::State& state) {
         RTCRayHit rh;
         rh.ray = make_ray(org[i], gather[i], inf);
         rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        rtcIntersect1(accel.handle(), &tc.context, &rh);
+        rtcIntersect1(accel.handle(), tc.context(), &rh);
         n += rh.hit.geomID;
       }
       return n;

@@ -422,9 +422,11 @@ TEST(LSystemGraph, EmbreeUserGeometryMatchesDirectCalls) {
   const Flat flat(g.flatten().primitives);
   const auto rays = make_rays(g, &flat.src, 2000, 17);
   size_t hits = 0;
+  GraphHit record;
   for (const Ray& r : rays) {
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
+    plm::HitContext context;
+    context.graph_hits = &record;
+    RTCIntersectContext& ctx = context.context;
     RTCRayHit rh{};
     rh.ray.org_x = float(r.o.x);
     rh.ray.org_y = float(r.o.y);
@@ -448,7 +450,7 @@ TEST(LSystemGraph, EmbreeUserGeometryMatchesDirectCalls) {
     EXPECT_NEAR(rh.ray.tfar, h.t, 1e-5 * std::max(1.0, h.t));
     EXPECT_EQ(rh.hit.primID, unsigned(h.material));
     EXPECT_EQ(int(rh.hit.u), int(h.shape));
-    EXPECT_EQ(g.last_embree_hit().instance_key, h.instance_key);
+    EXPECT_EQ(record.instance_key, h.instance_key);
     RTCRay occ = rh.ray;
     occ.tfar = INFINITY;
     rtcOccluded1(scene, &ctx, &occ);
@@ -466,16 +468,12 @@ TEST(LSystemGraph, EmbreeUserGeometryMatchesDirectCalls) {
 // ray of the scene: printed, not asserted, as it is Embree's behaviour.)
 struct CountingObject {
   mutable int calls = 0;
-  mutable GraphHit last;
   bool first_hit(DVec3, DVec3, double, double, GraphHit*) const { ++calls; return false; }
   bool occluded(DVec3, DVec3, double, double) const { ++calls; return false; }
 };
 
 void counting_bounds(const RTCBoundsFunctionArguments* args) {
   plm::write_bounds(DVec3{0, 0, 0}, DVec3{1, 1, 1}, 0.0, args->bounds_o);
-}
-void counting_intersect(const RTCIntersectFunctionNArguments* args) {
-  intersect_n<CountingObject>(args, [](const CountingObject& o) -> GraphHit& { return o.last; });
 }
 
 TEST(LSystemGraph, EmbreeTestsTheObjectBoxBeforeTheCallback) {
@@ -485,13 +483,14 @@ TEST(LSystemGraph, EmbreeTestsTheObjectBoxBeforeTheCallback) {
     CountingObject obj;
     RTCScene scene = rtcNewScene(device);
     if (sentinel) {
-      plm::attach_user_geometry<counting_bounds, counting_intersect, occluded_n<CountingObject>>(device, scene, &obj);
+      plm::attach_user_geometry<counting_bounds, intersect_n<CountingObject>, occluded_n<CountingObject>>(device, scene,
+                                                                                                        &obj);
     } else {  // one primitive, as before the sentinel
       RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
       rtcSetGeometryUserPrimitiveCount(geom, 1);
       rtcSetGeometryUserData(geom, &obj);
       rtcSetGeometryBoundsFunction(geom, counting_bounds, nullptr);
-      rtcSetGeometryIntersectFunction(geom, counting_intersect);
+      rtcSetGeometryIntersectFunction(geom, intersect_n<CountingObject>);
       rtcSetGeometryOccludedFunction(geom, occluded_n<CountingObject>);
       rtcCommitGeometry(geom);
       rtcAttachGeometry(scene, geom);
@@ -509,8 +508,8 @@ TEST(LSystemGraph, EmbreeTestsTheObjectBoxBeforeTheCallback) {
                                    : i < 150 ? DVec3{0.5, 0.5, 0.5} : DVec3{0, 0, 0};
       const DVec3 o = target + 10.0 * DVec3{u(gen), u(gen), 1.5};
       const DVec3 d = target - o;
-      RTCIntersectContext ctx;
-      rtcInitIntersectContext(&ctx);
+      plm::HitContext context;
+      RTCIntersectContext& ctx = context.context;
       RTCRayHit rh{};
       rh.ray.org_x = float(o.x), rh.ray.org_y = float(o.y), rh.ray.org_z = float(o.z);
       rh.ray.dir_x = float(d.x), rh.ray.dir_y = float(d.y), rh.ray.dir_z = float(d.z);

@@ -1,7 +1,8 @@
 // Owns the Embree device and scene built over the user's meshes. Vertex and
 // index buffers are shared with the Scene, not copied; geometry id = mesh id,
 // then one user geometry per CSG solid (id = mesh count + solid index), then
-// one per L-system object (id = mesh count + solid count + object index).
+// one per L-system object (id = mesh count + solid count + object index);
+// SurfaceMap (accel/surface_hit.h) turns a hit's id back into its surface.
 #pragma once
 
 #include <embree3/rtcore.h>

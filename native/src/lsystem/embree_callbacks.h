@@ -1,7 +1,8 @@
 // Embree user-geometry callbacks shared by a bare Graph (graph.cpp) and a
 // placed LSystemObject (lsystem_object.cpp): T provides first_hit(o, d,
-// tnear, tfar, GraphHit*) and occluded(o, d, tnear, tfar); `slot(object)`
-// is where the full hit record of the calling thread goes.
+// tnear, tfar, GraphHit*) and occluded(o, d, tnear, tfar). A closest-hit
+// query's context is a HitContext (accel/surface_hit.h): the full hit goes
+// into the ray's record there, if it has one.
 #pragma once
 
 #include <embree3/rtcore.h>
@@ -9,15 +10,19 @@
 #include <algorithm>
 #include <cmath>
 
+#include "accel/surface_hit.h"
 #include "accel/user_geometry.h"
 #include "lsystem/graph.h"
 
 namespace plm::lsystem {
 
-// A hit writes tfar, Ng, u = ShapeKind, v = 0, primID = the turtle material.
-template <typename T, typename Slot>
-void intersect_n(const RTCIntersectFunctionNArguments* args, Slot slot) {
+// A hit writes tfar, Ng = the OL normal (ol_normal) rounded to float, u =
+// ShapeKind, v = 0, primID = the turtle material, and the GraphHit into the
+// ray's record (HitContext::graph_hits[ray id]).
+template <typename T>
+void intersect_n(const RTCIntersectFunctionNArguments* args) {
   const T& obj = *static_cast<const T*>(args->geometryUserPtr);
+  const HitContext& context = *reinterpret_cast<const HitContext*>(args->context);
   const unsigned N = args->N;
   RTCRayN* rays = RTCRayHitN_RayN(args->rayhit, N);
   RTCHitN* hits = RTCRayHitN_HitN(args->rayhit, N);
@@ -31,15 +36,16 @@ void intersect_n(const RTCIntersectFunctionNArguments* args, Slot slot) {
     const float t = std::fmax(float(h.t), tnear);
     if (!(t <= tfar)) continue;
     RTCRayN_tfar(rays, N, i) = t;
-    RTCHitN_Ng_x(hits, N, i) = float(h.n.x);
-    RTCHitN_Ng_y(hits, N, i) = float(h.n.y);
-    RTCHitN_Ng_z(hits, N, i) = float(h.n.z);
+    const ol::Vec3d n = ol_normal(h.n);
+    RTCHitN_Ng_x(hits, N, i) = float(n.x);
+    RTCHitN_Ng_y(hits, N, i) = float(n.y);
+    RTCHitN_Ng_z(hits, N, i) = float(n.z);
     RTCHitN_u(hits, N, i) = float(int(h.shape));
     RTCHitN_v(hits, N, i) = 0.0f;
     RTCHitN_primID(hits, N, i) = unsigned(std::max(h.material, 0));  // turtle materials are >= 0
     RTCHitN_geomID(hits, N, i) = args->geomID;
     RTCHitN_instID(hits, N, i, 0) = args->context->instID[0];
-    slot(obj) = h;
+    if (context.graph_hits) context.graph_hits[RTCRayN_id(rays, N, i)] = h;
   }
 }
 

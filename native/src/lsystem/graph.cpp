@@ -132,8 +132,6 @@ FlattenResult Graph::flatten(size_t max_primitives, int key_level) const {
   return out;
 }
 
-const GraphHit& Graph::last_embree_hit() const { return impl_->local().last_hit; }
-
 // ---- Embree ----
 
 namespace {
@@ -143,14 +141,10 @@ void graph_bounds(const RTCBoundsFunctionArguments* args) {
   write_bounds(g.bounds_lo(), g.bounds_hi(), 0.0, args->bounds_o);
 }
 
-void graph_intersect(const RTCIntersectFunctionNArguments* args) {
-  intersect_n<Graph>(args, [](const Graph& g) -> GraphHit& { return const_cast<GraphHit&>(g.last_embree_hit()); });
-}
-
 }  // namespace
 
 unsigned attach_graph(RTCDevice device, RTCScene scene, const Graph& graph) {
-  return attach_user_geometry<graph_bounds, graph_intersect, occluded_n<Graph>>(device, scene, &graph);
+  return attach_user_geometry<graph_bounds, intersect_n<Graph>, occluded_n<Graph>>(device, scene, &graph);
 }
 
 }  // namespace plm::lsystem

@@ -7,6 +7,7 @@
 
 #include <embree3/rtcore.h>
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -16,6 +17,7 @@
 #include "csg/primitive.h"
 #include "lsystem/lsystem.h"
 #include "lsystem/turtle.h"
+#include "ol/vec3d.h"
 
 namespace plm::lsystem {
 
@@ -82,6 +84,15 @@ struct GraphHit {
   uint64_t node_key = 0;         // path key of the hit node
   uint64_t instance_key = 0;     // child_key(node_key, prim): the primitive instance
 };
+
+// The normal as OL bins see it, for area samples and photon hits alike:
+// components within 1e-12 of 0 become +0, so that a normal on an octahedral
+// fold (a vertical cylinder's side: z = 0) falls on the same side of it
+// whether it came from sampling or from a ray hit.
+inline ol::Vec3d ol_normal(csg::DVec3 n) {
+  auto snap = [](double c) { return std::fabs(c) < 1e-12 ? 0.0 : c; };
+  return {snap(n.x), snap(n.y), snap(n.z)};
+}
 
 struct GraphStats {
   size_t classes = 0;
@@ -150,10 +161,6 @@ class Graph {
   // (e.g. to group primitives by the instance that holds them).
   FlattenResult flatten(size_t max_primitives, int key_level) const;
 
-  // The last hit that the Embree intersect callback reported on this thread
-  // (valid right after rtcIntersect1 when the hit's geomID is the graph's).
-  const GraphHit& last_embree_hit() const;
-
   struct Impl;
 
  private:
@@ -169,9 +176,10 @@ csg::Primitive trace_primitive(const csg::PrimitiveDesc& desc);
 // Attaches the graph to scene as one user geometry (not yet committed; with
 // a sentinel primitive, accel/user_geometry.h) and returns its geometry id.
 // The hit carries tfar, a unit Ng, u = the ShapeKind, v = 0, primID = the
-// material; the path key and the rest are in graph.last_embree_hit() on the
-// calling thread. Filter functions are not called for this geometry. The
-// graph must outlive the scene's use.
+// material; the path key and the rest go into the ray's record of the
+// HitContext (accel/surface_hit.h) that closest-hit queries must be traced
+// with. Filter functions are not called for this geometry. The graph must
+// outlive the scene's use.
 unsigned attach_graph(RTCDevice device, RTCScene scene, const Graph& graph);
 
 }  // namespace plm::lsystem

@@ -37,7 +37,6 @@ struct TraceThread {
   std::vector<TraceFrame> frames;     // kMaxGraphLevels + 1, one per level
   std::vector<TracePending> pending;  // hops still to enter, nearest at the back
   uint64_t truncated = 0;             // GraphStats::truncated
-  GraphHit last_hit;                  // Graph::last_embree_hit()
 };
 
 }  // namespace plm::lsystem

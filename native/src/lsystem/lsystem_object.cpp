@@ -293,14 +293,11 @@ void object_bounds(const RTCBoundsFunctionArguments* args) {
   write_bounds(lo, hi, pad, args->bounds_o);
 }
 
-void object_intersect(const RTCIntersectFunctionNArguments* args) {
-  intersect_n<LSystemObject>(args, [](const LSystemObject& o) -> GraphHit& { return o.last_hit_mut(); });
-}
-
 }  // namespace
 
 unsigned attach_lsystem(RTCDevice device, RTCScene scene, const LSystemObject& object) {
-  return attach_user_geometry<object_bounds, object_intersect, occluded_n<LSystemObject>>(device, scene, &object);
+  return attach_user_geometry<object_bounds, intersect_n<LSystemObject>, occluded_n<LSystemObject>>(device, scene,
+                                                                                                    &object);
 }
 
 }  // namespace plm::lsystem

@@ -8,8 +8,9 @@
 // geometry whose callbacks map the ray into the graph's frame (the direction
 // is not renormalised, so t is the world ray's parameter) and map the hit
 // normal back (for a similarity the inverse transpose is the linear part up
-// to scale: n_world = normalize(M n_local)). The full GraphHit of the last
-// hit reported on a thread is kept per thread (last_hit()).
+// to scale: n_world = normalize(M n_local)). The full GraphHit of a hit goes
+// into the ray's record in its HitContext (accel/surface_hit.h), where
+// SurfaceMap::hit finds it.
 //
 // Areas (OlAreas). v1 estimates bin areas from the flattened object: at most
 // kMaxAreaPrimitives primitives (beyond: the areas found are scaled by the
@@ -24,8 +25,6 @@
 // with a per-bin variance from the sample counts. Primitives that overlap
 // (branch joints) count their hidden surface too.
 #pragma once
-
-#include <tbb/enumerable_thread_specific.h>
 
 #include <embree3/rtcore.h>
 
@@ -50,15 +49,6 @@ constexpr size_t kAreaSamplesTotal = 1u << 16;    // faces share these by area (
 // instances at ol_level (4096 stubs of 16 x 16 bins) and the object keeps
 // only its root OL, with a warning.
 constexpr size_t kMaxStubBins = size_t(1) << 20;
-
-// The normal as OL bins see it, for area samples and photon hits alike:
-// components within 1e-12 of 0 become +0, so that a normal on an octahedral
-// fold (a vertical cylinder's side: z = 0) falls on the same side of it
-// whether it came from sampling or from a ray hit.
-inline ol::Vec3d ol_normal(csg::DVec3 n) {
-  auto snap = [](double c) { return std::fabs(c) < 1e-12 ? 0.0 : c; };
-  return {snap(n.x), snap(n.y), snap(n.z)};
-}
 
 struct OlAreas {
   std::vector<double> root, root_variance;  // per bin, world m^2 / m^4
@@ -96,9 +86,6 @@ class LSystemObject {
   // Stub key of a hit: the ancestor key at ol_level, or 0 with ol_level 0.
   uint64_t stub_key(const GraphHit& hit) const;
 
-  const GraphHit& last_hit() const { return last_.local(); }
-  GraphHit& last_hit_mut() const { return last_.local(); }
-
   // Bin areas for OLs on grid (see above); warnings appended.
   OlAreas estimate_areas(const ol::OctGrid& grid, std::vector<std::string>& warnings) const;
 
@@ -109,7 +96,6 @@ class LSystemObject {
   std::vector<uint32_t> materials_;
   uint32_t ol_level_ = 0, ol_resolution_ = 16;
   csg::DVec3 lo_, hi_;
-  mutable tbb::enumerable_thread_specific<GraphHit> last_;
 };
 
 // Flattened primitives in world space (the placement included), for previews.

@@ -110,7 +110,8 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   // Faces pressed against other surfaces (tracing.h: in_contact).
   report(kProgressSetup, "finding faces in contact");
   std::vector<std::vector<uint8_t>> contact;  // per mesh: texels that may be pressed against another surface
-  arena.execute([&] { contact = contact_candidates(accel.handle(), scene, space.views, 1e-6f * extent); });
+  const SurfaceMap surfaces = surface_map(scene, space.views);
+  arena.execute([&] { contact = contact_candidates(accel.handle(), scene, space.views, surfaces, 1e-6f * extent); });
   for (size_t i = 0; i < space.views.size(); ++i)
     if (!contact[i].empty()) space.views[i].contact = contact[i].data();
   out.stats.seconds_setup = seconds_since(t_start);
@@ -123,8 +124,8 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   DirectResult direct;
   const auto t_direct = Clock::now();
   if (two_pass) {
-    const DirectPass pass(accel.handle(), space.views, space.csg_views, space.areas, emitters, settings, extent,
-                          textures.get());
+    const DirectPass pass(accel.handle(), surfaces, space.views, space.csg_views, space.areas, emitters, settings,
+                          extent, textures.get());
     const double share = photon_pass ? kDirectBudgetShare : kDirectOnlyBudgetShare;
     const DirectControl control{
         [&](double f) { report(kProgressSetup + (direct_end - kProgressSetup) * f, "direct light"); },
@@ -159,7 +160,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     auto run_gather = [&](const Estimate& now) {
       gathered = true;
       if (budget.spent(kGatherBudgetShare)) return;
-      const FinalGather final_gather(accel.handle(), space.views, space.areas, settings, extent);
+      const FinalGather final_gather(accel.handle(), surfaces, space.views, space.areas, settings, extent);
       gather = run_final_gather(arena, final_gather, space, now.values, tracer.triangle_albedos(),
                                 acc.back_lit.data(), gather_samples(settings.target_error), [&] {
                                   report(direct_end, "final gather");

@@ -51,10 +51,11 @@ double DirectSums::phantom_variance_of_mean(const DirectNoise& noise) const {
   return noise.scale * (typical - m) * (typical - m) / (n * n);
 }
 
-DirectPass::DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<CsgView>& csgs,
-                       const std::vector<TexelAreas>& areas, const std::vector<Emitter>& emitters,
-                       const plm_bake_settings& settings, float scene_extent, const TextureSet* textures)
-    : rtc_(rtc), views_(views), csgs_(csgs), emitters_(emitters), textures_(textures),
+DirectPass::DirectPass(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
+                       const std::vector<CsgView>& csgs, const std::vector<TexelAreas>& areas,
+                       const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent,
+                       const TextureSet* textures)
+    : rtc_(rtc), surfaces_(surfaces), views_(views), csgs_(csgs), emitters_(emitters), textures_(textures),
       points_(views, areas, settings), seed_(settings.seed), sobol_(settings.sampler != PLM_SAMPLER_RANDOM),
       offset_scale_(1e-6f * scene_extent), table_(emitters),
       all_lights_(emitters.size() <= kAllLights),
@@ -123,7 +124,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   const uint32_t m = std::max(1u, uint32_t(std::ceil(std::sqrt(double(samples)))));
   const uint32_t n = m * m;
   TraceContext tc;
-  tc.skip_geom = csg ? RTC_INVALID_GEOMETRY_ID : mesh_id;
+  tc.skip_geom = csg ? RTC_INVALID_GEOMETRY_ID : SurfaceMap::mesh_geometry(mesh_id);
   TexelPoints::TexelWindow tw;  // a CSG sub-texel: strata over [0, 1]^2 of its lightmap
   if (csg) tw.side = 1.0f / float(m);
   else tw = points_.texel_window(mesh_id, texel, m);
@@ -244,7 +245,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
       ps.tri = tri;
       ps.k = 0;
       // A point pressed against another surface gets no light (in_contact).
-      if (contact && contact[texel] && in_contact(rtc_, views_, p, normal, mesh_id, tri, offset_scale_)) {
+      if (contact && contact[texel] && in_contact(rtc_, surfaces_, p, normal, mesh_id, tri, offset_scale_)) {
         ps.contact = true;
         continue;
       }
@@ -300,7 +301,8 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
         lane_sample[packet.size] = c;
         const bool triangle = em.kind == EmitterKind::Triangle;
         packet.add(ps.origin, ds.dir, std::isinf(ds.distance) ? ds.distance : ds.distance * (1.0f - 1e-4f), tc.skip_geom,
-                   tri, triangle ? em.mesh : RTC_INVALID_GEOMETRY_ID, triangle ? em.triangle : RTC_INVALID_GEOMETRY_ID);
+                   tri, triangle ? SurfaceMap::mesh_geometry(em.mesh) : RTC_INVALID_GEOMETRY_ID,
+                   triangle ? em.triangle : RTC_INVALID_GEOMETRY_ID);
         if (packet.full()) trace_packet();
       }
     }
@@ -322,22 +324,21 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
         rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
         if (smooth && !(dot(ps.normal, dir) > 0.0f)) rh.ray.tfar = -1.0f;  // below the triangle's plane: no light
-        else rtcIntersect1(rtc_, &tc.context, &rh);
-        if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
-          const bool mesh_hit = rh.hit.geomID < triangle_emitter_.size();  // not a CSG solid
-          const int32_t hit_emitter =
-              mesh_hit && !triangle_emitter_[rh.hit.geomID].empty() ? triangle_emitter_[rh.hit.geomID][rh.hit.primID] : -1;
-          if (hit_emitter >= 0) {
-            const Emitter& he = emitters_[size_t(hit_emitter)];
-            const float cos_l = std::fabs(dot(he.normal, dir)), cos_s = local.z;
-            // Irradiance estimate L cos / p_cos = pi L, weighted; stored as irradiance / pi.
-            const float r = cos_weight_ratio(cos_s, cos_l * he.area, probability(size_t(hit_emitter)), rh.ray.tfar);
-            if (cos_l > 0.0f && cos_s > 0.0f && r > 0.0f) {
-              const Vec3 L = he.textured ? textures_->emission(*views_[rh.hit.geomID].mesh, he.material, he.triangle,
-                                                               rh.hit.u, rh.hit.v)
-                                         : he.radiance;
-              e += L * (r / (1.0f + r));
-            }
+        else rtcIntersect1(rtc_, tc.context(), &rh);
+        const SurfaceHit h = surfaces_.hit(rh);
+        const int32_t hit_emitter = h.kind == SurfaceKind::Triangle && !triangle_emitter_[h.index].empty()
+                                        ? triangle_emitter_[h.index][h.prim]
+                                        : -1;
+        if (hit_emitter >= 0) {
+          const Emitter& he = emitters_[size_t(hit_emitter)];
+          const float cos_l = std::fabs(dot(he.normal, dir)), cos_s = local.z;
+          // Irradiance estimate L cos / p_cos = pi L, weighted; stored as irradiance / pi.
+          const float r = cos_weight_ratio(cos_s, cos_l * he.area, probability(size_t(hit_emitter)), h.t);
+          if (cos_l > 0.0f && cos_s > 0.0f && r > 0.0f) {
+            const Vec3 L = he.textured
+                               ? textures_->emission(*views_[h.index].mesh, he.material, he.triangle, h.u, h.v)
+                               : he.radiance;
+            e += L * (r / (1.0f + r));
           }
         }
       }

@@ -43,9 +43,10 @@ struct DirectSums : StratifiedSums {
 
 class DirectPass {
  public:
-  DirectPass(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<CsgView>& csgs,
-             const std::vector<TexelAreas>& areas, const std::vector<Emitter>& emitters,
-             const plm_bake_settings& settings, float scene_extent, const TextureSet* textures = nullptr);
+  DirectPass(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
+             const std::vector<CsgView>& csgs, const std::vector<TexelAreas>& areas,
+             const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent,
+             const TextureSet* textures = nullptr);
 
   // Adds `samples` (rounded up to a square) stratified samples of round `round`
   // to texel `texel` of mesh `mesh`; mesh = mesh count + c means sub-texel
@@ -76,6 +77,7 @@ class DirectPass {
   void select_candidates(Vec3 p, Vec3 n, uint32_t* chosen, ChoiceScratch& scratch) const;
 
   RTCScene rtc_;
+  const SurfaceMap& surfaces_;
   const std::vector<MeshView>& views_;
   const std::vector<CsgView>& csgs_;
   const std::vector<Emitter>& emitters_;

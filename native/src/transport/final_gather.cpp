@@ -12,10 +12,10 @@
 
 namespace plm {
 
-FinalGather::FinalGather(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<TexelAreas>& areas,
-                         const plm_bake_settings& settings, float scene_extent)
-    : rtc_(rtc), views_(views), areas_(areas), points_(views, areas, settings), seed_(settings.seed),
-      offset_scale_(1e-6f * scene_extent) {}
+FinalGather::FinalGather(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
+                         const std::vector<TexelAreas>& areas, const plm_bake_settings& settings, float scene_extent)
+    : rtc_(rtc), surfaces_(surfaces), views_(views), areas_(areas), points_(views, areas, settings),
+      seed_(settings.seed), offset_scale_(1e-6f * scene_extent) {}
 
 void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
                                const GatherSource& source, GatherSums& sums, GatherInfo& info) const {
@@ -55,30 +55,31 @@ void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round,
       make_frame(shading, t, b);
       lane_sample[packet.size] = j;
       lane_dir[packet.size] = t * local.x + b * local.y + shading * local.z;
-      if (contact && contact[texel] && in_contact(rtc_, views_, p, normal, mesh_id, tri, offset_scale_))
+      if (contact && contact[texel] && in_contact(rtc_, surfaces_, p, normal, mesh_id, tri, offset_scale_))
         contact_lanes |= 1u << packet.size;
       if (smooth && !(dot(normal, lane_dir[packet.size]) > 0.0f)) zero_lanes |= 1u << packet.size;
       packet.add(offset_origin(p, normal, offset_scale_), lane_dir[packet.size], std::numeric_limits<float>::infinity(),
-                 mesh_id, tri);
+                 SurfaceMap::mesh_geometry(mesh_id), tri);
     }
     const unsigned lanes = packet.size;
     zero_lanes |= contact_lanes;
     if (lanes > 0) packet.intersect(rtc_, zero_lanes);
-    const RTCHit8& hit = packet.rh.hit;
     for (unsigned l = 0; l < lanes; ++l) {
-      const uint32_t j = lane_sample[l], geom = hit.geomID[l], prim = hit.primID[l];
+      const uint32_t j = lane_sample[l];
+      const SurfaceHit h = surfaces_.hit(packet.rh, l);
+      const uint32_t mesh = h.index, prim = h.prim;
       Vec3 e{0, 0, 0};
       if (contact_lanes & (1u << l)) {
         ++info.dark;
-      } else if (geom != RTC_INVALID_GEOMETRY_ID) {
-        inverse_distance += 1.0 / std::max(double(packet.rh.ray.tfar[l]), 1e-30);
+      } else if (h.kind != SurfaceKind::None) {
+        inverse_distance += 1.0 / std::max(double(h.t), 1e-30);
         // The texel the ray lands in, as the photon pass records a hit.
         bool known = false;
-        const bool is_mesh = geom < views_.size(), mesh_hit = is_mesh && views_[geom].texel_area;
-        if (is_mesh && !(dot(lane_dir[l], views_[geom].normals[prim]) < 0.0f)) {
+        const bool is_mesh = h.kind == SurfaceKind::Triangle, mesh_hit = is_mesh && views_[mesh].texel_area;
+        if (is_mesh && !(dot(lane_dir[l], h.normal) < 0.0f)) {
           // The back of a surface: 0, exactly where no photon reached the
           // mesh's backs (the inside of a box standing on the ground).
-          if (!source.back_lit[geom]) {
+          if (!source.back_lit[mesh]) {
             ++info.dark;
             known = true;
           } else if (mesh_hit) {
@@ -86,22 +87,21 @@ void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round,
             known = true;
           }
         } else if (mesh_hit) {
-          const MeshView& hv = views_[geom];
+          const MeshView& hv = views_[mesh];
           const Mesh& hm = *hv.mesh;
-          const int64_t ht = uv_texel(&hm.uv[6 * size_t(prim)], hit.u[l], hit.v[l], hm.lightmap_width, hm.lightmap_height);
+          const int64_t ht = uv_texel(&hm.uv[6 * size_t(prim)], h.u, h.v, hm.lightmap_width, hm.lightmap_height);
           // A texel that other objects may be pressed against may be partly
           // in contact, and its value (its central square's, or the mean over
           // it) then says little of the lit part next to them: a ray that
           // lands within a texel's width of its origin there is not looked up
           // (the wall of a box at the box's foot sees the floor right beside it).
           const bool unreliable = ht >= 0 && hv.contact && hv.contact[ht] &&
-                                  double(packet.rh.ray.tfar[l]) * double(packet.rh.ray.tfar[l]) *
-                                          std::max(double(areas_[geom].coverage[ht]), 1e-3) <
+                                  double(h.t) * double(h.t) * std::max(double(areas_[mesh].coverage[ht]), 1e-3) <
                                       hv.texel_area[ht];
           if (ht >= 0 && !unreliable) {
             if (hv.texel_area[ht] > 0.0) {
               const float* d = source.radiosity + 3 * (hv.texel_offset + ht);
-              const Vec3 a = (*source.albedo)[geom][prim];
+              const Vec3 a = (*source.albedo)[mesh][prim];
               e = {a.x * d[0], a.y * d[1], a.z * d[2]};
               error_sum += double(average(a)) * source.error[hv.texel_offset + ht];
               known = true;

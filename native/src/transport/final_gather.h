@@ -53,8 +53,8 @@ struct GatherSource {
 
 class FinalGather {
  public:
-  FinalGather(RTCScene rtc, const std::vector<MeshView>& views, const std::vector<TexelAreas>& areas,
-              const plm_bake_settings& settings, float scene_extent);
+  FinalGather(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
+              const std::vector<TexelAreas>& areas, const plm_bake_settings& settings, float scene_extent);
 
   // Adds `samples` (rounded up to a square) cosine-distributed rays from the
   // direct pass's points of texel `texel` of mesh `mesh` (meshes only). Each
@@ -71,6 +71,7 @@ class FinalGather {
 
  private:
   RTCScene rtc_;
+  const SurfaceMap& surfaces_;
   const std::vector<MeshView>& views_;
   const std::vector<TexelAreas>& areas_;
   TexelPoints points_;

@@ -3,7 +3,6 @@
 #include <cmath>
 #include <limits>
 
-#include "lsystem/lsystem_object.h"
 #include "transport/photon_sampler.h"
 
 namespace plm {
@@ -24,9 +23,7 @@ PhotonTracer::PhotonTracer(const Scene& scene, RTCScene rtc, const std::vector<M
                            uint32_t first_recorded_depth, const std::vector<ol::OctGrid>& ls_grids,
                            const TextureSet* textures)
     : scene_(scene), textures_(textures), rtc_(rtc), views_(views), csg_views_(csg_views), ol_views_(ol_views),
-      emitters_(emitters),
-      ls_grids_(ls_grids), ls_base_(views.size() + csg_views.size()),
-      settings_(settings),
+      emitters_(emitters), ls_grids_(ls_grids), settings_(settings),
       offset_scale_(1e-6f * scene_extent), first_recorded_(first_recorded_depth), table_(emitters) {
   pick_offset_ = double(Rng(settings.seed, ~0ull).next_float());
   seed_hash_ = {splitmix64(settings.seed)};
@@ -52,10 +49,11 @@ void PhotonTracer::trace_batch(uint64_t first, uint64_t count, BatchOutput& out)
   out.back_meshes.clear();
   out.rays = out.truncated = 0;
   out.truncated_flux = 0.0;
+  lsystem::GraphHit graph_hit;
   if (mesh_only_)
-    for (uint64_t i = first; i < first + count; ++i) trace_photon<true>(i, out);
+    for (uint64_t i = first; i < first + count; ++i) trace_photon<true>(i, graph_hit, out);
   else
-    for (uint64_t i = first; i < first + count; ++i) trace_photon<false>(i, out);
+    for (uint64_t i = first; i < first + count; ++i) trace_photon<false>(i, graph_hit, out);
 }
 
 void PhotonTracer::build_hit_tables() {
@@ -67,15 +65,17 @@ void PhotonTracer::build_hit_tables() {
   hit_tris_.resize(tris);
   covered_.resize(texels);
   hit_meshes_.resize(views_.size());
+  std::vector<const Vec3*> normals(views_.size());
   size_t t0 = 0, c0 = 0;
   for (size_t m = 0; m < views_.size(); ++m) {
     const MeshView& v = views_[m];
     const Mesh& mesh = *v.mesh;
     const OlMeshView& ol = ol_views_[m];
     HitMesh& hm = hit_meshes_[m];
-    hm = {hit_tris_.data() + t0, mesh.uv.data(), mesh.indices.data(), mesh.positions.data(),
-          mesh.smooth() ? mesh.normals.data() : nullptr, v.contact, mesh.smooth() || v.contact, nullptr,
-          v.texel_offset, mesh.lightmap_width, mesh.lightmap_height, ol.group, ol.backup};
+    hm = {hit_tris_.data() + t0, mesh.uv.data(), mesh.smooth() ? mesh.normals.data() : nullptr, v.contact,
+          mesh.smooth() || v.contact, nullptr, v.texel_offset, mesh.lightmap_width, mesh.lightmap_height, ol.group,
+          ol.backup};
+    normals[m] = &hit_tris_[t0].normal;
     for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
       HitTri& h = hit_tris_[t0 + t];
       h.normal = v.normals[t];
@@ -94,6 +94,7 @@ void PhotonTracer::build_hit_tables() {
       c0 += n;
     }
   }
+  surfaces_ = SurfaceMap(scene_, normals, sizeof(HitTri));
 }
 
 Vec3 PhotonTracer::flat_albedo(uint32_t id) const {
@@ -101,7 +102,7 @@ Vec3 PhotonTracer::flat_albedo(uint32_t id) const {
 }
 
 template <bool kMeshOnly>
-void PhotonTracer::trace_photon(uint64_t index, BatchOutput& out) const {
+void PhotonTracer::trace_photon(uint64_t index, lsystem::GraphHit& graph_hit, BatchOutput& out) const {
   PhotonSampler sampler(index, settings_, pick_offset_, seed_hash_);
   float u_pick, u[4];
   sampler.emission(u_pick, u);
@@ -115,6 +116,7 @@ void PhotonTracer::trace_photon(uint64_t index, BatchOutput& out) const {
   if (!(flux.x > 0.0f || flux.y > 0.0f || flux.z > 0.0f)) return;  // max_component(flux) <= 0 without a libm fmaxf call
 
   TraceContext tc;
+  if (!kMeshOnly) tc.hits.graph_hits = &graph_hit;
   Vec3 org = s.origin, dir = s.direction;
   for (uint32_t depth = 0;; ++depth) {
     RTCRayHit rh;
@@ -129,58 +131,40 @@ void PhotonTracer::trace_photon(uint64_t index, BatchOutput& out) const {
     float v[3];
     sampler.bounce(depth, v);
     const Vec3 local = cosine_hemisphere(v[0], v[1]);
-    rtcIntersect1(rtc_, &tc.context, &rh);
+    rtcIntersect1(rtc_, tc.context(), &rh);
     ++out.rays;
-    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return;
 
-    // The hit: a mesh triangle, the exact surface of a CSG solid (its
-    // primitive in primID, the face id in u, the solid's outward normal),
-    // or an L-system object (its GraphHit kept on this thread).
-    const bool is_lsystem = !kMeshOnly && rh.hit.geomID >= ls_base_;
-    const bool is_csg = !kMeshOnly && !is_lsystem && rh.hit.geomID >= views_.size();
-    const uint32_t tri = rh.hit.primID;
-    Vec3 normal, hit, albedo;
+    // The hit: a mesh triangle, the exact surface of a CSG solid, or an
+    // L-system object (with what its GraphHit gives).
+    const SurfaceHit h = surfaces_.hit<kMeshOnly>(rh, kMeshOnly ? nullptr : &graph_hit);
+    Vec3 normal = h.normal, albedo;
+    const Vec3 hit = h.point;
     float q = -1.0f;  // survival probability; set here for mesh hits, below for the others
     const HitTri* flat = nullptr;  // an untextured mesh triangle: albedo, frame and weight from the table
     const HitMesh* special = nullptr;  // a mesh hit that needs shading normals or a contact test
-    float bu = 0.0f, bv = 0.0f;
-    uint32_t ls_bin = 0;
-    uint64_t ls_key = 0;
-    if (is_lsystem) {
-      const uint32_t l = rh.hit.geomID - ls_base_;
-      const lsystem::LSystemObject& obj = *scene_.lsystems[l];
-      const lsystem::GraphHit& gh = obj.last_hit();
-      const ol::Vec3d nd = lsystem::ol_normal(gh.n);
-      if (!std::isfinite(nd.x) || !std::isfinite(nd.y) || !std::isfinite(nd.z)) return;
-      normal = {float(nd.x), float(nd.y), float(nd.z)};
-      hit = org + dir * rh.ray.tfar;
-      albedo = flat_albedo(obj.scene_material(gh.material));
-      ls_bin = ls_grids_[l].bin(nd);
-      ls_key = obj.stub_key(gh);
-    } else if (is_csg) {
-      const CsgView& cv = csg_views_[rh.hit.geomID - views_.size()];
-      normal = normalize(Vec3{rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z});
-      if (!is_finite(normal)) return;
-      hit = org + dir * rh.ray.tfar;
-      albedo = flat_albedo(cv.object->material(tri));
-    } else {
-      const HitMesh& hm = hit_meshes_[rh.hit.geomID];
-      const HitTri& ht = hm.tris[tri];
-      bu = rh.hit.u, bv = rh.hit.v;
-      const float bw = 1.0f - bu - bv;
-      if (ht.degenerate) return;  // the photon stops
-      normal = ht.normal;
-      if (hm.special) special = &hm;
-      const uint32_t* ix = hm.indices + 3 * size_t(tri);
-      hit = hm.positions[ix[0]] * bw + hm.positions[ix[1]] * bu + hm.positions[ix[2]] * bv;
-      if (!kMeshOnly && textures_ && !scene_.materials.empty()) {
-        const Mesh& mesh = *views_[rh.hit.geomID].mesh;
-        albedo = textures_->albedo(mesh, mesh.material_ids[tri], tri, bu, bv);
-        q = std::fmin(1.0f, max_component(albedo));
-      } else {
-        flat = &ht;
-        q = ht.roulette;
+    switch (h.kind) {
+      case SurfaceKind::None:
+        return;
+      case SurfaceKind::Triangle: {
+        const HitMesh& hm = hit_meshes_[h.index];
+        const HitTri& ht = hm.tris[h.prim];
+        if (ht.degenerate) return;  // the photon stops
+        if (hm.special) special = &hm;
+        if (!kMeshOnly && textures_ && !scene_.materials.empty()) {
+          const Mesh& mesh = *views_[h.index].mesh;
+          albedo = textures_->albedo(mesh, mesh.material_ids[h.prim], h.prim, h.u, h.v);
+          q = std::fmin(1.0f, max_component(albedo));
+        } else {
+          flat = &ht;
+          q = ht.roulette;
+        }
+        break;
       }
+      case SurfaceKind::CsgFace:
+      case SurfaceKind::LSystem:
+        if (!is_finite(normal)) return;
+        albedo = flat_albedo(h.material);
+        break;
     }
     if (depth == 0 && s.radius2 > 0.0f) {
       const Vec3 to_hit = hit - s.center;
@@ -189,23 +173,28 @@ void PhotonTracer::trace_photon(uint64_t index, BatchOutput& out) const {
     }
     const bool front = dot(dir, normal) < 0.0f;
     if (!front) normal = -normal;  // the side the photon arrived on
-    if (special && !special_hit(*special, rh.hit.geomID, tri, bu, bv, dir, front, normal, hit, flux)) return;
-    if (front && is_lsystem)
-      out.ls_hits.push_back({rh.hit.geomID - uint32_t(ls_base_), ls_bin, ls_key, flux.x, flux.y, flux.z});
-    if (front && !is_lsystem && depth >= first_recorded_) record(rh, is_csg, hit, flux, out);
-    if (!front && !is_csg && !is_lsystem && (out.back_meshes.empty() || out.back_meshes.back() != rh.hit.geomID))
-      out.back_meshes.push_back(rh.hit.geomID);
-    if (front && !is_csg && !is_lsystem) {
-      const HitMesh& hm = hit_meshes_[rh.hit.geomID];
-      const uint32_t bin = hm.tris[tri].ol_bin;
-      if (bin != kNoBin && (!hm.ol_backup || depth >= first_recorded_))
-        out.ol_hits.push_back({uint32_t(hm.ol_group), bin, flux.x, flux.y, flux.z});
+    if (special && !special_hit(*special, h, dir, front, normal, flux)) return;
+    if (h.kind == SurfaceKind::LSystem) {
+      if (front)
+        out.ls_hits.push_back({h.index, ls_grids_[h.index].bin(h.ol_normal), h.stub_key, flux.x, flux.y, flux.z});
+    } else {
+      if (front && depth >= first_recorded_) record(h, flux, out);
+      if (h.kind == SurfaceKind::Triangle) {
+        const uint32_t mesh = h.index;  // a copy: push_back takes a reference, which would keep h in memory
+        if (!front && (out.back_meshes.empty() || out.back_meshes.back() != mesh)) out.back_meshes.push_back(mesh);
+        if (front) {
+          const HitMesh& hm = hit_meshes_[h.index];
+          const uint32_t bin = hm.tris[h.prim].ol_bin;
+          if (bin != kNoBin && (!hm.ol_backup || depth >= first_recorded_))
+            out.ol_hits.push_back({uint32_t(hm.ol_group), bin, flux.x, flux.y, flux.z});
+        }
+      }
     }
 
     if (q < 0.0f) q = std::fmin(1.0f, max_component(albedo));
     if (q <= 0.0f || settings_.max_bounces == 0) return;
     if (depth >= settings_.max_bounces) {
-      if (flat) albedo = material(*views_[rh.hit.geomID].mesh, tri).albedo;
+      if (flat) albedo = material(*views_[h.index].mesh, h.prim).albedo;
       ++out.truncated;
       out.truncated_flux += average(flux * albedo);
       return;
@@ -225,9 +214,9 @@ void PhotonTracer::trace_photon(uint64_t index, BatchOutput& out) const {
     // Leaving a triangle, skip it; leaving a CSG or L-system surface, only
     // the offset (a ray may rightly hit the primitive it leaves: the inside
     // of a bowl, a neighbouring branch).
-    const bool analytic = is_csg || is_lsystem;
-    tc.skip_geom = analytic ? RTC_INVALID_GEOMETRY_ID : rh.hit.geomID;
-    tc.skip_prim = analytic ? RTC_INVALID_GEOMETRY_ID : tri;
+    const bool triangle = h.kind == SurfaceKind::Triangle;
+    tc.skip_geom = triangle ? SurfaceMap::mesh_geometry(h.index) : RTC_INVALID_GEOMETRY_ID;
+    tc.skip_prim = triangle ? h.prim : RTC_INVALID_GEOMETRY_ID;
   }
 }
 
@@ -237,15 +226,16 @@ void PhotonTracer::trace_photon(uint64_t index, BatchOutput& out) const {
 // mesh the flux is weighted by cos(shading) / cos(geometric) at the hit
 // (normal: the geometric normal turned to the side the photon arrived on).
 // Returns false where the photon stops.
-inline bool PhotonTracer::special_hit(const HitMesh& hm, unsigned geom, uint32_t tri, float bu, float bv, Vec3 dir,
-                               bool front, Vec3 normal, Vec3 hit, Vec3& flux) const {
+inline bool PhotonTracer::special_hit(const HitMesh& hm, const SurfaceHit& h, Vec3 dir, bool front, Vec3 normal,
+                                      Vec3& flux) const {
+  const float bu = h.u, bv = h.v;
   if (front && hm.contact) {
-    const int64_t texel = uv_texel(hm.uv + 6 * size_t(tri), bu, bv, hm.width, hm.height);
-    if (texel >= 0 && hm.contact[texel] && in_contact(rtc_, views_, hit, normal, geom, tri, offset_scale_))
+    const int64_t texel = uv_texel(hm.uv + 6 * size_t(h.prim), bu, bv, hm.width, hm.height);
+    if (texel >= 0 && hm.contact[texel] && in_contact(rtc_, surfaces_, h.point, normal, h.index, h.prim, offset_scale_))
       return false;
   }
   if (!hm.shading) return true;
-  const Vec3* c = hm.shading + 3 * size_t(tri);
+  const Vec3* c = hm.shading + 3 * size_t(h.prim);
   const Vec3 shading = c[0] * (1.0f - bu - bv) + c[1] * bu + c[2] * bv;
   const float len = length(shading);
   if (!(len > 0.0f)) return true;
@@ -255,19 +245,20 @@ inline bool PhotonTracer::special_hit(const HitMesh& hm, unsigned geom, uint32_t
   return w > 0.0f;  // light from behind the shading normal: no irradiance about it
 }
 
-// A front-side hit into the texel (or CSG sub-texel) it falls in, if any.
-inline void PhotonTracer::record(const RTCRayHit& rh, bool is_csg, Vec3 hit, Vec3 flux, BatchOutput& out) const {
-  if (is_csg) {
-    const CsgView& cv = csg_views_[rh.hit.geomID - views_.size()];
+// A front-side hit on a mesh or CSG solid into the texel (or CSG sub-texel)
+// it falls in, if any.
+inline void PhotonTracer::record(const SurfaceHit& h, Vec3 flux, BatchOutput& out) const {
+  if (h.kind == SurfaceKind::CsgFace) {
+    const CsgView& cv = csg_views_[h.index];
     if (!cv.lightmap) return;
-    const int64_t sub = cv.lightmap->sub_texel_of_hit(rh.hit.primID, int(rh.hit.u), to_double(hit));
+    const int64_t sub = cv.lightmap->sub_texel_of_hit(h.prim, int(h.face), to_double(h.point));
     if (sub >= 0) out.hits.push_back({uint32_t(cv.texel_offset + uint64_t(sub)), flux.x, flux.y, flux.z});
     return;
   }
-  const HitMesh& hm = hit_meshes_[rh.hit.geomID];
+  const HitMesh& hm = hit_meshes_[h.index];
   if (!hm.covered) return;
   // Outside the lightmap, and for NaN, nothing is recorded.
-  const int64_t texel = uv_texel(hm.uv + 6 * size_t(rh.hit.primID), rh.hit.u, rh.hit.v, hm.width, hm.height);
+  const int64_t texel = uv_texel(hm.uv + 6 * size_t(h.prim), h.u, h.v, hm.width, hm.height);
   if (texel >= 0) {
     if (hm.covered[texel]) {
       // Fields stored in place: a Hit built on the stack and copied is
@@ -275,11 +266,11 @@ inline void PhotonTracer::record(const RTCRayHit& rh, bool is_csg, Vec3 hit, Vec
       // store forwarding cannot serve (the loop's largest stall).
       const Hit zero{};
       out.hits.push_back(zero);  // an lvalue: the inlined push_back (an rvalue calls emplace_back)
-      Hit& h = out.hits.back();
-      h.texel = uint32_t(hm.texel_offset + texel);
-      h.r = flux.x;
-      h.g = flux.y;
-      h.b = flux.z;
+      Hit& rec = out.hits.back();
+      rec.texel = uint32_t(hm.texel_offset + texel);
+      rec.r = flux.x;
+      rec.g = flux.y;
+      rec.b = flux.z;
     }
   }
 }

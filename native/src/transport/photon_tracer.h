@@ -10,6 +10,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "accel/surface_hit.h"
+#include "lsystem/graph.h"
 #include "ol/octahedral.h"
 #include "photonlm/photonlm.h"
 #include "scene/scene.h"
@@ -85,7 +87,8 @@ class PhotonTracer {
 
   // What a photon needs at a mesh hit, flattened per triangle into one cache
   // line (HitTri) and per mesh (HitMesh), so a bounce reads one line instead
-  // of the normal, material and OL-bin arrays and divides nothing. The values
+  // of the normal, material and OL-bin arrays and divides nothing (the
+  // tracer's SurfaceMap reads the hit's normal from there too). The values
   // are those the loop computed per hit, so results are bit for bit the same:
   // make_frame(-n) is exactly (t, -b) for make_frame(n) = (t, b), and
   // albedo * (1 / q) is what albedo / q evaluates.
@@ -102,8 +105,6 @@ class PhotonTracer {
   struct HitMesh {
     const HitTri* tris;
     const float* uv;  // 6 per triangle (Mesh::uv)
-    const uint32_t* indices;
-    const Vec3* positions;
     const Vec3* shading;  // 3 corner normals per triangle (Mesh::normals); null for flat meshes
     const uint8_t* contact;  // per texel: may be pressed against another surface (MeshView::contact), or null
     bool special;            // shading or contact is set: hits go through special_hit
@@ -118,14 +119,15 @@ class PhotonTracer {
   // Albedo of a material where no texture UV exists (textures: their mean).
   Vec3 flat_albedo(uint32_t id) const;
   // kMeshOnly: no CSG solid, no L-system object, no texture (mesh_only_);
-  // the compiler then drops their branches from the loop.
+  // the compiler then drops their branches from the loop. graph_hit: the
+  // record of the photon's rays that L-system callbacks write.
   template <bool kMeshOnly>
-  void trace_photon(uint64_t index, BatchOutput& out) const;
+  void trace_photon(uint64_t index, lsystem::GraphHit& graph_hit, BatchOutput& out) const;
   // Per-hit steps of trace_photon, inline in photon_tracer.cpp (the only
   // place that calls them).
-  inline bool special_hit(const HitMesh& hm, unsigned geom, uint32_t tri, float bu, float bv, Vec3 dir, bool front,
-                          Vec3 normal, Vec3 hit, Vec3& flux) const;
-  inline void record(const RTCRayHit& rh, bool is_csg, Vec3 hit, Vec3 flux, BatchOutput& out) const;
+  inline bool special_hit(const HitMesh& hm, const SurfaceHit& h, Vec3 dir, bool front, Vec3 normal,
+                          Vec3& flux) const;
+  inline void record(const SurfaceHit& h, Vec3 flux, BatchOutput& out) const;
 
   const Scene& scene_;
   const TextureSet* textures_;  // null for an untextured scene
@@ -135,7 +137,6 @@ class PhotonTracer {
   const std::vector<OlMeshView>& ol_views_;
   const std::vector<Emitter>& emitters_;
   const std::vector<ol::OctGrid>& ls_grids_;  // per L-system object: its OLs' grid
-  size_t ls_base_;                            // Embree id of the first L-system object
   plm_bake_settings settings_;
   float offset_scale_;
   uint32_t first_recorded_;
@@ -143,8 +144,9 @@ class PhotonTracer {
   double pick_offset_ = 0.0;
   Material default_material_;
   std::vector<HitTri> hit_tris_;    // all meshes' triangles, mesh after mesh
-  std::vector<HitMesh> hit_meshes_;  // per mesh (Embree geometry id)
+  std::vector<HitMesh> hit_meshes_;  // per mesh
   std::vector<uint8_t> covered_;     // per texel of the meshes that record hits
+  SurfaceMap surfaces_;              // triangle normals from hit_tris_
   bool mesh_only_ = false;           // trace_photon<true> applies
   Rng::SeedHash seed_hash_{};        // of settings_.seed, for the photons' Rng
 };

@@ -41,8 +41,8 @@ void skip_lane_triangles(const RTCFilterFunctionNArguments* args) {
 // whose back faces the ray counts only from back_t_min on.
 struct ContactContext {
   RTCIntersectContext context;  // first member: Embree hands back this pointer
-  unsigned skip_geom, skip_prim;
-  const std::vector<MeshView>* views;
+  const SurfaceMap* surfaces;
+  unsigned skip_geom, skip_prim;  // the triangle the ray leaves
   Vec3 dir;
   float back_t_min;
 };
@@ -51,15 +51,13 @@ void contact_filter(const RTCFilterFunctionNArguments* args) {
   const auto* cc = reinterpret_cast<const ContactContext*>(args->context);
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] == 0) continue;
-    const unsigned geom = RTCHitN_geomID(args->hit, args->N, i), prim = RTCHitN_primID(args->hit, args->N, i);
-    if (geom == cc->skip_geom && prim == cc->skip_prim) {
+    if (skipped(RTCHitN_geomID(args->hit, args->N, i), RTCHitN_primID(args->hit, args->N, i), cc->skip_geom,
+                cc->skip_prim, RTC_INVALID_GEOMETRY_ID, RTC_INVALID_GEOMETRY_ID)) {
       args->valid[i] = 0;
       continue;
     }
-    const Vec3 ng = geom < cc->views->size() ? (*cc->views)[geom].normals[prim]
-                                             : Vec3{RTCHitN_Ng_x(args->hit, args->N, i), RTCHitN_Ng_y(args->hit, args->N, i),
-                                                    RTCHitN_Ng_z(args->hit, args->N, i)};
-    if (dot(ng, cc->dir) >= 0.0f && RTCRayN_tfar(args->ray, args->N, i) < cc->back_t_min) args->valid[i] = 0;
+    const SurfaceHit h = cc->surfaces->candidate(args, i);
+    if (dot(h.normal, cc->dir) >= 0.0f && h.t < cc->back_t_min) args->valid[i] = 0;
   }
 }
 
@@ -92,8 +90,9 @@ struct TexelRect {
 // texels of its lightmap that a partner may press against.
 struct ContactQuery {
   const std::vector<MeshView>* views;
+  const SurfaceMap* surfaces;
   const Mesh* mesh;  // the triangle's
-  unsigned geom, prim;
+  uint32_t mesh_index, prim;
   Vec3 origin, n, t, b;  // the triangle's vertex 0 and frame
   float tri2d[6];        // its corners in the frame
   float uv[6];           // its lightmap UVs, in texels
@@ -127,17 +126,19 @@ TexelRect partner_texels(const ContactQuery& q, const float other[6]) {
 
 bool contact_query(RTCPointQueryFunctionArguments* args) {
   auto* q = static_cast<ContactQuery*>(args->userPtr);
-  const unsigned geom = args->geomID, prim = args->primID;
-  if (geom == q->geom) {  // the triangle itself and its neighbours in the mesh cannot lie on it
+  const SurfaceKind kind = q->surfaces->kind(args->geomID);
+  // CSG solids and L-system objects: meshes press against meshes
+  if (kind != SurfaceKind::Triangle) return false;
+  const uint32_t mesh = q->surfaces->index(args->geomID, kind), prim = args->primID;
+  if (mesh == q->mesh_index) {  // the triangle itself and its neighbours in the mesh cannot lie on it
     const uint32_t* a = &q->mesh->indices[3 * size_t(q->prim)];
     const uint32_t* b = &q->mesh->indices[3 * size_t(prim)];
     for (int i = 0; i < 3; ++i)
       if (a[i] == b[0] || a[i] == b[1] || a[i] == b[2]) return false;
   }
-  if (geom >= q->views->size()) return false;  // CSG solids and L-system objects: meshes press against meshes
-  const Vec3 n2 = (*q->views)[geom].normals[prim];
+  const Vec3 n2 = (*q->views)[mesh].normals[prim];
   if (std::fabs(dot(n2, q->n)) < 0.99f) return false;  // not lying flat against it
-  const Mesh& m = *(*q->views)[geom].mesh;
+  const Mesh& m = *(*q->views)[mesh].mesh;
   float other[6], lo = INFINITY, hi = -INFINITY;
   for (int c = 0; c < 3; ++c) {
     const Vec3 d = m.vertex(prim, c) - q->origin;
@@ -152,13 +153,13 @@ bool contact_query(RTCPointQueryFunctionArguments* args) {
 
 }  // namespace
 
-bool in_contact(RTCScene scene, const std::vector<MeshView>& views, Vec3 p, Vec3 n, unsigned geom, unsigned prim,
+bool in_contact(RTCScene scene, const SurfaceMap& surfaces, Vec3 p, Vec3 n, uint32_t mesh, uint32_t prim,
                 float offset_scale) {
   const float d = offset_distance(p, offset_scale);
   ContactContext cc;
   rtcInitIntersectContext(&cc.context);
   cc.context.filter = contact_filter;
-  cc.skip_geom = geom, cc.skip_prim = prim, cc.views = &views, cc.dir = n;
+  cc.surfaces = &surfaces, cc.skip_geom = SurfaceMap::mesh_geometry(mesh), cc.skip_prim = prim, cc.dir = n;
   cc.back_t_min = 2.5f * d;  // half an offset in front of p
   RTCRay ray = make_ray(p - n * (2.0f * d), n, 4.0f * d);
   rtcOccluded1(scene, &cc.context, &ray);
@@ -166,7 +167,7 @@ bool in_contact(RTCScene scene, const std::vector<MeshView>& views, Vec3 p, Vec3
 }
 
 std::vector<std::vector<uint8_t>> contact_candidates(RTCScene scene, const Scene& s, const std::vector<MeshView>& views,
-                                                     float offset_scale) {
+                                                     const SurfaceMap& surfaces, float offset_scale) {
   std::vector<std::vector<uint8_t>> flags(views.size());
   for (size_t i = 0; i < views.size(); ++i) {
     const Mesh& mesh = *views[i].mesh;
@@ -179,7 +180,8 @@ std::vector<std::vector<uint8_t>> contact_candidates(RTCScene scene, const Scene
         const Vec3 n = views[i].normals[tri];
         if (dot(n, n) == 0.0f) continue;
         ContactQuery q;
-        q.views = &views, q.mesh = &mesh, q.geom = unsigned(i), q.prim = tri, q.n = n, q.rects = &rects;
+        q.views = &views, q.surfaces = &surfaces, q.mesh = &mesh, q.mesh_index = uint32_t(i), q.prim = tri, q.n = n;
+        q.rects = &rects;
         make_frame(n, q.t, q.b);
         const Vec3 v[3] = {mesh.vertex(tri, 0), mesh.vertex(tri, 1), mesh.vertex(tri, 2)};
         q.origin = v[0];
@@ -228,27 +230,27 @@ std::vector<Vec3> triangle_normals(const Mesh& mesh) {
   return normals;
 }
 
-TraceContext::TraceContext() {
-  rtcInitIntersectContext(&context);
-  context.filter = skip_origin_triangle;
+SurfaceMap surface_map(const Scene& scene, const std::vector<MeshView>& views) {
+  std::vector<const Vec3*> normals(views.size());
+  for (size_t m = 0; m < views.size(); ++m) normals[m] = views[m].normals;
+  return SurfaceMap(scene, normals);
 }
 
-RayPacket::RayPacket() {
-  rtcInitIntersectContext(&context);
-  context.filter = skip_lane_triangles;
-}
+TraceContext::TraceContext() { hits.context.filter = skip_origin_triangle; }
+
+RayPacket::RayPacket() { hits.context.filter = skip_lane_triangles; }
 
 void RayPacket::occluded(RTCScene scene) {
   alignas(32) int valid[kLanes];
   for (unsigned i = 0; i < kLanes; ++i) valid[i] = i < size ? -1 : 0;
-  rtcOccluded8(valid, scene, &context, &rh.ray);
+  rtcOccluded8(valid, scene, &hits.context, &rh.ray);
   size = 0;
 }
 
 void RayPacket::intersect(RTCScene scene, uint32_t skip_lanes) {
   alignas(32) int valid[kLanes];
   for (unsigned i = 0; i < kLanes; ++i) valid[i] = i < size && !(skip_lanes >> i & 1u) ? -1 : 0;
-  rtcIntersect8(valid, scene, &context, &rh);
+  rtcIntersect8(valid, scene, &hits.context, &rh);
   size = 0;
 }
 

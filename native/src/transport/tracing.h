@@ -1,6 +1,6 @@
 // What the photon pass and the direct pass share: the per-mesh view of the
 // flat arrays, the ray context that skips the triangle a ray leaves, and the
-// origin offset.
+// origin offset. A ray's hit is read as a SurfaceHit (accel/surface_hit.h).
 #pragma once
 
 #include <embree3/rtcore.h>
@@ -11,6 +11,7 @@
 #include <limits>
 #include <vector>
 
+#include "accel/surface_hit.h"
 #include "csg/csg_lightmap.h"
 #include "scene/scene.h"
 #include "util/math.h"
@@ -41,6 +42,9 @@ inline csg::DVec3 to_double(Vec3 v) { return {v.x, v.y, v.z}; }
 // Unit normals of a mesh's triangles, (0, 0, 0) for degenerate ones.
 std::vector<Vec3> triangle_normals(const Mesh& mesh);
 
+// The scene's surfaces with the views' triangle normals.
+SurfaceMap surface_map(const Scene& scene, const std::vector<MeshView>& views);
+
 // The texel (row-major, of a width x height lightmap) that barycentric
 // (bu, bv) of a triangle with corner UVs uv[0..5] lands in; -1 outside the
 // map and for NaN. On [0, width) truncation is the floor (std::floor is a
@@ -53,13 +57,15 @@ inline int64_t uv_texel(const float* uv, float bu, float bv, uint32_t width, uin
   return int64_t(uint64_t(sy) * width + uint64_t(sx));
 }
 
+// Geometry ids of the triangles to skip: SurfaceMap::mesh_geometry(mesh).
 struct TraceContext {
-  RTCIntersectContext context;  // first member: Embree hands back this pointer
+  HitContext hits;  // first member: Embree hands back a pointer to its context
   unsigned skip_geom = RTC_INVALID_GEOMETRY_ID;  // the triangle the ray leaves
   unsigned skip_prim = RTC_INVALID_GEOMETRY_ID;
   unsigned target_geom = RTC_INVALID_GEOMETRY_ID;  // the emitting triangle a shadow ray aims at
   unsigned target_prim = RTC_INVALID_GEOMETRY_ID;
   TraceContext();
+  RTCIntersectContext* context() { return &hits.context; }
 };
 
 // How far a ray origin leaves the surface at p: beyond the rounding of p's
@@ -73,7 +79,7 @@ inline float offset_distance(Vec3 p, float offset_scale) {
 // Ray origin just off the surface at p on the side of unit normal n.
 inline Vec3 offset_origin(Vec3 p, Vec3 n, float offset_scale) { return p + n * offset_distance(p, offset_scale); }
 
-// Whether point p of triangle (geom, prim), unit geometric normal n, lies
+// Whether point p of triangle prim of a mesh, unit geometric normal n, lies
 // pressed against another surface, which its rays' origin offset would jump
 // over: a surface facing p within twice the offset distance on either side of
 // p, or one facing away from p (its back towards p) in front of p beyond the
@@ -83,7 +89,7 @@ inline Vec3 offset_origin(Vec3 p, Vec3 n, float offset_scale) { return p + n * o
 // under it, the top of a column touching the ceiling. A box standing a little
 // above the floor is not in contact, nor are two faces in one plane facing
 // the same way (a duplicated object: both are lit).
-bool in_contact(RTCScene scene, const std::vector<MeshView>& views, Vec3 p, Vec3 n, unsigned geom, unsigned prim,
+bool in_contact(RTCScene scene, const SurfaceMap& surfaces, Vec3 p, Vec3 n, uint32_t mesh, uint32_t prim,
                 float offset_scale);
 
 // Per mesh, per lightmap texel: 1 where in_contact can be true (another
@@ -94,7 +100,7 @@ bool in_contact(RTCScene scene, const std::vector<MeshView>& views, Vec3 p, Vec3
 // Empty vectors for meshes without own texels (own_texels) or without such
 // texels.
 std::vector<std::vector<uint8_t>> contact_candidates(RTCScene scene, const Scene& s, const std::vector<MeshView>& views,
-                                                     float offset_scale);
+                                                     const SurfaceMap& surfaces, float offset_scale);
 
 inline RTCRay make_ray(Vec3 org, Vec3 dir, float tfar) {
   RTCRay r;
@@ -120,7 +126,7 @@ inline RTCRay make_ray(Vec3 org, Vec3 dir, float tfar) {
 // origin and target triangles: the filter finds a lane's by the ray's id.
 struct RayPacket {
   static constexpr unsigned kLanes = 8;
-  RTCIntersectContext context;  // first member: Embree hands back this pointer
+  HitContext hits;  // first member: Embree hands back a pointer to its context
   unsigned skip_geom[kLanes], skip_prim[kLanes], target_geom[kLanes], target_prim[kLanes];
   RTCRayHit8 rh;
   unsigned size = 0;  // lanes added since the last trace
@@ -140,7 +146,8 @@ struct RayPacket {
     skip_geom[i] = skip_g, skip_prim[i] = skip_p, target_geom[i] = target_g, target_prim[i] = target_p;
   }
   // Trace the lanes added, then empty the packet (their results stay until
-  // the next add): lane i is occluded if blocked(i); hits are in rh.hit.
+  // the next add): lane i is occluded if blocked(i); hits are in rh
+  // (SurfaceMap::hit(rh, i)).
   void occluded(RTCScene scene);
   // skip_lanes: bit i set leaves lane i untraced (its hit stays none).
   void intersect(RTCScene scene, uint32_t skip_lanes = 0);
