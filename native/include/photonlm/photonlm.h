@@ -70,6 +70,56 @@ PLM_API plm_status plm_scene_add_material(plm_scene* scene, const char* name,
                                           const float albedo[3], const float emission[3],
                                           uint32_t* out_material_id);
 
+/* Specular lobes: glass, mirrors, metal (docs/design.md "Materials"). A
+ * material is its diffuse part (plm_scene_add_material's albedo) plus the
+ * lobes added here, in the order given, as Cycles' shader nodes sum their
+ * closures: the add-on flattens Principled BSDF, Glass, Glossy, Refraction and
+ * Transparent BSDFs and Mix / Add Shaders with constant factors into one
+ * diffuse albedo and a list of lobes, each colour already multiplied by its
+ * mix factors.
+ *   PLM_LOBE_GLOSSY       GGX reflection with reflectance `color` at every
+ *                         angle (Glossy BSDF)
+ *   PLM_LOBE_FRESNEL      GGX reflection with reflectance `color` at normal
+ *                         incidence rising to 1 at grazing as a dielectric of
+ *                         `ior` does (Principled BSDF's specular and metallic
+ *                         layer: color = its F0; ior sets the curve's shape)
+ *   PLM_LOBE_GLASS        dielectric of `ior`: Fresnel-weighted reflection and
+ *                         refraction, both tinted by `color` (Glass BSDF,
+ *                         Principled transmission)
+ *   PLM_LOBE_REFRACTION   refraction only, tinted by `color` (Refraction BSDF)
+ *   PLM_LOBE_TRANSPARENT  straight through, tinted by `color` (Transparent
+ *                         BSDF, alpha)
+ * roughness is Blender's (GGX alpha = roughness^2; 0 is a perfect mirror or
+ * pane); ior > 0 relates the front side's medium (outside) to the back's;
+ * abbe > 0 gives GLASS and REFRACTION lobes dispersion (Abbe number V_d: ior is
+ * the index at 587.6 nm), 0 none. Colours are in [0, 1] per channel, and the
+ * diffuse albedo plus every lobe's colour must not exceed 1 per channel
+ * (except FRESNEL layers, which Cycles adds on top of the diffuse part).
+ * Photons follow the lobes; the lightmap still holds irradiance / pi of the
+ * surface (what its diffuse part reflects, over its albedo). Errors name the
+ * material and the bad field. */
+typedef enum plm_lobe_type {
+  PLM_LOBE_GLOSSY = 0,
+  PLM_LOBE_FRESNEL = 1,
+  PLM_LOBE_GLASS = 2,
+  PLM_LOBE_REFRACTION = 3,
+  PLM_LOBE_TRANSPARENT = 4
+} plm_lobe_type;
+
+typedef struct plm_lobe {
+  int32_t type;    /* plm_lobe_type */
+  float color[3];  /* linear RGB weight x tint */
+  float roughness; /* 0..1, Blender's */
+  float ior;       /* FRESNEL, GLASS, REFRACTION */
+  float abbe;      /* GLASS, REFRACTION: 0 = no dispersion */
+} plm_lobe;
+
+/* Fills a lobe with defaults for its type: white, roughness 0, ior 1.5 (1.45
+ * for GLASS and REFRACTION, Blender's), no dispersion. */
+PLM_API void plm_lobe_default(plm_lobe* lobe, plm_lobe_type type);
+/* Appends a lobe to a material (at most 8 a material). */
+PLM_API plm_status plm_scene_add_material_lobe(plm_scene* scene, uint32_t material_id, const plm_lobe* lobe);
+
 /* Image textures on materials (docs/design.md "Textures").
  *   PLM_TEXTURE_ALBEDO    albedo = image x the material's albedo
  *   PLM_TEXTURE_EMISSION  emitted radiance = image x the material's emission
@@ -228,6 +278,24 @@ PLM_API plm_status plm_scene_add_light(plm_scene* scene, const char* name, const
 /* Uniform world radiance over the whole sphere (Cycles background colour x
  * strength). Default black. */
 PLM_API plm_status plm_scene_set_world(plm_scene* scene, const float radiance[3]);
+
+/* An environment map as the world (Cycles' Environment Texture in the
+ * world's Background): an equirectangular image, radiance = pixel x strength
+ * (width x height linear RGB floats, the top row, +Z, first). As in Blender a
+ * map-frame direction d reads the image at u = 0.5 - atan2(d.y, d.x) / (2 pi),
+ * v = 0.5 + asin(d.z) / pi (the image's centre looks along +X), with the
+ * map frame rotated into the world by `rotation` (row-major 3x3, Blender's
+ * Mapping node rotation; NULL = identity). It
+ * replaces the uniform radiance of plm_scene_set_world (and that call
+ * replaces the map). Importance-sampled for direct light and photon emission;
+ * portals keep working. plm_scene_set_world_map_file reads the image (HDR,
+ * EXR, any format OpenImageIO reads; 8-bit images are sRGB-decoded) when
+ * called. Errors: sizes, non-finite or negative pixels (named by row and
+ * column), an unreadable file (named). */
+PLM_API plm_status plm_scene_set_world_map(plm_scene* scene, const float* rgb, uint32_t width, uint32_t height,
+                                           const float rotation[9], float strength);
+PLM_API plm_status plm_scene_set_world_map_file(plm_scene* scene, const char* path, const float rotation[9],
+                                                float strength);
 
 /* ---- CSG solids (exact analytic primitives and boolean trees) -------------
  *
