@@ -18,7 +18,9 @@ scripts and tests. Next to each <object>_lightmap.exr, finish() writes <object>_
 the texels' relative error (standard error / value; 0 where the texel has no light) in R, G
 and B, loaded as the image <object>_error for the heat-map preview.
 """
+import atexit
 import os
+import shutil
 import tempfile
 import time
 
@@ -39,15 +41,34 @@ class BakeError(Exception):
     """A bake could not start or finish; the message is for the user."""
 
 
+_SESSION_FOLDER = []  # this Blender process's own folder for the lightmaps of unsaved files
+
+
+def _session_folder():
+    """A folder no other project or Blender shares, removed when Blender exits."""
+    if not _SESSION_FOLDER or not os.path.isdir(_SESSION_FOLDER[0]):
+        _SESSION_FOLDER[:] = [tempfile.mkdtemp(prefix="photonlm-unsaved-")]
+        atexit.register(shutil.rmtree, _SESSION_FOLDER[0], True)
+    return _SESSION_FOLDER[0]
+
+
+def is_temporary_output(scene):
+    """True where the lightmap files are temporary (a relative folder in an unsaved file): the
+    images are then packed into the .blend, which is the only place they last."""
+    path = scene.photonlm.output_dir or "//lightmaps/"
+    return path.startswith("//") and not bpy.data.is_saved and not os.environ.get("PHOTONLM_TEST_OUT")
+
+
 def output_directory(scene):
     """The absolute output folder for lightmaps, created if needed.
 
     A relative (//) path is relative to the .blend file; for an unsaved file it is relative to
-    $PHOTONLM_TEST_OUT if set, else to <temp>/photonlm.
+    $PHOTONLM_TEST_OUT if set, else to a folder of this Blender process's own (removed when it
+    exits; the images are packed, see is_temporary_output).
     """
     path = scene.photonlm.output_dir or "//lightmaps/"
     if path.startswith("//") and not bpy.data.is_saved:
-        base = os.environ.get("PHOTONLM_TEST_OUT") or os.path.join(tempfile.gettempdir(), "photonlm")
+        base = os.environ.get("PHOTONLM_TEST_OUT") or _session_folder()
         path = os.path.join(base, path[2:])
     else:
         path = bpy.path.abspath(path)
@@ -211,6 +232,7 @@ class BakeJob:
             self.notices = ["engine: " + w for w in memory_warnings]
             out_dir = output_directory(context.scene)
             scene = context.scene
+            pack = scene.photonlm.pack_lightmaps or is_temporary_output(scene)
             # The heat map's scale and the engine's error_above: twice the target (twice the RMS error
             # without a target).
             target = self.settings["target_error"] if self.settings["target_error"] > 0.0 \
@@ -230,12 +252,12 @@ class BakeJob:
                 path = os.path.join(out_dir, fname)
                 result.write_exr(b.mesh_id, path)
                 lm = result.lightmap(b.mesh_id)
-                image = load_image(b.object_name + "_lightmap", path)
+                image = load_image(b.object_name + "_lightmap", path, pack)
                 images[b.object_name] = image
                 relative = relative_error(lm.rgb, lm.error)
                 error_path = path[:-len("_lightmap.exr")] + "_error.exr"
                 write_error_exr(error_path, error_image_pixels(relative))
-                error_image = load_image(b.object_name + "_error", error_path)
+                error_image = load_image(b.object_name + "_error", error_path, pack)
                 error_image[materials.TAG] = materials.ERROR_IMAGE_TAG
                 error_images[b.object_name] = error_image
                 covered = lm.coverage > 0.0
@@ -265,7 +287,7 @@ class BakeJob:
                 self.reports.info("orientation lightmap '%s' (%d x %d bins, %s): %s"
                                   % (group.name, st["resolution"], st["resolution"],
                                      ", ".join(group.objects), group.reason))
-                self._wire_ol(context, group, load_image(group.name + "_ol", path))
+                self._wire_ol(context, group, load_image(group.name + "_ol", path, pack))
         finally:
             result.close()
             self.result = None
@@ -419,19 +441,30 @@ def noisy_message(stats, noisiest, per_object, has_target):
                " or lower the Target Error" if has_target else ""))
 
 
-def load_image(name, path):
-    """Load (or reload) the float image `name` from `path`, colour space Non-Color."""
+def load_image(name, path, pack=False):
+    """Load (or reload) the float image `name` from `path`, colour space Non-Color. The image links
+    its file relative to the .blend where the file is saved (the project folder can move), or is
+    packed into the .blend (pack)."""
     image = bpy.data.images.get(name)
-    if image is not None and image.source == 'FILE' and not image.packed_file:
+    if image is not None and image.source == 'FILE':
+        if image.packed_file is not None:
+            image.unpack(method='REMOVE')  # the new file replaces the packed copy
         image.filepath = path
         image.reload()
     else:
         if image is not None:
-            image.name = name + ".old"  # generated or packed: keep it, but free the name
+            image.name = name + ".old"  # generated: keep it, but free the name
         image = bpy.data.images.load(path, check_existing=False)
         image.name = name
+    if bpy.data.is_saved:
+        try:
+            image.filepath = bpy.path.relpath(path)
+        except ValueError:  # another drive than the .blend
+            pass
     image.colorspace_settings.name = 'Non-Color'
     if hasattr(image, "use_half_precision"):
         image.use_half_precision = False
     image.alpha_mode = 'NONE'
+    if pack:
+        image.pack()
     return image

@@ -28,6 +28,7 @@ class PHOTONLM_PT_lightmaps(bpy.types.Panel):
         col.prop(settings, "native_subdivision")
         col.prop(settings, "seed")
         col.prop(settings, "output_dir")
+        col.prop(settings, "pack_lightmaps")
 
         row = layout.row()
         row.scale_y = 1.5

@@ -148,8 +148,13 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
         default=32, min=1, soft_max=1024, subtype='NONE')
     output_dir: StringProperty(
         name="Output", description="Folder for the EXR lightmaps (<object>_lightmap.exr). A relative path "
-        "(//) is relative to the .blend file; for an unsaved file it is a temporary folder",
+        "(//) is relative to the .blend file and the images link their files relative to it, so the "
+        "project folder can be moved; in an unsaved file the lightmaps are packed into it",
         default="//lightmaps/", subtype='DIR_PATH')
+    pack_lightmaps: BoolProperty(
+        name="Pack Lightmaps", default=False,
+        description="Also pack the baked images into the .blend: one file to move or send, at the cost of a "
+                    "larger .blend rewritten on every save (unsaved files always pack)")
     native_subdivision: BoolProperty(
         name="Native Subdivision", default=True,
         description="Export objects whose last modifier is a Subdivision Surface as their cage and refine "
