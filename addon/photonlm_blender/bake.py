@@ -166,10 +166,11 @@ def unlit_scene_message(context):
 
 
 class BakeJob:
-    def __init__(self, context):
+    def __init__(self, context, selected_only=False):
         self.reports = export.Reports()
         self.photonlm = bridge.get()           # RuntimeError with a readable message if missing
         self.settings = bake_settings(context.scene)
+        self.selected_only = selected_only
         self.scene_name = context.scene.name
         self.result = None
         self.export = None
@@ -177,15 +178,18 @@ class BakeJob:
         self.cancelled = False
         self.created_uvs = []
         self.notices = []  # warnings to show last (after the summary): memory, noisy texels
-        objects = export.lightmap_objects(context)
-        if not objects and not any(lsystem.is_lsystem(o) for o in context.view_layer.objects):
-            raise BakeError("nothing to bake: no visible mesh object with 'Bake Lightmap' enabled")
+        vl = context.view_layer
+        objects = export.lightmap_objects(context, selected_only)
+        if not objects and not any(lsystem.is_lsystem(o) and (not selected_only or o.select_get(view_layer=vl))
+                                   for o in vl.objects):
+            raise BakeError("nothing to bake: no %s mesh object with 'Bake Lightmap' enabled"
+                            % ("selected" if selected_only else "visible"))
         if not light_sources(context):
             raise BakeError(unlit_scene_message(context))
         t0 = time.perf_counter()
         try:
             self.created_uvs = export.ensure_lightmap_uvs(context, objects, self.reports)
-            self.export = export.export_scene(context, self.photonlm, self.reports)
+            self.export = export.export_scene(context, self.photonlm, self.reports, selected_only)
         except Exception:
             self.abort(context)
             raise
@@ -277,7 +281,10 @@ class BakeJob:
                 if obj is not None:
                     lsystem.store_light(result, lid, obj)
             ol_info = {}
+            selected = {o.name for o in context.view_layer.objects if o.select_get(view_layer=context.view_layer)}
             for group in self.export.ol_groups.values():
+                if self.selected_only and not any(n in selected for n in group.objects):
+                    continue  # a collection's OL that no selected object shares: kept as it was
                 fname = export.safe_file_name(group.name) + "_ol.exr"
                 path = os.path.join(out_dir, fname)
                 result.write_ol_exr(group.group_id, path)

@@ -22,6 +22,18 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
     bl_label = "Bake Lightmaps"
     bl_options = {'REGISTER', 'UNDO'}
 
+    selected_only: bpy.props.BoolProperty(
+        name="Selected Only", default=False, options={'SKIP_SAVE'},
+        description="Bake only the selected objects' lightmaps; the other visible objects still block and "
+                    "reflect light, and their lightmaps stay as they are")
+
+    @classmethod
+    def description(cls, context, properties):
+        if properties.selected_only:
+            return ("Bake the lightmaps of the selected objects only; the other visible objects still block and "
+                    "reflect light, and their lightmaps stay as they are")
+        return "Bake photon lightmaps (global illumination) for the visible mesh objects"
+
     @classmethod
     def poll(cls, context):
         if _running is not None:
@@ -34,7 +46,7 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
 
     def _prepare(self, context):
         try:
-            return bake.BakeJob(context)
+            return bake.BakeJob(context, self.selected_only)
         except (bake.BakeError, RuntimeError) as e:
             self.report({'ERROR'}, str(e))
         except Exception as e:  # noqa: BLE001 -- never take Blender down

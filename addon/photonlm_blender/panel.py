@@ -35,6 +35,8 @@ class PHOTONLM_PT_lightmaps(bpy.types.Panel):
         running = operators._running is not None
         row.operator("photonlm.bake", icon='RENDER_STILL',
                      text="Baking... (Esc to cancel)" if running else "Bake Lightmaps")
+        if not running:
+            layout.operator("photonlm.bake", text="Bake Selected", icon='RESTRICT_SELECT_OFF').selected_only = True
         if bridge.error():
             layout.label(text=bridge.error(), icon='ERROR')
         layout.operator_menu_enum("photonlm.add_lsystem", "preset", text="Add L-System", icon='OUTLINER_OB_CURVES')
