@@ -304,10 +304,12 @@ class BakeJob:
         noisiest = noisiest_objects(per_object)
         if float(stats["error_above"]) > properties.NOISY_SHARE:
             self.notices.append(noisy_message(stats, noisiest, per_object, self.settings["target_error"] > 0.0))
+        shown_warnings = warning_lines(self.reports.items, self.notices)
         scene[properties.STATS_KEY] = dict(
             photons_emitted=int(stats["photons_emitted"]), seconds_total=float(stats["seconds_total"]),
             seconds_export=float(self.seconds_export), photons_per_second=float(photons_per_second),
-            warning_count=len(warnings), objects=len(self.export.baked),
+            warning_count=len({t for level, t in self.reports.items if level == 'WARNING'} | set(self.notices)),
+            objects=len(self.export.baked),
             photon_hits=int(stats["photon_hits"]), rays_traced=int(stats["rays_traced"]),
             error_estimate=float(stats["error_estimate"]), error_direct=float(stats["error_direct"]),
             error_median=float(stats["error_median"]),
@@ -315,7 +317,9 @@ class BakeJob:
             target_error=float(self.settings["target_error"]), error_target=float(target),
             memory_estimate=float(stats["memory_estimate"]),
             noisiest=noisiest[0] if noisiest else "",
-            noisiest_above=float(per_object[noisiest[0]]["error_above"]) if noisiest else 0.0, direct_samples=int(stats["direct_samples"]))
+            noisiest_above=float(per_object[noisiest[0]]["error_above"]) if noisiest else 0.0,
+            direct_samples=int(stats["direct_samples"]),
+            warning_lines="\n".join(shown_warnings))
         LAST.clear()
         LAST.update(stats=dict(stats, seconds_export=self.seconds_export,
                                photons_per_second=photons_per_second, error_target=target),
@@ -425,6 +429,18 @@ def write_error_exr(path, relative):
         bpy.data.images.remove(image)
         bpy.data.scenes.remove(settings_scene)
     os.replace(tmp, path)
+
+
+def warning_lines(reports, notices, limit=20):
+    """The bake's warnings for the panel, each once (engine warnings are already grouped), at
+    most `limit` with a last line counting the rest."""
+    lines = []
+    for text in [t for level, t in reports if level == 'WARNING'] + list(notices):
+        if text not in lines:
+            lines.append(text)
+    if len(lines) > limit:
+        lines = lines[:limit - 1] + ["... and %d more (see the Info editor)" % (len(lines) - limit + 1)]
+    return lines
 
 
 def noisiest_objects(per_object, count=3):
