@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "lightmap/dilate.h"
+#include "lightmap/stitch.h"
 
 namespace plm {
 namespace {
@@ -171,7 +172,9 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
         filled[t] = 1;
       }
     }
+    const std::vector<uint8_t> covered = filled;
     dilate(values, 4, filled, img.width, img.height, dilation);
+    stitch_seams(find_seams(mesh), covered, values, 4, img.width, img.height);
     img.rgb.resize(3 * n);
     img.error.resize(n);
     for (size_t t = 0; t < n; ++t) {

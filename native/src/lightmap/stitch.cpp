@@ -1,0 +1,279 @@
+#include "lightmap/stitch.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <tuple>
+#include <unordered_map>
+
+namespace plm {
+namespace {
+
+// How strongly a texel outside the islands is held to its dilated value (its
+// own value is only an extrapolation), relative to a covered texel of typical error.
+constexpr double kHoldFree = 1e-3;
+// A covered texel of typical error: held so that it moves by about its error at
+// most (towards the other side's estimate of the same points).
+constexpr double kHoldCovered = 0.25;
+constexpr double kPull = 0.5;  // the pull on a texel beside one seam
+constexpr double kFlatCos = 0.99985;       // flat meshes: triangles in one plane (within 1 degree)
+constexpr float kSmoothNormalCos = 0.999f;  // smooth meshes: the same corner normal on both sides
+constexpr int kMaxIterations = 200;
+constexpr double kMinTexels = 2.0;  // both triangles along a seam cover at least this many texels
+
+// One point compared along a seam: the bilinear weights of the two sides'
+// texels, side B's negative, so that the row times the texels is the jump.
+struct Row {
+  uint32_t texel[8];
+  double weight[8];
+};
+
+void bilinear(const float uv[2], uint32_t w, uint32_t h, double sign, uint32_t* texel, double* weight) {
+  const double x = double(uv[0]) * w - 0.5, y = double(uv[1]) * h - 0.5;
+  const double fx0 = std::floor(x), fy0 = std::floor(y);
+  const double fx = x - fx0, fy = y - fy0;
+  auto clampi = [](double v, uint32_t n) { return uint32_t(std::clamp(v, 0.0, double(n - 1))); };
+  const uint32_t x0 = clampi(fx0, w), x1 = clampi(fx0 + 1.0, w), y0 = clampi(fy0, h), y1 = clampi(fy0 + 1.0, h);
+  texel[0] = y0 * w + x0;
+  texel[1] = y0 * w + x1;
+  texel[2] = y1 * w + x0;
+  texel[3] = y1 * w + x1;
+  weight[0] = sign * (1 - fx) * (1 - fy);
+  weight[1] = sign * fx * (1 - fy);
+  weight[2] = sign * (1 - fx) * fy;
+  weight[3] = sign * fx * fy;
+}
+
+Vec3 triangle_normal(const Mesh& mesh, uint32_t t) {
+  const Vec3 n = cross(mesh.vertex(t, 1) - mesh.vertex(t, 0), mesh.vertex(t, 2) - mesh.vertex(t, 0));
+  const float len = length(n);
+  return len > 0.0f ? n * (1.0f / len) : Vec3{0, 0, 0};
+}
+
+}  // namespace
+
+std::vector<SeamEdge> find_seams(const Mesh& mesh) {
+  std::vector<SeamEdge> seams;
+  const uint32_t tris = mesh.triangle_count();
+  if (mesh.uv.empty() || tris == 0) return seams;
+  // Vertices by position: indices of equal positions share one id.
+  std::vector<uint32_t> order(mesh.vertex_count), id(mesh.vertex_count);
+  for (uint32_t i = 0; i < mesh.vertex_count; ++i) order[i] = i;
+  auto key = [&](uint32_t i) {
+    const Vec3& p = mesh.positions[i];
+    return std::make_tuple(p.x, p.y, p.z);
+  };
+  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return key(a) < key(b); });
+  for (uint32_t k = 0, next = 0; k < order.size(); ++k) {
+    if (k > 0 && key(order[k]) != key(order[k - 1])) ++next;
+    id[order[k]] = next;
+  }
+  // Edges by their end points' ids: (low id, high id, triangle, corner of the low end, of the high end).
+  struct Edge {
+    uint64_t key;
+    uint32_t tri;
+    uint8_t lo, hi;
+  };
+  std::vector<Edge> edges;
+  edges.reserve(size_t(tris) * 3);
+  for (uint32_t t = 0; t < tris; ++t)
+    for (uint8_t e = 0; e < 3; ++e) {
+      const uint8_t f = uint8_t((e + 1) % 3);
+      uint32_t a = id[mesh.indices[3 * t + e]], b = id[mesh.indices[3 * t + f]];
+      if (a == b) continue;
+      const bool swap = a > b;
+      if (swap) std::swap(a, b);
+      edges.push_back({(uint64_t(a) << 32) | b, t, swap ? f : e, swap ? e : f});
+    }
+  std::sort(edges.begin(), edges.end(), [](const Edge& x, const Edge& y) {
+    return x.key < y.key || (x.key == y.key && x.tri < y.tri);
+  });
+  auto uv_of = [&](uint32_t t, uint8_t corner) { return &mesh.uv[6 * size_t(t) + 2 * corner]; };
+  // A triangle's area in texels: lookups along an edge of a triangle smaller
+  // than a few texels read mostly other triangles' texels.
+  auto texels = [&](uint32_t t) {
+    const float* q = &mesh.uv[6 * size_t(t)];
+    return 0.5 * std::fabs(double(q[2] - q[0]) * (q[5] - q[1]) - double(q[4] - q[0]) * (q[3] - q[1])) *
+           double(mesh.lightmap_width) * double(mesh.lightmap_height);
+  };
+  for (size_t i = 0; i < edges.size();) {
+    size_t j = i + 1;
+    while (j < edges.size() && edges[j].key == edges[i].key) ++j;
+    if (j - i == 2 && edges[i].tri != edges[i + 1].tri) {  // a manifold edge
+      const Edge& A = edges[i];
+      const Edge& B = edges[i + 1];
+      const float *a0 = uv_of(A.tri, A.lo), *a1 = uv_of(A.tri, A.hi);
+      const float *b0 = uv_of(B.tri, B.lo), *b1 = uv_of(B.tri, B.hi);
+      const bool cut = a0[0] != b0[0] || a0[1] != b0[1] || a1[0] != b1[0] || a1[1] != b1[1];
+      bool smooth;
+      if (mesh.smooth()) {
+        const Vec3* nA = &mesh.normals[3 * size_t(A.tri)];
+        const Vec3* nB = &mesh.normals[3 * size_t(B.tri)];
+        smooth = dot(nA[A.lo], nB[B.lo]) > kSmoothNormalCos && dot(nA[A.hi], nB[B.hi]) > kSmoothNormalCos;
+      } else {
+        smooth = dot(triangle_normal(mesh, A.tri), triangle_normal(mesh, B.tri)) > kFlatCos;
+      }
+      if (cut && smooth && texels(A.tri) >= kMinTexels && texels(B.tri) >= kMinTexels) {
+        SeamEdge s;
+        std::memcpy(s.a0, a0, sizeof s.a0);
+        std::memcpy(s.a1, a1, sizeof s.a1);
+        std::memcpy(s.b0, b0, sizeof s.b0);
+        std::memcpy(s.b1, b1, sizeof s.b1);
+        seams.push_back(s);
+      }
+    }
+    i = j;
+  }
+  return seams;
+}
+
+SeamStats stitch_seams(const std::vector<SeamEdge>& seams, const std::vector<uint8_t>& covered,
+                       std::vector<float>& values, int channels, uint32_t width, uint32_t height) {
+  SeamStats stats;
+  if (seams.empty() || width == 0 || height == 0) return stats;
+  std::vector<Row> rows;
+  for (const SeamEdge& s : seams) {
+    auto texels = [&](const float* p, const float* q) {
+      return std::hypot(double(q[0] - p[0]) * width, double(q[1] - p[1]) * height);
+    };
+    const double len = std::max(texels(s.a0, s.a1), texels(s.b0, s.b1));
+    if (!std::isfinite(len)) continue;
+    const int n = int(std::clamp(std::ceil(2.0 * len), 2.0, 4096.0));
+    // Rows weigh sqrt(texels per sample): an edge pulls as hard as it is long,
+    // however finely it is sampled.
+    const double scale = std::sqrt(std::max(len, 0.5) / n);
+    for (int k = 0; k < n; ++k) {
+      const float t = (float(k) + 0.5f) / float(n);
+      const float a[2] = {s.a0[0] + t * (s.a1[0] - s.a0[0]), s.a0[1] + t * (s.a1[1] - s.a0[1])};
+      const float b[2] = {s.b0[0] + t * (s.b1[0] - s.b0[0]), s.b0[1] + t * (s.b1[1] - s.b0[1])};
+      Row r;
+      bilinear(a, width, height, scale, r.texel, r.weight);
+      bilinear(b, width, height, -scale, r.texel + 4, r.weight + 4);
+      rows.push_back(r);
+    }
+    ++stats.edges;
+  }
+  stats.samples = rows.size();
+  // The texels the rows read, numbered locally. A covered texel is held to
+  // its value in proportion to 1 / its error (the error channel), so it moves
+  // by about its own noise at most; one without error (exact) stays fixed and
+  // enters the rows as a constant. Texels outside the islands hold only an
+  // extrapolation and move freely.
+  const int error_channel = channels >= 4 ? 3 : -1;
+  auto sigma2 = [&](uint32_t t) {
+    const double e = error_channel >= 0 ? double(values[size_t(t) * channels + error_channel]) : 0.0;
+    return std::isfinite(e) ? e * e : 0.0;
+  };
+  double ref = 0.0;
+  size_t ref_count = 0;
+  for (const Row& r : rows)
+    for (uint32_t t : r.texel)
+      if (covered[t]) ref += sigma2(t), ++ref_count;
+  ref = ref_count ? ref / double(ref_count) : 0.0;
+  // How hard the rows pull on each texel (sum of squared weights): a texel
+  // pulled by many seam points is held harder, so that none moves by more
+  // than about its error however many seams pass it.
+  std::unordered_map<uint32_t, double> pull;
+  for (const Row& r : rows)
+    for (int k = 0; k < 8; ++k) pull[r.texel[k]] += r.weight[k] * r.weight[k];
+  std::unordered_map<uint32_t, uint32_t> local;
+  std::vector<uint32_t> free_texel;
+  std::vector<double> hold;
+  std::vector<int32_t> slot(rows.size() * 8, -1);  // local index of each row entry, -1 if fixed
+  for (size_t r = 0; r < rows.size(); ++r)
+    for (int k = 0; k < 8; ++k) {
+      const uint32_t t = rows[r].texel[k];
+      const double h = !covered[t]                ? kHoldFree
+                       : sigma2(t) > 1e-6 * ref ? kHoldCovered * ref / sigma2(t) * std::max(1.0, pull[t] / kPull)
+                                                : -1.0;
+      if (h < 0.0) continue;
+      auto [it, added] = local.emplace(t, uint32_t(free_texel.size()));
+      if (added) free_texel.push_back(t), hold.push_back(h);
+      slot[r * 8 + k] = int32_t(it->second);
+    }
+  const size_t m = free_texel.size();
+  auto value = [&](uint32_t t, int c) { return double(values[size_t(t) * channels + c]); };
+
+  // Per channel: minimise sum_r (row . texels)^2 + sum_i hold_i (x_i - x0_i)^2
+  // over the texels that may move: (A^T A + H) x = H x0 - A^T fixed, by
+  // conjugate gradients from x0.
+  std::vector<double> fixed(rows.size()), ax(rows.size());
+  auto apply = [&](const std::vector<double>& x, std::vector<double>& out) {
+    for (size_t r = 0; r < rows.size(); ++r) {
+      double s = 0.0;
+      for (int k = 0; k < 8; ++k)
+        if (slot[r * 8 + k] >= 0) s += rows[r].weight[k] * x[size_t(slot[r * 8 + k])];
+      ax[r] = s;
+    }
+    for (size_t i = 0; i < m; ++i) out[i] = hold[i] * x[i];
+    for (size_t r = 0; r < rows.size(); ++r)
+      for (int k = 0; k < 8; ++k)
+        if (slot[r * 8 + k] >= 0) out[size_t(slot[r * 8 + k])] += rows[r].weight[k] * ax[r];
+  };
+  auto jump = [&](int c, double& sq, double& level) {
+    for (const Row& r : rows) {
+      double d = 0.0, a = 0.0, b = 0.0;
+      for (int k = 0; k < 8; ++k) {
+        const double v = value(r.texel[k], c);
+        d += r.weight[k] * v;
+        (k < 4 ? a : b) += std::fabs(r.weight[k]) * v;
+      }
+      sq += d * d;
+      level += 0.5 * (a + b);
+    }
+  };
+  double before = 0.0, after = 0.0, level = 0.0, unused = 0.0;
+  std::vector<double> x(m), rhs(m), res(m), dir(m), kd(m);
+  const int colour = std::min(channels, 3);
+  for (int c = 0; c < colour; ++c) {
+    jump(c, before, level);
+    if (m == 0) {
+      jump(c, after, unused);
+      continue;
+    }
+    for (size_t r = 0; r < rows.size(); ++r) {
+      double s = 0.0;
+      for (int k = 0; k < 8; ++k)
+        if (slot[r * 8 + k] < 0) s += rows[r].weight[k] * value(rows[r].texel[k], c);
+      fixed[r] = s;
+    }
+    for (size_t i = 0; i < m; ++i) x[i] = value(free_texel[i], c), rhs[i] = hold[i] * x[i];
+    for (size_t r = 0; r < rows.size(); ++r)
+      for (int k = 0; k < 8; ++k)
+        if (slot[r * 8 + k] >= 0) rhs[size_t(slot[r * 8 + k])] -= rows[r].weight[k] * fixed[r];
+    apply(x, kd);
+    double rr = 0.0, bb = 0.0;
+    for (size_t i = 0; i < m; ++i) {
+      res[i] = dir[i] = rhs[i] - kd[i];
+      rr += res[i] * res[i];
+      bb += rhs[i] * rhs[i];
+    }
+    for (int it = 0; it < kMaxIterations && rr > 1e-20 * bb && rr > 0.0; ++it) {
+      apply(dir, kd);
+      double dkd = 0.0;
+      for (size_t i = 0; i < m; ++i) dkd += dir[i] * kd[i];
+      if (!(dkd > 0.0)) break;
+      const double alpha = rr / dkd;
+      double rr_next = 0.0;
+      for (size_t i = 0; i < m; ++i) {
+        x[i] += alpha * dir[i];
+        res[i] -= alpha * kd[i];
+        rr_next += res[i] * res[i];
+      }
+      for (size_t i = 0; i < m; ++i) dir[i] = res[i] + (rr_next / rr) * dir[i];
+      rr = rr_next;
+    }
+    for (size_t i = 0; i < m; ++i)
+      if (std::isfinite(x[i])) values[size_t(free_texel[i]) * channels + c] = float(std::max(x[i], 0.0));
+    jump(c, after, unused);
+  }
+  if (level > 0.0 && !rows.empty()) {
+    const double count = double(rows.size()) * colour;
+    const double mean = level / count;
+    stats.jump_before = std::sqrt(before / count) / mean;
+    stats.jump_after = std::sqrt(after / count) / mean;
+  }
+  return stats;
+}
+
+}  // namespace plm
