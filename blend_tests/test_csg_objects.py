@@ -1,4 +1,4 @@
-"""Exact CSG objects through the add-on (issue 4): primitives combined by Boolean modifiers.
+"""Exact CSG objects through the add-on: primitives combined by Boolean modifiers.
 
 Scene: the Cornell box with a cube (0.8 m) that has a cylinder (r = 0.2 m, hidden in renders)
 subtracted through it by a Boolean modifier, both marked as primitives (Box, Cylinder).

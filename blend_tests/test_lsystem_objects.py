@@ -1,4 +1,4 @@
-"""L-system objects through the add-on (issue 6): presets, engine-made previews, bakes through OLs.
+"""L-system objects through the add-on: presets, engine-made previews, bakes through OLs.
 
 Expected:
 - bpy.ops.photonlm.add_lsystem adds each preset (SIERPINSKI, SYMPODIAL_TREE, BUSH) with a

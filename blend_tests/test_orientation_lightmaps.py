@@ -1,4 +1,4 @@
-"""Orientation lightmaps through the add-on (issue 5): per object, automatic, per collection.
+"""Orientation lightmaps through the add-on: per object, automatic, per collection.
 
 Scene: the Cornell box with a UV sphere (r = 0.3 m) floating in it, a dense ico sphere on a tiny
 lightmap, and a collection 'props' of two cubes marked 'One Orientation Lightmap' (one of them

@@ -1,4 +1,4 @@
-"""Subdivision surfaces exported as their cage (issue 8).
+"""Subdivision surfaces exported as their cage.
 
 An object whose last modifier is a Catmull-Clark Subdivision Surface (render_levels > 0)
 with Blender's default options is exported as the mesh *before* that modifier (its cage:

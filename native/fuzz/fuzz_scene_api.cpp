@@ -1,4 +1,4 @@
-// libFuzzer target for the C API (issue 7): the input is decoded into a
+// libFuzzer target for the C API: the input is decoded into a
 // sequence of calls (add material / mesh / subdivision cage / light, set world, bake, copy, write
 // EXR, read warnings, release) with arbitrary floats, sizes and indices. The
 // library must never crash, hang, leak or trip a sanitizer, and a bake that

@@ -1,4 +1,4 @@
-// libFuzzer target for the JSON scene file reader (issue 7): the input is the
+// libFuzzer target for the JSON scene file reader: the input is the
 // text of a scene file. It goes through parse -> plm_scene with file access
 // disabled (an "obj" reference is an error, no file is opened); a scene that
 // parses and is small is baked with a tiny photon count. The reader must never

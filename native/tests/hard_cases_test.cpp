@@ -1,4 +1,4 @@
-// Hard cases (issue 7): grazing angles, extreme scales, degenerate and sliver
+// Hard cases: grazing angles, extreme scales, degenerate and sliver
 // triangles, texels much smaller or much larger than triangles, albedo near 1,
 // lights inside geometry, overlapping UVs, many lights, tiny scenes, and bad
 // input through the C API. Every case states its expected answer and its
@@ -910,7 +910,7 @@ bool finite_or_rejected(SceneBuilder& b, std::string& why) {
   return true;
 }
 
-// Was an engine bug (issue 7, found by this suite), fixed: a light with colour 1e30 and power
+// Guards against: a light with colour 1e30 and power
 // 1e30, both accepted by plm_scene_add_light, has a flux of 1e60 that overflows
 // float to inf; the light-choice table becomes inf / inf = NaN and every texel
 // of the bake is NaN, with status PLM_OK and no warning. Expected: rejected at
@@ -927,7 +927,7 @@ TEST(HardCases, OverflowingLightFluxIsRejectedOrFinite) {
   EXPECT_TRUE(finite_or_rejected(b, why)) << why;
 }
 
-// Was an engine bug (issue 7, found by this suite), fixed: a floor quad of side 2e18 m
+// Guards against: a floor quad of side 2e18 m
 // (finite positions, accepted by plm_scene_add_mesh) under a sun ABORTS the
 // process: Debian's Embree is built with assertions and aborts in
 // bvh_intersector1.cpp:59 "Assertion `ray.valid()' failed", because sun
@@ -956,7 +956,7 @@ TEST(HardCases, HugeCoordinatesAreRejectedOrFinite) {
   EXPECT_TRUE(finite_or_rejected(c, why)) << why;
 }
 
-// Was an engine bug (issue 7, found by fuzz_scene_api), fixed: a quad whose second edge is
+// Guards against (a case fuzz_scene_api found): a quad whose second edge is
 // denormal-small (0, 0, 2.8e-45) has a world area > 0 in double, so its texels
 // get an area, but its float normal is 0 / 0 = NaN. Under a world light (a sun
 // or point light does not trigger it) the direct pass then casts
