@@ -484,10 +484,10 @@ plm_status plm_result_lsystem_lookup(const plm_result* result, uint32_t lsystem,
     require(normals, "plm_result_lsystem_lookup", "normals");
     require(out_rgb, "plm_result_lsystem_lookup", "out_rgb");
     for (uint64_t i = 0; i < count; ++i) {
-      const plm::csg::DVec3 p{points[3 * i], points[3 * i + 1], points[3 * i + 2]};
-      plm::csg::DVec3 n{normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]};
-      const double len = plm::csg::length(n);
-      if (!plm::csg::is_finite(p) || !(len > 0.0) || !std::isfinite(len))
+      const plm::Vec3d p{points[3 * i], points[3 * i + 1], points[3 * i + 2]};
+      plm::Vec3d n{normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]};
+      const double len = plm::length(n);
+      if (!plm::is_finite(p) || !(len > 0.0) || !std::isfinite(len))
         plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_result_lsystem_lookup: item ", i,
                   " has a non-finite point or a zero or non-finite normal");
       n = n / len;

@@ -18,7 +18,7 @@ void bounds(const RTCBoundsFunctionArguments* args) {
 }
 
 struct LaneRay {
-  DVec3 o, d;
+  Vec3d o, d;
   float tnear, tfar;
 };
 

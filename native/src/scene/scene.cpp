@@ -140,8 +140,7 @@ uint32_t Scene::add_light(const char* name, const plm_light& l) {
                                                   {"size_x", l.size_x},       {"size_y", l.size_y}};
   for (const auto& [field, value] : fields)
     if (!std::isfinite(value)) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": ", field, " ", value, " is not finite");
-  Transform m;
-  std::memcpy(m.m, l.matrix, sizeof(m.m));
+  const Affine3f m = Affine3f::from_array(l.matrix);
   switch (l.type) {
     case PLM_LIGHT_POINT:
     case PLM_LIGHT_SPOT:
@@ -271,24 +270,23 @@ void Scene::set_mesh_smooth(uint32_t mesh, bool smooth) {
     m.normals.clear();
     return;
   }
-  using csg::DVec3;
-  std::vector<DVec3> vertex(m.vertex_count);
+  std::vector<Vec3d> vertex(m.vertex_count);
   for (uint32_t t = 0; t < m.triangle_count(); ++t) {
-    DVec3 p[3];
+    Vec3d p[3];
     for (int c = 0; c < 3; ++c) p[c] = {m.vertex(t, c).x, m.vertex(t, c).y, m.vertex(t, c).z};
-    const DVec3 n = cross(p[1] - p[0], p[2] - p[0]);
+    const Vec3d n = cross(p[1] - p[0], p[2] - p[0]);
     const double len = length(n);
     if (!(len > 0.0)) continue;
     for (int c = 0; c < 3; ++c) {
-      const DVec3 a = p[(c + 1) % 3] - p[c], b = p[(c + 2) % 3] - p[c];
+      const Vec3d a = p[(c + 1) % 3] - p[c], b = p[(c + 2) % 3] - p[c];
       const double angle = std::atan2(length(cross(a, b)), dot(a, b));
-      DVec3& v = vertex[m.indices[3 * t + c]];
+      Vec3d& v = vertex[m.indices[3 * t + c]];
       v = v + n * (angle / len);
     }
   }
   std::vector<float> corners(size_t(m.triangle_count()) * 9);
   for (size_t k = 0; k < m.indices.size(); ++k) {
-    const DVec3 n = vertex[m.indices[k]];
+    const Vec3d n = vertex[m.indices[k]];
     corners[3 * k] = float(n.x), corners[3 * k + 1] = float(n.y), corners[3 * k + 2] = float(n.z);
   }
   set_mesh_normals(mesh, corners.data());
