@@ -12,7 +12,6 @@
 namespace plm::csg {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr int kMaxGrid = 32;
 constexpr uint16_t kUnvisited = 0xFFFEu;
 
@@ -40,10 +39,10 @@ FaceCoord disk_to_square(double x, double y) {
   if (r > 0) {
     if (std::fabs(x) >= std::fabs(y)) {
       a = std::copysign(r, x);
-      b = a * std::atan(y / x) * (4 / kPi);
+      b = a * std::atan(y / x) * (4 / kPiD);
     } else {
       b = std::copysign(r, y);
-      a = b * std::atan(x / y) * (4 / kPi);
+      a = b * std::atan(x / y) * (4 / kPiD);
     }
   }
   return {clamp01(0.5 * (a + 1)), clamp01(0.5 * (b + 1))};
@@ -54,7 +53,7 @@ Vec3d square_to_sphere(double s, double t) {
   const double u = 2 * s - 1, v = 2 * t - 1;
   const double up = std::fabs(u), vp = std::fabs(v);
   const double sd = 1 - (up + vp), r = 1 - std::fabs(sd);
-  const double phi = (r == 0 ? 1 : (vp - up) / r + 1) * (kPi / 4);
+  const double phi = (r == 0 ? 1 : (vp - up) / r + 1) * (kPiD / 4);
   const double z = std::copysign(1 - r * r, sd);
   const double k = r * std::sqrt(std::fmax(0.0, 2 - r * r));
   return {std::copysign(std::cos(phi), u) * k, std::copysign(std::sin(phi), v) * k, z};
@@ -66,7 +65,7 @@ FaceCoord sphere_to_square(Vec3d q) {
   q = q / len;
   const double x = std::fabs(q.x), y = std::fabs(q.y), z = std::fabs(q.z);
   const double r = std::sqrt((x * x + y * y) / (1 + z));  // sqrt(1 - |z|) without cancellation at the poles
-  const double v0 = std::atan2(y, x) * (2 / kPi) * r;
+  const double v0 = std::atan2(y, x) * (2 / kPiD) * r;
   double u = r - v0, v = v0;
   if (q.z < 0) {
     const double u1 = 1 - v, v1 = 1 - u;
@@ -83,7 +82,7 @@ LocalPoint disk_point(double s, double t, double z, double nz) {
   concentric_disk(s, t, lp.q.x, lp.q.y);
   lp.q.z = z;
   lp.n = {0, 0, nz};
-  lp.area = kPi;
+  lp.area = kPiD;
   return lp;
 }
 
@@ -92,23 +91,19 @@ LocalPoint local_face_point(const Primitive& prim, int face, double s, double t,
   switch (prim.shape) {
     case Shape::Sphere:
       lp.q = lp.n = square_to_sphere(s, t);
-      lp.area = 4 * kPi;
+      lp.area = 4 * kPiD;
       return lp;
-    case Shape::Box: {
-      const int a = face / 2, b = (a + 1) % 3, e = (a + 2) % 3;
-      lp.q[a] = (face & 1) ? 1.0 : -1.0;
-      lp.q[b] = 2 * s - 1;
-      lp.q[e] = 2 * t - 1;
-      lp.n[a] = lp.q[a];
+    case Shape::Box:
+      lp.q = box_face_point(face, s, t);
+      lp.n[face / 2] = lp.q[face / 2];
       lp.area = 4;
       return lp;
-    }
     case Shape::Cylinder: {
       if (face > 0) return disk_point(s, t, face == 1 ? -1 : 1, face == 1 ? -1 : 1);
-      const double phi = 2 * kPi * s, c = std::cos(phi), sn = std::sin(phi);
+      const double phi = 2 * kPiD * s, c = std::cos(phi), sn = std::sin(phi);
       lp.q = {c, sn, 2 * t - 1};
       lp.n = {c, sn, 0};
-      lp.area = 4 * kPi;
+      lp.area = 4 * kPiD;
       return lp;
     }
     case Shape::Cone: {
@@ -118,16 +113,16 @@ LocalPoint local_face_point(const Primitive& prim, int face, double s, double t,
       const double rho = std::hypot(x, y);
       lp.q = {x, y, 1 - 2 * rho};
       lp.n = rho > 0 ? Vec3d{2 * x / rho, 2 * y / rho, 1} / std::sqrt(5.0) : Vec3d{0, 0, 1};
-      lp.area = kPi * std::sqrt(5.0);
+      lp.area = kPiD * std::sqrt(5.0);
       return lp;
     }
     case Shape::Torus: {
-      const double phi = 2 * kPi * s, psi = 2 * kPi * t;
+      const double phi = 2 * kPiD * s, psi = 2 * kPiD * t;
       const double c = std::cos(phi), sn = std::sin(phi), cp = std::cos(psi), sp = std::sin(psi);
       const double R = prim.major, r = prim.minor, w = R + r * cp;
       lp.q = {w * c, w * sn, r * sp};
       lp.n = {cp * c, cp * sn, sp};
-      lp.area = 4 * kPi * kPi * r * w;
+      lp.area = 4 * kPiD * kPiD * r * w;
       return lp;
     }
     case Shape::Paraboloid: {
@@ -137,7 +132,7 @@ LocalPoint local_face_point(const Primitive& prim, int face, double s, double t,
       const double rho2 = x * x + y * y, g = std::sqrt(1 + 4 * rho2);
       lp.q = {x, y, rho2};
       lp.n = Vec3d{2 * x, 2 * y, -1} / g;
-      lp.area = kPi * g;
+      lp.area = kPiD * g;
       return lp;
     }
     case Shape::HalfSpace:
@@ -195,13 +190,13 @@ FaceCoord face_param(const Primitive& prim, int face, Vec3d p, const PlaneRect& 
     }
     case Shape::Cylinder:
       if (face > 0) return disk_to_square(q.x, q.y);
-      return {wrap01(std::atan2(q.y, q.x) / (2 * kPi)), clamp01(0.5 * (q.z + 1))};
+      return {wrap01(std::atan2(q.y, q.x) / (2 * kPiD)), clamp01(0.5 * (q.z + 1))};
     case Shape::Cone:
     case Shape::Paraboloid:
       return disk_to_square(q.x, q.y);
     case Shape::Torus: {
       const double rho = std::hypot(q.x, q.y);
-      return {wrap01(std::atan2(q.y, q.x) / (2 * kPi)), wrap01(std::atan2(q.z, rho - prim.major) / (2 * kPi))};
+      return {wrap01(std::atan2(q.y, q.x) / (2 * kPiD)), wrap01(std::atan2(q.z, rho - prim.major) / (2 * kPiD))};
     }
     case Shape::HalfSpace:
       break;

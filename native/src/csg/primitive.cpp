@@ -11,7 +11,6 @@ namespace plm::csg {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-constexpr double kPi = 3.14159265358979323846;
 constexpr uint8_t kNoFace = 255;
 
 // A piece [t0, t1] of the line with the face crossed at each end.
@@ -286,17 +285,17 @@ bool planar_face(Shape shape, int face) {
 double local_area(const Primitive& prim, int face) {
   switch (prim.shape) {
     case Shape::Sphere:
-      return 4 * kPi;
+      return 4 * kPiD;
     case Shape::Box:
       return 4;
     case Shape::Cylinder:
-      return face == 0 ? 4 * kPi : kPi;
+      return face == 0 ? 4 * kPiD : kPiD;
     case Shape::Cone:
-      return face == 0 ? kPi * std::sqrt(5.0) : kPi;
+      return face == 0 ? kPiD * std::sqrt(5.0) : kPiD;
     case Shape::Torus:
-      return 4 * kPi * kPi * prim.major * prim.minor;
+      return 4 * kPiD * kPiD * prim.major * prim.minor;
     case Shape::Paraboloid:
-      return face == 0 ? kPi / 6 * (5 * std::sqrt(5.0) - 1) : kPi;
+      return face == 0 ? kPiD / 6 * (5 * std::sqrt(5.0) - 1) : kPiD;
     case Shape::HalfSpace:
       break;
   }
@@ -318,12 +317,12 @@ double curved_face_area(const Primitive& prim, double abs_det) {
   auto ratio = [&](Vec3d n) { return area_ratio(prim, n, abs_det); };
   double sum = 0;
   for (int j = 0; j < kAround; ++j) {
-    const double phi = 2 * kPi * (j + 0.5) / kAround, c = std::cos(phi), s = std::sin(phi);
+    const double phi = 2 * kPiD * (j + 0.5) / kAround, c = std::cos(phi), s = std::sin(phi);
     switch (prim.shape) {
       case Shape::Sphere:
         for (int i = 0; i < gl.n; ++i) {  // theta in [0, pi]
-          const double th = 0.5 * kPi * (gl.x[i] + 1), st = std::sin(th);
-          sum += 0.5 * kPi * gl.w[i] * st * ratio({st * c, st * s, std::cos(th)});
+          const double th = 0.5 * kPiD * (gl.x[i] + 1), st = std::sin(th);
+          sum += 0.5 * kPiD * gl.w[i] * st * ratio({st * c, st * s, std::cos(th)});
         }
         break;
       case Shape::Cylinder:  // side: height 2
@@ -334,8 +333,8 @@ double curved_face_area(const Primitive& prim, double abs_det) {
         break;
       case Shape::Torus:
         for (int i = 0; i < kAround; ++i) {
-          const double psi = 2 * kPi * (i + 0.5) / kAround, cp = std::cos(psi);
-          sum += (2 * kPi / kAround) * prim.minor * (prim.major + prim.minor * cp) *
+          const double psi = 2 * kPiD * (i + 0.5) / kAround, cp = std::cos(psi);
+          sum += (2 * kPiD / kAround) * prim.minor * (prim.major + prim.minor * cp) *
                  ratio({cp * c, cp * s, std::sin(psi)});
         }
         break;
@@ -349,7 +348,7 @@ double curved_face_area(const Primitive& prim, double abs_det) {
         break;
     }
   }
-  return sum * (2 * kPi / kAround);
+  return sum * (2 * kPiD / kAround);
 }
 
 double face_world_area(const Primitive& prim, int face) {
@@ -369,7 +368,7 @@ double face_world_area(const Primitive& prim, int face) {
     if (std::fabs(l0 - l1) <= e && std::fabs(dot(c0, c1)) <= e * l0 && std::fabs(dot(c0, c2)) <= e * l2 &&
         std::fabs(dot(c1, c2)) <= e * l2) {
       const double r = 0.5 * (l0 + l1), h = 2 * l2;
-      return prim.shape == Shape::Cylinder ? 2 * kPi * r * h : kPi * r * std::sqrt(r * r + h * h);
+      return prim.shape == Shape::Cylinder ? 2 * kPiD * r * h : kPiD * r * std::sqrt(r * r + h * h);
     }
   }
   return curved_face_area(prim, abs_det);
@@ -393,7 +392,7 @@ LocalSample disk_sample(double x1, double x2, double z, double nz) {
 
 // Local samples uniform in local area (the torus by rejection, via keep).
 LocalSample sample_local(const Primitive& prim, int face, double x1, double x2) {
-  const double phi = 2 * kPi * x1, c = std::cos(phi), s = std::sin(phi);
+  const double phi = 2 * kPiD * x1, c = std::cos(phi), s = std::sin(phi);
   LocalSample out;
   out.u = x1;
   switch (prim.shape) {
@@ -403,15 +402,11 @@ LocalSample sample_local(const Primitive& prim, int face, double x1, double x2) 
       out.v = 0.5 * (z + 1);
       return out;
     }
-    case Shape::Box: {
-      const int a = face / 2, b = (a + 1) % 3, e = (a + 2) % 3;
-      out.q[a] = (face & 1) ? 1.0 : -1.0;
-      out.q[b] = 2 * x1 - 1;
-      out.q[e] = 2 * x2 - 1;
+    case Shape::Box:
+      out.q = box_face_point(face, x1, x2);
       out.n = local_normal(prim, face, out.q);
       out.v = x2;
       return out;
-    }
     case Shape::Cylinder:
       if (face > 0) return disk_sample(x1, x2, face == 1 ? -1 : 1, face == 1 ? -1 : 1);
       out.q = {c, s, 2 * x2 - 1};
@@ -427,7 +422,7 @@ LocalSample sample_local(const Primitive& prim, int face, double x1, double x2) 
       return out;
     }
     case Shape::Torus: {
-      const double psi = 2 * kPi * x2, cp = std::cos(psi), sp = std::sin(psi);
+      const double psi = 2 * kPiD * x2, cp = std::cos(psi), sp = std::sin(psi);
       const double R = prim.major, r = prim.minor;
       out.q = {(R + r * cp) * c, (R + r * cp) * s, r * sp};
       out.n = {cp * c, cp * s, sp};

@@ -65,6 +65,16 @@ struct Primitive {
 };
 
 int face_count(Shape shape);
+// The point of Box face `face` (at -1 or +1 on axis face / 2) at (s, t) in
+// [0, 1]^2, s and t along the next two axes in cyclic order.
+inline Vec3d box_face_point(int face, double s, double t) {
+  const int a = face / 2;
+  Vec3d q;
+  q[a] = (face & 1) ? 1.0 : -1.0;
+  q[(a + 1) % 3] = 2 * s - 1;
+  q[(a + 2) % 3] = 2 * t - 1;
+  return q;
+}
 const char* shape_name(Shape shape);
 
 // "" if desc describes a valid primitive, otherwise what is wrong with it.

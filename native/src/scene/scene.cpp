@@ -25,6 +25,15 @@ void check_rgb(const float* v, const char* what, const std::string& owner, float
   }
 }
 
+// items[index], or an error: "<what>: <noun> <index> does not exist (the scene has <count> <plural>)".
+template <typename Items>
+auto& existing(Items& items, uint32_t index, const std::string& what, const char* noun, const char* plural) {
+  if (index >= items.size())
+    fail(PLM_ERROR_INVALID_ARGUMENT, what, ": ", noun, " ", index, " does not exist (the scene has ", items.size(), " ",
+         plural, ")");
+  return items[index];
+}
+
 }  // namespace
 
 uint32_t Scene::add_material(const char* name, const float albedo[3], const float emission[3]) {
@@ -198,10 +207,7 @@ uint32_t Scene::add_ol_group(const char* name, uint32_t resolution) {
 }
 
 void Scene::set_material_texture(uint32_t material, int slot, const char* path, uint32_t flags) {
-  if (material >= materials.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, "set material texture: material ", material, " does not exist (the scene has ",
-         materials.size(), " materials)");
-  Material& m = materials[material];
+  Material& m = existing(materials, material, "set material texture", "material", "materials");
   const std::string owner = "material " + quoted_or(m.name.c_str(), material) + " (" + std::to_string(material) + ")";
   if (slot != PLM_TEXTURE_ALBEDO && slot != PLM_TEXTURE_EMISSION)
     fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": texture slot ", slot,
@@ -217,10 +223,7 @@ void Scene::set_material_texture(uint32_t material, int slot, const char* path, 
 }
 
 void Scene::set_mesh_texture_uv(uint32_t mesh, const float* uv) {
-  if (mesh >= meshes.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh texture UV: mesh ", mesh, " does not exist (the scene has ",
-         meshes.size(), " meshes)");
-  Mesh& m = meshes[mesh];
+  Mesh& m = existing(meshes, mesh, "set mesh texture UV", "mesh", "meshes");
   if (!uv) {
     m.texture_uv.clear();
     return;
@@ -234,10 +237,7 @@ void Scene::set_mesh_texture_uv(uint32_t mesh, const float* uv) {
 }
 
 void Scene::set_mesh_normals(uint32_t mesh, const float* normals) {
-  if (mesh >= meshes.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh normals: mesh ", mesh, " does not exist (the scene has ",
-         meshes.size(), " meshes)");
-  Mesh& m = meshes[mesh];
+  Mesh& m = existing(meshes, mesh, "set mesh normals", "mesh", "meshes");
   m.normals.clear();
   if (!normals) return;
   std::vector<Vec3> values(size_t(m.triangle_count()) * 3);
@@ -262,10 +262,7 @@ void Scene::set_mesh_normals(uint32_t mesh, const float* normals) {
 }
 
 void Scene::set_mesh_smooth(uint32_t mesh, bool smooth) {
-  if (mesh >= meshes.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh smooth: mesh ", mesh, " does not exist (the scene has ",
-         meshes.size(), " meshes)");
-  Mesh& m = meshes[mesh];
+  Mesh& m = existing(meshes, mesh, "set mesh smooth", "mesh", "meshes");
   if (!smooth) {
     m.normals.clear();
     return;
@@ -273,7 +270,7 @@ void Scene::set_mesh_smooth(uint32_t mesh, bool smooth) {
   std::vector<Vec3d> vertex(m.vertex_count);
   for (uint32_t t = 0; t < m.triangle_count(); ++t) {
     Vec3d p[3];
-    for (int c = 0; c < 3; ++c) p[c] = {m.vertex(t, c).x, m.vertex(t, c).y, m.vertex(t, c).z};
+    for (int c = 0; c < 3; ++c) p[c] = to_double(m.vertex(t, c));
     const Vec3d n = cross(p[1] - p[0], p[2] - p[0]);
     const double len = length(n);
     if (!(len > 0.0)) continue;
@@ -293,21 +290,14 @@ void Scene::set_mesh_smooth(uint32_t mesh, bool smooth) {
 }
 
 void Scene::set_mesh_ol_group(uint32_t mesh, uint32_t group) {
-  if (mesh >= meshes.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh OL group: mesh ", mesh, " does not exist (the scene has ",
-         meshes.size(), " meshes)");
-  Mesh& m = meshes[mesh];
-  if (group >= ol_groups.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh OL group: mesh '", m.name, "' (", mesh, "): OL group ", group,
-         " does not exist (the scene has ", ol_groups.size(), " OL groups)");
+  Mesh& m = existing(meshes, mesh, "set mesh OL group", "mesh", "meshes");
+  existing(ol_groups, group, "set mesh OL group: mesh '" + m.name + "' (" + std::to_string(mesh) + ")", "OL group",
+           "OL groups");
   m.ol_group = int32_t(group);
 }
 
 OlGroup& Scene::ol_group(uint32_t group, const char* what) {
-  if (group >= ol_groups.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, what, ": OL group ", group, " does not exist (the scene has ", ol_groups.size(),
-         " OL groups)");
-  return ol_groups[group];
+  return existing(ol_groups, group, what, "OL group", "OL groups");
 }
 
 uint32_t Scene::add_csg(const char* name, const plm_csg_primitive* primitives, uint32_t primitive_count,
@@ -351,14 +341,9 @@ uint32_t Scene::add_csg(const char* name, const plm_csg_primitive* primitives, u
 }
 
 void Scene::set_csg_carrier(uint32_t csg, uint32_t mesh) {
-  if (csg >= csgs.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, "set CSG carrier: CSG solid ", csg, " does not exist (the scene has ",
-         csgs.size(), " CSG solids)");
+  existing(csgs, csg, "set CSG carrier", "CSG solid", "CSG solids");
   const std::string label = "set CSG carrier: CSG solid '" + csgs[csg].object->name() + "' (" + std::to_string(csg) + ")";
-  if (mesh >= meshes.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, label, ": mesh ", mesh, " does not exist (the scene has ", meshes.size(),
-         " meshes)");
-  Mesh& m = meshes[mesh];
+  Mesh& m = existing(meshes, mesh, label, "mesh", "meshes");
   if (!m.has_lightmap())
     fail(PLM_ERROR_INVALID_ARGUMENT, label, ": mesh '", m.name, "' (", mesh, ") has no lightmap to receive its light");
   if (m.csg_carrier >= 0 && uint32_t(m.csg_carrier) != csg)
