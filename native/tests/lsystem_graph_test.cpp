@@ -821,7 +821,7 @@ TEST(LSystemGraph, WorldBoundsAreTheExactBoxOfThePlacedPlant) {
       "B(i, j) -> !(0.1*wr^(i+j)) F(r1^i*r2^j) [ +(a1) B(i+1, j) ] [ -(a2) B(i, j+1) ]\n";
   // Rotation by 37 degrees about z, then 20 about x, scale 1.3, translation.
   const double cz = std::cos(0.6458), sz = std::sin(0.6458), cx = std::cos(0.3491), sx = std::sin(0.3491), k = 1.3;
-  const plm::Affine3d world{{k * cz, -k * sz, 0, 4.0,                 //
+  const plm::Affine3d world{{k * cz, -k * sz, 0, 4.0,                    //
                                 k * cx * sz, k * cx * cz, -k * sx, -2.0,  //
                                 k * sx * sz, k * sx * cz, k * cx, 0.5}};
   for (const char* text : {kTree, sympodial}) {

@@ -19,11 +19,9 @@ namespace {
 }
 
 Affine3d rotate_x_then_move(double angle, Vec3d t) {
-  Affine3d a;
   const double c = std::cos(angle), s = std::sin(angle);
   const double m[12] = {1, 0, 0, t.x, 0, c, -s, t.y, 0, s, c, t.z};
-  a = Affine3d::from_array(m);
-  return a;
+  return Affine3d::from_array(m);
 }
 
 // Sphereflake: a sphere with 9 children of a third of its radius touching it,

@@ -8,9 +8,9 @@
 #include <cstring>
 #include <limits>
 
-#include "util/math.h"
 #include "csg/primitive.h"
 #include "lsystem/turtle.h"
+#include "util/math.h"
 
 namespace plm::lsystem {
 

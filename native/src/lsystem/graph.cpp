@@ -118,7 +118,7 @@ void Graph::reset_cache() const {
 FlattenResult Graph::flatten(size_t max_primitives) const {
   FlattenResult out;
   std::vector<std::shared_ptr<const GraphExpansion>> memo(impl_->g.classes.size());
-  flatten_class(impl_->g, 0, root_key(), Affine3d{}, max_primitives, out, memo, 0, -1, 0);
+  flatten_class(impl_->g, 0, root_key(), Affine3d::identity(), max_primitives, out, memo, 0, -1, 0);
   return out;
 }
 
@@ -126,7 +126,7 @@ FlattenResult Graph::flatten(size_t max_primitives, int key_level) const {
   if (key_level < 0) fail(PLM_ERROR_INVALID_ARGUMENT, "lsystem graph: flatten key level must be >= 0, got ", key_level);
   FlattenResult out;
   std::vector<std::shared_ptr<const GraphExpansion>> memo(impl_->g.classes.size());
-  flatten_class(impl_->g, 0, root_key(), Affine3d{}, max_primitives, out, memo, 0, key_level, 0);
+  flatten_class(impl_->g, 0, root_key(), Affine3d::identity(), max_primitives, out, memo, 0, key_level, 0);
   return out;
 }
 

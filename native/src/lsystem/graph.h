@@ -38,7 +38,7 @@ struct GraphOptions {
   size_t bounds_total = 1u << 22;  // nodes all the set-up's unfoldings may visit together
   // The object's placement (graph frame -> world, any affine map): only for
   // world_bounds_lo() / hi(), the exact box of the placed primitives.
-  Affine3d world;  // identity
+  Affine3d world = Affine3d::identity();
 };
 
 // Traversal views inline small descendants (lsystem/graph_view.h): each at
@@ -67,13 +67,13 @@ struct GraphNodeClass {
   std::vector<std::pair<int32_t, double>> alternatives;  // (production, weight); weight < 0: deterministic
   double total_weight = 0;
   bool path_dependent = false;
-  Vec3d lo, hi;      // bounds in the node frame (lo > hi: empty)
+  Vec3d lo, hi;           // bounds in the node frame (lo > hi: empty)
   uint64_t max_primitives = 0;  // flattened count (max over productions; saturates at UINT64_MAX)
 };
 
 struct GraphHit {
   double t = 0;
-  Vec3d n;                  // unit world normal, outward from the primitive
+  Vec3d n;                       // unit world normal, outward from the primitive
   ShapeKind shape = ShapeKind::Cylinder;
   int32_t material = 0;
   uint32_t prim = 0;             // index in the hit node's expansion

@@ -20,9 +20,9 @@
 #include <cstdint>
 #include <vector>
 
-#include "util/math.h"
 #include "lsystem/graph.h"
 #include "lsystem/graph_expansion.h"
+#include "util/math.h"
 
 namespace plm::lsystem {
 

@@ -6,10 +6,10 @@
 #include <cstdint>
 #include <vector>
 
-#include "util/math.h"
 #include "lsystem/graph.h"
 #include "lsystem/graph_cache.h"
 #include "lsystem/graph_expansion.h"
+#include "util/math.h"
 
 namespace plm::lsystem {
 

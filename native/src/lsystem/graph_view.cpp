@@ -128,8 +128,8 @@ void build_view(const GraphClasses& g, ViewScratch& scratch, GraphExpansion* e, 
   struct Node {
     const GraphExpansion* x;
     const std::vector<DescBoxes>* desc;  // x's children's boxes, in this node's frame
-    Affine3d to_node;                      // x's frame -> this node's
-    Affine3d from_node;                    // this node's frame -> x's
+    Affine3d to_node;                    // x's frame -> this node's
+    Affine3d from_node;                  // this node's frame -> x's
     uint64_t key;
     uint8_t steps;
     uint32_t path[kGraphInlineDepth], classes[kGraphInlineDepth];
@@ -138,8 +138,8 @@ void build_view(const GraphClasses& g, ViewScratch& scratch, GraphExpansion* e, 
   std::vector<Node> queue(1);
   queue[0].x = e;
   queue[0].desc = &g.child_desc[cls][e->alt];
-  queue[0].to_node = Affine3d{};
-  queue[0].from_node = Affine3d{};
+  queue[0].to_node = Affine3d::identity();
+  queue[0].from_node = Affine3d::identity();
   queue[0].key = key;
   queue[0].steps = 0;
   size_t planned = e->prims.size() + e->children.size();  // primitives and hops of the view so far

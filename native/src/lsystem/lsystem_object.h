@@ -35,10 +35,10 @@
 #include <unordered_map>
 #include <vector>
 
-#include "util/math.h"
 #include "lsystem/graph.h"
 #include "ol/octahedral.h"
 #include "photonlm/photonlm.h"
+#include "util/math.h"
 
 namespace plm::lsystem {
 

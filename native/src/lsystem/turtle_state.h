@@ -7,9 +7,9 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "util/math.h"
 #include "lsystem/lsystem.h"
 #include "lsystem/turtle.h"
+#include "util/math.h"
 
 namespace plm::lsystem {
 

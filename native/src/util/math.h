@@ -84,11 +84,13 @@ inline Vec3T<T> min(Vec3T<T> a, Vec3T<T> b) { return {std::fmin(a.x, b.x), std::
 template <typename T>
 inline Vec3T<T> max(Vec3T<T> a, Vec3T<T> b) { return {std::fmax(a.x, b.x), std::fmax(a.y, b.y), std::fmax(a.z, b.z)}; }
 
-// Row-major 3x4 affine map (object to world by default): rows are
-// (m[4r], m[4r+1], m[4r+2] | m[4r+3]), the top three rows of Blender's matrix_world.
+// Row-major 3x4 affine map: rows are (m[4r], m[4r+1], m[4r+2] | m[4r+3]),
+// the top three rows of Blender's matrix_world. Not initialised by default
+// (maps are built in loops that set every entry): identity() or from_array.
 template <typename T>
 struct Affine3T {
-  T m[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+  T m[12];
+  static constexpr Affine3T identity() { return {{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}}; }
   // The first 12 entries of a row-major 3x4 or 4x4 matrix, in this precision.
   template <typename U>
   static Affine3T from_array(const U* a) {
