@@ -48,7 +48,7 @@
 
 namespace {
 
-using plm::csg::DVec3;
+using plm::Vec3d;
 namespace ls = plm::lsystem;
 
 const char* kTree =
@@ -86,7 +86,7 @@ void flat_bounds(const RTCBoundsFunctionArguments* a) {
 }
 
 // The first crossing of primitive i with t in [tnear, tfar), as the graph does.
-inline bool flat_first(const plm::csg::Primitive& p, DVec3 o, DVec3 d, double tnear, double tfar, double* t,
+inline bool flat_first(const plm::csg::Primitive& p, Vec3d o, Vec3d d, double tnear, double tfar, double* t,
                        int* face) {
   plm::csg::Crossing cr[plm::csg::kMaxPrimitiveCrossings];
   const int n = plm::csg::intersect(p, o, d, 0.0, cr);
@@ -106,13 +106,13 @@ void flat_intersect(const RTCIntersectFunctionNArguments* a) {
   RTCHitN* hits = RTCRayHitN_HitN(a->rayhit, a->N);
   for (unsigned i = 0; i < a->N; ++i) {
     if (!a->valid[i]) continue;
-    const DVec3 o{RTCRayN_org_x(rays, a->N, i), RTCRayN_org_y(rays, a->N, i), RTCRayN_org_z(rays, a->N, i)};
-    const DVec3 d{RTCRayN_dir_x(rays, a->N, i), RTCRayN_dir_y(rays, a->N, i), RTCRayN_dir_z(rays, a->N, i)};
+    const Vec3d o{RTCRayN_org_x(rays, a->N, i), RTCRayN_org_y(rays, a->N, i), RTCRayN_org_z(rays, a->N, i)};
+    const Vec3d d{RTCRayN_dir_x(rays, a->N, i), RTCRayN_dir_y(rays, a->N, i), RTCRayN_dir_z(rays, a->N, i)};
     const plm::csg::Primitive& p = f.prims[a->primID];
     double t;
     int face;
     if (!flat_first(p, o, d, RTCRayN_tnear(rays, a->N, i), RTCRayN_tfar(rays, a->N, i), &t, &face)) continue;
-    const DVec3 n = plm::csg::normal(p, face, o + t * d);
+    const Vec3d n = plm::csg::normal(p, face, o + t * d);
     RTCRayN_tfar(rays, a->N, i) = float(t);
     RTCHitN_Ng_x(hits, a->N, i) = float(n.x);
     RTCHitN_Ng_y(hits, a->N, i) = float(n.y);
@@ -129,8 +129,8 @@ void flat_occluded(const RTCOccludedFunctionNArguments* a) {
   const FlatPlant& f = *static_cast<const FlatPlant*>(a->geometryUserPtr);
   for (unsigned i = 0; i < a->N; ++i) {
     if (!a->valid[i]) continue;
-    const DVec3 o{RTCRayN_org_x(a->ray, a->N, i), RTCRayN_org_y(a->ray, a->N, i), RTCRayN_org_z(a->ray, a->N, i)};
-    const DVec3 d{RTCRayN_dir_x(a->ray, a->N, i), RTCRayN_dir_y(a->ray, a->N, i), RTCRayN_dir_z(a->ray, a->N, i)};
+    const Vec3d o{RTCRayN_org_x(a->ray, a->N, i), RTCRayN_org_y(a->ray, a->N, i), RTCRayN_org_z(a->ray, a->N, i)};
+    const Vec3d d{RTCRayN_dir_x(a->ray, a->N, i), RTCRayN_dir_y(a->ray, a->N, i), RTCRayN_dir_z(a->ray, a->N, i)};
     double t;
     int face;
     if (flat_first(f.prims[a->primID], o, d, RTCRayN_tnear(a->ray, a->N, i), RTCRayN_tfar(a->ray, a->N, i), &t, &face))
@@ -200,7 +200,7 @@ struct Setup {
     make_rays();
   }
 
-  static RTCRay ray(DVec3 o, DVec3 d) {
+  static RTCRay ray(Vec3d o, Vec3d d) {
     RTCRay r{};
     r.org_x = float(o.x);
     r.org_y = float(o.y);
@@ -218,36 +218,36 @@ struct Setup {
   void make_rays() {
     std::mt19937_64 rng(12345);
     std::uniform_real_distribution<double> u(0, 1);
-    const DVec3 lo = graph->bounds_lo(), hi = graph->bounds_hi();
+    const Vec3d lo = graph->bounds_lo(), hi = graph->bounds_hi();
     // The flattened plant's own box (the graph's bounds may be looser).
-    DVec3 flo{INFINITY, INFINITY, INFINITY}, fhi{-INFINITY, -INFINITY, -INFINITY};
+    Vec3d flo{INFINITY, INFINITY, INFINITY}, fhi{-INFINITY, -INFINITY, -INFINITY};
     for (const auto& p : flat.prims) {
-      flo = plm::csg::min(flo, p.lo);
-      fhi = plm::csg::max(fhi, p.hi);
+      flo = plm::min(flo, p.lo);
+      fhi = plm::max(fhi, p.hi);
     }
     (void)lo;
     (void)hi;
-    const DVec3 c = 0.5 * (flo + fhi);
-    const double rad = 0.5 * plm::csg::length(fhi - flo);
+    const Vec3d c = 0.5 * (flo + fhi);
+    const double rad = 0.5 * plm::length(fhi - flo);
     auto on_sphere = [&] {
       const double z = 2 * u(rng) - 1, phi = 6.283185307179586 * u(rng), s = std::sqrt(1 - z * z);
-      return DVec3{s * std::cos(phi), s * std::sin(phi), z};
+      return Vec3d{s * std::cos(phi), s * std::sin(phi), z};
     };
     for (size_t i = 0; i < g_rays; ++i) {
-      const DVec3 target{flo.x + u(rng) * (fhi.x - flo.x), flo.y + u(rng) * (fhi.y - flo.y),
+      const Vec3d target{flo.x + u(rng) * (fhi.x - flo.x), flo.y + u(rng) * (fhi.y - flo.y),
                          flo.z + u(rng) * (fhi.z - flo.z)};
-      const DVec3 o = c + 1.5 * rad * on_sphere();
-      aimed.r.push_back(ray(o, plm::csg::normalize(target - o)));
+      const Vec3d o = c + 1.5 * rad * on_sphere();
+      aimed.r.push_back(ray(o, plm::normalize(target - o)));
     }
     // Sun at 40 degrees elevation from azimuth 30 degrees; origins on a disk
     // perpendicular to it, covering the plant's bounding sphere.
     const double el = 40 * M_PI / 180, az = 30 * M_PI / 180;
-    const DVec3 to_sun{std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el)};
-    DVec3 e1 = plm::csg::normalize(plm::csg::cross(to_sun, DVec3{0, 0, 1}));
-    DVec3 e2 = plm::csg::cross(to_sun, e1);
+    const Vec3d to_sun{std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el)};
+    Vec3d e1 = plm::normalize(plm::cross(to_sun, Vec3d{0, 0, 1}));
+    Vec3d e2 = plm::cross(to_sun, e1);
     for (size_t i = 0; i < g_rays; ++i) {
       const double r = rad * std::sqrt(u(rng)), phi = 6.283185307179586 * u(rng);
-      const DVec3 o = c + 2 * rad * to_sun + r * std::cos(phi) * e1 + r * std::sin(phi) * e2;
+      const Vec3d o = c + 2 * rad * to_sun + r * std::cos(phi) * e1 + r * std::sin(phi) * e2;
       sun.r.push_back(ray(o, -1.0 * to_sun));
     }
     // Bounces from the sun rays' hits on the flattened plant.
@@ -259,13 +259,13 @@ struct Setup {
       rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
       rtcIntersect1(flat_scene, &ctx, &rh);
       if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
-      const DVec3 n = plm::csg::normalize(DVec3{rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z});
-      const DVec3 p = DVec3{rh.ray.org_x, rh.ray.org_y, rh.ray.org_z} +
-                      double(rh.ray.tfar) * DVec3{rh.ray.dir_x, rh.ray.dir_y, rh.ray.dir_z};
+      const Vec3d n = plm::normalize(Vec3d{rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z});
+      const Vec3d p = Vec3d{rh.ray.org_x, rh.ray.org_y, rh.ray.org_z} +
+                      double(rh.ray.tfar) * Vec3d{rh.ray.dir_x, rh.ray.dir_y, rh.ray.dir_z};
       const double a = std::sqrt(u(rng)), phi = 6.283185307179586 * u(rng);
-      DVec3 t = plm::csg::normalize(plm::csg::cross(std::fabs(n.x) > 0.5 ? DVec3{0, 1, 0} : DVec3{1, 0, 0}, n));
-      DVec3 b = plm::csg::cross(n, t);
-      const DVec3 d = a * std::cos(phi) * t + a * std::sin(phi) * b + std::sqrt(std::max(0.0, 1 - a * a)) * n;
+      Vec3d t = plm::normalize(plm::cross(std::fabs(n.x) > 0.5 ? Vec3d{0, 1, 0} : Vec3d{1, 0, 0}, n));
+      Vec3d b = plm::cross(n, t);
+      const Vec3d d = a * std::cos(phi) * t + a * std::sin(phi) * b + std::sqrt(std::max(0.0, 1 - a * a)) * n;
       bounce.r.push_back(ray(p + 1e-5 * rad * n, d));
     }
   }
@@ -318,13 +318,13 @@ void summary() {
   const ls::GraphStats gs = s.graph->stats();
   std::printf("SYMPODIAL_TREE depth %d: %zu cylinders, %zu graph classes; set-up graph %.3f s, flat BVH %.3f s\n",
               g_depth, s.flat.prims.size(), gs.classes, s.setup_graph_s, s.setup_flat_s);
-  const DVec3 glo = s.graph->bounds_lo(), ghi = s.graph->bounds_hi();
-  DVec3 flo{INFINITY, INFINITY, INFINITY}, fhi{-INFINITY, -INFINITY, -INFINITY};
+  const Vec3d glo = s.graph->bounds_lo(), ghi = s.graph->bounds_hi();
+  Vec3d flo{INFINITY, INFINITY, INFINITY}, fhi{-INFINITY, -INFINITY, -INFINITY};
   for (const auto& p : s.flat.prims) {
-    flo = plm::csg::min(flo, p.lo);
-    fhi = plm::csg::max(fhi, p.hi);
+    flo = plm::min(flo, p.lo);
+    fhi = plm::max(fhi, p.hi);
   }
-  auto vol = [](DVec3 a, DVec3 b) { return (b.x - a.x) * (b.y - a.y) * (b.z - a.z); };
+  auto vol = [](Vec3d a, Vec3d b) { return (b.x - a.x) * (b.y - a.y) * (b.z - a.z); };
   std::printf("root bounds volume: graph %.4g, flattened primitives %.4g (ratio %.3f)\n", vol(glo, ghi),
               vol(flo, fhi), vol(glo, ghi) / vol(flo, fhi));
   std::printf("%-7s %-9s %8s %9s %9s %9s %7s %7s %9s\n", "rays", "query", "hits", "graph ns", "flat ns",

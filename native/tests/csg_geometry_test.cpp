@@ -11,8 +11,9 @@
 namespace {
 
 using namespace plm::csg;
+using plm::Vec3d;
 
-PrimitiveDesc prim(Shape shape, DVec3 s, DVec3 t) {
+PrimitiveDesc prim(Shape shape, Vec3d s, Vec3d t) {
   PrimitiveDesc d;
   d.shape = shape;
   const double m[12] = {s.x, 0, 0, t.x, 0, s.y, 0, t.y, 0, 0, s.z, t.z};
@@ -21,7 +22,7 @@ PrimitiveDesc prim(Shape shape, DVec3 s, DVec3 t) {
 }
 
 // Sphere (radius 1 at c) minus a cylinder (radius 0.4) along z through it.
-CsgObject holed_sphere(DVec3 c) {
+CsgObject holed_sphere(Vec3d c) {
   CsgDesc d;
   d.name = "holed";
   d.primitives = {prim(Shape::Sphere, {1, 1, 1}, c), prim(Shape::Cylinder, {0.4, 0.4, 2}, c)};
@@ -58,7 +59,7 @@ struct Fixture {
   }
 };
 
-RTCRayHit make_rayhit(DVec3 o, DVec3 d, float tnear, float tfar) {
+RTCRayHit make_rayhit(Vec3d o, Vec3d d, float tnear, float tfar) {
   RTCRayHit rh{};
   rh.ray.org_x = float(o.x);
   rh.ray.org_y = float(o.y);
@@ -81,8 +82,8 @@ TEST(CsgGeometry, EmbreeHitsMatchFirstHit) {
   int csg_hits = 0, quad_hits = 0;
   for (int i = 0; i < 5000; ++i) {
     // Origins and directions exactly representable in float, so both see the same ray.
-    const DVec3 o{float(-4 + 0.5 * next_double(rng)), float(3 * next_double(rng) - 1.5), float(3 * next_double(rng) - 2)};
-    const DVec3 d{float(1 + next_double(rng)), float(0.6 * next_double(rng) - 0.3), float(0.6 * next_double(rng) - 0.3)};
+    const Vec3d o{float(-4 + 0.5 * next_double(rng)), float(3 * next_double(rng) - 1.5), float(3 * next_double(rng) - 2)};
+    const Vec3d d{float(1 + next_double(rng)), float(0.6 * next_double(rng) - 0.3), float(0.6 * next_double(rng) - 0.3)};
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     RTCRayHit rh = make_rayhit(o, d, 0.0f, INFINITY);

@@ -14,10 +14,11 @@
 namespace {
 
 using namespace plm::csg;
+using plm::Vec3d;
 
 constexpr double kPi = 3.14159265358979323846;
 
-PrimitiveDesc prim(Shape shape, DVec3 s, DVec3 t) {
+PrimitiveDesc prim(Shape shape, Vec3d s, Vec3d t) {
   PrimitiveDesc d;
   d.shape = shape;
   const double m[12] = {s.x, 0, 0, t.x, 0, s.y, 0, t.y, 0, 0, s.z, t.z};
@@ -166,7 +167,7 @@ TEST(CsgLightmapCharts, AreaElementIntegratesToFaceArea) {
   // The half-space chart: a parallelogram.
   const Primitive h = make_primitive(skewed(Shape::HalfSpace));
   const PlaneRect rect{-2.0, 3.0, -1.5, 0.5};
-  const DVec3 e0 = h.to_world.vector({rect.x1 - rect.x0, 0, 0}), e1 = h.to_world.vector({0, rect.y1 - rect.y0, 0});
+  const Vec3d e0 = h.to_world.vector({rect.x1 - rect.x0, 0, 0}), e1 = h.to_world.vector({0, rect.y1 - rect.y0, 0});
   EXPECT_NEAR(integrate_square([&](double s, double t) { return face_point(h, 0, s, t, rect).area; }) /
                   length(cross(e0, e1)),
               1.0, 1e-12);
@@ -196,8 +197,8 @@ TEST(CsgLightmapCharts, TexelAreaRatioIsBounded) {
 }
 
 // Sphere radius R minus a cylinder radius r along z through its centre.
-CsgObject holed_sphere(double R, double r, double scale = 1, DVec3 at = {0, 0, 0}) {
-  return make({prim(Shape::Sphere, DVec3{R, R, R} * scale, at), prim(Shape::Cylinder, DVec3{r, r, 2 * R} * scale, at)},
+CsgObject holed_sphere(double R, double r, double scale = 1, Vec3d at = {0, 0, 0}) {
+  return make({prim(Shape::Sphere, Vec3d{R, R, R} * scale, at), prim(Shape::Cylinder, Vec3d{r, r, 2 * R} * scale, at)},
               Op::Difference);
 }
 
@@ -219,7 +220,7 @@ CsgObject placed_holed_sphere(double R, double r, plm::Rng& rng) {
                             {2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)},
                             {2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)}};
   const double half = R * (1.2 + 1.3 * next_double(rng));
-  auto place = [&](Shape shape, DVec3 s) {
+  auto place = [&](Shape shape, Vec3d s) {
     PrimitiveDesc d;
     d.shape = shape;
     for (int i = 0; i < 3; ++i)
@@ -286,7 +287,7 @@ TEST(CsgLightmap, UncutSphereIsExact) {
   EXPECT_NEAR(total_area(lm) / (4 * kPi * R * R), 1.0, 1e-6);
   // Representative normals point out of the sphere.
   for (uint32_t i = 0; i < lm.sub_texel_count(); ++i)
-    ASSERT_GT(dot(lm.normal(i), normalize(lm.point(i) - DVec3{0.3, -0.2, 5})), 1 - 1e-9);
+    ASSERT_GT(dot(lm.normal(i), normalize(lm.point(i) - Vec3d{0.3, -0.2, 5})), 1 - 1e-9);
 }
 
 // Box [-1,1]^3 minus a thin slab across the +Z face at x in [0.095, 0.155]
@@ -327,7 +328,7 @@ TEST(CsgLightmap, GrooveSplitsTexels) {
     EXPECT_NEAR(lm.area(uint32_t(right)), 0.095 * 0.25, 0.25 * 0.25 / 8 + 1e-12);
     // Points sampled on each strip stay on it.
     for (int k = 0; k < 16; ++k) {
-      DVec3 p, n;
+      Vec3d p, n;
       lm.sample_point(uint32_t(left), (k + 0.5) / 16, std::fmod(k * 0.618, 1.0), p, n);
       EXPECT_TRUE(obj.on_boundary(0, 5, p));
       EXPECT_LT(p.x, 0.095 + 1e-12);
@@ -382,7 +383,7 @@ TEST(CsgLightmap, TransferFromTessellation) {
     ASSERT_GE(truth, 0);
     const double off = (total & 1) ? 1e-4 : -1e-4;
     // Tessellation normals are not exact: tilt the hint a little.
-    const DVec3 hint = normalize(fs.n + DVec3{0.01, -0.02, 0.015});
+    const Vec3d hint = normalize(fs.n + Vec3d{0.01, -0.02, 0.015});
     right += lm.lookup(fs.p + fs.n * off, hint, 1e-3) == truth;
     ++total;
   }
@@ -398,7 +399,7 @@ TEST(CsgLightmap, TransferFromTessellation) {
 
 TEST(CsgLightmap, ScaleExtremes) {
   for (double scale : {1e-4, 1e4}) {
-    for (DVec3 at : {DVec3{0, 0, 0}, DVec3{1e5, -1e5, 1e5}}) {
+    for (Vec3d at : {Vec3d{0, 0, 0}, Vec3d{1e5, -1e5, 1e5}}) {
       const double R = 1.3 * scale;
       const CsgObject sphere = make({prim(Shape::Sphere, {R, R, R}, at)}, Op::Union);
       const CsgLightmap a = lightmap(sphere, 0.1 * scale);

@@ -15,6 +15,7 @@
 namespace {
 
 using namespace plm::csg;
+using plm::Vec3d;
 constexpr double kPi = 3.14159265358979323846;
 
 // For RecordProperty: measured errors in the XML report (--gtest_output=xml).
@@ -26,16 +27,16 @@ std::string sci(double x) {
 
 // The test's own frame: world = T + R(axis, angle) * diag(scale) * local.
 struct Frame {
-  DVec3 scale{1, 1, 1}, axis{0, 0, 1}, t{0, 0, 0};
+  Vec3d scale{1, 1, 1}, axis{0, 0, 1}, t{0, 0, 0};
   double angle = 0;
-  DVec3 rotate(DVec3 v, double sign) const {
-    const DVec3 k = normalize(axis);
+  Vec3d rotate(Vec3d v, double sign) const {
+    const Vec3d k = normalize(axis);
     const double c = std::cos(sign * angle), s = std::sin(sign * angle);
     return v * c + cross(k, v) * s + k * (dot(k, v) * (1 - c));
   }
-  DVec3 to_world(DVec3 q) const { return t + rotate({q.x * scale.x, q.y * scale.y, q.z * scale.z}, 1); }
-  DVec3 to_local(DVec3 p) const {
-    const DVec3 v = rotate(p - t, -1);
+  Vec3d to_world(Vec3d q) const { return t + rotate({q.x * scale.x, q.y * scale.y, q.z * scale.z}, 1); }
+  Vec3d to_local(Vec3d p) const {
+    const Vec3d v = rotate(p - t, -1);
     return {v.x / scale.x, v.y / scale.y, v.z / scale.z};
   }
 };
@@ -46,9 +47,9 @@ PrimitiveDesc make_desc(Shape shape, const Frame& f, double R = 1, double r = 0.
   d.major_radius = R;
   d.minor_radius = r;
   for (int c = 0; c < 3; ++c) {
-    DVec3 e{0, 0, 0};
+    Vec3d e{0, 0, 0};
     e[c] = 1;
-    const DVec3 col = f.to_world(e) - f.t;
+    const Vec3d col = f.to_world(e) - f.t;
     for (int row = 0; row < 3; ++row) d.to_world[4 * row + c] = col[row];
   }
   for (int row = 0; row < 3; ++row) d.to_world[4 * row + 3] = f.t[row];
@@ -56,7 +57,7 @@ PrimitiveDesc make_desc(Shape shape, const Frame& f, double R = 1, double r = 0.
 }
 
 // Independent inside tests in local coordinates (no tolerance).
-bool inside_local(Shape s, DVec3 q, double R = 1, double r = 0.25) {
+bool inside_local(Shape s, Vec3d q, double R = 1, double r = 0.25) {
   const double rho2 = q.x * q.x + q.y * q.y;
   switch (s) {
     case Shape::Sphere:
@@ -80,14 +81,14 @@ bool inside_local(Shape s, DVec3 q, double R = 1, double r = 0.25) {
 }
 
 struct Ray {
-  DVec3 o, d;
+  Vec3d o, d;
 };
 
 // A ray from a random point on a sphere of radius 3 around the frame origin
 // towards a random point near the primitive.
 Ray random_ray(plm::Rng& rng, const Frame& f, double spread) {
   auto u = [&] { return 2 * next_double(rng) - 1; };
-  DVec3 a{u(), u(), u()}, b{u(), u(), u()};
+  Vec3d a{u(), u(), u()}, b{u(), u(), u()};
   a = normalize(a) * 3.0;
   b = b * spread;
   return {f.to_world(a), f.to_world(b) - f.to_world(a)};
@@ -96,7 +97,7 @@ Ray random_ray(plm::Rng& rng, const Frame& f, double spread) {
 // Crossings of the line by marching the independent inside test over [t0, t1]
 // and bisecting each change. Returns false if some run is shorter than
 // `min_run` steps (a near-grazing ray the march cannot resolve).
-bool march(const std::function<bool(DVec3)>& inside, const Ray& ray, double t0, double t1, int steps,
+bool march(const std::function<bool(Vec3d)>& inside, const Ray& ray, double t0, double t1, int steps,
            std::vector<double>& out) {
   out.clear();
   const double h = (t1 - t0) / steps;
@@ -129,7 +130,7 @@ double compare_with_march(Shape shape, const Frame& f, int rays, double R = 1, d
   std::vector<double> ref;
   for (int i = 0; i < rays; ++i) {
     const Ray ray = random_ray(rng, f, 1.3);
-    if (!march([&](DVec3 w) { return inside_local(shape, f.to_local(w), R, r); }, ray, 0, 8, 6000, ref))
+    if (!march([&](Vec3d w) { return inside_local(shape, f.to_local(w), R, r); }, ray, 0, 8, 6000, ref))
       continue;
     Crossing c[kMaxPrimitiveCrossings];
     const int n = intersect(p, ray.o, ray.d, ray_tolerance(p, ray.o, ray.d), c);
@@ -233,7 +234,7 @@ TEST(CsgPrimitive, CylinderMatchesClosedForm) {
   double worst = 0;
   for (int i = 0; i < 20000; ++i) {
     const Ray ray = random_ray(rng, f, 1.5);
-    const DVec3 o = ray.o - f.t;
+    const Vec3d o = ray.o - f.t;
     const double a = ray.d.x * ray.d.x + ray.d.y * ray.d.y, b = o.x * ray.d.x + o.y * ray.d.y,
                  c = o.x * o.x + o.y * o.y - 0.64, disc = b * b - a * c;
     double t0 = (-f.scale.z - o.z) / ray.d.z, t1 = (f.scale.z - o.z) / ray.d.z;
@@ -275,8 +276,8 @@ TEST(CsgPrimitive, ConeTorusParaboloidMatchMarching) {
 TEST(CsgPrimitive, TorusGrazingRaysAreExact) {
   const double R = 1, r = 0.25;
   const Primitive p = make_primitive(make_desc(Shape::Torus, Frame{}, R, r));
-  const DVec3 d{1, 0, 0};
-  auto hits = [&](DVec3 o, Crossing* x) { return intersect(p, o, d, ray_tolerance(p, o, d), x); };
+  const Vec3d d{1, 0, 0};
+  auto hits = [&](Vec3d o, Crossing* x) { return intersect(p, o, d, ray_tolerance(p, o, d), x); };
   Crossing x[4];
   // Tangent to the outer equator: no interval, no NaN.
   EXPECT_EQ(hits({-5, R + r, 0}, x), 0);
@@ -310,8 +311,8 @@ TEST(CsgPrimitive, TorusGrazingRaysAreExact) {
   plm::Rng rng(11, 0);
   for (int i = 0; i < 20000; ++i) {
     const double phi = 2 * kPi * next_double(rng), y = R + r - 1e-6 * next_double(rng);
-    const DVec3 o{-5 * std::cos(phi) - y * std::sin(phi), -5 * std::sin(phi) + y * std::cos(phi), 1e-7 * (next_double(rng) - 0.5)};
-    const DVec3 dir{std::cos(phi), std::sin(phi), 0};
+    const Vec3d o{-5 * std::cos(phi) - y * std::sin(phi), -5 * std::sin(phi) + y * std::cos(phi), 1e-7 * (next_double(rng) - 0.5)};
+    const Vec3d dir{std::cos(phi), std::sin(phi), 0};
     const int n = intersect(p, o, dir, ray_tolerance(p, o, dir), x);
     ASSERT_EQ(n, 2);
     EXPECT_TRUE(std::isfinite(x[0].t) && std::isfinite(x[1].t));
@@ -402,8 +403,8 @@ TEST(CsgPrimitive, NormalsOfAnEllipsoid) {
   for (int i = 0; i < 1000; ++i) {
     FaceSample s;
     ASSERT_TRUE(sample_face(p, 0, rng, s));
-    const DVec3 q = s.p - f.t;
-    const DVec3 expect = normalize(DVec3{q.x / 4, q.y / 0.25, q.z});
+    const Vec3d q = s.p - f.t;
+    const Vec3d expect = normalize(Vec3d{q.x / 4, q.y / 0.25, q.z});
     EXPECT_NEAR(dot(s.n, expect), 1.0, 1e-12);
     EXPECT_NEAR(length(normal(p, 0, s.p) - expect), 0.0, 1e-12);
     EXPECT_EQ(classify(p, s.p), Side::Boundary);
@@ -413,9 +414,9 @@ TEST(CsgPrimitive, NormalsOfAnEllipsoid) {
 }
 
 // A world-space parametrisation of each face for tessellation: (a, b) in [0,1]^2.
-DVec3 face_point(Shape s, int face, double a, double b, const Frame& f, double R, double r) {
+Vec3d face_point(Shape s, int face, double a, double b, const Frame& f, double R, double r) {
   const double phi = 2 * kPi * a, c = std::cos(phi), sn = std::sin(phi);
-  DVec3 q;
+  Vec3d q;
   switch (s) {
     case Shape::Sphere: {
       const double th = kPi * b;
@@ -423,10 +424,10 @@ DVec3 face_point(Shape s, int face, double a, double b, const Frame& f, double R
       break;
     }
     case Shape::Cylinder:
-      q = face == 0 ? DVec3{c, sn, 2 * b - 1} : DVec3{b * c, b * sn, face == 1 ? -1.0 : 1.0};
+      q = face == 0 ? Vec3d{c, sn, 2 * b - 1} : Vec3d{b * c, b * sn, face == 1 ? -1.0 : 1.0};
       break;
     case Shape::Cone:
-      q = face == 0 ? DVec3{b * c, b * sn, 1 - 2 * b} : DVec3{b * c, b * sn, -1};
+      q = face == 0 ? Vec3d{b * c, b * sn, 1 - 2 * b} : Vec3d{b * c, b * sn, -1};
       break;
     case Shape::Torus: {
       const double psi = 2 * kPi * b;
@@ -434,7 +435,7 @@ DVec3 face_point(Shape s, int face, double a, double b, const Frame& f, double R
       break;
     }
     case Shape::Paraboloid:
-      q = face == 0 ? DVec3{b * c, b * sn, b * b} : DVec3{b * c, b * sn, 1};
+      q = face == 0 ? Vec3d{b * c, b * sn, b * b} : Vec3d{b * c, b * sn, 1};
       break;
     default:
       q = {2 * a - 1, 2 * b - 1, 1};  // box +Z
@@ -448,7 +449,7 @@ double tessellated_area(Shape s, int face, const Frame& f, double R, double r, i
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j) {
       const double a0 = double(i) / n, a1 = double(i + 1) / n, b0 = double(j) / n, b1 = double(j + 1) / n;
-      const DVec3 p00 = face_point(s, face, a0, b0, f, R, r), p10 = face_point(s, face, a1, b0, f, R, r),
+      const Vec3d p00 = face_point(s, face, a0, b0, f, R, r), p10 = face_point(s, face, a1, b0, f, R, r),
                   p01 = face_point(s, face, a0, b1, f, R, r), p11 = face_point(s, face, a1, b1, f, R, r);
       const double area = 0.5 * length(cross(p10 - p00, p11 - p00)) + 0.5 * length(cross(p11 - p00, p01 - p00));
       sum += area;
@@ -504,14 +505,14 @@ TEST(CsgPrimitive, StretchedCylinderAndConeSidesMatchClosedForms) {
   std::uniform_real_distribution<double> u(0, 1);
   auto unit = [&] {
     const double z = 2 * u(rng) - 1, phi = 2 * kPi * u(rng), s = std::sqrt(1 - z * z);
-    return DVec3{s * std::cos(phi), s * std::sin(phi), z};
+    return Vec3d{s * std::cos(phi), s * std::sin(phi), z};
   };
   for (int i = 0; i < 400; ++i) {
-    const DVec3 axis = unit(), l = normalize(cross(axis, unit())), up = cross(axis, l);
+    const Vec3d axis = unit(), l = normalize(cross(axis, unit())), up = cross(axis, l);
     const double scale = std::exp(4 * u(rng) - 2), a = scale * (0.01 + u(rng)), half = scale * (0.01 + 2 * u(rng));
     const bool elliptic = i % 10 == 9;
     const double b = elliptic ? 1.5 * a : a, h = 2 * half;
-    const DVec3 cols[4] = {a * l, b * up, half * axis, 10 * unit()};
+    const Vec3d cols[4] = {a * l, b * up, half * axis, 10 * unit()};
     PrimitiveDesc d;
     d.shape = i % 2 && !elliptic ? Shape::Cone : Shape::Cylinder;
     for (int c = 0; c < 4; ++c) {
@@ -548,7 +549,7 @@ TEST(CsgPrimitive, SamplingIsUniformInWorldArea) {
       ASSERT_TRUE(sample_face(p, 0, rng, x));
       EXPECT_NEAR(x.pdf * p.area[0], 1.0, 1e-12);
       // Back to the tessellation's b parameter.
-      const DVec3 q = f.to_local(x.p);
+      const Vec3d q = f.to_local(x.p);
       double b = 0;
       if (s == Shape::Sphere) b = std::acos(std::fmax(-1.0, std::fmin(1.0, q.z))) / kPi;
       if (s == Shape::Torus) b = x.v;

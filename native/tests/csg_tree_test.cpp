@@ -14,6 +14,7 @@
 namespace {
 
 using namespace plm::csg;
+using plm::Vec3d;
 constexpr double kPi = 3.14159265358979323846;
 
 // For RecordProperty: measured errors in the XML report (--gtest_output=xml).
@@ -24,7 +25,7 @@ std::string sci(double x) {
 }
 
 // world = t + diag(s) * local (enough for trees; primitives test rotations).
-PrimitiveDesc prim(Shape shape, DVec3 s, DVec3 t, double R = 1, double r = 0.25) {
+PrimitiveDesc prim(Shape shape, Vec3d s, Vec3d t, double R = 1, double r = 0.25) {
   PrimitiveDesc d;
   d.shape = shape;
   d.major_radius = R;
@@ -53,14 +54,14 @@ struct TreeBuilder {
 };
 
 // Like op, but the whole object is scaled by s and moved by t.
-CsgDesc sphere_minus_cylinder_desc(double s = 1, DVec3 t = {0, 0, 0}) {
+CsgDesc sphere_minus_cylinder_desc(double s = 1, Vec3d t = {0, 0, 0}) {
   TreeBuilder b("sphere-cyl");
-  const uint32_t sphere = b.leaf(prim(Shape::Sphere, DVec3{1, 1, 1} * s, t));
-  const uint32_t cyl = b.leaf(prim(Shape::Cylinder, DVec3{0.4, 0.4, 2} * s, t));
+  const uint32_t sphere = b.leaf(prim(Shape::Sphere, Vec3d{1, 1, 1} * s, t));
+  const uint32_t cyl = b.leaf(prim(Shape::Cylinder, Vec3d{0.4, 0.4, 2} * s, t));
   b.op(Op::Difference, {sphere, cyl});
   return b.d;
 }
-CsgObject sphere_minus_cylinder(double s = 1, DVec3 t = {0, 0, 0}) { return CsgObject(sphere_minus_cylinder_desc(s, t)); }
+CsgObject sphere_minus_cylinder(double s = 1, Vec3d t = {0, 0, 0}) { return CsgObject(sphere_minus_cylinder_desc(s, t)); }
 
 // The test's own evaluation of the unflattened tree with strict primitive
 // tests: the truth the march follows (no tolerance band).
@@ -70,7 +71,7 @@ struct Truth {
   explicit Truth(const CsgDesc& desc) : d(desc) {
     for (const PrimitiveDesc& p : desc.primitives) prims.push_back(make_primitive(p));
   }
-  bool inside(uint32_t node, DVec3 p) const {
+  bool inside(uint32_t node, Vec3d p) const {
     const NodeDesc& n = d.nodes[node];
     if (n.op == Op::Leaf) return inside_strict(prims[n.first], p);
     bool acc = inside(d.children[n.first], p);
@@ -80,27 +81,27 @@ struct Truth {
     }
     return acc;
   }
-  bool operator()(DVec3 p) const { return inside(d.root, p); }
+  bool operator()(Vec3d p) const { return inside(d.root, p); }
 };
 
-DVec3 random_unit(plm::Rng& rng) {
+Vec3d random_unit(plm::Rng& rng) {
   const double z = 1 - 2 * next_double(rng), phi = 2 * kPi * next_double(rng), r = std::sqrt(1 - z * z);
   return {r * std::cos(phi), r * std::sin(phi), z};
 }
 
 // Ray from a sphere around the object's bounds towards a random point inside them.
-void random_ray(plm::Rng& rng, const CsgObject& obj, DVec3& o, DVec3& d) {
-  const DVec3 c = (obj.bounds_lo() + obj.bounds_hi()) * 0.5, e = (obj.bounds_hi() - obj.bounds_lo()) * 0.5;
+void random_ray(plm::Rng& rng, const CsgObject& obj, Vec3d& o, Vec3d& d) {
+  const Vec3d c = (obj.bounds_lo() + obj.bounds_hi()) * 0.5, e = (obj.bounds_hi() - obj.bounds_lo()) * 0.5;
   const double radius = length(e) * 1.5;
   o = c + random_unit(rng) * radius;
-  const DVec3 target = c + DVec3{e.x * (2 * next_double(rng) - 1), e.y * (2 * next_double(rng) - 1),
+  const Vec3d target = c + Vec3d{e.x * (2 * next_double(rng) - 1), e.y * (2 * next_double(rng) - 1),
                                  e.z * (2 * next_double(rng) - 1)};
   d = target - o;
 }
 
 // Crossings of the solid by marching inside() over t in [0, t1]; false when
 // two changes are closer than 3 steps (unresolvable by the march).
-bool march(const Truth& truth, DVec3 o, DVec3 d, double t1, int steps, std::vector<double>& out) {
+bool march(const Truth& truth, Vec3d o, Vec3d d, double t1, int steps, std::vector<double>& out) {
   out.clear();
   const double h = t1 / steps;
   bool prev = truth(o);
@@ -132,7 +133,7 @@ double check_against_march(const CsgDesc& desc, int rays, uint64_t seed) {
   std::vector<double> ref;
   Crossing buf[kMaxCrossings];
   for (int i = 0; i < rays; ++i) {
-    DVec3 o, d;
+    Vec3d o, d;
     random_ray(rng, obj, o, d);
     const double t1 = 3.0;  // the far side of the bounding sphere is within t = 3
     if (!march(truth, o, d, t1, 6000, ref)) continue;
@@ -280,8 +281,8 @@ TEST(CsgTree, UnionOfBoxesSharingAFaceHasNoInternalFace) {
   plm::Rng rng(3, 3);
   Crossing buf[kMaxCrossings];
   for (int i = 0; i < 2000; ++i) {
-    const DVec3 o{-3, 2 * next_double(rng) - 1, 2 * next_double(rng) - 1};
-    const DVec3 target{3, 2 * next_double(rng) - 1, 2 * next_double(rng) - 1};
+    const Vec3d o{-3, 2 * next_double(rng) - 1, 2 * next_double(rng) - 1};
+    const Vec3d target{3, 2 * next_double(rng) - 1, 2 * next_double(rng) - 1};
     EXPECT_EQ(obj.crossings(o, target - o, 0, 1, buf), 2);
   }
   // Nor is the shared face part of the boundary.
@@ -380,14 +381,14 @@ TEST(CsgTree, ExtremeScalesAndFarPlacement) {
   plm::Rng rng(17, 0);
   Crossing a[kMaxCrossings], b[kMaxCrossings];
   for (double s : {1e-4, 1.0, 1e4}) {
-    for (DVec3 t : {DVec3{0, 0, 0}, DVec3{1e5, -1e5, 1e5}}) {
+    for (Vec3d t : {Vec3d{0, 0, 0}, Vec3d{1e5, -1e5, 1e5}}) {
       const CsgObject obj = sphere_minus_cylinder(s, t);
       // Far from the origin a world point is only known to an ulp of its coordinates.
-      const double ulp = std::nextafter(max_abs(t), INFINITY) - max_abs(t);
+      const double ulp = std::nextafter(max_abs_component(t), INFINITY) - max_abs_component(t);
       EXPECT_LT(check_against_march(sphere_minus_cylinder_desc(s, t), 200, 31), 1e-9 + 8 * ulp / s) << s;
       double worst = 0;
       for (int i = 0; i < 2000; ++i) {
-        DVec3 o, d;
+        Vec3d o, d;
         random_ray(rng, unit, o, d);
         const int n = unit.crossings(o, d, 0, 10, a);
         const int m = obj.crossings(o * s + t, d * s, 0, 10, b);

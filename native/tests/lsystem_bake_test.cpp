@@ -355,17 +355,17 @@ TEST(LSystemGraphKeys, FlattenKeysMatchHitAncestorKeys) {
       std::copy(p.to_world, p.to_world + 12, d.to_world);
       prims.push_back(plm::csg::make_primitive(d));
     }
-    const plm::csg::DVec3 lo = graph.bounds_lo(), hi = graph.bounds_hi();
+    const plm::Vec3d lo = graph.bounds_lo(), hi = graph.bounds_hi();
     plm::Rng rng(7, uint64_t(level));
     int checked = 0;
     for (int k = 0; k < 2000; ++k) {
-      const plm::csg::DVec3 target{lo.x + (hi.x - lo.x) * plm::csg::next_double(rng),
+      const plm::Vec3d target{lo.x + (hi.x - lo.x) * plm::csg::next_double(rng),
                                    lo.y + (hi.y - lo.y) * plm::csg::next_double(rng),
                                    lo.z + (hi.z - lo.z) * plm::csg::next_double(rng)};
-      const plm::csg::DVec3 o{target.x + 10.0, target.y + 3.0, target.z + 1.0};
+      const plm::Vec3d o{target.x + 10.0, target.y + 3.0, target.z + 1.0};
       plm::lsystem::GraphHit hit;
       if (!graph.first_hit(o, target - o, 0.0, 10.0, &hit)) continue;
-      const plm::csg::DVec3 p = o + (target - o) * hit.t;
+      const plm::Vec3d p = o + (target - o) * hit.t;
       const uint64_t key = graph.ancestor_key(hit, level);
       bool found = false;
       for (size_t i = 0; i < prims.size() && !found; ++i)

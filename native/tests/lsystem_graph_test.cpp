@@ -24,7 +24,7 @@
 namespace {
 
 using namespace plm::lsystem;
-using plm::csg::DVec3;
+using plm::Vec3d;
 
 const char* kPlant =
     "angle: 25.7\nwidth: 0.1\naxiom: X\n"
@@ -80,7 +80,7 @@ struct Flat {
     }
   }
   // Same rule as the graph: the first crossing with t in [tnear, tfar).
-  bool first_hit(DVec3 o, DVec3 d, double tnear, double tfar, double* t_out, size_t* which, bool any) const {
+  bool first_hit(Vec3d o, Vec3d d, double tnear, double tfar, double* t_out, size_t* which, bool any) const {
     plm::csg::Crossing cr[plm::csg::kMaxPrimitiveCrossings];
     double best = tfar;
     bool found = false;
@@ -102,7 +102,7 @@ struct Flat {
 };
 
 struct Ray {
-  DVec3 o, d;
+  Vec3d o, d;
   double tfar;
 };
 
@@ -111,22 +111,22 @@ struct Ray {
 std::vector<Ray> make_rays(const Graph& g, const std::vector<TurtlePrimitive>* prims, size_t n, uint32_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(0, 1);
-  const DVec3 lo = g.bounds_lo(), hi = g.bounds_hi();
-  const DVec3 c = 0.5 * (lo + hi);
-  const double r = plm::csg::length(hi - lo);
-  auto in_box = [&] { return DVec3{lo.x + u(rng) * (hi.x - lo.x), lo.y + u(rng) * (hi.y - lo.y), lo.z + u(rng) * (hi.z - lo.z)}; };
+  const Vec3d lo = g.bounds_lo(), hi = g.bounds_hi();
+  const Vec3d c = 0.5 * (lo + hi);
+  const double r = plm::length(hi - lo);
+  auto in_box = [&] { return Vec3d{lo.x + u(rng) * (hi.x - lo.x), lo.y + u(rng) * (hi.y - lo.y), lo.z + u(rng) * (hi.z - lo.z)}; };
   auto on_sphere = [&] {
     const double z = 2 * u(rng) - 1, phi = 6.283185307179586 * u(rng), s = std::sqrt(1 - z * z);
-    return DVec3{s * std::cos(phi), s * std::sin(phi), z};
+    return Vec3d{s * std::cos(phi), s * std::sin(phi), z};
   };
   std::vector<Ray> rays;
   for (size_t i = 0; i < n; ++i) {
     Ray ray;
     const int kind = int(i % 4);
-    DVec3 target;
+    Vec3d target;
     if (kind <= 1 && prims && !prims->empty()) {
       const TurtlePrimitive& p = (*prims)[size_t(u(rng) * double(prims->size())) % prims->size()];
-      target = DVec3{p.to_world[3], p.to_world[7], p.to_world[11]} + 0.05 * on_sphere();
+      target = Vec3d{p.to_world[3], p.to_world[7], p.to_world[11]} + 0.05 * on_sphere();
     } else {
       target = in_box();
     }
@@ -242,8 +242,8 @@ TEST(LSystemGraph, HitNormalsAndPathKeys) {
     size_t which;
     ASSERT_TRUE(flat.first_hit(r.o, r.d, 0, r.tfar, &t, &which, false));
     // The normal is the flattened primitive's at the same point.
-    const DVec3 n = plm::csg::normal(flat.prims[which], plm::csg::face_at(flat.prims[which], r.o + t * r.d), r.o + t * r.d);
-    EXPECT_NEAR(plm::csg::dot(n, h.n), 1.0, 1e-6);
+    const Vec3d n = plm::csg::normal(flat.prims[which], plm::csg::face_at(flat.prims[which], r.o + t * r.d), r.o + t * r.d);
+    EXPECT_NEAR(plm::dot(n, h.n), 1.0, 1e-6);
     EXPECT_EQ(h.node_key, g.ancestor_key(h, h.levels));
     EXPECT_EQ(h.instance_key, Graph::child_key(h.node_key, h.prim));
     EXPECT_EQ(g.ancestor_key(h, 0), g.root_key());
@@ -441,7 +441,7 @@ TEST(LSystemGraph, EmbreeUserGeometryMatchesDirectCalls) {
     const float tfar0 = rh.ray.tfar;
     rtcIntersect1(scene, &ctx, &rh);
     // The same ray in float precision, traced directly.
-    const DVec3 o{rh.ray.org_x, rh.ray.org_y, rh.ray.org_z}, d{rh.ray.dir_x, rh.ray.dir_y, rh.ray.dir_z};
+    const Vec3d o{rh.ray.org_x, rh.ray.org_y, rh.ray.org_z}, d{rh.ray.dir_x, rh.ray.dir_y, rh.ray.dir_z};
     GraphHit h;
     const bool direct = g.first_hit(o, d, 0, tfar0, &h);
     ASSERT_EQ(direct, rh.hit.geomID == id);
@@ -468,12 +468,12 @@ TEST(LSystemGraph, EmbreeUserGeometryMatchesDirectCalls) {
 // ray of the scene: printed, not asserted, as it is Embree's behaviour.)
 struct CountingObject {
   mutable int calls = 0;
-  bool first_hit(DVec3, DVec3, double, double, GraphHit*) const { ++calls; return false; }
-  bool occluded(DVec3, DVec3, double, double) const { ++calls; return false; }
+  bool first_hit(Vec3d, Vec3d, double, double, GraphHit*) const { ++calls; return false; }
+  bool occluded(Vec3d, Vec3d, double, double) const { ++calls; return false; }
 };
 
 void counting_bounds(const RTCBoundsFunctionArguments* args) {
-  plm::write_bounds(DVec3{0, 0, 0}, DVec3{1, 1, 1}, 0.0, args->bounds_o);
+  plm::write_bounds(Vec3d{0, 0, 0}, Vec3d{1, 1, 1}, 0.0, args->bounds_o);
 }
 
 TEST(LSystemGraph, EmbreeTestsTheObjectBoxBeforeTheCallback) {
@@ -504,10 +504,10 @@ TEST(LSystemGraph, EmbreeTestsTheObjectBoxBeforeTheCallback) {
     int hits = 0, miss_calls = 0, centre_calls = 0, corner_calls = 0;
     for (int i = 0; i < 160; ++i) {
       const int calls_before = obj.calls;
-      const DVec3 target = i < 100 ? DVec3{5 + u(gen), 5 + u(gen), 5 + u(gen)}
-                                   : i < 150 ? DVec3{0.5, 0.5, 0.5} : DVec3{0, 0, 0};
-      const DVec3 o = target + 10.0 * DVec3{u(gen), u(gen), 1.5};
-      const DVec3 d = target - o;
+      const Vec3d target = i < 100 ? Vec3d{5 + u(gen), 5 + u(gen), 5 + u(gen)}
+                                   : i < 150 ? Vec3d{0.5, 0.5, 0.5} : Vec3d{0, 0, 0};
+      const Vec3d o = target + 10.0 * Vec3d{u(gen), u(gen), 1.5};
+      const Vec3d d = target - o;
       plm::HitContext context;
       RTCIntersectContext& ctx = context.context;
       RTCRayHit rh{};
@@ -603,9 +603,9 @@ TEST(LSystemGraph, RoundingDoesNotSplitParameterStates) {
 namespace {
 
 // The exact box of flattened primitives, by the turtle's per-shape extents.
-void exact_box(const std::vector<TurtlePrimitive>& prims, DVec3* lo, DVec3* hi) {
-  *lo = DVec3{INFINITY, INFINITY, INFINITY};
-  *hi = DVec3{-INFINITY, -INFINITY, -INFINITY};
+void exact_box(const std::vector<TurtlePrimitive>& prims, Vec3d* lo, Vec3d* hi) {
+  *lo = Vec3d{INFINITY, INFINITY, INFINITY};
+  *hi = Vec3d{-INFINITY, -INFINITY, -INFINITY};
   for (const TurtlePrimitive& p : prims)
     for (int r = 0; r < 3; ++r) {
       const double* m = p.to_world + 4 * r;
@@ -617,8 +617,8 @@ void exact_box(const std::vector<TurtlePrimitive>& prims, DVec3* lo, DVec3* hi) 
     }
 }
 
-plm::csg::Affine compose_for_test(const plm::csg::Affine& a, const plm::csg::Affine& b) {
-  plm::csg::Affine c;
+plm::Affine3d compose_for_test(const plm::Affine3d& a, const plm::Affine3d& b) {
+  plm::Affine3d c;
   for (int r = 0; r < 3; ++r)
     for (int k = 0; k < 4; ++k)
       c.m[4 * r + k] = a.m[4 * r] * b.m[k] + a.m[4 * r + 1] * b.m[4 + k] + a.m[4 * r + 2] * b.m[8 + k] +
@@ -626,7 +626,7 @@ plm::csg::Affine compose_for_test(const plm::csg::Affine& a, const plm::csg::Aff
   return c;
 }
 
-double volume(DVec3 lo, DVec3 hi) { return (hi.x - lo.x) * (hi.y - lo.y) * (hi.z - lo.z); }
+double volume(Vec3d lo, Vec3d hi) { return (hi.x - lo.x) * (hi.y - lo.y) * (hi.z - lo.z); }
 
 }  // namespace
 
@@ -654,9 +654,9 @@ TEST(LSystemGraph, ExactBoundsHoldThePlantAndAreTighter) {
     small.bounds_budget = 2;
     const Graph ge(sys, exact), gl(sys, loose), gs(sys, small);
     const FlattenResult f = ge.flatten();
-    DVec3 lo, hi;
+    Vec3d lo, hi;
     exact_box(f.primitives, &lo, &hi);
-    const double tol = 1e-8 * (plm::csg::max_abs(lo) + plm::csg::max_abs(hi));
+    const double tol = 1e-8 * (plm::max_abs_component(lo) + plm::max_abs_component(hi));
     for (int a = 0; a < 3; ++a) {
       EXPECT_LE(ge.bounds_lo()[a], lo[a]);
       EXPECT_GE(ge.bounds_hi()[a], hi[a]);
@@ -739,7 +739,7 @@ TEST(LSystemGraph, WideStochasticSetUpIsBounded) {
   EXPECT_LE(st.bounds_visits, tiny.bounds_total);
   const FlattenResult f = g.flatten();
   ASSERT_FALSE(f.truncated);
-  DVec3 lo, hi;
+  Vec3d lo, hi;
   exact_box(f.primitives, &lo, &hi);
   for (int a = 0; a < 3; ++a) {
     EXPECT_LE(g.bounds_lo()[a], lo[a]);
@@ -821,7 +821,7 @@ TEST(LSystemGraph, WorldBoundsAreTheExactBoxOfThePlacedPlant) {
       "B(i, j) -> !(0.1*wr^(i+j)) F(r1^i*r2^j) [ +(a1) B(i+1, j) ] [ -(a2) B(i, j+1) ]\n";
   // Rotation by 37 degrees about z, then 20 about x, scale 1.3, translation.
   const double cz = std::cos(0.6458), sz = std::sin(0.6458), cx = std::cos(0.3491), sx = std::sin(0.3491), k = 1.3;
-  const plm::csg::Affine world{{k * cz, -k * sz, 0, 4.0,                 //
+  const plm::Affine3d world{{k * cz, -k * sz, 0, 4.0,                    //
                                 k * cx * sz, k * cx * cz, -k * sx, -2.0,  //
                                 k * sx * sz, k * sx * cz, k * cx, 0.5}};
   for (const char* text : {kTree, sympodial}) {
@@ -834,22 +834,21 @@ TEST(LSystemGraph, WorldBoundsAreTheExactBoxOfThePlacedPlant) {
     // Truth: the exact boxes of the flattened primitives, placed.
     FlattenResult f = g.flatten();
     for (TurtlePrimitive& p : f.primitives) {
-      plm::csg::Affine m;
-      std::copy(p.to_world, p.to_world + 12, m.m);
-      const plm::csg::Affine w = compose_for_test(world, m);
+      const plm::Affine3d m = plm::Affine3d::from_array(p.to_world);
+      const plm::Affine3d w = compose_for_test(world, m);
       std::copy(w.m, w.m + 12, p.to_world);
     }
-    DVec3 lo, hi;
+    Vec3d lo, hi;
     exact_box(f.primitives, &lo, &hi);
-    const DVec3 wlo = g.world_bounds_lo(), whi = g.world_bounds_hi();
-    const double tol = 1e-8 * (plm::csg::max_abs(lo) + plm::csg::max_abs(hi));
+    const Vec3d wlo = g.world_bounds_lo(), whi = g.world_bounds_hi();
+    const double tol = 1e-8 * (plm::max_abs_component(lo) + plm::max_abs_component(hi));
     // The 8 corners of the graph's box, mapped (the box before this change).
-    DVec3 clo{INFINITY, INFINITY, INFINITY}, chi{-INFINITY, -INFINITY, -INFINITY};
+    Vec3d clo{INFINITY, INFINITY, INFINITY}, chi{-INFINITY, -INFINITY, -INFINITY};
     for (int c = 0; c < 8; ++c) {
-      const DVec3 a = g.bounds_lo(), b = g.bounds_hi();
-      const DVec3 p = world.point({c & 1 ? b.x : a.x, c & 2 ? b.y : a.y, c & 4 ? b.z : a.z});
-      clo = plm::csg::min(clo, p);
-      chi = plm::csg::max(chi, p);
+      const Vec3d a = g.bounds_lo(), b = g.bounds_hi();
+      const Vec3d p = world.point({c & 1 ? b.x : a.x, c & 2 ? b.y : a.y, c & 4 ? b.z : a.z});
+      clo = plm::min(clo, p);
+      chi = plm::max(chi, p);
     }
     for (int a = 0; a < 3; ++a) {
       EXPECT_LE(wlo[a], lo[a]);

@@ -19,11 +19,9 @@ namespace {
 }
 
 Affine3d rotate_x_then_move(double angle, Vec3d t) {
-  Affine3d a;
   const double c = std::cos(angle), s = std::sin(angle);
   const double m[12] = {1, 0, 0, t.x, 0, c, -s, t.y, 0, s, c, t.z};
-  std::copy(m, m + 12, a.m);
-  return a;
+  return Affine3d::from_array(m);
 }
 
 // Sphereflake: a sphere with 9 children of a third of its radius touching it,
@@ -32,8 +30,8 @@ void sphereflake(Vec3d c, double r, Vec3d axis, int level, std::vector<Patch>& o
   out.push_back(Patch::sphere(c, r));
   if (level == 0) return;
   Vec3 tf, bf;
-  make_frame(Vec3(float(axis.x), float(axis.y), float(axis.z)), tf, bf);
-  const Vec3d t(tf), b(bf);
+  make_frame(to_float(axis), tf, bf);
+  const Vec3d t = to_double(tf), b = to_double(bf);
   for (int k = 0; k < 9; ++k) {
     const double elev = k < 6 ? 0.0 : kPiD / 3.0;
     const double az = k < 6 ? k * kPiD / 3.0 : kPiD / 6.0 + (k - 6) * 2.0 * kPiD / 3.0;

@@ -273,7 +273,7 @@ TEST(OlBake, SphereUnderSunMatchesCosineAndTheLightmapLimit) {
   for (uint32_t t = 0; t < s.triangles(); ++t) {
     const V3 c = cross(sub(s.vertex(t, 1), s.vertex(t, 0)), sub(s.vertex(t, 2), s.vertex(t, 0)));
     const double len = std::sqrt(dot(c, c));
-    const plm::ol::Vec3d n{c.x / len, c.y / len, c.z / len};
+    const plm::Vec3d n{c.x / len, c.y / len, c.z / len};
     const uint32_t b = grid.bin(n);
     const double a = 0.5 * len;
     area[b] += a;

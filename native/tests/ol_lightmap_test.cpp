@@ -11,8 +11,6 @@
 namespace plm::ol {
 namespace {
 
-Vec3 to_float(Vec3d d) { return {float(d.x), float(d.y), float(d.z)}; }
-
 Vec3d random_direction(std::mt19937_64& gen) {
   std::normal_distribution<double> g;
   for (;;) {

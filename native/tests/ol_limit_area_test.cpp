@@ -70,12 +70,12 @@ std::vector<double> triangle_bins(const RefinedMesh& m, const ol::OctGrid& grid,
   std::vector<double> area(grid.bins(), 0.0);
   total = 0.0;
   for (uint32_t t = 0; t < m.triangle_count(); ++t) {
-    ol::Vec3d q[3];
+    Vec3d q[3];
     for (int k = 0; k < 3; ++k) {
       const uint32_t v = m.indices[3 * t + k];
-      q[k] = ol::Vec3d{m.positions[3 * v], m.positions[3 * v + 1], m.positions[3 * v + 2]};
+      q[k] = Vec3d{m.positions[3 * v], m.positions[3 * v + 1], m.positions[3 * v + 2]};
     }
-    const ol::Vec3d n = cross(q[1] - q[0], q[2] - q[0]);
+    const Vec3d n = cross(q[1] - q[0], q[2] - q[0]);
     const double len = length(n);
     if (!(len > 0.0)) continue;
     area[grid.bin(n * (1.0 / len))] += 0.5 * len;

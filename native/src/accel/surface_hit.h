@@ -17,7 +17,6 @@
 #include <cstdint>
 #include <vector>
 
-#include "ol/vec3d.h"
 #include "scene/scene.h"
 #include "util/math.h"
 
@@ -65,7 +64,7 @@ struct SurfaceHit {
   // L-system objects, with the ray's GraphHit: the normal as OL bins take
   // it (lsystem::ol_normal, in double) and the stub key of the instance hit
   // (LSystemObject::stub_key).
-  ol::Vec3d ol_normal;
+  Vec3d ol_normal;
   uint64_t stub_key = 0;
 };
 
@@ -114,7 +113,7 @@ class SurfaceMap {
   };
   // What an L-system hit adds from its GraphHit (out of line: a few calls into the object).
   struct LSystemDetail {
-    ol::Vec3d ol_normal;
+    Vec3d ol_normal;
     uint32_t material;
     uint64_t stub_key;
   };

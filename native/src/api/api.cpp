@@ -47,33 +47,31 @@ void require(const void* p, const char* function, const char* what) {
   if (!p) plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": ", what, " must not be NULL");
 }
 
+// The result's `items`[index], or an error naming the item and how many the scene had.
+template <typename T>
+const T& result_item(const std::vector<T>& items, uint32_t index, const char* function, const char* what,
+                     const char* plural) {
+  if (index >= items.size())
+    plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": ", what, " ", index, " is out of range (the scene had ",
+              items.size(), " ", plural, ")");
+  return items[index];
+}
+
 const plm::LightmapImage& lightmap_of(const plm_result* r, uint32_t mesh_id, const char* function) {
   require(r, function, "result");
-  const auto& maps = r->output.lightmaps;
-  if (mesh_id >= maps.size())
-    plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": mesh id ", mesh_id, " is out of range (the scene has ",
-              maps.size(), " meshes)");
-  if (maps[mesh_id].width == 0)
-    plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": mesh ", mesh_id, " has no lightmap");
-  return maps[mesh_id];
+  const plm::LightmapImage& map = result_item(r->output.lightmaps, mesh_id, function, "mesh id", "meshes");
+  if (map.width == 0) plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": mesh ", mesh_id, " has no lightmap");
+  return map;
 }
 
 const plm::OlImage& ol_of(const plm_result* r, uint32_t group, const char* function) {
   require(r, function, "result");
-  const auto& ols = r->output.ols;
-  if (group >= ols.size())
-    plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": OL group ", group, " is out of range (the scene had ", ols.size(),
-              " OL groups)");
-  return ols[group];
+  return result_item(r->output.ols, group, function, "OL group", "OL groups");
 }
 
 const plm::LSystemOutput& lsystem_of(const plm_result* r, uint32_t id, const char* function) {
   require(r, function, "result");
-  const auto& ls = r->output.lsystems;
-  if (id >= ls.size())
-    plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": L-system ", id, " is out of range (the scene had ", ls.size(),
-              " L-system objects)");
-  return ls[id];
+  return result_item(r->output.lsystems, id, function, "L-system", "L-system objects");
 }
 
 }  // namespace
@@ -347,14 +345,8 @@ plm_status plm_result_write_exr(const plm_result* result, uint32_t mesh_id, cons
   return guarded("plm_result_write_exr", [&] {
     const plm::LightmapImage& img = lightmap_of(result, mesh_id, "plm_result_write_exr");
     require(path, "plm_result_write_exr", "path");
-    const size_t n = size_t(img.width) * img.height;
-    std::vector<float> pixels(5 * n);
-    for (size_t t = 0; t < n; ++t) {
-      for (int c = 0; c < 3; ++c) pixels[5 * t + c] = img.rgb[3 * t + c];
-      pixels[5 * t + 3] = img.error[t];
-      pixels[5 * t + 4] = img.hits[t];
-    }
-    plm::write_exr_atomic(path, img.width, img.height, {"R", "G", "B", "error", "hits"}, pixels.data());
+    plm::write_rgb_exr_atomic(path, img.width, img.height, img.rgb.data(), {"error", "hits"},
+                              {img.error.data(), img.hits.data()});
   });
 }
 
@@ -417,17 +409,8 @@ plm_status plm_result_write_ol_exr(const plm_result* result, uint32_t group, con
   return guarded("plm_result_write_ol_exr", [&] {
     const plm::OlImage& img = ol_of(result, group, "plm_result_write_ol_exr");
     require(path, "plm_result_write_ol_exr", "path");
-    const size_t n = size_t(img.resolution) * img.resolution;
-    // EXR keeps channels sorted by name after R, G, B: write them in that order.
-    std::vector<float> pixels(6 * n);
-    for (size_t b = 0; b < n; ++b) {
-      for (int c = 0; c < 3; ++c) pixels[6 * b + c] = img.rgb[3 * b + c];
-      pixels[6 * b + 3] = img.area[b];
-      pixels[6 * b + 4] = img.error[b];
-      pixels[6 * b + 5] = img.hits[b];
-    }
-    plm::write_exr_atomic(path, img.resolution, img.resolution, {"R", "G", "B", "area", "error", "hits"},
-                          pixels.data());
+    plm::write_rgb_exr_atomic(path, img.resolution, img.resolution, img.rgb.data(), {"area", "error", "hits"},
+                              {img.area.data(), img.error.data(), img.hits.data()});
   });
 }
 
@@ -484,10 +467,10 @@ plm_status plm_result_lsystem_lookup(const plm_result* result, uint32_t lsystem,
     require(normals, "plm_result_lsystem_lookup", "normals");
     require(out_rgb, "plm_result_lsystem_lookup", "out_rgb");
     for (uint64_t i = 0; i < count; ++i) {
-      const plm::csg::DVec3 p{points[3 * i], points[3 * i + 1], points[3 * i + 2]};
-      plm::csg::DVec3 n{normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]};
-      const double len = plm::csg::length(n);
-      if (!plm::csg::is_finite(p) || !(len > 0.0) || !std::isfinite(len))
+      const plm::Vec3d p{points[3 * i], points[3 * i + 1], points[3 * i + 2]};
+      plm::Vec3d n{normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]};
+      const double len = plm::length(n);
+      if (!plm::is_finite(p) || !(len > 0.0) || !std::isfinite(len))
         plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_result_lsystem_lookup: item ", i,
                   " has a non-finite point or a zero or non-finite normal");
       n = n / len;

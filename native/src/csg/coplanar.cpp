@@ -9,9 +9,9 @@ constexpr int kDiskSides = 24;
 
 struct PlanarFace {
   int face;
-  DVec3 n, c;  // world unit normal, a point of the face
+  Vec3d n, c;  // world unit normal, a point of the face
   int count;   // polygon corners; 0 for the unbounded plane of a half-space
-  DVec3 v[kDiskSides];
+  Vec3d v[kDiskSides];
 };
 
 std::string face_label(Shape shape, int face) {
@@ -52,7 +52,7 @@ int planar_faces(const Primitive& p, PlanarFace out[6]) {
         PlanarFace& f = out[face];
         const int a = face / 2, b = (a + 1) % 3, e = (a + 2) % 3;
         const double corner[4][2] = {{-1, -1}, {1, -1}, {1, 1}, {-1, 1}};
-        DVec3 q;
+        Vec3d q;
         q[a] = (face & 1) ? 1.0 : -1.0;
         for (int i = 0; i < 4; ++i) {
           q[b] = corner[i][0];
@@ -90,12 +90,12 @@ int planar_faces(const Primitive& p, PlanarFace out[6]) {
 // Separating-axis test of two convex polygons in the plane (t, b): they
 // overlap if no edge normal separates them by more than -tol (touching
 // along an edge is not an overlap).
-bool polygons_overlap(const PlanarFace& f, const PlanarFace& g, DVec3 t, DVec3 b, double tol) {
+bool polygons_overlap(const PlanarFace& f, const PlanarFace& g, Vec3d t, Vec3d b, double tol) {
   const PlanarFace* poly[2] = {&f, &g};
   for (int s = 0; s < 2; ++s) {
     const PlanarFace& p = *poly[s];
     for (int i = 0; i < p.count; ++i) {
-      const DVec3 e = p.v[(i + 1) % p.count] - p.v[i];
+      const Vec3d e = p.v[(i + 1) % p.count] - p.v[i];
       const double ex = dot(e, t), ey = dot(e, b), len = std::hypot(ex, ey);
       if (!(len > 0)) continue;
       const double ax = -ey / len, ay = ex / len;
@@ -116,7 +116,7 @@ bool faces_overlap(const PlanarFace& f, const PlanarFace& g, double tol) {
   if (std::fabs(dot(f.n, g.n)) < 1 - 1e-9) return false;
   if (std::fabs(dot(f.n, g.c - f.c)) > tol) return false;
   if (f.count == 0 || g.count == 0) return true;  // an infinite plane meets any face in it
-  const DVec3 t = normalize(cross(f.n, std::fabs(f.n.x) < 0.9 ? DVec3{1, 0, 0} : DVec3{0, 1, 0}));
+  const Vec3d t = normalize(cross(f.n, std::fabs(f.n.x) < 0.9 ? Vec3d{1, 0, 0} : Vec3d{0, 1, 0}));
   return polygons_overlap(f, g, t, cross(f.n, t), tol);
 }
 

@@ -67,7 +67,7 @@ int combine(Op op, const Crossing* a, int na, const Crossing* b, int nb, double 
 }
 
 // Whether the part [t_lo, t_hi] of the line o + t d meets the box.
-bool segment_hits_box(DVec3 o, DVec3 d, double t_lo, double t_hi, DVec3 lo, DVec3 hi) {
+bool segment_hits_box(Vec3d o, Vec3d d, double t_lo, double t_hi, Vec3d lo, Vec3d hi) {
   for (int a = 0; a < 3; ++a) {
     if (d[a] == 0) {
       if (o[a] < lo[a] || o[a] > hi[a]) return false;
@@ -99,8 +99,8 @@ CsgObject::CsgObject(const CsgDesc& desc) : name_(desc.name) {
          "' is unbounded: a half-space must be intersected with, or subtracted from, a bounded solid");
   lo_ = root.lo;
   hi_ = root.hi;
-  tol_ = kRelativeTolerance * max_abs(hi_ - lo_) + kRoundingTolerance * std::fmax(max_abs(lo_), max_abs(hi_));
-  const DVec3 pad{tol_, tol_, tol_};
+  tol_ = kRelativeTolerance * max_abs_component(hi_ - lo_) + kRoundingTolerance * std::fmax(max_abs_component(lo_), max_abs_component(hi_));
+  const Vec3d pad{tol_, tol_, tol_};
   for (Node& n : nodes_) n.lo = n.lo - pad, n.hi = n.hi + pad;
   scratch_ = int(root.cap + root.need);
   if (scratch_ > kMaxCrossings)
@@ -270,10 +270,10 @@ int CsgObject::eval(uint32_t index, const RayCtx& r, Crossing* out, Crossing* ar
   return count;
 }
 
-int CsgObject::crossings(DVec3 o, DVec3 d, double tnear, double tfar, Crossing* out) const {
+int CsgObject::crossings(Vec3d o, Vec3d d, double tnear, double tfar, Crossing* out) const {
   const double len = length(d);
   if (!(len > 0) || !(tnear <= tfar)) return 0;
-  RayCtx r{o, d, (tol_ + kRoundingTolerance * max_abs(o)) / len, 0, 0};
+  RayCtx r{o, d, (tol_ + kRoundingTolerance * max_abs_component(o)) / len, 0, 0};
   r.t_lo = tnear - 4 * r.eps;
   r.t_hi = tfar + 4 * r.eps;
   const int n = eval(root_, r, out, out + nodes_[root_].cap);
@@ -283,7 +283,7 @@ int CsgObject::crossings(DVec3 o, DVec3 d, double tnear, double tfar, Crossing* 
   return kept;
 }
 
-CsgHit CsgObject::make_hit(const Crossing& c, DVec3 o, DVec3 d) const {
+CsgHit CsgObject::make_hit(const Crossing& c, Vec3d o, Vec3d d) const {
   CsgHit h;
   h.t = c.t;
   h.prim = uint32_t(c.prim);
@@ -291,19 +291,19 @@ CsgHit CsgObject::make_hit(const Crossing& c, DVec3 o, DVec3 d) const {
   h.material = materials_[h.prim];
   h.flipped = c.flip != 0;
   h.p = o + d * c.t;
-  const DVec3 n = normal(prims_[h.prim], c.face, h.p);
+  const Vec3d n = normal(prims_[h.prim], c.face, h.p);
   h.n = h.flipped ? -n : n;
   return h;
 }
 
-bool CsgObject::first_hit(DVec3 o, DVec3 d, double tnear, double tfar, CsgHit& hit) const {
+bool CsgObject::first_hit(Vec3d o, Vec3d d, double tnear, double tfar, CsgHit& hit) const {
   Crossing buffer[kMaxCrossings];
   if (crossings(o, d, tnear, tfar, buffer) == 0) return false;
   hit = make_hit(buffer[0], o, d);
   return true;
 }
 
-bool CsgObject::occluded(DVec3 o, DVec3 d, double tnear, double tfar) const {
+bool CsgObject::occluded(Vec3d o, Vec3d d, double tnear, double tfar) const {
   Crossing buffer[kMaxCrossings];
   return crossings(o, d, tnear, tfar, buffer) > 0;
 }
@@ -321,11 +321,11 @@ bool CsgObject::eval_bool(uint32_t index, const Leaf& leaf) const {
   return acc;
 }
 
-bool CsgObject::inside(DVec3 p) const {
+bool CsgObject::inside(Vec3d p) const {
   return eval_bool(root_, [&](uint32_t i) { return classify(prims_[i], p) != Side::Outside; });
 }
 
-bool CsgObject::on_boundary(uint32_t prim, int face, DVec3 p) const {
+bool CsgObject::on_boundary(uint32_t prim, int face, Vec3d p) const {
   if (!separates(prim, face, p)) return false;
   for (uint32_t j : leaf_order_) {
     if (j == prim) return true;
@@ -334,10 +334,10 @@ bool CsgObject::on_boundary(uint32_t prim, int face, DVec3 p) const {
   return true;
 }
 
-bool CsgObject::separates(uint32_t prim, int face, DVec3 p) const {
-  const DVec3 n = normal(prims_[prim], face, p);
-  const double delta = 4 * (tol_ + kRoundingTolerance * max_abs(p));
-  const DVec3 below = p - n * delta, above = p + n * delta;
+bool CsgObject::separates(uint32_t prim, int face, Vec3d p) const {
+  const Vec3d n = normal(prims_[prim], face, p);
+  const double delta = 4 * (tol_ + kRoundingTolerance * max_abs_component(p));
+  const Vec3d below = p - n * delta, above = p + n * delta;
   const bool in = eval_bool(root_, [&](uint32_t i) { return i == prim || inside_strict(prims_[i], below); });
   const bool out = eval_bool(root_, [&](uint32_t i) { return i != prim && inside_strict(prims_[i], above); });
   return in != out;

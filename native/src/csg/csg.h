@@ -64,7 +64,7 @@ struct CsgHit {
   uint32_t face = 0;
   uint32_t material = 0;  // the material of that primitive
   bool flipped = false;   // a face of a subtracted primitive: normal is minus the primitive's
-  DVec3 p, n;             // world point; unit normal pointing out of the solid
+  Vec3d p, n;             // world point; unit normal pointing out of the solid
 };
 
 class CsgObject {
@@ -77,8 +77,8 @@ class CsgObject {
   uint32_t primitive_count() const { return uint32_t(prims_.size()); }
   const Primitive& primitive(uint32_t i) const { return prims_[i]; }
   uint32_t material(uint32_t i) const { return materials_[i]; }
-  DVec3 bounds_lo() const { return lo_; }
-  DVec3 bounds_hi() const { return hi_; }
+  Vec3d bounds_lo() const { return lo_; }
+  Vec3d bounds_hi() const { return hi_; }
   double tolerance() const { return tol_; }  // world length below which features vanish
   int scratch_crossings() const { return scratch_; }  // per-ray need, <= kMaxCrossings
   // Pairs of primitives with coplanar overlapping planar faces, found at build.
@@ -86,13 +86,13 @@ class CsgObject {
 
   // Crossings of the solid's boundary along o + t d with tnear <= t <= tfar,
   // sorted; `out` must hold kMaxCrossings entries (it is also the scratch).
-  int crossings(DVec3 o, DVec3 d, double tnear, double tfar, Crossing* out) const;
-  bool first_hit(DVec3 o, DVec3 d, double tnear, double tfar, CsgHit& hit) const;
-  bool occluded(DVec3 o, DVec3 d, double tnear, double tfar) const;
-  CsgHit make_hit(const Crossing& c, DVec3 o, DVec3 d) const;
+  int crossings(Vec3d o, Vec3d d, double tnear, double tfar, Crossing* out) const;
+  bool first_hit(Vec3d o, Vec3d d, double tnear, double tfar, CsgHit& hit) const;
+  bool occluded(Vec3d o, Vec3d d, double tnear, double tfar) const;
+  CsgHit make_hit(const Crossing& c, Vec3d o, Vec3d d) const;
 
   // Whether p is in the (closed) solid; meant for points off the boundary.
-  bool inside(DVec3 p) const;
+  bool inside(Vec3d p) const;
   // Whether p, a point on face `face` of primitive `prim`, lies on the
   // solid's boundary: the tree is evaluated with prim forced inside and
   // forced outside (other primitives a tolerance inside/outside along the
@@ -100,7 +100,7 @@ class CsgObject {
   // Where faces of several primitives coincide, the surface belongs only to
   // the first of them in tree order that bounds the solid there, as in ray
   // tracing, so that no area is counted twice.
-  bool on_boundary(uint32_t prim, int face, DVec3 p) const;
+  bool on_boundary(uint32_t prim, int face, Vec3d p) const;
 
  private:
   struct Node {
@@ -108,10 +108,10 @@ class CsgObject {
     uint32_t first, count;  // as NodeDesc, into kids_
     uint32_t cap;           // most crossings this node's list can hold
     uint32_t need;          // scratch beyond its own list while evaluating it
-    DVec3 lo, hi;           // bounds, padded by the tolerance
+    Vec3d lo, hi;           // bounds, padded by the tolerance
   };
   struct RayCtx {
-    DVec3 o, d;
+    Vec3d o, d;
     double eps, t_lo, t_hi;
   };
 
@@ -122,7 +122,7 @@ class CsgObject {
   void size_node(uint32_t node, int depth);
   int eval(uint32_t node, const RayCtx& r, Crossing* out, Crossing* arena) const;
   std::vector<bool> used_primitives() const;
-  bool separates(uint32_t prim, int face, DVec3 p) const;
+  bool separates(uint32_t prim, int face, Vec3d p) const;
   template <typename Leaf>
   bool eval_bool(uint32_t node, const Leaf& leaf) const;
 
@@ -133,7 +133,7 @@ class CsgObject {
   std::vector<uint32_t> kids_;
   std::vector<uint32_t> leaf_order_;  // used primitives, first occurrence in tree order
   uint32_t root_ = 0;
-  DVec3 lo_, hi_;
+  Vec3d lo_, hi_;
   double tol_ = 0;
   int scratch_ = 0;
   std::vector<std::string> warnings_;

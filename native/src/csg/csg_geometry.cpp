@@ -18,7 +18,7 @@ void bounds(const RTCBoundsFunctionArguments* args) {
 }
 
 struct LaneRay {
-  DVec3 o, d;
+  Vec3d o, d;
   float tnear, tfar;
 };
 
@@ -46,76 +46,76 @@ float float_t(double t, const LaneRay& r) {
   return f <= r.tfar ? f : -1.0f;
 }
 
+// Calls visit(i, r, crossing, t) for the crossings of each valid lane in ray
+// order, t the crossing's float distance, until visit returns true (the lane
+// is done) or rounding pushes t out of the ray's [tnear, tfar].
+template <typename Visit>
+void for_each_crossing(const CsgObject& obj, RTCRayN* rays, const int* valid, unsigned N, Visit&& visit) {
+  Crossing buffer[kMaxCrossings];
+  for (unsigned i = 0; i < N; ++i) {
+    if (valid[i] == 0) continue;
+    const LaneRay r = read_ray(rays, N, i);
+    const int n = obj.crossings(r.o, r.d, r.tnear, r.tfar, buffer);
+    for (int k = 0; k < n; ++k) {
+      const float t = float_t(buffer[k].t, r);
+      if (t < 0 || visit(i, r, buffer[k], t)) break;
+    }
+  }
+}
+
+// Offers hit h at distance t of lane i to the geometry's filter functions
+// (rtcFilterIntersection or rtcFilterOcclusion) as a one-lane candidate packet
+// of the ray's width; true if they keep it. Leaves the ray's tfar at t, where
+// the filters read the candidate's distance.
+template <typename Args>
+bool filters_keep(const Args* args, void (*filter)(const Args*, const RTCFilterFunctionNArguments*), RTCRayN* rays,
+                  unsigned N, unsigned i, float t, const CsgHit& h) {
+  alignas(64) unsigned char storage[sizeof(RTCHit16)];
+  RTCHitN* candidate = reinterpret_cast<RTCHitN*>(storage);
+  int valid[kMaxPacket] = {};
+  valid[i] = -1;
+  write_hit(candidate, N, i, h, args->geomID, args->context->instID[0]);
+  RTCRayN_tfar(rays, N, i) = t;
+  const RTCFilterFunctionNArguments f{valid, args->geometryUserPtr, args->context, rays, candidate, N};
+  filter(args, &f);
+  return valid[i] != 0;
+}
+
 void intersect(const RTCIntersectFunctionNArguments* args) {
   const CsgObject& obj = object(args->geometryUserPtr);
   const unsigned N = args->N;
   RTCRayN* rays = RTCRayHitN_RayN(args->rayhit, N);
   RTCHitN* hits = RTCRayHitN_HitN(args->rayhit, N);
   const unsigned inst = args->context->instID[0];
-  Crossing buffer[kMaxCrossings];
-  for (unsigned i = 0; i < N; ++i) {
-    if (args->valid[i] == 0) continue;
-    const LaneRay r = read_ray(rays, N, i);
-    const int n = obj.crossings(r.o, r.d, r.tnear, r.tfar, buffer);
-    for (int k = 0; k < n; ++k) {
-      const float t = float_t(buffer[k].t, r);
-      if (t < 0) break;
-      const CsgHit h = obj.make_hit(buffer[k], r.o, r.d);
-      if (N > kMaxPacket) {  // never produced by Embree 3; no filters then
-        RTCRayN_tfar(rays, N, i) = t;
-        write_hit(hits, N, i, h, args->geomID, inst);
-        break;
-      }
-      // A one-lane candidate packet of the ray's width for the filters.
-      alignas(64) unsigned char storage[sizeof(RTCHit16)];
-      RTCHitN* candidate = reinterpret_cast<RTCHitN*>(storage);
-      int valid[kMaxPacket] = {};
-      valid[i] = -1;
-      write_hit(candidate, N, i, h, args->geomID, inst);
-      RTCRayN_tfar(rays, N, i) = t;  // filters read the candidate's distance from the ray
-      const RTCFilterFunctionNArguments f{valid, args->geometryUserPtr, args->context, rays, candidate, N};
-      rtcFilterIntersection(args, &f);
-      if (valid[i] != 0) {
-        write_hit(hits, N, i, h, args->geomID, inst);
-        break;
-      }
-      RTCRayN_tfar(rays, N, i) = r.tfar;
+  for_each_crossing(obj, rays, args->valid, N, [&](unsigned i, const LaneRay& r, const Crossing& c, float t) {
+    const CsgHit h = obj.make_hit(c, r.o, r.d);
+    if (N > kMaxPacket) {  // never produced by Embree 3; no filters then
+      RTCRayN_tfar(rays, N, i) = t;
+      write_hit(hits, N, i, h, args->geomID, inst);
+      return true;
     }
-  }
+    if (filters_keep(args, rtcFilterIntersection, rays, N, i, t, h)) {
+      write_hit(hits, N, i, h, args->geomID, inst);
+      return true;
+    }
+    RTCRayN_tfar(rays, N, i) = r.tfar;
+    return false;
+  });
 }
 
 void occluded(const RTCOccludedFunctionNArguments* args) {
   const CsgObject& obj = object(args->geometryUserPtr);
   const unsigned N = args->N;
   RTCRayN* rays = args->ray;
-  const unsigned inst = args->context->instID[0];
-  Crossing buffer[kMaxCrossings];
-  for (unsigned i = 0; i < N; ++i) {
-    if (args->valid[i] == 0) continue;
-    const LaneRay r = read_ray(rays, N, i);
-    const int n = obj.crossings(r.o, r.d, r.tnear, r.tfar, buffer);
-    for (int k = 0; k < n; ++k) {
-      const float t = float_t(buffer[k].t, r);
-      if (t < 0) break;
-      bool accepted = true;
-      if (N <= kMaxPacket) {
-        alignas(64) unsigned char storage[sizeof(RTCHit16)];
-        RTCHitN* candidate = reinterpret_cast<RTCHitN*>(storage);
-        int valid[kMaxPacket] = {};
-        valid[i] = -1;
-        write_hit(candidate, N, i, obj.make_hit(buffer[k], r.o, r.d), args->geomID, inst);
-        RTCRayN_tfar(rays, N, i) = t;
-        const RTCFilterFunctionNArguments f{valid, args->geometryUserPtr, args->context, rays, candidate, N};
-        rtcFilterOcclusion(args, &f);
-        accepted = valid[i] != 0;
-        RTCRayN_tfar(rays, N, i) = r.tfar;
-      }
-      if (accepted) {
-        RTCRayN_tfar(rays, N, i) = -INFINITY;
-        break;
-      }
+  for_each_crossing(obj, rays, args->valid, N, [&](unsigned i, const LaneRay& r, const Crossing& c, float t) {
+    bool accepted = true;
+    if (N <= kMaxPacket) {  // Embree 3 never gives more; no filters then
+      accepted = filters_keep(args, rtcFilterOcclusion, rays, N, i, t, obj.make_hit(c, r.o, r.d));
+      RTCRayN_tfar(rays, N, i) = r.tfar;
     }
-  }
+    if (accepted) RTCRayN_tfar(rays, N, i) = -INFINITY;
+    return accepted;
+  });
 }
 
 }  // namespace

@@ -12,13 +12,12 @@
 namespace plm::csg {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr int kMaxGrid = 32;
 constexpr uint16_t kUnvisited = 0xFFFEu;
 
 // Local chart point: point, outward unit normal, area per unit (s, t) area.
 struct LocalPoint {
-  DVec3 q, n;
+  Vec3d q, n;
   double area;
 };
 
@@ -40,33 +39,33 @@ FaceCoord disk_to_square(double x, double y) {
   if (r > 0) {
     if (std::fabs(x) >= std::fabs(y)) {
       a = std::copysign(r, x);
-      b = a * std::atan(y / x) * (4 / kPi);
+      b = a * std::atan(y / x) * (4 / kPiD);
     } else {
       b = std::copysign(r, y);
-      a = b * std::atan(x / y) * (4 / kPi);
+      a = b * std::atan(x / y) * (4 / kPiD);
     }
   }
   return {clamp01(0.5 * (a + 1)), clamp01(0.5 * (b + 1))};
 }
 
 // Clarberg's equal-area octahedral map of [0,1]^2 onto the unit sphere (4 pi per unit square).
-DVec3 square_to_sphere(double s, double t) {
+Vec3d square_to_sphere(double s, double t) {
   const double u = 2 * s - 1, v = 2 * t - 1;
   const double up = std::fabs(u), vp = std::fabs(v);
   const double sd = 1 - (up + vp), r = 1 - std::fabs(sd);
-  const double phi = (r == 0 ? 1 : (vp - up) / r + 1) * (kPi / 4);
+  const double phi = (r == 0 ? 1 : (vp - up) / r + 1) * (kPiD / 4);
   const double z = std::copysign(1 - r * r, sd);
   const double k = r * std::sqrt(std::fmax(0.0, 2 - r * r));
   return {std::copysign(std::cos(phi), u) * k, std::copysign(std::sin(phi), v) * k, z};
 }
 
-FaceCoord sphere_to_square(DVec3 q) {
+FaceCoord sphere_to_square(Vec3d q) {
   const double len = length(q);
   if (!(len > 0)) return {0.5, 0.5};
   q = q / len;
   const double x = std::fabs(q.x), y = std::fabs(q.y), z = std::fabs(q.z);
   const double r = std::sqrt((x * x + y * y) / (1 + z));  // sqrt(1 - |z|) without cancellation at the poles
-  const double v0 = std::atan2(y, x) * (2 / kPi) * r;
+  const double v0 = std::atan2(y, x) * (2 / kPiD) * r;
   double u = r - v0, v = v0;
   if (q.z < 0) {
     const double u1 = 1 - v, v1 = 1 - u;
@@ -80,10 +79,10 @@ FaceCoord sphere_to_square(DVec3 q) {
 
 LocalPoint disk_point(double s, double t, double z, double nz) {
   LocalPoint lp;
-  square_to_disk(s, t, lp.q.x, lp.q.y);
+  concentric_disk(s, t, lp.q.x, lp.q.y);
   lp.q.z = z;
   lp.n = {0, 0, nz};
-  lp.area = kPi;
+  lp.area = kPiD;
   return lp;
 }
 
@@ -92,52 +91,48 @@ LocalPoint local_face_point(const Primitive& prim, int face, double s, double t,
   switch (prim.shape) {
     case Shape::Sphere:
       lp.q = lp.n = square_to_sphere(s, t);
-      lp.area = 4 * kPi;
+      lp.area = 4 * kPiD;
       return lp;
-    case Shape::Box: {
-      const int a = face / 2, b = (a + 1) % 3, e = (a + 2) % 3;
-      lp.q[a] = (face & 1) ? 1.0 : -1.0;
-      lp.q[b] = 2 * s - 1;
-      lp.q[e] = 2 * t - 1;
-      lp.n[a] = lp.q[a];
+    case Shape::Box:
+      lp.q = box_face_point(face, s, t);
+      lp.n[face / 2] = lp.q[face / 2];
       lp.area = 4;
       return lp;
-    }
     case Shape::Cylinder: {
       if (face > 0) return disk_point(s, t, face == 1 ? -1 : 1, face == 1 ? -1 : 1);
-      const double phi = 2 * kPi * s, c = std::cos(phi), sn = std::sin(phi);
+      const double phi = 2 * kPiD * s, c = std::cos(phi), sn = std::sin(phi);
       lp.q = {c, sn, 2 * t - 1};
       lp.n = {c, sn, 0};
-      lp.area = 4 * kPi;
+      lp.area = 4 * kPiD;
       return lp;
     }
     case Shape::Cone: {
       if (face == 1) return disk_point(s, t, -1, -1);
       double x, y;
-      square_to_disk(s, t, x, y);
+      concentric_disk(s, t, x, y);
       const double rho = std::hypot(x, y);
       lp.q = {x, y, 1 - 2 * rho};
-      lp.n = rho > 0 ? DVec3{2 * x / rho, 2 * y / rho, 1} / std::sqrt(5.0) : DVec3{0, 0, 1};
-      lp.area = kPi * std::sqrt(5.0);
+      lp.n = rho > 0 ? Vec3d{2 * x / rho, 2 * y / rho, 1} / std::sqrt(5.0) : Vec3d{0, 0, 1};
+      lp.area = kPiD * std::sqrt(5.0);
       return lp;
     }
     case Shape::Torus: {
-      const double phi = 2 * kPi * s, psi = 2 * kPi * t;
+      const double phi = 2 * kPiD * s, psi = 2 * kPiD * t;
       const double c = std::cos(phi), sn = std::sin(phi), cp = std::cos(psi), sp = std::sin(psi);
       const double R = prim.major, r = prim.minor, w = R + r * cp;
       lp.q = {w * c, w * sn, r * sp};
       lp.n = {cp * c, cp * sn, sp};
-      lp.area = 4 * kPi * kPi * r * w;
+      lp.area = 4 * kPiD * kPiD * r * w;
       return lp;
     }
     case Shape::Paraboloid: {
       if (face == 1) return disk_point(s, t, 1, 1);
       double x, y;
-      square_to_disk(s, t, x, y);
+      concentric_disk(s, t, x, y);
       const double rho2 = x * x + y * y, g = std::sqrt(1 + 4 * rho2);
       lp.q = {x, y, rho2};
-      lp.n = DVec3{2 * x, 2 * y, -1} / g;
-      lp.area = kPi * g;
+      lp.n = Vec3d{2 * x, 2 * y, -1} / g;
+      lp.area = kPiD * g;
       return lp;
     }
     case Shape::HalfSpace:
@@ -157,14 +152,14 @@ constexpr double kGaussW[4] = {0.5 * 0.3478548451374538, 0.5 * 0.652145154862546
 
 }  // namespace
 
-bool plane_rect(const Primitive& half_space, DVec3 lo, DVec3 hi, PlaneRect& out) {
+bool plane_rect(const Primitive& half_space, Vec3d lo, Vec3d hi, PlaneRect& out) {
   if (!is_finite(lo) || !is_finite(hi)) return false;
   out = {std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity(),
          std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
-  const DVec3 origin = half_space.to_world.column(3);
+  const Vec3d origin = half_space.to_world.column(3);
   for (int i = 0; i < 8; ++i) {
-    const DVec3 c{(i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z};
-    const DVec3 q = half_space.to_local.vector(c - origin);
+    const Vec3d c{(i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z};
+    const Vec3d q = half_space.to_local.vector(c - origin);
     out.x0 = std::fmin(out.x0, q.x);
     out.x1 = std::fmax(out.x1, q.x);
     out.y0 = std::fmin(out.y0, q.y);
@@ -175,7 +170,7 @@ bool plane_rect(const Primitive& half_space, DVec3 lo, DVec3 hi, PlaneRect& out)
 
 FacePoint face_point(const Primitive& prim, int face, double s, double t, const PlaneRect& rect) {
   const LocalPoint lp = local_face_point(prim, face, s, t, rect);
-  const DVec3 nw = prim.to_local.transpose_vector(lp.n);
+  const Vec3d nw = prim.to_local.transpose_vector(lp.n);
   const double len = length(nw);
   FacePoint fp;
   fp.p = prim.to_world.point(lp.q);
@@ -184,8 +179,8 @@ FacePoint face_point(const Primitive& prim, int face, double s, double t, const 
   return fp;
 }
 
-FaceCoord face_param(const Primitive& prim, int face, DVec3 p, const PlaneRect& rect) {
-  const DVec3 q = prim.to_local.vector(p - prim.to_world.column(3));
+FaceCoord face_param(const Primitive& prim, int face, Vec3d p, const PlaneRect& rect) {
+  const Vec3d q = prim.to_local.vector(p - prim.to_world.column(3));
   switch (prim.shape) {
     case Shape::Sphere:
       return sphere_to_square(q);
@@ -195,13 +190,13 @@ FaceCoord face_param(const Primitive& prim, int face, DVec3 p, const PlaneRect& 
     }
     case Shape::Cylinder:
       if (face > 0) return disk_to_square(q.x, q.y);
-      return {wrap01(std::atan2(q.y, q.x) / (2 * kPi)), clamp01(0.5 * (q.z + 1))};
+      return {wrap01(std::atan2(q.y, q.x) / (2 * kPiD)), clamp01(0.5 * (q.z + 1))};
     case Shape::Cone:
     case Shape::Paraboloid:
       return disk_to_square(q.x, q.y);
     case Shape::Torus: {
       const double rho = std::hypot(q.x, q.y);
-      return {wrap01(std::atan2(q.y, q.x) / (2 * kPi)), wrap01(std::atan2(q.z, rho - prim.major) / (2 * kPi))};
+      return {wrap01(std::atan2(q.y, q.x) / (2 * kPiD)), wrap01(std::atan2(q.z, rho - prim.major) / (2 * kPiD))};
     }
     case Shape::HalfSpace:
       break;
@@ -245,10 +240,10 @@ CsgLightmap::CsgLightmap(const CsgObject& obj, const CsgLightmapSettings& settin
       double ls = 0, lt = 0;
       for (int k = 0; k < kLines; ++k) {
         const double c = (k + 0.5) / kLines;
-        DVec3 ps = face_point(prim, f, 0, c, face.rect).p, pt = face_point(prim, f, c, 0, face.rect).p;
+        Vec3d ps = face_point(prim, f, 0, c, face.rect).p, pt = face_point(prim, f, c, 0, face.rect).p;
         for (int j = 1; j <= kSegments; ++j) {
-          const DVec3 qs = face_point(prim, f, double(j) / kSegments, c, face.rect).p;
-          const DVec3 qt = face_point(prim, f, c, double(j) / kSegments, face.rect).p;
+          const Vec3d qs = face_point(prim, f, double(j) / kSegments, c, face.rect).p;
+          const Vec3d qt = face_point(prim, f, c, double(j) / kSegments, face.rect).p;
           ls += length(qs - ps);
           lt += length(qt - pt);
           ps = qs;
@@ -398,7 +393,7 @@ int CsgLightmap::classify_texel(const Face& f, uint32_t x, uint32_t y, uint16_t*
   const Primitive& prim = obj_->primitive(f.prim);
   for (int c = 0; c < cells; ++c) {
     const FaceCoord st = cell_centre(f, x, y, c % g_, c / g_);
-    const DVec3 p = face_point(prim, int(f.face), st.s, st.t, f.rect).p;
+    const Vec3d p = face_point(prim, int(f.face), st.s, st.t, f.rect).p;
     labels[c] = obj_->on_boundary(f.prim, int(f.face), p) ? kUnvisited : kNoLabel;
   }
   uint16_t queue[kMaxGrid * kMaxGrid];
@@ -435,7 +430,7 @@ double CsgLightmap::texel_area(const Face& f, uint32_t x, uint32_t y) const {
 
 // Whether the solid lies on the outer side of the face at fp (a subtracted primitive's face).
 bool CsgLightmap::flipped_at(const FacePoint& fp) const {
-  const double delta = 8 * (obj_->tolerance() + kRoundingTolerance * max_abs(fp.p));
+  const double delta = 8 * (obj_->tolerance() + kRoundingTolerance * max_abs_component(fp.p));
   return obj_->inside(fp.p + fp.n * delta) && !obj_->inside(fp.p - fp.n * delta);
 }
 
@@ -461,7 +456,7 @@ int64_t CsgLightmap::nearest_in_texel(uint32_t texel, double cx, double cy, doub
   return best;
 }
 
-int64_t CsgLightmap::sub_texel_of_hit(uint32_t prim, int face, DVec3 p) const {
+int64_t CsgLightmap::sub_texel_of_hit(uint32_t prim, int face, Vec3d p) const {
   const uint32_t fi = face_index(prim, face);
   if (fi == kNone) return -1;
   const Face& f = faces_[fi];
@@ -484,7 +479,7 @@ int64_t CsgLightmap::sub_texel_of_hit(uint32_t prim, int face, DVec3 p) const {
   return best;
 }
 
-void CsgLightmap::sample_point(uint32_t sub, double u1, double u2, DVec3& p, DVec3& n) const {
+void CsgLightmap::sample_point(uint32_t sub, double u1, double u2, Vec3d& p, Vec3d& n) const {
   const SubTexel& st = subs_[sub];
   const Texel& tx = texels_[st.texel];
   const Face& f = faces_[face_of_texel(st.texel)];
@@ -531,13 +526,13 @@ void CsgLightmap::sample_point(uint32_t sub, double u1, double u2, DVec3& p, DVe
   }
 }
 
-int64_t CsgLightmap::lookup(DVec3 p, DVec3 normal_hint, double tessellation_tolerance) const {
+int64_t CsgLightmap::lookup(Vec3d p, Vec3d normal_hint, double tessellation_tolerance) const {
   const double reach = 2 * tessellation_tolerance;
   if (!(reach > 0) || !is_finite(p)) return -1;
   Crossing buffer[kMaxCrossings];
   // The crossing of the line p + u d (|u| <= reach) nearest to p, as a hit.
-  auto nearest = [&](DVec3 d, CsgHit& hit, double& dist) {
-    const DVec3 o = p - d * reach;
+  auto nearest = [&](Vec3d d, CsgHit& hit, double& dist) {
+    const Vec3d o = p - d * reach;
     const int n = obj_->crossings(o, d, 0, 2 * reach, buffer);
     bool found = false;
     for (int i = 0; i < n; ++i) {
@@ -556,8 +551,8 @@ int64_t CsgLightmap::lookup(DVec3 p, DVec3 normal_hint, double tessellation_tole
   const double len = length(normal_hint);
   if (len > 0 && std::isfinite(len)) found = nearest(normal_hint / len, best, best_dist);
   if (!found) {
-    const DVec3 axes[3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-    for (const DVec3& a : axes)
+    const Vec3d axes[3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    for (const Vec3d& a : axes)
       if (nearest(a, hit, dist) && (!found || dist < best_dist)) best = hit, best_dist = dist, found = true;
   }
   if (!found) return -1;

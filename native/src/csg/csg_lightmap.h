@@ -54,11 +54,11 @@ struct PlaneRect {
 
 // The bounding rectangle, in the plane's local (x, y), of the world box
 // [lo, hi] projected onto a half-space's plane; false if the box is unbounded.
-bool plane_rect(const Primitive& half_space, DVec3 lo, DVec3 hi, PlaneRect& out);
+bool plane_rect(const Primitive& half_space, Vec3d lo, Vec3d hi, PlaneRect& out);
 
 struct FacePoint {
-  DVec3 p;      // world point
-  DVec3 n;      // outward unit world normal of the primitive's face (not flipped for subtraction)
+  Vec3d p;      // world point
+  Vec3d n;      // outward unit world normal of the primitive's face (not flipped for subtraction)
   double area;  // |dP/ds x dP/dt|: world area per unit (s, t) area
 };
 
@@ -72,7 +72,7 @@ FacePoint face_point(const Primitive& prim, int face, double s, double t, const 
 // The inverse: (s, t) of the face point nearest (in chart terms) to the world
 // point p, which should lie on or near the face. Periodic coordinates are in
 // [0, 1), the others clamped to [0, 1].
-FaceCoord face_param(const Primitive& prim, int face, DVec3 p, const PlaneRect& rect = PlaneRect{});
+FaceCoord face_param(const Primitive& prim, int face, Vec3d p, const PlaneRect& rect = PlaneRect{});
 
 struct CsgLightmapSettings {
   double texel_size = 0.1;  // world length of a texel side (> 0)
@@ -128,8 +128,8 @@ class CsgLightmap {
 
   uint32_t sub_texel_count() const { return uint32_t(subs_.size()); }
   double area(uint32_t sub) const { return subs_[sub].area; }
-  DVec3 point(uint32_t sub) const { return subs_[sub].p; }    // representative point on the sub-texel
-  DVec3 normal(uint32_t sub) const { return subs_[sub].n; }   // the solid's outward normal there
+  Vec3d point(uint32_t sub) const { return subs_[sub].p; }    // representative point on the sub-texel
+  Vec3d normal(uint32_t sub) const { return subs_[sub].n; }   // the solid's outward normal there
   uint32_t texel_of_sub(uint32_t sub) const { return subs_[sub].texel; }
 
   // The sub-texel holding a ray hit on face `face` of primitive `prim` (the
@@ -138,20 +138,20 @@ class CsgLightmap {
   // to the hit that is on the boundary. A hit in a texel classified inert
   // (a sliver thinner than the grid) goes to the nearest boundary cell of
   // the neighbouring texels.
-  int64_t sub_texel_of_hit(uint32_t prim, int face, DVec3 p) const;
+  int64_t sub_texel_of_hit(uint32_t prim, int face, Vec3d p) const;
 
   // A point on sub-texel `sub` from two uniform numbers (for direct light):
   // a cell picked by area, a point jittered inside it, re-jittered up to 4
   // times while it is off the boundary, else the cell centre. Uniform in
   // area where the chart is equal-area; elsewhere within the area element's
   // variation across one cell. n is the solid's outward normal.
-  void sample_point(uint32_t sub, double u1, double u2, DVec3& p, DVec3& n) const;
+  void sample_point(uint32_t sub, double u1, double u2, Vec3d& p, Vec3d& n) const;
 
   // Transfer to an artist's tessellated mesh: the sub-texel of the CSG surface
   // point nearest to p along the line p +- normal_hint (then along the three
   // axes if that line finds nothing), within 2 * tessellation_tolerance; -1 if
   // none.
-  int64_t lookup(DVec3 p, DVec3 normal_hint, double tessellation_tolerance) const;
+  int64_t lookup(Vec3d p, Vec3d normal_hint, double tessellation_tolerance) const;
 
  private:
   struct Texel {
@@ -159,7 +159,7 @@ class CsgLightmap {
     uint32_t cut;        // index of the cut texel, kNone if uncut
   };
   struct SubTexel {
-    DVec3 p, n;
+    Vec3d p, n;
     double area;
     uint32_t texel;
     uint16_t label;   // region label within a cut texel (0 if uncut)

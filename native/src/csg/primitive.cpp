@@ -11,7 +11,6 @@ namespace plm::csg {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-constexpr double kPi = 3.14159265358979323846;
 constexpr uint8_t kNoFace = 255;
 
 // A piece [t0, t1] of the line with the face crossed at each end.
@@ -58,14 +57,14 @@ Range slab(double p, double d, double lo, double hi, uint8_t face_lo, uint8_t fa
   return {b, a, face_hi, face_lo};
 }
 
-Range box_range(DVec3 p, DVec3 d, DVec3 lo, DVec3 hi) {
+Range box_range(Vec3d p, Vec3d d, Vec3d lo, Vec3d hi) {
   Range r;
   for (int a = 0; a < 3 && !r.empty(); ++a)
     r = clip(r, slab(p[a], d[a], lo[a], hi[a], uint8_t(2 * a), uint8_t(2 * a + 1)));
   return r;
 }
 
-void local_box(const Primitive& prim, DVec3& lo, DVec3& hi) {
+void local_box(const Primitive& prim, Vec3d& lo, Vec3d& hi) {
   switch (prim.shape) {
     case Shape::Torus: {
       const double e = prim.major + prim.minor;
@@ -117,16 +116,16 @@ int quadratic_nonpositive(double A, double B, double C, uint8_t face, Range out[
 // Each shape's intersection works on the line p + s d, where p is the point of
 // the line in the middle of its span through the local bounding box: the
 // coefficients are then O(1) however far the ray starts (no cancellation).
-Range sphere_range(DVec3 p, DVec3 d) {
+Range sphere_range(Vec3d p, Vec3d d) {
   const double a = dot(d, d), s0 = -dot(p, d) / a;
-  const DVec3 closest = p + d * s0;
+  const Vec3d closest = p + d * s0;
   const double h2 = 1.0 - dot(closest, closest);
   if (!(h2 > 0)) return {kInf, -kInf};
   const double h = std::sqrt(h2 / a);
   return {s0 - h, s0 + h, 0, 0};
 }
 
-Range cylinder_range(DVec3 p, DVec3 d) {
+Range cylinder_range(Vec3d p, Vec3d d) {
   Range r = slab(p.z, d.z, -1, 1, 1, 2);
   if (r.empty()) return r;
   const double a = d.x * d.x + d.y * d.y;
@@ -146,7 +145,7 @@ Range cylinder_range(DVec3 p, DVec3 d) {
 // nappe lies above z = 1, so the slab leaves exactly Blender's cone. The cone
 // is convex, so at most one piece is real; a second one can only be a
 // rounding sliver at the apex, hence the longer piece wins.
-Range cone_range(DVec3 p, DVec3 d) {
+Range cone_range(Vec3d p, Vec3d d) {
   const Range z = slab(p.z, d.z, -1, 1, 1, 0);  // the z = +1 end is the apex: side face
   if (z.empty()) return z;
   const double w = 1.0 - p.z;
@@ -163,7 +162,7 @@ Range cone_range(DVec3 p, DVec3 d) {
 }
 
 // z >= x^2 + y^2 and z <= 1.
-Range paraboloid_range(DVec3 p, DVec3 d) {
+Range paraboloid_range(Vec3d p, Vec3d d) {
   Range pieces[2];
   const int n = quadratic_nonpositive(d.x * d.x + d.y * d.y, p.x * d.x + p.y * d.y - 0.5 * d.z,
                                       p.x * p.x + p.y * p.y - p.z, 0, pieces);
@@ -177,9 +176,9 @@ Range paraboloid_range(DVec3 p, DVec3 d) {
 // the two close roots of a near-grazing ray; the sign of the quartic at the
 // middle of each piece then decides inside/outside, so a double root (exact
 // tangency) gives no interval and odd root counts cannot flip the parity.
-int torus_ranges(DVec3 p, DVec3 d, double R, double r, double s_lo, double s_hi, Range out[2]) {
+int torus_ranges(Vec3d p, Vec3d d, double R, double r, double s_lo, double s_hi, Range out[2]) {
   const double len = length(d);
-  const DVec3 e = d / len;
+  const Vec3d e = d / len;
   const double b = dot(p, e), k = dot(p, p) + R * R - r * r, R2 = R * R;
   const double c[5] = {k * k - 4 * R2 * (p.x * p.x + p.y * p.y),
                        4 * b * k - 8 * R2 * (p.x * e.x + p.y * e.y),
@@ -200,7 +199,7 @@ int torus_ranges(DVec3 p, DVec3 d, double R, double r, double s_lo, double s_hi,
   return n;
 }
 
-Range half_space_range(DVec3 p, DVec3 d) {
+Range half_space_range(Vec3d p, Vec3d d) {
   if (d.z == 0) return p.z <= 0 ? Range{} : Range{kInf, -kInf};
   const double s = -p.z / d.z;
   return d.z > 0 ? Range{-kInf, s, kNoFace, 0} : Range{s, kInf, 0, kNoFace};
@@ -209,18 +208,18 @@ Range half_space_range(DVec3 p, DVec3 d) {
 // p in local space as M^-1 (p - origin): the subtraction first is exact for
 // points near a primitive far from the world origin, where M^-1 p + (-M^-1 t)
 // would cancel two large numbers.
-DVec3 local_point(const Primitive& prim, DVec3 p) { return prim.to_local.vector(p - prim.to_world.column(3)); }
+Vec3d local_point(const Primitive& prim, Vec3d p) { return prim.to_local.vector(p - prim.to_world.column(3)); }
 
 Range shift(Range r, double t) { return {r.t0 + t, r.t1 + t, r.f0, r.f1}; }
 
 // ---- local geometry: normals, distances, areas, sampling ----
 
-DVec3 local_normal(const Primitive& prim, int face, DVec3 q) {
+Vec3d local_normal(const Primitive& prim, int face, Vec3d q) {
   switch (prim.shape) {
     case Shape::Sphere:
       return q;
     case Shape::Box: {
-      DVec3 n{0, 0, 0};
+      Vec3d n{0, 0, 0};
       n[face / 2] = (face & 1) ? 1.0 : -1.0;
       return n;
     }
@@ -229,8 +228,8 @@ DVec3 local_normal(const Primitive& prim, int face, DVec3 q) {
       return {0, 0, face == 1 ? -1.0 : 1.0};
     case Shape::Cone: {
       if (face == 1) return {0, 0, -1};
-      const DVec3 n{2 * q.x, 2 * q.y, 0.5 * (1 - q.z)};
-      return dot(n, n) > 0 ? n : DVec3{0, 0, 1};  // the apex
+      const Vec3d n{2 * q.x, 2 * q.y, 0.5 * (1 - q.z)};
+      return dot(n, n) > 0 ? n : Vec3d{0, 0, 1};  // the apex
     }
     case Shape::Torus: {
       const double rho = std::sqrt(q.x * q.x + q.y * q.y);
@@ -248,13 +247,13 @@ DVec3 local_normal(const Primitive& prim, int face, DVec3 q) {
 }
 
 // Signed distance in local units, exact or a close under-estimate near the surface.
-double local_distance(const Primitive& prim, DVec3 q) {
+double local_distance(const Primitive& prim, Vec3d q) {
   const double rho = std::sqrt(q.x * q.x + q.y * q.y);
   switch (prim.shape) {
     case Shape::Sphere:
       return length(q) - 1.0;
     case Shape::Box:
-      return max_abs(q) - 1.0;
+      return max_abs_component(q) - 1.0;
     case Shape::Cylinder:
       return std::fmax(rho - 1.0, std::fabs(q.z) - 1.0);
     case Shape::Cone:
@@ -286,17 +285,17 @@ bool planar_face(Shape shape, int face) {
 double local_area(const Primitive& prim, int face) {
   switch (prim.shape) {
     case Shape::Sphere:
-      return 4 * kPi;
+      return 4 * kPiD;
     case Shape::Box:
       return 4;
     case Shape::Cylinder:
-      return face == 0 ? 4 * kPi : kPi;
+      return face == 0 ? 4 * kPiD : kPiD;
     case Shape::Cone:
-      return face == 0 ? kPi * std::sqrt(5.0) : kPi;
+      return face == 0 ? kPiD * std::sqrt(5.0) : kPiD;
     case Shape::Torus:
-      return 4 * kPi * kPi * prim.major * prim.minor;
+      return 4 * kPiD * kPiD * prim.major * prim.minor;
     case Shape::Paraboloid:
-      return face == 0 ? kPi / 6 * (5 * std::sqrt(5.0) - 1) : kPi;
+      return face == 0 ? kPiD / 6 * (5 * std::sqrt(5.0) - 1) : kPiD;
     case Shape::HalfSpace:
       break;
   }
@@ -305,7 +304,7 @@ double local_area(const Primitive& prim, int face) {
 
 // World area per local area for a surface element with local unit normal n:
 // |det M| |M^-T n| (Nanson's formula).
-double area_ratio(const Primitive& prim, DVec3 n, double abs_det) {
+double area_ratio(const Primitive& prim, Vec3d n, double abs_det) {
   return abs_det * length(prim.to_local.transpose_vector(n));
 }
 
@@ -315,48 +314,48 @@ double area_ratio(const Primitive& prim, DVec3 n, double abs_det) {
 double curved_face_area(const Primitive& prim, double abs_det) {
   constexpr int kAround = 256;
   const GaussLegendre& gl = gauss_legendre_64();
-  auto ratio = [&](DVec3 n) { return area_ratio(prim, n, abs_det); };
+  auto ratio = [&](Vec3d n) { return area_ratio(prim, n, abs_det); };
   double sum = 0;
   for (int j = 0; j < kAround; ++j) {
-    const double phi = 2 * kPi * (j + 0.5) / kAround, c = std::cos(phi), s = std::sin(phi);
+    const double phi = 2 * kPiD * (j + 0.5) / kAround, c = std::cos(phi), s = std::sin(phi);
     switch (prim.shape) {
       case Shape::Sphere:
         for (int i = 0; i < gl.n; ++i) {  // theta in [0, pi]
-          const double th = 0.5 * kPi * (gl.x[i] + 1), st = std::sin(th);
-          sum += 0.5 * kPi * gl.w[i] * st * ratio({st * c, st * s, std::cos(th)});
+          const double th = 0.5 * kPiD * (gl.x[i] + 1), st = std::sin(th);
+          sum += 0.5 * kPiD * gl.w[i] * st * ratio({st * c, st * s, std::cos(th)});
         }
         break;
       case Shape::Cylinder:  // side: height 2
         sum += 2 * ratio({c, s, 0});
         break;
       case Shape::Cone:  // side: slant length sqrt(5), radius = slant / sqrt(5)
-        sum += 0.5 * std::sqrt(5.0) * ratio(DVec3{2 * c, 2 * s, 1} / std::sqrt(5.0));
+        sum += 0.5 * std::sqrt(5.0) * ratio(Vec3d{2 * c, 2 * s, 1} / std::sqrt(5.0));
         break;
       case Shape::Torus:
         for (int i = 0; i < kAround; ++i) {
-          const double psi = 2 * kPi * (i + 0.5) / kAround, cp = std::cos(psi);
-          sum += (2 * kPi / kAround) * prim.minor * (prim.major + prim.minor * cp) *
+          const double psi = 2 * kPiD * (i + 0.5) / kAround, cp = std::cos(psi);
+          sum += (2 * kPiD / kAround) * prim.minor * (prim.major + prim.minor * cp) *
                  ratio({cp * c, cp * s, std::sin(psi)});
         }
         break;
       case Shape::Paraboloid:  // bowl, rho in [0, 1]
         for (int i = 0; i < gl.n; ++i) {
           const double rho = 0.5 * (gl.x[i] + 1), g = std::sqrt(1 + 4 * rho * rho);
-          sum += 0.5 * gl.w[i] * rho * g * ratio(DVec3{2 * rho * c, 2 * rho * s, -1} / g);
+          sum += 0.5 * gl.w[i] * rho * g * ratio(Vec3d{2 * rho * c, 2 * rho * s, -1} / g);
         }
         break;
       default:
         break;
     }
   }
-  return sum * (2 * kPi / kAround);
+  return sum * (2 * kPiD / kAround);
 }
 
 double face_world_area(const Primitive& prim, int face) {
   if (prim.shape == Shape::HalfSpace) return kInf;
   const double abs_det = std::fabs(prim.to_world.det());
   if (planar_face(prim.shape, face)) {
-    const DVec3 n = local_normal(prim, face, {0, 0, 0});
+    const Vec3d n = local_normal(prim, face, {0, 0, 0});
     return local_area(prim, face) * area_ratio(prim, n, abs_det);
   }
   if (prim.similarity) return local_area(prim, face) * std::cbrt(abs_det * abs_det);
@@ -364,26 +363,26 @@ double face_world_area(const Primitive& prim, int face) {
     // A circular one stretched along its axis (what an L-system's turtle
     // draws): the side in closed form (integrating it was ~80 % of an
     // L-system object's set-up). Radius r, height h (the unit shapes' is 2).
-    const DVec3 c0 = prim.to_world.column(0), c1 = prim.to_world.column(1), c2 = prim.to_world.column(2);
+    const Vec3d c0 = prim.to_world.column(0), c1 = prim.to_world.column(1), c2 = prim.to_world.column(2);
     const double l0 = length(c0), l1 = length(c1), l2 = length(c2), e = 1e-9 * std::fmax(l0, l1);
     if (std::fabs(l0 - l1) <= e && std::fabs(dot(c0, c1)) <= e * l0 && std::fabs(dot(c0, c2)) <= e * l2 &&
         std::fabs(dot(c1, c2)) <= e * l2) {
       const double r = 0.5 * (l0 + l1), h = 2 * l2;
-      return prim.shape == Shape::Cylinder ? 2 * kPi * r * h : kPi * r * std::sqrt(r * r + h * h);
+      return prim.shape == Shape::Cylinder ? 2 * kPiD * r * h : kPiD * r * std::sqrt(r * r + h * h);
     }
   }
   return curved_face_area(prim, abs_det);
 }
 
 struct LocalSample {
-  DVec3 q, n;        // local point and unit normal
+  Vec3d q, n;        // local point and unit normal
   double u = 0, v = 0;
   double keep = 1;   // acceptance probability that makes the local density uniform in area
 };
 
 LocalSample disk_sample(double x1, double x2, double z, double nz) {
   LocalSample s;
-  square_to_disk(x1, x2, s.q.x, s.q.y);  // uniform in the disk; strata stay compact
+  concentric_disk(x1, x2, s.q.x, s.q.y);  // uniform in the disk; strata stay compact
   s.q.z = z;
   s.n = {0, 0, nz};
   s.u = 0.5 * (s.q.x + 1);
@@ -393,7 +392,7 @@ LocalSample disk_sample(double x1, double x2, double z, double nz) {
 
 // Local samples uniform in local area (the torus by rejection, via keep).
 LocalSample sample_local(const Primitive& prim, int face, double x1, double x2) {
-  const double phi = 2 * kPi * x1, c = std::cos(phi), s = std::sin(phi);
+  const double phi = 2 * kPiD * x1, c = std::cos(phi), s = std::sin(phi);
   LocalSample out;
   out.u = x1;
   switch (prim.shape) {
@@ -403,15 +402,11 @@ LocalSample sample_local(const Primitive& prim, int face, double x1, double x2) 
       out.v = 0.5 * (z + 1);
       return out;
     }
-    case Shape::Box: {
-      const int a = face / 2, b = (a + 1) % 3, e = (a + 2) % 3;
-      out.q[a] = (face & 1) ? 1.0 : -1.0;
-      out.q[b] = 2 * x1 - 1;
-      out.q[e] = 2 * x2 - 1;
+    case Shape::Box:
+      out.q = box_face_point(face, x1, x2);
       out.n = local_normal(prim, face, out.q);
       out.v = x2;
       return out;
-    }
     case Shape::Cylinder:
       if (face > 0) return disk_sample(x1, x2, face == 1 ? -1 : 1, face == 1 ? -1 : 1);
       out.q = {c, s, 2 * x2 - 1};
@@ -422,12 +417,12 @@ LocalSample sample_local(const Primitive& prim, int face, double x1, double x2) 
       if (face == 1) return disk_sample(x1, x2, -1, -1);
       const double rho = std::sqrt(x2);  // area grows linearly with the distance from the apex
       out.q = {rho * c, rho * s, 1 - 2 * rho};
-      out.n = DVec3{2 * c, 2 * s, 1} / std::sqrt(5.0);
+      out.n = Vec3d{2 * c, 2 * s, 1} / std::sqrt(5.0);
       out.v = 0.5 * (out.q.z + 1);
       return out;
     }
     case Shape::Torus: {
-      const double psi = 2 * kPi * x2, cp = std::cos(psi), sp = std::sin(psi);
+      const double psi = 2 * kPiD * x2, cp = std::cos(psi), sp = std::sin(psi);
       const double R = prim.major, r = prim.minor;
       out.q = {(R + r * cp) * c, (R + r * cp) * s, r * sp};
       out.n = {cp * c, cp * s, sp};
@@ -441,7 +436,7 @@ LocalSample sample_local(const Primitive& prim, int face, double x1, double x2) 
       const double g = std::cbrt(std::pow(1 + x2 * (5 * std::sqrt(5.0) - 1), 2.0));
       const double rho = std::sqrt(std::fmax(0.0, (g - 1) / 4));
       out.q = {rho * c, rho * s, rho * rho};
-      out.n = normalize(DVec3{2 * rho * c, 2 * rho * s, -1});
+      out.n = normalize(Vec3d{2 * rho * c, 2 * rho * s, -1});
       out.v = rho * rho;
       return out;
     }
@@ -476,8 +471,7 @@ std::string check_primitive(const PrimitiveDesc& desc) {
   if (int(desc.shape) > int(Shape::HalfSpace)) return "unknown shape " + std::to_string(int(desc.shape));
   for (double v : desc.to_world)
     if (!std::isfinite(v)) return std::string(shape_name(desc.shape)) + " transform has NaN or Inf entries";
-  Affine m;
-  std::copy(desc.to_world, desc.to_world + 12, m.m);
+  const Affine3d m = Affine3d::from_array(desc.to_world);
   const double scale = length(m.column(0)) * length(m.column(1)) * length(m.column(2));
   if (!(std::fabs(m.det()) > 1e-12 * scale))
     return std::string(shape_name(desc.shape)) + " transform is singular (zero scale or collapsed axes)";
@@ -505,9 +499,9 @@ Primitive make_primitive_without_areas(const PrimitiveDesc& desc) {
   p.shape = desc.shape;
   p.major = desc.major_radius;
   p.minor = desc.minor_radius;
-  std::copy(desc.to_world, desc.to_world + 12, p.to_world.m);
+  p.to_world = Affine3d::from_array(desc.to_world);
   p.to_local = inverse(p.to_world);
-  const DVec3 c0 = p.to_world.column(0), c1 = p.to_world.column(1), c2 = p.to_world.column(2);
+  const Vec3d c0 = p.to_world.column(0), c1 = p.to_world.column(1), c2 = p.to_world.column(2);
   const double l0 = length(c0), l1 = length(c1), l2 = length(c2), lmax = std::fmax(l0, std::fmax(l1, l2));
   p.size = lmax * (p.shape == Shape::Torus ? p.major + p.minor : 1.0);
   double frob = 0;
@@ -524,7 +518,7 @@ Primitive make_primitive_without_areas(const PrimitiveDesc& desc) {
     // Unbounded, except along an axis the plane's normal is parallel to.
     p.lo = {-kInf, -kInf, -kInf};
     p.hi = {kInf, kInf, kInf};
-    const DVec3 n = normal(p, 0, p.to_world.column(3)), o = p.to_world.column(3);
+    const Vec3d n = normal(p, 0, p.to_world.column(3)), o = p.to_world.column(3);
     for (int a = 0; a < 3; ++a) {
       if (std::fabs(std::fabs(n[a]) - 1.0) > 1e-15) continue;
       if (n[a] > 0) p.hi[a] = o[a];
@@ -532,43 +526,43 @@ Primitive make_primitive_without_areas(const PrimitiveDesc& desc) {
     }
     return p;
   }
-  DVec3 lo, hi;
+  Vec3d lo, hi;
   local_box(p, lo, hi);
   p.lo = {kInf, kInf, kInf};
   p.hi = -p.lo;
   for (int i = 0; i < 8; ++i) {
-    const DVec3 corner = p.to_world.point({(i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z});
+    const Vec3d corner = p.to_world.point({(i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z});
     p.lo = min(p.lo, corner);
     p.hi = max(p.hi, corner);
   }
   return p;
 }
 
-double ray_tolerance(const Primitive& prim, DVec3 o, DVec3 d) {
+double ray_tolerance(const Primitive& prim, Vec3d o, Vec3d d) {
   const double len = kRelativeTolerance * prim.size +
-                     kRoundingTolerance * (max_abs(o) + max_abs(prim.to_world.column(3)) + prim.size);
+                     kRoundingTolerance * (max_abs_component(o) + max_abs_component(prim.to_world.column(3)) + prim.size);
   return len / length(d);
 }
 
-int intersect(const Primitive& prim, DVec3 o, DVec3 d, double eps_t, Crossing* out) {
+int intersect(const Primitive& prim, Vec3d o, Vec3d d, double eps_t, Crossing* out) {
   Builder b{out, eps_t};
-  const DVec3 q = local_point(prim, o), dq = prim.to_local.vector(d);
+  const Vec3d q = local_point(prim, o), dq = prim.to_local.vector(d);
   if (prim.shape == Shape::HalfSpace) {
     b.add(half_space_range(q, dq));
     return b.n;
   }
-  DVec3 lo, hi;
+  Vec3d lo, hi;
   local_box(prim, lo, hi);
   if (prim.shape == Shape::Box) {
     b.add(box_range(q, dq, lo, hi));
     return b.n;
   }
   // Span through a slightly enlarged box, so surface points on the box are inside it.
-  const DVec3 pad = (hi - lo) * 1e-9;
+  const Vec3d pad = (hi - lo) * 1e-9;
   const Range span = box_range(q, dq, lo - pad, hi + pad);
   if (span.empty()) return 0;
   const double tm = 0.5 * (span.t0 + span.t1);
-  const DVec3 p = q + dq * tm;
+  const Vec3d p = q + dq * tm;
   switch (prim.shape) {
     case Shape::Sphere:
       b.add(shift(sphere_range(p, dq), tm));
@@ -594,17 +588,17 @@ int intersect(const Primitive& prim, DVec3 o, DVec3 d, double eps_t, Crossing* o
   return b.n;
 }
 
-DVec3 normal(const Primitive& prim, int face, DVec3 p) {
-  const DVec3 n = local_normal(prim, face, local_point(prim, p));
+Vec3d normal(const Primitive& prim, int face, Vec3d p) {
+  const Vec3d n = local_normal(prim, face, local_point(prim, p));
   return normalize(prim.to_local.transpose_vector(n));
 }
 
-int face_at(const Primitive& prim, DVec3 p) {
-  const DVec3 q = local_point(prim, p);
+int face_at(const Primitive& prim, Vec3d p) {
+  const Vec3d q = local_point(prim, p);
   const double rho = std::sqrt(q.x * q.x + q.y * q.y);
   switch (prim.shape) {
     case Shape::Box: {
-      const DVec3 a{std::fabs(q.x), std::fabs(q.y), std::fabs(q.z)};
+      const Vec3d a{std::fabs(q.x), std::fabs(q.y), std::fabs(q.z)};
       const int axis = a.x >= a.y && a.x >= a.z ? 0 : (a.y >= a.z ? 1 : 2);
       return 2 * axis + (q[axis] > 0 ? 1 : 0);
     }
@@ -620,15 +614,15 @@ int face_at(const Primitive& prim, DVec3 p) {
   }
 }
 
-Side classify(const Primitive& prim, DVec3 p) {
-  const double band = (kRelativeTolerance * prim.size + kRoundingTolerance * max_abs(p)) * prim.stretch;
+Side classify(const Primitive& prim, Vec3d p) {
+  const double band = (kRelativeTolerance * prim.size + kRoundingTolerance * max_abs_component(p)) * prim.stretch;
   const double dist = local_distance(prim, local_point(prim, p));
   if (dist < -band) return Side::Inside;
   if (dist > band) return Side::Outside;
   return Side::Boundary;
 }
 
-bool inside_strict(const Primitive& prim, DVec3 p) { return local_distance(prim, local_point(prim, p)) < 0; }
+bool inside_strict(const Primitive& prim, Vec3d p) { return local_distance(prim, local_point(prim, p)) < 0; }
 
 bool sample_face(const Primitive& prim, int face, Rng& rng, FaceSample& out) {
   if (prim.shape == Shape::HalfSpace || face < 0 || face >= face_count(prim.shape)) return false;

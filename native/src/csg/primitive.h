@@ -20,7 +20,7 @@
 #include <cstdint>
 #include <string>
 
-#include "csg/dmath.h"
+#include "util/math.h"
 #include "util/rng.h"
 
 namespace plm::csg {
@@ -55,8 +55,8 @@ struct PrimitiveDesc {
 struct Primitive {
   Shape shape;
   double major, minor;        // torus radii
-  Affine to_world, to_local;
-  DVec3 lo, hi;               // world bounds; +-inf on the unbounded axes of a half-space
+  Affine3d to_world, to_local;
+  Vec3d lo, hi;               // world bounds; +-inf on the unbounded axes of a half-space
   double size;                // world length scale: longest mapped local semi-axis
   double stretch;             // bound on how much to_local lengthens a vector (||M^-1||_F)
   bool similarity;            // rotation * uniform scale (+ translation): closed-form areas
@@ -65,6 +65,16 @@ struct Primitive {
 };
 
 int face_count(Shape shape);
+// The point of Box face `face` (at -1 or +1 on axis face / 2) at (s, t) in
+// [0, 1]^2, s and t along the next two axes in cyclic order.
+inline Vec3d box_face_point(int face, double s, double t) {
+  const int a = face / 2;
+  Vec3d q;
+  q[a] = (face & 1) ? 1.0 : -1.0;
+  q[(a + 1) % 3] = 2 * s - 1;
+  q[(a + 2) % 3] = 2 * t - 1;
+  return q;
+}
 const char* shape_name(Shape shape);
 
 // "" if desc describes a valid primitive, otherwise what is wrong with it.
@@ -78,29 +88,29 @@ Primitive make_primitive(const PrimitiveDesc& desc);
 Primitive make_primitive_without_areas(const PrimitiveDesc& desc);
 
 // World-space t tolerance for a ray from o with direction d near prim.
-double ray_tolerance(const Primitive& prim, DVec3 o, DVec3 d);
+double ray_tolerance(const Primitive& prim, Vec3d o, Vec3d d);
 
 // All hit intervals of the whole line o + t d (t over all reals), as
 // alternating entry/exit crossings sorted by t; returns their number (even,
 // at most kMaxPrimitiveCrossings). Ends may be +-inf (half-space). Intervals
 // no longer than eps_t are dropped, gaps no longer than eps_t closed.
 // Crossings get prim = 0 and flip = 0.
-int intersect(const Primitive& prim, DVec3 o, DVec3 d, double eps_t, Crossing* out);
+int intersect(const Primitive& prim, Vec3d o, Vec3d d, double eps_t, Crossing* out);
 
 // Outward unit world normal of face `face` at (or near) the world point p.
-DVec3 normal(const Primitive& prim, int face, DVec3 p);
+Vec3d normal(const Primitive& prim, int face, Vec3d p);
 
 // The face of prim nearest to p (p on or near the surface).
-int face_at(const Primitive& prim, DVec3 p);
+int face_at(const Primitive& prim, Vec3d p);
 
 enum class Side : uint8_t { Outside, Boundary, Inside };
 // Against a band of kRelativeTolerance * size (+ rounding) around the surface.
-Side classify(const Primitive& prim, DVec3 p);
+Side classify(const Primitive& prim, Vec3d p);
 // Strict test without a band, for points known to be off the surface.
-bool inside_strict(const Primitive& prim, DVec3 p);
+bool inside_strict(const Primitive& prim, Vec3d p);
 
 struct FaceSample {
-  DVec3 p, n;    // world point and outward unit normal
+  Vec3d p, n;    // world point and outward unit normal
   double u, v;   // face parameters in [0,1]^2 (see sample_face)
   double pdf;    // per unit world area: 1 / area
 };

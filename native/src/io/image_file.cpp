@@ -235,4 +235,17 @@ void write_exr_atomic(const std::string& path, uint32_t width, uint32_t height,
   }
 }
 
+void write_rgb_exr_atomic(const std::string& path, uint32_t width, uint32_t height, const float* rgb,
+                          const std::vector<std::string>& names, const std::vector<const float*>& planes) {
+  const size_t n = size_t(width) * height, k = 3 + planes.size();
+  std::vector<float> pixels(k * n);
+  for (size_t t = 0; t < n; ++t) {
+    for (size_t c = 0; c < 3; ++c) pixels[k * t + c] = rgb[3 * t + c];
+    for (size_t j = 0; j < planes.size(); ++j) pixels[k * t + 3 + j] = planes[j][t];
+  }
+  std::vector<std::string> channels = {"R", "G", "B"};
+  channels.insert(channels.end(), names.begin(), names.end());
+  write_exr_atomic(path, width, height, channels, pixels.data());
+}
+
 }  // namespace plm

@@ -37,4 +37,11 @@ void image_file_size(const std::string& path, const std::string& owner, const ch
 void write_exr_atomic(const std::string& path, uint32_t width, uint32_t height,
                       const std::vector<std::string>& channel_names, const float* pixels);
 
+// R, G, B from rgb (3 floats per pixel) and one more channel per plane
+// (width * height floats each, named `names`), interleaved into one image and
+// written as write_exr_atomic does. EXR sorts channels by name after R, G, B:
+// give the planes in that order.
+void write_rgb_exr_atomic(const std::string& path, uint32_t width, uint32_t height, const float* rgb,
+                          const std::vector<std::string>& names, const std::vector<const float*>& planes);
+
 }  // namespace plm

@@ -464,6 +464,24 @@ struct Reader {
     if ((w == 0) != (h == 0)) fail(path, "width and height must both be 0 (no lightmap) or both > 0");
   }
 
+  // A mesh's "lightmap_uv", 2 numbers per corner: required with a lightmap, refused without one.
+  // `per` completes "expected 2 numbers (u, v) per " for a wrong count.
+  std::vector<float> lightmap_uv(const json& m, const std::string& p, bool lightmap, size_t corners,
+                                 const std::string& per) {
+    const json* ju = optional(m, "lightmap_uv");
+    const std::string pu = p + ".lightmap_uv";
+    if (lightmap && !ju) fail(p, "missing field \"lightmap_uv\" (needed for a lightmap_resolution above 0)");
+    if (!lightmap && ju) fail(pu, "given, but the mesh has no lightmap (set lightmap_resolution)");
+    std::vector<float> uv;
+    if (!ju) return uv;
+    array(*ju, pu, uint64_t(options.limits.max_triangles) * 6, "numbers");
+    if (ju->size() != corners * 2)
+      fail(pu, "expected 2 numbers (u, v) per " + per + ", got " + std::to_string(ju->size()));
+    uv.resize(ju->size());
+    for (size_t k = 0; k < ju->size(); ++k) uv[k] = to_float((*ju)[k], index_path(pu, k));
+    return uv;
+  }
+
   // A Catmull-Clark cage: inline "positions", "indices" = the polygons' vertex indices one face
   // after another, "subdivision": {"level": n, "face_sizes": [...] (default: all quads),
   // "creases": [[v0, v1, crease], ...]}, "lightmap_uv" per face corner, "materials" per face.
@@ -548,19 +566,8 @@ struct Reader {
         crease_weights.push_back(w);
       }
     }
-    std::vector<float> uv;
-    const json* ju = optional(m, "lightmap_uv");
-    const std::string pu = p + ".lightmap_uv";
-    if (lightmap && !ju) fail(p, "missing field \"lightmap_uv\" (needed for a lightmap_resolution above 0)");
-    if (!lightmap && ju) fail(pu, "given, but the mesh has no lightmap (set lightmap_resolution)");
-    if (ju) {
-      array(*ju, pu, uint64_t(lim.max_triangles) * 6, "numbers");
-      if (ju->size() != indices.size() * 2)
-        fail(pu, "expected 2 numbers (u, v) per face corner: " + std::to_string(indices.size() * 2) + ", got " +
-                     std::to_string(ju->size()));
-      uv.resize(ju->size());
-      for (size_t k = 0; k < ju->size(); ++k) uv[k] = to_float((*ju)[k], index_path(pu, k));
-    }
+    const std::vector<float> uv =
+        lightmap_uv(m, p, lightmap, indices.size(), "face corner: " + std::to_string(indices.size() * 2));
     std::vector<uint32_t> mats;
     if (per_face) {
       const std::string pm = p + ".materials";
@@ -693,19 +700,9 @@ struct Reader {
         if (ji.empty()) fail(pi, "a mesh needs at least one triangle");
         const size_t vertex_count = positions.size() / 3;
         indices = vertex_indices(ji, pi, vertex_count);
-        const json* ju = optional(m, "lightmap_uv");
-        const std::string pu = p + ".lightmap_uv";
-        if (lightmap && !ju) fail(p, "missing field \"lightmap_uv\" (needed for a lightmap_resolution above 0)");
-        if (!lightmap && ju) fail(pu, "given, but the mesh has no lightmap (set lightmap_resolution)");
-        if (ju) {
-          array(*ju, pu, uint64_t(lim.max_triangles) * 6, "numbers");
-          if (ju->size() != indices.size() * 2)
-            fail(pu, "expected 2 numbers (u, v) per triangle corner: " + std::to_string(indices.size() * 2) +
-                         " for " + std::to_string(indices.size() / 3) + " triangles, got " +
-                         std::to_string(ju->size()));
-          uv.resize(ju->size());
-          for (size_t k = 0; k < ju->size(); ++k) uv[k] = to_float((*ju)[k], index_path(pu, k));
-        }
+        uv = lightmap_uv(m, p, lightmap, indices.size(),
+                         "triangle corner: " + std::to_string(indices.size() * 2) + " for " +
+                             std::to_string(indices.size() / 3) + " triangles");
         if (per_triangle) {
           const std::string pm = p + ".materials";
           array(*per_triangle, pm, lim.max_triangles, "materials");

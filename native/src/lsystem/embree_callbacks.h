@@ -28,15 +28,15 @@ void intersect_n(const RTCIntersectFunctionNArguments* args) {
   RTCHitN* hits = RTCRayHitN_HitN(args->rayhit, N);
   for (unsigned i = 0; i < N; ++i) {
     if (args->valid[i] == 0) continue;
-    const csg::DVec3 o{RTCRayN_org_x(rays, N, i), RTCRayN_org_y(rays, N, i), RTCRayN_org_z(rays, N, i)};
-    const csg::DVec3 d{RTCRayN_dir_x(rays, N, i), RTCRayN_dir_y(rays, N, i), RTCRayN_dir_z(rays, N, i)};
+    const Vec3d o{RTCRayN_org_x(rays, N, i), RTCRayN_org_y(rays, N, i), RTCRayN_org_z(rays, N, i)};
+    const Vec3d d{RTCRayN_dir_x(rays, N, i), RTCRayN_dir_y(rays, N, i), RTCRayN_dir_z(rays, N, i)};
     const float tnear = RTCRayN_tnear(rays, N, i), tfar = RTCRayN_tfar(rays, N, i);
     GraphHit h;
     if (!obj.first_hit(o, d, tnear, tfar, &h)) continue;
     const float t = std::fmax(float(h.t), tnear);
     if (!(t <= tfar)) continue;
     RTCRayN_tfar(rays, N, i) = t;
-    const ol::Vec3d n = ol_normal(h.n);
+    const Vec3d n = ol_normal(h.n);
     RTCHitN_Ng_x(hits, N, i) = float(n.x);
     RTCHitN_Ng_y(hits, N, i) = float(n.y);
     RTCHitN_Ng_z(hits, N, i) = float(n.z);
@@ -56,8 +56,8 @@ void occluded_n(const RTCOccludedFunctionNArguments* args) {
   RTCRayN* rays = args->ray;
   for (unsigned i = 0; i < N; ++i) {
     if (args->valid[i] == 0) continue;
-    const csg::DVec3 o{RTCRayN_org_x(rays, N, i), RTCRayN_org_y(rays, N, i), RTCRayN_org_z(rays, N, i)};
-    const csg::DVec3 d{RTCRayN_dir_x(rays, N, i), RTCRayN_dir_y(rays, N, i), RTCRayN_dir_z(rays, N, i)};
+    const Vec3d o{RTCRayN_org_x(rays, N, i), RTCRayN_org_y(rays, N, i), RTCRayN_org_z(rays, N, i)};
+    const Vec3d d{RTCRayN_dir_x(rays, N, i), RTCRayN_dir_y(rays, N, i), RTCRayN_dir_z(rays, N, i)};
     if (obj.occluded(o, d, RTCRayN_tnear(rays, N, i), RTCRayN_tfar(rays, N, i))) RTCRayN_tfar(rays, N, i) = -INFINITY;
   }
 }

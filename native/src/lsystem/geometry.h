@@ -1,5 +1,5 @@
-// Geometry shared by the L-system graph and placed L-system objects: affine
-// composition, axis-aligned boxes of turtle primitives (double, padded; float,
+// Geometry shared by the L-system graph and placed L-system objects:
+// axis-aligned boxes of turtle primitives (double, padded; float,
 // rounded outward) and the CSG shape of a turtle shape.
 #pragma once
 
@@ -8,28 +8,13 @@
 #include <cstring>
 #include <limits>
 
-#include "csg/dmath.h"
 #include "csg/primitive.h"
 #include "lsystem/turtle.h"
+#include "util/math.h"
 
 namespace plm::lsystem {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-
-// a after b: (a b)(x) = a(b(x)).
-inline csg::Affine compose(const csg::Affine& a, const csg::Affine& b) {
-  csg::Affine c;
-  for (int r = 0; r < 3; ++r) {
-    for (int k = 0; k < 4; ++k) {
-      double v = a.m[4 * r] * b.m[k] + a.m[4 * r + 1] * b.m[4 + k] + a.m[4 * r + 2] * b.m[8 + k];
-      if (k == 3) v += a.m[4 * r + 3];
-      c.m[4 * r + k] = v;
-    }
-  }
-  return c;
-}
-
-constexpr csg::Affine kIdentity{{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}};
 
 inline csg::Shape csg_shape(ShapeKind k) {
   switch (k) {
@@ -41,44 +26,44 @@ inline csg::Shape csg_shape(ShapeKind k) {
   return csg::Shape::Box;
 }
 
-inline bool box_empty(csg::DVec3 lo, csg::DVec3 hi) { return !(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z); }
+inline bool box_empty(Vec3d lo, Vec3d hi) { return !(lo.x <= hi.x && lo.y <= hi.y && lo.z <= hi.z); }
 
-inline void grow(csg::DVec3& lo, csg::DVec3& hi, csg::DVec3 a, csg::DVec3 b) {
-  lo = csg::min(lo, a);
-  hi = csg::max(hi, b);
+inline void grow(Vec3d& lo, Vec3d& hi, Vec3d a, Vec3d b) {
+  lo = min(lo, a);
+  hi = max(hi, b);
 }
 
 // Pads a non-empty box by 1e-9 relative.
-inline void pad_box(csg::DVec3& lo, csg::DVec3& hi) {
+inline void pad_box(Vec3d& lo, Vec3d& hi) {
   if (box_empty(lo, hi)) return;
-  const double pad = 1e-9 * (max_abs(lo) + max_abs(hi)) + 1e-300;
-  lo = lo - csg::DVec3{pad, pad, pad};
-  hi = hi + csg::DVec3{pad, pad, pad};
+  const double pad = 1e-9 * (max_abs_component(lo) + max_abs_component(hi)) + 1e-300;
+  lo = lo - Vec3d{pad, pad, pad};
+  hi = hi + Vec3d{pad, pad, pad};
 }
 
 // The box (lo, hi) mapped by t (its 8 corners), padded by 1e-9 relative.
-inline void transform_box(const csg::Affine& t, csg::DVec3 lo, csg::DVec3 hi, csg::DVec3* out_lo,
-                          csg::DVec3* out_hi) {
-  csg::DVec3 a{kInf, kInf, kInf}, b{-kInf, -kInf, -kInf};
+inline void transform_box(const Affine3d& t, Vec3d lo, Vec3d hi, Vec3d* out_lo,
+                          Vec3d* out_hi) {
+  Vec3d a{kInf, kInf, kInf}, b{-kInf, -kInf, -kInf};
   if (box_empty(lo, hi)) {
     *out_lo = a;
     *out_hi = b;
     return;
   }
   for (int k = 0; k < 8; ++k) {
-    const csg::DVec3 c{(k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z};
-    const csg::DVec3 w = t.point(c);
-    a = csg::min(a, w);
-    b = csg::max(b, w);
+    const Vec3d c{(k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z};
+    const Vec3d w = t.point(c);
+    a = min(a, w);
+    b = max(b, w);
   }
-  const double pad = 1e-9 * (max_abs(a) + max_abs(b)) + 1e-300;
-  *out_lo = a - csg::DVec3{pad, pad, pad};
-  *out_hi = b + csg::DVec3{pad, pad, pad};
+  const double pad = 1e-9 * (max_abs_component(a) + max_abs_component(b)) + 1e-300;
+  *out_lo = a - Vec3d{pad, pad, pad};
+  *out_hi = b + Vec3d{pad, pad, pad};
 }
 
 // The exact box of a turtle primitive whose local->frame map is m
 // (primitive_extent: a cone by its cylinder hull, as the turtle bounds it). Not padded.
-inline void prim_box(ShapeKind shape, const csg::Affine& m, csg::DVec3* lo, csg::DVec3* hi) {
+inline void prim_box(ShapeKind shape, const Affine3d& m, Vec3d* lo, Vec3d* hi) {
   for (int r = 0; r < 3; ++r) {
     const double e = primitive_extent(shape, m.m, r);
     (*lo)[r] = m.m[4 * r + 3] - e;
@@ -87,7 +72,7 @@ inline void prim_box(ShapeKind shape, const csg::Affine& m, csg::DVec3* lo, csg:
 }
 
 // The ray segment [t0, t1] of o + t d meets the closed box (double, exact slabs).
-inline bool box_hit(csg::DVec3 lo, csg::DVec3 hi, csg::DVec3 o, csg::DVec3 d, double t0, double t1) {
+inline bool box_hit(Vec3d lo, Vec3d hi, Vec3d o, Vec3d d, double t0, double t1) {
   for (int a = 0; a < 3; ++a) {
     if (!(lo[a] <= hi[a])) return false;
     if (d[a] == 0) {

@@ -15,8 +15,6 @@
 
 namespace plm::lsystem {
 
-using csg::Affine;
-using csg::DVec3;
 
 namespace {
 
@@ -26,7 +24,7 @@ namespace {
 // from above. memo: per class, its expansion where the class is not path
 // dependent (flatten() keeps its own expansions: cache entries hold only the
 // traversal view).
-void flatten_class(const GraphClasses& g, uint32_t cls, uint64_t key, const Affine& to_world, size_t cap,
+void flatten_class(const GraphClasses& g, uint32_t cls, uint64_t key, const Affine3d& to_world, size_t cap,
                    FlattenResult& out, std::vector<std::shared_ptr<const GraphExpansion>>& memo, int level,
                    int key_level, uint64_t stub) {
   if (out.truncated) return;
@@ -48,7 +46,7 @@ void flatten_class(const GraphClasses& g, uint32_t cls, uint64_t key, const Affi
       TurtlePrimitive p;
       p.shape = gp.shape;
       p.material = gp.material;
-      const Affine w = compose(to_world, gp.prim.to_world);
+      const Affine3d w = compose(to_world, gp.prim.to_world);
       std::copy(w.m, w.m + 12, p.to_world);
       out.primitives.push_back(p);
       if (key_level >= 0) out.keys.push_back(stub);
@@ -72,10 +70,10 @@ Graph::Graph(const LSystem& system, const GraphOptions& options)
 
 Graph::~Graph() = default;
 
-DVec3 Graph::bounds_lo() const { return impl_->g.classes[0].lo; }
-DVec3 Graph::bounds_hi() const { return impl_->g.classes[0].hi; }
-DVec3 Graph::world_bounds_lo() const { return impl_->g.world_lo; }
-DVec3 Graph::world_bounds_hi() const { return impl_->g.world_hi; }
+Vec3d Graph::bounds_lo() const { return impl_->g.classes[0].lo; }
+Vec3d Graph::bounds_hi() const { return impl_->g.classes[0].hi; }
+Vec3d Graph::world_bounds_lo() const { return impl_->g.world_lo; }
+Vec3d Graph::world_bounds_hi() const { return impl_->g.world_hi; }
 const GraphNodeClass& Graph::node_class(uint32_t id) const { return impl_->g.classes.at(id); }
 uint64_t Graph::root_key() const { return impl_->g.root_key; }
 
@@ -120,7 +118,7 @@ void Graph::reset_cache() const {
 FlattenResult Graph::flatten(size_t max_primitives) const {
   FlattenResult out;
   std::vector<std::shared_ptr<const GraphExpansion>> memo(impl_->g.classes.size());
-  flatten_class(impl_->g, 0, root_key(), kIdentity, max_primitives, out, memo, 0, -1, 0);
+  flatten_class(impl_->g, 0, root_key(), Affine3d::identity(), max_primitives, out, memo, 0, -1, 0);
   return out;
 }
 
@@ -128,7 +126,7 @@ FlattenResult Graph::flatten(size_t max_primitives, int key_level) const {
   if (key_level < 0) fail(PLM_ERROR_INVALID_ARGUMENT, "lsystem graph: flatten key level must be >= 0, got ", key_level);
   FlattenResult out;
   std::vector<std::shared_ptr<const GraphExpansion>> memo(impl_->g.classes.size());
-  flatten_class(impl_->g, 0, root_key(), kIdentity, max_primitives, out, memo, 0, key_level, 0);
+  flatten_class(impl_->g, 0, root_key(), Affine3d::identity(), max_primitives, out, memo, 0, key_level, 0);
   return out;
 }
 

@@ -17,7 +17,7 @@
 #include "csg/primitive.h"
 #include "lsystem/lsystem.h"
 #include "lsystem/turtle.h"
-#include "ol/vec3d.h"
+#include "util/math.h"
 
 namespace plm::lsystem {
 
@@ -38,7 +38,7 @@ struct GraphOptions {
   size_t bounds_total = 1u << 22;  // nodes all the set-up's unfoldings may visit together
   // The object's placement (graph frame -> world, any affine map): only for
   // world_bounds_lo() / hi(), the exact box of the placed primitives.
-  csg::Affine world{{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}};
+  Affine3d world = Affine3d::identity();
 };
 
 // Traversal views inline small descendants (lsystem/graph_view.h): each at
@@ -67,13 +67,13 @@ struct GraphNodeClass {
   std::vector<std::pair<int32_t, double>> alternatives;  // (production, weight); weight < 0: deterministic
   double total_weight = 0;
   bool path_dependent = false;
-  csg::DVec3 lo, hi;      // bounds in the node frame (lo > hi: empty)
+  Vec3d lo, hi;           // bounds in the node frame (lo > hi: empty)
   uint64_t max_primitives = 0;  // flattened count (max over productions; saturates at UINT64_MAX)
 };
 
 struct GraphHit {
   double t = 0;
-  csg::DVec3 n;                  // unit world normal, outward from the primitive
+  Vec3d n;                       // unit world normal, outward from the primitive
   ShapeKind shape = ShapeKind::Cylinder;
   int32_t material = 0;
   uint32_t prim = 0;             // index in the hit node's expansion
@@ -89,7 +89,7 @@ struct GraphHit {
 // components within 1e-12 of 0 become +0, so that a normal on an octahedral
 // fold (a vertical cylinder's side: z = 0) falls on the same side of it
 // whether it came from sampling or from a ray hit.
-inline ol::Vec3d ol_normal(csg::DVec3 n) {
+inline Vec3d ol_normal(Vec3d n) {
   auto snap = [](double c) { return std::fabs(c) < 1e-12 ? 0.0 : c; };
   return {snap(n.x), snap(n.y), snap(n.z)};
 }
@@ -133,18 +133,18 @@ class Graph {
 
   // Closest hit with t in [tnear, tfar); the direction need not be unit (t is
   // the world ray's parameter). False if none.
-  bool first_hit(csg::DVec3 o, csg::DVec3 d, double tnear, double tfar, GraphHit* hit) const;
-  bool occluded(csg::DVec3 o, csg::DVec3 d, double tnear, double tfar) const;
+  bool first_hit(Vec3d o, Vec3d d, double tnear, double tfar, GraphHit* hit) const;
+  bool occluded(Vec3d o, Vec3d d, double tnear, double tfar) const;
 
-  csg::DVec3 bounds_lo() const;
-  csg::DVec3 bounds_hi() const;
+  Vec3d bounds_lo() const;
+  Vec3d bounds_hi() const;
   // The box under GraphOptions::world of every primitive, unfolded once at
   // set-up like a child's bounds (exact up to bounds_budget nodes, then mapped
   // class boxes; padded by 1e-9 relative): tight for a rotated object, where
   // the 8 corners of bounds_lo() / hi() mapped by world are not. Empty (lo >
   // hi) when the plant draws nothing.
-  csg::DVec3 world_bounds_lo() const;
-  csg::DVec3 world_bounds_hi() const;
+  Vec3d world_bounds_lo() const;
+  Vec3d world_bounds_hi() const;
   const GraphNodeClass& node_class(uint32_t id) const;
   uint64_t root_key() const;
   static uint64_t child_key(uint64_t key, uint32_t index);

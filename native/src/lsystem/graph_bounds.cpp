@@ -8,8 +8,6 @@
 
 namespace plm::lsystem {
 
-using csg::Affine;
-using csg::DVec3;
 
 BoundsUnfolding::BoundsUnfolding(const GraphOptions& o)
     : budget_(int64_t(std::min<size_t>(o.bounds_budget, size_t(INT64_MAX)))),
@@ -23,12 +21,12 @@ void BoundsUnfolding::begin_class(uint32_t id, size_t productions) {
   skel_[id].assign(productions, {});
 }
 
-void BoundsUnfolding::add_primitive(uint32_t id, size_t production, ShapeKind shape, const Affine& m) {
+void BoundsUnfolding::add_primitive(uint32_t id, size_t production, ShapeKind shape, const Affine3d& m) {
   skel_[id][production].prims.push_back({shape, m});
 }
 
 DescBoxes BoundsUnfolding::add_child(const std::vector<GraphNodeClass>& classes, uint32_t id, size_t production,
-                                     uint32_t cls, const Affine& t) {
+                                     uint32_t cls, const Affine3d& t) {
   skel_[id][production].children.push_back({cls, t});
   const int64_t given = std::min(budget_, total_ - visits_);
   int64_t budget = given;
@@ -48,8 +46,8 @@ void BoundsUnfolding::end_class(uint32_t id) {
       for (const Child& ch : k.children) dn[l] = std::min(dn[l] + desc_nodes_[ch.cls][l - 1], uint64_t(1) << 62);
 }
 
-void BoundsUnfolding::world_box(const std::vector<GraphNodeClass>& classes, const Affine& world, DVec3* lo,
-                                DVec3* hi) const {
+void BoundsUnfolding::world_box(const std::vector<GraphNodeClass>& classes, const Affine3d& world, Vec3d* lo,
+                                Vec3d* hi) const {
   int64_t budget = budget_;
   subtree_box(classes, 0, world, budget, *lo, *hi);
   pad_box(*lo, *hi);
@@ -66,7 +64,7 @@ bool BoundsUnfolding::inlinable(uint32_t cls) const {
 // from one unfolding of at most `budget` nodes (see subtree_box). Boxes are
 // left unpadded (the parent grows by them); a descendant's box is padded once
 // it is placed.
-DescBoxes BoundsUnfolding::desc_boxes(const std::vector<GraphNodeClass>& classes, uint32_t cls, const Affine& a,
+DescBoxes BoundsUnfolding::desc_boxes(const std::vector<GraphNodeClass>& classes, uint32_t cls, const Affine3d& a,
                                       int levels, int64_t& budget) {
   DescBoxes d;
   ++desc_count_;
@@ -87,7 +85,7 @@ DescBoxes BoundsUnfolding::desc_boxes(const std::vector<GraphNodeClass>& classes
   for (size_t a2 = 0; a2 < skel_[cls].size(); ++a2) {
     if (exact)
       for (const Prim& p : skel_[cls][a2].prims) {
-        DVec3 l, h;
+        Vec3d l, h;
         prim_box(p.shape, compose(a, p.m), &l, &h);
         grow(d.box.lo, d.box.hi, l, h);
       }
@@ -103,12 +101,12 @@ DescBoxes BoundsUnfolding::desc_boxes(const std::vector<GraphNodeClass>& classes
 
 // The box, under a, of every primitive below class cls; where budget runs
 // out, the class box mapped by a.
-void BoundsUnfolding::subtree_box(const std::vector<GraphNodeClass>& classes, uint32_t cls, const Affine& a,
-                                  int64_t& budget, DVec3& lo, DVec3& hi) const {
+void BoundsUnfolding::subtree_box(const std::vector<GraphNodeClass>& classes, uint32_t cls, const Affine3d& a,
+                                  int64_t& budget, Vec3d& lo, Vec3d& hi) const {
   const GraphNodeClass& c = classes[cls];
   if (box_empty(c.lo, c.hi)) return;  // draws nothing
   if (budget <= 0) {
-    DVec3 l, h;
+    Vec3d l, h;
     transform_box(a, c.lo, c.hi, &l, &h);
     grow(lo, hi, l, h);
     return;
@@ -116,7 +114,7 @@ void BoundsUnfolding::subtree_box(const std::vector<GraphNodeClass>& classes, ui
   --budget;
   for (const Skeleton& k : skel_[cls]) {
     for (const Prim& p : k.prims) {
-      DVec3 l, h;
+      Vec3d l, h;
       prim_box(p.shape, compose(a, p.m), &l, &h);
       grow(lo, hi, l, h);
     }

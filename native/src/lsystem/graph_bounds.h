@@ -20,9 +20,9 @@
 #include <cstdint>
 #include <vector>
 
-#include "csg/dmath.h"
 #include "lsystem/graph.h"
 #include "lsystem/graph_expansion.h"
+#include "util/math.h"
 
 namespace plm::lsystem {
 
@@ -46,18 +46,18 @@ class BoundsUnfolding {
   explicit BoundsUnfolding(const GraphOptions& options);
 
   void begin_class(uint32_t id, size_t productions);
-  void add_primitive(uint32_t id, size_t production, ShapeKind shape, const csg::Affine& m);
+  void add_primitive(uint32_t id, size_t production, ShapeKind shape, const Affine3d& m);
   // Records child class cls placed by t in production `production` of class
   // id and returns its boxes (the subtree box padded, descendants' boxes
   // unpadded until placed).
   DescBoxes add_child(const std::vector<GraphNodeClass>& classes, uint32_t id, size_t production, uint32_t cls,
-                      const csg::Affine& t);
+                      const Affine3d& t);
   void end_class(uint32_t id);
 
   // The box under `world` of every primitive below the root (class 0), one
   // unfolding of at most bounds_budget nodes, padded.
-  void world_box(const std::vector<GraphNodeClass>& classes, const csg::Affine& world, csg::DVec3* lo,
-                 csg::DVec3* hi) const;
+  void world_box(const std::vector<GraphNodeClass>& classes, const Affine3d& world, Vec3d* lo,
+                 Vec3d* hi) const;
 
   uint64_t visits() const { return uint64_t(visits_); }  // nodes the child references' unfoldings visited
   size_t desc_boxes_made() const { return desc_count_; }
@@ -65,11 +65,11 @@ class BoundsUnfolding {
  private:
   struct Prim {
     ShapeKind shape;
-    csg::Affine m;
+    Affine3d m;
   };
   struct Child {
     uint32_t cls;
-    csg::Affine t;
+    Affine3d t;
   };
   struct Skeleton {
     std::vector<Prim> prims;
@@ -77,10 +77,10 @@ class BoundsUnfolding {
   };
 
   bool inlinable(uint32_t cls) const;
-  DescBoxes desc_boxes(const std::vector<GraphNodeClass>& classes, uint32_t cls, const csg::Affine& a, int levels,
+  DescBoxes desc_boxes(const std::vector<GraphNodeClass>& classes, uint32_t cls, const Affine3d& a, int levels,
                        int64_t& budget);
-  void subtree_box(const std::vector<GraphNodeClass>& classes, uint32_t cls, const csg::Affine& a, int64_t& budget,
-                   csg::DVec3& lo, csg::DVec3& hi) const;
+  void subtree_box(const std::vector<GraphNodeClass>& classes, uint32_t cls, const Affine3d& a, int64_t& budget,
+                   Vec3d& lo, Vec3d& hi) const;
 
   std::vector<std::vector<Skeleton>> skel_;  // [class][production]
   // Per class, the DescBoxes a reference's boxes down L steps would take (the

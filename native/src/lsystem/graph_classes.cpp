@@ -19,8 +19,6 @@ csg::Primitive trace_primitive(const csg::PrimitiveDesc& desc) { return csg::mak
 
 namespace {
 
-using csg::Affine;
-using csg::DVec3;
 
 // The key of a parameter or width (see ClassKey): its bits with the mantissa
 // rounded to 40 bits, so that l * r1 * r2 and l * r2 * r1 are one state.
@@ -109,7 +107,7 @@ WalkEnd walk(const GraphClasses& g, const GraphNodeClass& owner, const Successor
     fail(PLM_ERROR_INVALID_ARGUMENT, "lsystem graph: successor of '", symbol_name(sys, owner.symbol), "' (depth ",
          owner.depth, "), module ", index + 1, " ('", sys.symbols[s.mods[index].symbol].name, "'): ", args...);
   };
-  auto emit = [&](ShapeKind shape, const DVec3 (&cols)[4], const TurtleState& at) {
+  auto emit = [&](ShapeKind shape, const Vec3d (&cols)[4], const TurtleState& at) {
     csg::PrimitiveDesc d;
     d.shape = csg_shape(shape);
     if (!turtle_map(cols, d.to_world)) error("the primitive's transform overflowed");
@@ -134,7 +132,7 @@ WalkEnd walk(const GraphClasses& g, const GraphNodeClass& owner, const Successor
       }
     }
     if (child) {
-      const Affine t = st.frame();
+      const Affine3d t = st.frame();
       v.reference(cls, t);
       const TurtleState& e = g.end[cls];
       st.p = t.point(e.p);
@@ -181,9 +179,9 @@ struct ExpandWalk {
     *child = it->second;
     return true;
   }
-  void reference(uint32_t child, const Affine& t) {
+  void reference(uint32_t child, const Affine3d& t) {
     const GraphBox& b = g.child_desc[cls][alt][out->children.size()].box;
-    out->children.push_back(GraphChild{child, g.classes[child].path_dependent, t, csg::inverse(t), b.lo, b.hi});
+    out->children.push_back(GraphChild{child, g.classes[child].path_dependent, t, inverse(t), b.lo, b.hi});
     out->prims_before.push_back(uint32_t(out->prims.size()));
   }
   void primitive(ShapeKind shape, const csg::PrimitiveDesc& d, int32_t material) {
@@ -220,7 +218,7 @@ class Builder {
     Builder& b;
     uint32_t id;
     size_t alt;
-    DVec3 lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
+    Vec3d lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
     uint64_t count = 0;
     bool path_dependent = false;
 
@@ -230,7 +228,7 @@ class Builder {
       *cls = b.intern(symbol, params, n, depth, st.width, st.material);
       return true;
     }
-    void reference(uint32_t cls, const Affine& t) {
+    void reference(uint32_t cls, const Affine3d& t) {
       const GraphNodeClass& cc = b.g_.classes[cls];
       DescBoxes d = b.bounds_.add_child(b.g_.classes, id, alt, cls, t);
       grow(lo, hi, d.box.lo, d.box.hi);
@@ -241,9 +239,8 @@ class Builder {
     }
     void primitive(ShapeKind shape, const csg::PrimitiveDesc& d, int32_t) {
       if (count < std::numeric_limits<uint64_t>::max()) ++count;
-      Affine m;
-      std::copy(d.to_world, d.to_world + 12, m.m);
-      DVec3 blo, bhi;
+      const Affine3d m = Affine3d::from_array(d.to_world);
+      Vec3d blo, bhi;
       prim_box(shape, m, &blo, &bhi);
       pad_box(blo, bhi);
       grow(lo, hi, blo, bhi);
@@ -316,7 +313,7 @@ class Builder {
     const size_t alts = g_.classes[id].symbol == kRootSymbol ? 1 : g_.classes[id].alternatives.size();
     g_.child_desc[id].assign(alts, {});
     bounds_.begin_class(id, alts);
-    DVec3 lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
+    Vec3d lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
     uint64_t count = 0;
     bool path_dependent = alts > 1, variable = false;
     TurtleState first_end;

@@ -23,12 +23,12 @@
 #include <utility>
 #include <vector>
 
-#include "csg/dmath.h"
 #include "lsystem/graph.h"
 #include "lsystem/graph_bounds.h"
 #include "lsystem/graph_expansion.h"
 #include "lsystem/lsystem.h"
 #include "lsystem/turtle_state.h"
+#include "util/math.h"
 #include "util/rng.h"
 
 namespace plm::lsystem {
@@ -83,7 +83,7 @@ struct GraphClasses {
   std::vector<uint8_t> end_variable;  // per class: productions end in different states
   std::map<ClassKey, uint32_t> index;
   std::vector<std::vector<std::vector<DescBoxes>>> child_desc;  // [class][production][child]
-  csg::DVec3 world_lo, world_hi;      // Graph::world_bounds_lo() / hi()
+  Vec3d world_lo, world_hi;           // Graph::world_bounds_lo() / hi()
   uint64_t bounds_visits = 0;         // GraphStats::bounds_visits
   size_t desc_boxes = 0;              // DescBoxes in child_desc (for GraphStats::class_bytes)
 };

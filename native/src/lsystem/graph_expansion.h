@@ -21,20 +21,20 @@ struct GraphPrimitive {
 };
 
 struct GraphBox {
-  csg::DVec3 lo, hi;             // lo > hi: empty
+  Vec3d lo, hi;                  // lo > hi: empty
 };
 
 struct GraphChild {
   uint32_t cls;                  // node class of the child
   bool path_dependent;           // the child class's path_dependent
-  csg::Affine to_parent;         // child frame -> parent frame (rigid)
-  csg::Affine to_local;          // its inverse
-  csg::DVec3 lo, hi;             // child bounds in the parent frame (exact subtree box, lsystem/graph_bounds.h)
+  Affine3d to_parent;            // child frame -> parent frame (rigid)
+  Affine3d to_local;             // its inverse
+  Vec3d lo, hi;                  // child bounds in the parent frame (exact subtree box, lsystem/graph_bounds.h)
 };
 
 // A node below this one that the traversal enters.
 struct GraphHop {
-  csg::Affine to_local;          // this node's frame -> the target's frame (composed over the steps)
+  Affine3d to_local;             // this node's frame -> the target's frame (composed over the steps)
   bool path_dependent;           // the target class's path_dependent
   uint8_t steps;                 // derivation steps from this node to the target
   uint32_t path[kGraphInlineDepth];     // child index at each step

@@ -23,7 +23,6 @@
 namespace plm::lsystem {
 namespace {
 
-using csg::DVec3;
 
 // Box tests in float, four boxes (a GraphBoxes4) at a time, conservative: a
 // box that the ray meets in [t0, t1] in exact arithmetic always passes.
@@ -92,7 +91,7 @@ inline int boxes4(const GraphBoxes4& b, const TraceFrame& f, const Ray4& r, floa
 // The frame's ray: o, d and, for boxes4, 1 / d (a double division rounded
 // to float) and the origin in float moved down and up by more than its
 // rounding (|o| 2^-23 + FLT_MIN, also with denormals flushed), branch free.
-inline void set_ray(TraceFrame& f, DVec3 o, DVec3 d) {
+inline void set_ray(TraceFrame& f, Vec3d o, Vec3d d) {
   f.o = o;
   f.d = d;
 #if defined(__SSE2__)
@@ -128,7 +127,7 @@ inline void set_ray(TraceFrame& f, DVec3 o, DVec3 d) {
 }
 
 // Closest hit (hit != nullptr) or any hit (hit == nullptr) in [tnear, tfar).
-bool trace(const GraphClasses& g, TraceThread& thread, DVec3 o, DVec3 d, double tnear, double tfar, GraphHit* hit) {
+bool trace(const GraphClasses& g, TraceThread& thread, Vec3d o, Vec3d d, double tnear, double tfar, GraphHit* hit) {
   const GraphNodeClass& root = g.classes[0];
   if (!(tnear <= tfar) || !box_hit(root.lo, root.hi, o, d, tnear, tfar)) return false;
   ExpansionCache& cache = thread.cache;
@@ -146,7 +145,7 @@ bool trace(const GraphClasses& g, TraceThread& thread, DVec3 o, DVec3 d, double 
   // The closest hit so far; the hit record is made once at the end.
   const GraphTracePrim* hit_tp = nullptr;
   int hit_level = 0, hit_face = 0;
-  DVec3 hit_p;  // in the frame of the hit primitive's view
+  Vec3d hit_p;  // in the frame of the hit primitive's view
   const GraphHop* hit_via[kMaxGraphLevels + 1];
   csg::Crossing cr[csg::kMaxPrimitiveCrossings];
   // Tests the primitives of the node at `level` and queues the hops that
@@ -277,9 +276,9 @@ bool trace(const GraphClasses& g, TraceThread& thread, DVec3 o, DVec3 d, double 
     hit->material = tp.gp->material;
     hit->prim = tp.prim;
     // The normal (in the frame of the view that holds the primitive) back up the hops.
-    DVec3 nl = csg::normal(tp.gp->prim, hit_face, hit_p);
+    Vec3d nl = csg::normal(tp.gp->prim, hit_face, hit_p);
     for (int lev = hit_level; lev > 0; --lev) nl = hit_via[lev]->to_local.transpose_vector(nl);
-    hit->n = csg::normalize(nl);
+    hit->n = normalize(nl);
     hit->node_key = ancestor_path_key(g.root_key, *hit, hit->levels);
     hit->instance_key = child_path_key(hit->node_key, hit->prim);
   }
@@ -289,11 +288,11 @@ bool trace(const GraphClasses& g, TraceThread& thread, DVec3 o, DVec3 d, double 
 
 }  // namespace
 
-bool Graph::first_hit(DVec3 o, DVec3 d, double tnear, double tfar, GraphHit* hit) const {
+bool Graph::first_hit(Vec3d o, Vec3d d, double tnear, double tfar, GraphHit* hit) const {
   return trace(impl_->g, impl_->local(), o, d, tnear, tfar, hit);
 }
 
-bool Graph::occluded(DVec3 o, DVec3 d, double tnear, double tfar) const {
+bool Graph::occluded(Vec3d o, Vec3d d, double tnear, double tfar) const {
   return trace(impl_->g, impl_->local(), o, d, tnear, tfar, nullptr);
 }
 

@@ -6,17 +6,17 @@
 #include <cstdint>
 #include <vector>
 
-#include "csg/dmath.h"
 #include "lsystem/graph.h"
 #include "lsystem/graph_cache.h"
 #include "lsystem/graph_expansion.h"
+#include "util/math.h"
 
 namespace plm::lsystem {
 
 // A level of the traversal: the node's expansion and the ray in its frame.
 struct TraceFrame {
   const GraphExpansion* e = nullptr;
-  csg::DVec3 o, d;
+  Vec3d o, d;
   // The ray for the float box tests (boxes4 in graph_trace.cpp), per axis (x,
   // y, z, unused): 1 / d and the origin moved down or up so that the near and
   // the far slab distances err outward.

@@ -10,11 +10,9 @@
 namespace plm::lsystem {
 namespace {
 
-using csg::Affine;
-using csg::DVec3;
 
-double half_area(DVec3 lo, DVec3 hi) {
-  const DVec3 e = hi - lo;
+double half_area(Vec3d lo, Vec3d hi) {
+  const Vec3d e = hi - lo;
   return e.x * e.y + e.y * e.z + e.z * e.x;
 }
 
@@ -29,7 +27,7 @@ size_t sah_split(ViewItem* it, size_t n, std::vector<double>& right_area) {
     std::sort(it, it + n, [a](const ViewItem& x, const ViewItem& y) {
       return x.c[a] < y.c[a] || (x.c[a] == y.c[a] && x.ref < y.ref);
     });
-    DVec3 lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
+    Vec3d lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
     for (size_t i = n; i > 0; --i) {
       grow(lo, hi, it[i - 1].lo, it[i - 1].hi);
       right_area[i - 1] = half_area(lo, hi);
@@ -64,7 +62,7 @@ GraphBoxes4 empty_boxes4() {
 }
 
 // Sets lane l of b to (lo, hi) rounded outward (lo > hi: left empty).
-void set_lane(GraphBoxes4& b, int l, DVec3 lo, DVec3 hi) {
+void set_lane(GraphBoxes4& b, int l, Vec3d lo, Vec3d hi) {
   if (box_empty(lo, hi)) return;
   for (int a = 0; a < 3; ++a) {
     b.lo[a][l] = float_down(lo[a]);
@@ -85,7 +83,7 @@ void build_clusters(std::vector<GraphCluster>& clusters, std::vector<GraphBoxes4
   }
   GraphCluster c;
   c.box = empty_boxes4();
-  DVec3 lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
+  Vec3d lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
   for (int l = 0; l < 4; ++l) {
     c.item[l] = std::numeric_limits<uint32_t>::max();
     if (size_t(l) >= n) continue;
@@ -130,8 +128,8 @@ void build_view(const GraphClasses& g, ViewScratch& scratch, GraphExpansion* e, 
   struct Node {
     const GraphExpansion* x;
     const std::vector<DescBoxes>* desc;  // x's children's boxes, in this node's frame
-    Affine to_node;                      // x's frame -> this node's
-    Affine from_node;                    // this node's frame -> x's
+    Affine3d to_node;                    // x's frame -> this node's
+    Affine3d from_node;                  // this node's frame -> x's
     uint64_t key;
     uint8_t steps;
     uint32_t path[kGraphInlineDepth], classes[kGraphInlineDepth];
@@ -140,8 +138,8 @@ void build_view(const GraphClasses& g, ViewScratch& scratch, GraphExpansion* e, 
   std::vector<Node> queue(1);
   queue[0].x = e;
   queue[0].desc = &g.child_desc[cls][e->alt];
-  queue[0].to_node = kIdentity;
-  queue[0].from_node = kIdentity;
+  queue[0].to_node = Affine3d::identity();
+  queue[0].from_node = Affine3d::identity();
   queue[0].key = key;
   queue[0].steps = 0;
   size_t planned = e->prims.size() + e->children.size();  // primitives and hops of the view so far
@@ -167,7 +165,7 @@ void build_view(const GraphClasses& g, ViewScratch& scratch, GraphExpansion* e, 
           c.key = ck;
           for (size_t j = 0; j < ce->prims.size(); ++j) {
             const GraphPrimitive& cp = ce->prims[j];
-            const Affine w = compose(c.to_node, cp.prim.to_world);  // placed in this node's frame
+            const Affine3d w = compose(c.to_node, cp.prim.to_world);  // placed in this node's frame
             csg::PrimitiveDesc d;
             d.shape = csg_shape(cp.shape);
             std::copy(w.m, w.m + 12, d.to_world);

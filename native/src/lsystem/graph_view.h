@@ -25,7 +25,7 @@ namespace plm::lsystem {
 
 // A view item's box (double, padded) for the clusters; ref: its item index.
 struct ViewItem {
-  csg::DVec3 lo, hi;
+  Vec3d lo, hi;
   double c[3];  // centroid
   uint32_t ref;
 };

@@ -17,8 +17,6 @@
 namespace plm::lsystem {
 namespace {
 
-using csg::Affine;
-using csg::DVec3;
 
 // Checks that the placement is a similarity; returns its scale.
 double check_placement(const double* m, const std::string& label) {
@@ -27,9 +25,8 @@ double check_placement(const double* m, const std::string& label) {
     if (std::fabs(m[i]) > 1e12) fail(PLM_ERROR_INVALID_ARGUMENT, label, ": matrix element ", i, " = ", m[i],
                                      " is beyond the engine's range of +-1e12");
   }
-  Affine a;
-  std::copy(m, m + 12, a.m);
-  const DVec3 c[3] = {a.column(0), a.column(1), a.column(2)};
+  const Affine3d a = Affine3d::from_array(m);
+  const Vec3d c[3] = {a.column(0), a.column(1), a.column(2)};
   const double l[3] = {length(c[0]), length(c[1]), length(c[2])};
   const double s = (l[0] + l[1] + l[2]) / 3.0;
   if (!(s > 1e-12)) fail(PLM_ERROR_INVALID_ARGUMENT, label, ": matrix scales the object to nothing");
@@ -53,7 +50,7 @@ GraphOptions graph_options(const plm_lsystem_settings& s) {
   o.angle = s.angle;
   o.width = s.width;
   o.cache_bytes = s.cache_bytes ? size_t(s.cache_bytes) : size_t(64) << 20;
-  std::copy(s.matrix, s.matrix + 12, o.world.m);
+  o.world = Affine3d::from_array(s.matrix);
   return o;
 }
 
@@ -116,14 +113,14 @@ LSystemObject::LSystemObject(const std::string& name, const char* rules, const p
   if (materials_.empty()) materials_.push_back(0);
   ol_level_ = s.ol_level;
   ol_resolution_ = s.ol_resolution ? s.ol_resolution : 16;
-  std::copy(s.matrix, s.matrix + 12, to_world_.m);
-  to_local_ = csg::inverse(to_world_);
+  to_world_ = Affine3d::from_array(s.matrix);
+  to_local_ = inverse(to_world_);
   graph_ = build_graph(rules, s, label);
   // World bounds: the graph's exact box of the placed primitives (tight when rotated).
   lo_ = graph_->world_bounds_lo();
   hi_ = graph_->world_bounds_hi();
   if (lo_.x <= hi_.x && lo_.y <= hi_.y && lo_.z <= hi_.z) {
-    if (!is_finite(lo_) || !is_finite(hi_) || max_abs(lo_) > 1e12 || max_abs(hi_) > 1e12)
+    if (!is_finite(lo_) || !is_finite(hi_) || max_abs_component(lo_) > 1e12 || max_abs_component(hi_) > 1e12)
       fail(PLM_ERROR_INVALID_ARGUMENT, label, ": the placed object reaches beyond the engine's range of +-1e12 m");
   }
 }
@@ -133,13 +130,13 @@ uint32_t LSystemObject::scene_material(int32_t turtle) const {
   return materials_[i];
 }
 
-bool LSystemObject::first_hit(DVec3 o, DVec3 d, double tnear, double tfar, GraphHit* hit) const {
+bool LSystemObject::first_hit(Vec3d o, Vec3d d, double tnear, double tfar, GraphHit* hit) const {
   if (!graph_->first_hit(to_local_.point(o), to_local_.vector(d), tnear, tfar, hit)) return false;
-  hit->n = csg::normalize(to_world_.vector(hit->n));
+  hit->n = normalize(to_world_.vector(hit->n));
   return true;
 }
 
-bool LSystemObject::occluded(DVec3 o, DVec3 d, double tnear, double tfar) const {
+bool LSystemObject::occluded(Vec3d o, Vec3d d, double tnear, double tfar) const {
   return graph_->occluded(to_local_.point(o), to_local_.vector(d), tnear, tfar);
 }
 
@@ -192,9 +189,8 @@ OlAreas LSystemObject::estimate_areas(const ol::OctGrid& grid, std::vector<std::
   auto world_desc = [&](size_t i, csg::PrimitiveDesc& desc) {
     const TurtlePrimitive& tp = flat.primitives[i];
     desc.shape = csg_shape(tp.shape);
-    Affine local;
-    std::copy(tp.to_world, tp.to_world + 12, local.m);
-    const Affine w = compose(to_world_, local);
+    const Affine3d local = Affine3d::from_array(tp.to_world);
+    const Affine3d w = compose(to_world_, local);
     std::copy(w.m, w.m + 12, desc.to_world);
     return csg::check_primitive(desc).empty();  // false: degenerate, no area
   };
@@ -270,12 +266,10 @@ FlattenResult flatten_lsystem(const char* rules, const plm_lsystem_settings& s, 
   check_lsystem_settings(s, label);
   const std::unique_ptr<Graph> graph = build_graph(rules, s, label);
   FlattenResult r = graph->flatten(max_primitives);
-  Affine place;
-  std::copy(s.matrix, s.matrix + 12, place.m);
+  const Affine3d place = Affine3d::from_array(s.matrix);
   for (TurtlePrimitive& p : r.primitives) {
-    Affine local;
-    std::copy(p.to_world, p.to_world + 12, local.m);
-    const Affine w = compose(place, local);
+    const Affine3d local = Affine3d::from_array(p.to_world);
+    const Affine3d w = compose(place, local);
     std::copy(w.m, w.m + 12, p.to_world);
   }
   return r;
@@ -287,9 +281,9 @@ namespace {
 
 void object_bounds(const RTCBoundsFunctionArguments* args) {
   const LSystemObject& obj = *static_cast<const LSystemObject*>(args->geometryUserPtr);
-  const DVec3 lo = obj.bounds_lo(), hi = obj.bounds_hi();
+  const Vec3d lo = obj.bounds_lo(), hi = obj.bounds_hi();
   // Padded by a relative 1e-7 beyond float rounding: the box maps corners in double.
-  const double pad = 1e-7 * std::max(max_abs(hi - lo), std::max(max_abs(lo), max_abs(hi)));
+  const double pad = 1e-7 * std::max(max_abs_component(hi - lo), std::max(max_abs_component(lo), max_abs_component(hi)));
   write_bounds(lo, hi, pad, args->bounds_o);
 }
 

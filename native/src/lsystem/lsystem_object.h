@@ -35,10 +35,10 @@
 #include <unordered_map>
 #include <vector>
 
-#include "csg/dmath.h"
 #include "lsystem/graph.h"
 #include "ol/octahedral.h"
 #include "photonlm/photonlm.h"
+#include "util/math.h"
 
 namespace plm::lsystem {
 
@@ -74,15 +74,15 @@ class LSystemObject {
   uint32_t ol_resolution() const { return ol_resolution_; }
   // Scene material of a turtle material index (past the table: its last entry).
   uint32_t scene_material(int32_t turtle) const;
-  const csg::Affine& to_world() const { return to_world_; }
-  csg::Affine to_world_affine() const { return to_world_; }
+  const Affine3d& to_world() const { return to_world_; }
+  Affine3d to_world_affine() const { return to_world_; }
 
   // World-space trace (o, d any length; t is the world parameter); n is the
   // world unit normal.
-  bool first_hit(csg::DVec3 o, csg::DVec3 d, double tnear, double tfar, GraphHit* hit) const;
-  bool occluded(csg::DVec3 o, csg::DVec3 d, double tnear, double tfar) const;
-  csg::DVec3 bounds_lo() const { return lo_; }
-  csg::DVec3 bounds_hi() const { return hi_; }
+  bool first_hit(Vec3d o, Vec3d d, double tnear, double tfar, GraphHit* hit) const;
+  bool occluded(Vec3d o, Vec3d d, double tnear, double tfar) const;
+  Vec3d bounds_lo() const { return lo_; }
+  Vec3d bounds_hi() const { return hi_; }
   // Stub key of a hit: the ancestor key at ol_level, or 0 with ol_level 0.
   uint64_t stub_key(const GraphHit& hit) const;
 
@@ -92,10 +92,10 @@ class LSystemObject {
  private:
   std::string name_;
   std::unique_ptr<Graph> graph_;
-  csg::Affine to_world_, to_local_;
+  Affine3d to_world_, to_local_;
   std::vector<uint32_t> materials_;
   uint32_t ol_level_ = 0, ol_resolution_ = 16;
-  csg::DVec3 lo_, hi_;
+  Vec3d lo_, hi_;
 };
 
 // Flattened primitives in world space (the placement included), for previews.

@@ -294,11 +294,36 @@ class Parser {
     return {};
   }
 
-  void check_turtle_count(uint32_t symbol, size_t count, size_t col) {
+  // A module with `count` parameters at column col: checked against its turtle
+  // command's limit and recorded for the consistency checks of finish().
+  void use_module(uint32_t symbol, size_t count, size_t col) {
     const int most = max_turtle_params(sys_.symbols[symbol].op);
     if (most >= 0 && count > size_t(most))
       error_at(col, "module '", sys_.symbols[symbol].name, "' takes at most ", most, " parameter",
                most == 1 ? "" : "s", ", found ", count);
+    uses_.push_back(Use{symbol, uint32_t(count), line_no_, int(col), false});
+  }
+
+  // An optional parenthesised, comma-separated list after module `name`;
+  // item() reads one entry.
+  template <typename Item>
+  void parameter_list(const std::string& name, Item&& item) {
+    skip_ws();
+    if (peek() != '(') return;
+    ++pos_;
+    for (;;) {
+      item();
+      skip_ws();
+      if (peek() == ',') {
+        ++pos_;
+        continue;
+      }
+      if (peek() == ')') {
+        ++pos_;
+        return;
+      }
+      error("expected ')' after parameters of module '", name, "'");
+    }
   }
 
   std::vector<ModuleTemplate> modules(const char* where) {
@@ -311,25 +336,8 @@ class Parser {
       if (name.empty()) error("expected a module in the ", where, ", found ", describe_here());
       ModuleTemplate m;
       m.symbol = intern(name);
-      skip_ws();
-      if (peek() == '(') {
-        ++pos_;
-        for (;;) {
-          m.args.push_back(expression());
-          skip_ws();
-          if (peek() == ',') {
-            ++pos_;
-            continue;
-          }
-          if (peek() == ')') {
-            ++pos_;
-            break;
-          }
-          error("expected ')' after parameters of module '", name, "'");
-        }
-      }
-      check_turtle_count(m.symbol, m.args.size(), col);
-      uses_.push_back(Use{m.symbol, uint32_t(m.args.size()), line_no_, int(col), false});
+      parameter_list(name, [&] { m.args.push_back(expression()); });
+      use_module(m.symbol, m.args.size(), col);
       out.push_back(std::move(m));
     }
   }
@@ -343,33 +351,18 @@ class Parser {
     p.symbol = intern(name);
     if (name == "[" || name == "]")
       error_at(col, "brackets cannot be rewritten or used as a context");
-    skip_ws();
-    if (peek() == '(') {
-      ++pos_;
-      for (;;) {
-        skip_ws();
-        const size_t pcol = pos_;
-        const std::string f = ident();
-        if (f.empty()) error("expected a parameter name in module '", name, "', found ", describe_here());
-        if (std::find(formals_.begin(), formals_.end(), f) != formals_.end())
-          error_at(pcol, "parameter '", f, "' is declared twice in this production");
-        if (constants_.count(f)) error_at(pcol, "parameter '", f, "' hides the constant of that name");
-        p.slots.push_back(int32_t(formals_.size()));
-        formals_.push_back(f);
-        skip_ws();
-        if (peek() == ',') {
-          ++pos_;
-          continue;
-        }
-        if (peek() == ')') {
-          ++pos_;
-          break;
-        }
-        error("expected ')' after parameters of module '", name, "'");
-      }
-    }
-    check_turtle_count(p.symbol, p.slots.size(), col);
-    uses_.push_back(Use{p.symbol, uint32_t(p.slots.size()), line_no_, int(col), false});
+    parameter_list(name, [&] {
+      skip_ws();
+      const size_t pcol = pos_;
+      const std::string f = ident();
+      if (f.empty()) error("expected a parameter name in module '", name, "', found ", describe_here());
+      if (std::find(formals_.begin(), formals_.end(), f) != formals_.end())
+        error_at(pcol, "parameter '", f, "' is declared twice in this production");
+      if (constants_.count(f)) error_at(pcol, "parameter '", f, "' hides the constant of that name");
+      p.slots.push_back(int32_t(formals_.size()));
+      formals_.push_back(f);
+    });
+    use_module(p.symbol, p.slots.size(), col);
     return p;
   }
 
@@ -498,36 +491,26 @@ class Parser {
     }
     return a;
   }
-  int32_t sum() {
-    int32_t a = product();
+  // A left-associative chain operand (op operand)* of two operators; the
+  // second is no operator when `not_before` follows it ("->", "//").
+  int32_t chain(int32_t (Parser::*operand)(), char op1, ExprNode::Kind k1, char op2, char not_before,
+                ExprNode::Kind k2) {
+    int32_t a = (this->*operand)();
     for (;;) {
       skip_ws();
-      if (peek() == '+') {
+      if (peek() == op1) {
         ++pos_;
-        a = binary(ExprNode::Add, a, product());
-      } else if (peek() == '-' && peek(1) != '>') {
+        a = binary(k1, a, (this->*operand)());
+      } else if (peek() == op2 && peek(1) != not_before) {
         ++pos_;
-        a = binary(ExprNode::Sub, a, product());
+        a = binary(k2, a, (this->*operand)());
       } else {
         return a;
       }
     }
   }
-  int32_t product() {
-    int32_t a = unary();
-    for (;;) {
-      skip_ws();
-      if (peek() == '*') {
-        ++pos_;
-        a = binary(ExprNode::Mul, a, unary());
-      } else if (peek() == '/' && peek(1) != '/') {
-        ++pos_;
-        a = binary(ExprNode::Div, a, unary());
-      } else {
-        return a;
-      }
-    }
-  }
+  int32_t sum() { return chain(&Parser::product, '+', ExprNode::Add, '-', '>', ExprNode::Sub); }
+  int32_t product() { return chain(&Parser::unary, '*', ExprNode::Mul, '/', '/', ExprNode::Div); }
   int32_t unary() {
     NestGuard guard(*this);
     skip_ws();

@@ -24,7 +24,7 @@ struct Turtle {
          sys.symbols[str.modules[index].symbol].name, "'): ", args...);
   }
 
-  void emit(ShapeKind shape, const csg::DVec3 (&cols)[4], const TurtleState& st) {
+  void emit(ShapeKind shape, const Vec3d (&cols)[4], const TurtleState& st) {
     if (out.primitives.size() >= opt.max_primitives)
       error("more than ", opt.max_primitives, " primitives (TurtleOptions::max_primitives)");
     TurtlePrimitive prim;
@@ -49,7 +49,7 @@ struct Turtle {
       out.lo[r] = std::numeric_limits<double>::infinity();
       out.hi[r] = -std::numeric_limits<double>::infinity();
     }
-    auto emit_to = [this](ShapeKind shape, const csg::DVec3 (&cols)[4], const TurtleState& s) { emit(shape, cols, s); };
+    auto emit_to = [this](ShapeKind shape, const Vec3d (&cols)[4], const TurtleState& s) { emit(shape, cols, s); };
     auto error_to = [this](const auto&... args) { error(args...); };
     for (index = 0; index < str.modules.size(); ++index) {
       const Module& m = str.modules[index];

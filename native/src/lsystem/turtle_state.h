@@ -7,36 +7,36 @@
 #include <cstddef>
 #include <cstdint>
 
-#include "csg/dmath.h"
 #include "lsystem/lsystem.h"
 #include "lsystem/turtle.h"
+#include "util/math.h"
 
 namespace plm::lsystem {
 
 // Position and right-handed frame H (heading), L (left), U (up), H x L = U;
 // the start state is the origin with H = +Z, L = -X, U = -Y.
 struct TurtleState {
-  csg::DVec3 p{0, 0, 0};
-  csg::DVec3 h{0, 0, 1}, l{-1, 0, 0}, u{0, -1, 0};
+  Vec3d p{0, 0, 0};
+  Vec3d h{0, 0, 1}, l{-1, 0, 0}, u{0, -1, 0};
   double width = 0.1;
   int32_t material = 0;
 
   // Rotates a towards b by the angle: a' = a c + b s, b' = b c - a s.
-  static void rotate(csg::DVec3& a, csg::DVec3& b, double degrees) {
+  static void rotate(Vec3d& a, Vec3d& b, double degrees) {
     double s, c;
     sincos_degrees(degrees, &s, &c);
-    const csg::DVec3 na = c * a + s * b, nb = c * b - s * a;
+    const Vec3d na = c * a + s * b, nb = c * b - s * a;
     a = na;
     b = nb;
   }
   // Re-orthonormalises the frame against drift.
   void orthonormalize() {
-    h = csg::normalize(h);
-    l = csg::normalize(l - dot(l, h) * h);
+    h = normalize(h);
+    l = normalize(l - dot(l, h) * h);
     u = cross(h, l);
   }
   // The map from the start frame (a child's local frame) to this frame.
-  csg::Affine frame() const;
+  Affine3d frame() const;
   bool same(const TurtleState& o) const {
     return p.x == o.p.x && p.y == o.p.y && p.z == o.p.z && h.x == o.h.x && h.y == o.h.y && h.z == o.h.z &&
            l.x == o.l.x && l.y == o.l.y && l.z == o.l.z && u.x == o.u.x && u.y == o.u.y && u.z == o.u.z &&
@@ -46,7 +46,7 @@ struct TurtleState {
 
 // The row-major 3x4 map whose columns are cols (local x, y, z axes and the
 // translation) into m.
-inline void set_columns(const csg::DVec3 (&cols)[4], double* m) {
+inline void set_columns(const Vec3d (&cols)[4], double* m) {
   for (int c = 0; c < 4; ++c) {
     m[c] = cols[c].x;
     m[4 + c] = cols[c].y;
@@ -54,15 +54,15 @@ inline void set_columns(const csg::DVec3 (&cols)[4], double* m) {
   }
 }
 
-inline csg::Affine TurtleState::frame() const {
-  const csg::DVec3 cols[4] = {-l, -u, h, p};
-  csg::Affine a;
+inline Affine3d TurtleState::frame() const {
+  const Vec3d cols[4] = {-l, -u, h, p};
+  Affine3d a;
   set_columns(cols, a.m);
   return a;
 }
 
 // set_columns; false if an element of m is not finite.
-inline bool turtle_map(const csg::DVec3 (&cols)[4], double* m) {
+inline bool turtle_map(const Vec3d (&cols)[4], double* m) {
   set_columns(cols, m);
   for (int i = 0; i < 12; ++i)
     if (!std::isfinite(m[i])) return false;
@@ -77,7 +77,6 @@ inline bool turtle_map(const csg::DVec3 (&cols)[4], double* m) {
 template <typename Emit, typename Error>
 inline void turtle_move(TurtleOp op, const double* params, size_t count, double step, double angle, TurtleState& st,
                         Emit&& emit, Error&& error) {
-  using csg::DVec3;
   auto param = [&](size_t k, double fallback) { return k < count ? params[k] : fallback; };
   auto move = [&](double len) {
     st.p = st.p + len * st.h;
@@ -86,13 +85,13 @@ inline void turtle_move(TurtleOp op, const double* params, size_t count, double 
   // An element along H from st.p with length len and radius r (right-handed:
   // L x U = H; a negative length flips H and L).
   auto along = [&](ShapeKind shape, double len, double r) {
-    DVec3 h = st.h, l = st.l;
+    Vec3d h = st.h, l = st.l;
     if (len < 0) {
       h = -h;
       l = -l;
     }
     const double half = 0.5 * std::fabs(len);
-    const DVec3 cols[4] = {r * l, r * st.u, half * h, st.p + half * h};
+    const Vec3d cols[4] = {r * l, r * st.u, half * h, st.p + half * h};
     emit(shape, cols, st);
   };
   switch (op) {
@@ -129,7 +128,7 @@ inline void turtle_move(TurtleOp op, const double* params, size_t count, double 
     case TurtleOp::Sphere: {
       const double r = std::fabs(param(0, 0.5 * st.width));
       if (r > 0) {
-        const DVec3 cols[4] = {r * st.l, r * st.u, r * st.h, st.p};
+        const Vec3d cols[4] = {r * st.l, r * st.u, r * st.h, st.p};
         emit(ShapeKind::Sphere, cols, st);
       }
       break;
@@ -143,7 +142,7 @@ inline void turtle_move(TurtleOp op, const double* params, size_t count, double 
       const double len = param(0, step), w = std::fabs(param(1, 0.5 * len));
       if (len != 0 && w > 0) {
         const double half = 0.5 * len;
-        const DVec3 cols[4] = {0.5 * w * st.l, (std::fabs(len) / 100.0) * st.u, half * st.h, st.p + half * st.h};
+        const Vec3d cols[4] = {0.5 * w * st.l, (std::fabs(len) / 100.0) * st.u, half * st.h, st.p + half * st.h};
         emit(ShapeKind::Box, cols, st);
       }
       break;
@@ -152,7 +151,7 @@ inline void turtle_move(TurtleOp op, const double* params, size_t count, double 
       const double x = std::fabs(param(0, step));
       const double y = std::fabs(param(1, x)), z = std::fabs(param(2, x));
       if (x > 0 && y > 0 && z > 0) {
-        const DVec3 cols[4] = {0.5 * x * st.l, 0.5 * y * st.u, 0.5 * z * st.h, st.p};
+        const Vec3d cols[4] = {0.5 * x * st.l, 0.5 * y * st.u, 0.5 * z * st.h, st.p};
         emit(ShapeKind::Box, cols, st);
       }
       break;

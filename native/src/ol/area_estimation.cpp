@@ -13,9 +13,7 @@ namespace plm::ol {
 Patch Patch::triangle(Vec3d a, Vec3d b, Vec3d c) {
   Patch p;
   p.kind = PatchKind::kTriangle;
-  p.p0 = a;
-  p.p1 = b;
-  p.p2 = c;
+  p.p0 = a, p.p1 = b, p.p2 = c;
   return p;
 }
 

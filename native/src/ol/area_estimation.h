@@ -39,7 +39,7 @@ struct Patch {
   Vec3d p0, p1, p2;          // triangle corners (counter-clockwise seen from outside); sphere: p0 = centre
   double radius = 0.0;       // sphere radius; torus: major radius R (ring centre to tube centre)
   double minor_radius = 0.0; // torus: tube radius r
-  Affine3d to_world;         // torus: object to world (any affine map; areas follow it)
+  Affine3d to_world = Affine3d::identity();  // torus: object to world (any affine map; areas follow it)
   double u0 = 0, u1 = 1, v0 = 0, v1 = 1;  // custom: parameter rectangle
   SurfaceEval eval;          // custom
   SurfaceKeep keep;          // optional for every kind: false = point trimmed away
@@ -50,7 +50,7 @@ struct Patch {
   static Patch sphere(Vec3d centre, double radius);
   // Torus around its z axis: P(phi, psi) = ((R + r cos psi) cos phi, (R + r cos psi) sin phi,
   // r sin psi), both angles in [0, 2 pi], then to_world.
-  static Patch torus(double major, double minor, const Affine3d& to_world = Affine3d{});
+  static Patch torus(double major, double minor, const Affine3d& to_world = Affine3d::identity());
   static Patch custom(double u0, double u1, double v0, double v1, SurfaceEval eval, SurfaceKeep keep = {});
 
   // Measure of the parameter domain (1/2 for triangles, 2 pi^2 spheres, 4 pi^2 tori).

@@ -20,7 +20,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "ol/vec3d.h"
+#include "util/math.h"
 
 namespace plm::ol {
 

@@ -51,7 +51,7 @@ double OrientationLightmap::total_area() const {
 }
 
 Vec3d OrientationLightmap::unit_normal(Vec3 normal) const {
-  const Vec3d d(normal);
+  const Vec3d d = to_double(normal);
   if (!is_finite(d))
     fail(PLM_ERROR_INVALID_ARGUMENT, "orientation lightmap: normal (", normal.x, ", ", normal.y, ", ", normal.z,
          ") is not finite");

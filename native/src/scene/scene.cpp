@@ -25,6 +25,15 @@ void check_rgb(const float* v, const char* what, const std::string& owner, float
   }
 }
 
+// items[index], or an error: "<what>: <noun> <index> does not exist (the scene has <count> <plural>)".
+template <typename Items>
+auto& existing(Items& items, uint32_t index, const std::string& what, const char* noun, const char* plural) {
+  if (index >= items.size())
+    fail(PLM_ERROR_INVALID_ARGUMENT, what, ": ", noun, " ", index, " does not exist (the scene has ", items.size(), " ",
+         plural, ")");
+  return items[index];
+}
+
 }  // namespace
 
 uint32_t Scene::add_material(const char* name, const float albedo[3], const float emission[3]) {
@@ -140,8 +149,7 @@ uint32_t Scene::add_light(const char* name, const plm_light& l) {
                                                   {"size_x", l.size_x},       {"size_y", l.size_y}};
   for (const auto& [field, value] : fields)
     if (!std::isfinite(value)) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": ", field, " ", value, " is not finite");
-  Transform m;
-  std::memcpy(m.m, l.matrix, sizeof(m.m));
+  const Affine3f m = Affine3f::from_array(l.matrix);
   switch (l.type) {
     case PLM_LIGHT_POINT:
     case PLM_LIGHT_SPOT:
@@ -199,10 +207,7 @@ uint32_t Scene::add_ol_group(const char* name, uint32_t resolution) {
 }
 
 void Scene::set_material_texture(uint32_t material, int slot, const char* path, uint32_t flags) {
-  if (material >= materials.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, "set material texture: material ", material, " does not exist (the scene has ",
-         materials.size(), " materials)");
-  Material& m = materials[material];
+  Material& m = existing(materials, material, "set material texture", "material", "materials");
   const std::string owner = "material " + quoted_or(m.name.c_str(), material) + " (" + std::to_string(material) + ")";
   if (slot != PLM_TEXTURE_ALBEDO && slot != PLM_TEXTURE_EMISSION)
     fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": texture slot ", slot,
@@ -218,10 +223,7 @@ void Scene::set_material_texture(uint32_t material, int slot, const char* path, 
 }
 
 void Scene::set_mesh_texture_uv(uint32_t mesh, const float* uv) {
-  if (mesh >= meshes.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh texture UV: mesh ", mesh, " does not exist (the scene has ",
-         meshes.size(), " meshes)");
-  Mesh& m = meshes[mesh];
+  Mesh& m = existing(meshes, mesh, "set mesh texture UV", "mesh", "meshes");
   if (!uv) {
     m.texture_uv.clear();
     return;
@@ -235,10 +237,7 @@ void Scene::set_mesh_texture_uv(uint32_t mesh, const float* uv) {
 }
 
 void Scene::set_mesh_normals(uint32_t mesh, const float* normals) {
-  if (mesh >= meshes.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh normals: mesh ", mesh, " does not exist (the scene has ",
-         meshes.size(), " meshes)");
-  Mesh& m = meshes[mesh];
+  Mesh& m = existing(meshes, mesh, "set mesh normals", "mesh", "meshes");
   m.normals.clear();
   if (!normals) return;
   std::vector<Vec3> values(size_t(m.triangle_count()) * 3);
@@ -263,53 +262,42 @@ void Scene::set_mesh_normals(uint32_t mesh, const float* normals) {
 }
 
 void Scene::set_mesh_smooth(uint32_t mesh, bool smooth) {
-  if (mesh >= meshes.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh smooth: mesh ", mesh, " does not exist (the scene has ",
-         meshes.size(), " meshes)");
-  Mesh& m = meshes[mesh];
+  Mesh& m = existing(meshes, mesh, "set mesh smooth", "mesh", "meshes");
   if (!smooth) {
     m.normals.clear();
     return;
   }
-  using csg::DVec3;
-  std::vector<DVec3> vertex(m.vertex_count);
+  std::vector<Vec3d> vertex(m.vertex_count);
   for (uint32_t t = 0; t < m.triangle_count(); ++t) {
-    DVec3 p[3];
-    for (int c = 0; c < 3; ++c) p[c] = {m.vertex(t, c).x, m.vertex(t, c).y, m.vertex(t, c).z};
-    const DVec3 n = cross(p[1] - p[0], p[2] - p[0]);
+    Vec3d p[3];
+    for (int c = 0; c < 3; ++c) p[c] = to_double(m.vertex(t, c));
+    const Vec3d n = cross(p[1] - p[0], p[2] - p[0]);
     const double len = length(n);
     if (!(len > 0.0)) continue;
     for (int c = 0; c < 3; ++c) {
-      const DVec3 a = p[(c + 1) % 3] - p[c], b = p[(c + 2) % 3] - p[c];
+      const Vec3d a = p[(c + 1) % 3] - p[c], b = p[(c + 2) % 3] - p[c];
       const double angle = std::atan2(length(cross(a, b)), dot(a, b));
-      DVec3& v = vertex[m.indices[3 * t + c]];
+      Vec3d& v = vertex[m.indices[3 * t + c]];
       v = v + n * (angle / len);
     }
   }
   std::vector<float> corners(size_t(m.triangle_count()) * 9);
   for (size_t k = 0; k < m.indices.size(); ++k) {
-    const DVec3 n = vertex[m.indices[k]];
+    const Vec3d n = vertex[m.indices[k]];
     corners[3 * k] = float(n.x), corners[3 * k + 1] = float(n.y), corners[3 * k + 2] = float(n.z);
   }
   set_mesh_normals(mesh, corners.data());
 }
 
 void Scene::set_mesh_ol_group(uint32_t mesh, uint32_t group) {
-  if (mesh >= meshes.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh OL group: mesh ", mesh, " does not exist (the scene has ",
-         meshes.size(), " meshes)");
-  Mesh& m = meshes[mesh];
-  if (group >= ol_groups.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh OL group: mesh '", m.name, "' (", mesh, "): OL group ", group,
-         " does not exist (the scene has ", ol_groups.size(), " OL groups)");
+  Mesh& m = existing(meshes, mesh, "set mesh OL group", "mesh", "meshes");
+  existing(ol_groups, group, "set mesh OL group: mesh '" + m.name + "' (" + std::to_string(mesh) + ")", "OL group",
+           "OL groups");
   m.ol_group = int32_t(group);
 }
 
 OlGroup& Scene::ol_group(uint32_t group, const char* what) {
-  if (group >= ol_groups.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, what, ": OL group ", group, " does not exist (the scene has ", ol_groups.size(),
-         " OL groups)");
-  return ol_groups[group];
+  return existing(ol_groups, group, what, "OL group", "OL groups");
 }
 
 uint32_t Scene::add_csg(const char* name, const plm_csg_primitive* primitives, uint32_t primitive_count,
@@ -353,14 +341,9 @@ uint32_t Scene::add_csg(const char* name, const plm_csg_primitive* primitives, u
 }
 
 void Scene::set_csg_carrier(uint32_t csg, uint32_t mesh) {
-  if (csg >= csgs.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, "set CSG carrier: CSG solid ", csg, " does not exist (the scene has ",
-         csgs.size(), " CSG solids)");
+  existing(csgs, csg, "set CSG carrier", "CSG solid", "CSG solids");
   const std::string label = "set CSG carrier: CSG solid '" + csgs[csg].object->name() + "' (" + std::to_string(csg) + ")";
-  if (mesh >= meshes.size())
-    fail(PLM_ERROR_INVALID_ARGUMENT, label, ": mesh ", mesh, " does not exist (the scene has ", meshes.size(),
-         " meshes)");
-  Mesh& m = meshes[mesh];
+  Mesh& m = existing(meshes, mesh, label, "mesh", "meshes");
   if (!m.has_lightmap())
     fail(PLM_ERROR_INVALID_ARGUMENT, label, ": mesh '", m.name, "' (", mesh, ") has no lightmap to receive its light");
   if (m.csg_carrier >= 0 && uint32_t(m.csg_carrier) != csg)

@@ -98,16 +98,16 @@ ol::AreaEstimate estimate_limit_area(const std::string& owner, const Cage& c, co
     const Far::ConstIndexArray cvs = table->GetPatchVertices(*h);
     if (cvs.size() > 20) return -1;
     table->EvaluateBasis(*h, u, v, w, wu, wv);
-    ol::Vec3d du, dv;
+    Vec3d du, dv;
     for (int j = 0; j < cvs.size(); ++j) {
       const Point3& p = cv[size_t(cvs[j])];
-      du = du + ol::Vec3d{p.x, p.y, p.z} * wu[j];
-      dv = dv + ol::Vec3d{p.x, p.y, p.z} * wv[j];
+      du = du + Vec3d{p.x, p.y, p.z} * wu[j];
+      dv = dv + Vec3d{p.x, p.y, p.z} * wv[j];
     }
     // Far scales the derivatives by 2^depth of the patch, counted from the cage face; a
     // patch under an n-gon's sub-face (its own ptex face) is one level shallower in ptex.
     const double scale = table->GetPatchParam(*h).NonQuadRoot() ? 0.25 : 1.0;
-    const ol::Vec3d n = cross(du, dv) * scale;
+    const Vec3d n = cross(du, dv) * scale;
     const double len = length(n);
     if (!(len > 0.0) || !std::isfinite(len)) return -1;
     y = len * weight;

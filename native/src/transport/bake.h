@@ -68,7 +68,7 @@ struct LSystemOutput {
   // The light (irradiance / pi) at surface point p with unit normal n: its
   // stub's OL where the stub holds enough hits in that bin (kStubMinHits),
   // else the root's; black before photons were traced.
-  Vec3 light_at(csg::DVec3 p, csg::DVec3 n) const;
+  Vec3 light_at(Vec3d p, Vec3d n) const;
 };
 
 // A lookup uses a stub's bin when it holds at least this many hits, else the root.

@@ -233,7 +233,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
         for (float& r : w) r = rng.next_float();  // drawn always: streams stay as they were
       }
       if (csg) {
-        csg::DVec3 dp, dn;
+        Vec3d dp, dn;
         csg->lightmap->sample_point(texel, x, y, dp, dn);
         p = to_float(dp), normal = to_float(dn), tri = RTC_INVALID_GEOMETRY_ID;
       } else if (!points_.texel_point(tw, mesh_id, texel, x, y, w, p, normal, tri)) {

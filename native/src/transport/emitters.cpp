@@ -1,6 +1,5 @@
 #include "transport/emitters.h"
 
-#include <cstring>
 #include <limits>
 
 #include "texture/texture.h"
@@ -19,12 +18,6 @@ float spot_attenuation(float c, float cos_half, float spot_smooth) {
 
 namespace {
 
-Transform to_transform(const float m[16]) {
-  Transform t;
-  std::memcpy(t.m, m, sizeof(t.m));
-  return t;
-}
-
 // Integral of spot_attenuation over the sphere of directions (midpoint rule in cos).
 double spot_solid_angle_integral(float cos_half, float spot_smooth) {
   const int n = 4096;
@@ -38,7 +31,7 @@ double spot_solid_angle_integral(float cos_half, float spot_smooth) {
 
 Emitter light_emitter(const Light& light) {
   const plm_light& l = light.desc;
-  const Transform m = to_transform(l.matrix);
+  const Affine3f m = Affine3f::from_array(l.matrix);
   const Vec3 color{l.color[0], l.color[1], l.color[2]};
   Emitter e{};
   e.origin = m.point({0, 0, 0});
@@ -109,7 +102,7 @@ std::vector<Portal> scene_portals(const Scene& scene) {
   std::vector<Portal> out;
   for (const Light& light : scene.lights) {
     if (light.desc.type != PLM_LIGHT_PORTAL) continue;
-    const Transform m = to_transform(light.desc.matrix);
+    const Affine3f m = Affine3f::from_array(light.desc.matrix);
     Portal p;
     p.center = m.point({0, 0, 0});
     p.half_u = m.vector({0.5f * light.desc.size_x, 0, 0});

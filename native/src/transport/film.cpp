@@ -10,7 +10,7 @@ namespace {
 
 // The side of the CSG solid's own texels: the carrier's texel side (its
 // surface area per covered texel), so that both hold about as many photons.
-double carrier_texel_size(const TexelAreas& areas, csg::DVec3 extent) {
+double carrier_texel_size(const TexelAreas& areas, Vec3d extent) {
   double area = 0.0, cover = 0.0;
   for (size_t t = 0; t < areas.area.size(); ++t) area += areas.area[t], cover += areas.coverage[t];
   if (area > 0.0 && cover > 0.0) return std::sqrt(area / cover);

@@ -37,7 +37,7 @@ void transfer_csg(const Estimator& est, size_t c, uint64_t photons, const TexelA
                   std::vector<float>& values, std::vector<float>& hits, std::vector<uint8_t>& filled,
                   std::vector<std::string>& warnings, const Mesh& mesh) {
   const CsgView& cv = est.space.csg_views[c];
-  const csg::DVec3 size = cv.object->bounds_hi() - cv.object->bounds_lo();
+  const Vec3d size = cv.object->bounds_hi() - cv.object->bounds_lo();
   const double tolerance = 0.02 * std::max({size.x, size.y, size.z});
   uint32_t missed = 0;
   for (size_t t = 0; t < areas.area.size(); ++t) {

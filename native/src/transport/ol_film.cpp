@@ -36,9 +36,9 @@ OlGroups build_ol_groups(const Scene& scene, std::vector<std::string>& warnings)
       const bool limit = group.limit_area && mesh.cage;
       std::vector<double> cage_tri_area(limit ? map.bins() : 0, 0.0);
       for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
-        const ol::Vec3d p0(mesh.vertex(t, 0)), p1(mesh.vertex(t, 1)), p2(mesh.vertex(t, 2));
+        const Vec3d p0 = to_double(mesh.vertex(t, 0)), p1 = to_double(mesh.vertex(t, 1)), p2 = to_double(mesh.vertex(t, 2));
         // The normal exactly as estimate_area's exact-triangle path computes it.
-        const ol::Vec3d n = cross(p1 - p0, p2 - p0);
+        const Vec3d n = cross(p1 - p0, p2 - p0);
         const double len = length(n);
         if (len > 0.0) bins[i][t] = map.grid().bin(n * (1.0 / len));
         if (limit) {
@@ -95,13 +95,13 @@ uint64_t merge_ol_hits(uint64_t batch, const BatchOutput& bo, OlGroups& groups, 
   const uint32_t replicate = uint32_t(batch % kOlBatches);
   for (const OlHit& h : bo.ol_hits) {
     ol::OrientationLightmap& map = groups.maps[h.group];
-    const ol::Vec3d c = map.grid().centre(h.bin);  // falls back into bin h.bin
-    map.add_hit({float(c.x), float(c.y), float(c.z)}, {h.r, h.g, h.b}, replicate);
+    const Vec3d c = map.grid().centre(h.bin);  // falls back into bin h.bin
+    map.add_hit(to_float(c), {h.r, h.g, h.b}, replicate);
   }
   for (const LsHit& h : bo.ls_hits) {
     LSystemOutput& lo = lsystems[h.object];
-    const ol::Vec3d c = lo.root->grid().centre(h.bin);  // falls back into bin h.bin
-    const Vec3 n{float(c.x), float(c.y), float(c.z)}, rgb{h.r, h.g, h.b};
+    const Vec3d c = lo.root->grid().centre(h.bin);  // falls back into bin h.bin
+    const Vec3 n = to_float(c), rgb{h.r, h.g, h.b};
     lo.root->add_hit(n, rgb, replicate);
     ++lo.stats.hits;
     const lsystem::OlAreas& areas = ls.areas[h.object];
@@ -173,12 +173,12 @@ void finish_lsystems(uint64_t photons, std::vector<LSystemOutput>& lsystems) {
   }
 }
 
-Vec3 LSystemOutput::light_at(csg::DVec3 p, csg::DVec3 n) const {
-  const Vec3 nf{float(n.x), float(n.y), float(n.z)};
+Vec3 LSystemOutput::light_at(Vec3d p, Vec3d n) const {
+  const Vec3 nf = to_float(n);
   if (!root->finalized()) return {0, 0, 0};
   if (object->ol_level() > 0 && !stubs.empty()) {
     // The stub of the instance under p: the first hit of a short ray back through the surface.
-    const csg::DVec3 size = object->bounds_hi() - object->bounds_lo();
+    const Vec3d size = object->bounds_hi() - object->bounds_lo();
     const double eps = 1e-3 * std::max({size.x, size.y, size.z, 1e-30});
     lsystem::GraphHit hit;
     if (object->first_hit(p + n * eps, -n, 0.0, 2.0 * eps, &hit)) {

@@ -180,7 +180,7 @@ bool TexelPoints::window_map(uint32_t mesh_id, uint32_t tri, float ox, float oy,
     if (!(b1 >= 0.0 && b2 >= 0.0 && b1 + b2 <= 1.0)) return false;
   }
   const Vec3 p0 = mesh.vertex(tri, 0), p1 = mesh.vertex(tri, 1), p2 = mesh.vertex(tri, 2);
-  const csg::DVec3 q0 = to_double(p0), e1 = to_double(p1) - q0, e2 = to_double(p2) - q0;
+  const Vec3d q0 = to_double(p0), e1 = to_double(p1) - q0, e2 = to_double(p2) - q0;
   base = to_float(q0 + e1 * a1 + e2 * a2);
   du = to_float(e1 * d1x + e2 * d2x);
   dv = to_float(e1 * d1y + e2 * d2y);

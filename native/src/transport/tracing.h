@@ -36,9 +36,6 @@ struct CsgView {
   uint64_t texel_offset;             // of its sub-texels in the global texel arrays
 };
 
-inline Vec3 to_float(csg::DVec3 v) { return {float(v.x), float(v.y), float(v.z)}; }
-inline csg::DVec3 to_double(Vec3 v) { return {v.x, v.y, v.z}; }
-
 // Unit normals of a mesh's triangles, (0, 0, 0) for degenerate ones.
 std::vector<Vec3> triangle_normals(const Mesh& mesh);
 

@@ -1,4 +1,6 @@
-// Small vector math for the engine: float vectors for geometry, double for sums.
+// Small vector math for the engine: one 3-vector and one 3x4 affine map, in
+// float for meshes and radiance, in double for CSG and L-system rays and for
+// sums over millions of terms (orientation-lightmap set-up).
 #pragma once
 
 #include <cmath>
@@ -9,37 +11,141 @@ namespace plm {
 
 constexpr float kPi = 3.14159265358979323846f;
 constexpr double kPiD = 3.14159265358979323846;
+template <typename T>
+inline constexpr T kPiT = T(kPiD);
+static_assert(kPiT<float> == kPi, "pi rounds to the same float either way");
 
-struct Vec3 {
-  float x = 0, y = 0, z = 0;
-  Vec3() = default;
-  constexpr Vec3(float x_, float y_, float z_) : x(x_), y(y_), z(z_) {}
-  float operator[](int i) const { return i == 0 ? x : (i == 1 ? y : z); }
-  float& operator[](int i) { return i == 0 ? x : (i == 1 ? y : z); }
+// A scalar parameter that takes no part in deduction: v * 2 or v / n convert
+// the number to v's precision, as a plain float or double overload would.
+template <typename T>
+struct ScalarOf {
+  using type = T;
 };
+template <typename T>
+using Scalar = typename ScalarOf<T>::type;
 
-inline Vec3 operator+(Vec3 a, Vec3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-inline Vec3 operator-(Vec3 a, Vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-inline Vec3 operator-(Vec3 a) { return {-a.x, -a.y, -a.z}; }
-inline Vec3 operator*(Vec3 a, float s) { return {a.x * s, a.y * s, a.z * s}; }
-inline Vec3 operator*(float s, Vec3 a) { return a * s; }
-inline Vec3 operator*(Vec3 a, Vec3 b) { return {a.x * b.x, a.y * b.y, a.z * b.z}; }
-inline Vec3 operator/(Vec3 a, float s) { return a * (1.0f / s); }
-inline Vec3& operator+=(Vec3& a, Vec3 b) { return a = a + b; }
-inline Vec3& operator*=(Vec3& a, Vec3 b) { return a = a * b; }
-inline Vec3& operator*=(Vec3& a, float s) { return a = a * s; }
-inline float dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-inline Vec3 cross(Vec3 a, Vec3 b) {
+template <typename T>
+struct Vec3T {
+  T x = 0, y = 0, z = 0;
+  Vec3T() = default;
+  constexpr Vec3T(T x_, T y_, T z_) : x(x_), y(y_), z(z_) {}
+  T operator[](int i) const { return i == 0 ? x : (i == 1 ? y : z); }
+  T& operator[](int i) { return i == 0 ? x : (i == 1 ? y : z); }
+};
+using Vec3 = Vec3T<float>;
+using Vec3d = Vec3T<double>;
+
+// The only conversions between the two precisions (to float rounds each component).
+inline Vec3d to_double(Vec3 v) { return {v.x, v.y, v.z}; }
+inline Vec3 to_float(Vec3d v) { return {float(v.x), float(v.y), float(v.z)}; }
+
+template <typename T>
+inline Vec3T<T> operator+(Vec3T<T> a, Vec3T<T> b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+template <typename T>
+inline Vec3T<T> operator-(Vec3T<T> a, Vec3T<T> b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+template <typename T>
+inline Vec3T<T> operator-(Vec3T<T> a) { return {-a.x, -a.y, -a.z}; }
+template <typename T>
+inline Vec3T<T> operator*(Vec3T<T> a, Scalar<T> s) { return {a.x * s, a.y * s, a.z * s}; }
+template <typename T>
+inline Vec3T<T> operator*(Scalar<T> s, Vec3T<T> a) { return a * s; }
+template <typename T>
+inline Vec3T<T> operator*(Vec3T<T> a, Vec3T<T> b) { return {a.x * b.x, a.y * b.y, a.z * b.z}; }
+template <typename T>
+inline Vec3T<T> operator/(Vec3T<T> a, Scalar<T> s) { return a * (T(1) / s); }
+template <typename T>
+inline Vec3T<T>& operator+=(Vec3T<T>& a, Vec3T<T> b) { return a = a + b; }
+template <typename T>
+inline Vec3T<T>& operator*=(Vec3T<T>& a, Vec3T<T> b) { return a = a * b; }
+template <typename T>
+inline Vec3T<T>& operator*=(Vec3T<T>& a, Scalar<T> s) { return a = a * s; }
+template <typename T>
+inline T dot(Vec3T<T> a, Vec3T<T> b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+template <typename T>
+inline Vec3T<T> cross(Vec3T<T> a, Vec3T<T> b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
-inline float length(Vec3 a) { return std::sqrt(dot(a, a)); }
-inline Vec3 normalize(Vec3 a) { return a / length(a); }
-inline float max_component(Vec3 a) { return std::fmax(a.x, std::fmax(a.y, a.z)); }
-inline float max_abs_component(Vec3 a) {
+template <typename T>
+inline T length(Vec3T<T> a) { return std::sqrt(dot(a, a)); }
+template <typename T>
+inline Vec3T<T> normalize(Vec3T<T> a) { return a / length(a); }
+template <typename T>
+inline T max_component(Vec3T<T> a) { return std::fmax(a.x, std::fmax(a.y, a.z)); }
+template <typename T>
+inline T max_abs_component(Vec3T<T> a) {
   return std::fmax(std::fabs(a.x), std::fmax(std::fabs(a.y), std::fabs(a.z)));
 }
-inline float average(Vec3 a) { return (a.x + a.y + a.z) * (1.0f / 3.0f); }
-inline bool is_finite(Vec3 a) { return std::isfinite(a.x) && std::isfinite(a.y) && std::isfinite(a.z); }
+template <typename T>
+inline T average(Vec3T<T> a) { return (a.x + a.y + a.z) * (T(1) / T(3)); }
+template <typename T>
+inline bool is_finite(Vec3T<T> a) { return std::isfinite(a.x) && std::isfinite(a.y) && std::isfinite(a.z); }
+template <typename T>
+inline Vec3T<T> min(Vec3T<T> a, Vec3T<T> b) { return {std::fmin(a.x, b.x), std::fmin(a.y, b.y), std::fmin(a.z, b.z)}; }
+template <typename T>
+inline Vec3T<T> max(Vec3T<T> a, Vec3T<T> b) { return {std::fmax(a.x, b.x), std::fmax(a.y, b.y), std::fmax(a.z, b.z)}; }
+
+// Row-major 3x4 affine map: rows are (m[4r], m[4r+1], m[4r+2] | m[4r+3]),
+// the top three rows of Blender's matrix_world. Not initialised by default
+// (maps are built in loops that set every entry): identity() or from_array.
+template <typename T>
+struct Affine3T {
+  T m[12];
+  static constexpr Affine3T identity() { return {{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}}; }
+  // The first 12 entries of a row-major 3x4 or 4x4 matrix, in this precision.
+  template <typename U>
+  static Affine3T from_array(const U* a) {
+    Affine3T t;
+    for (int i = 0; i < 12; ++i) t.m[i] = T(a[i]);
+    return t;
+  }
+  Vec3T<T> point(Vec3T<T> p) const { return vector(p) + column(3); }
+  Vec3T<T> vector(Vec3T<T> v) const {
+    return {m[0] * v.x + m[1] * v.y + m[2] * v.z, m[4] * v.x + m[5] * v.y + m[6] * v.z,
+            m[8] * v.x + m[9] * v.y + m[10] * v.z};
+  }
+  // The transposed linear part times v: maps local normals of the inverse map
+  // to world normals (the inverse-transpose rule).
+  Vec3T<T> transpose_vector(Vec3T<T> v) const {
+    return {m[0] * v.x + m[4] * v.y + m[8] * v.z, m[1] * v.x + m[5] * v.y + m[9] * v.z,
+            m[2] * v.x + m[6] * v.y + m[10] * v.z};
+  }
+  Vec3T<T> column(int c) const { return {m[c], m[4 + c], m[8 + c]}; }
+  T det() const { return dot(column(0), cross(column(1), column(2))); }
+};
+using Affine3f = Affine3T<float>;
+using Affine3d = Affine3T<double>;
+
+// The inverse of a (non-singular) affine map, by the adjugate.
+template <typename T>
+inline Affine3T<T> inverse(const Affine3T<T>& a) {
+  const Vec3T<T> c0 = a.column(0), c1 = a.column(1), c2 = a.column(2);
+  const Vec3T<T> r0 = cross(c1, c2), r1 = cross(c2, c0), r2 = cross(c0, c1);  // rows of the adjugate
+  const T inv_det = T(1) / dot(c0, r0);
+  Affine3T<T> b;
+  const Vec3T<T> rows[3] = {r0 * inv_det, r1 * inv_det, r2 * inv_det};
+  const Vec3T<T> t = a.column(3);
+  for (int r = 0; r < 3; ++r) {
+    b.m[4 * r] = rows[r].x;
+    b.m[4 * r + 1] = rows[r].y;
+    b.m[4 * r + 2] = rows[r].z;
+    b.m[4 * r + 3] = -dot(rows[r], t);
+  }
+  return b;
+}
+
+// a after b: (a b)(x) = a(b(x)).
+template <typename T>
+inline Affine3T<T> compose(const Affine3T<T>& a, const Affine3T<T>& b) {
+  Affine3T<T> c;
+  for (int r = 0; r < 3; ++r) {
+    for (int k = 0; k < 4; ++k) {
+      T v = a.m[4 * r] * b.m[k] + a.m[4 * r + 1] * b.m[4 + k] + a.m[4 * r + 2] * b.m[8 + k];
+      if (k == 3) v += a.m[4 * r + 3];
+      c.m[4 * r + k] = v;
+    }
+  }
+  return c;
+}
 
 // An orthonormal frame around a unit normal n (Duff et al. 2017, branchless).
 inline void make_frame(Vec3 n, Vec3& t, Vec3& b) {
@@ -97,20 +203,23 @@ inline Vec3 uniform_sphere(float u1, float u2) {
   return {r * c, r * s, z};
 }
 
-// Uniform point in the unit disk (concentric mapping keeps strata compact).
-inline void concentric_disk(float u1, float u2, float& x, float& y) {
-  const float a = 2.0f * u1 - 1.0f, b = 2.0f * u2 - 1.0f;
-  if (a == 0.0f && b == 0.0f) {
-    x = y = 0.0f;
+// Shirley-Chiu concentric map of [0,1]^2 onto the unit disk: equal-area (pi
+// per unit square), so uniform points map to uniform points and strata stay
+// compact (disk lights; CSG face charts and face sampling).
+template <typename T>
+inline void concentric_disk(T u1, T u2, T& x, T& y) {
+  const T a = T(2) * u1 - T(1), b = T(2) * u2 - T(1);
+  if (a == T(0) && b == T(0)) {
+    x = y = T(0);
     return;
   }
-  float r, phi;
+  T r, phi;
   if (std::fabs(a) > std::fabs(b)) {
     r = a;
-    phi = (kPi / 4.0f) * (b / a);
+    phi = (kPiT<T> / T(4)) * (b / a);
   } else {
     r = b;
-    phi = (kPi / 2.0f) - (kPi / 4.0f) * (a / b);
+    phi = (kPiT<T> / T(2)) - (kPiT<T> / T(4)) * (a / b);
   }
   x = r * std::cos(phi);
   y = r * std::sin(phi);
@@ -124,18 +233,5 @@ inline bool degenerate_triangle(Vec3 p0, Vec3 p1, Vec3 p2) {
   const float c = length(cross(e1, e2));
   return !(c > 1e-10f * (dot(e1, e1) + dot(e2, e2))) || !std::isfinite(c);
 }
-
-// Row-major 4x4 affine transform (object to world), as Blender's matrix_world.
-struct Transform {
-  float m[16];
-  Vec3 point(Vec3 p) const {
-    return {m[0] * p.x + m[1] * p.y + m[2] * p.z + m[3], m[4] * p.x + m[5] * p.y + m[6] * p.z + m[7],
-            m[8] * p.x + m[9] * p.y + m[10] * p.z + m[11]};
-  }
-  Vec3 vector(Vec3 v) const {
-    return {m[0] * v.x + m[1] * v.y + m[2] * v.z, m[4] * v.x + m[5] * v.y + m[6] * v.z,
-            m[8] * v.x + m[9] * v.y + m[10] * v.z};
-  }
-};
 
 }  // namespace plm
