@@ -1,4 +1,4 @@
-// L-system objects baked through the C API (thesis ch. 7): energy balance in
+// L-system objects baked through the C API ([Thesis ch. 7]): energy balance in
 // a closed black box, a cylinder under the sun against the exact cosine law,
 // the shadow a plant casts on a lightmapped floor, bad input, and flattening.
 #include <gtest/gtest.h>

@@ -1,4 +1,4 @@
-// L-system derivation against known strings: the thesis's b -> a, a -> ab
+// L-system derivation against known strings: [Thesis]'s b -> a, a -> ab
 // system (Fibonacci lengths), Lindenmayer's algae, the Koch curve, textbook
 // bracketed and parametric systems, stochastic frequencies, context, limits.
 #include <gtest/gtest.h>

@@ -25,7 +25,7 @@ Affine3d rotate_x_then_move(double angle, Vec3d t) {
 }
 
 // Sphereflake: a sphere with 9 children of a third of its radius touching it,
-// 6 around its equator and 3 above, recursively (thesis 8.2, level 4 = 7381 spheres).
+// 6 around its equator and 3 above, recursively ([Thesis §8.2], level 4 = 7381 spheres).
 void sphereflake(Vec3d c, double r, Vec3d axis, int level, std::vector<Patch>& out) {
   out.push_back(Patch::sphere(c, r));
   if (level == 0) return;

@@ -72,7 +72,7 @@ TEST(OlLightmap, EnergyIsConserved) {
   EXPECT_NEAR(island.radiosity(island.grid().bin({0, 0, 1}), 0) * kPiD * 2.0, 3.0, 1e-12);
 }
 
-// The limit case where an OL is an ordinary lightmap (thesis 6.2): a sphere
+// The limit case where an OL is an ordinary lightmap ([Thesis §6.2]): a sphere
 // under a sun, hits from uniform points on its surface weighted by the exact
 // irradiance E max(0, n.L), bin areas from the area estimator.
 TEST(OlLightmap, SphereUnderDirectionalLightMatchesExact) {

@@ -1,5 +1,8 @@
 /*
  * photonlm: photon-lightmap global illumination baker, C API (plain C99).
+ * Citations such as [Thesis §3.5.2] here and in the sources refer to the
+ * references of docs/design.md ([Thesis]: A. Wilkie, Photon Tracing for
+ * Complex Environments, PhD thesis, TU Vienna, 2001).
  *
  * Conventions
  * - Every function that can fail returns a plm_status. On failure, a message
@@ -300,7 +303,7 @@ PLM_API plm_status plm_scene_set_world_map_file(plm_scene* scene, const char* pa
 /* ---- CSG solids (exact analytic primitives and boolean trees) -------------
  *
  * A CSG solid is traced exactly: rays hit the primitives' true surfaces,
- * combined along each ray by the tree (thesis 4.1). Primitives are Blender's
+ * combined along each ray by the tree ([Thesis §4.1]). Primitives are Blender's
  * default add-primitive shapes in local space, placed by a 3x4 matrix
  * (row-major, local -> world; any invertible affine map):
  *   SPHERE radius 1; BOX [-1, 1]^3; CYLINDER radius 1, z in [-1, 1];
@@ -363,7 +366,7 @@ PLM_API plm_status plm_scene_set_csg_carrier(plm_scene* scene, uint32_t csg, uin
 
 /* ---- Bake ---------------------------------------------------------------- */
 
-/* Two passes, as in thesis 3.5.2: direct light is computed per texel with
+/* Two passes, as in [Thesis §3.5.2]: direct light is computed per texel with
  * shadow rays from stratified points inside the texel (direct_samples > 0),
  * and photons record only what arrives after their first bounce (indirect
  * light). With direct_samples = 0, photons carry direct light too.
@@ -471,7 +474,7 @@ PLM_API plm_status plm_result_write_exr(const plm_result* result, uint32_t mesh_
 /* ---- Orientation lightmaps (OL) -------------------------------------------
  *
  * An OL group stores the light of its meshes by surface normal instead of by
- * UV texel (thesis 6.2): one map over the sphere of directions, in N x N bins
+ * UV texel ([Thesis §6.2]): one map over the sphere of directions, in N x N bins
  * of an equal-area octahedral map (bin = row * N + column; column along u,
  * row along v, row 0 at v near 0; a unit normal n maps to (u, v) as in
  * Clarberg 2008 / pbrt-v4's EqualSphereToSquare with the +z hemisphere in the
@@ -559,13 +562,13 @@ PLM_API plm_status plm_result_write_ol_exr(const plm_result* result, uint32_t gr
  *
  * An L-system object is a plant described by rules in the L-system language
  * of docs (axiom, productions, depth, step, angle, width; see
- * native/src/lsystem/lsystem.h). It is traced without flattening (thesis
- * 4.3-4.4): a graph of node classes expanded on demand per thread, with an
+ * native/src/lsystem/lsystem.h). It is traced without flattening ([Thesis
+ * §4.3-4.4]): a graph of node classes expanded on demand per thread, with an
  * LRU cache of expanded instances. Turtle primitives are the CSG shapes
  * CYLINDER (F), SPHERE (@O), CONE (@C) and BOX (@L, @B).
  *
  * Light: an L-system object has no texels. Its light is stored in
- * orientation lightmaps by surface normal (thesis ch. 7): one root OL for the
+ * orientation lightmaps by surface normal ([Thesis ch. 7]): one root OL for the
  * whole object, plus one "stub" OL per node instance ol_level derivation
  * levels below the root (instances are named by the key of their traversal
  * path), so that different branches can differ. Photons record their hits at
@@ -623,8 +626,8 @@ PLM_API plm_status plm_lsystem_flatten(const char* rules, const plm_lsystem_sett
  * (from point + eps * normal along -normal, eps = 1e-3 of the object's size)
  * and takes the stub OL of that primitive's instance at ol_level, looked up
  * at the normal, if that stub's bin for the normal holds at least 16 hits;
- * otherwise (no stub, too few hits, no primitive found) the root OL: the
- * thesis' "lowest level with enough hits". Safe to call from several threads. */
+ * otherwise (no stub, too few hits, no primitive found) the root OL: [Thesis]'s
+ * "lowest level with enough hits". Safe to call from several threads. */
 PLM_API plm_status plm_result_lsystem_lookup(const plm_result* result, uint32_t lsystem, uint64_t count,
                                              const float* points, const float* normals, float* out_rgb);
 

@@ -1,6 +1,6 @@
 // Detection of coplanar overlapping planar faces (box faces, caps, half-space
 // planes) between primitives of one CSG object. Such configurations are
-// resolved by the rule in csg.h, but the thesis (4.1.2) notes they usually
+// resolved by the rule in csg.h, but [Thesis §4.1.2] notes they usually
 // come from careless modelling, so they are reported as warnings.
 #pragma once
 

@@ -1,6 +1,6 @@
 // A CSG object: analytic primitives combined by an n-ary boolean tree, ray
 // traced exactly by combining the primitives' hit intervals along the ray
-// (thesis 4.1.1: the 3D set operations become 1D operations on intervals).
+// ([Thesis §4.1.1]: the 3D set operations become 1D operations on intervals).
 //
 // The tree is flat: nodes with child ranges into one index array, leaves
 // pointing at primitives. DIFFERENCE is the first child minus all others.

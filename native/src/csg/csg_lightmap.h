@@ -1,4 +1,4 @@
-// CSG-aware lightmaps on the faces of analytic primitives (thesis 5.2): every
+// CSG-aware lightmaps on the faces of analytic primitives ([Thesis §5.2]): every
 // (primitive, face) of a CSG object gets a texel grid over a chart of the
 // whole face; CSG operations then decide which parts of each texel are on
 // the solid's boundary. Texels fully on the boundary are "uncut", texels fully
@@ -133,7 +133,7 @@ class CsgLightmap {
   uint32_t texel_of_sub(uint32_t sub) const { return subs_[sub].texel; }
 
   // The sub-texel holding a ray hit on face `face` of primitive `prim` (the
-  // primitive whose face the ray crossed: the thesis' traversal affiliation),
+  // primitive whose face the ray crossed: [Thesis]'s traversal affiliation),
   // or -1: the texel from face_param, then the label of the grid cell nearest
   // to the hit that is on the boundary. A hit in a texel classified inert
   // (a sliver thinner than the grid) goes to the nearest boundary cell of

@@ -1,7 +1,7 @@
 // Analytic CSG primitives: a canonical solid in local space plus an affine
 // local->world map. The canonical shapes are Blender's add-primitive operators
 // at their default size, so an exporter sends the object matrix and the solid
-// follows (thesis 4.1: transforms are pushed down into the leaves, and a ray
+// follows ([Thesis §4.1]: transforms are pushed down into the leaves, and a ray
 // is mapped into primitive space once).
 //
 //   Sphere      radius 1 at the origin                 faces: 0 surface

@@ -1,4 +1,4 @@
-// Parametric, stochastic, context-sensitive L-systems (thesis 4.2.2): a text
+// Parametric, stochastic, context-sensitive L-systems ([Thesis §4.2.2]): a text
 // language, its parser and parallel derivation. The turtle that turns a
 // derived string into primitives is in lsystem/turtle.h.
 //

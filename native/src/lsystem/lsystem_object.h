@@ -1,4 +1,4 @@
-// An L-system placed in a scene (thesis ch. 7): the graph of lsystem/graph.h
+// An L-system placed in a scene ([Thesis ch. 7]): the graph of lsystem/graph.h
 // in its own frame, a placement into the world (a similarity: rotation or
 // mirror times a uniform scale, plus a translation), the mapping of turtle
 // material indices to scene materials, and what its orientation lightmaps

@@ -1,4 +1,4 @@
-// Stochastic area estimation (thesis 6.3): an OL bin needs the area of the
+// Stochastic area estimation ([Thesis §6.3]): an OL bin needs the area of the
 // covered surface whose normal falls in it. Summing exact areas of every
 // primitive of a complex object is what OLs avoid; instead, points are drawn
 // in the (u, v) domains of the object's parts and each point adds the area
@@ -8,7 +8,7 @@
 // Compound objects (6.3.2): s samples are spread over the m parts in
 // proportion to each part's parameter-domain measure; s may be far below m
 // (a tree's 10^5 leaves are alike: each sample picks a part at random).
-// The thesis used 20000 samples per OL (results 8.2).
+// [Thesis §8.2] used 20000 samples per OL.
 //
 // Parts are a closed set dispatched on a tag (triangle, sphere, torus) plus a
 // custom kind for faces defined elsewhere (CSG primitives): a function

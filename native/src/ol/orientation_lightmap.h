@@ -1,4 +1,4 @@
-// Orientation lightmaps (OL, thesis ch. 6.2): one lightmap over the sphere of
+// Orientation lightmaps (OL, [Thesis §6.2]): one lightmap over the sphere of
 // surface normals covers a group of geometry (an object, a part of one, a
 // whole collection). Photons still hit and bounce off the real geometry; only
 // where a hit is stored changes: bin b of the OL sums the flux of all hits
@@ -97,7 +97,7 @@ class OrientationLightmap {
   double orphan_flux_ = 0.0;
 };
 
-// A hierarchy of OLs (thesis fig. 6.3): a node covers the union of its
+// A hierarchy of OLs ([Thesis fig. 6.3]): a node covers the union of its
 // children's geometry. A hit on geometry of a node is stored in that node and
 // all its ancestors; a lookup uses the lowest level whose bin for the normal
 // has at least min_hits hits, so detail shows where photons suffice and the

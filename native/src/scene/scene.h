@@ -75,7 +75,7 @@ struct Light {
   plm_light desc;
 };
 
-// An orientation-lightmap group (thesis 6.2): lightmap-less meshes whose
+// An orientation-lightmap group ([Thesis §6.2]): lightmap-less meshes whose
 // light is stored per surface normal in one shared octahedral map.
 struct CsgSolid {
   std::unique_ptr<csg::CsgObject> object;  // stable address: Embree keeps a pointer to it

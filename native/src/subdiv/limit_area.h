@@ -1,4 +1,4 @@
-// OL area estimation on the subdivision limit surface (thesis 6.3, issue 8).
+// OL area estimation on the subdivision limit surface ([Thesis §6.3]).
 // A mesh added as a subdivision cage is traced as its refined triangles, but
 // its orientation-lightmap bin areas can come from the surface the
 // subdivision converges to: the same bicubic / Gregory patches that place the
@@ -37,7 +37,7 @@ struct CageCopy {
   Cage view() const;
 };
 
-// Samples per subdivision mesh in a bake (the thesis used 20000 per OL, results 8.2).
+// Samples per subdivision mesh in a bake ([Thesis §8.2] used 20000 per OL).
 constexpr uint64_t kLimitAreaSamples = 20000;
 
 struct LimitAreaSettings {

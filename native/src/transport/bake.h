@@ -1,4 +1,4 @@
-// The photon-lightmap bake (thesis 3.5.2): photons leave the lights in
+// The photon-lightmap bake ([Thesis §3.5.2]): photons leave the lights in
 // proportion to their power, bounce diffusely with Russian roulette, and every
 // hit on a lightmapped surface adds its flux to the texel it lands in. A texel
 // holds flux / (area * pi) = irradiance / pi.
@@ -54,7 +54,7 @@ struct OlImage {
   plm_ol_stats stats{};
 };
 
-// The OLs of one L-system object (thesis ch. 7): the root OL covers the
+// The OLs of one L-system object ([Thesis ch. 7]): the root OL covers the
 // whole object; a stub OL covers the primitives under one node instance at
 // the object's ol_level, keyed by that instance's path key
 // (lsystem/graph.h ancestor_key). Every hit goes to the root and to its

@@ -1,4 +1,4 @@
-// The direct pass (thesis 3.5.2, two-pass use of lightmaps): each texel's
+// The direct pass ([Thesis §3.5.2], two-pass use of lightmaps): each texel's
 // direct light is estimated from stratified points inside the part of the
 // texel its triangles cover, shadow rays from each point towards every light
 // or a chosen one (see all_lights_). The points come from texel_points.h; the

@@ -1,4 +1,4 @@
-// The orientation lightmaps a bake fills (thesis 6, 7): one OL per OL group
+// The orientation lightmaps a bake fills ([Thesis ch. 6, 7]): one OL per OL group
 // and each L-system object's root and stub OLs. Set up before the photon
 // pass (bin areas, each OL mesh's triangle bins), filled with each photon
 // batch's OL hits in batch order (photon batch b goes to OL replicate

@@ -1,4 +1,4 @@
-// The photon tracer (thesis 3.5.2): photons leave the lights in proportion to
+// The photon tracer ([Thesis §3.5.2]): photons leave the lights in proportion to
 // their power, bounce diffusely with Russian roulette, and every front-side
 // hit on a lightmapped surface is recorded for the texel it lands in. A batch
 // of photons writes its hits into a BatchOutput; the caller merges batches in
