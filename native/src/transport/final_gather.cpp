@@ -13,9 +13,10 @@
 namespace plm {
 
 FinalGather::FinalGather(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
-                         const std::vector<TexelAreas>& areas, const plm_bake_settings& settings, float scene_extent)
+                         const std::vector<TexelAreas>& areas, const plm_bake_settings& settings, float scene_extent,
+                         const PassageTracer* passage)
     : rtc_(rtc), surfaces_(surfaces), views_(views), areas_(areas), points_(views, areas, settings),
-      seed_(settings.seed), offset_scale_(1e-6f * scene_extent) {}
+      seed_(settings.seed), offset_scale_(1e-6f * scene_extent), passage_(passage) {}
 
 void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
                                const GatherSource& source, GatherSums& sums, GatherInfo& info) const {
@@ -66,7 +67,13 @@ void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round,
     if (lanes > 0) packet.intersect(rtc_, zero_lanes);
     for (unsigned l = 0; l < lanes; ++l) {
       const uint32_t j = lane_sample[l];
-      const SurfaceHit h = surfaces_.hit(packet.rh, l);
+      SurfaceHit h = surfaces_.hit(packet.rh, l);
+      Vec3 through{1, 1, 1};  // what passable surfaces on the way let through (transport/passage.h)
+      if (passage_ && passage_->passable(h)) {
+        const Vec3 origin{packet.rh.ray.org_x[l], packet.rh.ray.org_y[l], packet.rh.ray.org_z[l]};
+        h = passage_->continue_through(rtc_, h, lane_dir[l], through);
+        h.t = length(h.point - origin);
+      }
       const uint32_t mesh = h.index, prim = h.prim;
       Vec3 e{0, 0, 0};
       if (contact_lanes & (1u << l)) {
@@ -101,7 +108,7 @@ void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round,
           if (ht >= 0 && !unreliable) {
             if (hv.texel_area[ht] > 0.0) {
               const float* d = source.radiosity + 3 * (hv.texel_offset + ht);
-              const Vec3 a = (*source.albedo)[mesh][prim];
+              const Vec3 a = (*source.albedo)[mesh][prim] * through;
               e = {a.x * d[0], a.y * d[1], a.z * d[2]};
               error_sum += double(average(a)) * source.error[hv.texel_offset + ht];
               known = true;

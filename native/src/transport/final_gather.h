@@ -17,6 +17,7 @@
 #include "lightmap/texel_area.h"
 #include "photonlm/photonlm.h"
 #include "transport/film.h"
+#include "transport/passage.h"
 #include "transport/stratified_sums.h"
 #include "transport/texel_points.h"
 #include "transport/tracing.h"
@@ -53,8 +54,10 @@ struct GatherSource {
 
 class FinalGather {
  public:
+  // passage: scenes with passable materials, whose rays go on through them (transport/passage.h); else null.
   FinalGather(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
-              const std::vector<TexelAreas>& areas, const plm_bake_settings& settings, float scene_extent);
+              const std::vector<TexelAreas>& areas, const plm_bake_settings& settings, float scene_extent,
+              const PassageTracer* passage = nullptr);
 
   // Adds `samples` (rounded up to a square) cosine-distributed rays from the
   // direct pass's points of texel `texel` of mesh `mesh` (meshes only). Each
@@ -77,6 +80,7 @@ class FinalGather {
   TexelPoints points_;
   uint32_t seed_;
   float offset_scale_;
+  const PassageTracer* passage_;
 };
 
 // The gather of every covered texel, in the film's covered order.
