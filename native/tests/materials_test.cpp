@@ -301,4 +301,139 @@ TEST(Materials, RoughGlassAndMetalLoseOnlyTheirSingleScatteringEnergy) {
   EXPECT_GT(glass, metal);
 }
 
+
+TEST(Materials, DispersionWeightsAverageToWhite) {
+  // The mean of each channel's weight over 380-780 nm is 1 (white stays white).
+  double sum[3] = {0, 0, 0};
+  constexpr int kN = 40000;
+  for (int i = 0; i < kN; ++i) {
+    const plm::Vec3 w = plm::rgb_weight(380.0f + 400.0f * (float(i) + 0.5f) / kN);
+    sum[0] += w.x, sum[1] += w.y, sum[2] += w.z;
+  }
+  for (double v : sum) EXPECT_NEAR(v / kN, 1.0, 1e-4);
+  // Blue before green before red: the weights' centroids in wavelength.
+  double c[3] = {0, 0, 0};
+  for (int i = 0; i < kN; ++i) {
+    const float l = 380.0f + 400.0f * (float(i) + 0.5f) / kN;
+    const plm::Vec3 w = plm::rgb_weight(l);
+    c[0] += w.x * l, c[1] += w.y * l, c[2] += w.z * l;
+  }
+  EXPECT_GT(c[0], c[1]);
+  EXPECT_GT(c[1], c[2]);
+  // The Cauchy fit goes through n_d and has the asked-for Abbe number.
+  const plm::Cauchy k = plm::cauchy_fit(1.5168f, 64.17f);  // Schott N-BK7
+  EXPECT_NEAR(k.at(0.5876f), 1.5168f, 1e-6f);
+  EXPECT_NEAR((k.at(0.5876f) - 1.0f) / (k.at(0.4861f) - k.at(0.6563f)), 64.17f, 0.01f);
+}
+
+// A 2D ray in the prism's cross-section (x, z).
+struct Ray2 {
+  double x, z, dx, dz;
+};
+
+// Refracts unit direction (dx, dz) at a face of unit normal (nx, nz) facing
+// the incoming side, from index 1 to eta = n2 / n1; false under total internal reflection.
+bool refract2(Ray2& r, double nx, double nz, double eta) {
+  const double c = -(r.dx * nx + r.dz * nz);
+  const double k = 1.0 - (1.0 - c * c) / (eta * eta);
+  if (k < 0.0) return false;
+  const double a = c / eta - std::sqrt(k);
+  r.dx = r.dx / eta + a * nx;
+  r.dz = r.dz / eta + a * nz;
+  return true;
+}
+
+// Distance along r to the segment p-q (infinite if missed).
+double to_segment(const Ray2& r, double px, double pz, double qx, double qz) {
+  const double ex = qx - px, ez = qz - pz, det = r.dx * -ez - r.dz * -ex;
+  if (std::fabs(det) < 1e-12) return INFINITY;
+  const double wx = px - r.x, wz = pz - r.z;
+  const double t = (wx * -ez - wz * -ex) / det, s = (r.dx * wz - r.dz * wx) / det;
+  return t > 1e-9 && s >= 0.0 && s <= 1.0 ? t : INFINITY;
+}
+
+// A prism of IOR 1.5 and Abbe number 30 (apex down, 60 degrees) under a sun
+// at its minimum deviation: the light leaving it reaches a ceiling (facing
+// down) as a spectrum, blue nearer the prism than red. Each channel's
+// centroid on the ceiling lies where a 2D trace of Snell's law (each
+// wavelength's Cauchy index, weighted by the channel's weight) puts it, and
+// each channel brings the flux the prism's entry face catches.
+TEST(Materials, APrismSplitsWhiteIntoAnOrderedSpectrum) {
+  const double ax = -0.5, az = 0.866025, bx = 0.5, bz = 0.866025, cx = 0.0, cz = 0.0;  // the cross-section
+  const double ceiling_z = 1.5;
+  const float ior = 1.5f, abbe = 30.0f;
+  const double phi = -(std::asin(0.75) - kPiT / 6.0);  // the sun's elevation for minimum deviation at n = 1.5
+  const V3 d{float(std::cos(phi)), 0.0f, float(std::sin(phi))};
+  SceneBuilder b;
+  const uint32_t black = b.material("black", {0, 0, 0});
+  const uint32_t glass = b.material("flint", {0, 0, 0});
+  add_lobe(b, glass, PLM_LOBE_REFRACTION, {1, 1, 1}, 0.0f, ior, abbe);
+  b.quad("entry", {float(ax), -2, float(az)}, {0, 4, 0}, {float(cx - ax), 0, float(cz - az)}, glass, 0);
+  b.quad("exit", {float(cx), -2, float(cz)}, {0, 4, 0}, {float(bx - cx), 0, float(bz - cz)}, glass, 0);
+  b.quad("base", {float(ax), -2, float(az)}, {1, 0, 0}, {0, 4, 0}, black, 0);
+  b.light(sun(d, 1.0f), "sun");
+  ASSERT_TRUE(b.ok()) << b.error;
+  // The ceiling, 6 x 2 m facing down, with 60 x 20 texels of 0.1 m (quad() makes square maps).
+  const float pos[12] = {0, 1, float(ceiling_z), 6, 1, float(ceiling_z), 0, -1, float(ceiling_z),
+                         6, -1, float(ceiling_z)};
+  const uint32_t idx[6] = {0, 1, 3, 0, 3, 2};  // facing down
+  const float uv[12] = {0, 0, 1, 0, 1, 1, 0, 0, 1, 1, 0, 1};
+  const uint32_t mats[2] = {black, black};
+  uint32_t screen = 0;
+  ASSERT_EQ(plm_scene_add_mesh(b.scene, "screen", pos, 4, idx, 2, uv, mats, 60, 20, &screen), PLM_OK)
+      << plm_last_error();
+  BakeResult r;
+  plm_test::bake(b, plm_test::settings_with(4000000, 16), r);
+  const Map m = r.map(screen);
+  double flux[3] = {0, 0, 0}, cx_sum[3] = {0, 0, 0};
+  for (uint32_t j = 0; j < m.h; ++j)
+    for (uint32_t i = 0; i < m.w; ++i) {
+      const size_t t = size_t(j) * m.w + i;
+      const double x = (i + 0.5) * 0.1;
+      for (int c = 0; c < 3; ++c) {
+        ASSERT_TRUE(std::isfinite(m.rgb[3 * t + c]));
+        flux[c] += m.rgb[3 * t + c] * kPiT * 0.01;  // irradiance x area
+        cx_sum[c] += m.rgb[3 * t + c] * x;
+      }
+    }
+  // The trace: rays entering the entry face at heights z, each wavelength.
+  double want_flux[3] = {0, 0, 0}, want_x[3] = {0, 0, 0}, weight[3] = {0, 0, 0};
+  const plm::Cauchy k = plm::cauchy_fit(ior, abbe);
+  const double n_entry[2] = {-0.866025, -0.5}, n_exit[2] = {0.866025, -0.5};
+  constexpr int kZ = 200, kL = 400;
+  for (int zi = 0; zi < kZ; ++zi)
+    for (int li = 0; li < kL; ++li) {
+      const double f = (zi + 0.5) / kZ, lambda = 380.0 + 400.0 * (li + 0.5) / kL;
+      const plm::Vec3 w = plm::rgb_weight(float(lambda));
+      const double n = k.at(float(lambda * 1e-3));
+      Ray2 ray{ax + f * (cx - ax), az + f * (cz - az), d.x, d.z};
+      double hit_x = NAN;
+      if (refract2(ray, n_entry[0], n_entry[1], n)) {
+        const double t_exit = to_segment(ray, cx, cz, bx, bz), t_base = to_segment(ray, ax, az, bx, bz);
+        if (t_exit < t_base) {
+          ray.x += t_exit * ray.dx, ray.z += t_exit * ray.dz;
+          if (refract2(ray, -n_exit[0], -n_exit[1], 1.0 / n) && ray.dz > 0.0)
+            hit_x = ray.x + (ceiling_z - ray.z) / ray.dz * ray.dx;
+        }
+      }
+      const double wc[3] = {w.x, w.y, w.z};
+      for (int c = 0; c < 3; ++c) {
+        weight[c] += wc[c];
+        if (std::isnan(hit_x) || hit_x < 0.0 || hit_x > 6.0) continue;
+        want_flux[c] += wc[c];
+        want_x[c] += wc[c] * hit_x;
+      }
+    }
+  const double caught = std::fabs(d.x * n_entry[0] + d.z * n_entry[1]) * 1.0 * 2.0;  // |d.n| x face width x 2 m
+  for (int c = 0; c < 3; ++c) {
+    want_x[c] /= want_flux[c];
+    want_flux[c] *= caught / weight[c];
+    EXPECT_NEAR(flux[c], want_flux[c], 0.02 * want_flux[c]) << "channel " << c;
+    EXPECT_NEAR(cx_sum[c] * kPiT * 0.01 / flux[c], want_x[c], 0.02) << "channel " << c;
+  }
+  EXPECT_GT(want_x[0] - want_x[2], 0.15);  // the trace's spectrum: red ~0.3 m beyond blue
+  EXPECT_GT(cx_sum[0] * kPiT * 0.01 / flux[0], cx_sum[1] * kPiT * 0.01 / flux[1]);
+  EXPECT_GT(cx_sum[1] * kPiT * 0.01 / flux[1], cx_sum[2] * kPiT * 0.01 / flux[2]);
+}
+
 }  // namespace

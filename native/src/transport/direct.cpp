@@ -116,6 +116,12 @@ void DirectPass::select_candidates(Vec3 p, Vec3 n, uint32_t* chosen, ChoiceScrat
 
 void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
                               DirectSums& sums) const {
+  if (passage_) sample<true>(mesh_id, texel, round, samples, sums);
+  else sample<false>(mesh_id, texel, round, samples, sums);
+}
+
+template <bool kPassage>
+void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums) const {
   if (emitters_.empty()) return;
   // A CSG sub-texel: points from its lightmap; rays leave the exact surface by
   // the origin offset alone (a ray may rightly hit the primitive it leaves).
@@ -189,7 +195,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   uint32_t lane_sample[RayPacket::kLanes];
   auto trace_packet = [&] {
     const unsigned lanes = packet.size;
-    if (passage_) {
+    if constexpr (kPassage) {
       Vec3 through[RayPacket::kLanes];
       passage_->occluded(packet, rtc_, through);
       for (unsigned l = 0; l < lanes; ++l) chunk[lane_sample[l]].e += lane_value[l] * through[l];
@@ -335,9 +341,11 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
         SurfaceHit h = surfaces_.hit(rh);
         Vec3 through{1, 1, 1};
         float distance = h.t;
-        if (passage_ && passage_->passable(h)) {
-          h = passage_->continue_through(rtc_, h, dir, through);
-          distance = length(h.point - ps.origin);
+        if constexpr (kPassage) {
+          if (passage_->passable(h)) {
+            h = passage_->continue_through(rtc_, h, dir, through);
+            distance = length(h.point - ps.origin);
+          }
         }
         const int32_t hit_emitter = h.kind == SurfaceKind::Triangle && !triangle_emitter_[h.index].empty()
                                         ? triangle_emitter_[h.index][h.prim]
@@ -351,7 +359,7 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
             const Vec3 L = he.textured
                                ? textures_->emission(*views_[h.index].mesh, he.material, he.triangle, h.u, h.v)
                                : he.radiance;
-            e += L * through * (r / (1.0f + r));
+            e += kPassage ? L * through * (r / (1.0f + r)) : L * (r / (1.0f + r));
           }
         }
       }

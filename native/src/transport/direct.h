@@ -55,6 +55,10 @@ class DirectPass {
   void sample_texel(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums) const;
 
  private:
+  // sample_texel without (kPassage false: as in scenes without passable
+  // materials) or with shadow and MIS rays through passages.
+  template <bool kPassage>
+  void sample(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums) const;
   // Shares of the local choice among `count` candidate lights at point p,
   // normal n: share[i] = 0.9 x candidate i's unoccluded irradiance / their
   // sum. Returns the local part, 0.9, or 0 if no candidate lights p.

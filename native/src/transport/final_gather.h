@@ -73,6 +73,14 @@ class FinalGather {
                     GatherSums& sums, GatherInfo& info) const;
 
  private:
+  // sample_texel without (kPassage false: the loop as in scenes without
+  // passable materials) or with rays through passages.
+  template <bool kPassage>
+  void sample(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, const GatherSource& source,
+              GatherSums& sums, GatherInfo& info) const;
+  // Lane l's hit, continued through passable surfaces; through: their weight.
+  SurfaceHit passed(const RayPacket& packet, unsigned l, Vec3 dir, Vec3& through) const;
+
   RTCScene rtc_;
   const SurfaceMap& surfaces_;
   const std::vector<MeshView>& views_;

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <limits>
+#include <type_traits>
 
 #include "transport/passage.h"
 #include "transport/photon_sampler.h"
@@ -58,22 +59,27 @@ std::vector<std::vector<Vec3>> PhotonTracer::triangle_albedos() const {
 void PhotonTracer::trace_batch(uint64_t first, uint64_t count, BatchOutput& out) const {
   out.hits.clear();
   out.caustic_hits.clear();
+  out.caustic_points.clear();
   out.ol_hits.clear();
   out.ls_hits.clear();
   out.back_meshes.clear();
   out.rays = out.truncated = 0;
   out.truncated_flux = 0.0;
   lsystem::GraphHit graph_hit;
-  if (lobes_) {
-    if (mesh_only_)
-      for (uint64_t i = first; i < first + count; ++i) trace_photon<true, true>(i, graph_hit, out);
-    else
-      for (uint64_t i = first; i < first + count; ++i) trace_photon<false, true>(i, graph_hit, out);
-  } else if (mesh_only_) {
+  if (lobes_) return trace_lobe_batch(first, count, graph_hit, out);
+  if (mesh_only_)
     for (uint64_t i = first; i < first + count; ++i) trace_photon<true, false>(i, graph_hit, out);
-  } else {
+  else
     for (uint64_t i = first; i < first + count; ++i) trace_photon<false, false>(i, graph_hit, out);
-  }
+}
+
+// Scenes with lobes: a function of its own, so that the plain loop above is compiled as without them.
+__attribute__((noinline)) void PhotonTracer::trace_lobe_batch(uint64_t first, uint64_t count,
+                                                               lsystem::GraphHit& graph_hit, BatchOutput& out) const {
+  if (mesh_only_)
+    for (uint64_t i = first; i < first + count; ++i) trace_photon<true, true>(i, graph_hit, out);
+  else
+    for (uint64_t i = first; i < first + count; ++i) trace_photon<false, true>(i, graph_hit, out);
 }
 
 void PhotonTracer::build_hit_tables() {
@@ -138,7 +144,8 @@ void PhotonTracer::trace_photon(uint64_t index, lsystem::GraphHit& graph_hit, Ba
   TraceContext tc;
   if (!kMeshOnly) tc.hits.graph_hits = &graph_hit;
   Vec3 org = s.origin, dir = s.direction;
-  [[maybe_unused]] PathState path;
+  struct NoPath {};
+  [[maybe_unused]] std::conditional_t<kLobes, PathState, NoPath> path;
   for (uint32_t depth = 0;; ++depth) {
     RTCRayHit rh;
     rh.ray = make_ray(org, dir, std::numeric_limits<float>::infinity());
@@ -267,6 +274,9 @@ inline bool PhotonTracer::lobe_hit(uint64_t index, const SurfaceHit& h, const Hi
     if (front) out.ls_hits.push_back({h.index, ls_grids_[h.index].bin(h.ol_normal), h.stub_key, seen.x, seen.y, seen.z});
   } else {
     if (front && wanted) record_into(h, seen, cls == kCaustic ? out.caustic_hits : out.hits);
+    if (keep_points_ && front && wanted && cls == kCaustic && h.kind == SurfaceKind::Triangle &&
+        hit_meshes_[h.index].covered)
+      out.caustic_points.push_back({h.point, seen.x, seen.y, seen.z, h.index});
     if (h.kind == SurfaceKind::Triangle) {
       const uint32_t mesh = h.index;
       if (!front && (out.back_meshes.empty() || out.back_meshes.back() != mesh)) out.back_meshes.push_back(mesh);
@@ -389,7 +399,11 @@ inline bool PhotonTracer::pressed(const HitMesh& hm, const SurfaceHit& h, bool f
 inline bool PhotonTracer::special_hit(const HitMesh& hm, const SurfaceHit& h, Vec3 dir, bool front, Vec3 normal,
                                       Vec3& flux) const {
   const float bu = h.u, bv = h.v;
-  if (pressed(hm, h, front, normal)) return false;
+  if (front && hm.contact) {
+    const int64_t texel = uv_texel(hm.uv + 6 * size_t(h.prim), bu, bv, hm.width, hm.height);
+    if (texel >= 0 && hm.contact[texel] && in_contact(rtc_, surfaces_, h.point, normal, h.index, h.prim, offset_scale_))
+      return false;
+  }
   if (!hm.shading) return true;
   const Vec3* c = hm.shading + 3 * size_t(h.prim);
   const Vec3 shading = c[0] * (1.0f - bu - bv) + c[1] * bu + c[2] * bv;

@@ -42,10 +42,19 @@ struct LsHit {
   float r, g, b;
 };
 
+// A caustic photon's hit on a mesh, where it landed (kept only for
+// experiments with other density estimates: PhotonTracer::keep_caustic_points).
+struct CausticPoint {
+  Vec3 point;
+  float r, g, b;
+  uint32_t mesh;
+};
+
 // What one batch of photons recorded, in photon order.
 struct BatchOutput {
   std::vector<Hit> hits;
   std::vector<Hit> caustic_hits;  // scenes with lobes: hits whose path's last event was specular
+  std::vector<CausticPoint> caustic_points;  // the same hits' points, if asked for
   std::vector<OlHit> ol_hits;
   std::vector<LsHit> ls_hits;
   std::vector<uint32_t> back_meshes;  // meshes whose back a photon reached (the final gather's dark backs)
@@ -80,6 +89,9 @@ class PhotonTracer {
   const Material& material(const Mesh& mesh, uint32_t tri) const { return material_by_id(mesh.material_ids[tri]); }
   // Per mesh, per triangle: its material's albedo.
   std::vector<std::vector<Vec3>> triangle_albedos() const;
+
+  // Also keep the points of caustic hits on lightmapped meshes (BatchOutput::caustic_points).
+  void keep_caustic_points(bool keep) { keep_points_ = keep; }
 
   // Traces photons [first, first + count) into out (cleared first).
   void trace_batch(uint64_t first, uint64_t count, BatchOutput& out) const;
@@ -127,6 +139,7 @@ class PhotonTracer {
   // record of the photon's rays that L-system callbacks write.
   // kLobes: the scene has specular lobes (lobes_); the photon follows them
   // and its path is classified (PathState), the purely diffuse loop stays as it was.
+  void trace_lobe_batch(uint64_t first, uint64_t count, lsystem::GraphHit& graph_hit, BatchOutput& out) const;
   template <bool kMeshOnly, bool kLobes>
   void trace_photon(uint64_t index, lsystem::GraphHit& graph_hit, BatchOutput& out) const;
   // A photon path's class in a scene with lobes (docs/design.md "Materials"):
@@ -186,6 +199,7 @@ class PhotonTracer {
   Rng::SeedHash seed_hash_{};        // of settings_.seed, for the photons' Rng
   const MaterialTable* lobes_ = nullptr;  // null in scenes without lobes
   double lambda_offset_ = 0.0;            // rotation of the photons' stratified wavelengths
+  bool keep_points_ = false;
 };
 
 }  // namespace plm
