@@ -267,7 +267,7 @@ inline bool PhotonTracer::lobe_hit(uint64_t index, const SurfaceHit& h, const Hi
                                    Vec3 normal, Vec3 albedo, const float v[3], uint32_t depth, Vec3& flux, Vec3& org,
                                    PathState& path, TraceContext& tc, BatchOutput& out) const {
   Vec3 seen = flux;  // what the surface's irradiance records (about its shading normal)
-  if (special && special->shading) special_hit(*special, h, dir, front, normal, seen);
+  if (special && special->shading) seen *= shading_ratio(*special, h, dir, front, normal);
   const PathClass cls = path.recorded();
   const bool wanted = cls != kDirect || first_recorded_ == 0;
   if (h.kind == SurfaceKind::LSystem) {
@@ -413,6 +413,18 @@ inline bool PhotonTracer::special_hit(const HitMesh& hm, const SurfaceHit& h, Ve
   const float w = cos_s > 0.0f ? std::fmin(cos_s / cos_g, kMaxShadingRatio) : 0.0f;
   flux *= w;
   return w > 0.0f;  // light from behind the shading normal: no irradiance about it
+}
+
+// special_hit's weight alone (the lobe loop tests contact apart): cos(shading) / cos(geometric)
+// of the arrival direction, at most kMaxShadingRatio, 0 from behind the shading normal.
+inline float PhotonTracer::shading_ratio(const HitMesh& hm, const SurfaceHit& h, Vec3 dir, bool front,
+                                         Vec3 normal) const {
+  const Vec3* c = hm.shading + 3 * size_t(h.prim);
+  const Vec3 shading = c[0] * (1.0f - h.u - h.v) + c[1] * h.u + c[2] * h.v;
+  const float len = length(shading);
+  if (!(len > 0.0f)) return 1.0f;
+  const float cos_s = -dot(dir, front ? shading : -shading) / len, cos_g = -dot(dir, normal);
+  return cos_s > 0.0f ? std::fmin(cos_s / cos_g, kMaxShadingRatio) : 0.0f;
 }
 
 // A front-side hit on a mesh or CSG solid into the texel (or CSG sub-texel)

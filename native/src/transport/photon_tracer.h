@@ -174,6 +174,8 @@ class PhotonTracer {
                           Vec3& flux) const;
   // The contact test of special_hit: the photon is absorbed.
   inline bool pressed(const HitMesh& hm, const SurfaceHit& h, bool front, Vec3 normal) const;
+  // special_hit's shading-normal weight alone (hm.shading set).
+  inline float shading_ratio(const HitMesh& hm, const SurfaceHit& h, Vec3 dir, bool front, Vec3 normal) const;
   inline void record(const SurfaceHit& h, Vec3 flux, BatchOutput& out) const;
   inline void record_into(const SurfaceHit& h, Vec3 flux, std::vector<Hit>& hits) const;
 
