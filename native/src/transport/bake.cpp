@@ -169,7 +169,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
       gathered = true;
       if (budget.spent(kGatherBudgetShare)) return;
       const FinalGather final_gather(accel.handle(), surfaces, space.views, space.areas, settings, extent,
-                                     passage.get());
+                                     passage.get(), lobes.any_lobes());
       gather = run_final_gather(arena, final_gather, space, now.values, tracer.triangle_albedos(),
                                 acc.back_lit.data(), gather_samples(settings.target_error), [&] {
                                   report(direct_end, "final gather");

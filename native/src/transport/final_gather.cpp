@@ -14,9 +14,9 @@ namespace plm {
 
 FinalGather::FinalGather(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
                          const std::vector<TexelAreas>& areas, const plm_bake_settings& settings, float scene_extent,
-                         const PassageTracer* passage)
+                         const PassageTracer* passage, bool black_known)
     : rtc_(rtc), surfaces_(surfaces), views_(views), areas_(areas), points_(views, areas, settings),
-      seed_(settings.seed), offset_scale_(1e-6f * scene_extent), passage_(passage) {}
+      seed_(settings.seed), offset_scale_(1e-6f * scene_extent), passage_(passage), black_known_(black_known) {}
 
 void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
                                const GatherSource& source, GatherSums& sums, GatherInfo& info) const {
@@ -117,6 +117,12 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
               known = true;
             }
           }
+        }
+        // With lobes: the front of a surface without a diffuse part (glass, a mirror) reflects
+        // nothing the gather covers (its light is a caustic's), lightmap or not.
+        if (!known && black_known_ && is_mesh && dot(lane_dir[l], h.normal) < 0.0f) {
+          const Vec3 a = (*source.albedo)[mesh][prim];
+          known = a.x == 0.0f && a.y == 0.0f && a.z == 0.0f;
         }
         if (!known) ++info.unknown;
       }

@@ -55,9 +55,11 @@ struct GatherSource {
 class FinalGather {
  public:
   // passage: scenes with passable materials, whose rays go on through them (transport/passage.h); else null.
+  // black_known: scenes with lobes, where a ray meeting the front of a surface without a diffuse
+  // part (glass, metal) counts a known 0 even where that surface has no lightmap.
   FinalGather(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
               const std::vector<TexelAreas>& areas, const plm_bake_settings& settings, float scene_extent,
-              const PassageTracer* passage = nullptr);
+              const PassageTracer* passage = nullptr, bool black_known = false);
 
   // Adds `samples` (rounded up to a square) cosine-distributed rays from the
   // direct pass's points of texel `texel` of mesh `mesh` (meshes only). Each
@@ -89,6 +91,7 @@ class FinalGather {
   uint32_t seed_;
   float offset_scale_;
   const PassageTracer* passage_;
+  bool black_known_;
 };
 
 // The gather of every covered texel, in the film's covered order.
