@@ -121,6 +121,19 @@ def _ptr(a, ctype):
     return None if a is None else a.ctypes.data_as(ctypes.POINTER(ctype))
 
 
+def _lobe(kind, color, roughness, ior, abbe, weight):
+    """A filled plm_lobe: the kind's defaults (plm_lobe_default), then the given values."""
+    lobe = _lib.plm_lobe()
+    _C.plm_lobe_default(ctypes.byref(lobe), kind)
+    lobe.color[:] = [float(c) for c in _rgb(color, "lobe color")]
+    lobe.roughness = float(roughness)
+    if ior is not None:
+        lobe.ior = float(ior)
+    lobe.abbe = float(abbe)
+    lobe.weight = float(weight)
+    return lobe
+
+
 def _name(name):
     return None if name is None else str(name).encode("utf-8")
 
@@ -348,6 +361,23 @@ class Scene(_Handle):
             ctypes.byref(out)))
         self.__dict__.setdefault("_mesh_triangles", {})[out.value] = 2 * corners * 4 ** (level - 1)
         return out.value
+
+    LOBE_KINDS = {"glossy": 0, "fresnel": 1, "glass": 2, "refraction": 3, "transparent": 4}
+
+    def add_material_lobe(self, material, kind, color, roughness=0.0, ior=None, abbe=0.0, weight=1.0):
+        """Add a specular lobe to a material (at most 8; docs/design.md "Materials"). kind:
+        "glossy" (GGX reflection of `color` at every angle), "fresnel" (GGX reflection rising from
+        `color` = F0 at normal incidence to `weight` at grazing, as a dielectric of `ior`),
+        "glass" (Fresnel reflection and refraction, tinted), "refraction" (refraction only),
+        "transparent" (straight through). color RGB in [0, 1]; weight in [0, 1] multiplies the
+        lobe (mix factors); roughness is Blender's (GGX alpha = roughness^2); ior None takes the
+        kind's default (1.45 for glass and refraction, else 1.5); abbe > 0 gives glass and
+        refraction dispersion (Abbe number). Per channel albedo + weight x color over the lobes
+        other than "fresnel" must not exceed 1."""
+        if kind not in self.LOBE_KINDS:
+            raise ValueError("lobe kind must be one of %s, got %r" % (sorted(self.LOBE_KINDS), kind))
+        lobe = _lobe(self.LOBE_KINDS[kind], color, roughness, ior, abbe, weight)
+        _check(_C.plm_scene_add_material_lobe(self._h, _uint(material, "material"), ctypes.byref(lobe)))
 
     TEXTURE_SLOTS = {"albedo": 0, "emission": 1}
     TEXTURE_COLORSPACES = {"auto": 0, "linear": 1, "srgb": 2}

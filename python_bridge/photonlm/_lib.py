@@ -68,6 +68,17 @@ class plm_light(ctypes.Structure):
     ]
 
 
+class plm_lobe(ctypes.Structure):
+    _fields_ = [
+        ("type", c_int32),
+        ("color", c_float * 3),
+        ("roughness", c_float),
+        ("ior", c_float),
+        ("abbe", c_float),
+        ("weight", c_float),
+    ]
+
+
 class plm_bake_settings(ctypes.Structure):
     _fields_ = [
         ("photon_count", c_uint64),
@@ -201,6 +212,8 @@ _SIGNATURES = {
     "plm_result_write_exr": (status_t, [ResultPtr, c_uint32, c_char_p]),
     "plm_scene_add_ol_group": (status_t, [ScenePtr, c_char_p, c_uint32, UInt32Ptr]),
     "plm_scene_set_mesh_ol_group": (status_t, [ScenePtr, c_uint32, c_uint32]),
+    "plm_lobe_default": (None, [POINTER(plm_lobe), c_int]),
+    "plm_scene_add_material_lobe": (status_t, [ScenePtr, c_uint32, POINTER(plm_lobe)]),
     "plm_scene_set_material_texture": (status_t, [ScenePtr, c_uint32, c_int, c_char_p, c_uint32]),
     "plm_scene_set_mesh_texture_uv": (status_t, [ScenePtr, c_uint32, FloatPtr]),
     "plm_scene_set_mesh_normals": (status_t, [ScenePtr, c_uint32, FloatPtr]),

@@ -2,7 +2,8 @@
 
 SceneFileWriter has the scene-building methods of photonlm.Scene (add_material, add_mesh,
 add_subdiv_mesh, add_light, set_world, add_csg, set_csg_carrier, add_ol_group, set_ol_group_backup,
-set_mesh_ol_group, set_material_texture, set_mesh_texture_uv, set_mesh_normals, set_mesh_smooth) with the
+set_mesh_ol_group, add_material_lobe, set_material_texture, set_mesh_texture_uv, set_mesh_normals,
+set_mesh_smooth) with the
 same arguments and the
 same returned ids, so code that builds a
 photonlm.Scene can build a file instead:
@@ -44,6 +45,7 @@ __all__ = ["SceneFileWriter", "SceneFileUnsupported", "file_name"]
 
 _LIGHT_TYPES = ("POINT", "SPOT", "SUN", "AREA_RECT", "AREA_DISK", "PORTAL")
 _TEXTURE_SLOTS = ("albedo", "emission")
+_LOBE_KINDS = ("glossy", "fresnel", "glass", "refraction", "transparent")
 _COLORSPACES = ("auto", "linear", "srgb")
 _CSG_SHAPES = ("SPHERE", "BOX", "CYLINDER", "CONE", "TORUS", "PARABOLOID", "HALF_SPACE")
 _CSG_OPS = ("UNION", "INTERSECTION", "DIFFERENCE")
@@ -325,6 +327,30 @@ class SceneFileWriter:
     def set_mesh_ol_group(self, mesh, group):
         mesh = self._index(mesh, self.meshes, "mesh")
         self.meshes[mesh]["ol_group"] = self._index(group, self.ol_groups, "group")
+
+    def add_material_lobe(self, material, kind, color, roughness=0.0, ior=None, abbe=0.0, weight=1.0):
+        material = self._index(material, self.materials, "material")
+        if kind not in _LOBE_KINDS:
+            raise ValueError("lobe kind must be one of %s, got %r" % (list(_LOBE_KINDS), kind))
+        m = self.materials[material]
+        lobes = m.setdefault("lobes", [])
+        label = "material %d lobe %d (%s)" % (material, len(lobes), kind)
+        if len(lobes) >= 8:
+            raise ValueError("material %d: has 8 lobes already, the most a material may have" % material)
+        lobe = {"type": kind, "color": _floats(_rgb(color, label + " color"), label + " color"),
+                "weight": _real(weight), "roughness": _real(roughness), "abbe": _real(abbe)}
+        for key in ("weight", "roughness"):
+            if not 0.0 <= lobe[key] <= 1.0:
+                raise ValueError("%s: %s %r is not in [0, 1]" % (label, key, lobe[key]))
+        if not all(0.0 <= c <= 1.0 for c in lobe["color"]):
+            raise ValueError("%s: color %s is not in [0, 1]" % (label, lobe["color"]))
+        if ior is not None:
+            lobe["ior"] = _real(ior)
+            if not 0.0 < lobe["ior"] < 1e6:
+                raise ValueError("%s: ior %r must be > 0 and finite" % (label, lobe["ior"]))
+        if not 0.0 <= lobe["abbe"] < 1e6:
+            raise ValueError("%s: abbe %r must be >= 0 and finite" % (label, lobe["abbe"]))
+        lobes.append(lobe)
 
     def set_material_texture(self, material, slot, path, colorspace="auto"):
         material = self._index(material, self.materials, "material")

@@ -31,7 +31,7 @@ def test_version_matches_header():
 def test_struct_layouts_match_header(tmp_path):
     """Compile the header and compare sizeof/offsetof of every struct with the ctypes declarations."""
     structs = {"plm_light": _lib.plm_light, "plm_bake_settings": _lib.plm_bake_settings,
-               "plm_bake_stats": _lib.plm_bake_stats}
+               "plm_bake_stats": _lib.plm_bake_stats, "plm_lobe": _lib.plm_lobe}
     lines = []
     for name, cls in structs.items():
         lines.append('printf("%s size %%zu\\n", sizeof(%s));' % (name, name))
@@ -192,6 +192,27 @@ def test_bad_materials_are_refused():
         with pytest.raises(photonlm.PhotonlmError):
             scene.set_world((0.1, float("nan"), 0.1))
         assert scene.add_material(albedo=0.5, name="ok") == 0
+
+
+def test_material_lobes_are_checked_and_named():
+    with photonlm.Scene() as scene:
+        glass = scene.add_material(albedo=0.0, name="glass")
+        scene.add_material_lobe(glass, "glass", (0.9, 1.0, 0.9))  # ior None: the kind's default
+        scene.add_material_lobe(glass, "fresnel", 0.04, roughness=0.1, weight=0.25)
+        with pytest.raises(ValueError, match="lobe kind must be one of"):
+            scene.add_material_lobe(glass, "chrome", 1.0)
+        with pytest.raises(ValueError, match="lobe color"):
+            scene.add_material_lobe(glass, "glossy", (1.0, 1.0))
+        with pytest.raises(photonlm.PhotonlmError, match=r"material 'glass': lobe 2 \(glass\): ior 0 must be > 0"):
+            scene.add_material_lobe(glass, "glass", 0.5, ior=0.0)
+        with pytest.raises(photonlm.PhotonlmError, match=r"lobe 2 \(refraction\): color\[0\] = nan"):
+            scene.add_material_lobe(glass, "refraction", (float("nan"), 0, 0))
+        with pytest.raises(photonlm.PhotonlmError, match="abbe 40 is for glass and refraction lobes only"):
+            scene.add_material_lobe(glass, "glossy", 0.0, abbe=40.0)
+        with pytest.raises(photonlm.PhotonlmError, match="above 1"):
+            scene.add_material_lobe(glass, "transparent", 0.5)  # glass (1) + 0.5 > 1
+        with pytest.raises(photonlm.PhotonlmError, match="out of range"):
+            scene.add_material_lobe(5, "glossy", 0.5)
 
 
 def test_empty_scene_cannot_be_baked():

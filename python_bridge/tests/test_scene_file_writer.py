@@ -42,6 +42,8 @@ def build(s, texture):
     grey = s.add_material(0.6, name="grey")
     s.set_material_texture(grey, "albedo", texture, "srgb")
     red = s.add_material((0.8, 0.1, 0.1), name="red paint")  # a space: OBJ needs a token name
+    s.add_material_lobe(red, "fresnel", (0.9, 0.6, 0.3), roughness=0.2, weight=0.8)
+    s.add_material_lobe(red, "transparent", 0.5, weight=0.2)
     s.add_material(0.3, emission=(0.5, 0.5, 0.4), name="lamp")
     pos, tri, uv = scenes.plane(2.0, 0.0)
     floor = s.add_mesh("floor", pos, tri, lightmap_uv=uv, material_ids=[grey, grey], resolution=16)

@@ -75,29 +75,34 @@ PLM_API plm_status plm_scene_add_material(plm_scene* scene, const char* name,
  * lobes added here, in the order given, as Cycles' shader nodes sum their
  * closures: the add-on flattens Principled BSDF, Glass, Glossy, Refraction and
  * Transparent BSDFs and Mix / Add Shaders with constant factors into one
- * diffuse albedo and a list of lobes, each colour already multiplied by its
- * mix factors.
- *   PLM_LOBE_GLOSSY       GGX reflection with reflectance `color` at every
- *                         angle (Glossy BSDF)
- *   PLM_LOBE_FRESNEL      GGX reflection with reflectance `color` at normal
- *                         incidence rising to 1 at grazing as a dielectric of
- *                         `ior` does (Principled BSDF's specular and metallic
- *                         layer: color = its F0; ior sets the curve's shape)
- *   PLM_LOBE_GLASS        dielectric of `ior`: Fresnel-weighted reflection and
- *                         refraction, both tinted by `color` (Glass BSDF,
+ * diffuse albedo and a list of lobes. A lobe reflects or transmits
+ * `weight` x its reflectance, where the reflectance is
+ *   PLM_LOBE_GLOSSY       `color` at every angle: GGX reflection (Glossy BSDF)
+ *   PLM_LOBE_FRESNEL      `color` at normal incidence rising to 1 at grazing
+ *                         as a dielectric of `ior` does: color + (1 - color)
+ *                         (F(ior, cos) - F0) / (1 - F0), F exact Fresnel at the
+ *                         microfacet, F0 = F(ior, 1): GGX reflection (Principled
+ *                         BSDF's specular and metallic layer, color = its F0,
+ *                         ior from its Specular; its clearcoat, F0 = 0.04)
+ *   PLM_LOBE_GLASS        `color` x exact Fresnel reflection plus `color` x
+ *                         the transmitted rest, refracted by `ior` (Glass BSDF,
  *                         Principled transmission)
- *   PLM_LOBE_REFRACTION   refraction only, tinted by `color` (Refraction BSDF)
- *   PLM_LOBE_TRANSPARENT  straight through, tinted by `color` (Transparent
- *                         BSDF, alpha)
- * roughness is Blender's (GGX alpha = roughness^2; 0 is a perfect mirror or
- * pane); ior > 0 relates the front side's medium (outside) to the back's;
- * abbe > 0 gives GLASS and REFRACTION lobes dispersion (Abbe number V_d: ior is
- * the index at 587.6 nm), 0 none. Colours are in [0, 1] per channel, and the
- * diffuse albedo plus every lobe's colour must not exceed 1 per channel
- * (except FRESNEL layers, which Cycles adds on top of the diffuse part).
- * Photons follow the lobes; the lightmap still holds irradiance / pi of the
- * surface (what its diffuse part reflects, over its albedo). Errors name the
- * material and the bad field. */
+ *   PLM_LOBE_REFRACTION   `color`, refracted only, no Fresnel term (Refraction
+ *                         BSDF; under total internal reflection nothing)
+ *   PLM_LOBE_TRANSPARENT  `color`, straight through (Transparent BSDF, alpha)
+ * Mix factors go into `weight` or `color` alike, except for FRESNEL, whose
+ * curve rises to `weight` at grazing (`color` is its F0). roughness is
+ * Blender's in [0, 1] (GGX alpha = roughness^2; 0 is a perfect mirror or
+ * pane); ior > 0 relates the front side's medium (outside) to the back's
+ * (used by FRESNEL, GLASS, REFRACTION); abbe > 0 gives GLASS and REFRACTION
+ * lobes dispersion (Abbe number V_d, ior is then the index at 587.6 nm;
+ * other types must leave it 0). color and weight are in [0, 1], and per
+ * channel the diffuse albedo plus weight x color of every lobe but the
+ * FRESNEL ones must not exceed 1 (Cycles adds FRESNEL layers on top of the
+ * diffuse part). At most 8 lobes a material. Photons follow the lobes; the
+ * lightmap still holds irradiance / pi of the surface (what its diffuse part
+ * reflects, over its albedo). Errors name the material, the lobe and the bad
+ * field. */
 typedef enum plm_lobe_type {
   PLM_LOBE_GLOSSY = 0,
   PLM_LOBE_FRESNEL = 1,
@@ -108,14 +113,15 @@ typedef enum plm_lobe_type {
 
 typedef struct plm_lobe {
   int32_t type;    /* plm_lobe_type */
-  float color[3];  /* linear RGB weight x tint */
+  float color[3];  /* linear RGB tint (FRESNEL: F0) */
   float roughness; /* 0..1, Blender's */
   float ior;       /* FRESNEL, GLASS, REFRACTION */
   float abbe;      /* GLASS, REFRACTION: 0 = no dispersion */
+  float weight;    /* 0..1, the lobe's mix factor */
 } plm_lobe;
 
-/* Fills a lobe with defaults for its type: white, roughness 0, ior 1.5 (1.45
- * for GLASS and REFRACTION, Blender's), no dispersion. */
+/* Fills a lobe with defaults for its type: white, weight 1, roughness 0, ior
+ * 1.5 (1.45 for GLASS and REFRACTION, Blender's), no dispersion. */
 PLM_API void plm_lobe_default(plm_lobe* lobe, plm_lobe_type type);
 /* Appends a lobe to a material (at most 8 a material). */
 PLM_API plm_status plm_scene_add_material_lobe(plm_scene* scene, uint32_t material_id, const plm_lobe* lobe);

@@ -139,6 +139,18 @@ plm_status plm_scene_add_material(plm_scene* scene, const char* name, const floa
   });
 }
 
+void plm_lobe_default(plm_lobe* lobe, plm_lobe_type type) {
+  if (lobe) *lobe = plm::default_lobe(type);
+}
+
+plm_status plm_scene_add_material_lobe(plm_scene* scene, uint32_t material_id, const plm_lobe* lobe) {
+  return guarded("plm_scene_add_material_lobe", [&] {
+    require(scene, "plm_scene_add_material_lobe", "scene");
+    require(lobe, "plm_scene_add_material_lobe", "lobe");
+    scene->scene.add_material_lobe(material_id, *lobe);
+  });
+}
+
 plm_status plm_scene_set_material_texture(plm_scene* scene, uint32_t material_id, int32_t slot,
                                           const char* path, uint32_t flags) {
   return guarded("plm_scene_set_material_texture", [&] {

@@ -392,7 +392,7 @@ struct Reader {
     for (size_t i = 0; i < v.size(); ++i) {
       const std::string p = index_path(path, i);
       const json& m = object(v[i], p);
-      check_keys(m, p, {"name", "albedo", "emission", "albedo_texture", "emission_texture"});
+      check_keys(m, p, {"name", "albedo", "emission", "albedo_texture", "emission_texture", "lobes"});
       const std::string name = name_or(m, p, "");
       float albedo[3] = {0.8f, 0.8f, 0.8f}, emission[3] = {0, 0, 0};
       if (const json* a = optional(m, "albedo")) rgb(*a, p + ".albedo", albedo);
@@ -402,7 +402,29 @@ struct Reader {
       if (const json* t = optional(m, "albedo_texture")) texture(*t, p + ".albedo_texture", id, PLM_TEXTURE_ALBEDO);
       if (const json* t = optional(m, "emission_texture"))
         texture(*t, p + ".emission_texture", id, PLM_TEXTURE_EMISSION);
+      if (const json* l = optional(m, "lobes")) lobes(*l, p + ".lobes", id);
       out.material_names.push_back(name);
+    }
+  }
+
+  // [{"type": "glass", "color": [r, g, b], "weight": 1, "roughness": 0, "ior": 1.45, "abbe": 0}, ...];
+  // all but "type" optional, with plm_lobe_default's values.
+  void lobes(const json& v, const std::string& path, uint32_t material) {
+    array(v, path, 8, "lobes");
+    for (size_t i = 0; i < v.size(); ++i) {
+      const std::string p = index_path(path, i);
+      const json& l = object(v[i], p);
+      check_keys(l, p, {"type", "color", "weight", "roughness", "ior", "abbe"});
+      const uint32_t type =
+          enum_value(required(l, p, "type"), p + ".type", {"glossy", "fresnel", "glass", "refraction", "transparent"});
+      plm_lobe lobe;
+      plm_lobe_default(&lobe, plm_lobe_type(type));
+      if (const json* c = optional(l, "color")) rgb(*c, p + ".color", lobe.color);
+      if (const json* x = optional(l, "weight")) lobe.weight = to_float(*x, p + ".weight");
+      if (const json* x = optional(l, "roughness")) lobe.roughness = to_float(*x, p + ".roughness");
+      if (const json* x = optional(l, "ior")) lobe.ior = to_float(*x, p + ".ior");
+      if (const json* x = optional(l, "abbe")) lobe.abbe = to_float(*x, p + ".abbe");
+      engine(plm_scene_add_material_lobe(out.scene, material, &lobe), p);
     }
   }
 

@@ -11,6 +11,7 @@
 
 #include "csg/csg.h"
 #include "photonlm/photonlm.h"
+#include "scene/lobe.h"
 #include "util/math.h"
 
 namespace plm {
@@ -33,6 +34,7 @@ struct Material {
   std::string albedo_texture, emission_texture;
   uint32_t albedo_texture_flags = 0, emission_texture_flags = 0;  // PLM_TEXTURE_COLOR_*
   uint64_t albedo_texture_pixels = 0, emission_texture_pixels = 0;  // their sizes (the memory estimate)
+  std::vector<Lobe> lobes;  // specular lobes (scene/lobe.h); empty: Lambertian
 };
 
 struct Mesh {
@@ -101,6 +103,13 @@ struct Scene {
   Vec3 world{0, 0, 0};
 
   uint32_t add_material(const char* name, const float albedo[3], const float emission[3]);
+  // Appends a lobe (scene/lobe.cpp). Throws naming the material, the lobe and the bad field.
+  void add_material_lobe(uint32_t material, const plm_lobe& lobe);
+  bool has_lobes() const {
+    for (const Material& m : materials)
+      if (!m.lobes.empty()) return true;
+    return false;
+  }
   uint32_t add_mesh(const char* name, const float* positions, uint32_t vertex_count,
                     const uint32_t* indices, uint32_t triangle_count, const float* uv,
                     const uint32_t* material_ids, uint32_t width, uint32_t height);
