@@ -442,4 +442,46 @@ for name in ("gold", "glass_bsdf", "mix_diffuse_glossy", "principled_default", "
     checks.check(state(mat) == before and not any(n.get("photonlm") is not None for n in nt.nodes),
                  "%s: removing the wiring leaves the material as it was" % name)
 
+# ---- export: what the engine gets ----------------------------------------------------------------
+
+from photonlm_blender import bridge, export  # noqa: E402
+import types  # noqa: E402
+
+case_materials = [m for m in bpy.data.materials if m.users == 0 and m.node_tree is not None]
+for i, mat in enumerate(case_materials):
+    obj = scenes.quads_object("plane_%s" % mat.name, [((3 * i, 0, 0), (3 * i + 2, 0, 0), (3 * i + 2, 2, 0), (3 * i, 2, 0),
+                                                      (0, 0, 1, 1))], mat, 4)
+scenes.add_light("sun", 'SUN', (0, 0, 5), energy=3.0)
+photonlm = bridge.get()
+from photonlm.scene_file import SceneFileWriter  # noqa: E402
+
+writer = SceneFileWriter()
+reports = export.Reports()
+result = export.export_scene(bpy.context, types.SimpleNamespace(Scene=lambda: writer), reports)
+by_name = {m.get("name"): m for m in writer.materials}
+gold = by_name.get("gold", {}).get("lobes", [])
+checks.check(len(gold) == 1 and gold[0]["type"] == "fresnel" and close(gold[0]["color"], GOLD)
+             and close(gold[0]["weight"], 1.0) and close(gold[0]["roughness"], 0.2) and close(gold[0]["ior"], 1.5),
+             "scene file: the gold metal is one FRESNEL lobe, F0 = its Base Color: %s" % gold)
+gm = by_name.get("glass_metal_mix", {})
+fres = [l for l in gm.get("lobes", []) if l["type"] == "fresnel"]
+checks.check(len(fres) == 1 and close(fres[0]["color"], (0.255,) * 3) and close(fres[0]["weight"], 0.55)
+             and close(gm["albedo"], (0.27,) * 3),
+             "scene file: a FRESNEL lobe goes as F0 = colour / weight (0.255) and weight 0.55: %s" % fres)
+cc = [l for l in by_name.get("clearcoat", {}).get("lobes", []) if close(l["roughness"], 0.1)]
+checks.check(len(cc) == 1 and close(cc[0]["color"], (0.04,) * 3) and close(cc[0]["weight"], 0.25),
+             "scene file: clearcoat F0 0.04, weight 0.25: %s" % cc)
+checks.check(not by_name.get("diffuse", {}).get("lobes"), "scene file: a Diffuse BSDF has no lobes")
+engine_scene = photonlm.Scene()
+reports2 = export.Reports()
+try:
+    export.export_scene(bpy.context, types.SimpleNamespace(Scene=lambda: engine_scene), reports2)
+finally:
+    engine_scene.close()
+refused = [t for t in reports2.texts() if "left out:" in t]
+checks.check(not refused, "the engine takes every lobe of every test material: %s" % refused)
+approx_reports = [t for t in reports2.texts() if "approximated for the bake" in t]
+names = [t.split("'")[1] for t in approx_reports]
+checks.check(len(names) == len(set(names)), "one approximation report per material (%d)" % len(names))
+
 checks.finish()

@@ -681,6 +681,29 @@ def export_textures(plm, material_id, info, files, reports):
                             % (info.name, slot, ref.image.name, getattr(e, "message", e)))
 
 
+def export_lobes(plm, material_id, info, reports):
+    """Give engine material material_id the specular lobes of info. A FRESNEL lobe goes as its F0
+    (color / weight) and weight; the others with weight 1 (their colour carries the mix factors).
+    A lobe the engine refuses is reported and left out."""
+    if not info.lobes:
+        return
+    if not hasattr(plm, "add_material_lobe"):
+        reports.warning("material '%s': the engine takes no specular lobes here: its %s part is left out"
+                        % (info.name, ", ".join(sorted({l.kind for l in info.lobes}))))
+        return
+    for lobe in info.lobes:
+        color, weight = lobe.color, 1.0
+        if lobe.kind == "fresnel":
+            weight = min(max(lobe.weight, 0.0), 1.0)
+            color = tuple(min(max(c / lobe.weight, 0.0), 1.0) for c in lobe.color) if lobe.weight > 0.0 \
+                else (0.0, 0.0, 0.0)
+        try:
+            plm.add_material_lobe(material_id, lobe.kind, color, roughness=lobe.roughness, ior=lobe.ior,
+                                  abbe=lobe.abbe, weight=weight)
+        except Exception as e:  # noqa: BLE001 -- reported; the bake goes on without the lobe
+            reports.warning("material '%s': %s lobe left out: %s" % (info.name, lobe.kind, getattr(e, "message", e)))
+
+
 def texture_uv(mesh, infos, object_name, reports):
     """(T, 3, 2) float32 texture UVs of an evaluated mesh (loop triangles) for its textured
     materials, or None when none is textured. One UV map per mesh: the first textured
