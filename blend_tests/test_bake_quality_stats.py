@@ -63,10 +63,8 @@ def last_bake_box(context):
 
     class Panel:
         layout = Layout(lines)
-    panel.PHOTONLM_PT_lightmaps.draw(Panel, context)
-    labels = [l for l in lines if l[0] == "label"]
-    start = next(i for i, l in enumerate(labels) if l[1] == "Last Bake")
-    box = labels[start + 1:]
+    panel.PHOTONLM_PT_last_bake.draw(Panel, context)
+    box = [l for l in lines if l[0] == "label"]
     rows, rest = {}, []
     i = 0
     while i < len(box):  # a row is a label pair from one split (the hint stands alone, with an icon)
@@ -133,6 +131,16 @@ def main():
                  "Last Bake shows the 95th percentile (%s)" % rows.get("Percentile 95"))
     checks.check(rows.get("Noisiest", "").startswith(worst + " ("), "and the noisiest object (%s)" % rows.get("Noisiest"))
     checks.check(rest == ["Lower Resolution or add time"], "and a one-line hint (%s)" % rest)
+    from photonlm_blender import panel
+    lines = []
+
+    class WarningsPanel:
+        layout = Layout(lines)
+    panel.PHOTONLM_PT_warnings.draw(WarningsPanel, context)
+    shown = " ".join(l[1].strip() for l in lines if l[0] == "label")
+    checks.check(panel.PHOTONLM_PT_warnings.poll(context) and "above twice the target error" in shown
+                 and "'%s'" % worst in shown and all(len(l[1]) <= 60 for l in lines if l[0] == "label"),
+                 "the Warnings sub-panel lists the bake's warnings in lines that fit the panel: %s" % shown[:120])
     checks.check(all(len(label) <= 13 for label in rows) and all(len(v) <= 22 for v in rows.values())
                  and all(len(t) <= 30 for t in rest), "labels short enough for the default panel width")
     checks.check(last["reports"][-1][0] == 'WARNING' and "'%s'" % worst in last["reports"][-1][1]

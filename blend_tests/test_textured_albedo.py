@@ -79,7 +79,8 @@ def build():
 
 def export_checks(checks, image):
     """What materials.py makes of other node set-ups (no bake)."""
-    from photonlm_blender import materials
+    from photonlm_blender import bridge, materials
+    photonlm = bridge.get()
     mat = scenes.diffuse_material("principled_tex", (0.8, 0.8, 0.8), principled=True)
     nt = mat.node_tree
     bsdf = nt.nodes["Principled BSDF"]
@@ -123,6 +124,31 @@ def export_checks(checks, image):
     path2, space2 = files.path_of(loaded)
     checks.check(os.path.samefile(path2, png) and space2 == "srgb", "file image used in place: %s (%s)"
                  % (path2, space2))
+    # A file type the engine does not decode (TIFF): Blender's pixels go to the engine instead.
+    tif = os.path.join(scenes.out_dir("textured_albedo"), "checker.tif")
+    saved.filepath_raw = tif
+    saved.file_format = 'TIFF'
+    saved.save()
+    tiff_image = bpy.data.images.load(tif)
+    path3, space3 = files.path_of(tiff_image)
+    scene = photonlm.Scene()
+    mid = scene.add_material((1, 1, 1))
+    try:
+        scene.set_material_texture(mid, "albedo", path3, space3)
+        accepted = True
+    except Exception as e:  # noqa: BLE001
+        accepted = e
+    try:
+        scene.set_material_texture(mid, "albedo", tif, "srgb")
+        refused = "not refused"
+    except Exception as e:  # noqa: BLE001
+        refused = str(e)
+    scene.close()
+    checks.check("PNG" in refused and "checker.tif" in refused,
+                 "the engine itself refuses the TIFF, naming the types it reads: %s" % refused)
+    checks.check(path3.endswith(".ppm") and accepted is True and space3 == "srgb",
+                 "a TIFF image is handed over as its pixels (%s, %s), which the engine reads: %s"
+                 % (path3, space3, accepted))
     files.cleanup()
     checks.check(not os.path.exists(path), "cleanup removes the temporary image")
     bpy.data.materials.remove(mat)

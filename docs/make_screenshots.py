@@ -5,7 +5,10 @@ once the UI is drawn, shows Render Properties > PhotonLM Lightmaps and the baked
 the viewport and saves into docs/images/:
 
     window.png                the whole Blender window: panel and baked box
-    panel.png                 the Properties editor with the PhotonLM Lightmaps panel
+    panel.png                 the Properties editor (its default width) with the PhotonLM Lightmaps panel
+    panel_baking.png          the same during a bake: the progress bar, the stage and the time left
+    statusbar_baking.png      the status bar during that bake: its progress bar (the bottom of
+                              window_baking.png, which is removed)
     viewport_preview_on.png   the viewport, Material Preview, Preview Lightmaps on
     viewport_preview_off.png  the same view with Preview Lightmaps off (Eevee, no GI)
 
@@ -24,6 +27,7 @@ import sys
 import time
 
 import bpy
+import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import window_shots as ws  # noqa: E402
@@ -31,7 +35,7 @@ from window_shots import biggest_area, fail, register_addon, window_region  # no
 
 ws.NAME = "make_screenshots"
 PHOTONS = int(os.environ.get("PHOTONLM_DOC_PHOTONS", 20_000_000))
-WIDEN = 260  # pixels added to the Properties editor's width
+PANEL_UP = 11  # scroll steps up from the bottom of Render Properties: the panel's header on top
 SHADER_WAIT = float(os.environ.get("PHOTONLM_DOC_WAIT", 20.0))  # seconds for Eevee to compile shaders
 
 
@@ -167,28 +171,36 @@ def setup_ui():
     return win, screen, view3d, props
 
 
-def widen(win, screen, props):
-    """Move the edge between the viewport and the Properties editor WIDEN pixels to the left,
-    so that the panel's labels are not cut off (the cursor is warped onto the edge a step before)."""
-    return ws.area_move(win, screen, props.x - 1, props.y + props.height // 2, -WIDEN)
-
-
 def heighten(win, screen, props, pixels):
     """Move the edge between the Outliner and the Properties editor up, so the whole panel fits
-    (the cursor must sit on that edge: see widen)."""
+    (the cursor must sit on that edge, warped there a step before)."""
     ws.area_move(win, screen, props.x + props.width // 2, props.y + props.height, pixels)
 
 
+def crop_bottom(path, rows, name):
+    """Save the bottom `rows` rows of the image at path as `name` in IMAGES; remove path."""
+    full = bpy.data.images.load(path)
+    w, h = full.size
+    px = np.empty(w * h * 4, np.float32)
+    full.pixels.foreach_get(px)
+    part = bpy.data.images.new(name, w, rows, alpha=False)
+    part.pixels.foreach_set(px[:w * rows * 4])  # Blender's rows start at the bottom
+    part.filepath_raw = os.path.join(IMAGES, name)
+    part.file_format = 'PNG'
+    part.save()
+    bpy.data.images.remove(full)
+    bpy.data.images.remove(part)
+    os.remove(path)
+    ws.log("wrote %s" % os.path.join(IMAGES, name))
+
+
 def shot(win, screen, area, name):
-    ws.shot(win, screen, area, os.path.join(IMAGES, name))
+    return ws.shot(win, screen, area, os.path.join(IMAGES, name))
 
 
 def steps():
     """Generator of the UI steps; yields the seconds to wait before the next step."""
     win, screen, view3d, props = setup_ui()
-    win.cursor_warp(props.x - 1, props.y + props.height // 2)
-    yield 0.5
-    widen(win, screen, props)
     win.cursor_warp(props.x + props.width // 2, props.y + props.height)
     yield 0.5
     heighten(win, screen, props, 120)
@@ -199,6 +211,7 @@ def steps():
         win.cursor_warp(outliner.x + outliner.width // 2, outliner.y + outliner.height // 2)
     yield 1.0
     ws.scroll(win, screen, props)
+    ws.scroll(win, screen, props, down=False, steps=PANEL_UP)  # the PhotonLM panel's top in view
     bpy.context.scene.photonlm.preview = True
     yield SHADER_WAIT
     shot(win, screen, None, "window.png")
@@ -207,7 +220,16 @@ def steps():
     bpy.context.scene.photonlm.preview = False
     yield SHADER_WAIT
     shot(win, screen, view3d, "viewport_preview_off.png")
-    yield 0.5
+    # A bake as one starts it from the panel (modal, on a worker thread), photographed halfway.
+    settings = bpy.context.scene.photonlm
+    settings.photons, settings.target_error, settings.time_budget = 0, 0.002, 12.0
+    ws.scroll(win, screen, props, down=False)
+    with bpy.context.temp_override(window=win, screen=screen, area=props, region=window_region(props)):
+        bpy.ops.photonlm.bake('INVOKE_DEFAULT')
+    yield 6.0
+    shot(win, screen, props, "panel_baking.png")
+    crop_bottom(shot(win, screen, None, "window_baking.png"), 28, "statusbar_baking.png")
+    yield 10.0
     bpy.ops.wm.quit_blender()
 
 

@@ -78,6 +78,8 @@ def main():
                 fail("--%s %r is out of range (clamped to %r)" % (attr.replace("_", "-"), value, getattr(s, attr)))
     if args.out:
         s.output_dir = os.path.abspath(args.out)
+    if args.pack:
+        s.pack_lightmaps = True
     if args.export_scene:
         reports = export.Reports()
         try:
@@ -125,16 +127,6 @@ def main():
                            st["error_estimate"], st["error_median"], st["error_p95"], len(last["warnings"])),
           flush=True)
     if args.save:
-        if args.pack:
-            for o in list(last["objects"].values()):
-                bpy.data.images[o["image"]].pack()
-        else:
-            for o in list(last["objects"].values()):
-                image = bpy.data.images[o["image"]]
-                try:
-                    image.filepath = bpy.path.relpath(o["path"])
-                except ValueError:  # another drive
-                    pass
         try:
             bpy.ops.wm.save_mainfile()
         except RuntimeError as e:

@@ -23,7 +23,7 @@ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPHOTONLM_SANITIZE=O
       -DPHOTONLM_BENCH=OFF -DPHOTONLM_PYTHON_TESTS=OFF > /tmp/photonlm-fuzz-cmake.log 2>&1 || { cat /tmp/photonlm-fuzz-cmake.log; exit 1; }
 rm -f /tmp/photonlm-fuzz-cmake.log
 cmake --build build-fuzz -j"$(nproc)" --target fuzz_scene_api fuzz_lsystem fuzz_scene_file
-# Debian's Embree, TBB and OpenImageIO are not instrumented but run cleanly
+# Debian's Embree, TBB and OpenEXR are not instrumented but run cleanly
 # under ASan/LSan/UBSan here: no suppressions are needed (docs/robustness.md).
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1"

@@ -18,7 +18,9 @@ scripts and tests. Next to each <object>_lightmap.exr, finish() writes <object>_
 the texels' relative error (standard error / value; 0 where the texel has no light) in R, G
 and B, loaded as the image <object>_error for the heat-map preview.
 """
+import atexit
 import os
+import shutil
 import tempfile
 import time
 
@@ -39,15 +41,34 @@ class BakeError(Exception):
     """A bake could not start or finish; the message is for the user."""
 
 
+_SESSION_FOLDER = []  # this Blender process's own folder for the lightmaps of unsaved files
+
+
+def _session_folder():
+    """A folder no other project or Blender shares, removed when Blender exits."""
+    if not _SESSION_FOLDER or not os.path.isdir(_SESSION_FOLDER[0]):
+        _SESSION_FOLDER[:] = [tempfile.mkdtemp(prefix="photonlm-unsaved-")]
+        atexit.register(shutil.rmtree, _SESSION_FOLDER[0], True)
+    return _SESSION_FOLDER[0]
+
+
+def is_temporary_output(scene):
+    """True where the lightmap files are temporary (a relative folder in an unsaved file): the
+    images are then packed into the .blend, which is the only place they last."""
+    path = scene.photonlm.output_dir or "//lightmaps/"
+    return path.startswith("//") and not bpy.data.is_saved and not os.environ.get("PHOTONLM_TEST_OUT")
+
+
 def output_directory(scene):
     """The absolute output folder for lightmaps, created if needed.
 
     A relative (//) path is relative to the .blend file; for an unsaved file it is relative to
-    $PHOTONLM_TEST_OUT if set, else to <temp>/photonlm.
+    $PHOTONLM_TEST_OUT if set, else to a folder of this Blender process's own (removed when it
+    exits; the images are packed, see is_temporary_output).
     """
     path = scene.photonlm.output_dir or "//lightmaps/"
     if path.startswith("//") and not bpy.data.is_saved:
-        base = os.environ.get("PHOTONLM_TEST_OUT") or os.path.join(tempfile.gettempdir(), "photonlm")
+        base = os.environ.get("PHOTONLM_TEST_OUT") or _session_folder()
         path = os.path.join(base, path[2:])
     else:
         path = bpy.path.abspath(path)
@@ -145,10 +166,11 @@ def unlit_scene_message(context):
 
 
 class BakeJob:
-    def __init__(self, context):
+    def __init__(self, context, selected_only=False):
         self.reports = export.Reports()
         self.photonlm = bridge.get()           # RuntimeError with a readable message if missing
         self.settings = bake_settings(context.scene)
+        self.selected_only = selected_only
         self.scene_name = context.scene.name
         self.result = None
         self.export = None
@@ -156,15 +178,18 @@ class BakeJob:
         self.cancelled = False
         self.created_uvs = []
         self.notices = []  # warnings to show last (after the summary): memory, noisy texels
-        objects = export.lightmap_objects(context)
-        if not objects and not any(lsystem.is_lsystem(o) for o in context.view_layer.objects):
-            raise BakeError("nothing to bake: no visible mesh object with 'Bake Lightmap' enabled")
+        vl = context.view_layer
+        objects = export.lightmap_objects(context, selected_only)
+        if not objects and not any(lsystem.is_lsystem(o) and (not selected_only or o.select_get(view_layer=vl))
+                                   for o in vl.objects):
+            raise BakeError("nothing to bake: no %s mesh object with 'Bake Lightmap' enabled"
+                            % ("selected" if selected_only else "visible"))
         if not light_sources(context):
             raise BakeError(unlit_scene_message(context))
         t0 = time.perf_counter()
         try:
             self.created_uvs = export.ensure_lightmap_uvs(context, objects, self.reports)
-            self.export = export.export_scene(context, self.photonlm, self.reports)
+            self.export = export.export_scene(context, self.photonlm, self.reports, selected_only)
         except Exception:
             self.abort(context)
             raise
@@ -211,6 +236,7 @@ class BakeJob:
             self.notices = ["engine: " + w for w in memory_warnings]
             out_dir = output_directory(context.scene)
             scene = context.scene
+            pack = scene.photonlm.pack_lightmaps or is_temporary_output(scene)
             # The heat map's scale and the engine's error_above: twice the target (twice the RMS error
             # without a target).
             target = self.settings["target_error"] if self.settings["target_error"] > 0.0 \
@@ -230,12 +256,12 @@ class BakeJob:
                 path = os.path.join(out_dir, fname)
                 result.write_exr(b.mesh_id, path)
                 lm = result.lightmap(b.mesh_id)
-                image = load_image(b.object_name + "_lightmap", path)
+                image = load_image(b.object_name + "_lightmap", path, pack)
                 images[b.object_name] = image
                 relative = relative_error(lm.rgb, lm.error)
                 error_path = path[:-len("_lightmap.exr")] + "_error.exr"
                 write_error_exr(error_path, error_image_pixels(relative))
-                error_image = load_image(b.object_name + "_error", error_path)
+                error_image = load_image(b.object_name + "_error", error_path, pack)
                 error_image[materials.TAG] = materials.ERROR_IMAGE_TAG
                 error_images[b.object_name] = error_image
                 covered = lm.coverage > 0.0
@@ -255,7 +281,10 @@ class BakeJob:
                 if obj is not None:
                     lsystem.store_light(result, lid, obj)
             ol_info = {}
+            selected = {o.name for o in context.view_layer.objects if o.select_get(view_layer=context.view_layer)}
             for group in self.export.ol_groups.values():
+                if self.selected_only and not any(n in selected for n in group.objects):
+                    continue  # a collection's OL that no selected object shares: kept as it was
                 fname = export.safe_file_name(group.name) + "_ol.exr"
                 path = os.path.join(out_dir, fname)
                 result.write_ol_exr(group.group_id, path)
@@ -265,7 +294,7 @@ class BakeJob:
                 self.reports.info("orientation lightmap '%s' (%d x %d bins, %s): %s"
                                   % (group.name, st["resolution"], st["resolution"],
                                      ", ".join(group.objects), group.reason))
-                self._wire_ol(context, group, load_image(group.name + "_ol", path))
+                self._wire_ol(context, group, load_image(group.name + "_ol", path, pack))
         finally:
             result.close()
             self.result = None
@@ -275,10 +304,12 @@ class BakeJob:
         noisiest = noisiest_objects(per_object)
         if float(stats["error_above"]) > properties.NOISY_SHARE:
             self.notices.append(noisy_message(stats, noisiest, per_object, self.settings["target_error"] > 0.0))
+        shown_warnings = warning_lines(self.reports.items, self.notices)
         scene[properties.STATS_KEY] = dict(
             photons_emitted=int(stats["photons_emitted"]), seconds_total=float(stats["seconds_total"]),
             seconds_export=float(self.seconds_export), photons_per_second=float(photons_per_second),
-            warning_count=len(warnings), objects=len(self.export.baked),
+            warning_count=len({t for level, t in self.reports.items if level == 'WARNING'} | set(self.notices)),
+            objects=len(self.export.baked),
             photon_hits=int(stats["photon_hits"]), rays_traced=int(stats["rays_traced"]),
             error_estimate=float(stats["error_estimate"]), error_direct=float(stats["error_direct"]),
             error_median=float(stats["error_median"]),
@@ -286,7 +317,9 @@ class BakeJob:
             target_error=float(self.settings["target_error"]), error_target=float(target),
             memory_estimate=float(stats["memory_estimate"]),
             noisiest=noisiest[0] if noisiest else "",
-            noisiest_above=float(per_object[noisiest[0]]["error_above"]) if noisiest else 0.0, direct_samples=int(stats["direct_samples"]))
+            noisiest_above=float(per_object[noisiest[0]]["error_above"]) if noisiest else 0.0,
+            direct_samples=int(stats["direct_samples"]),
+            warning_lines="\n".join(shown_warnings))
         LAST.clear()
         LAST.update(stats=dict(stats, seconds_export=self.seconds_export,
                                photons_per_second=photons_per_second, error_target=target),
@@ -398,6 +431,18 @@ def write_error_exr(path, relative):
     os.replace(tmp, path)
 
 
+def warning_lines(reports, notices, limit=20):
+    """The bake's warnings for the panel, each once (engine warnings are already grouped), at
+    most `limit` with a last line counting the rest."""
+    lines = []
+    for text in [t for level, t in reports if level == 'WARNING'] + list(notices):
+        if text not in lines:
+            lines.append(text)
+    if len(lines) > limit:
+        lines = lines[:limit - 1] + ["... and %d more (see the Info editor)" % (len(lines) - limit + 1)]
+    return lines
+
+
 def noisiest_objects(per_object, count=3):
     """Names of the noisy objects (more than properties.NOISY_SHARE of their texels above twice the
     target) holding the most such texels, first the one holding most: lowering its resolution
@@ -419,19 +464,30 @@ def noisy_message(stats, noisiest, per_object, has_target):
                " or lower the Target Error" if has_target else ""))
 
 
-def load_image(name, path):
-    """Load (or reload) the float image `name` from `path`, colour space Non-Color."""
+def load_image(name, path, pack=False):
+    """Load (or reload) the float image `name` from `path`, colour space Non-Color. The image links
+    its file relative to the .blend where the file is saved (the project folder can move), or is
+    packed into the .blend (pack)."""
     image = bpy.data.images.get(name)
-    if image is not None and image.source == 'FILE' and not image.packed_file:
+    if image is not None and image.source == 'FILE':
+        if image.packed_file is not None:
+            image.unpack(method='REMOVE')  # the new file replaces the packed copy
         image.filepath = path
         image.reload()
     else:
         if image is not None:
-            image.name = name + ".old"  # generated or packed: keep it, but free the name
+            image.name = name + ".old"  # generated: keep it, but free the name
         image = bpy.data.images.load(path, check_existing=False)
         image.name = name
+    if bpy.data.is_saved:
+        try:
+            image.filepath = bpy.path.relpath(path)
+        except ValueError:  # another drive than the .blend
+            pass
     image.colorspace_settings.name = 'Non-Color'
     if hasattr(image, "use_half_precision"):
         image.use_half_precision = False
     image.alpha_mode = 'NONE'
+    if pack:
+        image.pack()
     return image

@@ -146,11 +146,11 @@ def is_renderable(obj, view_layer):
     return obj.visible_get(view_layer=view_layer) and not obj.hide_render
 
 
-def lightmap_objects(context):
-    """Original objects that get a lightmap, sorted by name."""
+def lightmap_objects(context, selected_only=False):
+    """Original objects that get a lightmap (only the selected ones: selected_only), sorted by name."""
     vl = context.view_layer
-    return sorted((o for o in vl.objects if o.type == 'MESH' and o.photonlm.enabled and is_renderable(o, vl)),
-                  key=lambda o: o.name)
+    return sorted((o for o in vl.objects if o.type == 'MESH' and o.photonlm.enabled and is_renderable(o, vl)
+                   and (not selected_only or o.select_get(view_layer=vl))), key=lambda o: o.name)
 
 
 def ensure_lightmap_uvs(context, objects, reports):
@@ -193,9 +193,11 @@ def _material_key(mat):
     return mat.name_full if mat is not None else None
 
 
-def export_scene(context, photonlm, reports):
+def export_scene(context, photonlm, reports, selected_only=False):
     """Build a photonlm.Scene from the current view layer. Must run on the main thread.
 
+    selected_only: only the selected objects get lightmaps (and selected L-system objects their
+    light); every other visible object is exported as geometry that blocks and reflects light.
     A mesh the engine rejects (NaN coordinates, bad indices...) is reported and skipped.
     Returns a SceneExport; the caller closes .scene.
     """
@@ -211,7 +213,7 @@ def export_scene(context, photonlm, reports):
     export = SceneExport(plm)
     try:
         default_id = _add_material(export, plm, None, reports)
-        bake_names = {o.name for o in lightmap_objects(context)}
+        bake_names = {o.name for o in lightmap_objects(context, selected_only)}
         for inst in depsgraph.object_instances:
             obj_eval = inst.object
             orig = obj_eval.original
@@ -225,7 +227,8 @@ def export_scene(context, photonlm, reports):
             if obj_eval.type not in GEOMETRY_TYPES:
                 continue
             if not inst.is_instance and lsystem.is_lsystem(orig):
-                _add_lsystem(export, plm, orig, inst.matrix_world.copy(), default_id, reports)
+                _add_lsystem(export, plm, orig, inst.matrix_world.copy(), default_id, reports,
+                             baked=not selected_only or orig.select_get(view_layer=view_layer))
                 continue
             with_lightmap = (not inst.is_instance) and orig.name in bake_names
             cage = None if inst.is_instance else cages.get(orig.name)
@@ -355,14 +358,17 @@ def _add_subdiv_object(export, plm, orig, obj_eval, cage, with_lightmap, density
     return True
 
 
-def _add_lsystem(export, plm, orig, matrix, default_id, reports):
-    """Add an L-system object from its rules (its mesh is only a preview), or report why not."""
+def _add_lsystem(export, plm, orig, matrix, default_id, reports, baked=True):
+    """Add an L-system object from its rules (its mesh is only a preview), or report why not;
+    baked: its light is brought back after the bake (else it only blocks and reflects)."""
     ids = [_add_material(export, plm, s.material, reports) if s.material is not None else default_id
            for s in orig.material_slots] or [default_id]
     try:
         lid = lsystem.export_lsystem(plm, orig, matrix, np.array(ids, np.uint32))
     except Exception as e:  # the engine names the line and column, or the limit
         reports.warning("L-system '%s' skipped: %s" % (orig.name, getattr(e, "message", e)))
+        return
+    if not baked:
         return
     export.lsystems.append((orig.name, lid))
     reports.info("L-system '%s': traced from its rules, lit through orientation lightmaps" % orig.name)

@@ -605,9 +605,19 @@ def remove_error_images():
 
 # ---- image textures for the engine ---------------------------------------------------------
 
+# File types the engine decodes itself (native/src/io/image_file.h); Blender decodes the others
+# (TIFF, WebP, ...) and the add-on hands over their pixels.
+ENGINE_IMAGE_TYPES = (".exr", ".hdr", ".pfm", ".png", ".jpg", ".jpeg", ".bmp", ".tga", ".psd", ".gif")
+
+
+def engine_reads(path):
+    return path.lower().endswith(ENGINE_IMAGE_TYPES)
+
+
 class TextureFiles:
-    """Images handed to the engine: file-backed images by their path, packed / generated /
-    edited ones written to a private temporary directory (removed by cleanup())."""
+    """Images handed to the engine: file-backed images by their path where the engine reads the
+    file type; packed, generated or edited ones and other file types written to a private
+    temporary directory (removed by cleanup())."""
 
     def __init__(self):
         self.dir = None
@@ -621,7 +631,7 @@ class TextureFiles:
         path = bpy.path.abspath(image.filepath, library=image.library) if image.filepath else ""
         space = "srgb" if image.colorspace_settings.name == 'sRGB' else "linear"
         if not (image.source == 'FILE' and not image.packed_file and not image.is_dirty
-                and path and os.path.isfile(path)):
+                and path and os.path.isfile(path) and engine_reads(path)):
             path, space = self._write_pixels(image)
         self.paths[key] = (path, space)
         return self.paths[key]

@@ -10,6 +10,23 @@ from . import bake, materials
 _running = None  # the operator instance of the bake in progress (one at a time)
 
 
+def progress_text(fraction, stage, seconds):
+    """'tracing photons - 12 s left': the stage and a time estimate from the fraction done so far
+    (the engine's fraction covers the whole bake and never goes back)."""
+    if fraction > 0.02 and seconds > 1.0:
+        return "%s - %s left" % (stage, _duration(seconds * (1.0 - fraction) / fraction))
+    return "%s - %s" % (stage, _duration(seconds))
+
+
+def _duration(seconds):
+    seconds = int(round(seconds))
+    if seconds >= 3600:
+        return "%d h %02d min" % (seconds // 3600, seconds % 3600 // 60)
+    if seconds >= 60:
+        return "%d min %02d s" % (seconds // 60, seconds % 60)
+    return "%d s" % seconds
+
+
 def _report_all(op, reports):
     """Send the job's reports to the operator (the info editor / console)."""
     for level, text in reports.items:
@@ -21,6 +38,18 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
     bl_idname = "photonlm.bake"
     bl_label = "Bake Lightmaps"
     bl_options = {'REGISTER', 'UNDO'}
+
+    selected_only: bpy.props.BoolProperty(
+        name="Selected Only", default=False, options={'SKIP_SAVE'},
+        description="Bake only the selected objects' lightmaps; the other visible objects still block and "
+                    "reflect light, and their lightmaps stay as they are")
+
+    @classmethod
+    def description(cls, context, properties):
+        if properties.selected_only:
+            return ("Bake the lightmaps of the selected objects only; the other visible objects still block and "
+                    "reflect light, and their lightmaps stay as they are")
+        return "Bake photon lightmaps (global illumination) for the visible mesh objects"
 
     @classmethod
     def poll(cls, context):
@@ -34,7 +63,7 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
 
     def _prepare(self, context):
         try:
-            return bake.BakeJob(context)
+            return bake.BakeJob(context, self.selected_only)
         except (bake.BakeError, RuntimeError) as e:
             self.report({'ERROR'}, str(e))
         except Exception as e:  # noqa: BLE001 -- never take Blender down
@@ -117,11 +146,14 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
         wm = context.window_manager
         if self._thread.is_alive():
             wm.progress_update(int(1000 * min(max(self._fraction, 0.0), 1.0)))
-            text = "PhotonLM: %s %d%% (%.1f s)%s" % (
-                self._stage, round(100 * self._fraction), time.perf_counter() - self._t0,
+            text = "PhotonLM: %d%%, %s%s" % (
+                round(100 * self._fraction), progress_text(self._fraction, self._stage, time.perf_counter() - self._t0),
                 " - cancelling" if self._cancel.is_set() else " - Esc to cancel")
             if context.workspace is not None:
                 context.workspace.status_text_set(text)
+            for area in context.screen.areas if context.screen else ():
+                if area.type == 'PROPERTIES':
+                    area.tag_redraw()  # the panel's progress bar
             return {'RUNNING_MODAL'}
         return self._end(context)
 

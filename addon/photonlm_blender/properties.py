@@ -123,18 +123,21 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
         name="Target Error", description="Relative noise to reach (0.02 = 2%): photons are traced and "
         "noisy texels get more direct-light samples until the estimated relative RMS error over all "
         "texels is this low, the time budget is spent or Max Photons are traced. 0 = trace exactly "
-        "Max Photons", default=TARGET_ERROR_DEFAULT, min=0.0, max=0.5, soft_min=0.002, precision=3, step=0.1)
+        "Max Photons. Halving it takes about four times as long", default=TARGET_ERROR_DEFAULT, min=0.0, max=0.5, soft_min=0.002, precision=3, step=0.1)
     time_budget: FloatProperty(
-        name="Time Budget", description="Seconds the bake may take; 0 = no limit",
+        name="Time Budget", description="Seconds the bake may take; it stops when they are spent, even above the "
+        "target error (the error reached is reported); 0 = no limit",
         default=float(ENGINE.get("time_budget", 0.0)), min=0.0,
         soft_max=3600.0, unit='TIME_ABSOLUTE')
     photons: IntProperty(
         name="Max Photons", description="Photons emitted from all lights together: the cap with a target "
-        "error or time budget, the exact count without (noise falls as 1/sqrt(photons)); 0 = no cap",
+        "error or time budget, the exact count without (noise falls as 1/sqrt(photons); time grows in "
+        "proportion, about 2-5 M photons per second and core); 0 = no cap",
         default=PHOTON_CAP_DEFAULT, min=0, soft_max=1_000_000_000)
     direct_samples: IntProperty(
         name="Direct Samples", description="Shadow-ray points per texel for direct light (more are added "
-        "to noisy texels when a target error is set); 0 = photons carry direct light too",
+        "to noisy texels when a target error is set); time grows in proportion to samples x texels. 0 = "
+        "photons carry direct light too (noisier shadows)",
         default=ENGINE.get("direct_samples", 0), min=0, max=65536, soft_max=1024)
     texel_value: EnumProperty(
         name="Texel Value", description="What a lightmap texel holds",
@@ -144,18 +147,25 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
         default=ENGINE.get("texel_value", 'CYCLES'))
     texel_density: IntProperty(
         name="Texel Density", description="Lightmap texels per metre for objects whose resolution is Auto "
-        "(n = clamp(next power of two of sqrt(surface area) x density, 16, 4096))",
+        "(n = clamp(next power of two of sqrt(surface area) x density, 16, 4096)). Doubling it gives four "
+        "times the texels: four times the memory and about four times the time to the same error",
         default=32, min=1, soft_max=1024, subtype='NONE')
     output_dir: StringProperty(
         name="Output", description="Folder for the EXR lightmaps (<object>_lightmap.exr). A relative path "
-        "(//) is relative to the .blend file; for an unsaved file it is a temporary folder",
+        "(//) is relative to the .blend file and the images link their files relative to it, so the "
+        "project folder can be moved; in an unsaved file the lightmaps are packed into it",
         default="//lightmaps/", subtype='DIR_PATH')
+    pack_lightmaps: BoolProperty(
+        name="Pack Lightmaps", default=False,
+        description="Also pack the baked images into the .blend: one file to move or send, at the cost of a "
+                    "larger .blend rewritten on every save (unsaved files always pack)")
     native_subdivision: BoolProperty(
         name="Native Subdivision", default=True,
         description="Export objects whose last modifier is a Subdivision Surface as their cage and refine "
                     "them in the engine (OpenSubdiv, the modifier's render level); off: Blender's subdivided mesh")
     max_bounces: IntProperty(
-        name="Max Bounces", description="Diffuse bounces after the first hit; 0 bakes direct light only",
+        name="Max Bounces", description="Bounces after the first hit; 0 bakes direct light only. Photons stop "
+        "by Russian roulette long before the default, so lowering it saves little time and loses light",
         default=ENGINE.get("max_bounces", 0), min=0, soft_max=1024)
     seed: IntProperty(name="Seed", description="Random seed; the result depends on the seed only, "
                       "not on the number of threads", default=ENGINE.get("seed", 0), min=0)

@@ -3,7 +3,13 @@
 
 #include <gtest/gtest.h>
 
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
+
 #include <cstring>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -69,6 +75,31 @@ template <typename Builder>
 void bake(Builder& b, const plm_bake_settings& s, BakeResult& out) {
   ASSERT_TRUE(b.ok()) << b.error;
   ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &out.r), PLM_OK) << plm_last_error();
+}
+
+// An EXR file's float channels by name, read with the OpenEXR library: each
+// width * height floats, the file's top row first.
+struct ExrChannels {
+  int width = 0, height = 0;
+  std::map<std::string, std::vector<float>> channels;
+};
+
+inline ExrChannels read_exr_channels(const std::string& path) {
+  Imf::InputFile file(path.c_str());
+  const Imath::Box2i dw = file.header().dataWindow();
+  ExrChannels out;
+  out.width = dw.max.x - dw.min.x + 1;
+  out.height = dw.max.y - dw.min.y + 1;
+  Imf::FrameBuffer fb;
+  for (auto it = file.header().channels().begin(); it != file.header().channels().end(); ++it) {
+    std::vector<float>& v = out.channels[it.name()];
+    v.resize(size_t(out.width) * size_t(out.height));
+    fb.insert(it.name(), Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(v.data()), sizeof(float),
+                                    sizeof(float) * size_t(out.width)));
+  }
+  file.setFrameBuffer(fb);
+  file.readPixels(dw.min.y, dw.max.y);
+  return out;
 }
 
 }  // namespace plm_test

@@ -7,7 +7,7 @@
 #include <string>
 
 #include "api/handles.h"
-#include "io/exr.h"
+#include "io/image_file.h"
 #include "lsystem/lsystem_object.h"
 #include "photonlm/photonlm.h"
 #include "scene/scene.h"

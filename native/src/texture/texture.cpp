@@ -1,12 +1,11 @@
 #include "texture/texture.h"
 
-#include <OpenImageIO/imageio.h>
-
 #include <algorithm>
 #include <cmath>
 #include <map>
 #include <utility>
 
+#include "io/image_file.h"
 #include "util/error.h"
 
 namespace plm {
@@ -42,27 +41,18 @@ bool wrap_axis(float s, uint32_t n, uint32_t& i0, uint32_t& i1, float& f) {
 // Decodes the image at path into texture (all but the mean).
 void load_texture(TextureSet::Texture& t, const std::string& path, uint32_t flags, bool clamp,
                   const std::string& owner) {
-  auto input = OIIO::ImageInput::open(path);
-  if (!input) fail(PLM_ERROR_IO, owner, ": cannot read texture '", path, "': ", OIIO::geterror());
-  const OIIO::ImageSpec native = input->spec();
-  const int w = native.width, h = native.height, nch = native.nchannels;
-  if (w <= 0 || h <= 0 || nch <= 0) fail(PLM_ERROR_IO, owner, ": texture '", path, "' has no pixels");
-  if (double(w) * double(h) > double(1u << 28))
-    fail(PLM_ERROR_IO, owner, ": texture '", path, "' is ", w, " x ", h, " pixels, more than 2^28");
-  const bool srgb = flags == PLM_TEXTURE_COLOR_SRGB ||
-                    (flags == PLM_TEXTURE_COLOR_AUTO && !native.format.is_floating_point());
+  const ImageFile img = read_image_file(path, owner, "texture");
+  const uint32_t nch = img.channels;
+  const bool srgb = flags == PLM_TEXTURE_COLOR_SRGB || (flags == PLM_TEXTURE_COLOR_AUTO && img.integer_bits > 0);
   // Cycles keeps 8-bit sRGB images encoded and decodes after interpolating
   // (a red / green edge blends through a darker colour); deeper images are
   // decoded to linear on load.
-  t.decode_after = srgb && native.format == OIIO::TypeDesc::UINT8;
-  const size_t pixels = size_t(w) * size_t(h);
-  std::vector<float> in(pixels * size_t(nch));
-  if (!input->read_image(0, 0, 0, nch, OIIO::TypeDesc::FLOAT, in.data()))
-    fail(PLM_ERROR_IO, owner, ": cannot read texture '", path, "': ", input->geterror());
-  input->close();
+  t.decode_after = srgb && img.integer_bits == 8;
+  const size_t pixels = size_t(img.width) * size_t(img.height);
+  const std::vector<float>& in = img.pixels;
 
-  t.width = uint32_t(w);
-  t.height = uint32_t(h);
+  t.width = img.width;
+  t.height = img.height;
   t.rgb.resize(pixels * 3);
   for (size_t p = 0; p < pixels; ++p) {
     for (int c = 0; c < 3; ++c) {
@@ -112,16 +102,9 @@ Vec3 texture_mean(const TextureSet::Texture& t) {
 }  // namespace
 
 uint64_t check_texture_file(const std::string& path, const std::string& owner) {
-  auto in = OIIO::ImageInput::open(path);
-  if (!in) {
-    std::string why = OIIO::geterror();
-    if (why.empty()) why = "not a readable image";
-    fail(PLM_ERROR_IO, owner, ": cannot read texture '", path, "': ", why);
-  }
-  const OIIO::ImageSpec& spec = in->spec();
-  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0)
-    fail(PLM_ERROR_IO, owner, ": texture '", path, "' has no pixels");
-  return uint64_t(spec.width) * uint64_t(spec.height);
+  uint32_t w = 0, h = 0;
+  image_file_size(path, owner, "texture", w, h);
+  return uint64_t(w) * uint64_t(h);
 }
 
 TextureSet::TextureSet(const Scene& scene) {

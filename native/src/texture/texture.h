@@ -3,7 +3,7 @@
 // creates a TextureSet: an untextured bake holds a null TextureSet pointer and
 // pays one predictable branch per hit.
 //
-// Set-up reads every image once through OpenImageIO's ImageInput into linear
+// Set-up reads every image once (io/image_file.h) into linear
 // float RGB (8/16-bit integer images are sRGB unless told otherwise, float
 // images are linear: Blender's defaults), clamps albedo images to [0, 1]
 // (energy) and keeps their mean. Lookups: bilinear on the full-resolution
