@@ -22,7 +22,9 @@
 #include "transport/film_estimate.h"
 #include "transport/film_output.h"
 #include "transport/final_gather.h"
+#include "transport/material_table.h"
 #include "transport/ol_film.h"
+#include "transport/passage.h"
 #include "transport/photon_sampler.h"
 #include "transport/photon_tracer.h"
 #include "transport/scheduler.h"
@@ -114,6 +116,12 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   arena.execute([&] { contact = contact_candidates(accel.handle(), scene, space.views, surfaces, 1e-6f * extent); });
   for (size_t i = 0; i < space.views.size(); ++i)
     if (!contact[i].empty()) space.views[i].contact = contact[i].data();
+  // Specular lobes (docs/design.md "Materials"): flattened, and the passage
+  // of straight rays through panes and transparent surfaces; nothing in
+  // scenes without lobes.
+  const MaterialTable lobes = scene.has_lobes() ? MaterialTable(scene) : MaterialTable();
+  std::unique_ptr<PassageTracer> passage;
+  if (lobes.any_passage()) passage = std::make_unique<PassageTracer>(scene, lobes, space.views, surfaces, extent);
   out.stats.seconds_setup = seconds_since(t_start);
 
   const bool two_pass = settings.direct_samples > 0;
@@ -125,7 +133,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   const auto t_direct = Clock::now();
   if (two_pass) {
     const DirectPass pass(accel.handle(), surfaces, space.views, space.csg_views, space.areas, emitters, settings,
-                          extent, textures.get());
+                          extent, textures.get(), passage.get());
     const double share = photon_pass ? kDirectBudgetShare : kDirectOnlyBudgetShare;
     const DirectControl control{
         [&](double f) { report(kProgressSetup + (direct_end - kProgressSetup) * f, "direct light"); },
@@ -136,7 +144,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   out.stats.seconds_direct = seconds_since(t_direct);
 
   // ---- Photon pass and final gather ------------------------------------------------
-  Accumulators acc(space.texel_count, scene.meshes.size());
+  Accumulators acc(space.texel_count, scene.meshes.size(), lobes.any_lobes());
   GatherResult gather;  // empty unless the final gather ran
   const Estimator estimator{space, direct.sums, direct.noise, acc, settings.filter_radius, &gather};
   uint64_t photons = 0;
@@ -148,7 +156,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     const uint64_t cap = settings.photon_count ? settings.photon_count : (uint64_t(1) << 40);
     const uint64_t batch_count = (cap + kBatchPhotons - 1) / kBatchPhotons;
     const PhotonTracer tracer(scene, accel.handle(), space.views, space.csg_views, ol_groups.views, emitters,
-                              settings, extent, two_pass ? 1u : 0u, ls_ols.grids, textures.get());
+                              settings, extent, two_pass ? 1u : 0u, ls_ols.grids, textures.get(), &lobes);
     // The final gather (final_gather.h) looks up radiosity on meshes: not in
     // scenes with CSG solids, L-systems or textures, nor with few bounces.
     const bool gather_wanted = two_pass && scene.csgs.empty() && scene.lsystems.empty() && !textures &&
@@ -160,7 +168,8 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     auto run_gather = [&](const Estimate& now) {
       gathered = true;
       if (budget.spent(kGatherBudgetShare)) return;
-      const FinalGather final_gather(accel.handle(), surfaces, space.views, space.areas, settings, extent);
+      const FinalGather final_gather(accel.handle(), surfaces, space.views, space.areas, settings, extent,
+                                     passage.get());
       gather = run_final_gather(arena, final_gather, space, now.values, tracer.triangle_albedos(),
                                 acc.back_lit.data(), gather_samples(settings.target_error), [&] {
                                   report(direct_end, "final gather");
@@ -232,7 +241,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
       run_gather(last);
     }
     out.stats.photons_emitted = photons;
-    out.stats.photon_hits = acc.total_hits + ol_hits;
+    out.stats.photon_hits = acc.total_hits + acc.caustic.total_hits + ol_hits;
     if (truncated_flux > 1e-4 * emitted * double(photons))
       out.warnings.push_back(std::to_string(out.stats.paths_truncated) + " photon paths reached max_bounces (" +
                              std::to_string(settings.max_bounces) + ") and were stopped, losing " +

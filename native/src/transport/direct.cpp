@@ -54,8 +54,9 @@ double DirectSums::phantom_variance_of_mean(const DirectNoise& noise) const {
 DirectPass::DirectPass(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
                        const std::vector<CsgView>& csgs, const std::vector<TexelAreas>& areas,
                        const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent,
-                       const TextureSet* textures)
+                       const TextureSet* textures, const PassageTracer* passage)
     : rtc_(rtc), surfaces_(surfaces), views_(views), csgs_(csgs), emitters_(emitters), textures_(textures),
+      passage_(passage),
       points_(views, areas, settings), seed_(settings.seed), sobol_(settings.sampler != PLM_SAMPLER_RANDOM),
       offset_scale_(1e-6f * scene_extent), table_(emitters),
       all_lights_(emitters.size() <= kAllLights),
@@ -115,6 +116,12 @@ void DirectPass::select_candidates(Vec3 p, Vec3 n, uint32_t* chosen, ChoiceScrat
 
 void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
                               DirectSums& sums) const {
+  if (passage_) sample<true>(mesh_id, texel, round, samples, sums);
+  else sample<false>(mesh_id, texel, round, samples, sums);
+}
+
+template <bool kPassage>
+void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums) const {
   if (emitters_.empty()) return;
   // A CSG sub-texel: points from its lightmap; rays leave the exact surface by
   // the origin offset alone (a ray may rightly hit the primitive it leaves).
@@ -188,6 +195,12 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   uint32_t lane_sample[RayPacket::kLanes];
   auto trace_packet = [&] {
     const unsigned lanes = packet.size;
+    if constexpr (kPassage) {
+      Vec3 through[RayPacket::kLanes];
+      passage_->occluded(packet, rtc_, through);
+      for (unsigned l = 0; l < lanes; ++l) chunk[lane_sample[l]].e += lane_value[l] * through[l];
+      return;
+    }
     packet.occluded(rtc_);
     for (unsigned l = 0; l < lanes; ++l)
       if (!packet.blocked(l)) chunk[lane_sample[l]].e += lane_value[l];
@@ -325,7 +338,15 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
         if (smooth && !(dot(ps.normal, dir) > 0.0f)) rh.ray.tfar = -1.0f;  // below the triangle's plane: no light
         else rtcIntersect1(rtc_, tc.context(), &rh);
-        const SurfaceHit h = surfaces_.hit(rh);
+        SurfaceHit h = surfaces_.hit(rh);
+        Vec3 through{1, 1, 1};
+        float distance = h.t;
+        if constexpr (kPassage) {
+          if (passage_->passable(h)) {
+            h = passage_->continue_through(rtc_, h, dir, through);
+            distance = length(h.point - ps.origin);
+          }
+        }
         const int32_t hit_emitter = h.kind == SurfaceKind::Triangle && !triangle_emitter_[h.index].empty()
                                         ? triangle_emitter_[h.index][h.prim]
                                         : -1;
@@ -333,12 +354,12 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
           const Emitter& he = emitters_[size_t(hit_emitter)];
           const float cos_l = std::fabs(dot(he.normal, dir)), cos_s = local.z;
           // Irradiance estimate L cos / p_cos = pi L, weighted; stored as irradiance / pi.
-          const float r = cos_weight_ratio(cos_s, cos_l * he.area, probability(size_t(hit_emitter)), h.t);
+          const float r = cos_weight_ratio(cos_s, cos_l * he.area, probability(size_t(hit_emitter)), distance);
           if (cos_l > 0.0f && cos_s > 0.0f && r > 0.0f) {
             const Vec3 L = he.textured
                                ? textures_->emission(*views_[h.index].mesh, he.material, he.triangle, h.u, h.v)
                                : he.radiance;
-            e += L * (r / (1.0f + r));
+            e += kPassage ? L * through * (r / (1.0f + r)) : L * (r / (1.0f + r));
           }
         }
       }

@@ -11,6 +11,7 @@
 #include "lightmap/texel_area.h"
 #include "texture/texture.h"
 #include "transport/emitters.h"
+#include "transport/passage.h"
 #include "transport/stratified_sums.h"
 #include "transport/texel_points.h"
 #include "transport/tracing.h"
@@ -46,7 +47,7 @@ class DirectPass {
   DirectPass(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
              const std::vector<CsgView>& csgs, const std::vector<TexelAreas>& areas,
              const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent,
-             const TextureSet* textures = nullptr);
+             const TextureSet* textures = nullptr, const PassageTracer* passage = nullptr);
 
   // Adds `samples` (rounded up to a square) stratified samples of round `round`
   // to texel `texel` of mesh `mesh`; mesh = mesh count + c means sub-texel
@@ -54,6 +55,10 @@ class DirectPass {
   void sample_texel(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums) const;
 
  private:
+  // sample_texel without (kPassage false: as in scenes without passable
+  // materials) or with shadow and MIS rays through passages.
+  template <bool kPassage>
+  void sample(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums) const;
   // Shares of the local choice among `count` candidate lights at point p,
   // normal n: share[i] = 0.9 x candidate i's unoccluded irradiance / their
   // sum. Returns the local part, 0.9, or 0 if no candidate lights p.
@@ -90,6 +95,9 @@ class DirectPass {
   // sampled (or hit) point. Null, and has_textured_emitters_ false, without.
   const TextureSet* textures_;
   bool has_textured_emitters_ = false;
+  // Scenes with passable materials (transport/passage.h): shadow rays and
+  // the MIS rays pass through them with a weight. Null otherwise.
+  const PassageTracer* passage_;
   TexelPoints points_;
   uint32_t seed_;
   bool sobol_;

@@ -45,13 +45,31 @@ TexelSpace build_texel_space(const Scene& scene, std::vector<std::string>& warni
 // Photon sums per texel over all lightmaps, merged batch by batch in order.
 class Accumulators {
  public:
-  Accumulators(uint64_t texels, size_t meshes)
-      : sum(3 * texels, 0.0), sum_sq(texels, 0.0), hits(texels, 0), back_lit(meshes, 0) {}
+  // caustics: the scene has lobes, and caustic photons (BatchOutput::caustic_hits) get sums of their own.
+  Accumulators(uint64_t texels, size_t meshes, bool caustics = false)
+      : sum(3 * texels, 0.0), sum_sq(texels, 0.0), hits(texels, 0), back_lit(meshes, 0) {
+    if (caustics) caustic.resize(texels);
+  }
   std::vector<double> sum, sum_sq;  // flux / pick probability (not yet divided by the photon count)
   std::vector<uint32_t> hits;
   std::vector<uint8_t> back_lit;  // per mesh: a photon reached its back
   double total_sq = 0.0;
   uint64_t total_hits = 0;
+  // Caustic photons' sums (empty without lobes): their own reconstruction
+  // and variance (film_estimate.h), added to the texel.
+  struct CausticSums {
+    std::vector<double> sum, sum_sq;
+    std::vector<uint32_t> hits;
+    double total_sq = 0.0;
+    uint64_t total_hits = 0;
+    void resize(uint64_t texels) {
+      sum.assign(3 * texels, 0.0);
+      sum_sq.assign(texels, 0.0);
+      hits.assign(texels, 0);
+    }
+    bool empty() const { return hits.empty(); }
+    double phantom_sq() const { return total_hits ? total_sq / double(total_hits) : 0.0; }
+  } caustic;
 
   // The squared flux of one average hit: the phantom hit that keeps texels
   // with few hits from looking exact.
@@ -77,6 +95,22 @@ class Accumulators {
     total_sq = total;
     total_hits += bo.hits.size();
     for (const uint32_t m : bo.back_meshes) back_lit[m] = 1;
+    if (!bo.caustic_hits.empty()) merge_caustics(bo.caustic_hits);
+  }
+
+ private:
+  void merge_caustics(const std::vector<Hit>& hits_in) {
+    for (const Hit& h : hits_in) {
+      const size_t t = h.texel;
+      caustic.sum[3 * t] += h.r;
+      caustic.sum[3 * t + 1] += h.g;
+      caustic.sum[3 * t + 2] += h.b;
+      const double a = (double(h.r) + h.g + h.b) / 3.0;
+      caustic.sum_sq[t] += a * a;
+      caustic.total_sq += a * a;
+      ++caustic.hits[t];
+    }
+    caustic.total_hits += hits_in.size();
   }
 };
 

@@ -31,6 +31,10 @@ double Estimator::csg_texel(size_t c, uint32_t sub, uint64_t photons, double val
   double variance = 0.0;
   for (int ch = 0; ch < 3; ++ch) value3[ch] = photons ? acc.sum[3 * g + ch] * k : 0.0;
   if (photons) variance = (acc.sum_sq[g] + phantom_sq) * k * k;
+  if (photons && !acc.caustic.empty() && acc.caustic.hits[g]) {
+    for (int ch = 0; ch < 3; ++ch) value3[ch] += acc.caustic.sum[3 * g + ch] * k;
+    variance += (acc.caustic.sum_sq[g] + acc.caustic.phantom_sq()) * k * k;
+  }
   if (!direct.empty()) {
     const DirectSums& d = direct[space.covered_begin[space.views.size() + c] + sub];
     if (d.count)
@@ -133,6 +137,7 @@ void Estimator::texels(size_t i, uint64_t photons, std::vector<double>& value3, 
     variance.assign(size_t(mesh.lightmap_width) * mesh.lightmap_height, 0.0);
   }
   if (photons > 0 && gather && !gather->sums.empty()) combine_gather(i, value3, variance, gather_part);
+  if (photons > 0 && !acc.caustic.empty()) add_caustics(i, photons, value3, variance);
   if (direct.empty()) return;
   size_t k = space.covered_begin[i];
   for (size_t t = 0; t < variance.size(); ++t) {
@@ -141,6 +146,29 @@ void Estimator::texels(size_t i, uint64_t photons, std::vector<double>& value3, 
     if (d.count)
       for (int c = 0; c < 3; ++c) value3[3 * t + c] += d.rgb[c] / d.count;
     variance[t] += d.variance_of_mean(direct_noise);
+  }
+}
+
+// Caustic photons (scenes with lobes: paths whose last event was specular)
+// are reconstructed apart from the others, without the direct light's guide
+// (a caustic's edges are not the direct light's) and with a pooling radius
+// of their own, chosen by the estimated error as for the ordinary photons;
+// their value and mean squared error add to the texel's.
+void Estimator::add_caustics(size_t i, uint64_t photons, std::vector<double>& value3,
+                             std::vector<double>& variance) const {
+  const Mesh& mesh = *space.views[i].mesh;
+  const size_t g0 = space.views[i].texel_offset;
+  ReconstructParams params;
+  params.max_radius = filter_radius;
+  params.photons = double(photons);
+  params.phantom_sq = acc.caustic.phantom_sq();
+  std::vector<double> c_value, c_mse;
+  reconstruct_indirect(space.areas[i], mesh.lightmap_width, mesh.lightmap_height,
+                       {&acc.caustic.sum[3 * g0], &acc.caustic.sum_sq[g0], &acc.caustic.hits[g0]}, params, c_value,
+                       c_mse);
+  for (size_t t = 0; t < variance.size(); ++t) {
+    for (int c = 0; c < 3; ++c) value3[3 * t + c] += c_value[3 * t + c];
+    variance[t] += c_mse[t];
   }
 }
 

@@ -43,6 +43,7 @@ struct Estimator {
  private:
   void combine_gather(size_t i, std::vector<double>& value3, std::vector<double>& variance,
                       double* gather_part) const;
+  void add_caustics(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance) const;
 };
 
 // Estimated error over all covered texels: sqrt(mean variance) / mean value,

@@ -65,6 +65,7 @@ void transfer_csg(const Estimator& est, size_t c, uint64_t photons, const TexelA
       var += est.csg_texel(c, uint32_t(subs[j]), photons, v3);
       for (int ch = 0; ch < 3; ++ch) sum3[ch] += v3[ch];
       hit_count += est.acc.hits[cv.texel_offset + uint64_t(subs[j])];
+      if (!est.acc.caustic.empty()) hit_count += est.acc.caustic.hits[cv.texel_offset + uint64_t(subs[j])];
     }
     for (int ch = 0; ch < 3; ++ch) values[4 * t + ch] = float(sum3[ch] / found);
     values[4 * t + 3] = float(std::sqrt(var) / found);  // the mean of `found` independent sub-texels
@@ -168,6 +169,7 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
       for (size_t t = 0; t < n; ++t) {
         if (!(areas[i].area[t] > 0.0)) continue;
         img.hits[t] = float(est.acc.hits[est.space.views[i].texel_offset + t]);
+        if (!est.acc.caustic.empty()) img.hits[t] += float(est.acc.caustic.hits[est.space.views[i].texel_offset + t]);
         filled[t] = 1;
       }
     }

@@ -13,12 +13,20 @@
 namespace plm {
 
 FinalGather::FinalGather(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
-                         const std::vector<TexelAreas>& areas, const plm_bake_settings& settings, float scene_extent)
+                         const std::vector<TexelAreas>& areas, const plm_bake_settings& settings, float scene_extent,
+                         const PassageTracer* passage)
     : rtc_(rtc), surfaces_(surfaces), views_(views), areas_(areas), points_(views, areas, settings),
-      seed_(settings.seed), offset_scale_(1e-6f * scene_extent) {}
+      seed_(settings.seed), offset_scale_(1e-6f * scene_extent), passage_(passage) {}
 
 void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
                                const GatherSource& source, GatherSums& sums, GatherInfo& info) const {
+  if (passage_) sample<true>(mesh_id, texel, round, samples, source, sums, info);
+  else sample<false>(mesh_id, texel, round, samples, source, sums, info);
+}
+
+template <bool kPassage>
+void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
+                         const GatherSource& source, GatherSums& sums, GatherInfo& info) const {
   const uint64_t global = views_[mesh_id].texel_offset + texel;
   // A stream of its own: (round | 0x100) is no round of the direct pass's.
   Rng rng(seed_ ^ 0x7F4A7C15u, (global << 9) | 0x100u | (round & 0xFF));
@@ -66,7 +74,9 @@ void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round,
     if (lanes > 0) packet.intersect(rtc_, zero_lanes);
     for (unsigned l = 0; l < lanes; ++l) {
       const uint32_t j = lane_sample[l];
-      const SurfaceHit h = surfaces_.hit(packet.rh, l);
+      // Through passable surfaces on the way (transport/passage.h), with what they let through.
+      Vec3 through{1, 1, 1};
+      const SurfaceHit h = kPassage ? passed(packet, l, lane_dir[l], through) : surfaces_.hit(packet.rh, l);
       const uint32_t mesh = h.index, prim = h.prim;
       Vec3 e{0, 0, 0};
       if (contact_lanes & (1u << l)) {
@@ -101,7 +111,7 @@ void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round,
           if (ht >= 0 && !unreliable) {
             if (hv.texel_area[ht] > 0.0) {
               const float* d = source.radiosity + 3 * (hv.texel_offset + ht);
-              const Vec3 a = (*source.albedo)[mesh][prim];
+              const Vec3 a = kPassage ? (*source.albedo)[mesh][prim] * through : (*source.albedo)[mesh][prim];
               e = {a.x * d[0], a.y * d[1], a.z * d[2]};
               error_sum += double(average(a)) * source.error[hv.texel_offset + ht];
               known = true;
@@ -119,6 +129,15 @@ void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round,
   if (4 * back > rays) info.unknown += back;
   info.lookup_error = rays ? error_sum / rays : 0.0;
   if (inverse_distance > 0.0) info.hit_distance = float(rays / inverse_distance);
+}
+
+SurfaceHit FinalGather::passed(const RayPacket& packet, unsigned l, Vec3 dir, Vec3& through) const {
+  SurfaceHit h = surfaces_.hit(packet.rh, l);
+  if (!passage_->passable(h)) return h;
+  const Vec3 origin{packet.rh.ray.org_x[l], packet.rh.ray.org_y[l], packet.rh.ray.org_z[l]};
+  h = passage_->continue_through(rtc_, h, dir, through);
+  h.t = length(h.point - origin);  // from the texel's point, through the passages
+  return h;
 }
 
 GatherResult run_final_gather(tbb::task_arena& arena, const FinalGather& gather, const TexelSpace& space,

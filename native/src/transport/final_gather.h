@@ -17,6 +17,7 @@
 #include "lightmap/texel_area.h"
 #include "photonlm/photonlm.h"
 #include "transport/film.h"
+#include "transport/passage.h"
 #include "transport/stratified_sums.h"
 #include "transport/texel_points.h"
 #include "transport/tracing.h"
@@ -53,8 +54,10 @@ struct GatherSource {
 
 class FinalGather {
  public:
+  // passage: scenes with passable materials, whose rays go on through them (transport/passage.h); else null.
   FinalGather(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
-              const std::vector<TexelAreas>& areas, const plm_bake_settings& settings, float scene_extent);
+              const std::vector<TexelAreas>& areas, const plm_bake_settings& settings, float scene_extent,
+              const PassageTracer* passage = nullptr);
 
   // Adds `samples` (rounded up to a square) cosine-distributed rays from the
   // direct pass's points of texel `texel` of mesh `mesh` (meshes only). Each
@@ -70,6 +73,14 @@ class FinalGather {
                     GatherSums& sums, GatherInfo& info) const;
 
  private:
+  // sample_texel without (kPassage false: the loop as in scenes without
+  // passable materials) or with rays through passages.
+  template <bool kPassage>
+  void sample(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, const GatherSource& source,
+              GatherSums& sums, GatherInfo& info) const;
+  // Lane l's hit, continued through passable surfaces; through: their weight.
+  SurfaceHit passed(const RayPacket& packet, unsigned l, Vec3 dir, Vec3& through) const;
+
   RTCScene rtc_;
   const SurfaceMap& surfaces_;
   const std::vector<MeshView>& views_;
@@ -77,6 +88,7 @@ class FinalGather {
   TexelPoints points_;
   uint32_t seed_;
   float offset_scale_;
+  const PassageTracer* passage_;
 };
 
 // The gather of every covered texel, in the film's covered order.

@@ -17,6 +17,9 @@ namespace {
 // mesh, Embree's BVH, the hit tables) and 64 MB besides.
 constexpr uint64_t kBytesPerTexel = 240, kBytesPerCoveredTexel = 160, kBytesPerTriangle = 300;
 constexpr uint64_t kBaseBytes = uint64_t(64) << 20;
+// Scenes with specular lobes keep the caustic photons' sums apart (film.h):
+// 3 + 1 doubles and a count per texel.
+constexpr uint64_t kCausticBytesPerTexel = 36;
 // Image textures: float RGB for the bake (12 bytes a pixel), and while one is
 // read, its pixels as read (up to 4 float channels: 16 bytes).
 constexpr uint64_t kBytesPerTexturePixel = 12, kBytesPerReadPixel = 16;
@@ -57,6 +60,7 @@ MemoryEstimate estimate_bake_memory(const Scene& scene) {
     }
   }
   e.bytes += kBytesPerReadPixel * largest_image;
+  const uint64_t per_texel = kBytesPerTexel + (scene.has_lobes() ? kCausticBytesPerTexel : 0);
   for (size_t i = 0; i < scene.meshes.size(); ++i) {
     const Mesh& m = scene.meshes[i];
     e.bytes += kBytesPerTriangle * m.triangle_count();
@@ -69,7 +73,7 @@ MemoryEstimate estimate_bake_memory(const Scene& scene) {
     }
     // Islands cover a few more texels than their area (their borders): 1.2x.
     const double covered = std::min(texels, 1.2 * uv_area * texels);
-    const uint64_t bytes = uint64_t(texels) * kBytesPerTexel + uint64_t(covered) * kBytesPerCoveredTexel;
+    const uint64_t bytes = uint64_t(texels) * per_texel + uint64_t(covered) * kBytesPerCoveredTexel;
     e.bytes += bytes;
     if (bytes > e.largest_bytes) e.largest_bytes = bytes, e.largest_mesh = i;
   }

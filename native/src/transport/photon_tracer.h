@@ -17,6 +17,7 @@
 #include "scene/scene.h"
 #include "texture/texture.h"
 #include "transport/emitters.h"
+#include "transport/material_table.h"
 #include "transport/tracing.h"
 #include "util/rng.h"
 
@@ -41,9 +42,19 @@ struct LsHit {
   float r, g, b;
 };
 
+// A caustic photon's hit on a mesh, where it landed (kept only for
+// experiments with other density estimates: PhotonTracer::keep_caustic_points).
+struct CausticPoint {
+  Vec3 point;
+  float r, g, b;
+  uint32_t mesh;
+};
+
 // What one batch of photons recorded, in photon order.
 struct BatchOutput {
   std::vector<Hit> hits;
+  std::vector<Hit> caustic_hits;  // scenes with lobes: hits whose path's last event was specular
+  std::vector<CausticPoint> caustic_points;  // the same hits' points, if asked for
   std::vector<OlHit> ol_hits;
   std::vector<LsHit> ls_hits;
   std::vector<uint32_t> back_meshes;  // meshes whose back a photon reached (the final gather's dark backs)
@@ -65,17 +76,22 @@ struct OlMeshView {
 class PhotonTracer {
  public:
   // Hits on lightmapped meshes are recorded from depth first_recorded_depth
-  // on, hits on OL meshes at every depth (they get no direct pass).
+  // on, hits on OL meshes at every depth (they get no direct pass). With
+  // lobes (a table with any_lobes()), photons follow them and depth 1 means
+  // "after the light's direct part" (see trace_photon).
   PhotonTracer(const Scene& scene, RTCScene rtc, const std::vector<MeshView>& views,
                const std::vector<CsgView>& csg_views, const std::vector<OlMeshView>& ol_views,
                const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent,
                uint32_t first_recorded_depth, const std::vector<ol::OctGrid>& ls_grids,
-               const TextureSet* textures = nullptr);
+               const TextureSet* textures = nullptr, const MaterialTable* lobes = nullptr);
 
   // A triangle's material (grey 0.8 in a scene without materials).
   const Material& material(const Mesh& mesh, uint32_t tri) const { return material_by_id(mesh.material_ids[tri]); }
   // Per mesh, per triangle: its material's albedo.
   std::vector<std::vector<Vec3>> triangle_albedos() const;
+
+  // Also keep the points of caustic hits on lightmapped meshes (BatchOutput::caustic_points).
+  void keep_caustic_points(bool keep) { keep_points_ = keep; }
 
   // Traces photons [first, first + count) into out (cleared first).
   void trace_batch(uint64_t first, uint64_t count, BatchOutput& out) const;
@@ -121,13 +137,45 @@ class PhotonTracer {
   // kMeshOnly: no CSG solid, no L-system object, no texture (mesh_only_);
   // the compiler then drops their branches from the loop. graph_hit: the
   // record of the photon's rays that L-system callbacks write.
-  template <bool kMeshOnly>
+  // kLobes: the scene has specular lobes (lobes_); the photon follows them
+  // and its path is classified (PathState), the purely diffuse loop stays as it was.
+  void trace_lobe_batch(uint64_t first, uint64_t count, lsystem::GraphHit& graph_hit, BatchOutput& out) const;
+  template <bool kMeshOnly, bool kLobes>
   void trace_photon(uint64_t index, lsystem::GraphHit& graph_hit, BatchOutput& out) const;
+  // A photon path's class in a scene with lobes (docs/design.md "Materials"):
+  // by its last event that is not a passage (a TRANSPARENT lobe, or a pane
+  // entered and left by its parallel face): none (the light itself) is
+  // direct light, a diffuse bounce indirect, a specular event a caustic.
+  enum PathClass : uint8_t { kDirect, kIndirect, kCaustic };
+  struct PathState {
+    PathClass cls = kDirect;
+    bool pane = false;  // a pane was entered and its partner not yet met
+    bool pane_front = false;
+    float pane_ior = 0.0f;
+    Vec3 pane_normal;
+    float lambda_um = 0.0f;  // a dispersed photon's wavelength (micrometres); 0: all of them
+    PathClass recorded() const { return pane ? kCaustic : cls; }
+    void specular() {
+      cls = kCaustic;
+      pane = false;
+    }
+  };
+  // The lobe scene's work at a hit: record by the path's class, then choose
+  // the diffuse part or a lobe (Russian roulette on the estimated
+  // reflectance) and scatter. Returns false where the photon ends.
+  // special: the hit's HitMesh where it needs shading normals (its recorded
+  // flux is weighted as special_hit does), else null.
+  inline bool lobe_hit(uint64_t index, const SurfaceHit& h, const HitMesh* special, Vec3& dir, bool front, Vec3 normal,
+                       Vec3 albedo, const float v[3], uint32_t depth, Vec3& flux, Vec3& org, PathState& path,
+                       TraceContext& tc, BatchOutput& out) const;
   // Per-hit steps of trace_photon, inline in photon_tracer.cpp (the only
   // place that calls them).
   inline bool special_hit(const HitMesh& hm, const SurfaceHit& h, Vec3 dir, bool front, Vec3 normal,
                           Vec3& flux) const;
+  // The contact test of special_hit: the photon is absorbed.
+  inline bool pressed(const HitMesh& hm, const SurfaceHit& h, bool front, Vec3 normal) const;
   inline void record(const SurfaceHit& h, Vec3 flux, BatchOutput& out) const;
+  inline void record_into(const SurfaceHit& h, Vec3 flux, std::vector<Hit>& hits) const;
 
   const Scene& scene_;
   const TextureSet* textures_;  // null for an untextured scene
@@ -149,6 +197,9 @@ class PhotonTracer {
   SurfaceMap surfaces_;              // triangle normals from hit_tris_
   bool mesh_only_ = false;           // trace_photon<true> applies
   Rng::SeedHash seed_hash_{};        // of settings_.seed, for the photons' Rng
+  const MaterialTable* lobes_ = nullptr;  // null in scenes without lobes
+  double lambda_offset_ = 0.0;            // rotation of the photons' stratified wavelengths
+  bool keep_points_ = false;
 };
 
 }  // namespace plm

@@ -1,0 +1,46 @@
+#include "transport/material_table.h"
+
+namespace plm {
+
+Cauchy cauchy_fit(float ior_d, float abbe) {
+  Cauchy c;
+  c.a = ior_d;
+  if (!(abbe > 0.0f)) return c;
+  constexpr double kD = 0.5876, kF = 0.4861, kC = 0.6563;  // Fraunhofer d, F, C lines (micrometres)
+  const double b = (double(ior_d) - 1.0) / (double(abbe) * (1.0 / (kF * kF) - 1.0 / (kC * kC)));
+  c.b = float(b);
+  c.a = float(double(ior_d) - b / (kD * kD));
+  return c;
+}
+
+MaterialTable::MaterialTable(const Scene& scene) {
+  materials_.resize(scene.materials.size());
+  for (size_t m = 0; m < scene.materials.size(); ++m) {
+    const Material& mat = scene.materials[m];
+    MaterialLobes& e = materials_[m];
+    e.first = uint32_t(lobes_.size());
+    e.count = uint32_t(mat.lobes.size());
+    bool all_transparent = !mat.lobes.empty();
+    for (const Lobe& l : mat.lobes) {
+      lobes_.push_back(bsdf::lobe_params(l));
+      cauchy_.push_back(cauchy_fit(l.ior, l.abbe));
+      if (l.abbe > 0.0f) e.dispersive = true;
+      if (l.type == PLM_LOBE_TRANSPARENT) e.pass_tint += lobes_.back().tint;
+      else all_transparent = false;
+    }
+    if (all_transparent) {
+      e.passage = Passage::Transparent;
+    } else if (mat.lobes.size() == 1 && mat.lobes[0].refracts() && lobes_.back().smooth && mat.lobes[0].abbe == 0.0f) {
+      e.passage = Passage::Pane;
+      e.pass_tint = lobes_.back().tint;
+      e.pane_ior = mat.lobes[0].ior;
+      e.pane_fresnel = mat.lobes[0].type == PLM_LOBE_GLASS;
+    } else {
+      e.pass_tint = {0, 0, 0};
+    }
+    any_passage_ = any_passage_ || e.passage != Passage::Opaque;
+    any_dispersion_ = any_dispersion_ || e.dispersive;
+  }
+}
+
+}  // namespace plm
