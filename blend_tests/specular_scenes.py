@@ -117,7 +117,8 @@ def glazed_room(res=32, sun_angle=15.0, portal=True, with_objects=True):
     only through a 1.5 x 1.25 m window in its +x wall, glazed with an 8 mm pane (a quad with a
     Solidify modifier and a Glass BSDF of IOR 1.5); a sun (elevation 35 degrees, from +x,
     angle `sun_angle`) and a uniform sky colour shine in. Inside: a gold metal sphere (Principled
-    Metallic 1, roughness 0.2) and a glass sphere on the floor, in the sun patch's way. A
+    Metallic 1, roughness 0.2) on the floor and a glass sphere (radius 0.3 m) 1 cm above it, both
+    in the sun patch's way. A
     portal light fills the window (it helps Cycles sample the sky; the engine aims its sun and
     sky photons through it). Returns {name: object}."""
     scenes.clear_scene()
@@ -144,7 +145,7 @@ def glazed_room(res=32, sun_angle=15.0, portal=True, with_objects=True):
     objs["Pane"] = pane
     if with_objects:
         objs["GoldBall"] = sphere("GoldBall", metal_material("gold", GOLD, 0.2), 0.35, (0.2, 0.6, 0.35))
-        objs["GlassBall"] = sphere("GlassBall", glass_material("ball_glass", 1.5), 0.3, (0.3, -0.6, 0.3))
+        objs["GlassBall"] = sphere("GlassBall", glass_material("ball_glass", 1.5), 0.3, (0.3, -0.6, 0.31))
     sun(35.0, 0.0, 4.0, sun_angle)
     scenes.set_world_color((0.4, 0.5, 0.7), 1.0)
     if portal:

@@ -73,7 +73,7 @@ def run(args, plan):
     print("reference: Cycles %d samples in %.0f s, its noise %.2f %%" % (plan["ref_samples"], ref_seconds,
                                                                         100 * metric.ref_noise), flush=True)
     result = dict(description="glazed room (pane IOR 1.5, 8 mm), sun 4 W/m^2 20 deg + sky (0.4, 0.5, 0.7), "
-                              "gold and glass spheres; %d x %d maps" % (args.res, args.res),
+                              "a gold and a glass sphere; %d x %d maps" % (args.res, args.res),
                   objects=[dict(name=n, resolution=args.res, texels=metric.texels[n]) for n in metric.names],
                   reference=dict(samples=plan["ref_samples"], seconds=ref_seconds, noise=metric.ref_noise,
                                  edge_texels=sum(int(v.sum()) for v in metric.edge_sel.values()), supersample=1,
