@@ -449,8 +449,9 @@ import types  # noqa: E402
 
 case_materials = [m for m in bpy.data.materials if m.users == 0 and m.node_tree is not None]
 for i, mat in enumerate(case_materials):
-    obj = scenes.quads_object("plane_%s" % mat.name, [((3 * i, 0, 0), (3 * i + 2, 0, 0), (3 * i + 2, 2, 0), (3 * i, 2, 0),
-                                                      (0, 0, 1, 1))], mat, 4)
+    x = 3.0 * i
+    scenes.quads_object("plane_%s" % mat.name, [((x, 0, 0), (x + 2, 0, 0), (x + 2, 2, 0), (x, 2, 0), (0, 0, 1, 1))],
+                        mat, 4)
 scenes.add_light("sun", 'SUN', (0, 0, 5), energy=3.0)
 photonlm = bridge.get()
 from photonlm.scene_file import SceneFileWriter  # noqa: E402

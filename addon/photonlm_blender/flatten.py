@@ -90,7 +90,6 @@ class Flat:
         self.lobes = []
         self.approximations = []        # what was approximated (joined into one report)
         self.notes = []                 # other reports (textures, unsupported nodes)
-        self.unknown = False            # a node the bake does not know (grey fallback)
 
     def approx(self, text):
         if text not in self.approximations:
@@ -186,7 +185,8 @@ _MATH = {
     'DIVIDE': lambda a, b, c: a / b if b != 0.0 else 0.0, 'MULTIPLY_ADD': lambda a, b, c: a * b + c,
     'POWER': lambda a, b, c: _safe_pow(a, b), 'MINIMUM': lambda a, b, c: min(a, b),
     'MAXIMUM': lambda a, b, c: max(a, b), 'ABSOLUTE': lambda a, b, c: abs(a),
-    'SQRT': lambda a, b, c: math.sqrt(a) if a > 0.0 else 0.0, 'INVERSE_SQRT': lambda a, b, c: 1.0 / math.sqrt(a) if a > 0.0 else 0.0,
+    'SQRT': lambda a, b, c: math.sqrt(a) if a > 0.0 else 0.0,
+    'INVERSE_SQRT': lambda a, b, c: 1.0 / math.sqrt(a) if a > 0.0 else 0.0,
     'LESS_THAN': lambda a, b, c: 1.0 if a < b else 0.0, 'GREATER_THAN': lambda a, b, c: 1.0 if a > b else 0.0,
     'SIGN': lambda a, b, c: math.copysign(1.0, a) if a != 0.0 else 0.0,
     'ROUND': lambda a, b, c: math.floor(a + 0.5), 'FLOOR': lambda a, b, c: math.floor(a),
@@ -444,7 +444,6 @@ def _walk(reader, src, w, depth):
         _diffuse(reader, node.inputs['Color'], path, w, node)
         flat.approx("%s '%s': baked as a diffuse surface of its colour" % (node.bl_label, node.name))
         return
-    flat.unknown = True
     flat.albedo = [a + w * c for a, c in zip(flat.albedo, FALLBACK_ALBEDO)]
     flat.approx("%s '%s' is not supported: baked as diffuse grey 0.8" % (node.bl_label, node.name))
 
