@@ -267,6 +267,7 @@ def cycles_bake(objects, resolution, pass_filter, samples, bounces=32, seed=0, s
         setattr(c, k, bounces)
     c.sample_clamp_direct = 0.0
     c.sample_clamp_indirect = 0.0
+    c.blur_glossy = 0.0  # Filter Glossy (default 1) roughens glass and mirrors after a diffuse bounce: a bias
     c.seed = seed
     c.use_animated_seed = False
     # A box filter one texel wide (Cycles' default Blackman-Harris 1.5 px filter blurs sharp

@@ -106,9 +106,10 @@ def export_checks(checks, image):
     noise = nt.nodes.new("ShaderNodeTexNoise")
     nt.links.new(noise.outputs["Color"], bsdf.inputs["Base Color"])
     info = materials.read_material(mat)
-    checks.check(info.albedo_texture is None and info.albedo == materials.FALLBACK_ALBEDO
+    checks.check(info.albedo_texture is None
+                 and np.allclose(info.albedo, [0.75 * c for c in materials.FALLBACK_ALBEDO], atol=1e-6)
                  and any("not an Image Texture" in n for n in info.notes),
-                 "procedural Base Color falls back to grey 0.8 with a note: %s" % info.notes[:1])
+                 "procedural Base Color falls back to grey 0.8 (x 1 - Metallic) with a note: %s" % info.notes[:1])
     # Images for the engine: generated -> a temporary PPM; saved to a PNG -> that file, sRGB.
     files = materials.TextureFiles()
     path, space = files.path_of(image)

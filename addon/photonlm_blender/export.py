@@ -253,6 +253,7 @@ def _add_material(export, plm, mat, reports):
         reports.warning(note)
     mid = plm.add_material(info.albedo, info.emission, name=info.name)
     materials.export_textures(plm, mid, info, export.texture_files, reports)
+    materials.export_lobes(plm, mid, info, reports)
     export.material_ids[key] = mid
     export.material_info[key] = info
     return mid

@@ -2,25 +2,27 @@
 
 Reading (for the bake). The material's active Material Output (Cycles' choice: an output
 whose target is CYCLES wins over ALL, the active one wins among equals) is followed
-through its Surface link (reroutes are skipped):
-    Principled BSDF  albedo = Base Color x (1 - Metallic) x (1 - Transmission),
-                     emission = Emission x Emission Strength
-    Diffuse BSDF     albedo = Color
-    Emission         albedo = 0, emission = Color x Strength
-An Image Texture node linked into Base Color / Color (its Vector unlinked or from a UV Map
-node) becomes an engine albedo texture (albedo = image x the constant factor above) on the
-UV map it reads (export_textures, texture_uv); one into Emission (Color) with an unlinked
-Strength becomes an emission texture (radiance = image x strength). Anything else linked
-(procedural nodes, mixes), any other shader, a group or nothing linked gives a grey 0.8
-albedo and a report naming the material; other linked emission counts as no emission. A material without nodes uses its viewport colour
-(material.diffuse_color). Albedos above 1 are clamped (they would create energy).
+through its Surface link; flatten.py turns the closures it reaches (Principled, Diffuse,
+Glossy, Glass, Refraction, Transparent BSDFs and Emission, through Mix and Add Shaders and
+node groups) into one diffuse albedo, an emission and a list of specular lobes, with Cycles
+3.4's weights. An Image Texture node linked into the colour of the diffuse part (its Vector
+unlinked or from a UV Map node) becomes an engine albedo texture (albedo = image x the
+diffuse weight) on the UV map it reads (export_textures, texture_uv); one into an emission
+colour becomes an emission texture (radiance = image x strength x weight). A procedurally
+linked diffuse colour is baked as grey 0.8, other linked emission as none (reported). A
+material without nodes uses its viewport colour (material.diffuse_color). What the engine
+has no exact counterpart for is reported once per material (flatten.py lists it).
 
 Wiring (for the preview). Baking adds, to every material of a baked object, nodes
 tagged node["photonlm"] = role inside a frame labelled "PhotonLM Lightmap":
     UV Map ('lightmap') -> Image Texture (<object>_lightmap) -> MixRGB Multiply (Fac 1,
-    with the base colour: its default value, or a link from the socket that feeds the
-    BSDF's colour input) -> Emission (Strength 1) -> Add Shader (+ Emission of the
-    original emission colour x strength) -> a NEW Material Output.
+    with the diffuse colour: its value, or a link from the socket that feeds the diffuse
+    BSDF's colour, times the diffuse weight) -> Emission (Strength 1) -> Add Shader
+    (+ Emission of the original emission colour x strength) -> a NEW Material Output.
+A material that is not purely diffuse (it has specular lobes) keeps its own shading for
+those: preview_closures.py copies its closure nodes without their diffuse part (tagged
+"closure_<n>") and an Add Shader ("add_closures") sums them with the lightmap's emission;
+the copy carries the material's emission, so the Emission of the original is off there.
 With an error image (<object>_error: the texels' relative error, standard error / value, in
 R, G and B) the frame also holds the heat map:
     UV Map -> Image Texture (<object>_error) -> Math Divide (by 4 x the target error) ->
@@ -41,6 +43,8 @@ engine only (reported).
 """
 import bpy
 
+from . import flatten, preview_closures
+
 TAG = "photonlm"
 ORIGINAL_OUTPUT_KEY = "photonlm_original_output"
 ERROR_IMAGE_TAG = "error"  # image[TAG] of the heat-map images the bake loads (<object>_error)
@@ -59,13 +63,18 @@ class MaterialInfo:
         self.name = name
         self.albedo = FALLBACK_ALBEDO
         self.emission = (0.0, 0.0, 0.0)
+        self.lobes = []            # flatten.Lobe: the specular part, in the order the engine sums them
         self.notes = []            # reports about approximations
-        self.color_socket = None   # the BSDF input giving the base colour (NodeSocket) or None
-        self.emission_color_socket = None
+        self.color_socket = None   # the input giving the diffuse colour by a link (NodeSocket) or None
+        self.preview_factor = 1.0  # the diffuse weight multiplying that colour
+        self.emission_color_socket = None   # the emission's inputs when it is one unweighted Emission
         self.emission_strength_socket = None
-        self.emission_strength_default = 1.0
-        self.albedo_texture = None     # TextureRef: Image Texture node into the base colour
+        self.albedo_texture = None     # TextureRef: Image Texture node into the diffuse colour
         self.emission_texture = None   # TextureRef: Image Texture node into the emission colour
+        self.surface = None        # the original Material Output's Surface input (for the preview)
+
+    def purely_diffuse(self):
+        return not self.lobes
 
 
 class TextureRef:
@@ -78,10 +87,12 @@ class TextureRef:
         self.uv_map = uv_map
 
 
-def _image_texture(mat, socket, what, info):
-    """TextureRef when socket is fed by an Image Texture node the engine can look up (an image,
-    its Vector unlinked or from a UV Map node, Repeat extension); else None with a note."""
-    node = _follow(socket)
+def _image_texture(mat, socket, what, info, path=()):
+    """TextureRef when socket (inside the node groups `path`) is fed by an Image Texture node the
+    engine can look up (an image, its Vector unlinked or from a UV Map node, Repeat extension);
+    else None with a note."""
+    src = flatten.source(socket, path)
+    node = src[0].node if src is not None else None
     if node is None or node.bl_idname != 'ShaderNodeTexImage':
         kind = node.bl_label if node is not None else "a link"
         info.notes.append("material '%s': %s comes from %s (not an Image Texture): baked as grey 0.8"
@@ -95,7 +106,8 @@ def _image_texture(mat, socket, what, info):
     uv_map = None
     vec = node.inputs['Vector']
     if vec.is_linked:
-        src = _follow(vec)
+        vsrc = flatten.source(vec, src[1])
+        src = vsrc[0].node if vsrc is not None else None
         if src is None or src.bl_idname != 'ShaderNodeUVMap':
             info.notes.append("material '%s': Image Texture '%s' reads coordinates from '%s' (only a UV Map node "
                               "is supported): the mesh's render UV map is used"
@@ -157,12 +169,9 @@ def _follow(socket):
     return None
 
 
-def _color(socket):
-    return tuple(float(c) for c in socket.default_value[:3])
-
-
-def read_material(mat):
-    """MaterialInfo for a Blender material (None -> the default grey material)."""
+def read_material(mat, image_means=None):
+    """MaterialInfo for a Blender material (None -> the default grey material). image_means
+    caches image means between materials of one export."""
     info = MaterialInfo(mat.name if mat else "PhotonLM default")
     if mat is None:
         return info
@@ -171,58 +180,52 @@ def read_material(mat):
         info.notes.append("material '%s' does not use nodes: baked with its viewport colour" % mat.name)
         return _clamp(info)
     out = original_output(mat.node_tree)
-    shader = _follow(out.inputs['Surface']) if out is not None else None
-    if shader is None:
+    if out is None or flatten.source(out.inputs['Surface']) is None:
         info.notes.append("material '%s' has no shader on its Material Output: baked as grey 0.8" % mat.name)
         return info
-    kind = shader.bl_idname
-    if kind == 'ShaderNodeBsdfPrincipled':
-        base = shader.inputs['Base Color']
-        info.color_socket = base
-        factor = 1.0
-        for name in ('Metallic', 'Transmission'):
-            s = shader.inputs[name]
-            if not s.is_linked:
-                factor *= 1.0 - min(max(float(s.default_value), 0.0), 1.0)
-        if base.is_linked:
-            info.albedo_texture = _image_texture(mat, base, "Base Color", info)
-            if info.albedo_texture is not None:
-                info.albedo = (factor, factor, factor)  # the engine multiplies the image by it
+    info.surface = out.inputs['Surface']
+    image_means = image_means if image_means is not None else {}
+    flat = flatten.flatten(info.surface, image_means)
+    info.lobes = flat.lobes
+    albedo = tuple(flat.albedo)
+    if flat.texture_socket is not None:
+        socket, path = flat.texture_socket
+        ref = _image_texture(mat, socket, "Base Color", info, path)
+        if ref is None:
+            albedo = tuple(a + flat.texture_factor * c for a, c in zip(albedo, FALLBACK_ALBEDO))
         else:
-            info.albedo = tuple(c * factor for c in _color(base))
-        _read_emission(info, mat, shader.inputs['Emission'], shader.inputs['Emission Strength'])
-    elif kind == 'ShaderNodeBsdfDiffuse':
-        col = shader.inputs['Color']
-        info.color_socket = col
-        if col.is_linked:
-            info.albedo_texture = _image_texture(mat, col, "Base Color", info)
-            if info.albedo_texture is not None:
-                info.albedo = (1.0, 1.0, 1.0)
-        else:
-            info.albedo = _color(col)
-    elif kind == 'ShaderNodeEmission':
-        info.albedo = (0.0, 0.0, 0.0)
-        _read_emission(info, mat, shader.inputs['Color'], shader.inputs['Strength'])
-    else:
-        info.notes.append("material '%s': shader '%s' (%s) is not supported: baked as grey 0.8"
-                          % (mat.name, shader.name, shader.bl_label))
+            info.albedo_texture = ref
+            f = flat.texture_factor
+            factor = (f, f, f)
+            if max(albedo) > 0.0:  # a constant diffuse colour beside the image: folded in by the image's mean
+                mean = image_means.get(ref.image.name_full) or flatten.image_mean(ref.image)
+                if mean is not None and min(mean[0]) > 0.0:
+                    factor = tuple(f + a / m for a, m in zip(albedo, mean[0]))
+                flat.approx("a constant diffuse colour beside the image '%s' folded into it by the image's "
+                            "mean" % ref.image.name)
+            albedo = factor
+            if not path:
+                info.color_socket, info.preview_factor = socket, f
+    elif flat.preview_socket is not None and not flat.preview_socket[1]:
+        info.color_socket, info.preview_factor = flat.preview_socket[0], flat.linked_factor
+    info.albedo = albedo
+    emission = tuple(flat.emission)
+    if flat.emission_texture_socket is not None:
+        socket, path = flat.emission_texture_socket
+        ref = _image_texture(mat, socket, "Emission", info, path)
+        if ref is not None:
+            info.emission_texture = ref
+            if max(emission) > 0.0:
+                flat.approx("a constant emission beside the emission image '%s' left out" % ref.image.name)
+            emission = (flat.emission_texture_strength,) * 3
+    info.emission = emission
+    if flat.emission_leaves == 1 and flat.emission_sockets is not None:
+        info.emission_color_socket, info.emission_strength_socket = flat.emission_sockets
+    for _kind, text in flat.notes:
+        info.notes.append("material '%s': %s" % (mat.name, text))
+    if flat.approximations:
+        info.notes.append("material '%s': approximated for the bake: %s" % (mat.name, "; ".join(flat.approximations)))
     return _clamp(info)
-
-
-def _read_emission(info, mat, color, strength):
-    info.emission_color_socket = color
-    info.emission_strength_socket = strength
-    s = float(strength.default_value)
-    if color.is_linked and not strength.is_linked and s > 0.0:
-        info.emission_texture = _image_texture(mat, color, "Emission", info)
-        if info.emission_texture is not None:
-            info.emission = (max(s, 0.0),) * 3  # the engine multiplies the image by the strength
-        return
-    if color.is_linked or strength.is_linked:
-        info.notes.append("material '%s': emission is linked (not an Image Texture with a constant strength): "
-                          "baked without emission" % mat.name)
-        return
-    info.emission = tuple(max(c * s, 0.0) for c in _color(color))
 
 
 def _clamp(info):
@@ -382,21 +385,52 @@ def wire_material(mat, image, render_engine, orientation=False, error_image=None
     links.new(uv.outputs['Vector' if orientation else 'UV'], tex.inputs['Vector'])
     for link in list(mul.inputs['Color1'].links):
         links.remove(link)
+    emit.inputs['Strength'].default_value = 1.0
     if info.color_socket is not None and info.color_socket.is_linked:
         _feed(tree, mul.inputs['Color1'], info.color_socket, (0.8, 0.8, 0.8, 1.0))
+        emit.inputs['Strength'].default_value = info.preview_factor  # the diffuse weight of that colour
     else:
         mul.inputs['Color1'].default_value = tuple(info.albedo) + (1.0,)
     links.new(tex.outputs['Color'], mul.inputs['Color2'])
     links.new(mul.outputs['Color'], emit.inputs['Color'])
-    emit.inputs['Strength'].default_value = 1.0
+
+    # The specular part keeps the material's own shading (a copy of its closures without the
+    # diffuse part, which carries the emission too).
+    for n in [n for n in tree.nodes if str(n.get(TAG, "")).startswith(preview_closures.ROLE_PREFIX)]:
+        tree.nodes.remove(n)
+    closures = None
+    if not info.purely_diffuse() and info.surface is not None:
+        closures, more = preview_closures.copy_closures(
+            tree, info.surface, lambda role, idname: _node(tree, role, idname, frame), x0, y0 - 900.0)
+        notes += more
     # The original emission: the same links or values as the shader's emission inputs.
-    _feed(tree, emit0.inputs['Color'], info.emission_color_socket, (0.0, 0.0, 0.0, 1.0))
-    _feed(tree, emit0.inputs['Strength'], info.emission_strength_socket, 0.0)
-    if info.emission_color_socket is None:
-        emit0.inputs['Strength'].default_value = 0.0
+    if closures is not None:
+        _feed(tree, emit0.inputs['Color'], None, (0.0, 0.0, 0.0, 1.0))
+        _feed(tree, emit0.inputs['Strength'], None, 0.0)
+    elif info.emission_color_socket is not None:
+        _feed(tree, emit0.inputs['Color'], info.emission_color_socket, (0.0, 0.0, 0.0, 1.0))
+        _feed(tree, emit0.inputs['Strength'], info.emission_strength_socket, 0.0)
+    else:  # weighted emission (a Mix Shader): the bake's values
+        ref = info.emission_texture
+        if ref is not None and ref.node.id_data == tree:
+            _feed(tree, emit0.inputs['Color'], None, (1.0, 1.0, 1.0, 1.0))
+            links.new(ref.node.outputs['Color'], emit0.inputs['Color'])
+            _feed(tree, emit0.inputs['Strength'], None, float(info.emission[0]))
+        else:
+            _feed(tree, emit0.inputs['Color'], None, tuple(info.emission) + (1.0,))
+            _feed(tree, emit0.inputs['Strength'], None, 1.0 if ref is None else 0.0)
     links.new(emit.outputs['Emission'], add.inputs[0])
     links.new(emit0.outputs['Emission'], add.inputs[1])
-    links.new(add.outputs['Shader'], out.inputs['Surface'])
+    if closures is not None:
+        add2 = _node(tree, "add_closures", 'ShaderNodeAddShader', frame)
+        add2.location = (x0 + 260.0 * 4.5, y0 - 200.0)
+        links.new(add.outputs['Shader'], add2.inputs[0])
+        links.new(closures, add2.inputs[1])
+        links.new(add2.outputs['Shader'], out.inputs['Surface'])
+    else:
+        for n in [n for n in tree.nodes if n.get(TAG) == "add_closures"]:
+            tree.nodes.remove(n)
+        links.new(add.outputs['Shader'], out.inputs['Surface'])
     for link in list(out.inputs['Volume'].links) + list(out.inputs['Displacement'].links):
         links.remove(link)
 
@@ -655,6 +689,29 @@ def export_textures(plm, material_id, info, files, reports):
         except Exception as e:  # noqa: BLE001 -- reported; the bake goes on without the texture
             reports.warning("material '%s': %s texture '%s' not used: %s"
                             % (info.name, slot, ref.image.name, getattr(e, "message", e)))
+
+
+def export_lobes(plm, material_id, info, reports):
+    """Give engine material material_id the specular lobes of info. A FRESNEL lobe goes as its F0
+    (color / weight) and weight; the others with weight 1 (their colour carries the mix factors).
+    A lobe the engine refuses is reported and left out."""
+    if not info.lobes:
+        return
+    if not hasattr(plm, "add_material_lobe"):
+        reports.warning("material '%s': the engine takes no specular lobes here: its %s part is left out"
+                        % (info.name, ", ".join(sorted({l.kind for l in info.lobes}))))
+        return
+    for lobe in info.lobes:
+        color, weight = lobe.color, 1.0
+        if lobe.kind == "fresnel":
+            weight = min(max(lobe.weight, 0.0), 1.0)
+            color = tuple(min(max(c / lobe.weight, 0.0), 1.0) for c in lobe.color) if lobe.weight > 0.0 \
+                else (0.0, 0.0, 0.0)
+        try:
+            plm.add_material_lobe(material_id, lobe.kind, color, roughness=lobe.roughness, ior=lobe.ior,
+                                  abbe=lobe.abbe, weight=weight)
+        except Exception as e:  # noqa: BLE001 -- reported; the bake goes on without the lobe
+            reports.warning("material '%s': %s lobe left out: %s" % (info.name, lobe.kind, getattr(e, "message", e)))
 
 
 def texture_uv(mesh, infos, object_name, reports):
