@@ -1,0 +1,268 @@
+#include "transport/environment.h"
+
+#include <OpenImageIO/imageio.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "util/error.h"
+
+namespace plm {
+namespace {
+
+constexpr double kMaxRadiance = 1e30;  // as for every other radiance the scene takes
+
+float srgb_to_linear(float c) {
+  return c <= 0.04045f ? c * (1.0f / 12.92f) : std::pow((c + 0.055f) * (1.0f / 1.055f), 2.4f);
+}
+
+// One axis of Cycles' bilinear lookup with REPEAT: s in [0, 1] over n pixels
+// whose centres lie at (i + 0.5) / n. The lower pixel i0, the upper i1, the
+// weight f of i1.
+inline void repeat_axis(float s, uint32_t n, uint32_t& i0, uint32_t& i1, float& f) {
+  const float p = s * float(n) - 0.5f;
+  const float below = std::floor(p);
+  f = p - below;
+  int64_t k = int64_t(below) % int64_t(n);
+  if (k < 0) k += int64_t(n);
+  i0 = uint32_t(k);
+  i1 = i0 + 1 == n ? 0 : i0 + 1;
+}
+
+// The first index whose cumulative value exceeds u (zero-width entries are
+// never chosen), and u's place inside that entry's interval, in [0, 1).
+inline size_t invert_cdf(const double* cdf, size_t n, double u, float& rest) {
+  size_t i = size_t(std::upper_bound(cdf, cdf + n, u) - cdf);
+  if (i >= n) {  // rounding past the end: the last entry with width
+    i = n - 1;
+    while (i > 0 && cdf[i] == cdf[i - 1]) --i;
+  }
+  const double lo = i > 0 ? cdf[i - 1] : 0.0, width = cdf[i] - lo;
+  rest = width > 0.0 ? float(std::min((u - lo) / width, 0.99999994)) : 0.5f;
+  return i;
+}
+
+}  // namespace
+
+EnvironmentMap::EnvironmentMap(const float* rgb, uint32_t width, uint32_t height, const float rotation[9],
+                               float strength, const std::string& owner) {
+  if (width == 0 || height == 0 || double(width) * double(height) > double(1u << 28))
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": size ", width, " x ", height,
+         " is invalid (both must be > 0, at most 2^28 pixels)");
+  if (!rgb) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": rgb must not be NULL");
+  if (!std::isfinite(strength) || strength < 0.0f || strength > kMaxRadiance)
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": strength ", strength, " is not in [0, 1e30]");
+  static const float identity[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  const float* r = rotation ? rotation : identity;
+  for (int i = 0; i < 9; ++i)
+    if (!std::isfinite(r[i])) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": rotation[", i, "] = ", r[i], " is not finite");
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {  // rows orthonormal: R R^T = I
+      const double d = double(r[3 * i]) * r[3 * j] + double(r[3 * i + 1]) * r[3 * j + 1] +
+                       double(r[3 * i + 2]) * r[3 * j + 2];
+      if (std::fabs(d - (i == j ? 1.0 : 0.0)) > 1e-3)
+        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": rotation is not a rotation (rows ", i, " and ", j,
+             " have dot product ", d, "; a rotation's rows are orthonormal)");
+    }
+  std::copy(r, r + 9, rot_);
+  width_ = width;
+  height_ = height;
+  const size_t pixels = size_t(width) * height;
+  rgb_.resize(pixels * 3);
+  for (size_t p = 0; p < pixels; ++p)
+    for (size_t c = 0; c < 3; ++c) {
+      const float v = rgb[p * 3 + c];
+      if (!std::isfinite(v) || v < 0.0f || double(v) * strength > kMaxRadiance)
+        fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": pixel at row ", p / width, ", column ", p % width, " (row 0 = top) has ",
+             "RGB"[c], " = ", v, (std::isfinite(v) && v >= 0.0f ? " (times strength beyond 1e30)" : ""),
+             "; radiance must be finite and >= 0");
+      rgb_[p * 3 + c] = v * strength;
+    }
+
+  // Row boundaries of the dual grid in v (1 at the top), then in z = sin(elevation).
+  const uint32_t rows = height + 1;
+  row_z_.resize(rows + 1);
+  for (uint32_t k = 0; k <= rows; ++k) {
+    const double v = k == 0 ? 1.0 : k == rows ? 0.0 : 1.0 - (double(k) - 0.5) / height;
+    row_z_[k] = k == 0 ? 1.0f : k == rows ? -1.0f : float(std::sin(kPiD * (v - 0.5)));
+  }
+  // Cell means: interior rows blend their two pixel rows equally; the half
+  // rows at the poles weigh their own pixel row 3/4 and the wrapped one 1/4.
+  auto pixel = [&](uint32_t row, uint32_t col) { return &rgb_[(size_t(row) * width + col) * 3]; };
+  row_cdf_.assign(rows, 0.0);
+  row_density_.assign(rows, 0.0);
+  cell_cdf_.assign(size_t(rows) * width, 0.0);
+  double integral[3] = {0, 0, 0};
+  std::vector<double> row_weight(rows, 0.0);
+  for (uint32_t k = 0; k < rows; ++k) {
+    uint32_t near_row, far_row;
+    double near_w;
+    if (k == 0) near_row = 0, far_row = height - 1, near_w = 0.75;
+    else if (k == height) near_row = height - 1, far_row = 0, near_w = 0.75;
+    else near_row = k, far_row = k - 1, near_w = 0.5;
+    const double omega = 2.0 * kPiD / width * (double(row_z_[k]) - double(row_z_[k + 1]));
+    double running = 0.0;
+    for (uint32_t c = 0; c < width; ++c) {
+      const uint32_t c1 = c + 1 == width ? 0 : c + 1;
+      double mean[3];
+      for (int ch = 0; ch < 3; ++ch)
+        mean[ch] = 0.5 * (near_w * (double(pixel(near_row, c)[ch]) + pixel(near_row, c1)[ch]) +
+                          (1.0 - near_w) * (double(pixel(far_row, c)[ch]) + pixel(far_row, c1)[ch]));
+      for (int ch = 0; ch < 3; ++ch) integral[ch] += mean[ch] * omega;
+      running += (mean[0] + mean[1] + mean[2]) / 3.0;
+      cell_cdf_[size_t(k) * width + c] = running;
+    }
+    row_weight[k] = running * omega;
+    if (running > 0.0)
+      for (uint32_t c = 0; c < width; ++c) cell_cdf_[size_t(k) * width + c] /= running;
+    cell_cdf_[size_t(k) * width + width - 1] = running > 0.0 ? 1.0 : 0.0;
+  }
+  double sum = 0.0;
+  for (uint32_t k = 0; k < rows; ++k) sum += row_weight[k];
+  total_ = sum;
+  double running = 0.0;
+  for (uint32_t k = 0; k < rows; ++k) {
+    running += row_weight[k];
+    row_cdf_[k] = sum > 0.0 ? running / sum : 0.0;
+    const double omega = 2.0 * kPiD / width * (double(row_z_[k]) - double(row_z_[k + 1]));
+    // A cell's density in solid angle: P(row) P(cell | row) / omega, the second factor from the CDF.
+    row_density_[k] = sum > 0.0 && omega > 0.0 ? (row_weight[k] / sum) / omega : 0.0;
+  }
+  if (sum > 0.0) row_cdf_[rows - 1] = 1.0;
+  integral_ = {float(integral[0]), float(integral[1]), float(integral[2])};
+}
+
+EnvironmentMap EnvironmentMap::from_file(const std::string& path, const float rotation[9], float strength) {
+  const std::string owner = "world map '" + path + "'";
+  auto input = OIIO::ImageInput::open(path);
+  if (!input) {
+    std::string why = OIIO::geterror();
+    if (why.empty()) why = "not a readable image";
+    fail(PLM_ERROR_IO, owner, ": cannot read the image: ", why);
+  }
+  const OIIO::ImageSpec spec = input->spec();
+  const int w = spec.width, h = spec.height, nch = spec.nchannels;
+  if (w <= 0 || h <= 0 || nch <= 0) fail(PLM_ERROR_IO, owner, ": the image has no pixels");
+  if (double(w) * double(h) > double(1u << 28))
+    fail(PLM_ERROR_IO, owner, ": the image is ", w, " x ", h, " pixels, more than 2^28");
+  const bool srgb = !spec.format.is_floating_point();  // Blender's default colour space for such files
+  const size_t pixels = size_t(w) * size_t(h);
+  std::vector<float> in(pixels * size_t(nch));
+  if (!input->read_image(0, 0, 0, nch, OIIO::TypeDesc::FLOAT, in.data()))
+    fail(PLM_ERROR_IO, owner, ": cannot read the image: ", input->geterror());
+  input->close();
+  std::vector<float> rgb(pixels * 3);
+  for (size_t p = 0; p < pixels; ++p)
+    for (size_t c = 0; c < 3; ++c) {
+      const float v = in[p * size_t(nch) + (nch >= 3 ? c : 0)];  // grey (+ alpha): R = G = B
+      rgb[p * 3 + c] = srgb ? srgb_to_linear(v) : v;
+    }
+  return EnvironmentMap(rgb.data(), uint32_t(w), uint32_t(h), rotation, strength, owner);
+}
+
+Vec3 EnvironmentMap::to_map(Vec3 w) const {
+  const Vec3 d{rot_[0] * w.x + rot_[3] * w.y + rot_[6] * w.z, rot_[1] * w.x + rot_[4] * w.y + rot_[7] * w.z,
+               rot_[2] * w.x + rot_[5] * w.y + rot_[8] * w.z};
+  return d;
+}
+
+Vec3 EnvironmentMap::to_world(Vec3 d) const {
+  return {rot_[0] * d.x + rot_[1] * d.y + rot_[2] * d.z, rot_[3] * d.x + rot_[4] * d.y + rot_[5] * d.z,
+          rot_[6] * d.x + rot_[7] * d.y + rot_[8] * d.z};
+}
+
+Vec3 EnvironmentMap::lookup(float u, float v) const {
+  uint32_t x0, x1, y0, y1;
+  float fx, fy;
+  repeat_axis(u, width_, x0, x1, fx);
+  repeat_axis(v, height_, y0, y1, fy);  // y counts from the bottom row, as Cycles' image rows
+  const float* r0 = &rgb_[size_t(height_ - 1 - y0) * width_ * 3];
+  const float* r1 = &rgb_[size_t(height_ - 1 - y1) * width_ * 3];
+  const float w00 = (1 - fx) * (1 - fy), w10 = fx * (1 - fy), w01 = (1 - fx) * fy, w11 = fx * fy;
+  return {w00 * r0[x0 * 3] + w10 * r0[x1 * 3] + w01 * r1[x0 * 3] + w11 * r1[x1 * 3],
+          w00 * r0[x0 * 3 + 1] + w10 * r0[x1 * 3 + 1] + w01 * r1[x0 * 3 + 1] + w11 * r1[x1 * 3 + 1],
+          w00 * r0[x0 * 3 + 2] + w10 * r0[x1 * 3 + 2] + w01 * r1[x0 * 3 + 2] + w11 * r1[x1 * 3 + 2]};
+}
+
+Vec3 EnvironmentMap::radiance(Vec3 w) const {
+  const Vec3 d = to_map(w);
+  const float len = length(d);
+  if (!(len > 0.0f) || !std::isfinite(len)) return {0, 0, 0};
+  const float z = std::fmax(-1.0f, std::fmin(1.0f, d.z / len));
+  const float u = 0.5f - std::atan2(d.y, d.x) * (0.5f / kPi);
+  const float v = 0.5f + std::asin(z) * (1.0f / kPi);
+  return lookup(u, v);
+}
+
+void EnvironmentMap::cell_of(Vec3 d, uint32_t& row, uint32_t& column) const {
+  const float len = length(d);
+  const float z = std::fmax(-1.0f, std::fmin(1.0f, d.z / len));
+  // Row: the boundaries are monotone in z; the first guess from v is exact but for rounding.
+  const float v = 0.5f + std::asin(z) * (1.0f / kPi);
+  int64_t k = int64_t(std::floor((1.0f - v) * float(height_) + 0.5f));
+  k = std::clamp<int64_t>(k, 0, height_);
+  while (k > 0 && z > row_z_[size_t(k)]) --k;
+  while (k < int64_t(height_) && z < row_z_[size_t(k) + 1]) ++k;
+  row = uint32_t(k);
+  const float u = 0.5f - std::atan2(d.y, d.x) * (0.5f / kPi);
+  const float s = std::floor(u * float(width_) - 0.5f);
+  int64_t c = int64_t(s) % int64_t(width_);
+  if (c < 0) c += width_;
+  column = uint32_t(c);
+}
+
+float EnvironmentMap::pdf(Vec3 w) const {
+  const Vec3 d = to_map(w);
+  if (!(total_ > 0.0) || !is_finite(d) || !(dot(d, d) > 0.0f)) return 0.0f;
+  uint32_t row, column;
+  cell_of(d, row, column);
+  const double* cdf = &cell_cdf_[size_t(row) * width_];
+  const double p = cdf[column] - (column > 0 ? cdf[column - 1] : 0.0);
+  return float(row_density_[row] * p);
+}
+
+Vec3 EnvironmentMap::sample(float u0, float u1, float& pdf) const {
+  float f0, f1;
+  const size_t rows = size_t(height_) + 1;
+  const size_t row = invert_cdf(row_cdf_.data(), rows, double(u0), f0);
+  const double* cdf = &cell_cdf_[row * width_];
+  const size_t column = invert_cdf(cdf, width_, double(u1), f1);
+  const double p = cdf[column] - (column > 0 ? cdf[column - 1] : 0.0);
+  pdf = float(row_density_[row] * p);
+  // Uniform in solid angle inside the cell: z uniform between the row's boundaries, phi uniform.
+  const float z = row_z_[row] + f0 * (row_z_[row + 1] - row_z_[row]);
+  const float rho = std::sqrt(std::fmax(0.0f, 1.0f - z * z));
+  float u = (float(column) + f1 + 0.5f) / float(width_);  // the cell's u, past 1 for the wrapping column
+  if (u >= 1.0f) u -= 1.0f;
+  float s, c;
+  sincos_2pi(0.5f - u, s, c);  // atan2(d.y, d.x) = 2 pi (0.5 - u)
+  return normalize(to_world({rho * c, rho * s, z}));
+}
+
+Vec3 EnvironmentMap::irradiance(Vec3 n) const {
+  double sum[3] = {0, 0, 0};
+  const size_t rows = size_t(height_) + 1;
+  for (size_t k = 0; k < rows; ++k) {
+    const float z = 0.5f * (row_z_[k] + row_z_[k + 1]);
+    const float rho = std::sqrt(std::fmax(0.0f, 1.0f - z * z));
+    const double omega = 2.0 * kPiD / width_ * (double(row_z_[k]) - double(row_z_[k + 1]));
+    for (uint32_t c = 0; c < width_; ++c) {
+      float s, co;
+      sincos_2pi(0.5f - (float(c) + 1.0f) / float(width_), s, co);  // the cell's centre: u = (c + 1) / W
+      const float cosine = dot(to_world({rho * co, rho * s, z}), n);
+      if (cosine <= 0.0f) continue;
+      const Vec3 L = lookup((float(c) + 1.0f) / float(width_), 0.5f + std::asin(z) * (1.0f / kPi));
+      sum[0] += double(L.x) * cosine * omega;
+      sum[1] += double(L.y) * cosine * omega;
+      sum[2] += double(L.z) * cosine * omega;
+    }
+  }
+  return {float(sum[0]), float(sum[1]), float(sum[2])};
+}
+
+uint64_t EnvironmentMap::memory_bytes() const {
+  return rgb_.size() * sizeof(float) + cell_cdf_.size() * sizeof(double) +
+         (row_cdf_.size() + row_density_.size()) * sizeof(double) + row_z_.size() * sizeof(float);
+}
+
+}  // namespace plm

@@ -1,0 +1,91 @@
+// An environment map as the world (Cycles' Environment Texture in the world's
+// Background): an equirectangular image of radiance, looked up as Cycles looks
+// it up, and a distribution over directions in proportion to it for the
+// direct pass's sky samples and for photon emission.
+//
+// Lookup: Blender's equirectangular mapping of a map-frame direction d,
+// u = 0.5 - atan2(d.y, d.x) / (2 pi), v = 0.5 + asin(d.z) / pi, read bilinearly
+// with pixel centres at ((i + 0.5) / W, (j + 0.5) / H) and periodic wrapping in
+// both axes: Cycles' Linear interpolation with the REPEAT extension that its
+// Environment Texture always uses (so within half a row of a pole the top and
+// bottom rows blend, as in Cycles).
+//
+// Sampling: the sphere is cut into the cells of the dual grid, whose corners
+// are pixel centres (W columns between neighbouring centres, wrapping; H - 1
+// rows between neighbouring rows' centres plus a half row at each pole), so
+// that inside a cell the bilinear radiance blends exactly its four corner
+// pixels. A cell's weight is the mean of that blend over the cell (mean of
+// RGB) times its solid angle; a cell is chosen by a marginal distribution over
+// rows and a conditional one within the row (pbrt's Distribution2D), and a
+// direction uniformly in solid angle inside it. So the density is constant per
+// cell, mean radiance / total, positive wherever the looked-up radiance is,
+// and exactly 1 / (4 pi) for a uniform map.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "util/math.h"
+
+namespace plm {
+
+class EnvironmentMap {
+ public:
+  // rgb: width x height linear RGB floats, the top row (+Z) first; rotation:
+  // row-major 3x3 taking map-frame directions into the world (NULL: identity);
+  // radiance = pixel x strength. Throws plm::Error (PLM_ERROR_INVALID_ARGUMENT)
+  // naming `owner` and the row and column of a bad pixel, bad sizes, a
+  // rotation that is not orthonormal or a bad strength.
+  EnvironmentMap(const float* rgb, uint32_t width, uint32_t height, const float rotation[9], float strength,
+                 const std::string& owner);
+
+  // Reads an image file (any format OpenImageIO reads; integer images are
+  // sRGB-decoded, float images linear; grey images give R = G = B). Throws
+  // plm::Error (PLM_ERROR_IO) naming the file when it cannot be read, and as
+  // the constructor for bad pixels.
+  static EnvironmentMap from_file(const std::string& path, const float rotation[9], float strength);
+
+  uint32_t width() const { return width_; }
+  uint32_t height() const { return height_; }
+
+  // Radiance arriving from world direction w (unit: looking towards w).
+  Vec3 radiance(Vec3 w) const;
+  // A world direction drawn with the map's distribution from two uniform
+  // numbers in [0, 1), and its density in solid angle (> 0).
+  Vec3 sample(float u0, float u1, float& pdf) const;
+  // The density of sample() at world direction w (unit).
+  float pdf(Vec3 w) const;
+  // Integral of the radiance over the sphere (RGB, W m^-2 per unit radiance
+  // area): a uniform map of radiance L gives 4 pi L.
+  Vec3 integral() const { return integral_; }
+  // Integral of radiance x max(0, w . n) over the sphere: the irradiance on an
+  // unoccluded surface facing n (the light a window facing n lets in, per m^2).
+  Vec3 irradiance(Vec3 n) const;
+  // Bytes held (pixels and distribution).
+  uint64_t memory_bytes() const;
+
+ private:
+  Vec3 to_map(Vec3 w) const;
+  Vec3 to_world(Vec3 d) const;
+  Vec3 lookup(float u, float v) const;  // bilinear, REPEAT
+  // The dual-grid cell of map direction d.
+  void cell_of(Vec3 d, uint32_t& row, uint32_t& column) const;
+
+  uint32_t width_ = 0, height_ = 0;
+  std::vector<float> rgb_;        // width x height x 3, top row first, times strength
+  float rot_[9];                  // map -> world, row-major
+  // Dual grid: (height + 1) rows from the top (+Z) of width cells each.
+  std::vector<float> row_z_;      // height + 2 boundaries in z = sin(elevation), from +1 down to -1
+  std::vector<double> row_cdf_;      // height + 1: cumulative row weights, last = 1
+  std::vector<double> row_density_;  // height + 1: P(row) / (solid angle of one of its cells)
+  // (height + 1) x width: cumulative cell weights (mean of RGB of the blend
+  // over the cell) within each row, last = 1 (all 0 in a black row). A cell's
+  // probability is taken from these differences, so sampling and pdf() agree
+  // to the last bit.
+  std::vector<double> cell_cdf_;
+  double total_ = 0.0;            // sum of mean x solid angle over all cells
+  Vec3 integral_;
+};
+
+}  // namespace plm
