@@ -496,10 +496,15 @@ inline void add_portal_density(const Emitter& e, Vec3 p, Vec3 dir, float share, 
   }
 }
 
-// Share of a map's sky samples (of those not aimed at portals) drawn from the
-// map; the rest are cosine directions. One sample, one shadow ray: the
-// balance heuristic of the two, i.e. the mixture's density [Veach97 ch. 9].
+// A map's sky samples at a point: without portals half are drawn from the
+// map and half are cosine directions; with portals kMapPortalDirectShare aim
+// at points on the portals and the rest come from the map (a sun in the map
+// is found only by those; the portals' points find the rest of the sky
+// through the opening, the job the cosine directions do without portals).
+// One sample, one shadow ray: the balance heuristic of the strategies, i.e.
+// the mixture's density [Veach97 ch. 9].
 constexpr float kMapDirectShare = 0.5f;
+constexpr float kMapPortalDirectShare = 0.5f;
 
 // The sky's direct light at p from an environment map: directions from the
 // map and cosine directions (and with portals, points on them) mixed, each
@@ -507,7 +512,8 @@ constexpr float kMapDirectShare = 0.5f;
 __attribute__((noinline)) DirectSample map_sky_direct(const Emitter& e, Vec3 p, Vec3 n, const float u[3]) {
   DirectSample s{{0, 0, 0}, {0, 0, 1}, std::numeric_limits<float>::infinity(), 0.0f, 0.0f, 0.0f};
   const EnvironmentMap& map = *e.map;
-  const float share = e.portals.empty() ? 0.0f : kPortalDirectShare;
+  const float share = e.portals.empty() ? 0.0f : kMapPortalDirectShare;
+  const float map_share = e.portals.empty() ? kMapDirectShare : 1.0f;  // of the samples not aimed at portals
   float pm = -1.0f;  // the map's density of s.dir, once known
   if (u[2] < share) {
     float v = u[2] / share;
@@ -518,7 +524,7 @@ __attribute__((noinline)) DirectSample map_sky_direct(const Emitter& e, Vec3 p, 
     const float d = length(to);
     if (!(d > 0.0f)) return s;
     s.dir = to / d;
-  } else if ((u[2] - share) < kMapDirectShare * (1.0f - share)) {
+  } else if ((u[2] - share) < map_share * (1.0f - share)) {
     s.dir = map.sample(u[0], u[1], pm);
   } else {
     const Vec3 local = cosine_hemisphere(u[0], u[1]);
@@ -529,7 +535,7 @@ __attribute__((noinline)) DirectSample map_sky_direct(const Emitter& e, Vec3 p, 
   const float cos_s = dot(n, s.dir);
   if (!(cos_s > 0.0f)) return s;
   if (pm < 0.0f) pm = map.pdf(s.dir);
-  float density = (1.0f - share) * (kMapDirectShare * pm + (1.0f - kMapDirectShare) * cos_s / kPi);
+  float density = (1.0f - share) * (map_share * pm + (1.0f - map_share) * cos_s / kPi);
   add_portal_density(e, p, s.dir, share, density);
   if (density > 0.0f && std::isfinite(density)) s.irradiance = map.radiance(s.dir) * (cos_s / density);
   return s;

@@ -42,6 +42,21 @@ inline size_t invert_cdf(const double* cdf, size_t n, double u, float& rest) {
   return i;
 }
 
+// A number in [0, 1) with density proportional to (1 - x) a + x b (a, b >= 0,
+// not both 0) from a uniform u in [0, 1).
+inline float sample_linear(float u, float a, float b) {
+  if (a == b) return u;
+  const float x = u * (a + b) / (a + std::sqrt((1.0f - u) * a * a + u * b * b));
+  return std::fmin(x, 0.99999994f);
+}
+
+// sin and cos of the azimuth atan2(d.y, d.x) = 2 pi (0.5 - u) of map coordinate u in [0, 1].
+inline void azimuth_of(float u, float& s, float& c) {
+  float f = 0.5f - u;
+  if (f < 0.0f) f += 1.0f;  // sincos_2pi takes a fraction of a turn in [0, 1)
+  sincos_2pi(f, s, c);
+}
+
 }  // namespace
 
 EnvironmentMap::EnvironmentMap(const float* rgb, uint32_t width, uint32_t height, const float rotation[9],
@@ -194,7 +209,24 @@ Vec3 EnvironmentMap::radiance(Vec3 w) const {
   return lookup(u, v);
 }
 
-void EnvironmentMap::cell_of(Vec3 d, uint32_t& row, uint32_t& column) const {
+void EnvironmentMap::corners(uint32_t row, uint32_t column, float g[4]) const {
+  const uint32_t c1 = column + 1 == width_ ? 0 : column + 1;
+  auto grey = [&](uint32_t r, uint32_t c) {
+    const float* p = &rgb_[(size_t(r) * width_ + c) * 3];
+    return (p[0] + p[1] + p[2]) * (1.0f / 3.0f);
+  };
+  if (row > 0 && row < height_) {  // between pixel rows row - 1 (upper) and row
+    g[0] = grey(row - 1, column), g[1] = grey(row - 1, c1), g[2] = grey(row, column), g[3] = grey(row, c1);
+  } else if (row == 0) {  // the pole's edge: REPEAT blends the top row with the bottom one half and half
+    g[2] = grey(0, column), g[3] = grey(0, c1);
+    g[0] = 0.5f * (g[2] + grey(height_ - 1, column)), g[1] = 0.5f * (g[3] + grey(height_ - 1, c1));
+  } else {
+    g[0] = grey(height_ - 1, column), g[1] = grey(height_ - 1, c1);
+    g[2] = 0.5f * (g[0] + grey(0, column)), g[3] = 0.5f * (g[1] + grey(0, c1));
+  }
+}
+
+void EnvironmentMap::cell_of(Vec3 d, uint32_t& row, uint32_t& column, float& s, float& t) const {
   const float len = length(d);
   const float z = std::fmax(-1.0f, std::fmin(1.0f, d.z / len));
   // Row: the boundaries are monotone in z; the first guess from v is exact but for rounding.
@@ -204,9 +236,12 @@ void EnvironmentMap::cell_of(Vec3 d, uint32_t& row, uint32_t& column) const {
   while (k > 0 && z > row_z_[size_t(k)]) --k;
   while (k < int64_t(height_) && z < row_z_[size_t(k) + 1]) ++k;
   row = uint32_t(k);
+  const float top = row_z_[size_t(k)], bottom = row_z_[size_t(k) + 1];
+  t = std::fmin(1.0f, std::fmax(0.0f, (top - z) / (top - bottom)));
   const float u = 0.5f - std::atan2(d.y, d.x) * (0.5f / kPi);
-  const float s = std::floor(u * float(width_) - 0.5f);
-  int64_t c = int64_t(s) % int64_t(width_);
+  const float x = u * float(width_) - 0.5f, below = std::floor(x);
+  s = x - below;
+  int64_t c = int64_t(below) % int64_t(width_);
   if (c < 0) c += width_;
   column = uint32_t(c);
 }
@@ -215,46 +250,74 @@ float EnvironmentMap::pdf(Vec3 w) const {
   const Vec3 d = to_map(w);
   if (!(total_ > 0.0) || !is_finite(d) || !(dot(d, d) > 0.0f)) return 0.0f;
   uint32_t row, column;
-  cell_of(d, row, column);
+  float s, t, g[4];
+  cell_of(d, row, column, s, t);
   const double* cdf = &cell_cdf_[size_t(row) * width_];
   const double p = cdf[column] - (column > 0 ? cdf[column - 1] : 0.0);
-  return float(row_density_[row] * p);
+  if (!(p > 0.0)) return 0.0f;
+  corners(row, column, g);
+  const float blend = (1 - t) * ((1 - s) * g[0] + s * g[1]) + t * ((1 - s) * g[2] + s * g[3]);
+  const float mean = 0.25f * (g[0] + g[1] + g[2] + g[3]);
+  return float(row_density_[row] * p) * (mean > 0.0f ? blend / mean : 1.0f);
 }
 
 Vec3 EnvironmentMap::sample(float u0, float u1, float& pdf) const {
-  float f0, f1;
+  float f0, f1, g[4];
   const size_t rows = size_t(height_) + 1;
   const size_t row = invert_cdf(row_cdf_.data(), rows, double(u0), f0);
   const double* cdf = &cell_cdf_[row * width_];
   const size_t column = invert_cdf(cdf, width_, double(u1), f1);
   const double p = cdf[column] - (column > 0 ? cdf[column - 1] : 0.0);
-  pdf = float(row_density_[row] * p);
-  // Uniform in solid angle inside the cell: z uniform between the row's boundaries, phi uniform.
-  const float z = row_z_[row] + f0 * (row_z_[row + 1] - row_z_[row]);
+  // Inside the cell in proportion to the blend of its corners: t (down the
+  // row, in z) from the marginal, then s (along the azimuth) given t.
+  corners(uint32_t(row), uint32_t(column), g);
+  if (!(g[0] + g[1] + g[2] + g[3] > 0.0f)) g[0] = g[1] = g[2] = g[3] = 1.0f;  // underflow: uniform
+  const float t = sample_linear(f0, g[0] + g[1], g[2] + g[3]);
+  const float a = (1 - t) * g[0] + t * g[2], b = (1 - t) * g[1] + t * g[3];
+  const float s = sample_linear(f1, a, b);
+  const float mean = 0.25f * (g[0] + g[1] + g[2] + g[3]);
+  pdf = float(row_density_[row] * p) * (mean > 0.0f ? ((1 - s) * a + s * b) / mean : 1.0f);
+  const float z = row_z_[row] + t * (row_z_[row + 1] - row_z_[row]);
   const float rho = std::sqrt(std::fmax(0.0f, 1.0f - z * z));
-  float u = (float(column) + f1 + 0.5f) / float(width_);  // the cell's u, past 1 for the wrapping column
+  float u = (float(column) + s + 0.5f) / float(width_);  // past 1 for the wrapping column
   if (u >= 1.0f) u -= 1.0f;
-  float s, c;
-  sincos_2pi(0.5f - u, s, c);  // atan2(d.y, d.x) = 2 pi (0.5 - u)
-  return normalize(to_world({rho * c, rho * s, z}));
+  float sn, cs;
+  azimuth_of(u, sn, cs);
+  return normalize(to_world({rho * cs, rho * sn, z}));
 }
 
 Vec3 EnvironmentMap::irradiance(Vec3 n) const {
+  // Per dual-grid cell: its mean radiance (the blend of its corners) x its
+  // solid angle x the mean cosine over s x s points of it (s so that the
+  // points lie within about a degree on coarse maps).
+  const uint32_t sub = std::max(1u, 128u / height_);
+  const uint32_t rows = height_ + 1;
   double sum[3] = {0, 0, 0};
-  const size_t rows = size_t(height_) + 1;
-  for (size_t k = 0; k < rows; ++k) {
-    const float z = 0.5f * (row_z_[k] + row_z_[k + 1]);
-    const float rho = std::sqrt(std::fmax(0.0f, 1.0f - z * z));
+  auto pixel = [&](uint32_t row, uint32_t col) { return &rgb_[(size_t(row) * width_ + col) * 3]; };
+  for (uint32_t k = 0; k < rows; ++k) {
+    uint32_t near_row, far_row;
+    double near_w;
+    if (k == 0) near_row = 0, far_row = height_ - 1, near_w = 0.75;
+    else if (k == height_) near_row = height_ - 1, far_row = 0, near_w = 0.75;
+    else near_row = k, far_row = k - 1, near_w = 0.5;
     const double omega = 2.0 * kPiD / width_ * (double(row_z_[k]) - double(row_z_[k + 1]));
     for (uint32_t c = 0; c < width_; ++c) {
-      float s, co;
-      sincos_2pi(0.5f - (float(c) + 1.0f) / float(width_), s, co);  // the cell's centre: u = (c + 1) / W
-      const float cosine = dot(to_world({rho * co, rho * s, z}), n);
-      if (cosine <= 0.0f) continue;
-      const Vec3 L = lookup((float(c) + 1.0f) / float(width_), 0.5f + std::asin(z) * (1.0f / kPi));
-      sum[0] += double(L.x) * cosine * omega;
-      sum[1] += double(L.y) * cosine * omega;
-      sum[2] += double(L.z) * cosine * omega;
+      double cosine = 0.0;
+      for (uint32_t i = 0; i < sub; ++i) {
+        const float z = row_z_[k] + (float(i) + 0.5f) / float(sub) * (row_z_[k + 1] - row_z_[k]);
+        const float rho = std::sqrt(std::fmax(0.0f, 1.0f - z * z));
+        for (uint32_t j = 0; j < sub; ++j) {
+          float sn, cs;
+          azimuth_of((float(c) + 0.5f + (float(j) + 0.5f) / float(sub)) / float(width_), sn, cs);
+          cosine += std::fmax(0.0f, dot(to_world({rho * cs, rho * sn, z}), n));
+        }
+      }
+      if (cosine <= 0.0) continue;
+      const double weight = cosine / (double(sub) * sub) * omega;
+      const uint32_t c1 = c + 1 == width_ ? 0 : c + 1;
+      for (int ch = 0; ch < 3; ++ch)
+        sum[ch] += weight * 0.5 * (near_w * (double(pixel(near_row, c)[ch]) + pixel(near_row, c1)[ch]) +
+                                   (1.0 - near_w) * (double(pixel(far_row, c)[ch]) + pixel(far_row, c1)[ch]));
     }
   }
   return {float(sum[0]), float(sum[1]), float(sum[2])};

@@ -12,14 +12,18 @@
 //
 // Sampling: the sphere is cut into the cells of the dual grid, whose corners
 // are pixel centres (W columns between neighbouring centres, wrapping; H - 1
-// rows between neighbouring rows' centres plus a half row at each pole), so
-// that inside a cell the bilinear radiance blends exactly its four corner
-// pixels. A cell's weight is the mean of that blend over the cell (mean of
-// RGB) times its solid angle; a cell is chosen by a marginal distribution over
-// rows and a conditional one within the row (pbrt's Distribution2D), and a
-// direction uniformly in solid angle inside it. So the density is constant per
-// cell, mean radiance / total, positive wherever the looked-up radiance is,
-// and exactly 1 / (4 pi) for a uniform map.
+// rows between neighbouring rows' centres plus a half row at each pole, whose
+// pole edge holds the blend REPEAT gives there), so that inside a cell the
+// radiance blends exactly its four corner values. A cell's weight is the mean
+// of its corners (mean of RGB) times its solid angle; a cell is chosen by a
+// marginal distribution over rows and a conditional one within the row
+// (pbrt's Distribution2D), and a direction inside it in proportion to the
+// bilinear blend of its corners over (azimuth, z = sin(elevation)), which is
+// uniform in solid angle up to that blend. So the density follows the lookup
+// inside each cell too (a one-pixel sun is sampled in proportion to its
+// bilinear footprint: L / pdf stays nearly constant over it), is positive
+// wherever the looked-up radiance is, and is exactly 1 / (4 pi) for a
+// uniform map.
 #pragma once
 
 #include <cstdint>
@@ -69,8 +73,12 @@ class EnvironmentMap {
   Vec3 to_map(Vec3 w) const;
   Vec3 to_world(Vec3 d) const;
   Vec3 lookup(float u, float v) const;  // bilinear, REPEAT
-  // The dual-grid cell of map direction d.
-  void cell_of(Vec3 d, uint32_t& row, uint32_t& column) const;
+  // The dual-grid cell of map direction d and d's place (s, t) in it (s
+  // along the azimuth from column centre c, t from the row's upper edge).
+  void cell_of(Vec3 d, uint32_t& row, uint32_t& column, float& s, float& t) const;
+  // Mean of RGB at cell (row, column)'s corners: g[0] upper edge at column c,
+  // g[1] upper at c + 1, g[2] lower at c, g[3] lower at c + 1.
+  void corners(uint32_t row, uint32_t column, float g[4]) const;
 
   uint32_t width_ = 0, height_ = 0;
   std::vector<float> rgb_;        // width x height x 3, top row first, times strength
