@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "demo_scenes.h"
+#include "io/scene_file.h"
 #include "test_support.h"
 #include "transport/environment.h"
 #include "util/rng.h"
@@ -625,6 +626,38 @@ TEST(WorldMap, FilesAreReadAsTheirPixels) {
   plm_test::BakeResult r;
   plm_test::bake(b, direct_settings(), r);
   expect_rgb_near(mean_rgb(r.map(0)), {2.0f, 1.0f, 0.5f}, 0.01, "EXR file");
+}
+
+// A scene file's world {"map", "rotation", "strength"}: the map relative to the file, turned and scaled.
+TEST(WorldMap, SceneFileReadsAMap) {
+  const uint32_t w = 32, h = 16;
+  const std::vector<float> rgb = two_tone(w, h, {1, 1, 1}, {0.1f, 0.1f, 0.1f});
+  const std::string exr = temp_dir() + "/file_sky.exr";
+  {
+    auto out = OIIO::ImageOutput::create(exr);
+    ASSERT_TRUE(out);
+    ASSERT_TRUE(out->open(exr, OIIO::ImageSpec(int(w), int(h), 3, OIIO::TypeDesc::FLOAT)));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, rgb.data()));
+    out->close();
+  }
+  // A plane facing -Y (front along eu x ev = (1,0,0) x (0,0,1)); the map turned so its upper half faces -Y.
+  const std::string text = R"({"materials": [{"albedo": 0}],
+    "meshes": [{"positions": [-0.5,0,-0.5, 0.5,0,-0.5, -0.5,0,0.5, 0.5,0,0.5], "indices": [0,1,3, 0,3,2],
+                "lightmap_uv": [0,0, 1,0, 1,1, 0,0, 1,1, 0,1], "lightmap_resolution": 4}],
+    "world": {"map": "file_sky.exr", "rotation": [1,0,0, 0,0,-1, 0,1,0], "strength": 3},
+    "settings": {"photon_count": 10000, "direct_samples": 64, "texel_value": "AREA"}})";
+  plm::SceneFile f;
+  plm::SceneFileOptions options;
+  options.base_dir = temp_dir();
+  std::string error;
+  ASSERT_TRUE(plm::parse_scene_file_text(text, options, f, error)) << error;
+  plm_test::BakeResult r;
+  ASSERT_EQ(plm_bake(f.scene, &f.settings, nullptr, nullptr, &r.r), PLM_OK) << plm_last_error();
+  expect_rgb_near(mean_rgb(r.map(0)), {3.0f, 3.0f, 3.0f}, 0.01, "scene file map");
+  options.allow_file_access = false;
+  plm::SceneFile g;
+  EXPECT_FALSE(plm::parse_scene_file_text(text, options, g, error));
+  EXPECT_TRUE(contains(error, "scene.world.map: file access is disabled")) << error;
 }
 
 // plm_scene_set_world replaces the map and the map replaces the colour.
