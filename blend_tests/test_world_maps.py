@@ -15,10 +15,11 @@ Cycles:   DIFFUSE, pass_filter {'DIRECT', 'INDIRECT'} (irradiance / pi), 32 boun
           noise.
 Metric: relative RMS error sqrt(mean((ours - cycles)^2)) / mean(cycles) over the texels both bakes
 cover (all channels), per object and over all. Checks, per world: the error over all objects is
-within 3 x the combined error estimate (photonlm's reported error and the reference's measured
-noise, added in quadrature) plus 2.5 % (what texel definition and the map's resolution leave:
-the sun's penumbra is a pixel wide); the mean over all texels within 2 %; the bake leaves no
-scene, camera, world or image behind; and the seconds the world's export adds are printed.
+within 1.5 x the combined error estimate (photonlm's reported error and the reference's measured
+noise, added in quadrature) plus 1.5 % (what texel definition and the map's resolution leave:
+the sun's penumbra is a map pixel wide; measured 2.3 % against estimates of 1.7-1.9 %); the mean
+over all texels within 1 %; the bake leaves no scene, camera, world, library or image behind; and
+the seconds each world adds to the export are printed.
 
 Run: PHOTONLM_LIBRARY=.../libphotonlm.so PHOTONLM_SOURCE_DIR=<repo> blender -b --factory-startup
      --python-exit-code 1 --python blend_tests/test_world_maps.py
@@ -37,8 +38,8 @@ RES = 32
 BALL_RES = 64
 CYCLES_SAMPLES = int(os.environ.get("PHOTONLM_TEST_CYCLES_SAMPLES", 1024))  # per seed; two seeds
 TARGET = 0.015
-MEAN_LIMIT = 0.02
-FLOOR = 0.025
+MEAN_LIMIT = 0.01
+FLOOR = 0.015
 
 
 def smart_uv(obj, margin):
@@ -202,8 +203,8 @@ def run_world(checks, objs, label, make_world):
              t_cycles, CYCLES_SAMPLES, 100 * noise, ("; " + rendered[0]) if rendered else ""))
     err, ratio = compare(objs, ref, last)
     estimate = math.hypot(st["error_estimate"], noise)
-    limit = 3.0 * estimate + FLOOR
-    checks.check(err <= limit, "%s: relative RMS error %.2f %% <= 3 x %.2f %% (estimate) + %.1f %% = %.2f %%"
+    limit = 1.5 * estimate + FLOOR
+    checks.check(err <= limit, "%s: relative RMS error %.2f %% <= 1.5 x %.2f %% (estimate) + %.1f %% = %.2f %%"
                  % (label, 100 * err, 100 * estimate, 100 * FLOOR, 100 * limit))
     checks.check(abs(ratio - 1.0) <= MEAN_LIMIT, "%s: mean ours / Cycles %.4f within %.0f %%"
                  % (label, ratio, 100 * MEAN_LIMIT))
