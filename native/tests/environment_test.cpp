@@ -226,6 +226,32 @@ TEST(EnvironmentMap, UniformMapIsSampledUniformly) {
   EXPECT_NEAR(sky.irradiance({0, 1, 0}).x, M_PI / 2, 0.01);
 }
 
+TEST(EnvironmentMap, OnePixelAndOneRowMapsAreUniformOrBands) {
+  const float grey[3] = {0.4f, 0.5f, 0.6f};
+  const EnvironmentMap one(grey, 1, 1, nullptr, 2.0f, "one");
+  plm::Rng rng(13, 0);
+  for (int i = 0; i < 200; ++i) {
+    float pdf;
+    const Vec3 d = one.sample(rng.next_float(), rng.next_float(), pdf);
+    EXPECT_NEAR(pdf, 1.0 / (4.0 * M_PI), 1e-6);
+    EXPECT_NEAR(one.radiance(d).y, 1.0f, 1e-6f);
+  }
+  // One row of two pixels: REPEAT blends the row with itself vertically, so only the azimuth varies.
+  const float two[6] = {1, 1, 1, 0, 0, 0};
+  const EnvironmentMap row(two, 2, 1, nullptr, 1.0f, "row");
+  EXPECT_NEAR(row.integral().x, 4.0 * M_PI * 0.5, 1e-4);
+  EXPECT_NEAR(row.radiance({0, 1, 0}).x, 1.0f, 1e-6f);   // u = 0.25: pixel 0's centre
+  EXPECT_NEAR(row.radiance({0, -1, 0}).x, 0.0f, 1e-6f);  // u = 0.75: pixel 1's centre
+  EXPECT_NEAR(row.radiance({1, 0, 0}).x, 0.5f, 1e-6f);   // u = 0.5: half way
+  EXPECT_NEAR(row.radiance({0.6f, 0, 0.8f}).x, 0.5f, 1e-6f);  // up or down, the same
+  float pdf;
+  for (int i = 0; i < 200; ++i) {
+    const Vec3 d = row.sample(rng.next_float(), rng.next_float(), pdf);
+    EXPECT_NEAR(pdf, row.pdf(d), 1e-3f * pdf);
+    EXPECT_GT(row.radiance(d).x, 0.0f);  // never where the map is black
+  }
+}
+
 // ---- Bakes against closed forms ---------------------------------------------------
 
 TEST(WorldMap, TwoToneSkyLightsPlanesByTheHemisphereTheySee) {

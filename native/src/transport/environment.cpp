@@ -323,9 +323,4 @@ Vec3 EnvironmentMap::irradiance(Vec3 n) const {
   return {float(sum[0]), float(sum[1]), float(sum[2])};
 }
 
-uint64_t EnvironmentMap::memory_bytes() const {
-  return rgb_.size() * sizeof(float) + cell_cdf_.size() * sizeof(double) +
-         (row_cdf_.size() + row_density_.size()) * sizeof(double) + row_z_.size() * sizeof(float);
-}
-
 }  // namespace plm

@@ -66,8 +66,6 @@ class EnvironmentMap {
   // Integral of radiance x max(0, w . n) over the sphere: the irradiance on an
   // unoccluded surface facing n (the light a window facing n lets in, per m^2).
   Vec3 irradiance(Vec3 n) const;
-  // Bytes held (pixels and distribution).
-  uint64_t memory_bytes() const;
 
  private:
   Vec3 to_map(Vec3 w) const;
