@@ -242,13 +242,90 @@ def render_world(world, size=RENDER_SIZE, samples=RENDER_SAMPLES):
     return WorldRender(world, size, samples).result()
 
 
+# The last rendered world, by the fingerprint of what it depends on: bakes of an unchanged sky
+# (tweaking materials, lights or objects) reuse its map instead of rendering it again.
+_RENDERED = {}
+
+
+def _image_key(image):
+    if image.is_dirty:  # edited in memory: not comparable, render again
+        return ("dirty", image.name, time.perf_counter())
+    path = bpy.path.abspath(image.filepath, library=image.library) if image.filepath else ""
+    mtime = os.path.getmtime(path) if path and os.path.isfile(path) else None
+    packed = image.packed_file.size if image.packed_file is not None else None
+    return ("image", image.name, image.source, path, mtime, packed, tuple(image.size),
+            image.colorspace_settings.name, image.alpha_mode, getattr(image, "generated_type", None))
+
+
+_NODE_BASE = None
+
+
+def _struct_key(struct, depth=0):
+    """What a node (or a node's settings struct) looks like to a render: its own properties, not
+    the editor's (location, selection, size...)."""
+    global _NODE_BASE
+    if _NODE_BASE is None:
+        _NODE_BASE = {p.identifier for p in bpy.types.Node.bl_rna.properties} - {"mute"}
+    out = []
+    for prop in struct.bl_rna.properties:
+        ident = prop.identifier
+        if ident in _NODE_BASE or ident == "rna_type" or prop.type == 'COLLECTION':
+            continue
+        value = getattr(struct, ident, None)
+        if isinstance(value, bpy.types.Image):
+            value = _image_key(value)
+        elif isinstance(value, bpy.types.NodeTree):
+            value = _tree_key(value, depth + 1) if depth < 8 else value.name
+        elif isinstance(value, bpy.types.Object):
+            value = (value.name, tuple(tuple(r) for r in value.matrix_world))
+        elif isinstance(value, bpy.types.ID):
+            value = (type(value).__name__, value.name)
+        elif isinstance(value, bpy.types.bpy_struct):
+            value = _struct_key(value, depth + 1) if depth < 8 else None
+        elif hasattr(value, "__len__") and not isinstance(value, str):
+            value = tuple(value)
+        out.append((ident, value))
+    return tuple(out)
+
+
+def _tree_key(tree, depth=0):
+    nodes = []
+    for node in sorted(tree.nodes, key=lambda n: n.name):
+        sockets = tuple((s.identifier, tuple(s.default_value) if hasattr(s.default_value, "__len__")
+                         else s.default_value) if hasattr(s, "default_value") else (s.identifier,)
+                        for s in node.inputs)
+        nodes.append((node.name, node.bl_idname, _struct_key(node, depth), sockets))
+    links = tuple(sorted((l.from_node.name, l.from_socket.identifier, l.to_node.name, l.to_socket.identifier,
+                          l.is_muted) for l in tree.links))
+    return (tuple(nodes), links)
+
+
+def fingerprint(world, size=RENDER_SIZE, samples=RENDER_SAMPLES):
+    """A value that changes when anything the world's render depends on changes."""
+    tree = _tree_key(world.node_tree) if world.use_nodes and world.node_tree is not None else None
+    return (world.name, world.use_nodes, tuple(world.color), tree, tuple(size), samples)
+
+
 class PendingWorld:
-    """The world as export_scene found it, its render (if any) under way."""
+    """The world as export_scene found it, its render (if any) under way or found rendered."""
 
     def __init__(self, world):
         self.world = world
         self.source = describe(world)
-        self.render = WorldRender(world) if self.source.kind == 'RENDER' else None
+        self.render = self.key = self.cached = None
+        if self.source.kind == 'RENDER':
+            self.key = fingerprint(world)
+            self.cached = _RENDERED.get(self.key)
+            if self.cached is None:
+                self.render = WorldRender(world)
+
+    def rgb(self):
+        """The rendered map (waits for the render; kept for the next bake)."""
+        if self.cached is None:
+            self.cached = self.render.result()
+            _RENDERED.clear()
+            _RENDERED[self.key] = self.cached
+        return self.cached
 
     def cancel(self):
         if self.render is not None:
@@ -278,9 +355,12 @@ def set_world(plm, world, reports, pending=None):
     elif w.kind == 'RENDER':
         r = pending.render
         try:
-            plm.set_world_map(r.result())
-            reports.info("world '%s' rendered into a %d x %d map (%s): %.1f s"
-                         % (world.name, r.size[0], r.size[1], w.why, r.seconds()))
+            plm.set_world_map(pending.rgb())
+            if r is None:
+                reports.info("world '%s': the map rendered for the last bake is reused (%s)" % (world.name, w.why))
+            else:
+                reports.info("world '%s' rendered into a %d x %d map (%s): %.1f s"
+                             % (world.name, r.size[0], r.size[1], w.why, r.seconds()))
         except (RuntimeError, OSError, subprocess.SubprocessError) as e:
             reports.warning("world '%s' could not be rendered into a map (%s): the world is left out"
                             % (world.name, e))

@@ -215,6 +215,11 @@ TEST(EnvironmentMap, UniformMapIsSampledUniformly) {
     EXPECT_NEAR(pdf, 1.0 / (4.0 * M_PI), 1e-6);
   }
   EXPECT_NEAR(map.integral().x, 4.0 * M_PI * 0.7, 1e-5);
+  EXPECT_NEAR(map.concentration(), 0.01, 0.005);  // the brightest 1 % of directions hold 1 % of the light
+  // A one-pixel sun holding 99.9 % of the light (its four cells a third of the brightest 1 %).
+  std::vector<float> sun(128 * 64 * 3, 0.01f);
+  for (int c = 0; c < 3; ++c) sun[(20 * 128 + 7) * 3 + size_t(c)] = 20000.0f;
+  EXPECT_GT(EnvironmentMap(sun.data(), 128, 64, nullptr, 1.0f, "sun").concentration(), 0.99f);
   // Irradiance on a surface: pi L whatever it faces.
   EXPECT_NEAR(map.irradiance({0, 0, 1}).x, M_PI * 0.7, 2e-3);
   EXPECT_NEAR(map.irradiance(plm::normalize(Vec3{1, 2, -1})).x, M_PI * 0.7, 2e-3);

@@ -496,15 +496,21 @@ inline void add_portal_density(const Emitter& e, Vec3 p, Vec3 dir, float share, 
   }
 }
 
-// A map's sky samples at a point: without portals half are drawn from the
-// map and half are cosine directions; with portals kMapPortalDirectShare aim
-// at points on the portals and the rest come from the map (a sun in the map
-// is found only by those; the portals' points find the rest of the sky
-// through the opening, the job the cosine directions do without portals).
-// One sample, one shadow ray: the balance heuristic of the strategies, i.e.
-// the mixture's density [Veach97 ch. 9].
-constexpr float kMapDirectShare = 0.5f;
-constexpr float kMapPortalDirectShare = 0.5f;
+// A map's sky samples at a point, by the map's concentration c (the share of
+// its light in its brightest 1 % of directions): without portals a share
+// 0.5 + 0.4 c is drawn from the map, the rest are cosine directions (an even
+// sky: half and half, cosine directions do best there; a sky whose sun holds
+// the light: 0.9 from the map, which alone finds the sun: on an open scene
+// under a Nishita sky 0.9 reaches 1 % error in a fifth of the time 0.5
+// takes). With portals a share 0.75 (1 - c) + 0.1 c aims at points on the
+// portals (what a uniform world uses; they find the sky through the opening,
+// the job the cosine directions do without portals) and the rest come from
+// the map. One sample, one shadow ray: the balance heuristic of the
+// strategies, i.e. the mixture's density [Veach97 ch. 9].
+inline float map_direct_share(const EnvironmentMap& map) { return 0.5f + 0.4f * map.concentration(); }
+inline float map_portal_share(const EnvironmentMap& map) {
+  return kPortalDirectShare * (1.0f - map.concentration()) + 0.1f * map.concentration();
+}
 
 // The sky's direct light at p from an environment map: directions from the
 // map and cosine directions (and with portals, points on them) mixed, each
@@ -512,8 +518,8 @@ constexpr float kMapPortalDirectShare = 0.5f;
 __attribute__((noinline)) DirectSample map_sky_direct(const Emitter& e, Vec3 p, Vec3 n, const float u[3]) {
   DirectSample s{{0, 0, 0}, {0, 0, 1}, std::numeric_limits<float>::infinity(), 0.0f, 0.0f, 0.0f};
   const EnvironmentMap& map = *e.map;
-  const float share = e.portals.empty() ? 0.0f : kMapPortalDirectShare;
-  const float map_share = e.portals.empty() ? kMapDirectShare : 1.0f;  // of the samples not aimed at portals
+  const float share = e.portals.empty() ? 0.0f : map_portal_share(map);
+  const float map_share = e.portals.empty() ? map_direct_share(map) : 1.0f;  // of the samples not aimed at portals
   float pm = -1.0f;  // the map's density of s.dir, once known
   if (u[2] < share) {
     float v = u[2] / share;

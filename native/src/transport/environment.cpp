@@ -145,6 +145,42 @@ EnvironmentMap::EnvironmentMap(const float* rgb, uint32_t width, uint32_t height
   }
   if (sum > 0.0) row_cdf_[rows - 1] = 1.0;
   integral_ = {float(integral[0]), float(integral[1]), float(integral[2])};
+  concentration_ = concentration(sum);
+}
+
+float EnvironmentMap::concentration(double total) const {
+  // A histogram of the cells' densities (mean radiance) in eighths of an octave below the
+  // brightest, filled from the top until it holds 1 % of the sphere's solid angle.
+  if (!(total > 0.0)) return 0.0f;
+  constexpr int kBins = 8 * 48;
+  std::vector<double> omega(kBins, 0.0), weight(kBins, 0.0);
+  double top = 0.0;
+  const uint32_t rows = height_ + 1;
+  auto density = [&](uint32_t k, uint32_t c) {
+    const double* cdf = &cell_cdf_[size_t(k) * width_];
+    return row_density_[k] * (cdf[c] - (c > 0 ? cdf[c - 1] : 0.0));
+  };
+  for (uint32_t k = 0; k < rows; ++k)
+    for (uint32_t c = 0; c < width_; ++c) top = std::max(top, density(k, c));
+  for (uint32_t k = 0; k < rows; ++k) {
+    const double cell = 2.0 * kPiD / width_ * (double(row_z_[k]) - double(row_z_[k + 1]));
+    for (uint32_t c = 0; c < width_; ++c) {
+      const double d = density(k, c);
+      if (!(d > 0.0)) continue;
+      const int bin = std::min(kBins - 1, int(std::floor(-8.0 * std::log2(d / top))));
+      omega[size_t(bin)] += cell;
+      weight[size_t(bin)] += d * cell;  // the cell's probability
+    }
+  }
+  const double want = 0.01 * 4.0 * kPiD;
+  double o = 0.0, w = 0.0;
+  for (int b = 0; b < kBins && o < want; ++b) {
+    const double part = std::min(1.0, (want - o) / omega[size_t(b)]);  // a bin of equal cells, in part
+    if (!(omega[size_t(b)] > 0.0)) continue;
+    o += part * omega[size_t(b)];
+    w += part * weight[size_t(b)];
+  }
+  return float(std::min(1.0, w));
 }
 
 EnvironmentMap EnvironmentMap::from_file(const std::string& path, const float rotation[9], float strength) {

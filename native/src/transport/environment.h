@@ -66,11 +66,16 @@ class EnvironmentMap {
   // Integral of radiance x max(0, w . n) over the sphere: the irradiance on an
   // unoccluded surface facing n (the light a window facing n lets in, per m^2).
   Vec3 irradiance(Vec3 n) const;
+  // The share of the map's light (mean of RGB x solid angle) in its brightest
+  // 1 % of directions: about 0.01 for an even sky, near 1 where a sun holds
+  // most of it.
+  float concentration() const { return concentration_; }
 
  private:
   Vec3 to_map(Vec3 w) const;
   Vec3 to_world(Vec3 d) const;
   Vec3 lookup(float u, float v) const;  // bilinear, REPEAT
+  float concentration(double total) const;
   // The dual-grid cell of map direction d and d's place (s, t) in it (s
   // along the azimuth from column centre c, t from the row's upper edge).
   void cell_of(Vec3 d, uint32_t& row, uint32_t& column, float& s, float& t) const;
@@ -92,6 +97,7 @@ class EnvironmentMap {
   std::vector<double> cell_cdf_;
   double total_ = 0.0;            // sum of mean x solid angle over all cells
   Vec3 integral_;
+  float concentration_ = 0.0f;
 };
 
 }  // namespace plm
