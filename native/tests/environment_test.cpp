@@ -145,7 +145,7 @@ TEST(EnvironmentMap, RotationTakesTheMapFrameIntoTheWorld) {
     const Vec3 d = plm::uniform_sphere(rng.next_float(), rng.next_float());
     const Vec3 world{d.x, -d.z, d.y};  // rx d
     EXPECT_NEAR(turned.radiance(world).x, plain.radiance(d).x, 1e-4f);
-    EXPECT_NEAR(turned.pdf(world), plain.pdf(d), 1e-4f * plain.pdf(d));
+    EXPECT_NEAR(turned.pdf(0, world), plain.pdf(0, d), 1e-4f * plain.pdf(0, d));
   }
   // The bright upper half faces -Y (map (0.6, 0, 0.8): 53 degrees up, clear of the pole's and
   // the horizon's blends).
@@ -153,56 +153,77 @@ TEST(EnvironmentMap, RotationTakesTheMapFrameIntoTheWorld) {
   EXPECT_NEAR(turned.radiance({0.6f, 0.8f, 0}).x, 0.0f, 1e-6f);
 }
 
-TEST(EnvironmentMap, SamplingMatchesItsDensityAndTheIntegral) {
-  // A map with a hot pixel, a dark band and a black pixel next to bright ones.
-  const uint32_t w = 64, h = 32;
-  std::vector<float> rgb = two_tone(w, h, {1.0f, 0.8f, 0.6f}, {0.05f, 0.05f, 0.05f});
-  for (int c = 0; c < 3; ++c) {
-    rgb[(5 * w + 9) * 3 + size_t(c)] = 4000.0f;
-    rgb[(20 * w + 30) * 3 + size_t(c)] = 0.0f;
-    for (uint32_t col = 0; col < w; ++col) rgb[(12 * w + col) * 3 + size_t(c)] = 0.0f;
-  }
-  const float rot[9] = {0, -1, 0, 1, 0, 0, 0, 0, 1};
-  const EnvironmentMap map(rgb.data(), w, h, rot, 1.5f, "test");
-  // The integral against a fine quadrature of the lookup (uniform in z and phi: solid angle),
-  // and the density's integral (one).
-  // Jittered strata: no bias from cell edges that fall between quadrature points.
+// Each part's sampling against its density and its integral, for a map with a
+// sun (split in two parts) and the same map without it (one part).
+void check_sampling(const EnvironmentMap& map, const std::vector<int>& parts) {
+  // The integrals against a fine quadrature of the lookup (uniform in z and phi: solid angle),
+  // and each density's integral (one). Jittered strata: no bias from cell edges that fall
+  // between quadrature points.
   const int nz = 2048, np = 2048;
-  double quad[3] = {0, 0, 0}, density = 0.0;
+  double quad[3][3] = {}, density[3] = {};
   plm::Rng jitter(9, 0);
   for (int i = 0; i < nz; ++i)
     for (int j = 0; j < np; ++j) {
       const double z = -1.0 + 2.0 * (i + jitter.next_float()) / nz, phi = 2.0 * M_PI * (j + jitter.next_float()) / np;
       const double rho = std::sqrt(1 - z * z);
       const Vec3 d{float(rho * std::cos(phi)), float(rho * std::sin(phi)), float(z)};
-      const Vec3 L = map.radiance(d);
-      quad[0] += L.x, quad[1] += L.y, quad[2] += L.z;
-      density += map.pdf(d);
+      for (int part : parts) {
+        const Vec3 L = map.radiance(part, d);
+        quad[part][0] += L.x, quad[part][1] += L.y, quad[part][2] += L.z;
+        density[part] += map.pdf(part, d);
+      }
     }
   const double cell = 4.0 * M_PI / (double(nz) * np);
-  const Vec3 integral = map.integral();
-  EXPECT_NEAR(integral.x, quad[0] * cell, 2e-3 * quad[0] * cell);
-  EXPECT_NEAR(integral.z, quad[2] * cell, 2e-3 * quad[2] * cell);
-  EXPECT_NEAR(density * cell, 1.0, 2e-3);
-  // Estimates from samples: the integral (L / pdf), each octant's solid angle
-  // (1 / pdf over the octant: pdf > 0 wherever L > 0, sampling and pdf agree).
-  plm::Rng rng(3, 1);
-  const int n = 400000;
-  double sum = 0.0, sum_sq = 0.0;
-  int mismatched = 0;
-  for (int i = 0; i < n; ++i) {
-    float pdf = 0.0f;
-    const Vec3 d = map.sample(rng.next_float(), rng.next_float(), pdf);
-    ASSERT_GT(pdf, 0.0f);
-    ASSERT_NEAR(length(d), 1.0f, 1e-5f);
-    if (std::fabs(map.pdf(d) - pdf) > 1e-3f * pdf) ++mismatched;
-    const double f = plm::average(map.radiance(d)) / pdf;
-    sum += f;
-    sum_sq += f * f;
+  for (int part : parts) {
+    const Vec3 integral = map.integral(part);
+    EXPECT_NEAR(integral.x, quad[part][0] * cell, 2e-3 * quad[part][0] * cell) << "part " << part;
+    EXPECT_NEAR(integral.z, quad[part][2] * cell, 2e-3 * quad[part][2] * cell) << "part " << part;
+    EXPECT_NEAR(density[part] * cell, 1.0, 2e-3) << "part " << part;
+    // Estimates from samples: the integral (L / pdf; pdf > 0 wherever L > 0, sampling and pdf agree).
+    plm::Rng rng(3, 1);
+    const int n = 200000;
+    double sum = 0.0, sum_sq = 0.0;
+    int mismatched = 0;
+    for (int i = 0; i < n; ++i) {
+      float pdf = 0.0f;
+      const Vec3 d = map.sample(part, rng.next_float(), rng.next_float(), pdf);
+      ASSERT_GT(pdf, 0.0f);
+      ASSERT_NEAR(length(d), 1.0f, 1e-5f);
+      if (std::fabs(map.pdf(part, d) - pdf) > 1e-3f * pdf) ++mismatched;
+      const double f = plm::average(map.radiance(part, d)) / pdf;
+      sum += f;
+      sum_sq += f * f;
+    }
+    EXPECT_LT(mismatched, n / 1000) << "part " << part;  // rounding of the place in the cell, where a corner is 0
+    const double mean = sum / n, sigma = std::sqrt((sum_sq / n - mean * mean) / n);
+    EXPECT_NEAR(mean, plm::average(integral), 4.0 * sigma + 1e-3 * mean) << "part " << part;
   }
-  EXPECT_LT(mismatched, n / 1000);  // rounding of the place in the cell, where a corner is 0
-  const double mean = sum / n, sigma = std::sqrt((sum_sq / n - mean * mean) / n);
-  EXPECT_NEAR(mean, plm::average(integral), 4.0 * sigma + 1e-3 * mean);
+}
+
+TEST(EnvironmentMap, SamplingMatchesItsDensityAndTheIntegral) {
+  // A map with a dark band and a black pixel next to bright ones, then with a hot pixel too.
+  const uint32_t w = 64, h = 32;
+  std::vector<float> rgb = two_tone(w, h, {1.0f, 0.8f, 0.6f}, {0.05f, 0.05f, 0.05f});
+  for (int c = 0; c < 3; ++c) {
+    rgb[(20 * w + 30) * 3 + size_t(c)] = 0.0f;
+    for (uint32_t col = 0; col < w; ++col) rgb[(12 * w + col) * 3 + size_t(c)] = 0.0f;
+  }
+  const float rot[9] = {0, -1, 0, 1, 0, 0, 0, 0, 1};
+  const EnvironmentMap sky(rgb.data(), w, h, rot, 1.5f, "sky");
+  EXPECT_FALSE(sky.split());
+  check_sampling(sky, {0});
+  for (int c = 0; c < 3; ++c) rgb[(5 * w + 9) * 3 + size_t(c)] = 4000.0f;
+  const EnvironmentMap sun(rgb.data(), w, h, rot, 1.5f, "sun");
+  EXPECT_TRUE(sun.split());
+  check_sampling(sun, {1, 2});
+  // The parts add up to the map, and the sun's part lies where the sun is.
+  const Vec3 total = sun.integral(1) + sun.integral(2), whole = sun.integral();
+  EXPECT_FLOAT_EQ(total.x, whole.x);
+  EXPECT_GT(sun.integral(1).x, 0.7f * whole.x);  // the sun holds 75 % of the red light
+  const Vec3 d = pixel_direction(w, h, 5, 9), turned{-d.y, d.x, d.z};  // rot d
+  EXPECT_GT(dot(sun.bright_direction(), turned), 0.999f);
+  EXPECT_EQ(sun.radiance(1, turned).x, sun.radiance(turned).x);
+  EXPECT_EQ(sun.radiance(2, turned).x, 0.0f);
 }
 
 TEST(EnvironmentMap, UniformMapIsSampledUniformly) {
@@ -211,7 +232,7 @@ TEST(EnvironmentMap, UniformMapIsSampledUniformly) {
   plm::Rng rng(5, 0);
   for (int i = 0; i < 1000; ++i) {
     float pdf;
-    map.sample(rng.next_float(), rng.next_float(), pdf);
+    map.sample(0, rng.next_float(), rng.next_float(), pdf);
     EXPECT_NEAR(pdf, 1.0 / (4.0 * M_PI), 1e-6);
   }
   EXPECT_NEAR(map.integral().x, 4.0 * M_PI * 0.7, 1e-5);
@@ -221,14 +242,14 @@ TEST(EnvironmentMap, UniformMapIsSampledUniformly) {
   for (int c = 0; c < 3; ++c) sun[(20 * 128 + 7) * 3 + size_t(c)] = 20000.0f;
   EXPECT_GT(EnvironmentMap(sun.data(), 128, 64, nullptr, 1.0f, "sun").concentration(), 0.99f);
   // Irradiance on a surface: pi L whatever it faces.
-  EXPECT_NEAR(map.irradiance({0, 0, 1}).x, M_PI * 0.7, 2e-3);
-  EXPECT_NEAR(map.irradiance(plm::normalize(Vec3{1, 2, -1})).x, M_PI * 0.7, 2e-3);
+  EXPECT_NEAR(map.irradiance(0, {0, 0, 1}).x, M_PI * 0.7, 2e-3);
+  EXPECT_NEAR(map.irradiance(0, plm::normalize(Vec3{1, 2, -1})).x, M_PI * 0.7, 2e-3);
   // A two-tone map (upper 1, lower 0): pi up, 0 down, pi / 2 sideways.
   const std::vector<float> half = two_tone(64, 32, {1, 1, 1}, {0, 0, 0});
   const EnvironmentMap sky(half.data(), 64, 32, nullptr, 1.0f, "sky");
-  EXPECT_NEAR(sky.irradiance({0, 0, 1}).x, M_PI, 0.01);
-  EXPECT_NEAR(sky.irradiance({0, 0, -1}).x, 0.0, 0.01);
-  EXPECT_NEAR(sky.irradiance({0, 1, 0}).x, M_PI / 2, 0.01);
+  EXPECT_NEAR(sky.irradiance(0, {0, 0, 1}).x, M_PI, 0.01);
+  EXPECT_NEAR(sky.irradiance(0, {0, 0, -1}).x, 0.0, 0.01);
+  EXPECT_NEAR(sky.irradiance(0, {0, 1, 0}).x, M_PI / 2, 0.01);
 }
 
 TEST(EnvironmentMap, OnePixelAndOneRowMapsAreUniformOrBands) {
@@ -237,7 +258,7 @@ TEST(EnvironmentMap, OnePixelAndOneRowMapsAreUniformOrBands) {
   plm::Rng rng(13, 0);
   for (int i = 0; i < 200; ++i) {
     float pdf;
-    const Vec3 d = one.sample(rng.next_float(), rng.next_float(), pdf);
+    const Vec3 d = one.sample(0, rng.next_float(), rng.next_float(), pdf);
     EXPECT_NEAR(pdf, 1.0 / (4.0 * M_PI), 1e-6);
     EXPECT_NEAR(one.radiance(d).y, 1.0f, 1e-6f);
   }
@@ -251,8 +272,8 @@ TEST(EnvironmentMap, OnePixelAndOneRowMapsAreUniformOrBands) {
   EXPECT_NEAR(row.radiance({0.6f, 0, 0.8f}).x, 0.5f, 1e-6f);  // up or down, the same
   float pdf;
   for (int i = 0; i < 200; ++i) {
-    const Vec3 d = row.sample(rng.next_float(), rng.next_float(), pdf);
-    EXPECT_NEAR(pdf, row.pdf(d), 1e-3f * pdf);
+    const Vec3 d = row.sample(0, rng.next_float(), rng.next_float(), pdf);
+    EXPECT_NEAR(pdf, row.pdf(0, d), 1e-3f * pdf);
     EXPECT_GT(row.radiance(d).x, 0.0f);  // never where the map is black
   }
 }

@@ -161,7 +161,7 @@ void attach_portals(Emitter& e, const std::vector<Portal>& portals) {
   for (const Portal& p : portals) {
     float w = e.kind == EmitterKind::World ? p.area : p.area * std::fmax(0.0f, dot(e.normal, p.inward));
     // An environment map: the flux through the opening, A x the irradiance on its outer face.
-    if (e.map) w = p.area * average(e.map->irradiance(-p.inward));
+    if (e.map) w = p.area * average(e.map->irradiance(e.map_part, -p.inward));
     weight.push_back(w);
     total += w;
   }
@@ -239,17 +239,22 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
     e.radiance = scene.world;
     if (average(e.flux) > 0.0f) out.push_back(e);
   }
-  if (scene.world_map && average(scene.world_map->integral()) > 0.0f) {
-    // The map's flux through the disk: (integral of L over the sphere) x (disk area).
-    Emitter e{};
-    e.kind = EmitterKind::World;
-    e.map = scene.world_map.get();
-    e.origin = center;
-    e.radius = radius;
-    e.flux = e.map->integral() * disk_area;
-    e.scale = e.flux;
-    e.radiance = e.map->integral() * (1.0f / (4.0f * kPi));
-    if (average(e.flux) > 0.0f) out.push_back(e);
+  if (scene.world_map) {
+    // The map's flux through the disk: (integral of L over the sphere) x (disk area); a map
+    // with a sun as two lights, the sun's cells and the rest.
+    const EnvironmentMap& map = *scene.world_map;
+    for (int part = map.split() ? 1 : 0; part <= (map.split() ? 2 : 0); ++part) {
+      Emitter e{};
+      e.kind = EmitterKind::World;
+      e.map = &map;
+      e.map_part = part;
+      e.origin = center;
+      e.radius = radius;
+      e.flux = map.integral(part) * disk_area;
+      e.scale = e.flux;
+      e.radiance = map.integral(part) * (1.0f / (4.0f * kPi));
+      if (average(e.flux) > 0.0f) out.push_back(e);
+    }
   }
   for (Emitter& e : out) {
     e.pick = average(e.flux);
@@ -276,20 +281,21 @@ inline __attribute__((always_inline)) Vec3 cone_direction(Vec3 axis, Vec3 t, Vec
 
 // Share of a map's portal photons whose direction is cosine-distributed into
 // the room; the others take the map's distribution (they find a sun in it).
-constexpr float kMapPortalCosineShare = 0.5f;
+// A sun's part takes its own distribution only: cosine directions miss it.
+inline float map_portal_cosine_share(const Emitter& e) { return e.map_part == 1 ? 0.0f : 0.5f; }
 
 // Density of the map world's photon line (o, d) over (direction, position
 // across d), pm the map's density of the direction looked towards (-d): the
 // disk (1 - share) and, for each portal the line enters through, the portal's
 // mixture of cosine (1 / (pi A)) and map directions (pm / (A cos)).
 float map_line_density(const Emitter& e, Vec3 o, Vec3 d, float pm) {
+  const float b = map_portal_cosine_share(e);
   float density = (1.0f - e.portal_share) * pm / (kPi * e.radius * e.radius);
   for (size_t j = 0; j < e.portals.size(); ++j) {
     float t, cos_p;
     if (e.portal_pick[j] <= 0.0f || !portal_crossing(e.portals[j], o, d, 1.0f, t, cos_p)) continue;
     const float a = e.portals[j].area;
-    density += e.portal_share * e.portal_pick[j] *
-               (kMapPortalCosineShare / (kPi * a) + (1.0f - kMapPortalCosineShare) * pm / (a * cos_p));
+    density += e.portal_share * e.portal_pick[j] * (b / (kPi * a) + (1.0f - b) * pm / (a * cos_p));
   }
   return density;
 }
@@ -308,8 +314,9 @@ __attribute__((noinline)) void sample_map_sky(const Emitter& e, const float u[4]
     if (through_portal) {
       while (j + 1 < e.portals.size() && u0 >= e.portal_pick[j]) u0 -= e.portal_pick[j++];
       u0 = std::fmin(u0 / e.portal_pick[j], 0.99999994f);
-      cosine = u0 < kMapPortalCosineShare;
-      u0 = cosine ? u0 / kMapPortalCosineShare : (u0 - kMapPortalCosineShare) / (1.0f - kMapPortalCosineShare);
+      const float b = map_portal_cosine_share(e);
+      cosine = u0 < b;
+      u0 = cosine ? u0 / b : (u0 - b) / (1.0f - b);
       u0 = std::fmin(u0, 0.99999994f);
     }
   }
@@ -319,9 +326,9 @@ __attribute__((noinline)) void sample_map_sky(const Emitter& e, const float u[4]
     const Vec3 local = cosine_hemisphere(u0, u[1]);
     make_frame(e.portals[j].inward, t, b);
     d = t * local.x + b * local.y + e.portals[j].inward * local.z;
-    pm = map.pdf(-d);
+    pm = map.pdf(e.map_part, -d);
   } else {
-    d = -map.sample(u0, u[1], pm);
+    d = -map.sample(e.map_part, u0, u[1], pm);
   }
   make_frame(d, t, b);
   if (through_portal) {
@@ -334,7 +341,7 @@ __attribute__((noinline)) void sample_map_sky(const Emitter& e, const float u[4]
     s.origin = e.origin + (t * x + b * y) * e.radius - d * (2.0f * e.radius);
   }
   s.direction = d;
-  const Vec3 L = map.radiance(-d);
+  const Vec3 L = map.radiance(e.map_part, -d);
   float tc, cos_p;
   if (e.portal_share <= 0.0f) {
     s.weight = L * (kPi * e.radius * e.radius / pm);
@@ -496,21 +503,15 @@ inline void add_portal_density(const Emitter& e, Vec3 p, Vec3 dir, float share, 
   }
 }
 
-// A map's sky samples at a point, by the map's concentration c (the share of
-// its light in its brightest 1 % of directions): without portals a share
-// 0.5 + 0.4 c is drawn from the map, the rest are cosine directions (an even
-// sky: half and half, cosine directions do best there; a sky whose sun holds
-// the light: 0.9 from the map, which alone finds the sun: on an open scene
-// under a Nishita sky 0.9 reaches 1 % error in a fifth of the time 0.5
-// takes). With portals a share 0.75 (1 - c) + 0.1 c aims at points on the
-// portals (what a uniform world uses; they find the sky through the opening,
-// the job the cosine directions do without portals) and the rest come from
-// the map. One sample, one shadow ray: the balance heuristic of the
-// strategies, i.e. the mixture's density [Veach97 ch. 9].
-inline float map_direct_share(const EnvironmentMap& map) { return 0.5f + 0.4f * map.concentration(); }
-inline float map_portal_share(const EnvironmentMap& map) {
-  return kPortalDirectShare * (1.0f - map.concentration()) + 0.1f * map.concentration();
-}
+// A map's sky samples at a point: without portals half are drawn from the
+// map and half are cosine directions; with portals kPortalDirectShare (as for
+// the uniform world) aim at points on the portals (they find the sky through
+// the opening, the job the cosine directions do without portals) and the rest
+// come from the map. A sun's part (map_part 1) is drawn from its own
+// distribution only: its direct light is then sampled like a sun lamp's,
+// whatever the portals. One sample, one shadow ray: the balance heuristic of
+// the strategies, i.e. the mixture's density [Veach97 ch. 9].
+constexpr float kMapDirectShare = 0.5f;
 
 // The sky's direct light at p from an environment map: directions from the
 // map and cosine directions (and with portals, points on them) mixed, each
@@ -518,8 +519,9 @@ inline float map_portal_share(const EnvironmentMap& map) {
 __attribute__((noinline)) DirectSample map_sky_direct(const Emitter& e, Vec3 p, Vec3 n, const float u[3]) {
   DirectSample s{{0, 0, 0}, {0, 0, 1}, std::numeric_limits<float>::infinity(), 0.0f, 0.0f, 0.0f};
   const EnvironmentMap& map = *e.map;
-  const float share = e.portals.empty() ? 0.0f : map_portal_share(map);
-  const float map_share = e.portals.empty() ? map_direct_share(map) : 1.0f;  // of the samples not aimed at portals
+  const bool sun = e.map_part == 1;
+  const float share = e.portals.empty() || sun ? 0.0f : kPortalDirectShare;
+  const float map_share = e.portals.empty() && !sun ? kMapDirectShare : 1.0f;  // of the samples not aimed at portals
   float pm = -1.0f;  // the map's density of s.dir, once known
   if (u[2] < share) {
     float v = u[2] / share;
@@ -531,7 +533,7 @@ __attribute__((noinline)) DirectSample map_sky_direct(const Emitter& e, Vec3 p, 
     if (!(d > 0.0f)) return s;
     s.dir = to / d;
   } else if ((u[2] - share) < map_share * (1.0f - share)) {
-    s.dir = map.sample(u[0], u[1], pm);
+    s.dir = map.sample(e.map_part, u[0], u[1], pm);
   } else {
     const Vec3 local = cosine_hemisphere(u[0], u[1]);
     Vec3 t, b;
@@ -540,10 +542,10 @@ __attribute__((noinline)) DirectSample map_sky_direct(const Emitter& e, Vec3 p, 
   }
   const float cos_s = dot(n, s.dir);
   if (!(cos_s > 0.0f)) return s;
-  if (pm < 0.0f) pm = map.pdf(s.dir);
+  if (pm < 0.0f) pm = map.pdf(e.map_part, s.dir);
   float density = (1.0f - share) * (map_share * pm + (1.0f - map_share) * cos_s / kPi);
-  add_portal_density(e, p, s.dir, share, density);
-  if (density > 0.0f && std::isfinite(density)) s.irradiance = map.radiance(s.dir) * (cos_s / density);
+  if (share > 0.0f) add_portal_density(e, p, s.dir, share, density);
+  if (density > 0.0f && std::isfinite(density)) s.irradiance = map.radiance(e.map_part, s.dir) * (cos_s / density);
   return s;
 }
 
@@ -662,7 +664,8 @@ float unoccluded_irradiance(const Emitter& e, Vec3 p, Vec3 n) {
     }
     case EmitterKind::Sun:
       return L * std::max(-dot(n, e.normal), 0.0f);
-    case EmitterKind::World:
+    case EmitterKind::World:  // a map's sun: from its mean direction
+      if (e.map && e.map_part == 1) return L * 4.0f * kPi * std::max(dot(n, e.map->bright_direction()), 0.0f);
       return L * kPi;
     case EmitterKind::AreaRect:
     case EmitterKind::AreaDisk:

@@ -104,83 +104,130 @@ EnvironmentMap::EnvironmentMap(const float* rgb, uint32_t width, uint32_t height
   // Cell means: interior rows blend their two pixel rows equally; the half
   // rows at the poles weigh their own pixel row 3/4 and the wrapped one 1/4.
   auto pixel = [&](uint32_t row, uint32_t col) { return &rgb_[(size_t(row) * width + col) * 3]; };
-  row_cdf_.assign(rows, 0.0);
-  row_density_.assign(rows, 0.0);
-  cell_cdf_.assign(size_t(rows) * width, 0.0);
-  double integral[3] = {0, 0, 0};
-  std::vector<double> row_weight(rows, 0.0);
+  const size_t cells = size_t(rows) * width;
+  std::vector<float> mean(cells * 3);
   for (uint32_t k = 0; k < rows; ++k) {
     uint32_t near_row, far_row;
     double near_w;
     if (k == 0) near_row = 0, far_row = height - 1, near_w = 0.75;
     else if (k == height) near_row = height - 1, far_row = 0, near_w = 0.75;
     else near_row = k, far_row = k - 1, near_w = 0.5;
-    const double omega = 2.0 * kPiD / width * (double(row_z_[k]) - double(row_z_[k + 1]));
-    double running = 0.0;
     for (uint32_t c = 0; c < width; ++c) {
       const uint32_t c1 = c + 1 == width ? 0 : c + 1;
-      double mean[3];
       for (int ch = 0; ch < 3; ++ch)
-        mean[ch] = 0.5 * (near_w * (double(pixel(near_row, c)[ch]) + pixel(near_row, c1)[ch]) +
-                          (1.0 - near_w) * (double(pixel(far_row, c)[ch]) + pixel(far_row, c1)[ch]));
-      for (int ch = 0; ch < 3; ++ch) integral[ch] += mean[ch] * omega;
-      running += (mean[0] + mean[1] + mean[2]) / 3.0;
-      cell_cdf_[size_t(k) * width + c] = running;
+        mean[(size_t(k) * width + c) * 3 + size_t(ch)] =
+            float(0.5 * (near_w * (double(pixel(near_row, c)[ch]) + pixel(near_row, c1)[ch]) +
+                         (1.0 - near_w) * (double(pixel(far_row, c)[ch]) + pixel(far_row, c1)[ch])));
+    }
+  }
+  // The brightest cells that hold 1 % of the sphere's solid angle: where they
+  // hold at least kSplitConcentration of the light (a sun), they and the rest
+  // get distributions of their own.
+  std::vector<uint8_t> bright;
+  concentration_ = bright_cells(mean, bright);
+  if (concentration_ >= kSplitConcentration) {
+    bright_ = std::move(bright);
+    build(parts_[1], mean, 1);
+    build(parts_[2], mean, 2);
+  } else {
+    build(parts_[0], mean, 0);
+  }
+}
+
+bool EnvironmentMap::in_part(int part, size_t cell) const {
+  return part == 0 || (bright_[cell] != 0) == (part == 1);
+}
+
+void EnvironmentMap::build(Distribution& d, const std::vector<float>& mean, int part) {
+  const uint32_t rows = height_ + 1;
+  d.row_cdf.assign(rows, 0.0);
+  d.row_density.assign(rows, 0.0);
+  d.cell_cdf.assign(size_t(rows) * width_, 0.0);
+  double integral[3] = {0, 0, 0}, dir[3] = {0, 0, 0};
+  std::vector<double> row_weight(rows, 0.0);
+  for (uint32_t k = 0; k < rows; ++k) {
+    const double omega = 2.0 * kPiD / width_ * (double(row_z_[k]) - double(row_z_[k + 1]));
+    const float z = 0.5f * (row_z_[k] + row_z_[k + 1]), rho = std::sqrt(std::fmax(0.0f, 1.0f - z * z));
+    double running = 0.0;
+    double* cdf = &d.cell_cdf[size_t(k) * width_];
+    for (uint32_t c = 0; c < width_; ++c) {
+      const size_t cell = size_t(k) * width_ + c;
+      if (in_part(part, cell)) {
+        const float* m = &mean[cell * 3];
+        for (int ch = 0; ch < 3; ++ch) integral[ch] += double(m[ch]) * omega;
+        const double w = (double(m[0]) + m[1] + m[2]) / 3.0;
+        running += w;
+        if (part == 1) {  // the bright part's mean direction (a guess of where its light comes from)
+          float sn, cs;
+          azimuth_of((float(c) + 1.0f) / float(width_), sn, cs);
+          const Vec3 dw = to_world({rho * cs, rho * sn, z});
+          dir[0] += w * omega * dw.x, dir[1] += w * omega * dw.y, dir[2] += w * omega * dw.z;
+        }
+      }
+      cdf[c] = running;
     }
     row_weight[k] = running * omega;
     if (running > 0.0)
-      for (uint32_t c = 0; c < width; ++c) cell_cdf_[size_t(k) * width + c] /= running;
-    cell_cdf_[size_t(k) * width + width - 1] = running > 0.0 ? 1.0 : 0.0;
+      for (uint32_t c = 0; c < width_; ++c) cdf[c] /= running;
+    cdf[width_ - 1] = running > 0.0 ? 1.0 : 0.0;
   }
   double sum = 0.0;
   for (uint32_t k = 0; k < rows; ++k) sum += row_weight[k];
-  total_ = sum;
+  d.total = sum;
   double running = 0.0;
   for (uint32_t k = 0; k < rows; ++k) {
     running += row_weight[k];
-    row_cdf_[k] = sum > 0.0 ? running / sum : 0.0;
-    const double omega = 2.0 * kPiD / width * (double(row_z_[k]) - double(row_z_[k + 1]));
+    d.row_cdf[k] = sum > 0.0 ? running / sum : 0.0;
+    const double omega = 2.0 * kPiD / width_ * (double(row_z_[k]) - double(row_z_[k + 1]));
     // A cell's density in solid angle: P(row) P(cell | row) / omega, the second factor from the CDF.
-    row_density_[k] = sum > 0.0 && omega > 0.0 ? (row_weight[k] / sum) / omega : 0.0;
+    d.row_density[k] = sum > 0.0 && omega > 0.0 ? (row_weight[k] / sum) / omega : 0.0;
   }
-  if (sum > 0.0) row_cdf_[rows - 1] = 1.0;
-  integral_ = {float(integral[0]), float(integral[1]), float(integral[2])};
-  concentration_ = concentration(sum);
+  if (sum > 0.0) d.row_cdf[rows - 1] = 1.0;
+  d.integral = {float(integral[0]), float(integral[1]), float(integral[2])};
+  const double len = std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+  if (len > 0.0) d.direction = {float(dir[0] / len), float(dir[1] / len), float(dir[2] / len)};
 }
 
-float EnvironmentMap::concentration(double total) const {
-  // A histogram of the cells' densities (mean radiance) in eighths of an octave below the
-  // brightest, filled from the top until it holds 1 % of the sphere's solid angle.
-  if (!(total > 0.0)) return 0.0f;
+float EnvironmentMap::bright_cells(const std::vector<float>& mean, std::vector<uint8_t>& bright) const {
+  // A histogram of the cells' mean radiance (mean of RGB) in eighths of an
+  // octave below the brightest, filled from the top until it holds 1 % of the
+  // sphere's solid angle; the cells of the bins taken are the bright ones.
+  const uint32_t rows = height_ + 1;
+  const size_t cells = size_t(rows) * width_;
+  bright.assign(cells, 0);
   constexpr int kBins = 8 * 48;
   std::vector<double> omega(kBins, 0.0), weight(kBins, 0.0);
-  double top = 0.0;
-  const uint32_t rows = height_ + 1;
-  auto density = [&](uint32_t k, uint32_t c) {
-    const double* cdf = &cell_cdf_[size_t(k) * width_];
-    return row_density_[k] * (cdf[c] - (c > 0 ? cdf[c - 1] : 0.0));
-  };
-  for (uint32_t k = 0; k < rows; ++k)
-    for (uint32_t c = 0; c < width_; ++c) top = std::max(top, density(k, c));
+  double top = 0.0, total = 0.0;
+  for (size_t cell = 0; cell < cells; ++cell)
+    top = std::max(top, (double(mean[cell * 3]) + mean[cell * 3 + 1] + mean[cell * 3 + 2]) / 3.0);
+  if (!(top > 0.0)) return 0.0f;
+  auto bin_of = [&](double m) { return std::min(kBins - 1, int(std::floor(-8.0 * std::log2(m / top)))); };
   for (uint32_t k = 0; k < rows; ++k) {
-    const double cell = 2.0 * kPiD / width_ * (double(row_z_[k]) - double(row_z_[k + 1]));
+    const double cell_omega = 2.0 * kPiD / width_ * (double(row_z_[k]) - double(row_z_[k + 1]));
     for (uint32_t c = 0; c < width_; ++c) {
-      const double d = density(k, c);
-      if (!(d > 0.0)) continue;
-      const int bin = std::min(kBins - 1, int(std::floor(-8.0 * std::log2(d / top))));
-      omega[size_t(bin)] += cell;
-      weight[size_t(bin)] += d * cell;  // the cell's probability
+      const size_t cell = size_t(k) * width_ + c;
+      const double m = (double(mean[cell * 3]) + mean[cell * 3 + 1] + mean[cell * 3 + 2]) / 3.0;
+      if (!(m > 0.0)) continue;
+      omega[size_t(bin_of(m))] += cell_omega;
+      weight[size_t(bin_of(m))] += m * cell_omega;
+      total += m * cell_omega;
     }
   }
   const double want = 0.01 * 4.0 * kPiD;
   double o = 0.0, w = 0.0;
+  int last = -1;  // the last bin wholly within the 1 %
   for (int b = 0; b < kBins && o < want; ++b) {
-    const double part = std::min(1.0, (want - o) / omega[size_t(b)]);  // a bin of equal cells, in part
     if (!(omega[size_t(b)] > 0.0)) continue;
+    const double part = std::min(1.0, (want - o) / omega[size_t(b)]);  // a bin of equal cells, in part
+    if (part >= 1.0) last = b;
     o += part * omega[size_t(b)];
     w += part * weight[size_t(b)];
   }
-  return float(std::min(1.0, w));
+  for (size_t cell = 0; cell < cells; ++cell) {
+    const double m = (double(mean[cell * 3]) + mean[cell * 3 + 1] + mean[cell * 3 + 2]) / 3.0;
+    if (m > 0.0 && bin_of(m) <= last) bright[cell] = 1;
+  }
+  return float(std::min(1.0, w / total));
 }
 
 EnvironmentMap EnvironmentMap::from_file(const std::string& path, const float rotation[9], float strength) {
@@ -282,26 +329,28 @@ void EnvironmentMap::cell_of(Vec3 d, uint32_t& row, uint32_t& column, float& s, 
   column = uint32_t(c);
 }
 
-float EnvironmentMap::pdf(Vec3 w) const {
+float EnvironmentMap::pdf(int part, Vec3 w) const {
+  const Distribution& dist = parts_[part];
   const Vec3 d = to_map(w);
-  if (!(total_ > 0.0) || !is_finite(d) || !(dot(d, d) > 0.0f)) return 0.0f;
+  if (!(dist.total > 0.0) || !is_finite(d) || !(dot(d, d) > 0.0f)) return 0.0f;
   uint32_t row, column;
   float s, t, g[4];
   cell_of(d, row, column, s, t);
-  const double* cdf = &cell_cdf_[size_t(row) * width_];
+  const double* cdf = &dist.cell_cdf[size_t(row) * width_];
   const double p = cdf[column] - (column > 0 ? cdf[column - 1] : 0.0);
   if (!(p > 0.0)) return 0.0f;
   corners(row, column, g);
   const float blend = (1 - t) * ((1 - s) * g[0] + s * g[1]) + t * ((1 - s) * g[2] + s * g[3]);
   const float mean = 0.25f * (g[0] + g[1] + g[2] + g[3]);
-  return float(row_density_[row] * p) * (mean > 0.0f ? blend / mean : 1.0f);
+  return float(dist.row_density[row] * p) * (mean > 0.0f ? blend / mean : 1.0f);
 }
 
-Vec3 EnvironmentMap::sample(float u0, float u1, float& pdf) const {
+Vec3 EnvironmentMap::sample(int part, float u0, float u1, float& pdf) const {
+  const Distribution& dist = parts_[part];
   float f0, f1, g[4];
   const size_t rows = size_t(height_) + 1;
-  const size_t row = invert_cdf(row_cdf_.data(), rows, double(u0), f0);
-  const double* cdf = &cell_cdf_[row * width_];
+  const size_t row = invert_cdf(dist.row_cdf.data(), rows, double(u0), f0);
+  const double* cdf = &dist.cell_cdf[row * width_];
   const size_t column = invert_cdf(cdf, width_, double(u1), f1);
   const double p = cdf[column] - (column > 0 ? cdf[column - 1] : 0.0);
   // Inside the cell in proportion to the blend of its corners: t (down the
@@ -312,7 +361,7 @@ Vec3 EnvironmentMap::sample(float u0, float u1, float& pdf) const {
   const float a = (1 - t) * g[0] + t * g[2], b = (1 - t) * g[1] + t * g[3];
   const float s = sample_linear(f1, a, b);
   const float mean = 0.25f * (g[0] + g[1] + g[2] + g[3]);
-  pdf = float(row_density_[row] * p) * (mean > 0.0f ? ((1 - s) * a + s * b) / mean : 1.0f);
+  pdf = float(dist.row_density[row] * p) * (mean > 0.0f ? ((1 - s) * a + s * b) / mean : 1.0f);
   const float z = row_z_[row] + t * (row_z_[row + 1] - row_z_[row]);
   const float rho = std::sqrt(std::fmax(0.0f, 1.0f - z * z));
   float u = (float(column) + s + 0.5f) / float(width_);  // past 1 for the wrapping column
@@ -322,7 +371,17 @@ Vec3 EnvironmentMap::sample(float u0, float u1, float& pdf) const {
   return normalize(to_world({rho * cs, rho * sn, z}));
 }
 
-Vec3 EnvironmentMap::irradiance(Vec3 n) const {
+Vec3 EnvironmentMap::radiance(int part, Vec3 w) const {
+  if (part == 0) return radiance(w);
+  const Vec3 d = to_map(w);
+  if (!is_finite(d) || !(dot(d, d) > 0.0f)) return {0, 0, 0};
+  uint32_t row, column;
+  float s, t;
+  cell_of(d, row, column, s, t);
+  return in_part(part, size_t(row) * width_ + column) ? radiance(w) : Vec3{0, 0, 0};
+}
+
+Vec3 EnvironmentMap::irradiance(int part, Vec3 n) const {
   // Per dual-grid cell: its mean radiance (the blend of its corners) x its
   // solid angle x the mean cosine over s x s points of it (s so that the
   // points lie within about a degree on coarse maps).
@@ -338,6 +397,7 @@ Vec3 EnvironmentMap::irradiance(Vec3 n) const {
     else near_row = k, far_row = k - 1, near_w = 0.5;
     const double omega = 2.0 * kPiD / width_ * (double(row_z_[k]) - double(row_z_[k + 1]));
     for (uint32_t c = 0; c < width_; ++c) {
+      if (!in_part(part, size_t(k) * width_ + c)) continue;
       double cosine = 0.0;
       for (uint32_t i = 0; i < sub; ++i) {
         const float z = row_z_[k] + (float(i) + 0.5f) / float(sub) * (row_z_[k + 1] - row_z_[k]);

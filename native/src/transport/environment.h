@@ -53,50 +53,72 @@ class EnvironmentMap {
   uint32_t width() const { return width_; }
   uint32_t height() const { return height_; }
 
-  // Radiance arriving from world direction w (unit: looking towards w).
+  // A map whose brightest 1 % of directions hold at least kSplitConcentration
+  // of its light (a sun) is split in two parts, each with a distribution of its
+  // own: 1, those bright cells; 2, the rest. The engine treats them as two
+  // lights, so every direct-light sample aims at the sun, as at a sun lamp,
+  // and the sky gets its own. Otherwise the map is one part, 0.
+  static constexpr float kSplitConcentration = 0.25f;
+  bool split() const { return !bright_.empty(); }
+
+  // Radiance arriving from world direction w (unit: looking towards w): all of
+  // it, or (part 1, 2) only where w's dual-grid cell belongs to the part.
   Vec3 radiance(Vec3 w) const;
-  // A world direction drawn with the map's distribution from two uniform
+  Vec3 radiance(int part, Vec3 w) const;
+  // A world direction drawn with part `part`'s distribution from two uniform
   // numbers in [0, 1), and its density in solid angle (> 0).
-  Vec3 sample(float u0, float u1, float& pdf) const;
-  // The density of sample() at world direction w (unit).
-  float pdf(Vec3 w) const;
-  // Integral of the radiance over the sphere (RGB, W m^-2 per unit radiance
-  // area): a uniform map of radiance L gives 4 pi L.
-  Vec3 integral() const { return integral_; }
-  // Integral of radiance x max(0, w . n) over the sphere: the irradiance on an
-  // unoccluded surface facing n (the light a window facing n lets in, per m^2).
-  Vec3 irradiance(Vec3 n) const;
+  Vec3 sample(int part, float u0, float u1, float& pdf) const;
+  // The density of sample(part) at world direction w (unit).
+  float pdf(int part, Vec3 w) const;
+  // Integral of the part's radiance over the sphere (RGB): a uniform map of
+  // radiance L gives 4 pi L.
+  Vec3 integral(int part) const { return parts_[part].integral; }
+  Vec3 integral() const { return split() ? parts_[1].integral + parts_[2].integral : parts_[0].integral; }
+  // Integral of the part's radiance x max(0, w . n) over the sphere: the
+  // irradiance on an unoccluded surface facing n (the light a window facing n
+  // lets in, per m^2).
+  Vec3 irradiance(int part, Vec3 n) const;
+  // The bright part's mean direction (world), weighted by its light.
+  Vec3 bright_direction() const { return parts_[1].direction; }
   // The share of the map's light (mean of RGB x solid angle) in its brightest
   // 1 % of directions: about 0.01 for an even sky, near 1 where a sun holds
   // most of it.
   float concentration() const { return concentration_; }
 
  private:
+  struct Distribution {
+    std::vector<double> row_cdf;      // height + 1: cumulative row weights, last = 1
+    std::vector<double> row_density;  // height + 1: P(row) / (solid angle of one of its cells)
+    // (height + 1) x width: cumulative cell weights (mean of RGB of the blend
+    // over the cell, 0 outside the part) within each row, last = 1 (all 0 in a
+    // black row). A cell's probability is taken from these differences, so
+    // sampling and pdf() agree to the last bit.
+    std::vector<double> cell_cdf;
+    double total = 0.0;  // sum of mean x solid angle over the part's cells
+    Vec3 integral, direction;
+  };
+
   Vec3 to_map(Vec3 w) const;
   Vec3 to_world(Vec3 d) const;
   Vec3 lookup(float u, float v) const;  // bilinear, REPEAT
-  float concentration(double total) const;
   // The dual-grid cell of map direction d and d's place (s, t) in it (s
   // along the azimuth from column centre c, t from the row's upper edge).
   void cell_of(Vec3 d, uint32_t& row, uint32_t& column, float& s, float& t) const;
   // Mean of RGB at cell (row, column)'s corners: g[0] upper edge at column c,
   // g[1] upper at c + 1, g[2] lower at c, g[3] lower at c + 1.
   void corners(uint32_t row, uint32_t column, float g[4]) const;
+  // Marks the brightest cells holding 1 % of the solid angle; returns their share of the light.
+  float bright_cells(const std::vector<float>& mean, std::vector<uint8_t>& bright) const;
+  bool in_part(int part, size_t cell) const;
+  void build(Distribution& d, const std::vector<float>& mean, int part);
 
   uint32_t width_ = 0, height_ = 0;
   std::vector<float> rgb_;        // width x height x 3, top row first, times strength
   float rot_[9];                  // map -> world, row-major
   // Dual grid: (height + 1) rows from the top (+Z) of width cells each.
   std::vector<float> row_z_;      // height + 2 boundaries in z = sin(elevation), from +1 down to -1
-  std::vector<double> row_cdf_;      // height + 1: cumulative row weights, last = 1
-  std::vector<double> row_density_;  // height + 1: P(row) / (solid angle of one of its cells)
-  // (height + 1) x width: cumulative cell weights (mean of RGB of the blend
-  // over the cell) within each row, last = 1 (all 0 in a black row). A cell's
-  // probability is taken from these differences, so sampling and pdf() agree
-  // to the last bit.
-  std::vector<double> cell_cdf_;
-  double total_ = 0.0;            // sum of mean x solid angle over all cells
-  Vec3 integral_;
+  std::vector<uint8_t> bright_;   // per cell: 1 in the bright part (empty: not split)
+  Distribution parts_[3];         // 0: the whole map (not split); 1, 2: bright, rest (split)
   float concentration_ = 0.0f;
 };
 
