@@ -23,7 +23,8 @@
 // inside each cell too (a one-pixel sun is sampled in proportion to its
 // bilinear footprint: L / pdf stays nearly constant over it), is positive
 // wherever the looked-up radiance is, and is exactly 1 / (4 pi) for a
-// uniform map.
+// uniform map. A map with a sun is split into the sun's cells and the rest,
+// each with a distribution of its own (see split()).
 #pragma once
 
 #include <cstdint>
