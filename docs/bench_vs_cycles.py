@@ -8,6 +8,7 @@ Scenes (same objects, same fixed texel-aligned lightmap UVs for both bakers):
   cornell   blend_tests/scenes.py's Cornell box (area light, closed, full GI), 32 x 32 maps
   open      sun + uniform sky over an 8 m ground plane with three boxes (mostly direct light)
   interior  a closed 4 x 4 x 2.5 m room with a window hole; sun and sky outside (mostly indirect)
+  open_sky  the open scene under a Nishita sky with its sun disc (not in the default --scenes)
 
 Reference: Cycles DIFFUSE bake, pass filter DIRECT + INDIRECT (no COLOR: irradiance / pi),
 32 bounces, no clamping, box pixel filter, as two independent halves (seeds 1 and 2) averaged.
@@ -121,7 +122,27 @@ def build_interior():
                   "albedo 0.8")
 
 
-SCENES = {"cornell": build_cornell, "open": build_open, "interior": build_interior}
+def build_open_sky():
+    """The open scene's ground and boxes under a Nishita sky with its sun disc (35 degrees up) instead
+    of the sun lamp and the uniform sky: the add-on renders the sky into a map. Cycles samples it
+    with a 2048 importance map (its default 1024 map misses part of a small sun)."""
+    objs, _ = build_open()
+    for o in [o for o in bpy.context.scene.objects if o.type == 'LIGHT']:
+        bpy.data.objects.remove(o)
+    world = bpy.context.scene.world
+    nt = world.node_tree
+    sky = nt.nodes.new('ShaderNodeTexSky')
+    sky.sky_type = 'NISHITA'
+    sky.sun_elevation = math.radians(35.0)
+    sky.sun_rotation = math.radians(60.0)
+    nt.links.new(sky.outputs['Color'], nt.nodes['Background'].inputs['Color'])
+    nt.nodes['Background'].inputs['Strength'].default_value = 1.0
+    world.cycles.sampling_method = 'MANUAL'
+    world.cycles.sample_map_resolution = 2048
+    return objs, "Nishita sky with its sun disc (35 deg up), ground albedo ~0.36, three boxes"
+
+
+SCENES = {"cornell": build_cornell, "open": build_open, "interior": build_interior, "open_sky": build_open_sky}
 
 
 # ---- bakes ---------------------------------------------------------------------------------------

@@ -27,7 +27,7 @@ import time
 import bpy
 import numpy as np
 
-from . import bridge, export, lsystem, materials, properties, uvmaps
+from . import bridge, export, lsystem, materials, properties, uvmaps, world_export
 
 # Heat-map images larger than this per side hold the RMS of blocks of texels.
 ERROR_IMAGE_MAX = 2048
@@ -97,7 +97,7 @@ class _Quiet:
 
 
 class _LightRecorder:
-    """A photonlm.Scene stand-in for export._add_light / _set_world: records what would emit."""
+    """A photonlm.Scene stand-in for export._add_light: records what would emit."""
 
     def __init__(self):
         self.emitting = []
@@ -106,17 +106,14 @@ class _LightRecorder:
         if kind != 'PORTAL':
             self.emitting.append("light '%s'" % name)
 
-    def set_world(self, radiance):
-        if max(radiance) > 0.0:
-            self.emitting.append("the world")
-
 
 def light_sources(context, limit=1):
     """What would light the scene, as the export sees it: visible lights with power and a colour,
     visible objects with an emissive material, a world that is not black. Stops after `limit`
     finds (0 = all). A list of descriptions; empty when nothing lights the scene."""
     recorder, quiet = _LightRecorder(), _Quiet()
-    export._set_world(recorder, context.scene.world, quiet)
+    if world_export.emits(context.scene.world):  # without rendering a sky
+        recorder.emitting.append("the world")
     view_layer = context.view_layer
     emissive = {}
     depsgraph = context.evaluated_depsgraph_get()

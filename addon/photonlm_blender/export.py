@@ -19,7 +19,7 @@ import re
 
 import numpy as np
 
-from . import csg_export, lsystem, materials, properties, subdiv_export, uvmaps
+from . import csg_export, lsystem, materials, properties, subdiv_export, uvmaps, world_export
 
 GEOMETRY_TYPES = {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT'}
 
@@ -211,6 +211,7 @@ def export_scene(context, photonlm, reports, selected_only=False):
     density = scene.photonlm.texel_density
     plm = photonlm.Scene()
     export = SceneExport(plm)
+    world = world_export.start(scene.world)  # a sky to render renders beside the mesh export
     try:
         default_id = _add_material(export, plm, None, reports)
         bake_names = {o.name for o in lightmap_objects(context, selected_only)}
@@ -237,8 +238,9 @@ def export_scene(context, photonlm, reports, selected_only=False):
                 continue
             _add_object(export, plm, orig, obj_eval, inst.matrix_world.copy(), inst.is_instance,
                         with_lightmap, density, default_id, reports)
-        _set_world(plm, scene.world, reports)
+        world_export.set_world(plm, scene.world, reports, world)
     except BaseException:
+        world.cancel()
         plm.close()
         raise
     return export
@@ -474,29 +476,3 @@ def _add_light(plm, obj_eval, matrix, reports):
         reports.warning("light '%s' skipped: %s" % (obj_eval.name, getattr(e, "message", e)))
         return False
     return True
-
-
-def _set_world(plm, world, reports):
-    if world is None:
-        return
-    radiance = tuple(world.color)
-    if world.use_nodes and world.node_tree is not None:
-        radiance = (0.0, 0.0, 0.0)
-        out = world.node_tree.get_output_node('CYCLES')
-        node = materials._follow(out.inputs['Surface']) if out is not None else None
-        if node is None:
-            pass
-        elif node.bl_idname == 'ShaderNodeBackground':
-            col, strength = node.inputs['Color'], node.inputs['Strength']
-            if col.is_linked or strength.is_linked:
-                reports.warning("world '%s': the Background input is linked (sky or HDRI?): "
-                                "using its unlinked colour x strength as a uniform world" % world.name)
-            s = float(strength.default_value)
-            radiance = tuple(float(c) * s for c in col.default_value[:3])
-        else:
-            reports.warning("world '%s': surface '%s' is not a Background node: using the world's "
-                            "viewport colour" % (world.name, node.bl_label))
-            radiance = tuple(world.color)
-    radiance = tuple(max(c, 0.0) for c in radiance)
-    if max(radiance) > 0.0:
-        plm.set_world(radiance)

@@ -567,9 +567,42 @@ class Scene(_Handle):
         return out.value
 
     def set_world(self, radiance):
-        """Uniform world radiance (RGB, Cycles background colour x strength) over the whole sphere."""
+        """Uniform world radiance (RGB, Cycles background colour x strength) over the whole sphere.
+        Replaces an environment map."""
         rad = _rgb(radiance, "radiance")
         _check(_C.plm_scene_set_world(self._h, _ptr(rad, ctypes.c_float)))
+
+    def set_world_map(self, rgb, rotation=None, strength=1.0):
+        """An environment map as the world (Cycles' Environment Texture in the Background):
+        rgb (H, W, 3) float32 linear radiance, the top row (+Z) first, in Blender's
+        equirectangular mapping (the image's centre looks along +X, u = 0.5 - atan2(y, x) / 2 pi);
+        radiance = rgb x strength. rotation: 3x3 (or 9 floats) taking the map's frame into the
+        world (None = identity); for Blender's Mapping node (Point or Vector type) of rotation
+        matrix M it is M transposed. Replaces the uniform world. Errors name the row and column
+        of a non-finite or negative pixel."""
+        a = np.ascontiguousarray(rgb, dtype=np.float32)
+        if a.ndim != 3 or a.shape[2] != 3:
+            raise ValueError("world map rgb must have shape (H, W, 3), got %s" % (a.shape,))
+        rot = self._rotation(rotation)
+        _check(_C.plm_scene_set_world_map(self._h, _ptr(a, ctypes.c_float), _uint(a.shape[1], "map width"),
+                                          _uint(a.shape[0], "map height"), _ptr(rot, ctypes.c_float),
+                                          float(strength)))
+
+    def set_world_map_file(self, path, rotation=None, strength=1.0):
+        """An environment map read from an image file (HDR, EXR, PFM, PNG, JPEG...: the types textures take;
+        integer images are sRGB-decoded, float images linear) when called; as set_world_map."""
+        rot = self._rotation(rotation)
+        _check(_C.plm_scene_set_world_map_file(self._h, os.fsencode(os.fspath(path)), _ptr(rot, ctypes.c_float),
+                                               float(strength)))
+
+    @staticmethod
+    def _rotation(rotation):
+        if rotation is None:
+            return None
+        r = np.ascontiguousarray(rotation, dtype=np.float32).reshape(-1)
+        if r.shape != (9,):
+            raise ValueError("rotation must be a 3x3 matrix (9 floats), got %d values" % r.size)
+        return r
 
     def bake(self, photons=None, max_bounces=None, seed=None, threads=None, dilation=None, progress=None,
              target_error=None, time_budget=None, direct_samples=None, filter_radius=None,

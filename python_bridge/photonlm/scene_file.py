@@ -1,9 +1,9 @@
 """Writes scenes as JSON scene files (docs/scene-file.md) for `photonlm bake SCENE -o DIR`.
 
 SceneFileWriter has the scene-building methods of photonlm.Scene (add_material, add_mesh,
-add_subdiv_mesh, add_light, set_world, add_csg, set_csg_carrier, add_ol_group, set_ol_group_backup,
-set_mesh_ol_group, add_material_lobe, set_material_texture, set_mesh_texture_uv, set_mesh_normals,
-set_mesh_smooth) with the
+add_subdiv_mesh, add_light, set_world, set_world_map, set_world_map_file, add_csg, set_csg_carrier,
+add_ol_group, set_ol_group_backup, set_mesh_ol_group, add_material_lobe, set_material_texture,
+set_mesh_texture_uv, set_mesh_normals, set_mesh_smooth) with the
 same arguments and the
 same returned ids, so code that builds a
 photonlm.Scene can build a file instead:
@@ -25,7 +25,8 @@ meshes only).
 Subdivision cages (add_subdiv_mesh) are always inline, as the cage with a "subdivision" object
 (level, face sizes, creases): `photonlm bake` refines them as the bridge does; they take no
 texture UVs (the reader refuses texture_uv on a cage).
-Texture images are copied into <stem>_textures/ beside the scene file. Calls the file format
+Texture images are copied into <stem>_textures/ beside the scene file, and so is a world map file;
+a world map given as pixels (set_world_map) is written there as a PFM (exact float32). Calls the file format
 cannot hold (L-systems, texture UVs on a cage, and anything added to photonlm.Scene later) raise
 SceneFileUnsupported naming the call.
 """
@@ -105,6 +106,7 @@ class SceneFileWriter:
         self.ol_groups = []
         self.csg = []
         self.world = None
+        self.world_pixels = None  # set_world_map's (H, W, 3) float32 pixels, written on write()
         self.settings = {}
         self.metadata = None
 
@@ -407,6 +409,40 @@ class SceneFileWriter:
 
     def set_world(self, radiance):
         self.world = {"radiance": _floats(_rgb(radiance, "radiance"), "world radiance")}
+        self.world_pixels = None
+
+    def set_world_map(self, rgb, rotation=None, strength=1.0):
+        a = np.ascontiguousarray(rgb, dtype=np.float32)
+        if a.ndim != 3 or a.shape[2] != 3 or a.shape[0] == 0 or a.shape[1] == 0:
+            raise ValueError("world map rgb must have shape (H, W, 3), got %s" % (a.shape,))
+        bad = np.argwhere(~(np.isfinite(a) & (a >= 0)))
+        if len(bad):
+            r, c, k = bad[0]
+            raise ValueError("world map: pixel at row %d, column %d (row 0 = top) has %s = %r; radiance must be "
+                             "finite and >= 0" % (r, c, "RGB"[k], float(a[r, c, k])))
+        self.world = self._world_map_fields(None, rotation, strength)
+        self.world_pixels = a.copy()  # written as a PFM beside the scene file (exact float32)
+
+    def set_world_map_file(self, path, rotation=None, strength=1.0):
+        path = os.path.abspath(os.fspath(path))
+        if not os.path.isfile(path):
+            raise ValueError("world map: no such file %s" % path)
+        self.world = self._world_map_fields(path, rotation, strength)
+        self.world_pixels = None
+
+    @staticmethod
+    def _world_map_fields(path, rotation, strength):
+        w = {"map": path}
+        if rotation is not None:
+            r = np.asarray(rotation, dtype=np.float32).reshape(-1)
+            if r.shape != (9,):
+                raise ValueError("rotation must be a 3x3 matrix (9 floats), got %d values" % r.size)
+            w["rotation"] = _floats(r, "world map rotation")
+        strength = _real(strength)
+        if not (math.isfinite(strength) and strength >= 0.0):
+            raise ValueError("world map strength must be a finite number >= 0, got %r" % strength)
+        w["strength"] = strength
+        return w
 
     def add_lsystem(self, name, *args, **kwargs):
         raise SceneFileUnsupported("L-system %r: the scene file format has no L-systems yet "
@@ -481,6 +517,7 @@ class SceneFileWriter:
                         shutil.copyfile(src, os.path.join(texture_dir, fname))
                         copied[src] = (texture_dir_rel + "/" if texture_dir_rel else "") + fname
                 m[key] = {"path": copied[src], "colorspace": m[key]["colorspace"]}
+        texture_names = used
         big = [i for i, m in enumerate(self.meshes) if mesh_dir is not None and "subdivision" not in m
                and m["texture_uv"] is None and m["normals"] is None and len(m["triangles"]) > self.obj_threshold]
         if big:  # usemtl takes one whitespace-free token: give every material a unique one
@@ -545,7 +582,9 @@ class SceneFileWriter:
             if value:
                 scene[key] = value
         if self.world is not None:
-            scene["world"] = self.world
+            scene["world"] = dict(self.world)
+            if "map" in self.world:
+                scene["world"]["map"] = self._world_map_file(texture_dir, texture_dir_rel, copied, texture_names)
         if self.settings:
             scene["settings"] = dict(self.settings)
         return scene
@@ -563,6 +602,27 @@ class SceneFileWriter:
         return path
 
     # -- helpers --------------------------------------------------------------------------------
+    def _world_map_file(self, texture_dir, texture_dir_rel, copied, used):
+        """The world map's name in the file: set_world_map's pixels written as a PFM (exact
+        float32, rows bottom first as the format stores them), a file copied as the textures are."""
+        src = self.world["map"]
+        if self.world_pixels is None and (texture_dir is None or src in copied):
+            return src if texture_dir is None else copied[src]
+        if texture_dir is None:
+            raise ValueError("a world map given as pixels needs a folder to be written to: use write()")
+        os.makedirs(texture_dir, exist_ok=True)
+        if self.world_pixels is None:
+            stem, ext = os.path.splitext(os.path.basename(src))
+            fname = file_name(stem, ext, used)
+            shutil.copyfile(src, os.path.join(texture_dir, fname))
+        else:
+            fname = file_name("world_map", ".pfm", used)
+            h, w, _ = self.world_pixels.shape
+            data = b"PF\n%d %d\n-1.0\n" % (w, h) + np.ascontiguousarray(self.world_pixels[::-1]).astype("<f4").tobytes()
+            with open(os.path.join(texture_dir, fname), "wb") as f:
+                f.write(data)
+        return (texture_dir_rel + "/" if texture_dir_rel else "") + fname
+
     @staticmethod
     def _index(i, items, what):
         i = _uint(i, what)

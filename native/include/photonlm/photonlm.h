@@ -290,17 +290,21 @@ PLM_API plm_status plm_scene_set_world(plm_scene* scene, const float radiance[3]
 
 /* An environment map as the world (Cycles' Environment Texture in the
  * world's Background): an equirectangular image, radiance = pixel x strength
- * (width x height linear RGB floats, the top row, +Z, first). As in Blender a
- * map-frame direction d reads the image at u = 0.5 - atan2(d.y, d.x) / (2 pi),
- * v = 0.5 + asin(d.z) / pi (the image's centre looks along +X), with the
- * map frame rotated into the world by `rotation` (row-major 3x3, Blender's
- * Mapping node rotation; NULL = identity). It
- * replaces the uniform radiance of plm_scene_set_world (and that call
- * replaces the map). Importance-sampled for direct light and photon emission;
- * portals keep working. plm_scene_set_world_map_file reads the image (HDR,
- * EXR, any format OpenImageIO reads; 8-bit images are sRGB-decoded) when
- * called. Errors: sizes, non-finite or negative pixels (named by row and
- * column), an unreadable file (named). */
+ * (width x height linear RGB floats, the top row, +Z, first; at most 2^28
+ * pixels). As in Blender a map-frame direction d reads the image at
+ * u = 0.5 - atan2(d.y, d.x) / (2 pi), v = 0.5 + asin(d.z) / pi (the image's
+ * centre looks along +X), bilinearly with periodic wrapping as Cycles' Linear
+ * interpolation does. `rotation` (row-major 3x3, orthonormal; NULL =
+ * identity) takes map-frame directions into the world: for a Blender Mapping
+ * node of type Point, Vector or Normal whose rotation matrix is M it is M
+ * transposed, of type Texture M itself. It replaces the uniform radiance of
+ * plm_scene_set_world (and that call replaces the map). Importance-sampled
+ * for direct light and photon emission; portals keep working.
+ * plm_scene_set_world_map_file reads the image (EXR, HDR, PFM, PNG, JPEG,
+ * BMP, TGA: the file types textures take; integer images are sRGB-decoded,
+ * float images linear; grey images give R = G = B) when called. Errors: sizes, non-finite or
+ * negative pixels (named by row and column), a rotation that is not
+ * orthonormal, a strength outside [0, 1e30], an unreadable file (named). */
 PLM_API plm_status plm_scene_set_world_map(plm_scene* scene, const float* rgb, uint32_t width, uint32_t height,
                                            const float rotation[9], float strength);
 PLM_API plm_status plm_scene_set_world_map_file(plm_scene* scene, const char* path, const float rotation[9],

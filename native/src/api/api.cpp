@@ -289,6 +289,21 @@ plm_status plm_scene_set_world(plm_scene* scene, const float radiance[3]) {
   });
 }
 
+plm_status plm_scene_set_world_map(plm_scene* scene, const float* rgb, uint32_t width, uint32_t height,
+                                   const float rotation[9], float strength) {
+  return guarded("plm_scene_set_world_map", [&] {
+    require(scene, "plm_scene_set_world_map", "scene");
+    scene->scene.set_world_map(rgb, width, height, rotation, strength);
+  });
+}
+
+plm_status plm_scene_set_world_map_file(plm_scene* scene, const char* path, const float rotation[9], float strength) {
+  return guarded("plm_scene_set_world_map_file", [&] {
+    require(scene, "plm_scene_set_world_map_file", "scene");
+    scene->scene.set_world_map_file(path, rotation, strength);
+  });
+}
+
 void plm_bake_settings_default(plm_bake_settings* settings) {
   if (settings) *settings = plm::default_settings();
 }

@@ -803,12 +803,28 @@ struct Reader {
     }
   }
 
+  // {"radiance": colour} or {"map": "sky.exr", "rotation": [9 numbers], "strength": s} (map relative to the file).
   void world(const json& v, const std::string& path) {
     object(v, path);
-    check_keys(v, path, {"radiance"});
-    float radiance[3] = {0, 0, 0};
-    if (const json* r = optional(v, "radiance")) rgb(*r, path + ".radiance", radiance);
-    engine(plm_scene_set_world(out.scene, radiance), path);
+    check_keys(v, path, {"radiance", "map", "rotation", "strength"});
+    const json* map = optional(v, "map");
+    if (!map) {
+      for (const char* k : {"rotation", "strength"})
+        if (optional(v, k)) fail(path + "." + k, "only with \"map\"");
+      float radiance[3] = {0, 0, 0};
+      if (const json* r = optional(v, "radiance")) rgb(*r, path + ".radiance", radiance);
+      engine(plm_scene_set_world(out.scene, radiance), path);
+      return;
+    }
+    if (optional(v, "radiance")) fail(path + ".radiance", "give either \"radiance\" or \"map\", not both");
+    const std::string rel = string(*map, path + ".map");
+    float rotation[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1}, strength = 1.0f;
+    if (const json* r = optional(v, "rotation")) fixed_floats(*r, path + ".rotation", 9, rotation);
+    if (const json* st = optional(v, "strength")) strength = to_float(*st, path + ".strength");
+    if (!options.allow_file_access) fail(path + ".map", "file access is disabled");
+    if (rel.empty()) fail(path + ".map", "empty file name");
+    const std::string file = rel[0] == '/' || options.base_dir.empty() ? rel : options.base_dir + "/" + rel;
+    engine(plm_scene_set_world_map_file(out.scene, file.c_str(), rotation, strength), path + ".map");
   }
 
   void csg(const json& v, const std::string& path) {

@@ -6,6 +6,7 @@
 #include "lsystem/lsystem_object.h"
 #include "ol/octahedral.h"
 #include "texture/texture.h"
+#include "transport/environment.h"
 #include "util/error.h"
 
 namespace plm {
@@ -195,6 +196,19 @@ void Scene::set_world(const float radiance[3]) {
   if (!radiance) fail(PLM_ERROR_INVALID_ARGUMENT, "world: radiance must not be NULL");
   check_rgb(radiance, "radiance", "world", 1e30f);
   world = {radiance[0], radiance[1], radiance[2]};
+  world_map.reset();
+}
+
+void Scene::set_world_map(const float* rgb, uint32_t width, uint32_t height, const float rotation[9],
+                          float strength) {
+  world_map = std::make_shared<const EnvironmentMap>(rgb, width, height, rotation, strength, "world map");
+  world = {0, 0, 0};
+}
+
+void Scene::set_world_map_file(const char* path, const float rotation[9], float strength) {
+  if (!path || !*path) fail(PLM_ERROR_INVALID_ARGUMENT, "world map: path must not be NULL or empty");
+  world_map = std::make_shared<const EnvironmentMap>(EnvironmentMap::from_file(path, rotation, strength));
+  world = {0, 0, 0};
 }
 
 uint32_t Scene::add_ol_group(const char* name, uint32_t resolution) {

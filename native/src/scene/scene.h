@@ -15,6 +15,7 @@
 #include "util/math.h"
 
 namespace plm {
+class EnvironmentMap;
 namespace lsystem {
 class LSystemObject;
 }
@@ -101,6 +102,9 @@ struct Scene {
   // whose lookups trace them. Embree ids after the CSG solids.
   std::vector<std::shared_ptr<const lsystem::LSystemObject>> lsystems;
   Vec3 world{0, 0, 0};
+  // An environment map as the world (transport/environment.h), null for the
+  // uniform world; setting one clears the other.
+  std::shared_ptr<const EnvironmentMap> world_map;
 
   uint32_t add_material(const char* name, const float albedo[3], const float emission[3]);
   // Appends a lobe (scene/lobe.cpp). Throws naming the material, the lobe and the bad field.
@@ -115,6 +119,8 @@ struct Scene {
                     const uint32_t* material_ids, uint32_t width, uint32_t height);
   uint32_t add_light(const char* name, const plm_light& light);
   void set_world(const float radiance[3]);
+  void set_world_map(const float* rgb, uint32_t width, uint32_t height, const float rotation[9], float strength);
+  void set_world_map_file(const char* path, const float rotation[9], float strength);
   // slot: plm_texture_slot; path NULL or "" removes. Throws for a bad index or an unreadable file.
   void set_material_texture(uint32_t material, int slot, const char* path, uint32_t flags);
   void set_mesh_texture_uv(uint32_t mesh, const float* uv);

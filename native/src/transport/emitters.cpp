@@ -3,6 +3,7 @@
 #include <limits>
 
 #include "texture/texture.h"
+#include "transport/environment.h"
 
 namespace plm {
 
@@ -151,7 +152,9 @@ void attach_portals(Emitter& e, const std::vector<Portal>& portals) {
   std::vector<float> weight;
   float total = 0.0f, entering = 0.0f;
   for (const Portal& p : portals) {
-    const float w = e.kind == EmitterKind::World ? p.area : p.area * std::fmax(0.0f, dot(e.normal, p.inward));
+    float w = e.kind == EmitterKind::World ? p.area : p.area * std::fmax(0.0f, dot(e.normal, p.inward));
+    // An environment map: the flux through the opening, A x the irradiance on its outer face.
+    if (e.map) w = p.area * average(e.map->irradiance(e.map_part, -p.inward));
     weight.push_back(w);
     total += w;
   }
@@ -160,8 +163,8 @@ void attach_portals(Emitter& e, const std::vector<Portal>& portals) {
   e.portals = portals;
   e.portal_pick = weight;
   e.portal_share = kPortalPhotonShare;
-  // Flux through the portals: world pi L sum A, sun S sum A cos.
-  entering = average(e.radiance) * (e.kind == EmitterKind::World ? kPi * total : total);
+  // Flux through the portals: world pi L sum A, sun S sum A cos, a map sum A E(outward).
+  entering = e.map ? total : average(e.radiance) * (e.kind == EmitterKind::World ? kPi * total : total);
   e.pick = kPortalPhotonShare * entering + (1.0f - kPortalPhotonShare) * average(e.flux);
 }
 
@@ -229,6 +232,23 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
     e.radiance = scene.world;
     if (average(e.flux) > 0.0f) out.push_back(e);
   }
+  if (scene.world_map) {
+    // The map's flux through the disk: (integral of L over the sphere) x (disk area); a map
+    // with a sun as two lights, the sun's cells and the rest.
+    const EnvironmentMap& map = *scene.world_map;
+    for (int part = map.split() ? 1 : 0; part <= (map.split() ? 2 : 0); ++part) {
+      Emitter e{};
+      e.kind = EmitterKind::World;
+      e.map = &map;
+      e.map_part = part;
+      e.origin = center;
+      e.radius = radius;
+      e.flux = map.integral(part) * disk_area;
+      e.scale = e.flux;
+      e.radiance = map.integral(part) * (1.0f / (4.0f * kPi));
+      if (average(e.flux) > 0.0f) out.push_back(e);
+    }
+  }
   for (Emitter& e : out) {
     e.pick = average(e.flux);
     if (e.kind == EmitterKind::Spot || e.kind == EmitterKind::AreaRect || e.kind == EmitterKind::AreaDisk ||
@@ -252,10 +272,88 @@ inline __attribute__((always_inline)) Vec3 cone_direction(Vec3 axis, Vec3 t, Vec
   return t * (sn * cp) + b * (sn * sp) + axis * c;
 }
 
+// Share of a map's portal photons whose direction is cosine-distributed into
+// the room; the others take the map's distribution (they find a sun in it).
+// A sun's part takes its own distribution only: cosine directions miss it.
+inline float map_portal_cosine_share(const Emitter& e) { return e.map_part == 1 ? 0.0f : 0.5f; }
+
+// Density of the map world's photon line (o, d) over (direction, position
+// across d), pm the map's density of the direction looked towards (-d): the
+// disk (1 - share) and, for each portal the line enters through, the portal's
+// mixture of cosine (1 / (pi A)) and map directions (pm / (A cos)).
+float map_line_density(const Emitter& e, Vec3 o, Vec3 d, float pm) {
+  const float b = map_portal_cosine_share(e);
+  float density = (1.0f - e.portal_share) * pm / (kPi * e.radius * e.radius);
+  for (size_t j = 0; j < e.portals.size(); ++j) {
+    float t, cos_p;
+    if (e.portal_pick[j] <= 0.0f || !portal_crossing(e.portals[j], o, d, 1.0f, t, cos_p)) continue;
+    const float a = e.portals[j].area;
+    density += e.portal_share * e.portal_pick[j] * (b / (kPi * a) + (1.0f - b) * pm / (a * cos_p));
+  }
+  return density;
+}
+
+// World photons from an environment map: the direction looked towards is
+// drawn from the map (or, through a portal, cosine-distributed half the
+// time), the photon travels the other way; flux = L / (density of its line).
+__attribute__((noinline)) void sample_map_sky(const Emitter& e, const float u[4], EmitterSample& s) {
+  const EnvironmentMap& map = *e.map;
+  float u0 = u[0];
+  const bool through_portal = u0 < e.portal_share;
+  bool cosine = false;
+  size_t j = 0;
+  if (e.portal_share > 0.0f) {
+    u0 = through_portal ? u0 / e.portal_share : (u0 - e.portal_share) / (1.0f - e.portal_share);
+    if (through_portal) {
+      while (j + 1 < e.portals.size() && u0 >= e.portal_pick[j]) u0 -= e.portal_pick[j++];
+      u0 = std::fmin(u0 / e.portal_pick[j], 0.99999994f);
+      const float b = map_portal_cosine_share(e);
+      cosine = u0 < b;
+      u0 = cosine ? u0 / b : (u0 - b) / (1.0f - b);
+      u0 = std::fmin(u0, 0.99999994f);
+    }
+  }
+  Vec3 d, t, b;
+  float pm = 0.0f;
+  if (cosine) {  // cosine-distributed into the interior
+    const Vec3 local = cosine_hemisphere(u0, u[1]);
+    make_frame(e.portals[j].inward, t, b);
+    d = t * local.x + b * local.y + e.portals[j].inward * local.z;
+    pm = map.pdf(e.map_part, -d);
+  } else {
+    d = -map.sample(e.map_part, u0, u[1], pm);
+  }
+  make_frame(d, t, b);
+  if (through_portal) {
+    const Portal& p = e.portals[j];
+    const Vec3 q = p.center + p.half_u * (2.0f * u[2] - 1.0f) + p.half_v * (2.0f * u[3] - 1.0f);
+    s.origin = q - d * (2.0f * e.radius);
+  } else {
+    float x, y;
+    concentric_disk(u[2], u[3], x, y);
+    s.origin = e.origin + (t * x + b * y) * e.radius - d * (2.0f * e.radius);
+  }
+  s.direction = d;
+  const Vec3 L = map.radiance(e.map_part, -d);
+  float tc, cos_p;
+  if (e.portal_share <= 0.0f) {
+    s.weight = L * (kPi * e.radius * e.radius / pm);
+  } else if (through_portal && !portal_crossing(e.portals[j], s.origin, d, 1.0f, tc, cos_p)) {
+    s.weight = {0, 0, 0};  // a map direction leaving through the portal, or rounding at its rim
+  } else {
+    const float density = map_line_density(e, s.origin, d, pm);
+    s.weight = density > 0.0f ? L * (1.0f / density) : Vec3{0, 0, 0};
+  }
+}
+
 // Sun and world photons (sample_emitter): out of line, so that the common
 // lights' path keeps its registers and a small frame (they are drawn once
 // per photon, before its first ray).
 __attribute__((noinline)) void sample_sky(const Emitter& e, const float u[4], EmitterSample& s) {
+  if (e.map) {
+    sample_map_sky(e, u, s);
+    return;
+  }
   // With portals, u[0] first chooses the strategy (and the portal) and is
   // then reused, rescaled, as the first direction number.
   float u0 = u[0];
@@ -387,6 +485,63 @@ DirectSample from_surface_point(Vec3 q, Vec3 nl, bool two_sided, Vec3 L, float A
   return s;
 }
 
+// Adds to density the density in solid angle with which the portals'
+// share of the sky samples at p reaches direction dir (points on the portals,
+// chosen by portal_pick), for every portal dir leaves through.
+inline void add_portal_density(const Emitter& e, Vec3 p, Vec3 dir, float share, float& density) {
+  for (size_t j = 0; j < e.portals.size(); ++j) {
+    float t, cos_p;  // leaving the interior through portal j
+    if (!portal_crossing(e.portals[j], p, dir, -1.0f, t, cos_p) || !(t > 0.0f)) continue;
+    density += share * e.portal_pick[j] * t * t / (e.portals[j].area * cos_p);
+  }
+}
+
+// A map's sky samples at a point: without portals half are drawn from the
+// map and half are cosine directions; with portals kPortalDirectShare (as for
+// the uniform world) aim at points on the portals (they find the sky through
+// the opening, the job the cosine directions do without portals) and the rest
+// come from the map. A sun's part (map_part 1) is drawn from its own
+// distribution only: its direct light is then sampled like a sun lamp's,
+// whatever the portals. One sample, one shadow ray: the balance heuristic of
+// the strategies, i.e. the mixture's density [Veach97 ch. 9].
+constexpr float kMapDirectShare = 0.5f;
+
+// The sky's direct light at p from an environment map: directions from the
+// map and cosine directions (and with portals, points on them) mixed, each
+// sample weighted by the mixture's density.
+__attribute__((noinline)) DirectSample map_sky_direct(const Emitter& e, Vec3 p, Vec3 n, const float u[3]) {
+  DirectSample s{{0, 0, 0}, {0, 0, 1}, std::numeric_limits<float>::infinity(), 0.0f, 0.0f, 0.0f};
+  const EnvironmentMap& map = *e.map;
+  const bool sun = e.map_part == 1;
+  const float share = e.portals.empty() || sun ? 0.0f : kPortalDirectShare;
+  const float map_share = e.portals.empty() && !sun ? kMapDirectShare : 1.0f;  // of the samples not aimed at portals
+  float pm = -1.0f;  // the map's density of s.dir, once known
+  if (u[2] < share) {
+    float v = u[2] / share;
+    size_t j = 0;
+    while (j + 1 < e.portals.size() && v >= e.portal_pick[j]) v -= e.portal_pick[j++];
+    const Portal& q = e.portals[j];
+    const Vec3 to = q.center + q.half_u * (2.0f * u[0] - 1.0f) + q.half_v * (2.0f * u[1] - 1.0f) - p;
+    const float d = length(to);
+    if (!(d > 0.0f)) return s;
+    s.dir = to / d;
+  } else if ((u[2] - share) < map_share * (1.0f - share)) {
+    s.dir = map.sample(e.map_part, u[0], u[1], pm);
+  } else {
+    const Vec3 local = cosine_hemisphere(u[0], u[1]);
+    Vec3 t, b;
+    make_frame(n, t, b);
+    s.dir = t * local.x + b * local.y + n * local.z;
+  }
+  const float cos_s = dot(n, s.dir);
+  if (!(cos_s > 0.0f)) return s;
+  if (pm < 0.0f) pm = map.pdf(e.map_part, s.dir);
+  float density = (1.0f - share) * (map_share * pm + (1.0f - map_share) * cos_s / kPi);
+  if (share > 0.0f) add_portal_density(e, p, s.dir, share, density);
+  if (density > 0.0f && std::isfinite(density)) s.irradiance = map.radiance(e.map_part, s.dir) * (cos_s / density);
+  return s;
+}
+
 // The sky's direct light at p with portals: a mixture of cosine directions
 // and points on the portals (chosen by area), weighted by the mixture's
 // density in solid angle, so texels the portals do not see stay unbiased.
@@ -411,11 +566,7 @@ DirectSample sky_through_portals(const Emitter& e, Vec3 p, Vec3 n, const float u
   const float cos_s = dot(n, s.dir);
   if (!(cos_s > 0.0f)) return s;
   float density = (1.0f - share) * cos_s / kPi;
-  for (size_t j = 0; j < e.portals.size(); ++j) {
-    float t, cos_p;  // leaving the interior through portal j
-    if (!portal_crossing(e.portals[j], p, s.dir, -1.0f, t, cos_p) || !(t > 0.0f)) continue;
-    density += share * e.portal_pick[j] * t * t / (e.portals[j].area * cos_p);
-  }
+  add_portal_density(e, p, s.dir, share, density);
   if (density > 0.0f && std::isfinite(density)) s.irradiance = e.radiance * (cos_s / density);
   return s;
 }
@@ -460,6 +611,7 @@ DirectSample sample_direct(const Emitter& e, Vec3 p, Vec3 n, const float u[3]) {
       return s;
     }
     case EmitterKind::World: {
+      if (e.map) return map_sky_direct(e, p, n, u);
       if (e.portals.empty()) {
         const Vec3 local = cosine_hemisphere(u[0], u[1]);
         Vec3 t, b;
@@ -505,7 +657,8 @@ float unoccluded_irradiance(const Emitter& e, Vec3 p, Vec3 n) {
     }
     case EmitterKind::Sun:
       return L * std::max(-dot(n, e.normal), 0.0f);
-    case EmitterKind::World:
+    case EmitterKind::World:  // a map's sun: from its mean direction
+      if (e.map && e.map_part == 1) return L * 4.0f * kPi * std::max(dot(n, e.map->bright_direction()), 0.0f);
       return L * kPi;
     case EmitterKind::AreaRect:
     case EmitterKind::AreaDisk:

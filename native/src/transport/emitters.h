@@ -12,6 +12,8 @@
 
 namespace plm {
 
+class EnvironmentMap;
+
 enum class EmitterKind : uint8_t { Point, Spot, Sun, AreaRect, AreaDisk, Triangle, World };
 
 // An opening through which sun and sky light enter (PLM_LIGHT_PORTAL): a
@@ -49,6 +51,13 @@ struct Emitter {
   std::vector<Portal> portals;
   std::vector<float> portal_pick;
   float portal_share = 0;
+  // World with an environment map (owned by the scene): radiance, photon
+  // directions and sky samples come from the map's part map_part (0: all of
+  // it; a map with a sun is two emitters, 1: its bright cells, 2: the rest);
+  // radiance above is the part's mean. Null for the uniform world, whose code
+  // paths do not look at it.
+  const EnvironmentMap* map = nullptr;
+  int map_part = 0;
 };
 
 struct EmitterSample {
