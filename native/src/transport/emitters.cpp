@@ -293,46 +293,67 @@ float map_line_density(const Emitter& e, Vec3 o, Vec3 d, float pm) {
   return density;
 }
 
+// With portals, u0 first chooses the strategy (a portal, and which, or the
+// disk) and is then rescaled for reuse as the first direction number.
+// Returns whether the photon goes through portal j.
+inline bool pick_portal(const Emitter& e, float& u0, size_t& j) {
+  const bool through_portal = u0 < e.portal_share;
+  if (e.portal_share > 0.0f) {
+    u0 = through_portal ? u0 / e.portal_share : (u0 - e.portal_share) / (1.0f - e.portal_share);
+    if (through_portal) {
+      while (j + 1 < e.portals.size() && u0 >= e.portal_pick[j]) u0 -= e.portal_pick[j++];
+      u0 = std::fmin(u0 / e.portal_pick[j], 0.99999994f);
+    }
+  }
+  return through_portal;
+}
+
+// A direction cosine-distributed into the interior through a portal.
+inline Vec3 into_portal(const Portal& p, float u0, float u1) {
+  const Vec3 local = cosine_hemisphere(u0, u1);
+  Vec3 t, b;
+  make_frame(p.inward, t, b);
+  return t * local.x + b * local.y + p.inward * local.z;
+}
+
+// Where a sun or world photon travelling along d starts: on portal j, or on
+// the disk across d (frame t, b) covering the scene, both 2 radii back.
+inline Vec3 line_origin(const Emitter& e, bool through_portal, size_t j, Vec3 d, Vec3 t, Vec3 b, const float u[4]) {
+  if (through_portal) {
+    const Portal& p = e.portals[j];
+    const Vec3 q = p.center + p.half_u * (2.0f * u[2] - 1.0f) + p.half_v * (2.0f * u[3] - 1.0f);
+    return q - d * (2.0f * e.radius);
+  }
+  float x, y;
+  concentric_disk(u[2], u[3], x, y);
+  return e.origin + (t * x + b * y) * e.radius - d * (2.0f * e.radius);
+}
+
 // World photons from an environment map: the direction looked towards is
 // drawn from the map (or, through a portal, cosine-distributed half the
 // time), the photon travels the other way; flux = L / (density of its line).
 __attribute__((noinline)) void sample_map_sky(const Emitter& e, const float u[4], EmitterSample& s) {
   const EnvironmentMap& map = *e.map;
   float u0 = u[0];
-  const bool through_portal = u0 < e.portal_share;
-  bool cosine = false;
   size_t j = 0;
-  if (e.portal_share > 0.0f) {
-    u0 = through_portal ? u0 / e.portal_share : (u0 - e.portal_share) / (1.0f - e.portal_share);
-    if (through_portal) {
-      while (j + 1 < e.portals.size() && u0 >= e.portal_pick[j]) u0 -= e.portal_pick[j++];
-      u0 = std::fmin(u0 / e.portal_pick[j], 0.99999994f);
-      const float b = map_portal_cosine_share(e);
-      cosine = u0 < b;
-      u0 = cosine ? u0 / b : (u0 - b) / (1.0f - b);
-      u0 = std::fmin(u0, 0.99999994f);
-    }
+  const bool through_portal = pick_portal(e, u0, j);
+  bool cosine = false;
+  if (through_portal) {
+    const float share = map_portal_cosine_share(e);
+    cosine = u0 < share;
+    u0 = cosine ? u0 / share : (u0 - share) / (1.0f - share);
+    u0 = std::fmin(u0, 0.99999994f);
   }
   Vec3 d, t, b;
   float pm = 0.0f;
-  if (cosine) {  // cosine-distributed into the interior
-    const Vec3 local = cosine_hemisphere(u0, u[1]);
-    make_frame(e.portals[j].inward, t, b);
-    d = t * local.x + b * local.y + e.portals[j].inward * local.z;
+  if (cosine) {
+    d = into_portal(e.portals[j], u0, u[1]);
     pm = map.pdf(e.map_part, -d);
   } else {
     d = -map.sample(e.map_part, u0, u[1], pm);
   }
   make_frame(d, t, b);
-  if (through_portal) {
-    const Portal& p = e.portals[j];
-    const Vec3 q = p.center + p.half_u * (2.0f * u[2] - 1.0f) + p.half_v * (2.0f * u[3] - 1.0f);
-    s.origin = q - d * (2.0f * e.radius);
-  } else {
-    float x, y;
-    concentric_disk(u[2], u[3], x, y);
-    s.origin = e.origin + (t * x + b * y) * e.radius - d * (2.0f * e.radius);
-  }
+  s.origin = line_origin(e, through_portal, j, d, t, b, u);
   s.direction = d;
   const Vec3 L = map.radiance(e.map_part, -d);
   float tc, cos_p;
@@ -354,41 +375,18 @@ __attribute__((noinline)) void sample_sky(const Emitter& e, const float u[4], Em
     sample_map_sky(e, u, s);
     return;
   }
-  // With portals, u[0] first chooses the strategy (and the portal) and is
-  // then reused, rescaled, as the first direction number.
   float u0 = u[0];
-  const bool through_portal = u0 < e.portal_share;
   size_t j = 0;
-  if (e.portal_share > 0.0f) {
-    u0 = through_portal ? u0 / e.portal_share : (u0 - e.portal_share) / (1.0f - e.portal_share);
-    if (through_portal) {
-      while (j + 1 < e.portals.size() && u0 >= e.portal_pick[j]) u0 -= e.portal_pick[j++];
-      u0 = std::fmin(u0 / e.portal_pick[j], 0.99999994f);
-    }
-  }
+  const bool through_portal = pick_portal(e, u0, j);
   Vec3 d = e.normal, t = e.axis_u, b = e.axis_v;
   if (e.kind == EmitterKind::World) {
-    if (through_portal) {  // cosine-distributed into the interior
-      const Vec3 local = cosine_hemisphere(u0, u[1]);
-      make_frame(e.portals[j].inward, t, b);
-      d = t * local.x + b * local.y + e.portals[j].inward * local.z;
-    } else {
-      d = uniform_sphere(u0, u[1]);
-    }
+    d = through_portal ? into_portal(e.portals[j], u0, u[1]) : uniform_sphere(u0, u[1]);
     make_frame(d, t, b);
   } else if (e.cos_half < 1.0f) {
     d = cone_direction(e.normal, t, b, e.cos_half, u0, u[1]);  // over the sun's disk of directions
     make_frame(d, t, b);
   }
-  if (through_portal) {
-    const Portal& p = e.portals[j];
-    const Vec3 q = p.center + p.half_u * (2.0f * u[2] - 1.0f) + p.half_v * (2.0f * u[3] - 1.0f);
-    s.origin = q - d * (2.0f * e.radius);
-  } else {
-    float x, y;
-    concentric_disk(u[2], u[3], x, y);
-    s.origin = e.origin + (t * x + b * y) * e.radius - d * (2.0f * e.radius);
-  }
+  s.origin = line_origin(e, through_portal, j, d, t, b, u);
   s.direction = d;
   if (e.portal_share > 0.0f) {
     float tc, cos_p;
@@ -506,6 +504,28 @@ inline void add_portal_density(const Emitter& e, Vec3 p, Vec3 dir, float share, 
 // the strategies, i.e. the mixture's density [Veach97 ch. 9].
 constexpr float kMapDirectShare = 0.5f;
 
+// A direct sample aimed at a point on a portal (chosen by area with u[2] /
+// share, the point by u[0], u[1]): the unit direction from p, false if p lies on it.
+inline bool toward_portal(const Emitter& e, Vec3 p, const float u[3], float share, Vec3& dir) {
+  float v = u[2] / share;
+  size_t j = 0;
+  while (j + 1 < e.portals.size() && v >= e.portal_pick[j]) v -= e.portal_pick[j++];
+  const Portal& q = e.portals[j];
+  const Vec3 to = q.center + q.half_u * (2.0f * u[0] - 1.0f) + q.half_v * (2.0f * u[1] - 1.0f) - p;
+  const float d = length(to);
+  if (!(d > 0.0f)) return false;
+  dir = to / d;
+  return true;
+}
+
+// A cosine-distributed direction about n.
+inline Vec3 cosine_about(Vec3 n, float u0, float u1) {
+  const Vec3 local = cosine_hemisphere(u0, u1);
+  Vec3 t, b;
+  make_frame(n, t, b);
+  return t * local.x + b * local.y + n * local.z;
+}
+
 // The sky's direct light at p from an environment map: directions from the
 // map and cosine directions (and with portals, points on them) mixed, each
 // sample weighted by the mixture's density.
@@ -517,21 +537,11 @@ __attribute__((noinline)) DirectSample map_sky_direct(const Emitter& e, Vec3 p, 
   const float map_share = e.portals.empty() && !sun ? kMapDirectShare : 1.0f;  // of the samples not aimed at portals
   float pm = -1.0f;  // the map's density of s.dir, once known
   if (u[2] < share) {
-    float v = u[2] / share;
-    size_t j = 0;
-    while (j + 1 < e.portals.size() && v >= e.portal_pick[j]) v -= e.portal_pick[j++];
-    const Portal& q = e.portals[j];
-    const Vec3 to = q.center + q.half_u * (2.0f * u[0] - 1.0f) + q.half_v * (2.0f * u[1] - 1.0f) - p;
-    const float d = length(to);
-    if (!(d > 0.0f)) return s;
-    s.dir = to / d;
+    if (!toward_portal(e, p, u, share, s.dir)) return s;
   } else if ((u[2] - share) < map_share * (1.0f - share)) {
     s.dir = map.sample(e.map_part, u[0], u[1], pm);
   } else {
-    const Vec3 local = cosine_hemisphere(u[0], u[1]);
-    Vec3 t, b;
-    make_frame(n, t, b);
-    s.dir = t * local.x + b * local.y + n * local.z;
+    s.dir = cosine_about(n, u[0], u[1]);
   }
   const float cos_s = dot(n, s.dir);
   if (!(cos_s > 0.0f)) return s;
@@ -549,19 +559,9 @@ DirectSample sky_through_portals(const Emitter& e, Vec3 p, Vec3 n, const float u
   DirectSample s{{0, 0, 0}, {0, 0, 1}, std::numeric_limits<float>::infinity(), 0.0f, 0.0f, 0.0f};
   const float share = kPortalDirectShare;
   if (u[2] < share) {
-    float v = u[2] / share;
-    size_t j = 0;
-    while (j + 1 < e.portals.size() && v >= e.portal_pick[j]) v -= e.portal_pick[j++];
-    const Portal& q = e.portals[j];
-    const Vec3 to = q.center + q.half_u * (2.0f * u[0] - 1.0f) + q.half_v * (2.0f * u[1] - 1.0f) - p;
-    const float d = length(to);
-    if (!(d > 0.0f)) return s;
-    s.dir = to / d;
+    if (!toward_portal(e, p, u, share, s.dir)) return s;
   } else {
-    const Vec3 local = cosine_hemisphere(u[0], u[1]);
-    Vec3 t, b;
-    make_frame(n, t, b);
-    s.dir = t * local.x + b * local.y + n * local.z;
+    s.dir = cosine_about(n, u[0], u[1]);
   }
   const float cos_s = dot(n, s.dir);
   if (!(cos_s > 0.0f)) return s;

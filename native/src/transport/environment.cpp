@@ -8,7 +8,19 @@
 #include "util/error.h"
 
 namespace plm {
+
 namespace {
+
+// The two pixel rows that dual-grid cell row k blends, and the nearer one's
+// weight: interior rows blend their two rows equally; the half rows at the
+// poles weigh their own row 3/4 and the wrapped one 1/4.
+void cell_rows(uint32_t k, uint32_t height, uint32_t& near_row, uint32_t& far_row, double& near_w) {
+  if (k == 0) near_row = 0, far_row = height - 1, near_w = 0.75;
+  else if (k == height) near_row = height - 1, far_row = 0, near_w = 0.75;
+  else near_row = k, far_row = k - 1, near_w = 0.5;
+}
+
+
 
 constexpr double kMaxRadiance = 1e30;  // as for every other radiance the scene takes
 
@@ -109,9 +121,7 @@ EnvironmentMap::EnvironmentMap(const float* rgb, uint32_t width, uint32_t height
   for (uint32_t k = 0; k < rows; ++k) {
     uint32_t near_row, far_row;
     double near_w;
-    if (k == 0) near_row = 0, far_row = height - 1, near_w = 0.75;
-    else if (k == height) near_row = height - 1, far_row = 0, near_w = 0.75;
-    else near_row = k, far_row = k - 1, near_w = 0.5;
+    cell_rows(k, height, near_row, far_row, near_w);
     for (uint32_t c = 0; c < width; ++c) {
       const uint32_t c1 = c + 1 == width ? 0 : c + 1;
       for (int ch = 0; ch < 3; ++ch)
@@ -380,9 +390,7 @@ Vec3 EnvironmentMap::irradiance(int part, Vec3 n) const {
   for (uint32_t k = 0; k < rows; ++k) {
     uint32_t near_row, far_row;
     double near_w;
-    if (k == 0) near_row = 0, far_row = height_ - 1, near_w = 0.75;
-    else if (k == height_) near_row = height_ - 1, far_row = 0, near_w = 0.75;
-    else near_row = k, far_row = k - 1, near_w = 0.5;
+    cell_rows(k, height_, near_row, far_row, near_w);
     const double omega = 2.0 * kPiD / width_ * (double(row_z_[k]) - double(row_z_[k + 1]));
     for (uint32_t c = 0; c < width_; ++c) {
       if (!in_part(part, size_t(k) * width_ + c)) continue;
