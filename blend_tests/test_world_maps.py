@@ -19,7 +19,10 @@ within 1.5 x the combined error estimate (photonlm's reported error and the refe
 noise, added in quadrature) plus 1.5 % (what texel definition and the map's resolution leave:
 the sun's penumbra is a map pixel wide; measured 2.3 % against estimates of 1.7-1.9 %); the mean
 over all texels within 1 %; the bake leaves no scene, camera, world, library or image behind; and
-the seconds each world adds to the export are printed.
+the seconds each world adds to the export are printed. Then the Environment Texture's other ways
+into the engine (check_export_paths): its pixels as a generated image bake as its file, bit for
+bit; behind a Light Path trick (plain blue for the camera) Blender renders it into a map that bakes
+the same light (mean within 1 %, RMS difference within 2 sqrt(2) x the reported error).
 
 Run: PHOTONLM_LIBRARY=.../libphotonlm.so PHOTONLM_SOURCE_DIR=<repo> blender -b --factory-startup
      --python-exit-code 1 --python blend_tests/test_world_maps.py
@@ -218,6 +221,57 @@ def run_world(checks, objs, label, make_world):
     return err, st
 
 
+def lightmaps(last, objs):
+    return {n: np.array(last["objects"][n]["rgb"], np.float64) for n in objs}
+
+
+def check_export_paths(checks, objs):
+    """The Environment Texture world as set up by environment_world, baked three ways with one
+    seed and photon count: from its EXR file; from a generated image holding the same pixels (the
+    add-on passes Blender's pixels) -- the same lightmaps to the bit; and through a Mix node whose
+    factor is Light Path's Is Camera Ray, showing the camera plain blue (rendered into a map by
+    Blender, the Light Path answering as for a diffuse ray) -- the same light within the render's
+    resampling."""
+    nt = bpy.context.scene.world.node_tree
+    env = next(n for n in nt.nodes if n.bl_idname == 'ShaderNodeTexEnvironment')
+    settings = dict(target_error=0.0, direct_samples=16)
+    a = lightmaps(scenes.photonlm_bake(400_000, 1024, seed=5, **settings), objs)
+    f = env.image
+    w, h = f.size
+    px = np.empty(w * h * 4, np.float32)
+    f.pixels.foreach_get(px)
+    gen = bpy.data.images.new("photonlm_test_generated_sky", w, h, float_buffer=True, alpha=False)
+    gen.pixels.foreach_set(px)
+    env.image = gen
+    b = lightmaps(scenes.photonlm_bake(400_000, 1024, seed=5, **settings), objs)
+    checks.check(all(np.array_equal(a[n], b[n]) for n in objs),
+                 "Environment Texture: an image given as Blender's pixels bakes as its file, bit for bit")
+    env.image = f
+    bpy.data.images.remove(gen)
+    bg = nt.nodes['Background']
+    mix = nt.nodes.new('ShaderNodeMixRGB')
+    path = nt.nodes.new('ShaderNodeLightPath')
+    mix.inputs['Color2'].default_value = (0.0, 0.0, 1.0, 1.0)
+    nt.links.new(path.outputs['Is Camera Ray'], mix.inputs['Fac'])
+    nt.links.new(env.outputs['Color'], mix.inputs['Color1'])
+    nt.links.new(mix.outputs['Color'], bg.inputs['Color'])
+    last = scenes.photonlm_bake(400_000, 1024, seed=5, **settings)
+    c = lightmaps(last, objs)
+    rendered = [t for (lvl, t) in last["reports"] if "rendered into a" in t]
+    num = sum(float(np.sum((c[n] - a[n]) ** 2)) for n in objs)
+    den = sum(a[n].size for n in objs)
+    mean_a = sum(float(np.sum(a[n])) for n in objs) / den
+    ratio = sum(float(np.sum(c[n])) for n in objs) / den / mean_a
+    rms = math.sqrt(num / den) / mean_a
+    # Two bakes' difference: their noise (sqrt 2 x the reported error) and the render's resampling;
+    # a map turned or mirrored would move the spot's shadows: tens of %.
+    limit = 2.0 * math.sqrt(2.0) * last["stats"]["error_estimate"]
+    checks.check(bool(rendered) and abs(ratio - 1.0) < 0.01 and rms < limit,
+                 "Environment Texture behind a Light Path trick, rendered by Blender: mean %.4f of the direct "
+                 "path's, RMS difference %.2f %% < %.2f %% (%s)"
+                 % (ratio, 100 * rms, 100 * limit, rendered[0] if rendered else "not rendered"))
+
+
 def main():
     scenes.setup_paths()
     checks = scenes.Checks("world_maps")
@@ -227,6 +281,7 @@ def main():
     print("metric: relative RMS error against Cycles (2 x %d samples, 32 bounces, no clamp)" % CYCLES_SAMPLES)
     _, sky = run_world(checks, objs, "Nishita sky", nishita_world)
     _, env = run_world(checks, objs, "Environment Texture", lambda: environment_world(folder))
+    check_export_paths(checks, objs)
     # The seconds each world adds to the export: the same scene under a uniform world.
     scenes.set_world_color((0.3, 0.3, 0.3))
     for n in list(bpy.context.scene.world.node_tree.nodes):
