@@ -132,7 +132,8 @@ def test_interrupt_leaves_no_files(tmp_path):
     out = tmp_path / "out"
     p = subprocess.Popen([CLI, "bake", str(path), "-o", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                          text=True)
-    time.sleep(1.5)
+    p.stdout.readline()  # the first progress line: the bake (and the CLI's signal handler) has started
+    time.sleep(0.5)
     p.send_signal(signal.SIGINT)
     _, err = p.communicate(timeout=60)
     assert p.returncode == 130, err
