@@ -14,6 +14,12 @@ glass), so it is run the way that is fastest for it here: without the window's p
 rays end on the glass; with it Cycles is some ten times slower for the same noise). photonlm keeps
 the portal (its sun and sky photons are aimed through it).
 
+Texel values: by default both bakers give texel-centre values (photonlm's Like Cycles: direct light
+over the texel's central half; caustic photons, though, land over the whole texel). The glass sphere
+focuses the sun into a spot smaller than a texel, where the two differ; --texel-average compares
+whole-texel averages instead (Cycles at 2 x 2 sub-texels per texel box-averaged, the same samples
+per texel; photonlm with Texel Value = Texel Average), which both converge to.
+
 Reference, metric and timing as docs/bench_vs_cycles.py (whose code this uses): a Cycles DIFFUSE
 bake (DIRECT + INDIRECT, no COLOR), 32 bounces, no clamping, as two independent halves whose
 difference gives the reference's own noise, removed in quadrature from every measured error;
@@ -49,15 +55,20 @@ def run(args, plan):
     out_lm = os.path.join(args.out, "lightmaps")
     os.makedirs(out_lm, exist_ok=True)
 
+    ss_ = 2 if args.texel_average else 1
+
     def cycles(spp, seed):
+        """spp samples per lightmap texel (with --texel-average spread over 2 x 2 sub-texels)."""
         portal.hide_render = True
         try:
-            return bvc.cycles_bake(objects, spp, seed)
+            return bvc.cycles_bake(objects, max(1, spp // (ss_ * ss_)), seed, supersample=ss_)
         finally:
             portal.hide_render = False
 
     cycles(1, 0)  # warm-up
-    f = os.path.join(args.out, "ref_glazed_%d_%d.npz" % (args.res, plan["ref_samples"]))
+    if args.texel_average:
+        bpy.context.scene.photonlm.texel_value = 'AREA'
+    f = os.path.join(args.out, "ref_glazed_%d_%d_ss%d.npz" % (args.res, plan["ref_samples"], ss_))
     if args.reuse_ref and os.path.exists(f):
         z = np.load(f)
         half_a = {o.name: z["a_" + o.name] for o in objects}
@@ -73,10 +84,12 @@ def run(args, plan):
     print("reference: Cycles %d samples in %.0f s, its noise %.2f %%" % (plan["ref_samples"], ref_seconds,
                                                                         100 * metric.ref_noise), flush=True)
     result = dict(description="glazed room (pane IOR 1.5, 8 mm), sun 4 W/m^2 20 deg + sky (0.4, 0.5, 0.7), "
-                              "a gold and a glass sphere; %d x %d maps" % (args.res, args.res),
+                              "a gold and a glass sphere; %d x %d maps; %s" % (
+                                  args.res, args.res, "texel averages (Cycles at 2 x 2 per texel, photonlm Texel "
+                                  "Average)" if args.texel_average else "texel-centre values (Like Cycles)"),
                   objects=[dict(name=n, resolution=args.res, texels=metric.texels[n]) for n in metric.names],
                   reference=dict(samples=plan["ref_samples"], seconds=ref_seconds, noise=metric.ref_noise,
-                                 edge_texels=sum(int(v.sum()) for v in metric.edge_sel.values()), supersample=1,
+                                 edge_texels=sum(int(v.sum()) for v in metric.edge_sel.values()), supersample=ss_,
                                  mean=metric.mean_all),
                   cycles=[], photonlm=[])
     for spp in plan["cycles_samples"]:
@@ -117,6 +130,9 @@ def main():
     ap.add_argument("--ref-samples", type=int, default=0, help="override the reference sample count")
     ap.add_argument("--reuse-ref", action="store_true", help="reuse a cached reference from --out")
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--texel-average", action="store_true",
+                    help="compare texel averages: every Cycles bake at 2 x 2 sub-texels per texel (the same "
+                         "samples per texel), photonlm with Texel Value = Texel Average")
     args = ap.parse_args(argv)
     os.makedirs(args.out, exist_ok=True)
     os.environ.setdefault("PHOTONLM_TEST_OUT", args.out)
