@@ -116,17 +116,16 @@ def source(socket, path=()):
     return None if out is None else (out, path)
 
 
-def resolve(socket, path=()):
-    """(output socket or None, path, the input whose own value applies when unlinked): a group's
-    input socket stands for the group node's, a muted link or node counts as no link."""
+def link_step(socket):
+    """(node, output socket, input) one link up from input `socket`, past reroutes and muted nodes
+    (a muted node passes its internal link's input on); (None, None, the last input reached) where
+    nothing feeds it: unlinked, or a muted or invalid link."""
     for _ in range(256):
-        if socket is None:
-            return None, path, None
-        if not socket.is_linked:
-            return None, path, socket
+        if socket is None or not socket.is_linked:
+            return None, None, socket
         link = socket.links[0]
         if link.is_muted or not link.is_valid:
-            return None, path, socket
+            return None, None, socket
         node, out = link.from_node, link.from_socket
         if node.bl_idname == 'NodeReroute':
             socket = node.inputs[0]
@@ -134,6 +133,17 @@ def resolve(socket, path=()):
         if node.mute:
             socket = next((l.from_socket for l in node.internal_links if l.to_socket == out), None)
             continue
+        return node, out, socket
+    return None, None, None
+
+
+def resolve(socket, path=()):
+    """(output socket or None, path, the input whose own value applies when unlinked): a group's
+    input socket stands for the group node's, a muted link or node counts as no link."""
+    for _ in range(256):
+        node, out, socket = link_step(socket)
+        if node is None:
+            return None, path, socket
         if node.bl_idname == 'NodeGroupInput':
             if not path:
                 return None, path, socket

@@ -42,21 +42,10 @@ class _Copier:
 
     def visit(self, socket, depth):
         """The copied output for the closure reaching input `socket`, or None."""
-        for _ in range(256):
-            if depth > 64 or socket is None or not socket.is_linked:
-                return None
-            link = socket.links[0]
-            if link.is_muted or not link.is_valid:
-                return None
-            node, out = link.from_node, link.from_socket
-            if node.bl_idname == 'NodeReroute':
-                socket = node.inputs[0]
-                continue
-            if node.mute:
-                socket = next((l.from_socket for l in node.internal_links if l.to_socket == out), None)
-                continue
-            break
-        else:
+        if depth > 64:
+            return None
+        node, out, _ = flatten.link_step(socket)
+        if node is None:
             return None
         kind = node.bl_idname
         if kind in ('ShaderNodeMixShader', 'ShaderNodeAddShader'):

@@ -40,30 +40,8 @@ void add_portal(SceneBuilder& b, float x0, float x1) {
   b.light(p, "window");
 }
 
-// View factor from a floor point to the rectangle [x1, x2] x [y1, y2] one
-// unit above it (corner formula, odd in both offsets, summed with signs).
-double view_factor(double x, double y, double x1, double x2, double y1, double y2) {
-  auto corner = [](double a, double b) {
-    const double sa = std::sqrt(1.0 + a * a), sb = std::sqrt(1.0 + b * b);
-    return (a / sa * std::atan(b / sa) + b / sb * std::atan(a / sb)) / (2.0 * M_PI);
-  };
-  return corner(x2 - x, y2 - y) - corner(x1 - x, y2 - y) - corner(x2 - x, y1 - y) + corner(x1 - x, y1 - y);
-}
-
 // Floor texel averages of the sky (radiance 1) through the hole: value = F.
-std::vector<double> sky_truth() {
-  std::vector<double> out(64);
-  const int k = 12;
-  for (int j = 0; j < 8; ++j)
-    for (int i = 0; i < 8; ++i) {
-      double sum = 0.0;
-      for (int a = 0; a < k; ++a)
-        for (int c = 0; c < k; ++c)
-          sum += view_factor(-1.0 + 0.25 * (i + (a + 0.5) / k), -1.0 + 0.25 * (j + (c + 0.5) / k), -0.5, 0.5, -0.5, 0.5);
-      out[size_t(j) * 8 + size_t(i)] = sum / (k * k);
-    }
-  return out;
-}
+std::vector<double> sky_truth() { return plm_test::hole_view_factors(); }
 
 struct Error {
   double rms, mean_ratio;

@@ -8,6 +8,7 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
 
+#include <cmath>
 #include <cstring>
 #include <map>
 #include <string>
@@ -75,6 +76,32 @@ template <typename Builder>
 void bake(Builder& b, const plm_bake_settings& s, BakeResult& out) {
   ASSERT_TRUE(b.ok()) << b.error;
   ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &out.r), PLM_OK) << plm_last_error();
+}
+
+// View factor from a floor point to the rectangle [x1, x2] x [y1, y2] one
+// unit above it (corner formula, odd in both offsets, summed with signs).
+inline double view_factor(double x, double y, double x1, double x2, double y1, double y2) {
+  auto corner = [](double a, double b) {
+    const double sa = std::sqrt(1.0 + a * a), sb = std::sqrt(1.0 + b * b);
+    return (a / sa * std::atan(b / sa) + b / sb * std::atan(a / sb)) / (2.0 * M_PI);
+  };
+  return corner(x2 - x, y2 - y) - corner(x1 - x, y2 - y) - corner(x2 - x, y1 - y) + corner(x1 - x, y1 - y);
+}
+
+// The 8 x 8 texels of the floor [-1, 1]^2 (row by row from y = -1): each one's
+// mean view factor (12 x 12 points) to the 1 x 1 m hole centred one unit above it.
+inline std::vector<double> hole_view_factors() {
+  std::vector<double> out(64);
+  const int k = 12;
+  for (int j = 0; j < 8; ++j)
+    for (int i = 0; i < 8; ++i) {
+      double sum = 0.0;
+      for (int a = 0; a < k; ++a)
+        for (int c = 0; c < k; ++c)
+          sum += view_factor(-1.0 + 0.25 * (i + (a + 0.5) / k), -1.0 + 0.25 * (j + (c + 0.5) / k), -0.5, 0.5, -0.5, 0.5);
+      out[size_t(j) * 8 + size_t(i)] = sum / (k * k);
+    }
+  return out;
 }
 
 // An EXR file's float channels by name, read with the OpenEXR library: each
