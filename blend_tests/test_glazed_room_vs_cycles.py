@@ -10,9 +10,9 @@ degrees) and a uniform sky colour outside. Inside, a gold metal sphere (Principl
 photonlm: bpy.ops.photonlm.bake() to a 1 % target, all bounces, the window's portal light on,
           Texel Value = Texel Average.
 Cycles:   DIFFUSE, pass_filter {'DIRECT', 'INDIRECT'} (irradiance / pi), 32 bounces, no clamping,
-          no Filter Glossy, at 2 x 2 texels per lightmap texel box-averaged (a texel-average
-          reference: the glass sphere focuses the sun into a spot smaller than a texel, whose
-          value depends on the texel's footprint), two halves (seeds 1 and 2) averaged; the
+          no Filter Glossy, at 2 x 2 texels per lightmap texel box-averaged (near a whole-texel
+          average, as photonlm's Texel Average: the glass sphere focuses the sun into a spot
+          smaller than a texel, whose value depends on the texel's footprint), two halves (seeds 1 and 2) averaged; the
           portal hidden (its shadow rays end on the glass: it slows Cycles down tenfold and adds
           nothing). Cycles reaches the room's light only by paths through the pane (its shadow rays
           stop at glass), hence the many samples.
@@ -20,7 +20,8 @@ Metric: relative RMS error sqrt(mean((ours - cycles)^2)) / mean(cycles) over the
 the six room surfaces, all channels, with the reference's own noise (estimated from its two
 halves) removed in quadrature. Checks:
 - that error is within 1.5 x photonlm's own error estimate + 2 % (the engine's noise, plus room for
-  what both bakers approximate differently: texel footprints at the sun patch's edges);
+  what both bakers do differently at hard edges: footprints at the sun patch's edges, the caustic
+  reconstruction's radius at the sphere's focus);
 - the mean of each surface within 3 % + 2 x the reference's noise on that mean;
 - the same bake with the pane removed (an open window: some 8 % brighter, no Fresnel losses) and
   with the gold sphere made a grey diffuse ball are each clearly further from Cycles (so the
