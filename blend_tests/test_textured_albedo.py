@@ -165,8 +165,12 @@ def temporary_image_dirs():
 
 
 def main():
+    import shutil
+    import tempfile
     scenes.setup_paths()
     checks = scenes.Checks("textured_albedo")
+    # A private temporary folder: tests running beside this one make their own image folders.
+    tempfile.tempdir = tempfile.mkdtemp(prefix="photonlm-test-textured-")
     before = set(temporary_image_dirs())
     checker, wall, checker_mat, image = build()
     bpy.context.view_layer.update()
@@ -234,9 +238,10 @@ def main():
                  % (d_ours, RATIO_LIMIT))
     checks.check(d_flat > WORSE_FACTOR * d_ours, "red fraction of the untextured average is off: %.4f > %.1f x "
                  "%.4f" % (d_flat, WORSE_FACTOR, d_ours))
-    # The temporary image files this test's bakes made are gone (other processes may hold theirs).
+    # The temporary image files this test's bakes made are gone.
     left = sorted(set(temporary_image_dirs()) - before)
     checks.check(not left, "temporary texture files removed (%s)" % left)
+    shutil.rmtree(tempfile.tempdir, ignore_errors=True)
     np.save(os.path.join(scenes.out_dir("textured_albedo"), "white_wall.npy"), np.stack([ours, ref, flat_rgb, runs[0], runs[1], refs[0], refs[1]]))
     checks.finish()
 
