@@ -258,6 +258,7 @@ std::vector<float> read_exr_channels(const std::string& path, const std::vector<
     check_size(w, h, path, "lightmap", "file");
     width = uint32_t(w);
     height = uint32_t(h);
+    if (names.empty()) return pixels;  // the size only
     const size_t nc = names.size(), xs = nc * sizeof(float), ys = xs * size_t(w);
     std::vector<float> top_first(size_t(w) * size_t(h) * nc, 0.0f);
     char* origin = reinterpret_cast<char*>(top_first.data()) - ptrdiff_t(dw.min.x) * ptrdiff_t(xs) -
