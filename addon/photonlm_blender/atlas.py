@@ -79,7 +79,7 @@ def check(scene, baked, selected_only):
     large = ["'%s' (%d x %d)" % (b.object_name, b.width, b.height) for b in baked
              if b.width + 2 * pad > size or b.height + 2 * pad > size]
     if large:
-        raise AtlasError("lightmap%s of %s too large for a %d x %d atlas page with a margin of %d texels "
+        raise AtlasError("lightmap%s of %s %s too large for a %d x %d atlas page with a margin of %d texels "
                          "around %s: lower %s Resolution (Auto fits it), or choose a larger Page Size"
                          % ("s" if len(large) > 1 else "", ", ".join(large), "are" if len(large) > 1 else "is",
                             size, size, pad, "each" if len(large) > 1 else "it",
