@@ -17,7 +17,10 @@ Expected:
 - Bake Selected (another seed): blocks keep their size and place, texels outside the selected
   objects' cells are unchanged bit for bit, inside they are new; a selected object whose block
   grows (density scale 2) moves to free space and nothing else moves; Bake Selected after the
-  page size changed, and a Resolution too large for a page, are refused naming why.
+  page size changed, and a Resolution too large for a page, are refused naming why; an object whose
+  density asks for more than a page is capped to fit, with a warning naming it;
+- one object has an Array modifier (its automatic map in a helper mesh, carried by Data Transfer):
+  it is checked like the others.
 """
 import math
 import os
@@ -51,6 +54,8 @@ def build():
             bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=2, radius=s, location=(x, y, s))
         obj = bpy.context.active_object
         obj.name = "obj_%02d" % i
+        if i == 5:  # a modifier that changes the topology: the automatic map lives in a helper mesh
+            obj.modifiers.new("Array", 'ARRAY').count = 2
         obj.data.materials.append(scenes.diffuse_material("mat_%02d" % i, (0.3 + 0.01 * i, 0.5, 0.7)))
     scenes.add_light("sun", 'SUN', (0, 0, 5), rotation=(0.5, 0.3, 0.0), energy=3.0)
     scenes.set_world_color((0.05, 0.05, 0.05))
@@ -149,7 +154,9 @@ def main():
     names = sorted(last["objects"])
     pad = layout["pad"]
     places = {n: atlas_pack.Placement(*layout["blocks"][n]) for n in names}
-    checks.check(len(names) == 51 and pad == 4, "51 objects baked into the atlas, pad %d (margin 8)" % pad)
+    from photonlm_blender import uvmaps
+    checks.check(len(names) == 51 and pad == 4 and uvmaps.automatic_modifier(bpy.data.objects["obj_05"]) is not None,
+                 "51 objects baked into the atlas, pad %d (margin 8); obj_05's map comes from a helper mesh" % pad)
 
     # -- pages: few, as the area needs ------------------------------------------------------------
     cells = sum((p.w + 2 * pad) * (p.h + 2 * pad) for p in places.values())
@@ -277,6 +284,11 @@ def main():
                                                                   for f in os.listdir(out)},
                  "Bake Selected after the page size changed is refused and changes no file: %s" % res)
     bpy.context.scene.photonlm.atlas_size = str(PAGE)
+    bpy.data.objects["floor"].photonlm.density_scale = 1.0  # 960 texels wanted: capped to fit a page
+    last = scenes.photonlm_bake(400_000, 4, seed=5, target_error=0.0)
+    capped = [t for level, t in last["reports"] if "'floor' fills a whole atlas page" in t]
+    checks.check(last["objects"]["floor"]["size"] == (PAGE - 2 * pad,) * 2 and len(capped) == 1,
+                 "an object too large for a page at the density is capped to fit, with a warning: %s" % capped)
     bpy.data.objects["obj_10"].photonlm.resolution = 600
     try:
         res = bpy.ops.photonlm.bake()

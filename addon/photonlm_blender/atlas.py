@@ -80,7 +80,7 @@ def check(scene, baked, selected_only):
              if b.width + 2 * pad > size or b.height + 2 * pad > size]
     if large:
         raise AtlasError("lightmap%s of %s %s too large for a %d x %d atlas page with a margin of %d texels "
-                         "around %s: lower %s Resolution (Auto fits it), or choose a larger Page Size"
+                         "on each side of %s: lower %s Resolution (Auto fits it), or choose a larger Page Size"
                          % ("s" if len(large) > 1 else "", ", ".join(large), "are" if len(large) > 1 else "is",
                             size, size, pad, "each" if len(large) > 1 else "it",
                             "their" if len(large) > 1 else "its"))
@@ -165,6 +165,22 @@ def _write_uv(obj, scale_offset, reports):
     return True
 
 
+def _warn_shared_meshes(names, reports):
+    """Objects sharing one mesh share its atlas UV map, which can hold one block only."""
+    users = {}
+    for n in names:
+        obj = bpy.data.objects.get(n)
+        if obj is not None:
+            mod = uvmaps.automatic_modifier(obj)
+            users.setdefault((mod.object.data if mod is not None else obj.data).name, []).append(n)
+    for mesh, objs in users.items():
+        if len(objs) > 1:
+            reports.warning("objects %s share the mesh '%s': its '%s' UV map holds the block of '%s' only, "
+                            "so the others show the wrong part of the atlas (make the mesh single-user: "
+                            "Object > Relations > Make Single User)"
+                            % (", ".join("'%s'" % o for o in objs), mesh, ATLAS_UV, objs[-1]))
+
+
 def _relative(path):
     if bpy.data.is_saved:
         try:
@@ -220,6 +236,7 @@ def store(context, job, lightmaps, out_dir, pack, per_object):
         error_images.append(error_image)
 
     images, errors, uv_maps = {}, {}, {}
+    _warn_shared_meshes(names, job.reports)
     for n in names:
         p = placements[n]
         so = p.scale_offset(size)
