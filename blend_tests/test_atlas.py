@@ -162,8 +162,11 @@ def main():
     cells = sum((p.w + 2 * pad) * (p.h + 2 * pad) for p in places.values())
     lower = math.ceil(cells / PAGE ** 2)
     pages = len(layout["pages"])
+    fill = [sum((p.w + 2 * pad) * (p.h + 2 * pad) for p in places.values() if p.page == k) / PAGE ** 2
+            for k in range(pages)]
     checks.check(lower <= pages <= min(lower + 1, 4),
-                 "%d pages for %d cell texels (%.2f pages' worth)" % (pages, cells, cells / PAGE ** 2))
+                 "%d pages for %d cell texels (%.2f pages' worth; pages filled %s)"
+                 % (pages, cells, cells / PAGE ** 2, ", ".join("%.0f %%" % (100 * f) for f in fill)))
     files = sorted(f for f in os.listdir(out) if f.endswith("_lightmap.exr"))
     checks.check(files == sorted("Scene_atlas_%d_lightmap.exr" % k for k in range(pages)),
                  "one EXR per page and no per-object files: %s" % files)

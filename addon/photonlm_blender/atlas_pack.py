@@ -6,8 +6,8 @@ around them that repeats the block's edge texels, so that bilinear filtering at 
 mip 0 never reaches into another block. Cells never overlap and stay inside the page.
 
 pack() places every block anew, largest first, by skyline bottom-left packing: each page keeps
-its skyline (the top of what is placed, as segments along x); a cell goes where its top is lowest
-(then leftmost) over all open pages, and a new page is opened when none has room.
+its skyline (the top of what is placed, as segments along x); a cell goes into the first page
+with room, where its top is lowest (then leftmost), and a new page is opened when none has room.
 place() adds blocks to an existing layout without moving what is there (free space found among
 the cells already placed, else a new page).
 """
@@ -99,22 +99,23 @@ class _Skyline:
         self.segments = merged
 
 
-def pack(sizes, page, pad):
-    """Place blocks of `sizes` [(w, h), ...] into as few page x page pages as the packing finds.
-    Returns a list of Placement in the order of `sizes`. Raises BlockTooLarge for a block whose
-    cell does not fit a page."""
-    _check(sizes, page, pad)
-    order = sorted(range(len(sizes)), key=lambda i: (-sizes[i][1], -sizes[i][0], i))
+# Orders tried by pack(): largest first by height, by area, by longer side, by width.
+_ORDERS = (lambda w, h: (-h, -w), lambda w, h: (-w * h, -h), lambda w, h: (-max(w, h), -w * h),
+           lambda w, h: (-w, -h))
+
+
+def _pack_in_order(sizes, order, page, pad):
     pages = []
     out = [None] * len(sizes)
     for i in order:
         w, h = sizes[i]
         cw, ch = w + 2 * pad, h + 2 * pad
         best = None
-        for k, sky in enumerate(pages):
+        for k, sky in enumerate(pages):  # the first page with room: pages fill one after another
             spot = sky.find(cw, ch)
-            if spot is not None and (best is None or spot[:2] < best[0][:2]):
+            if spot is not None:
                 best = (spot, k)
+                break
         if best is None:
             pages.append(_Skyline(page))
             best = (pages[-1].find(cw, ch), len(pages) - 1)
@@ -122,6 +123,25 @@ def pack(sizes, page, pad):
         pages[k].add(x, y, cw, ch, index)
         out[i] = Placement(k, x + pad, y + pad, w, h)
     return out
+
+
+def pack(sizes, page, pad):
+    """Place blocks of `sizes` [(w, h), ...] into as few page x page pages as the packing finds.
+    Returns a list of Placement in the order of `sizes`. Raises BlockTooLarge for a block whose
+    cell does not fit a page.
+
+    Blocks go largest first; "largest" is tried as tallest, of most area, of longest side and
+    widest, and the layout with the fewest pages (then the least filled last page) is kept."""
+    _check(sizes, page, pad)
+    best, best_key = [], None
+    for rank in _ORDERS:
+        order = sorted(range(len(sizes)), key=lambda i: rank(*sizes[i]) + (i,))
+        placed = _pack_in_order(sizes, order, page, pad)
+        count = page_count(placed)
+        last = sum((p.w + 2 * pad) * (p.h + 2 * pad) for p in placed if p.page == count - 1)
+        if best_key is None or (count, last) < best_key:
+            best, best_key = placed, (count, last)
+    return best
 
 
 def _overlaps(a, b):
