@@ -14,6 +14,8 @@ Expected:
   read with a wrong place (another object's block, or its own moved by half a block) at least 90 %
   of the objects do not (a few objects' light may happen to match another's);
 - the preview reads the page through 'PhotonLM Atlas'; Remove Preview removes its nodes;
+- a glTF export (modifiers applied) of an object holds its atlas UVs as TEXCOORD_<index of the map>,
+  inside its block, spanning what the evaluated mesh's map spans;
 - Bake Selected (another seed): blocks keep their size and place, texels outside the selected
   objects' cells are unchanged bit for bit, inside they are new; a selected object whose block
   grows (density scale 2) moves to free space and nothing else moves; Bake Selected after the
@@ -22,6 +24,7 @@ Expected:
 - one object has an Array modifier (its automatic map in a helper mesh, carried by Data Transfer):
   it is checked like the others.
 """
+import json
 import math
 import os
 import sys
@@ -104,6 +107,46 @@ def surface_uvs(obj):
         return out
     finally:
         ev.to_mesh_clear()
+
+
+def corner_uvs(obj):
+    """The evaluated mesh's atlas UVs at every face corner, (N, 2)."""
+    ev = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    mesh = ev.to_mesh()
+    try:
+        uv = np.empty(len(mesh.loops) * 2, np.float32)
+        mesh.uv_layers[ATLAS_UV].data.foreach_get("uv", uv)
+        return uv.reshape(-1, 2)
+    finally:
+        ev.to_mesh_clear()
+
+
+def gltf_atlas_uvs(obj, folder):
+    """Export obj alone as glTF (modifiers applied) and read back its 'PhotonLM Atlas' UVs, the
+    TEXCOORD_<index of the map>, in Blender's orientation (v = 1 - glTF's v). None if absent."""
+    os.makedirs(folder, exist_ok=True)
+    for o in bpy.context.view_layer.objects:
+        o.select_set(o == obj)
+    path = os.path.join(folder, obj.name + ".gltf")
+    bpy.ops.export_scene.gltf(filepath=path, export_format='GLTF_SEPARATE', use_selection=True,
+                              export_apply=True, export_materials='NONE')
+    with open(path) as f:
+        doc = json.load(f)
+    with open(os.path.join(folder, doc["buffers"][0]["uri"]), "rb") as f:
+        data = f.read()
+    key = "TEXCOORD_%d" % list(obj.data.uv_layers.keys()).index(ATLAS_UV)
+    out = []
+    for prim in doc["meshes"][0]["primitives"]:
+        if key not in prim["attributes"]:
+            return None
+        acc = doc["accessors"][prim["attributes"][key]]
+        view = doc["bufferViews"][acc["bufferView"]]
+        assert view.get("byteStride", 8) == 8 and acc["componentType"] == 5126
+        start = view.get("byteOffset", 0) + acc.get("byteOffset", 0)
+        out.append(np.frombuffer(data, np.float32, count=2 * acc["count"], offset=start).reshape(-1, 2))
+    uv = np.concatenate(out).astype(np.float64)
+    uv[:, 1] = 1.0 - uv[:, 1]
+    return uv
 
 
 def bilinear(image, uv):
@@ -208,6 +251,18 @@ def main():
     page_image = bpy.data.objects["obj_07"][atlas.PAGE_KEY]
     checks.check(uv_node.uv_map == ATLAS_UV and tex.image.name == page_image and page_image.startswith("Scene_atlas_"),
                  "the preview reads '%s' through '%s'" % (tex.image.name, uv_node.uv_map))
+
+    # -- a glTF export (modifiers applied) carries the atlas UV map -----------------------------------
+    for n in ("obj_05", "obj_07"):
+        got = gltf_atlas_uvs(bpy.data.objects[n], os.path.join(out, "gltf"))
+        p = places[n]
+        lo, hi = np.array([p.x, p.y]) / PAGE, np.array([p.x + p.w, p.y + p.h]) / PAGE
+        corners = corner_uvs(bpy.data.objects[n])
+        checks.check(got is not None and (got >= lo - 1e-6).all() and (got <= hi + 1e-6).all()
+                     and np.allclose(got.min(axis=0), corners.min(axis=0), atol=1e-6)
+                     and np.allclose(got.max(axis=0), corners.max(axis=0), atol=1e-6),
+                     "the glTF export of %s holds its atlas UVs as TEXCOORD_%d, inside its block"
+                     % (n, list(bpy.data.objects[n].data.uv_layers.keys()).index(ATLAS_UV)))
 
     # -- the per-object bake of the same scene, through the atlas and through its own map ------------
     atlas_uvs = {n: surface_uvs(bpy.data.objects[n])[1] for n in names}
