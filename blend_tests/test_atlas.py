@@ -13,7 +13,8 @@ Expected:
   mean and RMS within 1 % (the two bakes see the same engine input, so they agree to rounding);
   read with a wrong place (another object's block, or its own moved by half a block) at least 90 %
   of the objects do not (a few objects' light may happen to match another's);
-- the preview reads the page through 'PhotonLM Atlas'; Remove Preview removes its nodes;
+- the preview reads the page through 'PhotonLM Atlas'; Remove Preview removes its nodes; a bake
+  into lightmaps of their own removes the objects' atlas UV map and properties;
 - a glTF export (modifiers applied) of an object holds its atlas UVs as TEXCOORD_<index of the map>,
   inside its block, spanning what the evaluated mesh's map spans;
 - Bake Selected (another seed): blocks keep their size and place, texels outside the selected
@@ -27,6 +28,7 @@ Expected:
 import json
 import math
 import os
+import shutil
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -89,8 +91,8 @@ BARY = np.array([[1 / 3, 1 / 3, 1 / 3], [0.6, 0.2, 0.2], [0.2, 0.6, 0.2], [0.2, 
                  [0.45, 0.45, 0.1], [0.1, 0.45, 0.45], [0.45, 0.1, 0.45]])
 
 
-def surface_uvs(obj):
-    """(lightmap uv, atlas uv) at points spread over every triangle of the evaluated mesh: (N, 2) each."""
+def surface_uvs(obj, maps=("lightmap", ATLAS_UV)):
+    """The UVs of `maps` at points spread over every triangle of the evaluated mesh: (N, 2) each."""
     deps = bpy.context.evaluated_depsgraph_get()
     ev = obj.evaluated_get(deps)
     mesh = ev.to_mesh()
@@ -99,7 +101,7 @@ def surface_uvs(obj):
         loops = np.empty(len(mesh.loop_triangles) * 3, np.int32)
         mesh.loop_triangles.foreach_get("loops", loops)
         out = []
-        for name in ("lightmap", ATLAS_UV):
+        for name in maps:
             uv = np.empty(len(mesh.loops) * 2, np.float32)
             mesh.uv_layers[name].data.foreach_get("uv", uv)
             corners = uv.reshape(-1, 2)[loops].reshape(-1, 3, 2).astype(np.float64)
@@ -107,6 +109,14 @@ def surface_uvs(obj):
         return out
     finally:
         ev.to_mesh_clear()
+
+
+def corner_uv_names(obj):
+    ev = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    mesh = ev.to_mesh()
+    names = list(mesh.uv_layers.keys())
+    ev.to_mesh_clear()
+    return names
 
 
 def corner_uvs(obj):
@@ -190,8 +200,8 @@ def main():
     build()
     out = scenes.out_dir("atlas")
     bpy.context.scene.photonlm.output_dir = out
-    for f in os.listdir(out):
-        os.remove(os.path.join(out, f))
+    shutil.rmtree(out)
+    os.makedirs(out)
     last = scenes.photonlm_bake(400_000, 4, seed=5, target_error=0.0)
     layout = bpy.context.scene[atlas.LAYOUT_KEY].to_dict()
     names = sorted(last["objects"])
@@ -270,10 +280,14 @@ def main():
         bpy.data.objects[n].photonlm.resolution = places[n].w
     bpy.context.scene.photonlm.lightmap_layout = 'OBJECT'
     ref = scenes.photonlm_bake(400_000, 4, seed=5, target_error=0.0)
+    stale = [n for n in names if atlas.PAGE_KEY in bpy.data.objects[n] or ATLAS_UV in bpy.data.objects[n].data.uv_layers
+             or ATLAS_UV in corner_uv_names(bpy.data.objects[n])]
+    checks.check(not stale, "baked into lightmaps of their own, objects lose their atlas UV map and properties: "
+                 "not %s" % stale[:3])
     bad, worst = [], 0.0
     wrong_other, wrong_shift = 0, 0
     for i, n in enumerate(names):
-        luv, _ = surface_uvs(bpy.data.objects[n])
+        luv, = surface_uvs(bpy.data.objects[n], ("lightmap",))
         own = photonlm.read_lightmap_exr(ref["objects"][n]["path"]).rgb
         want = mean_rms(bilinear(own, luv))
         p = places[n]
@@ -336,10 +350,10 @@ def main():
                  % (places[grown].w, moved.w, moved.page))
 
     bpy.context.scene.photonlm.atlas_size = '1024'
-    stamp = {f: os.path.getmtime(os.path.join(out, f)) for f in os.listdir(out)}
+    stamp = {f: os.path.getmtime(os.path.join(out, f)) for f in os.listdir(out) if f.endswith(".exr")}
     res = bake_selected(chosen, 8)
     checks.check("another page size" in str(res) and stamp == {f: os.path.getmtime(os.path.join(out, f))
-                                                                  for f in os.listdir(out)},
+                                                                  for f in os.listdir(out) if f.endswith(".exr")},
                  "Bake Selected after the page size changed is refused and changes no file: %s" % res)
     bpy.context.scene.photonlm.atlas_size = str(PAGE)
     bpy.data.objects["floor"].photonlm.density_scale = 1.0  # 960 texels wanted: capped to fit a page

@@ -19,7 +19,8 @@ photonlm_atlas records the layout (page size, pad, pages, each object's block).
 Bake Selected keeps the layout: a selected object whose block keeps its size is written into its
 old place; one whose size changed, or that was in no page, goes to free space in a page (a new
 page when none has room); every other block and page stays as it was (pages are read back from
-their files). Bake Lightmaps (all objects) packs everything anew.
+their files). Bake Lightmaps (all objects) packs everything anew. Objects baked later into lightmaps of their
+own lose their atlas UV map and properties (forget).
 """
 import os
 
@@ -209,6 +210,8 @@ def store(context, job, lightmaps, out_dir, pack, per_object):
     page_images, error_images = [], []
     for k in range(count):
         name = page_name(scene, k)
+        if layout is not None and k < len(layout["pages"]):  # a page already there keeps its name
+            name = layout["pages"][k][:-len("_lightmap")]
         if k in changed:
             if layout is not None and k < len(layout["files"]):
                 old = plm.read_lightmap_exr(files[k])
@@ -269,6 +272,22 @@ def store(context, job, lightmaps, out_dir, pack, per_object):
         stale = [(name, path) for name, path in zip(old_layout.get("pages", ()), old_layout.get("files", ()))
                  if name not in scene[LAYOUT_KEY]["pages"]]
     return images, errors, uv_maps, stale
+
+
+def forget(names):
+    """Objects baked into lightmaps of their own: remove their atlas UV map and properties, which
+    would point into an atlas that no longer holds their light."""
+    for n in names:
+        obj = bpy.data.objects.get(n)
+        if obj is None or PAGE_KEY not in obj:
+            continue
+        for key in (PAGE_KEY, FILE_KEY, SCALE_OFFSET_KEY):
+            obj.pop(key, None)
+        mod = uvmaps.automatic_modifier(obj)
+        for mesh in [obj.data] + ([mod.object.data] if mod is not None else []):
+            layer = mesh.uv_layers.get(ATLAS_UV)
+            if layer is not None:
+                mesh.uv_layers.remove(layer)
 
 
 def remove_stale(stale):

@@ -289,6 +289,8 @@ class BakeJob:
                 images, error_images, uv_maps, stale = atlas.store(context, self, atlas_blocks, out_dir, pack,
                                                                    per_object)
                 atlas_blocks.clear()
+            else:
+                atlas.forget(per_object)
             self._wire(context, images, error_images, target, uv_maps)
             atlas.remove_stale(stale)
             for name, lid in self.export.lsystems:
