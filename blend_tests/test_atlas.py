@@ -1,4 +1,5 @@
-"""Lightmap atlases: 50 small objects (cubes and ico spheres of five sizes) and a floor under a sun,
+"""Lightmap atlases: 52 small objects (cubes and ico spheres of five sizes, two of them linked
+duplicates) and a floor under a sun,
 baked into 512 x 512 atlas pages at one texel density, then compared with a lightmap-per-object bake
 of the same scene (same seed, each object at its atlas block's size).
 
@@ -22,8 +23,9 @@ Expected:
   grows (density scale 2) moves to free space and nothing else moves; Bake Selected after the
   page size changed, and a Resolution too large for a page, are refused naming why; an object whose
   density asks for more than a page is capped to fit, with a warning naming it;
-- one object has an Array modifier (its automatic map in a helper mesh, carried by Data Transfer):
-  it is checked like the others.
+- one object has an Array modifier (its automatic map in a helper mesh, carried by Data Transfer),
+  and it and another object have linked duplicates (one mesh, one helper for two blocks): all are
+  checked like the others.
 """
 import json
 import math
@@ -62,6 +64,12 @@ def build():
         if i == 5:  # a modifier that changes the topology: the automatic map lives in a helper mesh
             obj.modifiers.new("Array", 'ARRAY').count = 2
         obj.data.materials.append(scenes.diffuse_material("mat_%02d" % i, (0.3 + 0.01 * i, 0.5, 0.7)))
+    for src, name, y in (("obj_05", "obj_05_twin", 4.6), ("obj_02", "obj_02_twin", 4.6)):
+        # Linked duplicates: one mesh (and for obj_05 one helper mesh) for two objects in two blocks.
+        twin = bpy.data.objects[src].copy()
+        twin.name = name
+        twin.location.y = y
+        bpy.context.scene.collection.objects.link(twin)
     scenes.add_light("sun", 'SUN', (0, 0, 5), rotation=(0.5, 0.3, 0.0), energy=3.0)
     scenes.set_world_color((0.05, 0.05, 0.05))
     s = bpy.context.scene.photonlm
@@ -208,8 +216,12 @@ def main():
     pad = layout["pad"]
     places = {n: atlas_pack.Placement(*layout["blocks"][n]) for n in names}
     from photonlm_blender import uvmaps
-    checks.check(len(names) == 51 and pad == 4 and uvmaps.automatic_modifier(bpy.data.objects["obj_05"]) is not None,
-                 "51 objects baked into the atlas, pad %d (margin 8); obj_05's map comes from a helper mesh" % pad)
+    twins = [bpy.data.objects[n] for n in ("obj_05", "obj_05_twin")]
+    mods = [uvmaps.automatic_modifier(o) for o in twins]
+    checks.check(len(names) == 53 and pad == 4 and None not in mods and mods[0].object == mods[1].object
+                 and bpy.data.objects["obj_02"].data == bpy.data.objects["obj_02_twin"].data,
+                 "53 objects baked into the atlas, pad %d (margin 8); obj_05 and its twin share a helper mesh, "
+                 "obj_02 and its twin a mesh" % pad)
 
     # -- pages: few, as the area needs ------------------------------------------------------------
     cells = sum((p.w + 2 * pad) * (p.h + 2 * pad) for p in places.values())
@@ -263,7 +275,7 @@ def main():
                  "the preview reads '%s' through '%s'" % (tex.image.name, uv_node.uv_map))
 
     # -- a glTF export (modifiers applied) carries the atlas UV map -----------------------------------
-    for n in ("obj_05", "obj_07"):
+    for n in ("obj_05", "obj_05_twin", "obj_07", "obj_02_twin"):
         got = gltf_atlas_uvs(bpy.data.objects[n], os.path.join(out, "gltf"))
         p = places[n]
         lo, hi = np.array([p.x, p.y]) / PAGE, np.array([p.x + p.w, p.y + p.h]) / PAGE

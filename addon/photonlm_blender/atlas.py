@@ -9,8 +9,12 @@ repeats the block's edge texels. Per page the bake writes
     <scene>_atlas_<k>_error.exr      the heat map of its relative errors
 and loads them as images of the same names. Each object gets
     the UV map 'PhotonLM Atlas': its lightmap UVs moved into its block, u' = u su + ou,
-        v' = v sv + ov (where the map is automatic and lives in a helper mesh, the helper holds it
-        too and the object's Data Transfer modifier carries it: the mesh gets an empty map);
+        v' = v sv + ov. The mesh holding the lightmap map (the object's own, or the helper mesh of
+        an automatic map that a Data Transfer modifier brings, uvmaps.py) holds a copy of it as
+        'PhotonLM Atlas' (the object's own mesh then an empty one for Data Transfer to fill), and a
+        UV Warp modifier 'PhotonLM Atlas UV' of the object's moves it into the block, so that
+        objects sharing a mesh (linked duplicates, or copies sharing one helper) each get their own
+        place;
     custom properties photonlm_atlas_page (the page image's name), photonlm_atlas_file (the page
         file, relative to the .blend where possible) and photonlm_atlas_scale_offset (su, sv, ou, ov),
 and its materials' preview reads the page through 'PhotonLM Atlas'. The scene's ID property
@@ -134,7 +138,8 @@ def _placements(scene, names, sizes, selected_only, layout):
 
 
 def _write_uv(obj, scale_offset, reports):
-    """The object's UV map ATLAS_UV: its lightmap UVs moved into its block (see the module text)."""
+    """The object's UV map ATLAS_UV (a copy of its lightmap UVs, in the mesh that holds them) and the
+    UV Warp modifier that moves it into the object's block (see the module text)."""
     mod = uvmaps.automatic_modifier(obj)
     holders = [obj.data] if mod is None else [mod.object.data, obj.data]
     src = holders[0].uv_layers.get(uvmaps.LIGHTMAP_UV)
@@ -144,8 +149,6 @@ def _write_uv(obj, scale_offset, reports):
     uv = np.empty(len(holders[0].loops) * 2, np.float32)
     if len(uv):
         src.data.foreach_get("uv", uv)
-    su, sv, ou, ov = scale_offset
-    uv = (uv.reshape(-1, 2) * np.array([su, sv], np.float32) + np.array([ou, ov], np.float32)).ravel()
     for i, mesh in enumerate(holders):
         layer = mesh.uv_layers.get(ATLAS_UV)
         if layer is None:
@@ -163,23 +166,37 @@ def _write_uv(obj, scale_offset, reports):
         # The helper's map is the data; the object's own mesh (Data Transfer's destination) gets zeros.
         layer.data.foreach_set("uv", uv if i == 0 else np.zeros(len(mesh.loops) * 2, np.float32))
         mesh.update()
+    _place_warp(obj, scale_offset, mod)
     return True
 
 
-def _warn_shared_meshes(names, reports):
-    """Objects sharing one mesh share its atlas UV map, which can hold one block only."""
-    users = {}
-    for n in names:
-        obj = bpy.data.objects.get(n)
-        if obj is not None:
-            mod = uvmaps.automatic_modifier(obj)
-            users.setdefault((mod.object.data if mod is not None else obj.data).name, []).append(n)
-    for mesh, objs in users.items():
-        if len(objs) > 1:
-            reports.warning("objects %s share the mesh '%s': its '%s' UV map holds the block of '%s' only, "
-                            "so the others show the wrong part of the atlas (make the mesh single-user: "
-                            "Object > Relations > Make Single User)"
-                            % (", ".join("'%s'" % o for o in objs), mesh, ATLAS_UV, objs[-1]))
+def _place_warp(obj, scale_offset, transfer):
+    """The object's UV Warp modifier: ATLAS_UV -> (uv + offset) x scale = uv su + ou (center 0), just
+    after the Data Transfer modifier that brings the map, else before a last Subdivision Surface (which
+    keeps GPU subdivision; an affine map commutes with subdivision's UV interpolation), else last."""
+    warp = next((m for m in obj.modifiers if uvmaps.is_atlas_modifier(m)), None)
+    if warp is None:
+        active = obj.modifiers.active
+        warp = obj.modifiers.new(uvmaps.ATLAS_MODIFIER_NAME, 'UV_WARP')
+        if active is not None:
+            obj.modifiers.active = active  # the user's active modifier stays active
+        warp.show_expanded = False
+    su, sv, ou, ov = scale_offset
+    warp.uv_layer = ATLAS_UV
+    warp.center = (0.0, 0.0)
+    warp.scale = (su, sv)
+    warp.offset = (ou / su, ov / sv)
+    warp.rotation = 0.0
+    warp.object_from = warp.object_to = None
+    warp.vertex_group = ""
+    mods = [m for m in obj.modifiers if m != warp]
+    if transfer is not None:
+        index = mods.index(transfer) + 1
+    elif mods and mods[-1].type == 'SUBSURF':
+        index = len(mods) - 1
+    else:
+        index = len(mods)
+    uvmaps._move_modifier(obj, warp, index)
 
 
 def _relative(path):
@@ -239,7 +256,6 @@ def store(context, job, lightmaps, out_dir, pack, per_object):
         error_images.append(error_image)
 
     images, errors, uv_maps = {}, {}, {}
-    _warn_shared_meshes(names, job.reports)
     for n in names:
         p = placements[n]
         so = p.scale_offset(size)
@@ -288,6 +304,8 @@ def forget(names):
             layer = mesh.uv_layers.get(ATLAS_UV)
             if layer is not None:
                 mesh.uv_layers.remove(layer)
+        for warp in [m for m in obj.modifiers if uvmaps.is_atlas_modifier(m)]:
+            obj.modifiers.remove(warp)
 
 
 def remove_stale(stale):
