@@ -24,7 +24,8 @@ Expected:
   page size changed, and a Resolution too large for a page, are refused naming why; an object whose
   density asks for more than a page is capped to fit, with a warning naming it;
 - one object has an Array modifier (its automatic map in a helper mesh, carried by Data Transfer),
-  and it and another object have linked duplicates (one mesh, one helper for two blocks): all are
+  one a Subdivision Surface the engine refines from the cage, and the first and another object
+  have linked duplicates (one mesh, one helper for two blocks): all are
   checked like the others.
 """
 import json
@@ -63,6 +64,9 @@ def build():
         obj.name = "obj_%02d" % i
         if i == 5:  # a modifier that changes the topology: the automatic map lives in a helper mesh
             obj.modifiers.new("Array", 'ARRAY').count = 2
+        if i == 6:  # refined by the engine from its cage: the atlas warp goes before the subdivision
+            sub = obj.modifiers.new("Subdivision", 'SUBSURF')
+            sub.levels = sub.render_levels = 1
         obj.data.materials.append(scenes.diffuse_material("mat_%02d" % i, (0.3 + 0.01 * i, 0.5, 0.7)))
     for src, name, y in (("obj_05", "obj_05_twin", 4.6), ("obj_02", "obj_02_twin", 4.6)):
         # Linked duplicates: one mesh (and for obj_05 one helper mesh) for two objects in two blocks.
@@ -216,6 +220,8 @@ def main():
     pad = layout["pad"]
     places = {n: atlas_pack.Placement(*layout["blocks"][n]) for n in names}
     from photonlm_blender import uvmaps
+    mods6 = [m.type for m in bpy.data.objects["obj_06"].modifiers]
+    checks.check(mods6 == ['UV_WARP', 'SUBSURF'], "obj_06's atlas warp comes before its subdivision: %s" % mods6)
     twins = [bpy.data.objects[n] for n in ("obj_05", "obj_05_twin")]
     mods = [uvmaps.automatic_modifier(o) for o in twins]
     checks.check(len(names) == 53 and pad == 4 and None not in mods and mods[0].object == mods[1].object
@@ -238,6 +244,8 @@ def main():
     wrong = []
     for n in names:
         obj = bpy.data.objects[n]
+        if n == "obj_06":
+            continue  # sized from its cage's area, as in lightmaps of their own (subdiv_export.py)
         want = max(16, math.ceil(math.sqrt(surface_area(obj)) * DENSITY * obj.photonlm.density_scale))
         if (places[n].w, places[n].h) != (want, want):
             wrong.append("%s %s != %d" % (n, places[n][3:], want))
