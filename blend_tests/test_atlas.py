@@ -208,7 +208,7 @@ def main():
     checks = scenes.Checks("atlas")
     scenes.setup_paths()
     import photonlm
-    from photonlm_blender import atlas, atlas_pack, bake, materials
+    from photonlm_blender import atlas, atlas_pack, materials
     build()
     out = scenes.out_dir("atlas")
     bpy.context.scene.photonlm.output_dir = out

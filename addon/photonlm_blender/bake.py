@@ -276,7 +276,8 @@ class BakeJob:
                 texels = int(np.count_nonzero(covered))
                 above = int(np.count_nonzero(relative[covered] > 2.0 * target))
                 small = b.width * b.height <= 1024 * 1024
-                per_object[b.object_name] = dict(mesh_id=b.mesh_id, image=None if atlas_mode else images[b.object_name].name,
+                per_object[b.object_name] = dict(mesh_id=b.mesh_id,
+                                                 image=None if atlas_mode else images[b.object_name].name,
                                                  path=path, size=(b.width, b.height), coverage=lm.coverage,
                                                  rgb=lm.rgb if small else None,
                                                  error=lm.error if small else None,
