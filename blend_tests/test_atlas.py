@@ -8,7 +8,8 @@ Expected:
   and few (at most 4); every object's block size is ceil(sqrt(area) x density x density scale)
   (the floor's density scale 0.25 shows in its block);
 - no two cells (block + pad) overlap, none leaves its page; every object's 'PhotonLM Atlas' UVs lie
-  inside its block; the page file holds each object's baked texels at its block, bit for bit;
+  inside its block; the page file holds each object's baked texels at its block, bit for bit, and
+  the block's edge texels in the pad around it;
 - each object's light read through 'PhotonLM Atlas' from its page (bilinear, at points spread over
   every triangle) matches its own lightmap read through 'lightmap' in the per-object bake: per-object
   mean and RMS within 1 % (the two bakes see the same engine input, so they agree to rounding);
@@ -261,8 +262,8 @@ def main():
     misplaced, uv_outside = [], []
     for n in names:
         p = places[n]
-        block = page_data[p.page].rgb[p.y:p.y + p.h, p.x:p.x + p.w]
-        if not np.array_equal(block, last["objects"][n]["rgb"]):
+        cell = page_data[p.page].rgb[p.y - pad:p.y + p.h + pad, p.x - pad:p.x + p.w + pad]
+        if not np.array_equal(cell, np.pad(last["objects"][n]["rgb"], ((pad, pad), (pad, pad), (0, 0)), "edge")):
             misplaced.append(n)
         _, auv = surface_uvs(bpy.data.objects[n])
         lo, hi = np.array([p.x, p.y]) / PAGE, np.array([p.x + p.w, p.y + p.h]) / PAGE
@@ -271,7 +272,8 @@ def main():
         so = tuple(bpy.data.objects[n][atlas.SCALE_OFFSET_KEY])
         if not np.allclose(so, p.scale_offset(PAGE)):
             uv_outside.append(n + " (scale-offset)")
-    checks.check(not misplaced, "the page holds every object's texels at its block: wrong for %s" % misplaced[:5])
+    checks.check(not misplaced, "the page holds every object's texels at its block, its edge texels repeated in "
+                 "the margin around it: wrong for %s" % misplaced[:5])
     checks.check(not uv_outside, "every object's atlas UVs lie inside its block: not for %s" % uv_outside[:5])
 
     # -- the preview reads the page through the atlas UV map ----------------------------------------
