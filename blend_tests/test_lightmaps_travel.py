@@ -11,6 +11,8 @@ Expected:
   round-trip through the .blend unchanged.
 - Pack Lightmaps on a saved file: packed; the moved .blend keeps the pixels with the lightmaps
   folder deleted.
+All of it once with a lightmap per object and once with atlases (the pages are the images then;
+the objects' photonlm_atlas_file and the scene's atlas layout link the pages relative to the .blend).
 """
 import os
 import shutil
@@ -24,9 +26,11 @@ import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 
 
-def build_scene():
+def build_scene(layout):
     scenes.clear_scene()
     scenes.cornell_box(resolution=16)
+    bpy.context.scene.photonlm.lightmap_layout = layout
+    bpy.context.scene.photonlm.atlas_size = '512'
 
 
 def lightmap_pixels():
@@ -54,12 +58,20 @@ def same_pixels(checks, before, what):
 def main():
     checks = scenes.Checks("lightmaps_travel")
     scenes.setup_paths()
-    from photonlm_blender import bake
     os.environ.pop("PHOTONLM_TEST_OUT", None)  # the user's set-up: no test folder
+    for layout in ('OBJECT', 'ATLAS'):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        scenes.setup_paths()
+        run(checks, layout)
+    checks.finish()
+
+
+def run(checks, layout):
+    from photonlm_blender import bake
     root = tempfile.mkdtemp(prefix="photonlm-travel-")
     try:
         # -- a saved project, files linked relative to it --------------------------------------
-        build_scene()
+        build_scene(layout)
         project = os.path.join(root, "project")
         os.makedirs(project)
         bpy.ops.wm.save_as_mainfile(filepath=os.path.join(project, "room.blend"))
@@ -70,6 +82,13 @@ def main():
                      "images link their files relative to the .blend: %s" % sorted(links.values()))
         checks.check(all(im.packed_file is None for im in bpy.data.images if im.name.endswith("_lightmap")),
                      "a saved file does not pack by default")
+        if layout == 'ATLAS':
+            atlas = bpy.context.scene.get("photonlm_atlas")
+            files = list(atlas["files"]) if atlas else []
+            checks.check(len(links) == len(files) >= 1 and all(f.startswith("//lightmaps/") for f in files)
+                         and all(o.get("photonlm_atlas_file") in files for o in bpy.data.objects
+                                 if o.type == 'MESH'),
+                         "atlas pages %s and the objects' photonlm_atlas_file are relative to the .blend" % files)
         before = lightmap_pixels()
         bpy.ops.wm.save_mainfile()
         moved = os.path.join(root, "moved project")
@@ -94,7 +113,7 @@ def main():
         # -- an unsaved file packs, in a folder of its own ----------------------------------------
         bpy.ops.wm.read_homefile(use_empty=True)
         scenes.setup_paths()
-        build_scene()
+        build_scene(layout)
         checks.check(not bpy.data.is_saved, "the file is unsaved")
         folder = bake.output_directory(bpy.context.scene)
         shared = os.path.join(tempfile.gettempdir(), "photonlm")
@@ -112,7 +131,6 @@ def main():
         same_pixels(checks, before, "packed in an unsaved file, then saved")
     finally:
         shutil.rmtree(root, ignore_errors=True)
-    checks.finish()
 
 
 main()

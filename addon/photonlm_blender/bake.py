@@ -27,7 +27,7 @@ import time
 import bpy
 import numpy as np
 
-from . import bridge, export, lsystem, materials, properties, uvmaps, world_export
+from . import atlas, bridge, export, lsystem, materials, properties, uvmaps, world_export
 
 # Heat-map images larger than this per side hold the RMS of blocks of texels.
 ERROR_IMAGE_MAX = 2048
@@ -84,7 +84,7 @@ def bake_settings(scene):
     return dict(photons=int(settings.photons), max_bounces=int(settings.max_bounces),
                 seed=int(settings.seed), target_error=float(settings.target_error),
                 time_budget=float(settings.time_budget), direct_samples=int(settings.direct_samples),
-                texel_value=settings.texel_value)
+                texel_value=settings.texel_value, dilation=int(settings.lightmap_margin))
 
 
 class _Quiet:
@@ -194,6 +194,12 @@ class BakeJob:
         if not self.export.baked and not self.export.lsystems:
             self.abort(context)
             raise BakeError("nothing to bake: every object was skipped (see the reports)")
+        if atlas.is_atlas(context.scene):
+            try:
+                atlas.check(context.scene, self.export.baked, selected_only)
+            except atlas.AtlasError as e:
+                self.abort(context)
+                raise BakeError(str(e)) from None
 
     # -- worker side: no bpy below this line until finish() ---------------------------------
     def run(self, progress=None):
@@ -242,37 +248,52 @@ class BakeJob:
             used_files = set()
             images = {}
             error_images = {}
+            atlas_mode = atlas.is_atlas(scene)
+            atlas_blocks, uv_maps = {}, {}
             for b in self.export.baked:
-                base = export.safe_file_name(b.object_name)
-                fname = base + "_lightmap.exr"
-                k = 1
-                while fname.lower() in used_files:
-                    k += 1
-                    fname = "%s_%d_lightmap.exr" % (base, k)
-                used_files.add(fname.lower())
-                path = os.path.join(out_dir, fname)
-                result.write_exr(b.mesh_id, path)
                 lm = result.lightmap(b.mesh_id)
-                image = load_image(b.object_name + "_lightmap", path, pack)
-                images[b.object_name] = image
                 relative = relative_error(lm.rgb, lm.error)
-                error_path = path[:-len("_lightmap.exr")] + "_error.exr"
-                write_error_exr(error_path, error_image_pixels(relative))
-                error_image = load_image(b.object_name + "_error", error_path, pack)
-                error_image[materials.TAG] = materials.ERROR_IMAGE_TAG
-                error_images[b.object_name] = error_image
+                path = error_path = None
+                if atlas_mode:  # written into atlas pages below
+                    atlas_blocks[b.object_name] = lm
+                else:
+                    base = export.safe_file_name(b.object_name)
+                    fname = base + "_lightmap.exr"
+                    k = 1
+                    while fname.lower() in used_files:
+                        k += 1
+                        fname = "%s_%d_lightmap.exr" % (base, k)
+                    used_files.add(fname.lower())
+                    path = os.path.join(out_dir, fname)
+                    result.write_exr(b.mesh_id, path)
+                    images[b.object_name] = load_image(b.object_name + "_lightmap", path, pack)
+                    error_path = path[:-len("_lightmap.exr")] + "_error.exr"
+                    write_error_exr(error_path, error_image_pixels(relative))
+                    error_image = load_image(b.object_name + "_error", error_path, pack)
+                    error_image[materials.TAG] = materials.ERROR_IMAGE_TAG
+                    error_images[b.object_name] = error_image
                 covered = lm.coverage > 0.0
                 texels = int(np.count_nonzero(covered))
                 above = int(np.count_nonzero(relative[covered] > 2.0 * target))
                 small = b.width * b.height <= 1024 * 1024
-                per_object[b.object_name] = dict(mesh_id=b.mesh_id, image=image.name, path=path,
-                                                 size=(b.width, b.height), coverage=lm.coverage,
+                per_object[b.object_name] = dict(mesh_id=b.mesh_id,
+                                                 image=None if atlas_mode else images[b.object_name].name,
+                                                 path=path, size=(b.width, b.height), coverage=lm.coverage,
                                                  rgb=lm.rgb if small else None,
                                                  error=lm.error if small else None,
-                                                 error_image=error_image.name, error_path=error_path,
+                                                 error_image=None if atlas_mode else error_images[b.object_name].name,
+                                                 error_path=error_path,
                                                  texels=texels, texels_above=above,
                                                  error_above=above / texels if texels else 0.0)
-            self._wire(context, images, error_images, target)
+            stale = []
+            if atlas_mode:
+                images, error_images, uv_maps, stale = atlas.store(context, self, atlas_blocks, out_dir, pack,
+                                                                   per_object)
+                atlas_blocks.clear()
+            else:
+                atlas.forget(per_object)
+            self._wire(context, images, error_images, target, uv_maps)
+            atlas.remove_stale(stale)
             for name, lid in self.export.lsystems:
                 obj = bpy.data.objects.get(name)
                 if obj is not None:
@@ -328,9 +349,10 @@ class BakeJob:
         self.created_uvs = []
         return LAST
 
-    def _wire(self, context, images, error_images, target):
-        """Wire each baked object's materials to its lightmap image and its heat map (first object
-        wins for a material shared by several baked objects)."""
+    def _wire(self, context, images, error_images, target, uv_maps):
+        """Wire each baked object's materials to its lightmap image and its heat map, read through
+        its uv_maps entry (default: the lightmap UV map). A material shared by baked objects shows
+        the first one's image: all of them where they share an atlas page."""
         engine = context.scene.render.engine
         owners = {}
         for b in sorted(self.export.baked, key=lambda b: b.object_name):
@@ -346,12 +368,13 @@ class BakeJob:
             mat = bpy.data.materials.get(name)
             if mat is None:
                 continue
-            if len(objs) > 1:
+            if len({images[o].name for o in objs}) > 1:
                 self.reports.warning("material '%s' is shared by %s: its preview shows the lightmap of "
                                      "'%s' only (give each object its own material)"
                                      % (name, ", ".join("'%s'" % o for o in objs), objs[0]))
             for note in materials.wire_material(mat, images[objs[0]], engine, error_image=error_images[objs[0]],
-                                                target_error=target):
+                                                target_error=target,
+                                                uv_map=uv_maps.get(objs[0], materials.LIGHTMAP_UV)):
                 self.reports.warning(note)
             materials.set_preview(mat, context.scene.photonlm.preview_mode)
 

@@ -131,9 +131,8 @@ def surface_area(pos, tris):
 
 
 def object_resolution(obj, area, density):
-    if obj.photonlm.resolution > 0:
-        return int(obj.photonlm.resolution)
-    return properties.resolution_from_area(area, density)
+    """density: the scene's properties.ResolutionRule."""
+    return density(obj, area)
 
 
 def safe_file_name(name):
@@ -157,7 +156,7 @@ def ensure_lightmap_uvs(context, objects, reports):
     """Make or refresh the automatic `lightmap` UV maps of the objects that have no map of the user's
     (uvmaps.py): made for the evaluated mesh, at the resolution the export will give each object.
     Returns a uvmaps.Changes list (undo() for a cancelled or failed bake, commit() to keep them)."""
-    density = context.scene.photonlm.texel_density
+    density = properties.ResolutionRule(context.scene.photonlm)
     return uvmaps.ensure_lightmap_uvs(
         context, objects, reports, lambda obj, area: object_resolution(obj, area, density),
         native_subdivision=getattr(context.scene.photonlm, "native_subdivision", True))
@@ -208,7 +207,7 @@ def export_scene(context, photonlm, reports, selected_only=False):
         cages = subdiv_export.read_cages(context, subdiv_export.candidates(
             [o for o in view_layer.objects if is_renderable(o, view_layer)], reports), reports)
     depsgraph = context.evaluated_depsgraph_get()
-    density = scene.photonlm.texel_density
+    density = properties.ResolutionRule(scene.photonlm)
     plm = photonlm.Scene()
     export = SceneExport(plm)
     world = world_export.start(scene.world)  # a sky to render renders beside the mesh export

@@ -15,7 +15,8 @@ has no exact counterpart for is reported once per material (flatten.py lists it)
 
 Wiring (for the preview). Baking adds, to every material of a baked object, nodes
 tagged node["photonlm"] = role inside a frame labelled "PhotonLM Lightmap":
-    UV Map ('lightmap') -> Image Texture (<object>_lightmap) -> MixRGB Multiply (Fac 1,
+    UV Map ('lightmap', or 'PhotonLM Atlas' for an atlas page) -> Image Texture (<object>_lightmap,
+    or the page <scene>_atlas_<k>_lightmap) -> MixRGB Multiply (Fac 1,
     with the diffuse colour: its value, or a link from the socket that feeds the diffuse
     BSDF's colour, times the diffuse weight) -> Emission (Strength 1) -> Add Shader
     (+ Emission of the original emission colour x strength) -> a NEW Material Output.
@@ -339,10 +340,12 @@ def ol_lookup_group():
     return g
 
 
-def wire_material(mat, image, render_engine, orientation=False, error_image=None, target_error=0.02):
-    """Add (or update) the preview nodes of `mat` for lightmap `image` (orientation=True: an
-    orientation lightmap looked up by the world normal) and, with error_image, the heat map of
-    its relative errors against target_error. Returns report strings.
+def wire_material(mat, image, render_engine, orientation=False, error_image=None, target_error=0.02,
+                  uv_map=LIGHTMAP_UV):
+    """Add (or update) the preview nodes of `mat` for lightmap `image` read through UV map `uv_map`
+    (an atlas page: 'PhotonLM Atlas'; orientation=True: an orientation lightmap looked up by the
+    world normal) and, with error_image, the heat map of its relative errors against target_error.
+    Returns report strings.
     The active output is not changed here (see set_preview)."""
     notes = []
     if mat is None:
@@ -374,7 +377,7 @@ def wire_material(mat, image, render_engine, orientation=False, error_image=None
     emit0.location = (x0 + 260.0 * 3, y0 - 180.0)
 
     if not orientation:
-        uv.uv_map = LIGHTMAP_UV
+        uv.uv_map = uv_map
     tex.image = image
     tex.interpolation = 'Linear'
     tex.extension = 'EXTEND'

@@ -137,6 +137,11 @@ class PHOTONLM_PT_output(_Sub, bpy.types.Panel):
         settings = context.scene.photonlm
         col = layout.column()
         col.prop(settings, "texel_density", text="Texels / m")
+        col.prop(settings, "lightmap_layout", text="Layout")
+        sub = col.column()
+        sub.active = settings.lightmap_layout == 'ATLAS'
+        sub.prop(settings, "atlas_size", text="Page Size")
+        col.prop(settings, "lightmap_margin", text="Margin")
         col.prop(settings, "native_subdivision", text="Engine Subdivision")
         col.prop(settings, "output_dir", text="Folder")
         col.prop(settings, "pack_lightmaps", text="Pack")
@@ -219,6 +224,9 @@ class PHOTONLM_PT_object(_Sub, bpy.types.Panel):
         col = layout.column()
         col.enabled = obj.photonlm.enabled
         col.prop(obj.photonlm, "resolution", text="Resolution")
+        sub = col.column()
+        sub.active = obj.photonlm.resolution == 0
+        sub.prop(obj.photonlm, "density_scale", text="Density Scale")
         col.prop(obj.photonlm, "mode")
         if obj.photonlm.mode != 'LIGHTMAP':
             col.prop(obj.photonlm, "ol_resolution", text="OL Bins")
@@ -229,7 +237,12 @@ class PHOTONLM_PT_object(_Sub, bpy.types.Panel):
         for i, line in enumerate(wrap(text, context, indent=2)):
             col.label(text=line, icon=icon if i == 0 else 'BLANK1')
         image = bpy.data.images.get(obj.name + "_lightmap")
-        if image is not None:
+        if context.scene.photonlm.lightmap_layout == 'ATLAS' and obj.get("photonlm_atlas_page"):
+            block = (context.scene.get("photonlm_atlas") or {}).get("blocks", {}).get(obj.name)
+            if block is not None:
+                col.label(text="Atlas %s: %d x %d" % (obj["photonlm_atlas_page"], block[3], block[4]),
+                          icon='IMAGE_DATA')
+        elif image is not None:
             col.label(text="Lightmap %d x %d" % (image.size[0], image.size[1]), icon='IMAGE_DATA')
 
 

@@ -2,10 +2,13 @@
 object.photonlm (per-object lightmap resolution).
 
 Lightmap resolution of an object (object.photonlm.resolution = 0, the default):
-    n = clamp(next_power_of_two(sqrt(A) * density), 16, 4096)
-where A is the object's world-space surface area (modifiers and scale applied) in m^2 and
-density is scene.photonlm.texel_density in texels per metre. The lightmap is n x n. UV
-packing leaves some space unused, so the real density on the surface is somewhat lower.
+    n = clamp(next_power_of_two(sqrt(A) * density * scale), 16, 4096)
+where A is the object's world-space surface area (modifiers and scale applied) in m^2,
+density is scene.photonlm.texel_density in texels per metre and scale the object's
+density_scale. The lightmap is n x n. In atlases (scene.photonlm.lightmap_layout = 'ATLAS')
+n = clamp(ceil(sqrt(A) * density * scale), 16, page size - margin): one density for all
+objects (ResolutionRule). UV packing leaves some space unused, so the real density on the
+surface is somewhat lower.
 """
 import math
 
@@ -32,11 +35,39 @@ RESOLUTION_SOFT_MAX = 4096
 NOISY_SHARE = 0.10
 
 
-def resolution_from_area(area, density):
-    """Lightmap side length for a surface of `area` m^2 at `density` texels per metre."""
+def resolution_from_area(area, density, power_of_two=True, largest=4096):
+    """Lightmap side length for a surface of `area` m^2 at `density` texels per metre: the next
+    power of two (power_of_two), else the next whole texel, within [16, largest]."""
     want = math.sqrt(max(area, 0.0)) * max(density, 0.0)
-    n = 1 << max(0, math.ceil(math.log2(want))) if want > 1.0 else 1
-    return int(min(max(n, 16), 4096))
+    if power_of_two:
+        n = 1 << max(0, math.ceil(math.log2(want))) if want > 1.0 else 1
+    else:
+        n = math.ceil(want) if math.isfinite(want) else largest
+    return int(min(max(n, 16), largest))
+
+
+def atlas_pad(settings):
+    """Texels of edge repeated around each block of an atlas: half the margin, at least 1 (so that
+    bilinear filtering at mip 0 never mixes two blocks)."""
+    return max(1, (int(settings.lightmap_margin) + 1) // 2)
+
+
+class ResolutionRule:
+    """How an object's lightmap size follows from its surface area (scene settings `settings`):
+    the object's Resolution where set, else texel density x the object's density scale, rounded up
+    to a power of two for lightmaps of their own, to a whole texel in atlases (every object then gets
+    the same density) and capped there so that the block with its margin fits a page."""
+
+    def __init__(self, settings):
+        self.density = float(settings.texel_density)
+        self.atlas = getattr(settings, "lightmap_layout", 'OBJECT') == 'ATLAS'
+        self.largest = int(settings.atlas_size) - 2 * atlas_pad(settings) if self.atlas else 4096
+
+    def __call__(self, obj, area):
+        if obj.photonlm.resolution > 0:
+            return int(obj.photonlm.resolution)
+        return resolution_from_area(area, self.density * float(obj.photonlm.density_scale),
+                                    power_of_two=not self.atlas, largest=self.largest)
 
 
 def _stat_getter(key, fmt):
@@ -150,6 +181,27 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
         "(n = clamp(next power of two of sqrt(surface area) x density, 16, 4096)). Doubling it gives four "
         "times the texels: four times the memory and about four times the time to the same error",
         default=32, min=1, soft_max=1024, subtype='NONE')
+    lightmap_layout: EnumProperty(
+        name="Layout", description="How the baked lightmaps are stored",
+        items=[('OBJECT', "One per Object", "Each object gets a lightmap image of its own, n x n with n a power "
+                "of two (<object>_lightmap.exr): simplest to inspect, many files, density rounded per object"),
+               ('ATLAS', "Atlases", "Objects share atlas pages (<scene>_atlas_<k>_lightmap.exr) at one texel density; "
+                "each object reads its part through the UV map 'PhotonLM Atlas' (for game and web exports: few "
+                "textures, few draw-call changes)")],
+        default='OBJECT')
+    atlas_size: EnumProperty(
+        name="Page Size", description="Width and height of an atlas page in texels; an object's block (with its "
+        "margin) must fit in one page, larger ones are scaled down with a warning. Larger pages mean fewer "
+        "files and less space lost at page edges, but each page is loaded whole (4096: 256 MB as float RGBA)",
+        items=[('512', "512", ""), ('1024', "1024", ""), ('2048', "2048", ""), ('4096', "4096", ""),
+               ('8192', "8192", "")],
+        default='2048')
+    lightmap_margin: IntProperty(
+        name="Margin", description="Texels the lightmap is extended beyond its UV islands (dilation) and, in "
+        "atlases, the texels between two objects' blocks (each block's edge repeated, so that filtering never "
+        "mixes two objects). More margin keeps mipmapped or compressed lightmaps seamless further away; it "
+        "costs atlas space: a 32-texel block with a margin of 8 fills 40 x 40",
+        default=8, min=1, max=64)
     output_dir: StringProperty(
         name="Output", description="Folder for the EXR lightmaps (<object>_lightmap.exr). A relative path "
         "(//) is relative to the .blend file and the images link their files relative to it, so the "
@@ -232,6 +284,11 @@ class PhotonlmObjectSettings(bpy.types.PropertyGroup):
         "texel density and the object's surface area. A bake needs about 400 bytes per texel "
         "(4096: about 7 GB, 8192: about 27 GB); a bake that does not fit in the memory free is refused",
         default=0, min=0, max=RESOLUTION_MAX, soft_max=RESOLUTION_SOFT_MAX)
+    density_scale: FloatProperty(
+        name="Density Scale", description="Multiplies the scene's texel density for this object when its "
+        "Resolution is Auto: 2 gives twice the texels along each side (four times the texels, memory and "
+        "time), 0.5 a quarter. For objects seen up close (above 1) or far away (below 1)",
+        default=1.0, min=0.01, soft_min=0.125, soft_max=8.0, max=64.0, precision=3)
     mode: EnumProperty(
         name="Lighting", description="How the object's light is stored",
         items=[('LIGHTMAP', "Lightmap", "An ordinary lightmap: light per texel"),

@@ -47,6 +47,7 @@ from . import subdiv_export, uvcheck
 
 LIGHTMAP_UV = "lightmap"
 MODIFIER_NAME = "PhotonLM Lightmap UV"
+ATLAS_MODIFIER_NAME = "PhotonLM Atlas UV"   # atlas.py's UV Warp: not a modifier of the user's
 HELPER_PREFIX = "PhotonLM UV "
 HELPER_TAG = "photonlm_lightmap_uv_helper"   # on helper objects: a dict describing the map
 MESH_TAG = "photonlm_lightmap_uv"            # on meshes holding an automatic map themselves
@@ -73,9 +74,14 @@ def automatic_modifier(obj):
 
 
 def user_modifiers(obj):
-    """The object's modifiers other than the automatic map's."""
+    """The object's modifiers other than the automatic map's and the atlas placement's (atlas.py)."""
     ours = automatic_modifier(obj)
-    return [m for m in obj.modifiers if m != ours]
+    return [m for m in obj.modifiers if m != ours and not is_atlas_modifier(m)]
+
+
+def is_atlas_modifier(mod):
+    """The UV Warp modifier that moves an object's atlas UV map into its block (atlas.py)."""
+    return mod.type == 'UV_WARP' and mod.name.startswith(ATLAS_MODIFIER_NAME)
 
 
 def _layer_uv(mesh):

@@ -26,7 +26,7 @@ from ._lib import LibraryNotFoundError, library_path
 
 __all__ = ["version", "PhotonlmError", "BakeCancelled", "LibraryNotFoundError", "Scene", "Result",
            "Lightmap", "OrientationLightmap", "library_path", "lsystem_flatten", "LSYSTEM_SHAPES",
-           "subdiv_refine", "default_settings"]
+           "subdiv_refine", "default_settings", "write_lightmap_exr", "read_lightmap_exr"]
 
 _C = _lib.lib
 _OK = 0
@@ -676,6 +676,38 @@ Lightmap = collections.namedtuple("Lightmap", "rgb error hits coverage")
 Lightmap.__doc__ = """One mesh's lightmap as float32 arrays, row 0 = bottom (v near 0):
 rgb (h, w, 3) irradiance/pi; error (h, w) standard error of the texel's mean RGB;
 hits (h, w) photon hits; coverage (h, w) fraction of the texel inside UV islands."""
+
+
+
+def write_lightmap_exr(path, rgb, error=None, hits=None):
+    """Write a lightmap held in arrays (row 0 = bottom) as Result.write_exr writes one: channels R, G, B,
+    error, hits (None: zeros), atomically. rgb (h, w, 3); error and hits (h, w)."""
+    rgb = np.ascontiguousarray(rgb, dtype=np.float32)
+    if rgb.ndim != 3 or rgb.shape[2] != 3:
+        raise ValueError("rgb must have shape (h, w, 3), got %s" % (rgb.shape,))
+    h, w = rgb.shape[:2]
+    planes = []
+    for name, a in (("error", error), ("hits", hits)):
+        if a is not None:
+            a = np.ascontiguousarray(a, dtype=np.float32)
+            if a.shape != (h, w):
+                raise ValueError("%s must have shape %s like rgb, got %s" % (name, (h, w), a.shape))
+        planes.append(a)
+    _check(_C.plm_write_lightmap_exr(os.fsencode(os.fspath(path)), w, h, _ptr(rgb, ctypes.c_float),
+                                     *(_ptr(a, ctypes.c_float) for a in planes)))
+
+
+def read_lightmap_exr(path):
+    """Read a lightmap EXR (as Result.write_exr or write_lightmap_exr write it) into a Lightmap whose
+    coverage is None; channels the file lacks read as 0."""
+    path = os.fsencode(os.fspath(path))
+    w, h = ctypes.c_uint32(), ctypes.c_uint32()
+    _check(_C.plm_read_lightmap_exr(path, ctypes.byref(w), ctypes.byref(h), None, None, None))
+    lm = Lightmap(np.empty((h.value, w.value, 3), np.float32), np.empty((h.value, w.value), np.float32),
+                  np.empty((h.value, w.value), np.float32), None)
+    _check(_C.plm_read_lightmap_exr(path, ctypes.byref(w), ctypes.byref(h), *(_ptr(a, ctypes.c_float) for a in lm[:3])))
+    return lm
+
 
 _STAT_KEYS = ("photons_emitted", "photon_hits", "rays_traced", "paths_truncated", "emitted_power",
               "seconds_setup", "seconds_trace", "seconds_total", "direct_samples", "seconds_direct",

@@ -481,6 +481,20 @@ PLM_API plm_status plm_result_copy_lightmap(const plm_result* result, uint32_t m
 PLM_API plm_status plm_result_write_exr(const plm_result* result, uint32_t mesh_id,
                                         const char* path);
 
+/* A lightmap held by the caller (an atlas page assembled from several
+ * lightmaps, say) written as plm_result_write_exr writes one: channels R, G,
+ * B, error, hits, rows bottom first, atomically. rgb holds width * height * 3
+ * floats; error and hits width * height floats each, or NULL (written as 0). */
+PLM_API plm_status plm_write_lightmap_exr(const char* path, uint32_t width, uint32_t height,
+                                          const float* rgb, const float* error, const float* hits);
+
+/* Reads an EXR written by plm_result_write_exr or plm_write_lightmap_exr into
+ * caller-owned buffers. With rgb, error and hits all NULL only the size is
+ * returned; otherwise *width and *height must hold the file's size (the call
+ * fails naming both sizes if not). Channels the file lacks read as 0. */
+PLM_API plm_status plm_read_lightmap_exr(const char* path, uint32_t* width, uint32_t* height, float* rgb,
+                                         float* error, float* hits);
+
 /* ---- Orientation lightmaps (OL) -------------------------------------------
  *
  * An OL group stores the light of its meshes by surface normal instead of by

@@ -377,6 +377,48 @@ plm_status plm_result_write_exr(const plm_result* result, uint32_t mesh_id, cons
   });
 }
 
+plm_status plm_write_lightmap_exr(const char* path, uint32_t width, uint32_t height, const float* rgb,
+                                  const float* error, const float* hits) {
+  return guarded("plm_write_lightmap_exr", [&] {
+    require(path, "plm_write_lightmap_exr", "path");
+    require(rgb, "plm_write_lightmap_exr", "rgb");
+    if (width == 0 || height == 0 || double(width) * double(height) > double(1u << 28))
+      plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_write_lightmap_exr: '", path, "': size ", width, " x ", height,
+                " is not between 1 x 1 and 2^28 texels");
+    const std::vector<float> zeros(error && hits ? 0 : size_t(width) * height, 0.0f);
+    plm::write_rgb_exr_atomic(path, width, height, rgb, {"error", "hits"},
+                              {error ? error : zeros.data(), hits ? hits : zeros.data()});
+  });
+}
+
+plm_status plm_read_lightmap_exr(const char* path, uint32_t* width, uint32_t* height, float* rgb, float* error,
+                                 float* hits) {
+  return guarded("plm_read_lightmap_exr", [&] {
+    require(path, "plm_read_lightmap_exr", "path");
+    require(width, "plm_read_lightmap_exr", "width");
+    require(height, "plm_read_lightmap_exr", "height");
+    const bool size_only = !rgb && !error && !hits;
+    uint32_t w = 0, h = 0;
+    if (size_only) {
+      plm::read_exr_channels(path, {}, w, h);
+      *width = w;
+      *height = h;
+      return;
+    }
+    const std::vector<float> px = plm::read_exr_channels(path, {"R", "G", "B", "error", "hits"}, w, h);
+    if (w != *width || h != *height)
+      plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_read_lightmap_exr: '", path, "' is ", w, " x ", h,
+                ", the buffers are for ", *width, " x ", *height);
+    const size_t n = size_t(w) * h;
+    for (size_t t = 0; t < n; ++t) {
+      if (rgb)
+        for (size_t c = 0; c < 3; ++c) rgb[3 * t + c] = px[5 * t + c];
+      if (error) error[t] = px[5 * t + 3];
+      if (hits) hits[t] = px[5 * t + 4];
+    }
+  });
+}
+
 plm_status plm_scene_add_ol_group(plm_scene* scene, const char* name, uint32_t resolution, uint32_t* out_group) {
   return guarded("plm_scene_add_ol_group", [&] {
     require(scene, "plm_scene_add_ol_group", "scene");

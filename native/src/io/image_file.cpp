@@ -248,4 +248,37 @@ void write_rgb_exr_atomic(const std::string& path, uint32_t width, uint32_t heig
   write_exr_atomic(path, width, height, channels, pixels.data());
 }
 
+std::vector<float> read_exr_channels(const std::string& path, const std::vector<std::string>& names,
+                                     uint32_t& width, uint32_t& height) {
+  std::vector<float> pixels;
+  try {
+    Imf::InputFile file(path.c_str());
+    const Imath::Box2i dw = file.header().dataWindow();
+    const long long w = (long long)dw.max.x - dw.min.x + 1, h = (long long)dw.max.y - dw.min.y + 1;
+    check_size(w, h, path, "lightmap", "file");
+    width = uint32_t(w);
+    height = uint32_t(h);
+    if (names.empty()) return pixels;  // the size only
+    const size_t nc = names.size(), xs = nc * sizeof(float), ys = xs * size_t(w);
+    std::vector<float> top_first(size_t(w) * size_t(h) * nc, 0.0f);
+    char* origin = reinterpret_cast<char*>(top_first.data()) - ptrdiff_t(dw.min.x) * ptrdiff_t(xs) -
+                   ptrdiff_t(dw.min.y) * ptrdiff_t(ys);
+    Imf::FrameBuffer fb;
+    for (size_t c = 0; c < nc; ++c)
+      fb.insert(names[c], Imf::Slice(Imf::FLOAT, origin + c * sizeof(float), xs, ys, 1, 1, 0.0));
+    file.setFrameBuffer(fb);
+    file.readPixels(dw.min.y, dw.max.y);
+    // Top first in the file, bottom first in memory.
+    const size_t row = size_t(w) * nc;
+    pixels.resize(top_first.size());
+    for (size_t y = 0; y < size_t(h); ++y)
+      std::memcpy(&pixels[y * row], &top_first[(size_t(h) - 1 - y) * row], row * sizeof(float));
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception& e) {
+    fail(PLM_ERROR_IO, "cannot read lightmap '", path, "': ", e.what());
+  }
+  return pixels;
+}
+
 }  // namespace plm

@@ -44,4 +44,11 @@ void write_exr_atomic(const std::string& path, uint32_t width, uint32_t height,
 void write_rgb_exr_atomic(const std::string& path, uint32_t width, uint32_t height, const float* rgb,
                           const std::vector<std::string>& names, const std::vector<const float*>& planes);
 
+// The named float channels of an EXR (a channel the file lacks reads as 0):
+// width * height * names.size() floats, rows bottom first (the order
+// write_exr_atomic takes); no names: the size only. Throws plm::Error
+// (PLM_ERROR_IO) naming the file.
+std::vector<float> read_exr_channels(const std::string& path, const std::vector<std::string>& names,
+                                     uint32_t& width, uint32_t& height);
+
 }  // namespace plm
