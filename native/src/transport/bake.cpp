@@ -21,6 +21,7 @@
 #include "transport/film.h"
 #include "transport/film_estimate.h"
 #include "transport/film_output.h"
+#include "transport/live_preview.h"
 #include "transport/final_gather.h"
 #include "transport/material_table.h"
 #include "transport/ol_film.h"
@@ -63,7 +64,8 @@ plm_bake_settings default_settings() {
   return s;
 }
 
-BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const ProgressFn& progress) {
+BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const ProgressFn& progress,
+                const PreviewHook* preview) {
   const auto t_start = Clock::now();
   validate(scene, requested);
   BakeOutput out;
@@ -71,6 +73,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   const plm_bake_settings settings = effective_settings(scene, requested, out.warnings);
   Progress report(progress);
   const TimeBudget budget(settings.time_budget, t_start);
+  LivePreview live(preview, t_start);  // snapshots for the host at check points (live_preview.h)
 
   // ---- Set-up ------------------------------------------------------------------
   report(0.0, "building the ray-tracing scene");
@@ -149,6 +152,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   const Estimator estimator{space, direct.sums, direct.noise, acc, settings.filter_radius, &gather};
   uint64_t photons = 0;
   Estimate last;  // the latest estimate
+  if (two_pass) live.check(arena, scene, estimator, 0, settings.dilation, true);  // the direct light alone
   const auto t_trace = Clock::now();
   if (photon_pass) {
     const bool steered = settings.target_error > 0.0 || settings.time_budget > 0.0;
@@ -223,6 +227,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
             }
           }
           merged = end;
+          if (!done) live.check(arena, scene, estimator, photons, settings.dilation);
           if (budget.seconds() > 0.0) fraction = std::max(fraction, budget.elapsed() / budget.seconds());
           done = done || budget.spent(kPhotonBudgetShare);
           if (seconds_since(last_report) >= kPhotonReportInterval) {
