@@ -42,7 +42,7 @@ void LivePreview::take(tbb::task_arena& arena, const Scene& scene, const Estimat
   if (!first && seconds_since(last_) < hook_->interval) return;
   const Snapshot snapshot(arena, scene, est, photons, dilation);
   if (!hook_->callback(snapshot)) fail(PLM_ERROR_CANCELLED, "the bake was cancelled");
-  last_ = Clock::now();  // from the end of the host's copy: a slow host slows the bake by at most half
+  last_ = Clock::now();  // from the end of the host's copy: a copy of c s costs at most c / (c + interval)
 }
 
 }  // namespace plm
