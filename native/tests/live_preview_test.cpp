@@ -71,7 +71,7 @@ std::string file_bytes(const std::string& path) {
 }
 
 // The furnace (every texel exactly e / (1 - rho), its direct part e): the
-// preview after the direct pass shows e, later ones approach e / (1 - rho).
+// previews of the direct pass show e, later ones approach e / (1 - rho).
 TEST(LivePreview, FurnaceShowsDirectThenFullLight) {
   SceneBuilder b;
   plm_demo::build_furnace(b, 0.5f, 1.0f, 16);
@@ -87,7 +87,10 @@ TEST(LivePreview, FurnaceShowsDirectThenFullLight) {
   ASSERT_EQ(final_map.w, 48u);
   ASSERT_GE(seen.photons.size(), 3u) << "previews after the direct pass and during the photon pass";
   EXPECT_EQ(seen.photons[0], 0u);
-  for (size_t c = 1; c < seen.photons.size(); ++c) EXPECT_GT(seen.photons[c], seen.photons[c - 1]);
+  // After the direct pass's round(s) (no photons yet), more photons each time.
+  for (size_t c = 1; c < seen.photons.size(); ++c) {
+    if (seen.photons[c] > 0) EXPECT_GT(seen.photons[c], seen.photons[c - 1]);
+  }
   EXPECT_LE(seen.photons.back(), s.photon_count);
   for (size_t c = 0; c < seen.photons.size(); ++c) {
     const std::vector<float>& rgb = seen.maps[c][0];

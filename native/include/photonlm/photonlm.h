@@ -435,10 +435,11 @@ PLM_API void plm_result_release(plm_result* result); /* NULL is fine */
 /* ---- Live previews ----------------------------------------------------------
  *
  * plm_bake_with_preview bakes as plm_bake does and, while it runs, lets the
- * host look at the lightmaps: at the bake's check points (once after the
- * direct pass, then between groups of photons, several a second) it calls
- * preview when at least preview_interval seconds have passed since the last
- * call ended (the first call after the direct pass comes at once). preview
+ * host look at the lightmaps: at the bake's check points (after each round
+ * of the direct pass and after the pass, then between groups of photons,
+ * several a second) it calls preview when at least preview_interval seconds
+ * have passed since the last call ended (the call after the direct pass's
+ * first round comes at once: direct light only, no photons yet). preview
  * runs on the thread that called plm_bake_with_preview while the bake waits;
  * it copies what it wants with plm_preview_copy_lightmap and returns quickly
  * (the handle is valid only during the call). Return 0 to cancel, as with
@@ -453,7 +454,7 @@ PLM_API plm_status plm_bake_with_preview(plm_scene* scene, const plm_bake_settin
                                          plm_progress_fn progress, plm_preview_fn preview,
                                          double preview_interval, void* user_data, plm_result** out_result);
 
-/* Photons traced so far (0 for the preview after the direct pass). */
+/* Photons traced so far (0 during and after the direct pass). */
 PLM_API plm_status plm_preview_photons(const plm_preview* preview, uint64_t* out_photons);
 
 /* The size of mesh mesh_id's lightmap (as plm_result_lightmap_size). */

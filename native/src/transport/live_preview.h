@@ -1,8 +1,8 @@
 // Live previews: the host looks at the lightmaps while the bake runs. At the
-// bake's check points (after the direct pass, between groups of photons) a
-// LivePreview decides whether a snapshot is due (at most every `interval`
-// seconds) and hands the host a Snapshot: a read-only view of the film at that
-// state. The host copies out the lightmaps it wants during the callback; each
+// bake's check points (after each round of the direct pass and after the
+// pass, between groups of photon batches) a LivePreview decides whether a
+// snapshot is due (at most every `interval` seconds) and hands the host a
+// Snapshot: a read-only view of the film at that state. The host copies out the lightmaps it wants during the callback; each
 // copy reconstructs that one lightmap from the sums without changing them, so
 // previews never change the bake's result. Without a hook a check point costs
 // one branch.
@@ -57,6 +57,7 @@ class LivePreview {
   LivePreview(const PreviewHook* hook, Clock::time_point start) : hook_(hook), last_(start) {
     if (hook_ && !(hook_->interval > 0.0 && hook_->callback)) hook_ = nullptr;
   }
+  bool active() const { return hook_ != nullptr; }
   // A check point: `photons` photons are merged into est. `first` forces a
   // snapshot (the end of the direct pass, the first state worth showing).
   // Throws PLM_ERROR_CANCELLED when the host's callback returns false.
