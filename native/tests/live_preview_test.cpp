@@ -89,7 +89,9 @@ TEST(LivePreview, FurnaceShowsDirectThenFullLight) {
   EXPECT_EQ(seen.photons[0], 0u);
   // After the direct pass's round(s) (no photons yet), more photons each time.
   for (size_t c = 1; c < seen.photons.size(); ++c) {
-    if (seen.photons[c] > 0) EXPECT_GT(seen.photons[c], seen.photons[c - 1]);
+    if (seen.photons[c] > 0) {
+      EXPECT_GT(seen.photons[c], seen.photons[c - 1]);
+    }
   }
   EXPECT_LE(seen.photons.back(), s.photon_count);
   for (size_t c = 0; c < seen.photons.size(); ++c) {
