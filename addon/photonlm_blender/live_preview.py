@@ -82,14 +82,17 @@ class LivePreview:
     def end(self, success):
         """After the worker returned: restore the materials (all of them unless success, else
         those still showing a live image) and remove the live images."""
-        live = {self._images[n] for n in self._images}
+        live = set(self._images.values())
         for mat_name, saved in self._saved.items():
-            mat = bpy.data.materials.get(mat_name)
-            if mat is None or mat.node_tree is None:
-                continue
-            node = _image_node(mat)
-            if not success or node is None or (node.image is not None and node.image.name in live):
-                _restore(mat, saved)
+            try:
+                mat = bpy.data.materials.get(mat_name)
+                if mat is None or mat.node_tree is None:
+                    continue
+                node = _image_node(mat)
+                if not success or node is None or (node.image is not None and node.image.name in live):
+                    _restore(mat, saved)
+            except ReferenceError:  # the earlier image was removed meanwhile: nothing to point back to
+                pass
         self._saved = {}
         for image_name in live:
             image = bpy.data.images.get(image_name)
