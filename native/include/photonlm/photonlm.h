@@ -444,7 +444,8 @@ PLM_API void plm_result_release(plm_result* result); /* NULL is fine */
  * it copies what it wants with plm_preview_copy_lightmap and returns quickly
  * (the handle is valid only during the call). Return 0 to cancel, as with
  * progress. Previews read the bake's sums and change nothing: the result is
- * bit for bit that of plm_bake with the same settings. preview NULL or
+ * bit for bit that of plm_bake with the same settings (with a time_budget,
+ * previews take their share of the time like any work). preview NULL or
  * preview_interval 0: no previews (plm_bake). The final gather, when it runs,
  * is in the previews after it. */
 typedef struct plm_preview plm_preview; /* the bake's state at one check point */
