@@ -3,7 +3,8 @@
 script (started by CTest with -b) re-runs itself in a windowed Blender under xvfb-run, where
 the modal operator runs, and checks what the child reports. Without xvfb-run it prints SKIP.
 
-In the window, on the Cornell box:
+In the window, on the Cornell box (the add-on copies previews only while a viewport shows
+materials: checked first, then it is told so, the viewport staying in Solid shading):
   1. a bake cancelled after its first refresh, before any bake: the materials are exactly as
      before (no preview nodes, same outputs active) and no image or material is left behind;
   2. a bake with previews off (the reference) and the same bake with previews every 0.3 s:
@@ -58,6 +59,8 @@ def parent():
                         % (time.perf_counter() - t0, code, r.get("error", ""))):
         print(text[-4000:])
         checks.finish()
+    checks.check(not r["watched_solid"] and r["watched_material"],
+                 "previews are wanted in Material Preview, not in Solid shading")
     # 1. cancelled before any bake
     checks.check(r["fresh_refreshed"], "first cancelled bake showed a live preview before the cancel")
     checks.check(r["fresh_wired_live"], "  ... its materials showed the live images")
@@ -216,6 +219,17 @@ def _child(bake, live_preview, operators):
     def step():
         phase = state["phase"]
         if phase == "fresh_start":
+            # Previews are copied only while a viewport shows materials; Eevee drawing them in
+            # software (Xvfb) would starve the window's timers, so the viewport stays in Solid and
+            # the add-on is told it is watched, after checking that it looks at the shading.
+            shading = win_ctx()["area"].spaces.active.shading
+            with bpy.context.temp_override(**win_ctx()):
+                shading.type = 'SOLID'
+                res["watched_solid"] = live_preview.watched(bpy.context)
+                shading.type = 'MATERIAL'
+                res["watched_material"] = live_preview.watched(bpy.context)
+                shading.type = 'SOLID'
+            live_preview.watched = lambda context: True
             state["fp"], state["names"] = fingerprint(), data_names()
             s.photons = 2_000_000_000
             assert invoke() == ['RUNNING_MODAL']

@@ -7,7 +7,8 @@
 
 The engine calls take() on the worker thread at its check points, at most every `interval`
 seconds (photonlm.h plm_bake_with_preview); take() copies each baked object's current lightmap
-into numpy arrays and leaves them for the main thread (no bpy there). apply() writes the latest
+into numpy arrays and leaves them for the main thread (no bpy there). While no 3D viewport shows
+materials (Material Preview or Rendered; apply() looks on each tick) take() copies nothing. apply() writes the latest
 copy into an in-memory float image per object ("PhotonLM live <object>", tagged
 image[materials.TAG] = LIVE_TAG) and, the first time, points each baked material's preview
 at it: a material wired by an earlier bake gets the live image on its lightmap Image Texture
@@ -43,10 +44,14 @@ class LivePreview:
         self._images = {}      # object name -> image name
         self.refreshes = 0     # snapshots written into the images
         self.photons = 0       # photons of the latest one shown
+        self.watched = True    # a viewport shows materials (set by the main thread, read by take())
 
     # -- worker thread: numpy only -----------------------------------------------------------
     def take(self, preview):
-        """photonlm.Scene.bake's preview callable: copy every baked object's lightmap."""
+        """photonlm.Scene.bake's preview callable: copy every baked object's lightmap (nothing
+        while no viewport shows materials)."""
+        if not self.watched:
+            return True
         maps = {}
         for mesh_id, name in self._targets.items():
             rgb = preview.lightmap(mesh_id)
@@ -59,6 +64,7 @@ class LivePreview:
     # -- main thread -------------------------------------------------------------------------
     def apply(self, context):
         """Show the latest snapshot, if a new one came; True when the images changed."""
+        self.watched = watched(context)
         with self._lock:
             pending, self._pending = self._pending, None
         if pending is None:
@@ -128,6 +134,14 @@ class LivePreview:
             else:
                 materials.wire_material(mat, image, engine)  # its notes come again with the final wiring
             materials.set_preview(mat, 'LIGHTMAP')
+
+
+def watched(context):
+    """Whether a 3D viewport of the window shows materials (Material Preview or Rendered)."""
+    screens = [w.screen for w in context.window_manager.windows] if context.window_manager else []
+    return any(space.type == 'VIEW_3D' and space.shading.type in ('MATERIAL', 'RENDERED')
+               for screen in screens if screen is not None for area in screen.areas
+               for space in area.spaces[:1])
 
 
 def _material_owners(baked):

@@ -122,6 +122,8 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
         self._cancel = threading.Event()
         interval = float(context.scene.photonlm.live_preview)
         self._live = live_preview.LivePreview(job, interval) if interval > 0.0 else None
+        if self._live is not None:
+            self._live.watched = live_preview.watched(context)
         live = (self._live.take, interval) if self._live else (None, 0.0)
         self._thread = threading.Thread(target=job.run, args=(self._progress,) + live, name="photonlm-bake",
                                         daemon=True)
