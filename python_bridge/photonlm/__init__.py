@@ -624,9 +624,9 @@ class Scene(_Handle):
         of a second; returning False cancels (BakeCancelled). An exception raised in it cancels
         the bake and is re-raised here (so is Ctrl-C).
 
-        preview: optional callable(Preview) called from this thread while the bake runs, once
-        after the direct pass and then at most every preview_interval seconds (between groups of
-        photons), with the lightmaps at that state; it copies what it wants (Preview.lightmap)
+        preview: optional callable(Preview) called from this thread while the bake runs, once the
+        direct pass's first round is done and then at most every preview_interval seconds (between
+        direct rounds and groups of photons; 0 = never), with the lightmaps at that state; it copies what it wants (Preview.lightmap)
         and returns quickly. Returning False cancels, an exception cancels and is re-raised.
         Previews change nothing: the result equals that of a bake without them.
         """
@@ -708,7 +708,7 @@ class Preview:
 
     @property
     def photons(self):
-        """Photons traced so far (0 after the direct pass)."""
+        """Photons traced so far (0 during the direct pass)."""
         n = ctypes.c_uint64()
         _check(_C.plm_preview_photons(self._handle(), ctypes.byref(n)))
         return n.value
