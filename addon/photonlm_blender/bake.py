@@ -202,10 +202,14 @@ class BakeJob:
                 raise BakeError(str(e)) from None
 
     # -- worker side: no bpy below this line until finish() ---------------------------------
-    def run(self, progress=None):
-        """Run the engine. Sets .result, or .cancelled / .error. Never raises."""
+    def run(self, progress=None, preview=None, preview_interval=0.0):
+        """Run the engine (preview: see live_preview.py). Sets .result, or .cancelled / .error.
+        Never raises."""
         try:
-            self.result = self.export.scene.bake(progress=progress, **self.settings)
+            live = {}
+            if preview is not None and preview_interval > 0.0:
+                live = dict(preview=preview, preview_interval=preview_interval)
+            self.result = self.export.scene.bake(progress=progress, **self.settings, **live)
         except self.photonlm.BakeCancelled:
             self.cancelled = True
         except Exception as e:  # noqa: BLE001 -- reported to the user by the operator

@@ -5,7 +5,7 @@ import time
 
 import bpy
 
-from . import bake, materials
+from . import bake, live_preview, materials
 
 _running = None  # the operator instance of the bake in progress (one at a time)
 
@@ -120,7 +120,12 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
         self._fraction = 0.0
         self._stage = "starting"
         self._cancel = threading.Event()
-        self._thread = threading.Thread(target=job.run, args=(self._progress,), name="photonlm-bake",
+        interval = float(context.scene.photonlm.live_preview)
+        self._live = live_preview.LivePreview(job, interval) if interval > 0.0 else None
+        if self._live is not None:
+            self._live.watched = live_preview.watched(context)
+        live = (self._live.take, interval) if self._live else (None, 0.0)
+        self._thread = threading.Thread(target=job.run, args=(self._progress,) + live, name="photonlm-bake",
                                         daemon=True)
         self._t0 = time.perf_counter()
         wm = context.window_manager
@@ -145,6 +150,8 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
             return {'PASS_THROUGH'}
         wm = context.window_manager
         if self._thread.is_alive():
+            if self._live is not None and not self._cancel.is_set():
+                self._live.apply(context)
             wm.progress_update(int(1000 * min(max(self._fraction, 0.0), 1.0)))
             text = "PhotonLM: %d%%, %s%s" % (
                 round(100 * self._fraction), progress_text(self._fraction, self._stage, time.perf_counter() - self._t0),
@@ -171,6 +178,8 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
     def _end(self, context):
         self._stop_ui(context)
         result = self._conclude(context, self._job)
+        if self._live is not None:
+            self._live.end('FINISHED' in result)
         for area in context.screen.areas if context.screen else ():
             area.tag_redraw()
         return result
@@ -180,6 +189,8 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
         self._cancel.set()
         self._stop_ui(context)
         self._job.abort(context)
+        if self._live is not None:
+            self._live.end(False)
 
 
 class PHOTONLM_OT_remove_preview(bpy.types.Operator):

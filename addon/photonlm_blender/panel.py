@@ -56,6 +56,7 @@ class PHOTONLM_PT_lightmaps(bpy.types.Panel):
         row = col.row(align=True)
         row.prop(settings, "preview_mode", expand=True)
         row.operator("photonlm.remove_preview", text="", icon='TRASH')
+        col.prop(settings, "live_preview", text="Refresh While Baking")
         if settings.preview_mode == 'ERROR':
             col.label(text=_heat_legend(context.scene))
 

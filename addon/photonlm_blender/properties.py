@@ -229,6 +229,11 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
                ('ERROR', "Error", "Each texel's relative error (standard error / value) as a heat map: "
                 "green up to the target error, yellow at twice it, red at four times and above")],
         default='OFF', update=_preview_update)
+    live_preview: FloatProperty(
+        name="Live Preview", description="While a bake runs, the viewport (Material Preview and Rendered) "
+        "shows the lightmaps as they are so far, refreshed every this many seconds; cancelling puts back "
+        "what was there before. 0 = off (nothing changes until the bake ends)",
+        default=3.0, min=0.0, soft_max=60.0, unit='TIME_ABSOLUTE')
     preview: BoolProperty(
         name="Preview Lightmaps", description="Preview on (Lightmaps, or the Error heat map when chosen) or off; "
         "the same as Preview other than Off", get=_preview_get, set=_preview_set)

@@ -24,7 +24,7 @@ import numpy as np
 from . import _lib
 from ._lib import LibraryNotFoundError, library_path
 
-__all__ = ["version", "PhotonlmError", "BakeCancelled", "LibraryNotFoundError", "Scene", "Result",
+__all__ = ["version", "PhotonlmError", "BakeCancelled", "LibraryNotFoundError", "Scene", "Result", "Preview",
            "Lightmap", "OrientationLightmap", "library_path", "lsystem_flatten", "LSYSTEM_SHAPES",
            "subdiv_refine", "default_settings", "write_lightmap_exr", "read_lightmap_exr"]
 
@@ -606,7 +606,7 @@ class Scene(_Handle):
 
     def bake(self, photons=None, max_bounces=None, seed=None, threads=None, dilation=None, progress=None,
              target_error=None, time_budget=None, direct_samples=None, filter_radius=None,
-             texel_value=None, sampler=None):
+             texel_value=None, sampler=None, preview=None, preview_interval=3.0):
         """Bake all lightmaps and return a Result. The GIL is released while the engine runs.
         A setting left None takes the engine's default (default_settings()).
 
@@ -623,6 +623,12 @@ class Scene(_Handle):
         progress: optional callable(fraction, stage) called from this thread every few tenths
         of a second; returning False cancels (BakeCancelled). An exception raised in it cancels
         the bake and is re-raised here (so is Ctrl-C).
+
+        preview: optional callable(Preview) called from this thread while the bake runs, once the
+        direct pass's first round is done and then at most every preview_interval seconds (between
+        direct rounds and groups of photons; 0 = never), with the lightmaps at that state; it copies what it wants (Preview.lightmap)
+        and returns quickly. Returning False cancels, an exception cancels and is re-raised.
+        Previews change nothing: the result equals that of a bake without them.
         """
         settings = _lib.plm_bake_settings()
         _C.plm_bake_settings_default(ctypes.byref(settings))
@@ -657,13 +663,73 @@ class Scene(_Handle):
 
         callback = _lib.progress_fn(on_progress)  # referenced until plm_bake returns
         out = _lib.ResultPtr()
-        status = _C.plm_bake(self._h, ctypes.byref(settings), callback, None, ctypes.byref(out))
+        if preview is None:
+            status = _C.plm_bake(self._h, ctypes.byref(settings), callback, None, ctypes.byref(out))
+        else:
+            interval = float(preview_interval)
+            if not (interval >= 0.0 and np.isfinite(interval)):
+                raise ValueError("preview_interval must be a finite number of seconds >= 0, got %r"
+                                 % (preview_interval,))
+
+            def on_preview(_user_data, handle):
+                p = Preview(handle)
+                try:
+                    keep = preview(p)
+                    return 0 if keep is not None and not keep else 1
+                except BaseException as e:  # noqa: BLE001 -- cancel, re-raise after the bake
+                    raised.append(e)
+                    return 0
+                finally:
+                    p._h = None  # the handle dies with the call
+
+            preview_callback = _lib.preview_fn(on_preview)
+            status = _C.plm_bake_with_preview(self._h, ctypes.byref(settings), callback, preview_callback,
+                                              interval, None, ctypes.byref(out))
         if raised:
             if status == _OK:
                 _C.plm_result_release(out)
             raise raised[0]
         _check(status)
         return Result(out)
+
+
+class Preview:
+    """The lightmaps of a running bake at one check point, handed to Scene.bake's preview
+    callable. Valid only during that call (PhotonlmError afterwards)."""
+
+    def __init__(self, handle):
+        self._h = handle
+
+    def _handle(self):
+        if self._h is None:
+            raise PhotonlmError("this preview is no longer valid: use it only inside the preview callback",
+                                "PLM_ERROR_INVALID_ARGUMENT")
+        return self._h
+
+    @property
+    def photons(self):
+        """Photons traced so far (0 during the direct pass)."""
+        n = ctypes.c_uint64()
+        _check(_C.plm_preview_photons(self._handle(), ctypes.byref(n)))
+        return n.value
+
+    def lightmap(self, mesh_id, out=None):
+        """A mesh's lightmap at this state as (h, w, 3) float32 (row 0 = bottom; dilated, seams not
+        stitched), written into `out` when given (a C-contiguous float32 array of that shape); None
+        for a mesh whose texels come from an OL group or a CSG solid (known only at the end)."""
+        h_ = self._handle()
+        mesh_id = _uint(mesh_id, "mesh_id")
+        w, h = ctypes.c_uint32(), ctypes.c_uint32()
+        _check(_C.plm_preview_lightmap_size(h_, mesh_id, ctypes.byref(w), ctypes.byref(h)))
+        shape = (h.value, w.value, 3)
+        if out is None:
+            out = np.empty(shape, np.float32)
+        elif out.shape != shape or out.dtype != np.float32 or not out.flags.c_contiguous:
+            raise ValueError("out must be a C-contiguous float32 array of shape %s, got %s %s"
+                             % (shape, out.dtype, out.shape))
+        written = ctypes.c_int()
+        _check(_C.plm_preview_copy_lightmap(h_, mesh_id, _ptr(out, ctypes.c_float), ctypes.byref(written)))
+        return out if written.value else None
 
 
 OrientationLightmap = collections.namedtuple("OrientationLightmap", "rgb error resolution area hits")

@@ -47,8 +47,13 @@ class Result_(ctypes.Structure):
     """Opaque plm_result."""
 
 
+class Preview_(ctypes.Structure):
+    """Opaque plm_preview."""
+
+
 ScenePtr = POINTER(Scene_)
 ResultPtr = POINTER(Result_)
+PreviewPtr = POINTER(Preview_)
 FloatPtr = POINTER(c_float)
 UInt32Ptr = POINTER(c_uint32)
 
@@ -178,6 +183,7 @@ class plm_lsystem_stats(ctypes.Structure):
 # plm_status is a C enum: int-sized on every ABI we target.
 status_t = c_int
 progress_fn = ctypes.CFUNCTYPE(c_int, c_void_p, c_double, c_char_p)
+preview_fn = ctypes.CFUNCTYPE(c_int, c_void_p, PreviewPtr)
 
 library_path, lib = _find_library()
 
@@ -204,6 +210,11 @@ _SIGNATURES = {
     "plm_bake_settings_default": (None, [POINTER(plm_bake_settings)]),
     "plm_bake": (status_t, [ScenePtr, POINTER(plm_bake_settings), progress_fn, c_void_p,
                             POINTER(ResultPtr)]),
+    "plm_bake_with_preview": (status_t, [ScenePtr, POINTER(plm_bake_settings), progress_fn, preview_fn, c_double,
+                                         c_void_p, POINTER(ResultPtr)]),
+    "plm_preview_photons": (status_t, [PreviewPtr, POINTER(c_uint64)]),
+    "plm_preview_lightmap_size": (status_t, [PreviewPtr, c_uint32, UInt32Ptr, UInt32Ptr]),
+    "plm_preview_copy_lightmap": (status_t, [PreviewPtr, c_uint32, FloatPtr, POINTER(c_int)]),
     "plm_result_release": (None, [ResultPtr]),
     "plm_result_stats": (status_t, [ResultPtr, POINTER(plm_bake_stats)]),
     "plm_result_warning_count": (c_uint32, [ResultPtr]),

@@ -298,7 +298,7 @@ def test_defaults_come_from_the_engine():
     default_settings() names exactly Scene.bake's settings."""
     import inspect
     d = photonlm.default_settings()
-    params = set(inspect.signature(photonlm.Scene.bake).parameters) - {"self", "progress"}
+    params = set(inspect.signature(photonlm.Scene.bake).parameters) - {"self", "progress", "preview", "preview_interval"}
     assert set(d) == params
     assert d["photons"] > 0 and d["max_bounces"] > 0 and d["texel_value"] in ("CYCLES", "AREA")
     with photonlm.Scene() as scene:

@@ -432,6 +432,46 @@ PLM_API plm_status plm_bake(plm_scene* scene, const plm_bake_settings* settings,
                             plm_progress_fn progress, void* user_data, plm_result** out_result);
 PLM_API void plm_result_release(plm_result* result); /* NULL is fine */
 
+/* ---- Live previews ----------------------------------------------------------
+ *
+ * plm_bake_with_preview bakes as plm_bake does and, while it runs, lets the
+ * host look at the lightmaps: at the bake's check points (after each round
+ * of the direct pass and after the pass, then between groups of photons,
+ * several a second) it calls preview when at least preview_interval seconds
+ * have passed since the last call ended (the call after the direct pass's
+ * first round comes at once: direct light only, no photons yet). preview
+ * runs on the thread that called plm_bake_with_preview while the bake waits;
+ * it copies what it wants with plm_preview_copy_lightmap and returns quickly
+ * (the handle is valid only during the call). Return 0 to cancel, as with
+ * progress. Previews read the bake's sums and change nothing: the result is
+ * bit for bit that of plm_bake with the same settings (with a time_budget,
+ * previews take their share of the time like any work). preview NULL or
+ * preview_interval 0: no previews (plm_bake). The final gather, when it runs,
+ * is in the previews after it. */
+typedef struct plm_preview plm_preview; /* the bake's state at one check point */
+typedef int (*plm_preview_fn)(void* user_data, const plm_preview* preview);
+
+PLM_API plm_status plm_bake_with_preview(plm_scene* scene, const plm_bake_settings* settings,
+                                         plm_progress_fn progress, plm_preview_fn preview,
+                                         double preview_interval, void* user_data, plm_result** out_result);
+
+/* Photons traced so far (0 during and after the direct pass). */
+PLM_API plm_status plm_preview_photons(const plm_preview* preview, uint64_t* out_photons);
+
+/* The size of mesh mesh_id's lightmap (as plm_result_lightmap_size). */
+PLM_API plm_status plm_preview_lightmap_size(const plm_preview* preview, uint32_t mesh_id, uint32_t* out_width,
+                                             uint32_t* out_height);
+
+/* Copies mesh mesh_id's lightmap at this state into rgb (width * height * 3
+ * floats, irradiance / pi, rows bottom first): each covered texel's current
+ * estimate, dilated like the final image; seams are not stitched and a
+ * backup OL is not blended in (the final image does both). A mesh whose
+ * texels come from an OL group or a CSG solid has no preview (known only at
+ * the end): *out_written is then 0 and rgb is left as it was, else 1
+ * (out_written may be NULL). */
+PLM_API plm_status plm_preview_copy_lightmap(const plm_preview* preview, uint32_t mesh_id, float* rgb,
+                                             int* out_written);
+
 typedef struct plm_bake_stats {
   uint64_t photons_emitted;
   uint64_t photon_hits;      /* hits stored into lightmaps and orientation lightmaps */

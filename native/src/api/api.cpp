@@ -74,6 +74,38 @@ const plm::LSystemOutput& lsystem_of(const plm_result* r, uint32_t id, const cha
   return result_item(r->output.lsystems, id, function, "L-system", "L-system objects");
 }
 
+// plm_bake and plm_bake_with_preview, named `function` in errors.
+plm_status run_bake(const char* function, plm_scene* scene, const plm_bake_settings* settings,
+                    plm_progress_fn progress, plm_preview_fn preview, double preview_interval, void* user_data,
+                    plm_result** out_result) {
+  return guarded(function, [&] {
+    require(scene, function, "scene");
+    require(out_result, function, "out_result");
+    *out_result = nullptr;
+    if (!(preview_interval >= 0.0) || !std::isfinite(preview_interval))
+      plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": preview_interval must be a finite number of seconds >= 0, "
+                "got ", preview_interval);
+    const plm_bake_settings s = settings ? *settings : plm::default_settings();
+    plm::ProgressFn fn;
+    if (progress) fn = [&](double f, const char* stage) { return progress(user_data, f, stage) != 0; };
+    plm::PreviewHook hook;
+    hook.interval = preview_interval;
+    if (preview)
+      hook.callback = [&](const plm::Snapshot& snapshot) {
+        const plm_preview handle{snapshot};
+        return preview(user_data, &handle) != 0;
+      };
+    auto* result = new plm_result();
+    try {
+      result->output = plm::bake(scene->scene, s, fn, &hook);
+    } catch (...) {
+      delete result;
+      throw;
+    }
+    *out_result = result;
+  });
+}
+
 }  // namespace
 
 namespace {
@@ -310,21 +342,49 @@ void plm_bake_settings_default(plm_bake_settings* settings) {
 
 plm_status plm_bake(plm_scene* scene, const plm_bake_settings* settings, plm_progress_fn progress, void* user_data,
                     plm_result** out_result) {
-  return guarded("plm_bake", [&] {
-    require(scene, "plm_bake", "scene");
-    require(out_result, "plm_bake", "out_result");
-    *out_result = nullptr;
-    const plm_bake_settings s = settings ? *settings : plm::default_settings();
-    plm::ProgressFn fn;
-    if (progress) fn = [&](double f, const char* stage) { return progress(user_data, f, stage) != 0; };
-    auto* result = new plm_result();
+  return run_bake("plm_bake", scene, settings, progress, nullptr, 0.0, user_data, out_result);
+}
+
+plm_status plm_bake_with_preview(plm_scene* scene, const plm_bake_settings* settings, plm_progress_fn progress,
+                                 plm_preview_fn preview, double preview_interval, void* user_data,
+                                 plm_result** out_result) {
+  return run_bake("plm_bake_with_preview", scene, settings, progress, preview, preview_interval, user_data,
+                  out_result);
+}
+
+plm_status plm_preview_photons(const plm_preview* preview, uint64_t* out_photons) {
+  return guarded("plm_preview_photons", [&] {
+    require(preview, "plm_preview_photons", "preview");
+    require(out_photons, "plm_preview_photons", "out_photons");
+    *out_photons = preview->snapshot.photons();
+  });
+}
+
+plm_status plm_preview_lightmap_size(const plm_preview* preview, uint32_t mesh_id, uint32_t* out_width,
+                                     uint32_t* out_height) {
+  return guarded("plm_preview_lightmap_size", [&] {
+    require(preview, "plm_preview_lightmap_size", "preview");
     try {
-      result->output = plm::bake(scene->scene, s, fn);
-    } catch (...) {
-      delete result;
-      throw;
+      const plm::Mesh& mesh = preview->snapshot.lightmap_mesh(mesh_id);
+      if (out_width) *out_width = mesh.lightmap_width;
+      if (out_height) *out_height = mesh.lightmap_height;
+    } catch (const plm::Error& e) {
+      plm::fail(e.status(), "plm_preview_lightmap_size: ", e.what());
     }
-    *out_result = result;
+  });
+}
+
+plm_status plm_preview_copy_lightmap(const plm_preview* preview, uint32_t mesh_id, float* rgb, int* out_written) {
+  return guarded("plm_preview_copy_lightmap", [&] {
+    require(preview, "plm_preview_copy_lightmap", "preview");
+    require(rgb, "plm_preview_copy_lightmap", "rgb");
+    if (out_written) *out_written = 0;
+    try {
+      const bool written = preview->snapshot.copy_lightmap(mesh_id, rgb);
+      if (out_written) *out_written = written ? 1 : 0;
+    } catch (const plm::Error& e) {
+      plm::fail(e.status(), "plm_preview_copy_lightmap: ", e.what());
+    }
   });
 }
 

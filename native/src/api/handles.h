@@ -4,6 +4,7 @@
 
 #include "scene/scene.h"
 #include "transport/bake.h"
+#include "transport/live_preview.h"
 
 struct plm_scene {
   plm::Scene scene;
@@ -11,4 +12,9 @@ struct plm_scene {
 
 struct plm_result {
   plm::BakeOutput output;
+};
+
+// Valid only during the host's preview callback (plm_bake_with_preview).
+struct plm_preview {
+  const plm::Snapshot& snapshot;
 };

@@ -22,6 +22,7 @@
 #include "transport/film_estimate.h"
 #include "transport/film_output.h"
 #include "transport/final_gather.h"
+#include "transport/live_preview.h"
 #include "transport/material_table.h"
 #include "transport/ol_film.h"
 #include "transport/passage.h"
@@ -63,7 +64,8 @@ plm_bake_settings default_settings() {
   return s;
 }
 
-BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const ProgressFn& progress) {
+BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const ProgressFn& progress,
+                const PreviewHook* preview) {
   const auto t_start = Clock::now();
   validate(scene, requested);
   BakeOutput out;
@@ -71,6 +73,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   const plm_bake_settings settings = effective_settings(scene, requested, out.warnings);
   Progress report(progress);
   const TimeBudget budget(settings.time_budget, t_start);
+  LivePreview live(preview, t_start);  // snapshots for the host at check points (live_preview.h)
 
   // ---- Set-up ------------------------------------------------------------------
   report(0.0, "building the ray-tracing scene");
@@ -129,26 +132,33 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   const double direct_end = photon_pass ? kProgressDirect : kProgressPhotons;
 
   // ---- Direct pass ---------------------------------------------------------------
+  Accumulators acc(space.texel_count, scene.meshes.size(), lobes.any_lobes());  // photon sums (empty until then)
   DirectResult direct;
   const auto t_direct = Clock::now();
   if (two_pass) {
     const DirectPass pass(accel.handle(), surfaces, space.views, space.csg_views, space.areas, emitters, settings,
                           extent, textures.get(), passage.get());
     const double share = photon_pass ? kDirectBudgetShare : kDirectOnlyBudgetShare;
-    const DirectControl control{
+    DirectControl control{
         [&](double f) { report(kProgressSetup + (direct_end - kProgressSetup) * f, "direct light"); },
-        [&] { return budget.spent(share); }};
+        [&] { return budget.spent(share); },
+        nullptr};
+    if (live.active())  // previews between rounds; the first shows the first round at once
+      control.round_done = [&](uint32_t round, const DirectResult& sofar) {
+        const Estimator est{space, sofar.sums, sofar.noise, acc, settings.filter_radius, nullptr};
+        live.check(arena, scene, est, 0, settings.dilation, round == 0);
+      };
     direct = run_direct_pass(arena, pass, space.covered, settings, control);
     out.stats.direct_samples = direct.samples;
   }
   out.stats.seconds_direct = seconds_since(t_direct);
 
   // ---- Photon pass and final gather ------------------------------------------------
-  Accumulators acc(space.texel_count, scene.meshes.size(), lobes.any_lobes());
   GatherResult gather;  // empty unless the final gather ran
   const Estimator estimator{space, direct.sums, direct.noise, acc, settings.filter_radius, &gather};
   uint64_t photons = 0;
   Estimate last;  // the latest estimate
+  if (two_pass) live.check(arena, scene, estimator, 0, settings.dilation);  // the direct light alone
   const auto t_trace = Clock::now();
   if (photon_pass) {
     const bool steered = settings.target_error > 0.0 || settings.time_budget > 0.0;
@@ -223,6 +233,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
             }
           }
           merged = end;
+          if (!done) live.check(arena, scene, estimator, photons, settings.dilation);
           if (budget.seconds() > 0.0) fraction = std::max(fraction, budget.elapsed() / budget.seconds());
           done = done || budget.spent(kPhotonBudgetShare);
           if (seconds_since(last_report) >= kPhotonReportInterval) {

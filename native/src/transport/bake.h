@@ -87,7 +87,11 @@ using ProgressFn = std::function<bool(double fraction, const char* stage)>;
 
 plm_bake_settings default_settings();
 
+struct PreviewHook;  // live_preview.h
+
 // Throws plm::Error on invalid input and PLM_ERROR_CANCELLED on cancel.
-BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const ProgressFn& progress);
+// preview (may be null): snapshots of the lightmaps while the bake runs.
+BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const ProgressFn& progress,
+                const PreviewHook* preview = nullptr);
 
 }  // namespace plm

@@ -84,6 +84,7 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
       noise[i] = {d.count, d.variance_of_mean(out.noise), d.phantom_variance_of_mean(out.noise)};
     }
     todo = schedule.next_round(round, mean, noise, want);
+    if (control.round_done) control.round_done(round, out);
     if (control.stop()) break;
   }
   for (const DirectSums& d : direct) out.samples += d.count;

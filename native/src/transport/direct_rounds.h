@@ -25,9 +25,11 @@ struct DirectResult {
 // progress(f) runs on the calling thread between groups of texels, f the
 // share of the rounds done; once stop() is true the pass ends (between
 // groups, texels of the round left unsampled keep what they have).
+// round_done (may be empty) sees the sums after each whole round.
 struct DirectControl {
   std::function<void(double)> progress;
   std::function<bool()> stop;
+  std::function<void(uint32_t round, const DirectResult& sofar)> round_done;
 };
 
 DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, const std::vector<CoveredTexel>& covered,
