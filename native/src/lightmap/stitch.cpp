@@ -6,6 +6,8 @@
 #include <tuple>
 #include <unordered_map>
 
+#include <tbb/parallel_for.h>
+
 namespace plm {
 namespace {
 
@@ -186,6 +188,7 @@ SeamStats stitch_seams(const std::vector<SeamEdge>& seams, const std::vector<uin
 
 SeamStats stitch_images(const std::vector<LinkedSeam>& seams, const std::vector<SeamImage>& images, int colour) {
   SeamStats stats;
+  colour = std::clamp(colour, 0, 3);
   std::vector<Row> rows;
   for (const LinkedSeam& link : seams) {
     const SeamEdge& s = link.edge;
@@ -263,11 +266,10 @@ SeamStats stitch_images(const std::vector<LinkedSeam>& seams, const std::vector<
   const size_t m = free_texel.size();
   auto free_value = [&](size_t i, int c) { return value(uint32_t(free_texel[i] >> 32), uint32_t(free_texel[i]), c); };
 
-  // Per channel: minimise sum_r (row . texels)^2 + sum_i hold_i (x_i - x0_i)^2
-  // over the texels that may move: (A^T A + H) x = H x0 - A^T fixed, by
-  // conjugate gradients from x0.
-  std::vector<double> fixed(rows.size()), ax(rows.size());
-  auto apply = [&](const std::vector<double>& x, std::vector<double>& out) {
+  // Per channel (in parallel, each on its own buffers): minimise
+  // sum_r (row . texels)^2 + sum_i hold_i (x_i - x0_i)^2 over the texels that
+  // may move: (A^T A + H) x = H x0 - A^T fixed, by conjugate gradients from x0.
+  auto apply = [&](const std::vector<double>& x, std::vector<double>& ax, std::vector<double>& out) {
     for (size_t r = 0; r < rows.size(); ++r) {
       double s = 0.0;
       for (int k = 0; k < 8; ++k)
@@ -291,14 +293,15 @@ SeamStats stitch_images(const std::vector<LinkedSeam>& seams, const std::vector<
       level += 0.5 * (a + b);
     }
   };
-  double before = 0.0, after = 0.0, level = 0.0, unused = 0.0;
-  std::vector<double> x(m), rhs(m), res(m), dir(m), kd(m);
-  for (int c = 0; c < colour; ++c) {
-    jump(c, before, level);
+  double before_c[3] = {0, 0, 0}, after_c[3] = {0, 0, 0}, level_c[3] = {0, 0, 0};
+  auto solve = [&](int c) {
+    double unused = 0.0;
+    jump(c, before_c[c], level_c[c]);
     if (m == 0) {
-      jump(c, after, unused);
-      continue;
+      jump(c, after_c[c], unused);
+      return;
     }
+    std::vector<double> x(m), rhs(m), res(m), dir(m), kd(m), fixed(rows.size()), ax(rows.size());
     for (size_t r = 0; r < rows.size(); ++r) {
       double s = 0.0;
       for (int k = 0; k < 8; ++k)
@@ -309,7 +312,7 @@ SeamStats stitch_images(const std::vector<LinkedSeam>& seams, const std::vector<
     for (size_t r = 0; r < rows.size(); ++r)
       for (int k = 0; k < 8; ++k)
         if (slot[r * 8 + k] >= 0) rhs[size_t(slot[r * 8 + k])] -= rows[r].weight[k] * fixed[r];
-    apply(x, kd);
+    apply(x, ax, kd);
     double rr = 0.0, bb = 0.0;
     for (size_t i = 0; i < m; ++i) {
       res[i] = dir[i] = rhs[i] - kd[i];
@@ -317,7 +320,7 @@ SeamStats stitch_images(const std::vector<LinkedSeam>& seams, const std::vector<
       bb += rhs[i] * rhs[i];
     }
     for (int it = 0; it < kMaxIterations && rr > 1e-20 * bb && rr > 0.0; ++it) {
-      apply(dir, kd);
+      apply(dir, ax, kd);
       double dkd = 0.0;
       for (size_t i = 0; i < m; ++i) dkd += dir[i] * kd[i];
       if (!(dkd > 0.0)) break;
@@ -336,8 +339,18 @@ SeamStats stitch_images(const std::vector<LinkedSeam>& seams, const std::vector<
         const SeamImage& im = images[size_t(free_texel[i] >> 32)];
         im.colour[size_t(uint32_t(free_texel[i])) * im.stride + c] = float(std::max(x[i], 0.0));
       }
-    jump(c, after, unused);
+    jump(c, after_c[c], unused);
+  };
+  // Small systems are solved in turn; larger ones (seams between many
+  // objects) one channel per thread. The channels are independent: the same
+  // texels either way.
+  if (rows.size() * size_t(colour) < 20000) {
+    for (int c = 0; c < colour; ++c) solve(c);
+  } else {
+    tbb::parallel_for(0, colour, solve);
   }
+  const double before = before_c[0] + before_c[1] + before_c[2], after = after_c[0] + after_c[1] + after_c[2],
+               level = level_c[0] + level_c[1] + level_c[2];
   if (level > 0.0) {
     const double count = double(rows.size()) * colour;
     const double mean = level / count;

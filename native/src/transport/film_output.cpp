@@ -178,7 +178,8 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
     }
     const std::vector<uint8_t> covered = filled;
     dilate(values, 4, filled, img.width, img.height, dilation);
-    if (!seams.joint[i]) stitch_seams(seams.within[i], covered, values, 4, img.width, img.height);
+    if (!seams.joint[i])
+      arena.execute([&] { stitch_seams(seams.within[i], covered, values, 4, img.width, img.height); });
     img.rgb.resize(3 * n);
     img.error.resize(n);
     for (size_t t = 0; t < n; ++t) {
@@ -196,7 +197,7 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
     for (double a : areas[i].area) covered[i].push_back(a > 0.0);
     view[i] = {images[i].rgb.data(), 3, images[i].error.data(), 1, covered[i].data(), images[i].width, images[i].height};
   }
-  stitch_scene_seams(seams, view);
+  arena.execute([&] { stitch_scene_seams(seams, view); });
 }
 
 }  // namespace plm
