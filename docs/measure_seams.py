@@ -12,8 +12,15 @@ mean ("jump"), with the RMS of the two sides' mean against the truth where one i
   object (128 x 64, the same texel size) baked alike, read at the same points.
 
     PHOTONLM_LIBRARY=build/lib/libphotonlm.so /usr/bin/python3 docs/measure_seams.py python_bridge 300000
+
+With a third argument `tiles GAP` it bakes only a floor of 20 x 20 tiles as 400 objects (32 x 32
+texels each), GAP metres apart (0: 760 shared edges), for the cost of stitching between objects:
+
+    PHOTONLM_LIBRARY=build/lib/libphotonlm.so perf record -o /tmp/perf.data /usr/bin/python3 \
+        docs/measure_seams.py python_bridge 200000 tiles 0 && perf report -i /tmp/perf.data --sort symbol
 """
 import sys
+import time
 
 import numpy as np
 
@@ -79,6 +86,27 @@ def scene():
     s.add_material((0.8, 0.8, 0.8))
     return s
 
+
+def tiles(gap, n=20):
+    s = scene()
+    quad = np.array([[0, 1, 2], [0, 2, 3]])
+    q = [[0.02, 0.02], [0.98, 0.02], [0.98, 0.98], [0.02, 0.98]]
+    uv = np.array([[q[a] for a in tr] for tr in quad], np.float32)
+    for i in range(n):
+        for j in range(n):
+            x0, y0 = i*(1 + gap), j*(1 + gap)
+            p = np.array([[x0, y0, 0], [x0 + 1, y0, 0], [x0 + 1, y0 + 1, 0], [x0, y0 + 1, 0]], np.float32)
+            s.add_mesh("tile%d_%d" % (i, j), p, quad, lightmap_uv=uv, resolution=32)
+    s.add_light("SUN", power=SUN_E, matrix=sun_matrix(0.5))
+    s.set_world(SKY)
+    start = time.time()
+    s.bake(photons=PHOTONS, seed=1, direct_samples=4)
+    print("tiles %g m apart: bake %.2f s" % (gap, time.time() - start))
+
+
+if len(sys.argv) > 3 and sys.argv[3] == "tiles":
+    tiles(float(sys.argv[4]))
+    sys.exit(0)
 
 # The seam within one object.
 pos, idx, uv, nrm = sphere_rows(0, 16)
