@@ -49,29 +49,61 @@ std::vector<ObjectSeam> match_open_edges(const std::vector<std::vector<OpenEdge>
   }
   if (meshes_with_edges < 2 || !(tolerance >= 0.0)) return seams;
   auto edge = [&](size_t r) -> const OpenEdge& { return open[refs[r].mesh][refs[r].index]; };
-  // Cells of the hash grid: at least the largest tolerance, so that matching
-  // points lie in neighbouring cells; counted from the lower corner of all
-  // end points, in double.
+  // Cells of the hash grid: eight times the largest tolerance, so that the
+  // points matching a point lie in its cell, or also in the neighbour across
+  // a face it lies within a tolerance of (on average 2 cells to look in);
+  // counted from the lower corner of all end points, in double.
   double lo[3] = {INFINITY, INFINITY, INFINITY}, largest = 0.0;
   for (size_t r = 0; r < refs.size(); ++r)
     for (const Vec3* p : {&edge(r).p0, &edge(r).p1}) {
       lo[0] = std::min(lo[0], double(p->x)), lo[1] = std::min(lo[1], double(p->y)), lo[2] = std::min(lo[2], double(p->z));
       largest = std::max(largest, max_abs(*p));
     }
-  const double cell = tolerance + kFloatSteps * largest;
+  const double reach = tolerance + kFloatSteps * largest, cell = 8.0 * reach;
   if (!(cell > 0.0) || !std::isfinite(cell)) return seams;
-  auto index = [&](const Vec3& p, int64_t out[3]) {
+  // A point's cell, and per axis the neighbour it lies within `reach` of (0: none).
+  auto position = [&](const Vec3& p, int64_t index[3], int64_t side[3]) {
     const double c[3] = {double(p.x), double(p.y), double(p.z)};
-    for (int a = 0; a < 3; ++a) out[a] = int64_t(std::min(std::floor((c[a] - lo[a]) / cell), 9.0e15));
+    for (int a = 0; a < 3; ++a) {
+      const double q = std::min((c[a] - lo[a]) / cell, 9.0e15), f = std::floor(q);
+      index[a] = int64_t(f);
+      side[a] = q - f < 0.125 ? -1 : q - f > 0.875 ? 1 : 0;
+    }
   };
-  // Each edge filed under the cell of its first end point.
-  std::vector<std::pair<uint64_t, uint32_t>> grid(refs.size());
-  for (size_t r = 0; r < refs.size(); ++r) {
-    int64_t i[3];
-    index(edge(r).p0, i);
-    grid[r] = {cell_hash(i[0], i[1], i[2]), uint32_t(r)};
-  }
+  // Each edge filed under the cells of both its end points; a cell's edges
+  // are one run of the sorted list, found through an open-addressing table.
+  std::vector<std::pair<uint64_t, uint32_t>> grid;
+  grid.reserve(2 * refs.size());
+  for (size_t r = 0; r < refs.size(); ++r)
+    for (const Vec3* p : {&edge(r).p0, &edge(r).p1}) {
+      int64_t i[3], side[3];
+      position(*p, i, side);
+      grid.push_back({cell_hash(i[0], i[1], i[2]), uint32_t(r)});
+    }
   std::sort(grid.begin(), grid.end());
+  struct Run {
+    uint64_t hash;
+    uint32_t begin = 0, end = 0;  // empty slot: begin == end
+  };
+  size_t cells = 0;
+  for (size_t k = 0; k < grid.size(); ++k) cells += k == 0 || grid[k].first != grid[k - 1].first;
+  size_t slots = 16;
+  while (slots < 2 * cells) slots *= 2;
+  std::vector<Run> table(slots);
+  for (size_t k = 0; k < grid.size();) {
+    size_t end = k + 1;
+    while (end < grid.size() && grid[end].first == grid[k].first) ++end;
+    size_t at = size_t(grid[k].first >> 7) & (slots - 1);
+    while (table[at].end != table[at].begin) at = (at + 1) & (slots - 1);
+    table[at] = {grid[k].first, uint32_t(k), uint32_t(end)};
+    k = end;
+  }
+  auto find = [&](uint64_t hash) -> const Run* {
+    for (size_t at = size_t(hash >> 7) & (slots - 1);; at = (at + 1) & (slots - 1)) {
+      if (table[at].end == table[at].begin) return nullptr;
+      if (table[at].hash == hash) return &table[at];
+    }
+  };
   struct Match {
     uint32_t e, f;
     bool swapped;
@@ -81,33 +113,33 @@ std::vector<ObjectSeam> match_open_edges(const std::vector<std::vector<OpenEdge>
     const OpenEdge& e = edge(r);
     // An edge shorter than the tolerance could match either way round.
     if (near(e.p0, e.p1, 2.0 * tolerance)) continue;
-    for (const Vec3* end : {&e.p0, &e.p1}) {
-      int64_t i[3];
-      index(*end, i);
-      for (int dx = -1; dx <= 1; ++dx)
-        for (int dy = -1; dy <= 1; ++dy)
-          for (int dz = -1; dz <= 1; ++dz) {
-            const uint64_t h = cell_hash(i[0] + dx, i[1] + dy, i[2] + dz);
-            auto it = std::lower_bound(grid.begin(), grid.end(), std::make_pair(h, uint32_t(0)));
-            for (; it != grid.end() && it->first == h; ++it) {
-              const size_t s = it->second;
-              if (s <= r || refs[s].mesh == refs[r].mesh) continue;
-              const OpenEdge& f = edge(s);
-              const bool forward = near(e.p0, f.p0, tolerance) && near(e.p1, f.p1, tolerance);
-              const bool backward = near(e.p0, f.p1, tolerance) && near(e.p1, f.p0, tolerance);
-              if (forward == backward) continue;  // no match, or a degenerate edge
-              // The surfaces continue each other: the normals agree at both
-              // ends, and the triangles lie on opposite sides of the edge.
-              const Vec3& f0 = forward ? f.n0 : f.n1;
-              const Vec3& f1 = forward ? f.n1 : f.n0;
-              const bool smooth = e.flat && f.flat ? dot(e.n0, f0) > kFlatCos
-                                                   : dot(e.n0, f0) > kSmoothNormalCos && dot(e.n1, f1) > kSmoothNormalCos;
-              if (smooth && dot(e.inward, f.inward) < 0.0f) matches.push_back({uint32_t(r), uint32_t(s), backward});
-            }
-          }
+    // An edge matching e has an end point near e's first: in its cell or a
+    // neighbour it lies near.
+    int64_t i[3], side[3];
+    position(e.p0, i, side);
+    for (int corner = 0; corner < 8; ++corner) {
+      if (((corner & 1) && !side[0]) || ((corner & 2) && !side[1]) || ((corner & 4) && !side[2])) continue;
+      const Run* run = find(cell_hash(i[0] + (corner & 1 ? side[0] : 0), i[1] + (corner & 2 ? side[1] : 0),
+                                      i[2] + (corner & 4 ? side[2] : 0)));
+      if (!run) continue;
+      for (uint32_t k = run->begin; k < run->end; ++k) {
+        const size_t s = grid[k].second;
+        if (s <= r || refs[s].mesh == refs[r].mesh) continue;
+        const OpenEdge& f = edge(s);
+        const bool forward = near(e.p0, f.p0, tolerance) && near(e.p1, f.p1, tolerance);
+        const bool backward = near(e.p0, f.p1, tolerance) && near(e.p1, f.p0, tolerance);
+        if (forward == backward) continue;  // no match, or a degenerate edge
+        // The surfaces continue each other: the normals agree at both
+        // ends, and the triangles lie on opposite sides of the edge.
+        const Vec3& f0 = forward ? f.n0 : f.n1;
+        const Vec3& f1 = forward ? f.n1 : f.n0;
+        const bool smooth = e.flat && f.flat ? dot(e.n0, f0) > kFlatCos
+                                             : dot(e.n0, f0) > kSmoothNormalCos && dot(e.n1, f1) > kSmoothNormalCos;
+        if (smooth && dot(e.inward, f.inward) < 0.0f) matches.push_back({uint32_t(r), uint32_t(s), backward});
+      }
     }
   }
-  // Both ends may find the same edge (cells of a short edge overlap).
+  // An edge filed under two of the cells is found twice.
   std::sort(matches.begin(), matches.end(),
             [](const Match& a, const Match& b) { return a.e < b.e || (a.e == b.e && a.f < b.f); });
   matches.erase(std::unique(matches.begin(), matches.end(),
