@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -232,6 +233,47 @@ TEST(ObjectSeams, NoSharedEdgesNothingToDo) {
   EXPECT_TRUE(seams.between.empty());
   EXPECT_EQ(seams.joint, (std::vector<uint8_t>{0, 0}));
   EXPECT_EQ(plm::stitch_scene_seams(seams, std::vector<plm::SeamImage>(2)).edges, 0u);
+}
+
+}  // namespace
+
+namespace {
+
+// docs/benchmarks.md: the cost of finding seams in a scene of many borders
+// that meet nowhere (run with --gtest_also_run_disabled_tests
+// --gtest_filter=ObjectSeams.DISABLED_CostWithoutSharedBorders).
+TEST(ObjectSeams, DISABLED_CostWithoutSharedBorders) {
+  plm::Scene s;
+  for (int part = 0; part < 2; ++part) {  // two meshes of 100 k separate cards (400 k border edges each)
+    Mesh m;
+    m.name = part ? "cards b" : "cards a";
+    for (int k = 0; k < 100000; ++k) {
+      const float x = float(k % 300) * 1.5f + float(part) * 0.7f, y = float(k / 300) * 1.5f, z = float(part) * 0.3f;
+      const uint32_t b = uint32_t(m.positions.size());
+      for (const Vec3& p : {Vec3{x, y, z}, Vec3{x + 1, y, z}, Vec3{x + 1, y + 1, z}, Vec3{x, y + 1, z}})
+        m.positions.push_back(p);
+      for (uint32_t i : {0u, 1u, 2u, 0u, 2u, 3u}) m.indices.push_back(b + i);
+      for (float u : {0.f, 0.f, 1.f, 0.f, 1.f, 1.f, 0.f, 0.f, 1.f, 1.f, 0.f, 1.f}) m.uv.push_back(u);
+      m.material_ids.insert(m.material_ids.end(), {0, 0});
+    }
+    m.vertex_count = uint32_t(m.positions.size());
+    m.positions.push_back({0, 0, 0});
+    m.lightmap_width = m.lightmap_height = 4096;
+    s.meshes.push_back(std::move(m));
+  }
+  auto seconds = [](auto since) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+  };
+  auto start = std::chrono::steady_clock::now();
+  size_t within = 0;
+  for (const Mesh& m : s.meshes) within += plm::find_seams(m).size();
+  const double alone = seconds(start);
+  start = std::chrono::steady_clock::now();
+  const plm::SceneSeams seams = plm::find_scene_seams(s);
+  const double all = seconds(start);
+  std::printf("[ cost ] 800 k border edges in 2 meshes: seams within %.3f s, within and between %.3f s (%zu, %zu)\n",
+              alone, all, within, seams.between.size());
+  EXPECT_TRUE(seams.between.empty());
 }
 
 }  // namespace
