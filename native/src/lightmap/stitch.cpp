@@ -6,6 +6,8 @@
 #include <tuple>
 #include <unordered_map>
 
+#include <tbb/parallel_for.h>
+
 namespace plm {
 namespace {
 
@@ -16,14 +18,13 @@ constexpr double kHoldFree = 1e-3;
 // most (towards the other side's estimate of the same points).
 constexpr double kHoldCovered = 0.25;
 constexpr double kPull = 0.5;  // the pull on a texel beside one seam
-constexpr double kFlatCos = 0.99985;       // flat meshes: triangles in one plane (within 1 degree)
-constexpr float kSmoothNormalCos = 0.999f;  // smooth meshes: the same corner normal on both sides
 constexpr int kMaxIterations = 200;
-constexpr double kMinTexels = 2.0;  // both triangles along a seam cover at least this many texels
 
 // One point compared along a seam: the bilinear weights of the two sides'
-// texels, side B's negative, so that the row times the texels is the jump.
+// texels (0-3 in image[0], 4-7 in image[1]), side B's negative, so that the
+// row times the texels is the jump.
 struct Row {
+  uint32_t image[2];
   uint32_t texel[8];
   double weight[8];
 };
@@ -50,9 +51,44 @@ Vec3 triangle_normal(const Mesh& mesh, uint32_t t) {
   return len > 0.0f ? n * (1.0f / len) : Vec3{0, 0, 0};
 }
 
+// A triangle whose area is below 1e-10 of its squared edge lengths: its
+// normal cannot be trusted.
+bool degenerate(const Mesh& mesh, uint32_t t) {
+  const Vec3 p0 = mesh.vertex(t, 0), p1 = mesh.vertex(t, 1), p2 = mesh.vertex(t, 2);
+  const double area = 0.5 * double(length(cross(p1 - p0, p2 - p0)));
+  const double edges = double(dot(p1 - p0, p1 - p0)) + double(dot(p2 - p0, p2 - p0)) + double(dot(p2 - p1, p2 - p1));
+  return !(area > 1e-10 * edges);
+}
+
+// Keeps triangle t's edge from corner lo to corner hi as an open edge, unless
+// the triangle is smaller than kMinSeamTexels or degenerate.
+void add_open(const Mesh& mesh, uint32_t t, uint8_t lo, uint8_t hi, double texels, std::vector<OpenEdge>& open) {
+  if (!(texels >= kMinSeamTexels)) return;
+  const Vec3 p0 = mesh.vertex(t, lo), p1 = mesh.vertex(t, hi), p2 = mesh.vertex(t, 3 - lo - hi);
+  const Vec3 d = p1 - p0, v = p2 - p0;
+  if (degenerate(mesh, t) || !(dot(d, d) > 0.0f)) return;
+  const Vec3 across = v - d * (dot(v, d) / dot(d, d));
+  const float across_len = length(across);
+  if (!(across_len > 0.0f)) return;
+  OpenEdge e;
+  e.p0 = p0;
+  e.p1 = p1;
+  e.inward = across * (1.0f / across_len);
+  e.flat = !mesh.smooth();
+  if (e.flat) {
+    e.n0 = e.n1 = triangle_normal(mesh, t);
+  } else {
+    e.n0 = mesh.normals[3 * size_t(t) + lo];
+    e.n1 = mesh.normals[3 * size_t(t) + hi];
+  }
+  std::memcpy(e.uv0, &mesh.uv[6 * size_t(t) + 2 * lo], sizeof e.uv0);
+  std::memcpy(e.uv1, &mesh.uv[6 * size_t(t) + 2 * hi], sizeof e.uv1);
+  open.push_back(e);
+}
+
 }  // namespace
 
-std::vector<SeamEdge> find_seams(const Mesh& mesh) {
+std::vector<SeamEdge> find_seams(const Mesh& mesh, std::vector<OpenEdge>* open) {
   std::vector<SeamEdge> seams;
   const uint32_t tris = mesh.triangle_count();
   if (mesh.uv.empty() || tris == 0) return seams;
@@ -99,6 +135,12 @@ std::vector<SeamEdge> find_seams(const Mesh& mesh) {
   for (size_t i = 0; i < edges.size();) {
     size_t j = i + 1;
     while (j < edges.size() && edges[j].key == edges[i].key) ++j;
+    if (open) {  // a border: one triangle along the edge, not counting degenerate ones
+      size_t solid = 0, last = i;
+      for (size_t k = i; k < j; ++k)
+        if (!degenerate(mesh, edges[k].tri)) ++solid, last = k;
+      if (solid == 1) add_open(mesh, edges[last].tri, edges[last].lo, edges[last].hi, texels(edges[last].tri), *open);
+    }
     if (j - i == 2 && edges[i].tri != edges[i + 1].tri) {  // a manifold edge
       const Edge& A = edges[i];
       const Edge& B = edges[i + 1];
@@ -113,7 +155,7 @@ std::vector<SeamEdge> find_seams(const Mesh& mesh) {
       } else {
         smooth = dot(triangle_normal(mesh, A.tri), triangle_normal(mesh, B.tri)) > kFlatCos;
       }
-      if (cut && smooth && texels(A.tri) >= kMinTexels && texels(B.tri) >= kMinTexels) {
+      if (cut && smooth && texels(A.tri) >= kMinSeamTexels && texels(B.tri) >= kMinSeamTexels) {
         SeamEdge s;
         std::memcpy(s.a0, a0, sizeof s.a0);
         std::memcpy(s.a1, a1, sizeof s.a1);
@@ -129,14 +171,33 @@ std::vector<SeamEdge> find_seams(const Mesh& mesh) {
 
 SeamStats stitch_seams(const std::vector<SeamEdge>& seams, const std::vector<uint8_t>& covered,
                        std::vector<float>& values, int channels, uint32_t width, uint32_t height) {
+  if (seams.empty() || width == 0 || height == 0) return SeamStats{};
+  SeamImage image;
+  image.colour = values.data();
+  image.stride = channels;
+  image.error = channels >= 4 ? values.data() + 3 : nullptr;
+  image.error_stride = channels;
+  image.covered = covered.data();
+  image.width = width;
+  image.height = height;
+  std::vector<LinkedSeam> linked;
+  linked.reserve(seams.size());
+  for (const SeamEdge& s : seams) linked.push_back({0, 0, s});
+  return stitch_images(linked, {image}, std::min(channels, 3));
+}
+
+SeamStats stitch_images(const std::vector<LinkedSeam>& seams, const std::vector<SeamImage>& images, int colour) {
   SeamStats stats;
-  if (seams.empty() || width == 0 || height == 0) return stats;
+  colour = std::clamp(colour, 0, 3);
   std::vector<Row> rows;
-  for (const SeamEdge& s : seams) {
-    auto texels = [&](const float* p, const float* q) {
-      return std::hypot(double(q[0] - p[0]) * width, double(q[1] - p[1]) * height);
+  for (const LinkedSeam& link : seams) {
+    const SeamEdge& s = link.edge;
+    const SeamImage &A = images[link.a], &B = images[link.b];
+    if (A.width == 0 || A.height == 0 || B.width == 0 || B.height == 0) continue;
+    auto texels = [&](const float* p, const float* q, const SeamImage& im) {
+      return std::hypot(double(q[0] - p[0]) * im.width, double(q[1] - p[1]) * im.height);
     };
-    const double len = std::max(texels(s.a0, s.a1), texels(s.b0, s.b1));
+    const double len = std::max(texels(s.a0, s.a1, A), texels(s.b0, s.b1, B));
     if (!std::isfinite(len)) continue;
     const int n = int(std::clamp(std::ceil(2.0 * len), 2.0, 4096.0));
     // Rows weigh sqrt(texels per sample): an edge pulls as hard as it is long,
@@ -147,58 +208,68 @@ SeamStats stitch_seams(const std::vector<SeamEdge>& seams, const std::vector<uin
       const float a[2] = {s.a0[0] + t * (s.a1[0] - s.a0[0]), s.a0[1] + t * (s.a1[1] - s.a0[1])};
       const float b[2] = {s.b0[0] + t * (s.b1[0] - s.b0[0]), s.b0[1] + t * (s.b1[1] - s.b0[1])};
       Row r;
-      bilinear(a, width, height, scale, r.texel, r.weight);
-      bilinear(b, width, height, -scale, r.texel + 4, r.weight + 4);
+      r.image[0] = link.a;
+      r.image[1] = link.b;
+      bilinear(a, A.width, A.height, scale, r.texel, r.weight);
+      bilinear(b, B.width, B.height, -scale, r.texel + 4, r.weight + 4);
       rows.push_back(r);
     }
     ++stats.edges;
   }
   stats.samples = rows.size();
+  if (rows.empty()) return stats;
+  auto image_of = [](const Row& r, int k) { return r.image[k >> 2]; };
+  auto key = [](uint32_t image, uint32_t t) { return (uint64_t(image) << 32) | t; };
+  auto covered = [&](uint32_t image, uint32_t t) { return images[image].covered[t] != 0; };
+  auto value = [&](uint32_t image, uint32_t t, int c) {
+    const SeamImage& im = images[image];
+    return double(im.colour[size_t(t) * im.stride + c]);
+  };
   // The texels the rows read, numbered locally. A covered texel is held to
   // its value in proportion to 1 / its error (the error channel), so it moves
   // by about its own noise at most; one without error (exact) stays fixed and
   // enters the rows as a constant. Texels outside the islands hold only an
   // extrapolation and move freely.
-  const int error_channel = channels >= 4 ? 3 : -1;
-  auto sigma2 = [&](uint32_t t) {
-    const double e = error_channel >= 0 ? double(values[size_t(t) * channels + error_channel]) : 0.0;
+  auto sigma2 = [&](uint32_t image, uint32_t t) {
+    const SeamImage& im = images[image];
+    const double e = im.error ? double(im.error[size_t(t) * im.error_stride]) : 0.0;
     return std::isfinite(e) ? e * e : 0.0;
   };
   double ref = 0.0;
   size_t ref_count = 0;
   for (const Row& r : rows)
-    for (uint32_t t : r.texel)
-      if (covered[t]) ref += sigma2(t), ++ref_count;
+    for (int k = 0; k < 8; ++k)
+      if (covered(image_of(r, k), r.texel[k])) ref += sigma2(image_of(r, k), r.texel[k]), ++ref_count;
   ref = ref_count ? ref / double(ref_count) : 0.0;
   // How hard the rows pull on each texel (sum of squared weights): a texel
   // pulled by many seam points is held harder, so that none moves by more
   // than about its error however many seams pass it.
-  std::unordered_map<uint32_t, double> pull;
+  std::unordered_map<uint64_t, double> pull;
   for (const Row& r : rows)
-    for (int k = 0; k < 8; ++k) pull[r.texel[k]] += r.weight[k] * r.weight[k];
-  std::unordered_map<uint32_t, uint32_t> local;
-  std::vector<uint32_t> free_texel;
+    for (int k = 0; k < 8; ++k) pull[key(image_of(r, k), r.texel[k])] += r.weight[k] * r.weight[k];
+  std::unordered_map<uint64_t, uint32_t> local;
+  std::vector<uint64_t> free_texel;
   std::vector<double> hold;
   std::vector<int32_t> slot(rows.size() * 8, -1);  // local index of each row entry, -1 if fixed
   for (size_t r = 0; r < rows.size(); ++r)
     for (int k = 0; k < 8; ++k) {
-      const uint32_t t = rows[r].texel[k];
-      const double h = !covered[t]                ? kHoldFree
-                       : sigma2(t) > 1e-6 * ref ? kHoldCovered * ref / sigma2(t) * std::max(1.0, pull[t] / kPull)
-                                                : -1.0;
+      const uint32_t im = image_of(rows[r], k), t = rows[r].texel[k];
+      const double s2 = sigma2(im, t);
+      const double h = !covered(im, t)   ? kHoldFree
+                       : s2 > 1e-6 * ref ? kHoldCovered * ref / s2 * std::max(1.0, pull[key(im, t)] / kPull)
+                                         : -1.0;
       if (h < 0.0) continue;
-      auto [it, added] = local.emplace(t, uint32_t(free_texel.size()));
-      if (added) free_texel.push_back(t), hold.push_back(h);
+      auto [it, added] = local.emplace(key(im, t), uint32_t(free_texel.size()));
+      if (added) free_texel.push_back(key(im, t)), hold.push_back(h);
       slot[r * 8 + k] = int32_t(it->second);
     }
   const size_t m = free_texel.size();
-  auto value = [&](uint32_t t, int c) { return double(values[size_t(t) * channels + c]); };
+  auto free_value = [&](size_t i, int c) { return value(uint32_t(free_texel[i] >> 32), uint32_t(free_texel[i]), c); };
 
-  // Per channel: minimise sum_r (row . texels)^2 + sum_i hold_i (x_i - x0_i)^2
-  // over the texels that may move: (A^T A + H) x = H x0 - A^T fixed, by
-  // conjugate gradients from x0.
-  std::vector<double> fixed(rows.size()), ax(rows.size());
-  auto apply = [&](const std::vector<double>& x, std::vector<double>& out) {
+  // Per channel (in parallel, each on its own buffers): minimise
+  // sum_r (row . texels)^2 + sum_i hold_i (x_i - x0_i)^2 over the texels that
+  // may move: (A^T A + H) x = H x0 - A^T fixed, by conjugate gradients from x0.
+  auto apply = [&](const std::vector<double>& x, std::vector<double>& ax, std::vector<double>& out) {
     for (size_t r = 0; r < rows.size(); ++r) {
       double s = 0.0;
       for (int k = 0; k < 8; ++k)
@@ -214,7 +285,7 @@ SeamStats stitch_seams(const std::vector<SeamEdge>& seams, const std::vector<uin
     for (const Row& r : rows) {
       double d = 0.0, a = 0.0, b = 0.0;
       for (int k = 0; k < 8; ++k) {
-        const double v = value(r.texel[k], c);
+        const double v = value(image_of(r, k), r.texel[k], c);
         d += r.weight[k] * v;
         (k < 4 ? a : b) += std::fabs(r.weight[k]) * v;
       }
@@ -222,26 +293,26 @@ SeamStats stitch_seams(const std::vector<SeamEdge>& seams, const std::vector<uin
       level += 0.5 * (a + b);
     }
   };
-  double before = 0.0, after = 0.0, level = 0.0, unused = 0.0;
-  std::vector<double> x(m), rhs(m), res(m), dir(m), kd(m);
-  const int colour = std::min(channels, 3);
-  for (int c = 0; c < colour; ++c) {
-    jump(c, before, level);
+  double before_c[3] = {0, 0, 0}, after_c[3] = {0, 0, 0}, level_c[3] = {0, 0, 0};
+  auto solve = [&](int c) {
+    double unused = 0.0;
+    jump(c, before_c[c], level_c[c]);
     if (m == 0) {
-      jump(c, after, unused);
-      continue;
+      jump(c, after_c[c], unused);
+      return;
     }
+    std::vector<double> x(m), rhs(m), res(m), dir(m), kd(m), fixed(rows.size()), ax(rows.size());
     for (size_t r = 0; r < rows.size(); ++r) {
       double s = 0.0;
       for (int k = 0; k < 8; ++k)
-        if (slot[r * 8 + k] < 0) s += rows[r].weight[k] * value(rows[r].texel[k], c);
+        if (slot[r * 8 + k] < 0) s += rows[r].weight[k] * value(image_of(rows[r], k), rows[r].texel[k], c);
       fixed[r] = s;
     }
-    for (size_t i = 0; i < m; ++i) x[i] = value(free_texel[i], c), rhs[i] = hold[i] * x[i];
+    for (size_t i = 0; i < m; ++i) x[i] = free_value(i, c), rhs[i] = hold[i] * x[i];
     for (size_t r = 0; r < rows.size(); ++r)
       for (int k = 0; k < 8; ++k)
         if (slot[r * 8 + k] >= 0) rhs[size_t(slot[r * 8 + k])] -= rows[r].weight[k] * fixed[r];
-    apply(x, kd);
+    apply(x, ax, kd);
     double rr = 0.0, bb = 0.0;
     for (size_t i = 0; i < m; ++i) {
       res[i] = dir[i] = rhs[i] - kd[i];
@@ -249,7 +320,7 @@ SeamStats stitch_seams(const std::vector<SeamEdge>& seams, const std::vector<uin
       bb += rhs[i] * rhs[i];
     }
     for (int it = 0; it < kMaxIterations && rr > 1e-20 * bb && rr > 0.0; ++it) {
-      apply(dir, kd);
+      apply(dir, ax, kd);
       double dkd = 0.0;
       for (size_t i = 0; i < m; ++i) dkd += dir[i] * kd[i];
       if (!(dkd > 0.0)) break;
@@ -264,10 +335,23 @@ SeamStats stitch_seams(const std::vector<SeamEdge>& seams, const std::vector<uin
       rr = rr_next;
     }
     for (size_t i = 0; i < m; ++i)
-      if (std::isfinite(x[i])) values[size_t(free_texel[i]) * channels + c] = float(std::max(x[i], 0.0));
-    jump(c, after, unused);
+      if (std::isfinite(x[i])) {
+        const SeamImage& im = images[size_t(free_texel[i] >> 32)];
+        im.colour[size_t(uint32_t(free_texel[i])) * im.stride + c] = float(std::max(x[i], 0.0));
+      }
+    jump(c, after_c[c], unused);
+  };
+  // Small systems are solved in turn; larger ones (seams between many
+  // objects) one channel per thread. The channels are independent: the same
+  // texels either way.
+  if (rows.size() * size_t(colour) < 20000) {
+    for (int c = 0; c < colour; ++c) solve(c);
+  } else {
+    tbb::parallel_for(0, colour, solve);
   }
-  if (level > 0.0 && !rows.empty()) {
+  const double before = before_c[0] + before_c[1] + before_c[2], after = after_c[0] + after_c[1] + after_c[2],
+               level = level_c[0] + level_c[1] + level_c[2];
+  if (level > 0.0) {
     const double count = double(rows.size()) * colour;
     const double mean = level / count;
     stats.jump_before = std::sqrt(before / count) / mean;

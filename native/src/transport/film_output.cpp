@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "lightmap/dilate.h"
+#include "lightmap/object_seams.h"
 #include "lightmap/stitch.h"
 
 namespace plm {
@@ -141,6 +142,7 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
   images.resize(scene.meshes.size());
   const std::vector<TexelAreas>& areas = est.space.areas;
   std::vector<double> value3, variance;
+  const SceneSeams seams = find_scene_seams(scene);
   for (size_t i = 0; i < scene.meshes.size(); ++i) {
     const Mesh& mesh = scene.meshes[i];
     if (!mesh.has_lightmap()) continue;
@@ -176,7 +178,8 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
     }
     const std::vector<uint8_t> covered = filled;
     dilate(values, 4, filled, img.width, img.height, dilation);
-    stitch_seams(find_seams(mesh), covered, values, 4, img.width, img.height);
+    if (!seams.joint[i])
+      arena.execute([&] { stitch_seams(seams.within[i], covered, values, 4, img.width, img.height); });
     img.rgb.resize(3 * n);
     img.error.resize(n);
     for (size_t t = 0; t < n; ++t) {
@@ -184,6 +187,17 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
       img.error[t] = values[4 * t + 3];
     }
   }
+  if (seams.between.empty()) return;
+  // Meshes with seams between them: stitched together (their covered texels
+  // are those with area, as they hold their own texels).
+  std::vector<std::vector<uint8_t>> covered(images.size());
+  std::vector<SeamImage> view(images.size());
+  for (size_t i = 0; i < images.size(); ++i) {
+    if (!seams.joint[i]) continue;
+    for (double a : areas[i].area) covered[i].push_back(a > 0.0);
+    view[i] = {images[i].rgb.data(), 3, images[i].error.data(), 1, covered[i].data(), images[i].width, images[i].height};
+  }
+  arena.execute([&] { stitch_scene_seams(seams, view); });
 }
 
 }  // namespace plm

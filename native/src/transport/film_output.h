@@ -1,7 +1,8 @@
 // The lightmaps a bake returns: each texel from the final estimate, from its
 // OL (a mesh in an OL group), from its CSG solid's texels (a carrier), or
 // the estimate blended with its backup OL; then dilated over the island
-// borders so that bilinear filtering mixes only real values.
+// borders so that bilinear filtering mixes only real values, and stitched
+// along seams, within a mesh and between meshes (lightmap/object_seams.h).
 #pragma once
 
 #include <tbb/task_arena.h>
