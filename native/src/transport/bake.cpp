@@ -81,9 +81,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   const Vec3 lo = accel.bounds_min(), hi = accel.bounds_max();
   if (!is_finite(lo) || !is_finite(hi) || lo.x > hi.x)
     fail(PLM_ERROR_INVALID_SCENE, "the scene has no triangle with a non-zero area");
-  const Vec3 center = (lo + hi) * 0.5f;
   const float extent = length(hi - lo);
-  const float radius = 0.5f * extent * 1.01f + 1e-6f * max_abs_component(center) + 1e-30f;
 
   report(0.02, "computing texel areas");
   TexelSpace space = build_texel_space(scene, out.warnings);
@@ -98,7 +96,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     textures = std::make_unique<TextureSet>(scene);
     for (const std::string& w : textures->warnings) out.warnings.push_back(w);
   }
-  const std::vector<Emitter> emitters = build_emitters(scene, center, radius, textures.get());
+  const std::vector<Emitter> emitters = build_emitters(scene, photon_footprint(scene, lo, hi), textures.get());
   double emitted = 0.0;
   for (const Emitter& e : emitters) emitted += average(e.flux);
   if (!std::isfinite(emitted) || emitted > 1e30)
