@@ -75,7 +75,7 @@ def build(out, objects, rings, smooth, settings):
     for k, (x, y, dx, dy) in enumerate([(-half, -half, 1, 0), (half, -half, 0, 1), (half, half, -1, 0), (-half, half, 0, -1)]):
         a = [x, y, 0]
         b = [x + 2 * half * dx, y + 2 * half * dy, 0]
-        parts["wall%d" % k] = quad([a, b, [b[0], b[1], height], [a[0], a[1], height]])
+        parts["wall%d" % k] = quad([b, a, [a[0], a[1], height], [b[0], b[1], height]])  # facing in
     for name, (pos, tris, uvs) in parts.items():
         write_obj(os.path.join(out, name + ".obj"), pos, tris, uvs)
         meshes.append({"name": name, "obj": name + ".obj", "material": "ground" if name == "ground" else "wall",
