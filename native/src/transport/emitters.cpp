@@ -1,6 +1,7 @@
 #include "transport/emitters.h"
 
 #include <limits>
+#include <memory>
 
 #include "csg/csg.h"
 #include "lsystem/lsystem_object.h"
@@ -139,7 +140,7 @@ bool portal_crossing(const Portal& p, Vec3 o, Vec3 d, float side, float& t, floa
 // across the direction), per unit of the direction density the two sampling
 // strategies share: the footprint (1 - share) and the portals.
 float photon_line_density(const Emitter& e, Vec3 o, Vec3 d) {
-  const float across = footprint_density(e.footprint, o, d);
+  const float across = footprint_density(*e.footprint, o, d);
   float density = (1.0f - e.portal_share) * (e.kind == EmitterKind::World ? across / (4.0f * kPi) : across);
   for (size_t j = 0; j < e.portals.size(); ++j) {
     float t, cos_p;
@@ -250,11 +251,12 @@ std::vector<Emitter> build_emitters(const Scene& scene, Footprint fp, const Text
     fp.hi = fp.scene_hi;
   }
   fp.reach = 1.01f * length(fp.scene_hi - fp.scene_lo);
+  const auto shared = std::make_shared<const Footprint>(fp);
   for (const Light& light : scene.lights) {
     Emitter e = light_emitter(light);
     if (e.kind == EmitterKind::Sun) {
       // Irradiance S on a surface facing the sun: flux S through the scene's box seen from the sun.
-      e.footprint = fp;
+      e.footprint = shared;
       make_frame(e.normal, e.axis_u, e.axis_v);
       const Vec3 color{light.desc.color[0], light.desc.color[1], light.desc.color[2]};
       e.flux = color * (light.desc.power * projected_area(fp.scene_lo, fp.scene_hi, e.normal));
@@ -299,7 +301,7 @@ std::vector<Emitter> build_emitters(const Scene& scene, Footprint fp, const Text
     // Uniform radiance from every direction: flux L * 4 pi * (mean cross-section of the scene's box).
     Emitter e{};
     e.kind = EmitterKind::World;
-    e.footprint = fp;
+    e.footprint = shared;
     e.flux = scene.world * (4.0f * kPi * mean_cross_section);
     e.scale = e.flux;
     e.radiance = scene.world;
@@ -314,7 +316,7 @@ std::vector<Emitter> build_emitters(const Scene& scene, Footprint fp, const Text
       e.kind = EmitterKind::World;
       e.map = &map;
       e.map_part = part;
-      e.footprint = fp;
+      e.footprint = shared;
       e.flux = map.integral(part) * mean_cross_section;
       e.scale = e.flux;
       e.radiance = map.integral(part) * (1.0f / (4.0f * kPi));
@@ -355,7 +357,7 @@ inline float map_portal_cosine_share(const Emitter& e) { return e.map_part == 1 
 // mixture of cosine (1 / (pi A)) and map directions (pm / (A cos)).
 float map_line_density(const Emitter& e, Vec3 o, Vec3 d, float pm) {
   const float b = map_portal_cosine_share(e);
-  float density = (1.0f - e.portal_share) * pm * footprint_density(e.footprint, o, d);
+  float density = (1.0f - e.portal_share) * pm * footprint_density(*e.footprint, o, d);
   for (size_t j = 0; j < e.portals.size(); ++j) {
     float t, cos_p;
     if (e.portal_pick[j] <= 0.0f || !portal_crossing(e.portals[j], o, d, 1.0f, t, cos_p)) continue;
@@ -394,9 +396,9 @@ inline Vec3 line_origin(const Emitter& e, bool through_portal, size_t j, Vec3 d,
   if (through_portal) {
     const Portal& p = e.portals[j];
     const Vec3 q = p.center + p.half_u * (2.0f * u[2] - 1.0f) + p.half_v * (2.0f * u[3] - 1.0f);
-    return q - d * e.footprint.reach;
+    return q - d * e.footprint->reach;
   }
-  return footprint_origin(e.footprint, d, u[2], u[3]);
+  return footprint_origin(*e.footprint, d, u[2], u[3]);
 }
 
 // World photons from an environment map: the direction looked towards is
@@ -427,7 +429,7 @@ __attribute__((noinline)) void sample_map_sky(const Emitter& e, const float u[4]
   const Vec3 L = map.radiance(e.map_part, -d);
   float tc, cos_p;
   if (e.portal_share <= 0.0f) {
-    const float density = pm * footprint_density(e.footprint, s.origin, d);
+    const float density = pm * footprint_density(*e.footprint, s.origin, d);
     s.weight = density > 0.0f ? L * (1.0f / density) : Vec3{0, 0, 0};
   } else if (through_portal && !portal_crossing(e.portals[j], s.origin, d, 1.0f, tc, cos_p)) {
     s.weight = {0, 0, 0};  // a map direction leaving through the portal, or rounding at its rim

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -59,8 +60,9 @@ struct Emitter {
   // paths do not look at it.
   const EnvironmentMap* map = nullptr;
   int map_part = 0;
-  // Sun and world: where their photons start (transport/footprint.h).
-  Footprint footprint;
+  // Sun and world: where their photons start (transport/footprint.h), one
+  // for all of them; null for the other emitters.
+  std::shared_ptr<const Footprint> footprint;
 };
 
 struct EmitterSample {
