@@ -145,6 +145,30 @@ TEST(Footprint, SunOnAPlaneGivesItsIrradianceFromEveryPhoton) {
   EXPECT_GT(per_photon, 0.999);
 }
 
+// Hard cases: a plane 1e5 m from the origin (the boxes' padding and the
+// photons' start in float), and a sun that grazes a flat ground (its box seen
+// edge-on is only the padding): the irradiance stays S cos(a) / pi, and 0
+// with no NaN at grazing.
+TEST(Footprint, FarFromTheOriginAndGrazingSunsStayExact) {
+  for (int grazing = 0; grazing < 2; ++grazing) {
+    const float a = grazing ? float(M_PI / 2.0) : float(40.0 * M_PI / 180.0), S = 2.0f;
+    SceneBuilder b;
+    const uint32_t grey = b.material("grey", {0.5f, 0.5f, 0.5f});
+    const V3 o = grazing ? V3{-1, -1, 0} : V3{1e5f - 1, -1e5f - 1, 1e5f};
+    b.quad("plane", o, {2, 0, 0}, {0, 2, 0}, grey, 8);
+    b.light(sun_at(a, S), "sun");
+    plm_test::BakeResult r;
+    plm_test::bake(b, photons_only(100000), r);
+    const plm_test::Map m = r.map(0);
+    for (size_t t = 0; t < m.coverage.size(); ++t) ASSERT_TRUE(std::isfinite(m.value(t))) << "texel " << t;
+    const double exact = S * std::cos(a) / M_PI;
+    std::printf("[ measured ] %s: mean %.6f, exact %.6f\n", grazing ? "grazing sun" : "1e5 m from the origin",
+                mean_value(m), exact);
+    if (grazing) EXPECT_LT(mean_value(m), 1e-3 * S / M_PI);
+    else EXPECT_NEAR(mean_value(m) / exact, 1.0, 0.01);  // the padding (1e-6 of 1.4e5 m) takes 30 % of the photons: 0.2 % noise
+  }
+}
+
 // A black plate facing down 0.5 m over a white 4 x 4 m ground without a
 // lightmap, under a sun 30 degrees from the zenith: the plate's light comes
 // only from the ground, whose photons are the quarter not aimed at the plate.
