@@ -182,7 +182,7 @@ namespace {
 // Pads box [lo, hi] so that no side is empty (a flat ground still has a
 // projected area seen edge-on, and a line along it crosses it).
 void pad_box(Vec3& lo, Vec3& hi) {
-  const float pad = 1e-4f * length(hi - lo) + 1e-6f * std::fmax(max_abs_component(lo), max_abs_component(hi)) + 1e-20f;
+  const float pad = 1e-4f * length(hi - lo) + 2.5e-7f * std::fmax(max_abs_component(lo), max_abs_component(hi)) + 1e-20f;
   lo = lo - Vec3{pad, pad, pad};
   hi = hi + Vec3{pad, pad, pad};
 }
