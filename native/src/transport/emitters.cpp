@@ -203,6 +203,8 @@ Footprint photon_footprint(const Scene& scene, Vec3 lo, Vec3 hi) {
   Footprint f;
   f.scene_lo = lo;
   f.scene_hi = hi;
+  const Vec3 center = (lo + hi) * 0.5f;
+  f.radius = 0.5f * length(hi - lo) * 1.01f + 1e-6f * max_abs_component(center) + 1e-30f;
   constexpr float inf = std::numeric_limits<float>::infinity();
   Vec3 rlo{inf, inf, inf}, rhi{-inf, -inf, -inf};
   for (const Mesh& mesh : scene.meshes) {
@@ -232,15 +234,25 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
   Footprint f;
   f.lo = f.scene_lo = center - Vec3{radius, radius, radius};
   f.hi = f.scene_hi = center + Vec3{radius, radius, radius};
+  f.radius = radius;
   return build_emitters(scene, f, textures);
 }
 
 std::vector<Emitter> build_emitters(const Scene& scene, Footprint fp, const TextureSet* textures) {
   std::vector<Emitter> out;
   const std::vector<Portal> portals = scene_portals(scene);
+  // Sun and world power (by which photons and direct samples are shared between lights): the flux
+  // through the disk of the sphere around the scene and the portals.
+  const Vec3 center = (fp.scene_lo + fp.scene_hi) * 0.5f;
+  float radius = fp.radius;
   for (const Portal& p : portals)  // sun and world photons' scene box holds the portals too
     for (float a : {-1.0f, 1.0f})
-      for (float b : {-1.0f, 1.0f}) grow(fp.scene_lo, fp.scene_hi, p.center + p.half_u * a + p.half_v * b);
+      for (float b : {-1.0f, 1.0f}) {
+        const Vec3 corner = p.center + p.half_u * a + p.half_v * b;
+        grow(fp.scene_lo, fp.scene_hi, corner);
+        radius = std::fmax(radius, 1.01f * length(corner - center));
+      }
+  const float disk_area = kPi * radius * radius;
   pad_box(fp.lo, fp.hi);
   pad_box(fp.scene_lo, fp.scene_hi);
   // A recording box nearly as large as the scene's is the scene's: all photons aim at it.
@@ -255,11 +267,11 @@ std::vector<Emitter> build_emitters(const Scene& scene, Footprint fp, const Text
   for (const Light& light : scene.lights) {
     Emitter e = light_emitter(light);
     if (e.kind == EmitterKind::Sun) {
-      // Irradiance S on a surface facing the sun: flux S through the scene's box seen from the sun.
+      // Irradiance S on a surface facing the sun: flux S through the disk.
       e.footprint = shared;
       make_frame(e.normal, e.axis_u, e.axis_v);
       const Vec3 color{light.desc.color[0], light.desc.color[1], light.desc.color[2]};
-      e.flux = color * (light.desc.power * projected_area(fp.scene_lo, fp.scene_hi, e.normal));
+      e.flux = color * (light.desc.power * disk_area);
       e.scale = e.flux;
       e.radiance = color * light.desc.power;
     }
@@ -295,21 +307,19 @@ std::vector<Emitter> build_emitters(const Scene& scene, Footprint fp, const Text
       if (average(e.flux) > 0.0f) out.push_back(e);  // denormal emission can underflow to 0
     }
   }
-  // A convex box's projected area averaged over all directions is a quarter of its surface.
-  const float mean_cross_section = 0.25f * scene_surface;
   if (max_component(scene.world) > 0.0f) {
-    // Uniform radiance from every direction: flux L * 4 pi * (mean cross-section of the scene's box).
+    // Uniform radiance from every direction: flux L * 4 pi * (disk area).
     Emitter e{};
     e.kind = EmitterKind::World;
     e.footprint = shared;
-    e.flux = scene.world * (4.0f * kPi * mean_cross_section);
+    e.flux = scene.world * (4.0f * kPi * disk_area);
     e.scale = e.flux;
     e.radiance = scene.world;
     if (average(e.flux) > 0.0f) out.push_back(e);
   }
   if (scene.world_map) {
-    // The map's flux into the scene's box: (integral of L over the sphere) x (its mean
-    // cross-section); a map with a sun as two lights, the sun's cells and the rest.
+    // The map's flux through the disk: (integral of L over the sphere) x (disk area); a map
+    // with a sun as two lights, the sun's cells and the rest.
     const EnvironmentMap& map = *scene.world_map;
     for (int part = map.split() ? 1 : 0; part <= (map.split() ? 2 : 0); ++part) {
       Emitter e{};
@@ -317,7 +327,7 @@ std::vector<Emitter> build_emitters(const Scene& scene, Footprint fp, const Text
       e.map = &map;
       e.map_part = part;
       e.footprint = shared;
-      e.flux = map.integral(part) * mean_cross_section;
+      e.flux = map.integral(part) * disk_area;
       e.scale = e.flux;
       e.radiance = map.integral(part) * (1.0f / (4.0f * kPi));
       if (average(e.flux) > 0.0f) out.push_back(e);

@@ -23,6 +23,9 @@ struct Footprint {
   Vec3 scene_lo, scene_hi;  // the box around all geometry (and portals); holds lo, hi
   float aim = 1.0f;         // share of photons aimed at the recording box (1: the two boxes are one)
   float reach = 0.0f;       // how far back from the box a photon starts (the scene's diameter or more)
+  // Radius of the sphere around the scene: sun and world power is the flux
+  // through its disk (emitters.h), by which lights share photons and samples.
+  float radius = 0.0f;
 };
 
 // Area of box [lo, hi] projected along unit d: each axis' face pair is seen with |d_axis|.
