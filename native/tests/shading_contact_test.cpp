@@ -281,13 +281,17 @@ TEST(Contact, PhotonsDoNotReachFacesInContact) {
 }
 
 // 1 mm above the floor the box's bottom is not in contact: it sees the sky
-// under the box's rim and the lit floor around it.
+// under the box's rim and the lit floor around it through the gap (about
+// 0.008; a face in contact gets exactly 0). Photons alone: the light through
+// a 1 mm gap is a few grazing paths, which the two-pass estimate at 200 k
+// photons reports with an error of several times the value.
 TEST(Contact, BoxJustAboveTheFloorIsNotInContact) {
-  const Contact c = box_on_floor(1e-3f);
+  const Contact c = box_on_floor(1e-3f, true);
   ASSERT_FALSE(c.bottom.empty());
   double mean = 0.0;
   for (double v : c.bottom) mean += v / double(c.bottom.size());
-  EXPECT_GT(mean, 0.01);
+  std::printf("[ measured ] bottom of a box 1 mm above the floor: mean %.5f\n", mean);
+  EXPECT_GT(mean, 0.003);
 }
 
 // A column whose top touches a ceiling that faces down gets no light, as in

@@ -160,11 +160,13 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     const bool gather_wanted = two_pass && scene.csgs.empty() && scene.lsystems.empty() && !textures &&
                                settings.max_bounces >= kGatherMinBounces;
     bool gathered = false;
+    uint32_t gathers = 0;
     // Runs once, from `now`, the estimate at a fixed batch count (so it is
     // deterministic); each texel then weighs photons and gather by variance,
     // so scenes where photons do better lose only the gather's rays.
     auto run_gather = [&](const Estimate& now) {
       gathered = true;
+      ++gathers;
       if (budget.spent(kGatherBudgetShare)) return;
       const FinalGather final_gather(accel.handle(), surfaces, space.views, space.areas, settings, extent,
                                      passage.get(), lobes.any_lobes());
@@ -213,8 +215,12 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
               estimate(arena, estimator, photons, last);
               done = target_reached(last.error, settings.target_error);
               if (!done && gather_wanted && !gathered) {
-                run_gather(last);
-                estimate(arena, estimator, photons, last);
+                // Again while the gather's own part is large: each gather looks up the estimate the one
+                // before it improved (scheduler.h, regather).
+                do {
+                  run_gather(last);
+                  estimate(arena, estimator, photons, last);
+                } while (regather(gathers, last.error, settings.target_error));
                 done = target_reached(last.error, settings.target_error);
               }
               fraction = std::max(fraction, target_progress(last.error.relative, settings.target_error));

@@ -149,6 +149,16 @@ class CheckSchedule {
 // a target below 2 % (at most kMaxGatherSamples).
 constexpr uint32_t kGatherSamples = 16, kMaxGatherSamples = 256;
 uint32_t gather_samples(double target_error);
+// Under a target the gather runs at the first check the photons alone do not
+// pass, and at once again (kMaxGathers in all) while its own part of the
+// error is above kPhotonShareOfTarget x the target: that part is mostly the
+// error of the texels its rays look up (other objects, the ground), taken as
+// fully correlated, and each gather looks up the estimate the one before it
+// improved. Photons do not lower it.
+constexpr uint32_t kMaxGathers = 3;
+inline bool regather(uint32_t gathers, const ErrorParts& e, double target) {
+  return gathers < kMaxGathers && e.gather > kPhotonShareOfTarget * target;
+}
 
 // ---- Direct pass --------------------------------------------------------------
 // What the allocation of a texel's next samples reads: its sample count, its
