@@ -171,7 +171,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
       const FinalGather final_gather(accel.handle(), surfaces, space.views, space.areas, settings, extent,
                                      passage.get(), lobes.any_lobes());
       gather = run_final_gather(arena, final_gather, space, now.values, tracer.triangle_albedos(),
-                                acc.back_lit.data(), gather_samples(settings.target_error), [&] {
+                                acc.back_lit.data(), gather_samples(settings.target_error, gathers - 1), [&] {
                                   report(direct_end, "final gather");
                                   return !budget.spent(kGatherBudgetShare);
                                 });
