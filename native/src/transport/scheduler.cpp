@@ -25,9 +25,11 @@ double target_progress(double relative, double target) {
 uint32_t gather_samples(double target_error, uint32_t gathers_before) {
   constexpr double kBaseTarget = 0.02;  // the target kGatherSamples rays are enough for
   const double more = std::pow(4.0, double(std::min(gathers_before, 4u)));
-  if (!(target_error > 0.0)) return uint32_t(std::min(double(kMaxGatherSamples), kGatherSamples * more));
-  return uint32_t(std::clamp(kGatherSamples * std::pow(kBaseTarget / target_error, 2.0) * more,
-                             double(kGatherSamples), double(kMaxGatherSamples)));
+  const double base = target_error > 0.0
+                          ? std::clamp(kGatherSamples * std::pow(kBaseTarget / target_error, 2.0), double(kGatherSamples),
+                                       double(kMaxGatherSamples))
+                          : double(kGatherSamples);
+  return uint32_t(std::min(base * more, double(kMaxGatherSamples)));
 }
 
 DirectSchedule::DirectSchedule(double target_error, uint32_t direct_samples)
