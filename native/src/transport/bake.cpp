@@ -161,9 +161,10 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
                                settings.max_bounces >= kGatherMinBounces;
     bool gathered = false;
     uint32_t gathers = 0;
-    // Runs once, from `now`, the estimate at a fixed batch count (so it is
-    // deterministic); each texel then weighs photons and gather by variance,
-    // so scenes where photons do better lose only the gather's rays.
+    // Runs from `now`, the estimate at a fixed batch count (so it is
+    // deterministic), replacing the gather before; each texel then weighs
+    // photons and gather by variance, so scenes where photons do better lose
+    // only the gather's rays.
     auto run_gather = [&](const Estimate& now) {
       gathered = true;
       ++gathers;
