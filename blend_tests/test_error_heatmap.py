@@ -160,8 +160,17 @@ def main():
     share = {k: float(np.mean(v[covered])) for k, v in (("green", rel <= TARGET), ("red", rel >= 4 * TARGET))}
     green = np.array(materials.HEAT_RAMP[0][1])
     red = np.array(materials.HEAT_RAMP[-1][1])
-    checks.check(np.all(np.abs(got[covered & (rel <= TARGET)] - green).max(axis=-1) < 0.02)
-                 and np.all(np.abs(got[covered & (rel >= 4.5 * TARGET)] - red).max(axis=-1) < 0.05),
+    # Cycles' bake point moves up to half a texel (design.md), so the image is read between a texel
+    # and its neighbours: only texels whose neighbours are of the same class keep its colour exactly
+    # (one texel far above 4x beside green ones tints them).
+    def alike(mask):
+        ok = mask.copy()
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                ok &= np.roll(np.roll(mask | ~covered, dy, axis=0), dx, axis=1)
+        return ok & covered
+    checks.check(np.all(np.abs(got[alike(rel <= TARGET)] - green).max(axis=-1) < 0.02)
+                 and np.all(np.abs(got[alike(rel >= 4.5 * TARGET)] - red).max(axis=-1) < 0.05),
                  "texels at or below the target are green (%.0f %%), 4x and above red (%.0f %%)"
                  % (100 * share["green"], 100 * share["red"]))
     scene.render.engine = 'BLENDER_EEVEE'

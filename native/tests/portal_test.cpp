@@ -100,7 +100,8 @@ TEST(Portal, SkyPhotonsThroughAPortalMatchTheViewFactorWithLessNoise) {
   more.photon_count = 4000000;
   const Error half = against(bake_sky(2, more), truth);
   // Unbiased whatever the portal covers; the portal over the whole hole sends
-  // ~90 % of the sky photons in instead of ~2 %.
+  // ~90 % of the sky photons in; without it they are aimed at the floor's box
+  // (transport/footprint.h), whose roof lets in a smaller share.
   report("sky photons (400 k; half: 4 M)", none, whole, half);
   EXPECT_NEAR(whole.mean_ratio, 1.0, 0.01);
   EXPECT_NEAR(none.mean_ratio, 1.0, within_noise(none));
@@ -108,7 +109,7 @@ TEST(Portal, SkyPhotonsThroughAPortalMatchTheViewFactorWithLessNoise) {
   // (at 10x the photons).
   EXPECT_NEAR(half.mean_ratio, 1.0, within_noise(half)) << "rms " << half.rms;
   EXPECT_LT(whole.rms, 0.03);
-  EXPECT_LT(whole.rms * 4.0, none.rms) << "portal " << whole.rms << " vs none " << none.rms;
+  EXPECT_LT(whole.rms * 2.5, none.rms) << "portal " << whole.rms << " vs none " << none.rms;
 }
 
 TEST(Portal, SkyDirectLightThroughAPortalMatchesTheViewFactor) {

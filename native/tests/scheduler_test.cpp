@@ -134,6 +134,22 @@ TEST(Scheduler, GatherRaysGrowWithTheSquareOfTheTarget) {
   EXPECT_EQ(gather_samples(0.001), kMaxGatherSamples);
 }
 
+// A further gather has 4x the rays of the one before (at most
+// kMaxGatherSamples), and runs while the gather's part of the error is above
+// half the target, at most kMaxGathers in all.
+TEST(Scheduler, FurtherGathersHaveMoreRaysWhileTheirPartIsLarge) {
+  EXPECT_EQ(gather_samples(0.05, 1), 4 * kGatherSamples);
+  EXPECT_EQ(gather_samples(0.05, 2), 16 * kGatherSamples);
+  EXPECT_EQ(gather_samples(0.01, 1), 16 * kGatherSamples);
+  EXPECT_EQ(gather_samples(0.01, 2), kMaxGatherSamples);
+  ErrorParts e;
+  e.relative = 0.06, e.direct = 0.02, e.gather = 0.03;
+  EXPECT_TRUE(regather(1, e, 0.05));   // 3 % > half of 5 %
+  EXPECT_FALSE(regather(kMaxGathers, e, 0.05));
+  e.gather = 0.02;
+  EXPECT_FALSE(regather(1, e, 0.05));
+}
+
 // Texels after a round: n samples each, variance of the mean v.
 std::vector<DirectTexelNoise> texels(const std::vector<double>& variances, uint32_t n, double phantom = 0.0) {
   std::vector<DirectTexelNoise> out;

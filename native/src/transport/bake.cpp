@@ -84,9 +84,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   const Vec3 lo = accel.bounds_min(), hi = accel.bounds_max();
   if (!is_finite(lo) || !is_finite(hi) || lo.x > hi.x)
     fail(PLM_ERROR_INVALID_SCENE, "the scene has no triangle with a non-zero area");
-  const Vec3 center = (lo + hi) * 0.5f;
   const float extent = length(hi - lo);
-  const float radius = 0.5f * extent * 1.01f + 1e-6f * max_abs_component(center) + 1e-30f;
 
   report(0.02, "computing texel areas");
   TexelSpace space = build_texel_space(scene, out.warnings);
@@ -101,7 +99,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     textures = std::make_unique<TextureSet>(scene);
     for (const std::string& w : textures->warnings) out.warnings.push_back(w);
   }
-  const std::vector<Emitter> emitters = build_emitters(scene, center, radius, textures.get());
+  const std::vector<Emitter> emitters = build_emitters(scene, photon_footprint(scene, lo, hi), textures.get());
   double emitted = 0.0;
   for (const Emitter& e : emitters) emitted += average(e.flux);
   if (!std::isfinite(emitted) || emitted > 1e30)
@@ -172,16 +170,19 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     const bool gather_wanted = two_pass && scene.csgs.empty() && scene.lsystems.empty() && !textures &&
                                settings.max_bounces >= kGatherMinBounces;
     bool gathered = false;
-    // Runs once, from `now`, the estimate at a fixed batch count (so it is
-    // deterministic); each texel then weighs photons and gather by variance,
-    // so scenes where photons do better lose only the gather's rays.
+    uint32_t gathers = 0;
+    // Runs from `now`, the estimate at a fixed batch count (so it is
+    // deterministic), replacing the gather before; each texel then weighs
+    // photons and gather by variance, so scenes where photons do better lose
+    // only the gather's rays.
     auto run_gather = [&](const Estimate& now) {
       gathered = true;
+      ++gathers;
       if (budget.spent(kGatherBudgetShare)) return;
       const FinalGather final_gather(accel.handle(), surfaces, space.views, space.areas, settings, extent,
                                      passage.get(), lobes.any_lobes());
       gather = run_final_gather(arena, final_gather, space, now.values, tracer.triangle_albedos(),
-                                acc.back_lit.data(), gather_samples(settings.target_error), [&] {
+                                acc.back_lit.data(), gather_samples(settings.target_error, gathers - 1), [&] {
                                   report(direct_end, "final gather");
                                   return !budget.spent(kGatherBudgetShare);
                                 });
@@ -225,8 +226,12 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
               estimate(arena, estimator, photons, last);
               done = target_reached(last.error, settings.target_error);
               if (!done && gather_wanted && !gathered) {
-                run_gather(last);
-                estimate(arena, estimator, photons, last);
+                // Again while the gather's own part is large: each gather looks up the estimate the one
+                // before it improved (scheduler.h, regather).
+                do {
+                  run_gather(last);
+                  estimate(arena, estimator, photons, last);
+                } while (regather(gathers, last.error, settings.target_error));
                 done = target_reached(last.error, settings.target_error);
               }
               fraction = std::max(fraction, target_progress(last.error.relative, settings.target_error));

@@ -1,7 +1,10 @@
 #include "transport/emitters.h"
 
 #include <limits>
+#include <memory>
 
+#include "csg/csg.h"
+#include "lsystem/lsystem_object.h"
 #include "texture/texture.h"
 #include "transport/environment.h"
 
@@ -97,6 +100,10 @@ EmitterTable::EmitterTable(const std::vector<Emitter>& emitters) {
 namespace {
 
 constexpr float kPortalPhotonShare = 0.9f;  // sun and world photons sent through portals
+// Sun and world photons aimed at the box around what records photons (the
+// rest cover the scene's box), unless that box has this share of the scene
+// box's surface or more.
+constexpr float kFootprintAim = 0.75f, kFootprintWholeScene = 0.9f;
 constexpr float kPortalDirectShare = 0.75f;  // the sky's direct samples aimed at portals
 
 std::vector<Portal> scene_portals(const Scene& scene) {
@@ -131,10 +138,10 @@ bool portal_crossing(const Portal& p, Vec3 o, Vec3 d, float side, float& t, floa
 
 // Density of the sun or world photon line (o, d) over (direction, position
 // across the direction), per unit of the direction density the two sampling
-// strategies share: the disk across the scene (1 - share) and the portals.
+// strategies share: the footprint (1 - share) and the portals.
 float photon_line_density(const Emitter& e, Vec3 o, Vec3 d) {
-  const float disk = 1.0f / (kPi * e.radius * e.radius);
-  float density = (1.0f - e.portal_share) * (e.kind == EmitterKind::World ? disk / (4.0f * kPi) : disk);
+  const float across = footprint_density(*e.footprint, o, d);
+  float density = (1.0f - e.portal_share) * (e.kind == EmitterKind::World ? across / (4.0f * kPi) : across);
   for (size_t j = 0; j < e.portals.size(); ++j) {
     float t, cos_p;
     if (e.portal_pick[j] <= 0.0f || !portal_crossing(e.portals[j], o, d, 1.0f, t, cos_p)) continue;
@@ -170,19 +177,98 @@ void attach_portals(Emitter& e, const std::vector<Portal>& portals) {
 
 }  // namespace
 
+namespace {
+
+// Pads box [lo, hi] so that no side is empty (a flat ground still has a
+// projected area seen edge-on, and a line along it crosses it).
+void pad_box(Vec3& lo, Vec3& hi) {
+  const float pad = 1e-4f * length(hi - lo) + 2.5e-7f * std::fmax(max_abs_component(lo), max_abs_component(hi)) + 1e-20f;
+  lo = lo - Vec3{pad, pad, pad};
+  hi = hi + Vec3{pad, pad, pad};
+}
+
+float surface_area(Vec3 lo, Vec3 hi) {
+  const Vec3 e = hi - lo;
+  return 2.0f * (e.x * e.y + e.y * e.z + e.z * e.x);
+}
+
+void grow(Vec3& lo, Vec3& hi, Vec3 p) {
+  lo = {std::fmin(lo.x, p.x), std::fmin(lo.y, p.y), std::fmin(lo.z, p.z)};
+  hi = {std::fmax(hi.x, p.x), std::fmax(hi.y, p.y), std::fmax(hi.z, p.z)};
+}
+
+}  // namespace
+
+Footprint photon_footprint(const Scene& scene, Vec3 lo, Vec3 hi) {
+  Footprint f;
+  f.scene_lo = lo;
+  f.scene_hi = hi;
+  const Vec3 center = (lo + hi) * 0.5f;
+  f.radius = 0.5f * length(hi - lo) * 1.01f + 1e-6f * max_abs_component(center) + 1e-30f;
+  constexpr float inf = std::numeric_limits<float>::infinity();
+  Vec3 rlo{inf, inf, inf}, rhi{-inf, -inf, -inf};
+  for (const Mesh& mesh : scene.meshes) {
+    if (!(mesh.has_lightmap() || mesh.ol_group >= 0) || mesh.csg_carrier >= 0) continue;
+    for (uint32_t k = 0; k < mesh.vertex_count; ++k)
+      if (is_finite(mesh.positions[k])) grow(rlo, rhi, mesh.positions[k]);
+  }
+  for (const CsgSolid& c : scene.csgs) {
+    grow(rlo, rhi, to_float(c.object->bounds_lo()));
+    grow(rlo, rhi, to_float(c.object->bounds_hi()));
+  }
+  for (const auto& ls : scene.lsystems) {
+    grow(rlo, rhi, to_float(ls->bounds_lo()));
+    grow(rlo, rhi, to_float(ls->bounds_hi()));
+  }
+  // Within the scene's box (the bounds of what is traced).
+  f.lo = {std::fmax(rlo.x, lo.x), std::fmax(rlo.y, lo.y), std::fmax(rlo.z, lo.z)};
+  f.hi = {std::fmin(rhi.x, hi.x), std::fmin(rhi.y, hi.y), std::fmin(rhi.z, hi.z)};
+  if (!(f.lo.x <= f.hi.x && f.lo.y <= f.hi.y && f.lo.z <= f.hi.z)) {  // nothing records: the scene's box
+    f.lo = lo;
+    f.hi = hi;
+  }
+  return f;
+}
+
 std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radius, const TextureSet* textures) {
+  Footprint f;
+  f.lo = f.scene_lo = center - Vec3{radius, radius, radius};
+  f.hi = f.scene_hi = center + Vec3{radius, radius, radius};
+  f.radius = radius;
+  return build_emitters(scene, f, textures);
+}
+
+std::vector<Emitter> build_emitters(const Scene& scene, Footprint fp, const TextureSet* textures) {
   std::vector<Emitter> out;
   const std::vector<Portal> portals = scene_portals(scene);
-  for (const Portal& p : portals)  // the disk of sun and world photons covers the portals too
+  // Sun and world power (by which photons and direct samples are shared between lights): the flux
+  // through the disk of the sphere around the scene and the portals.
+  const Vec3 center = (fp.scene_lo + fp.scene_hi) * 0.5f;
+  float radius = fp.radius;
+  for (const Portal& p : portals)  // sun and world photons' scene box holds the portals too
     for (float a : {-1.0f, 1.0f})
-      for (float b : {-1.0f, 1.0f}) radius = std::fmax(radius, 1.01f * length(p.center + p.half_u * a + p.half_v * b - center));
+      for (float b : {-1.0f, 1.0f}) {
+        const Vec3 corner = p.center + p.half_u * a + p.half_v * b;
+        grow(fp.scene_lo, fp.scene_hi, corner);
+        radius = std::fmax(radius, 1.01f * length(corner - center));
+      }
   const float disk_area = kPi * radius * radius;
+  pad_box(fp.lo, fp.hi);
+  pad_box(fp.scene_lo, fp.scene_hi);
+  // A recording box nearly as large as the scene's is the scene's: all photons aim at it.
+  const float scene_surface = surface_area(fp.scene_lo, fp.scene_hi);
+  fp.aim = surface_area(fp.lo, fp.hi) >= kFootprintWholeScene * scene_surface ? 1.0f : kFootprintAim;
+  if (fp.aim >= 1.0f) {
+    fp.lo = fp.scene_lo;
+    fp.hi = fp.scene_hi;
+  }
+  fp.reach = 1.01f * length(fp.scene_hi - fp.scene_lo);
+  const auto shared = std::make_shared<const Footprint>(fp);
   for (const Light& light : scene.lights) {
     Emitter e = light_emitter(light);
     if (e.kind == EmitterKind::Sun) {
-      // Irradiance S on a surface facing the sun: flux S through the disk that covers the scene.
-      e.origin = center;
-      e.radius = radius;
+      // Irradiance S on a surface facing the sun: flux S through the disk.
+      e.footprint = shared;
       make_frame(e.normal, e.axis_u, e.axis_v);
       const Vec3 color{light.desc.color[0], light.desc.color[1], light.desc.color[2]};
       e.flux = color * (light.desc.power * disk_area);
@@ -225,8 +311,7 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
     // Uniform radiance from every direction: flux L * 4 pi * (disk area).
     Emitter e{};
     e.kind = EmitterKind::World;
-    e.origin = center;
-    e.radius = radius;
+    e.footprint = shared;
     e.flux = scene.world * (4.0f * kPi * disk_area);
     e.scale = e.flux;
     e.radiance = scene.world;
@@ -241,8 +326,7 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 center, float radiu
       e.kind = EmitterKind::World;
       e.map = &map;
       e.map_part = part;
-      e.origin = center;
-      e.radius = radius;
+      e.footprint = shared;
       e.flux = map.integral(part) * disk_area;
       e.scale = e.flux;
       e.radiance = map.integral(part) * (1.0f / (4.0f * kPi));
@@ -283,7 +367,7 @@ inline float map_portal_cosine_share(const Emitter& e) { return e.map_part == 1 
 // mixture of cosine (1 / (pi A)) and map directions (pm / (A cos)).
 float map_line_density(const Emitter& e, Vec3 o, Vec3 d, float pm) {
   const float b = map_portal_cosine_share(e);
-  float density = (1.0f - e.portal_share) * pm / (kPi * e.radius * e.radius);
+  float density = (1.0f - e.portal_share) * pm * footprint_density(*e.footprint, o, d);
   for (size_t j = 0; j < e.portals.size(); ++j) {
     float t, cos_p;
     if (e.portal_pick[j] <= 0.0f || !portal_crossing(e.portals[j], o, d, 1.0f, t, cos_p)) continue;
@@ -317,16 +401,14 @@ inline Vec3 into_portal(const Portal& p, float u0, float u1) {
 }
 
 // Where a sun or world photon travelling along d starts: on portal j, or on
-// the disk across d (frame t, b) covering the scene, both 2 radii back.
-inline Vec3 line_origin(const Emitter& e, bool through_portal, size_t j, Vec3 d, Vec3 t, Vec3 b, const float u[4]) {
+// the footprint seen along d, both far enough back to be outside the scene.
+inline Vec3 line_origin(const Emitter& e, bool through_portal, size_t j, Vec3 d, const float u[4]) {
   if (through_portal) {
     const Portal& p = e.portals[j];
     const Vec3 q = p.center + p.half_u * (2.0f * u[2] - 1.0f) + p.half_v * (2.0f * u[3] - 1.0f);
-    return q - d * (2.0f * e.radius);
+    return q - d * e.footprint->reach;
   }
-  float x, y;
-  concentric_disk(u[2], u[3], x, y);
-  return e.origin + (t * x + b * y) * e.radius - d * (2.0f * e.radius);
+  return footprint_origin(*e.footprint, d, u[2], u[3]);
 }
 
 // World photons from an environment map: the direction looked towards is
@@ -344,7 +426,7 @@ __attribute__((noinline)) void sample_map_sky(const Emitter& e, const float u[4]
     u0 = cosine ? u0 / share : (u0 - share) / (1.0f - share);
     u0 = std::fmin(u0, 0.99999994f);
   }
-  Vec3 d, t, b;
+  Vec3 d;
   float pm = 0.0f;
   if (cosine) {
     d = into_portal(e.portals[j], u0, u[1]);
@@ -352,13 +434,13 @@ __attribute__((noinline)) void sample_map_sky(const Emitter& e, const float u[4]
   } else {
     d = -map.sample(e.map_part, u0, u[1], pm);
   }
-  make_frame(d, t, b);
-  s.origin = line_origin(e, through_portal, j, d, t, b, u);
+  s.origin = line_origin(e, through_portal, j, d, u);
   s.direction = d;
   const Vec3 L = map.radiance(e.map_part, -d);
   float tc, cos_p;
   if (e.portal_share <= 0.0f) {
-    s.weight = L * (kPi * e.radius * e.radius / pm);
+    const float density = pm * footprint_density(*e.footprint, s.origin, d);
+    s.weight = density > 0.0f ? L * (1.0f / density) : Vec3{0, 0, 0};
   } else if (through_portal && !portal_crossing(e.portals[j], s.origin, d, 1.0f, tc, cos_p)) {
     s.weight = {0, 0, 0};  // a map direction leaving through the portal, or rounding at its rim
   } else {
@@ -378,23 +460,21 @@ __attribute__((noinline)) void sample_sky(const Emitter& e, const float u[4], Em
   float u0 = u[0];
   size_t j = 0;
   const bool through_portal = pick_portal(e, u0, j);
-  Vec3 d = e.normal, t = e.axis_u, b = e.axis_v;
+  Vec3 d = e.normal;
   if (e.kind == EmitterKind::World) {
     d = through_portal ? into_portal(e.portals[j], u0, u[1]) : uniform_sphere(u0, u[1]);
-    make_frame(d, t, b);
   } else if (e.cos_half < 1.0f) {
-    d = cone_direction(e.normal, t, b, e.cos_half, u0, u[1]);  // over the sun's disk of directions
-    make_frame(d, t, b);
+    d = cone_direction(e.normal, e.axis_u, e.axis_v, e.cos_half, u0, u[1]);  // over the sun's disk of directions
   }
-  s.origin = line_origin(e, through_portal, j, d, t, b, u);
+  s.origin = line_origin(e, through_portal, j, d, u);
   s.direction = d;
-  if (e.portal_share > 0.0f) {
-    float tc, cos_p;
-    if (through_portal && !portal_crossing(e.portals[j], s.origin, d, 1.0f, tc, cos_p)) {
-      s.weight = {0, 0, 0};  // the sun's cone grazing the portal, or rounding at its rim
-    } else {
-      s.weight = e.radiance * (1.0f / photon_line_density(e, s.origin, d));
-    }
+  float tc, cos_p;
+  if (through_portal && !portal_crossing(e.portals[j], s.origin, d, 1.0f, tc, cos_p)) {
+    s.weight = {0, 0, 0};  // the sun's cone grazing the portal, or rounding at its rim
+  } else {
+    // Radiance over the line's density; the world's directions are uniform (1 / 4 pi).
+    const float density = photon_line_density(e, s.origin, d);
+    s.weight = density > 0.0f ? e.radiance * (1.0f / density) : Vec3{0, 0, 0};
   }
 }
 

@@ -4,10 +4,12 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "scene/scene.h"
+#include "transport/footprint.h"
 #include "util/math.h"
 
 namespace plm {
@@ -27,11 +29,11 @@ struct Emitter {
   EmitterKind kind;
   Vec3 flux;        // total emitted RGB flux (W)
   Vec3 scale;       // per-sample RGB weight before angular factors (see sample_emitter)
-  Vec3 origin;      // point/spot/area centre, triangle vertex 0, scene centre for sun/world
+  Vec3 origin;      // point/spot/area centre, triangle vertex 0
   Vec3 axis_u, axis_v;  // area: half extents; triangle: edges; sun/world: frame
   Vec3 normal;      // area/triangle: emitting side; spot: cone axis; sun: travel direction
   Vec3 frame_t, frame_b;  // area/triangle/spot: make_frame(normal), once per emitter (build_emitters)
-  float radius = 0;     // point/spot: light radius; sun/world: radius of the scene's bounding sphere
+  float radius = 0;     // point/spot: light radius
   float cos_half = 1;   // spot: cos(spot_size / 2); sun: cos(angle / 2)
   float spot_smooth = 0;
   // For direct lighting: intensity (point/spot, W/sr), irradiance (sun),
@@ -58,6 +60,9 @@ struct Emitter {
   // paths do not look at it.
   const EnvironmentMap* map = nullptr;
   int map_part = 0;
+  // Sun and world: where their photons start (transport/footprint.h), one
+  // for all of them; null for the other emitters.
+  std::shared_ptr<const Footprint> footprint;
 };
 
 struct EmitterSample {
@@ -74,11 +79,19 @@ struct EmitterSample {
 // Cycles' spot falloff for a unit direction at cosine c from the axis.
 float spot_attenuation(float c, float cos_half, float spot_smooth);
 
-// Flattens lights, emissive triangles and the world. scene_center/radius
-// bound all geometry (sun and world photons start on a disk around them).
-// textures (null for none) give emissive triangles their texture's mean over
-// the triangle (their power, by which they are picked) and mark them textured.
+// Where sun and world photons start in `scene`, whose geometry lies in
+// [lo, hi]: aimed at the box around what records photons (meshes with a
+// lightmap or an OL group, CSG solids, L-system objects), kFootprintAim of
+// them where that box is much smaller than the scene's.
+Footprint photon_footprint(const Scene& scene, Vec3 lo, Vec3 hi);
+
+// Flattens lights, emissive triangles and the world. Sun and world photons
+// start on `footprint` (its scene box grows to hold the portals). textures
+// (null for none) give emissive triangles their texture's mean over the
+// triangle (their power, by which they are picked) and mark them textured.
 class TextureSet;
+std::vector<Emitter> build_emitters(const Scene& scene, Footprint footprint, const TextureSet* textures = nullptr);
+// The same with photons over the box [center - radius, center + radius].
 std::vector<Emitter> build_emitters(const Scene& scene, Vec3 scene_center, float scene_radius,
                                     const TextureSet* textures = nullptr);
 

@@ -22,11 +22,14 @@ double target_progress(double relative, double target) {
   return std::min(1.0, std::pow(target / std::max(relative, 1e-12), 2.0));
 }
 
-uint32_t gather_samples(double target_error) {
+uint32_t gather_samples(double target_error, uint32_t gathers_before) {
   constexpr double kBaseTarget = 0.02;  // the target kGatherSamples rays are enough for
-  if (!(target_error > 0.0)) return kGatherSamples;
-  return uint32_t(std::clamp(kGatherSamples * std::pow(kBaseTarget / target_error, 2.0), double(kGatherSamples),
-                             double(kMaxGatherSamples)));
+  const double more = std::pow(4.0, double(std::min(gathers_before, 4u)));
+  const double base = target_error > 0.0
+                          ? std::clamp(kGatherSamples * std::pow(kBaseTarget / target_error, 2.0), double(kGatherSamples),
+                                       double(kMaxGatherSamples))
+                          : double(kGatherSamples);
+  return uint32_t(std::min(base * more, double(kMaxGatherSamples)));
 }
 
 DirectSchedule::DirectSchedule(double target_error, uint32_t direct_samples)

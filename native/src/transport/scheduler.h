@@ -146,9 +146,21 @@ class CheckSchedule {
 
 // ---- Final gather -------------------------------------------------------------
 // Rays per texel: kGatherSamples, 4x as many for half the target error under
-// a target below 2 % (at most kMaxGatherSamples).
+// a target below 2 %, and 4x as many again for each gather before (regather
+// below; at most kMaxGatherSamples).
 constexpr uint32_t kGatherSamples = 16, kMaxGatherSamples = 256;
-uint32_t gather_samples(double target_error);
+uint32_t gather_samples(double target_error, uint32_t gathers_before = 0);
+// Under a target the gather runs at the first check the photons alone do not
+// pass, and at once again (kMaxGathers in all) while its own part of the
+// error is above kPhotonShareOfTarget x the target: that part is the spread
+// of its rays and the error of the texels they look up (other objects, the
+// ground; taken as fully correlated), which photons do not lower. Each
+// gather has 4x the rays of the one before and looks up the estimate it
+// improved.
+constexpr uint32_t kMaxGathers = 3;
+inline bool regather(uint32_t gathers, const ErrorParts& e, double target) {
+  return gathers < kMaxGathers && e.gather > kPhotonShareOfTarget * target;
+}
 
 // ---- Direct pass --------------------------------------------------------------
 // What the allocation of a texel's next samples reads: its sample count, its

@@ -146,7 +146,10 @@ bool contact_query(RTCPointQueryFunctionArguments* args) {
     lo = std::min(lo, h), hi = std::max(hi, h);
     other[2 * c] = dot(d, q->t), other[2 * c + 1] = dot(d, q->b);
   }
-  if (lo > q->slab || hi < -q->slab || !triangles_overlap(q->tri2d, other, q->tol)) return false;
+  // Pressed flat: the whole partner within the slab. A partner that only
+  // touches it (a sphere's pole fan on the ground, tilted away from the
+  // touching point) is seen by the offset rays like any other surface.
+  if (lo < -q->slab || hi > q->slab || !triangles_overlap(q->tri2d, other, q->tol)) return false;
   q->rects->push_back(partner_texels(*q, other));
   return false;
 }
