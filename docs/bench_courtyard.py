@@ -209,4 +209,5 @@ def main():
              ", stopped by the time budget" if result["stopped_by_budget"] else ""))
 
 
-main()
+if __name__ == "__main__":
+    main()
