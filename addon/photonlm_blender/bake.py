@@ -176,7 +176,7 @@ class BakeJob:
         self.created_uvs = []
         self.notices = []  # warnings to show last (after the summary): memory, noisy texels
         self.times = stages.StageTimes()  # seconds per stage, into the statistics (stage_seconds())
-        t0 = time.perf_counter()
+        t0, cpu0 = time.perf_counter(), time.process_time()
         vl = context.view_layer
         with self.times("export_checks"):
             objects = export.lightmap_objects(context, selected_only)
@@ -194,6 +194,7 @@ class BakeJob:
             self.abort(context)
             raise
         self.seconds_export = time.perf_counter() - t0
+        self.cpu_seconds_export = time.process_time() - cpu0
         if not self.export.baked and not self.export.lsystems:
             self.abort(context)
             raise BakeError("nothing to bake: every object was skipped (see the reports)")
@@ -323,8 +324,10 @@ class BakeJob:
             triangles=int(self.export.triangles), **times,
             warning_lines="\n".join(shown_warnings))
         LAST.clear()
+        cpu_times = {"cpu_seconds_" + k: float(v) for k, v in self.times.cpu.items()}
         LAST.update(stats=dict(stats, photons_per_second=photons_per_second, error_target=target,
-                               triangles=int(self.export.triangles), **times),
+                               triangles=int(self.export.triangles), cpu_seconds_export=self.cpu_seconds_export,
+                               **times, **cpu_times),
                     warnings=list(warnings), objects=per_object, output_dir=out_dir, ols=ol_info,
                     csg_objects=list(self.export.csg_objects),
                     lsystems=[name for name, _ in self.export.lsystems], noisiest=noisiest,

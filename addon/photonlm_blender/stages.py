@@ -7,7 +7,8 @@
             ...
 
 Stages are exclusive: a stage entered inside another pauses the outer one, so the stages of one
-timer add up to the time spent in all of them.
+timer add up to the time spent in all of them. Wall-clock seconds (.seconds) and this process's
+CPU seconds, all threads (.cpu: on a busy machine, the part that does not wait for cores).
 """
 import contextlib
 import time
@@ -16,14 +17,16 @@ import time
 class StageTimes:
     def __init__(self):
         self.seconds = {}
-        self._stack = []   # [name, start of its running part]
+        self.cpu = {}
+        self._stack = []   # [name, (wall, cpu) at the start of its running part]
 
     def _credit(self, name, now, since):
-        self.seconds[name] = self.seconds.get(name, 0.0) + (now - since)
+        self.seconds[name] = self.seconds.get(name, 0.0) + (now[0] - since[0])
+        self.cpu[name] = self.cpu.get(name, 0.0) + (now[1] - since[1])
 
     @contextlib.contextmanager
     def __call__(self, name):
-        now = time.perf_counter()
+        now = (time.perf_counter(), time.process_time())
         if self._stack:
             outer = self._stack[-1]
             self._credit(outer[0], now, outer[1])
@@ -32,7 +35,7 @@ class StageTimes:
             yield
         finally:
             _, since = self._stack.pop()
-            now = time.perf_counter()
+            now = (time.perf_counter(), time.process_time())
             self._credit(name, now, since)
             if self._stack:
                 self._stack[-1][1] = now
