@@ -231,6 +231,15 @@ def _copies(context, requests):
                 mesh = bpy.data.meshes.new_from_object(ev, preserve_all_data_layers=False, depsgraph=depsgraph)
                 mesh.name = HELPER_PREFIX + obj.name
                 out[(obj.name, stage)] = mesh
+    # A cage whose Subdivision Surface is the object's only modifier, without shape keys, is its own
+    # mesh: copied as it is, without switching the modifier off (which would evaluate the object twice).
+    direct = [(obj, st) for obj, st in requests
+              if st == CAGE and len(obj.modifiers) == 1 and obj.data.shape_keys is None]
+    for obj, st in direct:
+        mesh = obj.data.copy()
+        mesh.name = HELPER_PREFIX + obj.name
+        out[(obj.name, st)] = mesh
+    requests = [r for r in requests if r not in direct]
     if any(st == CAGE for _, st in requests):
         toggled = []
         try:
