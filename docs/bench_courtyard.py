@@ -25,7 +25,10 @@ texels, the add-on's per-stage seconds (export stages, engine set-up / photons /
 and the export stages' CPU seconds (all threads; on a busy machine the wall times include waiting
 for a core), the operator's wall time, peak memory (getrusage maxrss of the Blender process, and before the
 bake), the engine's own memory estimate, the error estimate reached and whether the photon cap or
-the time budget stopped the bake before the target.
+the time budget stopped the bake before the target. --scene-file writes the scene for the engine
+alone, whose memory can then be measured apart from Blender's:
+
+    /usr/bin/time -v ./build/bin/photonlm bake DIR/scene/courtyard.json -o DIR/cli --photons 2000000
 """
 import argparse
 import json
@@ -148,6 +151,8 @@ def main():
     ap.add_argument("--photons", type=int, default=0, help="Max Photons (0: the add-on's default)")
     ap.add_argument("--bakes", type=int, default=2, help="bakes in a row (the first makes the UV maps)")
     ap.add_argument("--profile", action="store_true", help="cProfile each bake into DIR/profile_<k>.txt")
+    ap.add_argument("--scene-file", action="store_true",
+                    help="also write the scene as a scene file, DIR/scene/courtyard.json (for `photonlm bake`)")
     args = ap.parse_args(argv)
     os.makedirs(args.out, exist_ok=True)
     os.environ.setdefault("PHOTONLM_TEST_OUT", args.out)
@@ -162,6 +167,10 @@ def main():
     results = []
     for k in range(args.bakes):
         results.append(bake_once(args, k))
+    if args.scene_file:
+        from photonlm_blender import scene_file_export
+        path, _ = scene_file_export.export_scene_file(bpy.context, os.path.join(args.out, "scene", "courtyard.json"))
+        print("scene file:", path)
     with open(os.path.join(args.out, "courtyard.json"), "w") as f:
         json.dump(dict(monkeys=args.objects, level=args.level, native_subdivision=not args.blender_subdiv,
                        blender_triangles=blender_triangles, seconds_build=seconds_build, bakes=results), f, indent=1)

@@ -419,7 +419,9 @@ def _unwrap(context, mesh, matrix, res, subsurf=None, levels=()):
                 mesh.polygons.foreach_get("loop_start", starts)
                 sizes = np.empty(len(mesh.polygons), np.int32)
                 mesh.polygons.foreach_get("loop_total", sizes)
-                loops = np.concatenate([np.arange(starts[f], starts[f] + sizes[f]) for f in bad])
+                bad_starts, bad_sizes = starts[np.asarray(bad)].astype(np.int64), sizes[np.asarray(bad)]
+                first = np.cumsum(bad_sizes, dtype=np.int64) - bad_sizes
+                loops = np.repeat(bad_starts - first, bad_sizes) + np.arange(int(bad_sizes.sum()))
                 seams = np.empty(len(mesh.edges), bool)
                 mesh.edges.foreach_get("use_seam", seams)
                 seams[edge_of_loop[loops]] = True
