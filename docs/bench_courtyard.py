@@ -3,7 +3,8 @@ the add-on in headless Blender, with the time of every stage and the peak memory
 
     PHOTONLM_LIBRARY=$PWD/build/lib/libphotonlm.so PHOTONLM_SOURCE_DIR=$PWD \
         blender -b --factory-startup --python docs/bench_courtyard.py -- --out /tmp/bench_courtyard \
-        [--objects 128] [--target 0.05] [--level 2] [--blender-subdiv] [--photons N] [--bakes 2] [--profile]
+        [--objects 128] [--target 0.05] [--level 2] [--blender-subdiv] [--photons N] [--time-budget S]
+        [--bakes 2] [--scene-file] [--profile]
 
 Scene: a ground and four walls (boxes) around N Suzanne monkeys on the ground, each with a Subdivision
 Surface modifier (render level --level, 2 by default: about 15,700 triangles a monkey) and smooth
@@ -12,8 +13,8 @@ the add-on makes every lightmap UV map. A sun (strength 3, 40 degrees up) and a 
 With 128 monkeys: 133 objects, about 2.0 M triangles, 545 k texels.
 
 The bake runs through the add-on's operator (bpy.ops.photonlm.bake, as an artist bakes), with
-Target Error --target, Max Photons --photons (0: the add-on's default cap) and the add-on's other
-defaults, --bakes times: the first bake makes the lightmap UV maps and renders the sky, later ones
+Target Error --target, Max Photons --photons (0: the add-on's default cap), Time Budget
+--time-budget (0: none) and the add-on's other defaults, --bakes times: the first bake makes the lightmap UV maps and renders the sky, later ones
 reuse both (as a second bake of an unchanged scene does). The scene is evaluated once before the
 first bake (an artist's scene is, by the viewport). By default the add-on exports the monkeys
 as their cages and the engine refines them (Native Subdivision); --blender-subdiv exports Blender's
@@ -149,6 +150,7 @@ def main():
     ap.add_argument("--blender-subdiv", action="store_true",
                     help="export Blender's subdivided meshes (Native Subdivision off)")
     ap.add_argument("--photons", type=int, default=0, help="Max Photons (0: the add-on's default)")
+    ap.add_argument("--time-budget", type=float, default=0.0, help="Time Budget in seconds (0: none)")
     ap.add_argument("--bakes", type=int, default=2, help="bakes in a row (the first makes the UV maps)")
     ap.add_argument("--profile", action="store_true", help="cProfile each bake into DIR/profile_<k>.txt")
     ap.add_argument("--scene-file", action="store_true",
@@ -188,7 +190,7 @@ def bake_once(args, k):
         prof = cProfile.Profile()
         prof.enable()
     last = scenes.photonlm_bake(photon_cap, int(s.max_bounces), seed=int(s.seed) + k, target_error=args.target,
-                                output_dir=os.path.join(args.out, "lightmaps"))
+                                time_budget=args.time_budget, output_dir=os.path.join(args.out, "lightmaps"))
     if args.profile:
         prof.disable()
         with open(os.path.join(args.out, "profile_%d.txt" % k), "w") as f:
