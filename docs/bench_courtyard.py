@@ -140,6 +140,12 @@ def maxrss_bytes():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
 
 
+def rss_bytes():
+    """Resident memory now."""
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
+
+
 def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     ap = argparse.ArgumentParser(prog="bench_courtyard.py")
@@ -182,7 +188,7 @@ def bake_once(args, k):
     from photonlm_blender import properties
     scene = bpy.context.scene
     s = scene.photonlm
-    rss_before = maxrss_bytes()
+    rss_before, rss_now = maxrss_bytes(), rss_bytes()
     photon_cap = args.photons or int(properties.PHOTON_CAP_DEFAULT)
     if args.profile:
         import cProfile
@@ -210,7 +216,7 @@ def bake_once(args, k):
         wall_seconds=wall, stages=stages, cpu=cpu,
         export_seconds_per_million_triangles=export_s / (triangles / 1e6) if triangles else 0.0,
         export_cpu_seconds_per_million_triangles=cpu["cpu_seconds_export"] / (triangles / 1e6) if triangles else 0.0,
-        peak_rss=maxrss_bytes(), rss_before_bake=rss_before,
+        peak_rss=maxrss_bytes(), peak_rss_before_bake=rss_before, rss_at_bake_start=rss_now, rss_after_bake=rss_bytes(),
         memory_estimate=float(engine["memory_estimate"]),
         photons=int(engine["photons_emitted"]), photon_cap=photon_cap, time_budget=time_budget,
         target_error=args.target, error_estimate=float(engine["error_estimate"]),
@@ -225,10 +231,10 @@ def bake_once(args, k):
         c = cpu.get("cpu_" + key)
         print("  %-32s %8.3f s%s" % (key, v, "  (CPU %.3f s)" % c if c is not None else ""))
     print("wall %.2f s, export %.3f s = %.3f s per M triangles (CPU %.3f s per M); peak RSS %.2f GB (%.2f GB "
-          "before the bake), engine estimate %.2f GB"
+          "before the bake; resident %.2f GB at its start, %.2f GB after), engine estimate %.2f GB"
           % (wall, export_s, result["export_seconds_per_million_triangles"],
              result["export_cpu_seconds_per_million_triangles"], result["peak_rss"] / 1e9, rss_before / 1e9,
-             result["memory_estimate"] / 1e9))
+             rss_now / 1e9, result["rss_after_bake"] / 1e9, result["memory_estimate"] / 1e9))
     print("error %.2f %% (target %.2f %%, %s), %d photons (cap %d)%s"
           % (100 * result["error_estimate"], 100 * args.target, "reached" if reached else "not reached",
              result["photons"], photon_cap, ", stopped by the photon cap" if result["stopped_by_cap"] else
