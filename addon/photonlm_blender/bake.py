@@ -325,6 +325,7 @@ class BakeJob:
             warning_lines="\n".join(shown_warnings))
         LAST.clear()
         cpu_times = {"cpu_seconds_" + k: float(v) for k, v in self.times.cpu.items()}
+        cpu_times["cpu_seconds_export_other"] = max(0.0, self.cpu_seconds_export - sum(self.times.cpu.values()))
         LAST.update(stats=dict(stats, photons_per_second=photons_per_second, error_target=target,
                                triangles=int(self.export.triangles), cpu_seconds_export=self.cpu_seconds_export,
                                **times, **cpu_times),
