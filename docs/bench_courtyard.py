@@ -23,8 +23,8 @@ under cProfile and writes the 40 most expensive functions to DIR/profile.txt.
 
 Printed and written to DIR/courtyard.json, per bake: objects, triangles (as the engine sees them),
 texels, the add-on's per-stage seconds (export stages, engine set-up / photons / direct, write-back)
-and the export stages' CPU seconds (all threads; on a busy machine the wall times include waiting
-for a core), the operator's wall time, peak memory (getrusage maxrss of the Blender process, and before the
+and the export stages' CPU seconds (of the main thread, and the whole export's of all threads;
+on a busy machine the wall times include waiting for a core), the operator's wall time, peak memory (getrusage maxrss of the Blender process, and before the
 bake), the engine's own memory estimate, the error estimate reached and whether the photon cap or
 the time budget stopped the bake before the target. --scene-file writes the scene for the engine
 alone, whose memory can then be measured apart from Blender's:
@@ -230,6 +230,7 @@ def bake_once(args, k):
     for key, v in sorted(stages.items()):
         c = cpu.get("cpu_" + key)
         print("  %-32s %8.3f s%s" % (key, v, "  (CPU %.3f s)" % c if c is not None else ""))
+    print("export CPU of all threads %.3f s" % cpu["cpu_seconds_export_process"])
     print("wall %.2f s, export %.3f s = %.3f s per M triangles (CPU %.3f s per M); peak RSS %.2f GB (%.2f GB "
           "before the bake; resident %.2f GB at its start, %.2f GB after), engine estimate %.2f GB"
           % (wall, export_s, result["export_seconds_per_million_triangles"],

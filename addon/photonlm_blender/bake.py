@@ -176,7 +176,7 @@ class BakeJob:
         self.created_uvs = []
         self.notices = []  # warnings to show last (after the summary): memory, noisy texels
         self.times = stages.StageTimes()  # seconds per stage, into the statistics (stage_seconds())
-        t0, cpu0 = time.perf_counter(), time.process_time()
+        t0, cpu0, process0 = time.perf_counter(), time.thread_time(), time.process_time()
         vl = context.view_layer
         with self.times("export_checks"):
             objects = export.lightmap_objects(context, selected_only)
@@ -194,7 +194,8 @@ class BakeJob:
             self.abort(context)
             raise
         self.seconds_export = time.perf_counter() - t0
-        self.cpu_seconds_export = time.process_time() - cpu0
+        self.cpu_seconds_export = time.thread_time() - cpu0  # this thread's: see stages.py
+        self.cpu_seconds_export_process = time.process_time() - process0  # all threads (Blender's too)
         if not self.export.baked and not self.export.lsystems:
             self.abort(context)
             raise BakeError("nothing to bake: every object was skipped (see the reports)")
@@ -328,6 +329,7 @@ class BakeJob:
         cpu_times["cpu_seconds_export_other"] = max(0.0, self.cpu_seconds_export - sum(self.times.cpu.values()))
         LAST.update(stats=dict(stats, photons_per_second=photons_per_second, error_target=target,
                                triangles=int(self.export.triangles), cpu_seconds_export=self.cpu_seconds_export,
+                               cpu_seconds_export_process=self.cpu_seconds_export_process,
                                **times, **cpu_times),
                     warnings=list(warnings), objects=per_object, output_dir=out_dir, ols=ol_info,
                     csg_objects=list(self.export.csg_objects),

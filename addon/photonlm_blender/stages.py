@@ -7,8 +7,10 @@
             ...
 
 Stages are exclusive: a stage entered inside another pauses the outer one, so the stages of one
-timer add up to the time spent in all of them. Wall-clock seconds (.seconds) and this process's
-CPU seconds, all threads (.cpu: on a busy machine, the part that does not wait for cores).
+timer add up to the time spent in all of them. Wall-clock seconds (.seconds) and the CPU seconds
+of the calling thread (.cpu: on a busy machine, the part that does not wait for a core; work that
+Blender or the engine hands to other threads is not in it). The thread's clock, not the process's:
+the process's sums over all of Blender's threads and takes milliseconds a call.
 """
 import contextlib
 import time
@@ -26,7 +28,7 @@ class StageTimes:
 
     @contextlib.contextmanager
     def __call__(self, name):
-        now = (time.perf_counter(), time.process_time())
+        now = (time.perf_counter(), time.thread_time())
         if self._stack:
             outer = self._stack[-1]
             self._credit(outer[0], now, outer[1])
@@ -35,7 +37,7 @@ class StageTimes:
             yield
         finally:
             _, since = self._stack.pop()
-            now = (time.perf_counter(), time.process_time())
+            now = (time.perf_counter(), time.thread_time())
             self._credit(name, now, since)
             if self._stack:
                 self._stack[-1][1] = now
