@@ -131,9 +131,11 @@ def surface_area(pos, tris):
 
 
 def object_resolution(obj, area, density):
+    """The object's lightmap side: its own Resolution, or for Auto one from its world-space surface
+    area (m^2; or a function giving it, called only for Auto: the area of a large mesh costs time)."""
     if obj.photonlm.resolution > 0:
         return int(obj.photonlm.resolution)
-    return properties.resolution_from_area(area, density)
+    return properties.resolution_from_area(area() if callable(area) else area, density)
 
 
 def safe_file_name(name):
@@ -312,7 +314,7 @@ def _add_object(export, plm, orig, obj_eval, matrix, is_instance, with_lightmap,
         with_lightmap = False
     resolution = 0
     if with_lightmap:
-        resolution = object_resolution(orig, surface_area(pos, tris), density)
+        resolution = object_resolution(orig, lambda: surface_area(pos, tris), density)
     try:
         mesh_id = plm.add_mesh(name, pos, tris, lightmap_uv=uv if with_lightmap else None,
                                material_ids=mat_ids, resolution=resolution)

@@ -560,7 +560,8 @@ def _stage_now(obj):
 
 def ensure_lightmap_uvs(context, objects, reports, resolution_of, native_subdivision=True):
     """Make or refresh the automatic lightmap UV maps of `objects` (see the module doc).
-    resolution_of(obj, area) gives an object's lightmap size from its world-space area.
+    resolution_of(obj, area) gives an object's lightmap size from its world-space area (a number,
+    or a function giving it).
     Returns a Changes list. Must run in Object Mode; the selection and active object are kept."""
     changes = Changes()
     todo = []
@@ -656,7 +657,7 @@ def _resolution(obj, copy, stage, resolution_of):
         pa = np.empty(len(copy.polygons), np.float32)
         copy.polygons.foreach_get("area", pa)
         return resolution_of(obj, float(pa.sum()) * abs(np.linalg.det(m[:3, :3])) ** (2.0 / 3.0))
-    return resolution_of(obj, triangle_area(copy, m))
+    return resolution_of(obj, lambda: triangle_area(copy, m))  # measured only for an Auto resolution
 
 
 def _make_one(context, obj, copy, stage, resolution_of, changes, reports, shared, why_full=None,
