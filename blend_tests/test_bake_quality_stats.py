@@ -145,6 +145,28 @@ def main():
                  "the Warnings sub-panel lists the bake's warnings in lines that fit the panel: %s" % shown[:120])
     checks.check(all(len(label) <= 13 for label in rows) and all(len(v) <= 22 for v in rows.values())
                  and all(len(t) <= 30 for t in rest), "labels short enough for the default panel width")
+    # Where the time went: the export's stages add up to the export, the engine's are the engine's own.
+    parts = [k for k in stored if k.startswith("seconds_export_")]
+    checks.check({"seconds_export_uv", "seconds_export_meshes", "seconds_export_materials", "seconds_export_world",
+                  "seconds_export_depsgraph", "seconds_export_checks"} <= set(parts)
+                 and all(float(stored[k]) >= 0.0 for k in parts)
+                 and abs(sum(float(stored[k]) for k in parts) - float(stored["seconds_export"])) < 1e-6,
+                 "the export's stages (%s) add up to its %.3f s"
+                 % (", ".join("%s %.3f" % (k[15:], stored[k]) for k in sorted(parts)), stored["seconds_export"]))
+    checks.check(all(abs(float(stored[k]) - float(s[k])) <= 1e-9 * max(1.0, float(s[k]))
+                     for k in ("seconds_setup", "seconds_trace", "seconds_direct", "seconds_total"))
+                 and 0.0 < float(stored["seconds_writeback"]) < last["wall_seconds"],
+                 "the engine's stages and the write-back (%.3f s) are stored" % stored["seconds_writeback"])
+    checks.check(int(stored["triangles"]) == 2 + 10, "the triangles traced are stored (%d)" % stored["triangles"])
+    lines = []
+
+    class TimesPanel:
+        layout = Layout(lines)
+    panel.PHOTONLM_PT_last_times.draw(TimesPanel, context)
+    shown = [l[1].strip() for l in lines if l[0] == "label"]
+    checks.check(panel.PHOTONLM_PT_last_times.poll(context) and "Export" in shown and "Write-back" in shown
+                 and "%.2f s" % stored["seconds_trace"] in shown and "Meshes" in shown,
+                 "the Times sub-panel lists the stages: %s" % " ".join(shown)[:160])
     checks.check(last["reports"][-1][0] == 'WARNING' and "'%s'" % worst in last["reports"][-1][1]
                  and "above twice the target error" in last["reports"][-1][1],
                  "the last report says how much is noisy and names the noisiest: %s" % last["reports"][-1][1])

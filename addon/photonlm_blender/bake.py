@@ -27,7 +27,7 @@ import time
 import bpy
 import numpy as np
 
-from . import atlas, bridge, export, lsystem, materials, properties, uvmaps, world_export
+from . import atlas, bridge, export, lsystem, materials, properties, stages, uvmaps, world_export
 
 # Heat-map images larger than this per side hold the RMS of blocks of texels.
 ERROR_IMAGE_MAX = 2048
@@ -175,22 +175,27 @@ class BakeJob:
         self.cancelled = False
         self.created_uvs = []
         self.notices = []  # warnings to show last (after the summary): memory, noisy texels
+        self.times = stages.StageTimes()  # seconds per stage, into the statistics (stage_seconds())
+        t0, cpu0, process0 = time.perf_counter(), time.thread_time(), time.process_time()
         vl = context.view_layer
-        objects = export.lightmap_objects(context, selected_only)
-        if not objects and not any(lsystem.is_lsystem(o) and (not selected_only or o.select_get(view_layer=vl))
-                                   for o in vl.objects):
-            raise BakeError("nothing to bake: no %s mesh object with 'Bake Lightmap' enabled"
-                            % ("selected" if selected_only else "visible"))
-        if not light_sources(context):
-            raise BakeError(unlit_scene_message(context))
-        t0 = time.perf_counter()
+        with self.times("export_checks"):
+            objects = export.lightmap_objects(context, selected_only)
+            if not objects and not any(lsystem.is_lsystem(o) and (not selected_only or o.select_get(view_layer=vl))
+                                       for o in vl.objects):
+                raise BakeError("nothing to bake: no %s mesh object with 'Bake Lightmap' enabled"
+                                % ("selected" if selected_only else "visible"))
+            if not light_sources(context):
+                raise BakeError(unlit_scene_message(context))
         try:
-            self.created_uvs = export.ensure_lightmap_uvs(context, objects, self.reports)
-            self.export = export.export_scene(context, self.photonlm, self.reports, selected_only)
+            with self.times("export_uv"):
+                self.created_uvs = export.ensure_lightmap_uvs(context, objects, self.reports)
+            self.export = export.export_scene(context, self.photonlm, self.reports, selected_only, self.times)
         except Exception:
             self.abort(context)
             raise
         self.seconds_export = time.perf_counter() - t0
+        self.cpu_seconds_export = time.thread_time() - cpu0  # this thread's: see stages.py
+        self.cpu_seconds_export_process = time.process_time() - process0  # all threads (Blender's too)
         if not self.export.baked and not self.export.lsystems:
             self.abort(context)
             raise BakeError("nothing to bake: every object was skipped (see the reports)")
@@ -233,6 +238,7 @@ class BakeJob:
 
     def finish(self, context):
         """Write the EXRs, (re)load the images, wire the materials, store the statistics."""
+        t_finish = time.perf_counter()
         result = self.result
         try:
             stats = result.stats
@@ -327,9 +333,9 @@ class BakeJob:
         if float(stats["error_above"]) > properties.NOISY_SHARE:
             self.notices.append(noisy_message(stats, noisiest, per_object, self.settings["target_error"] > 0.0))
         shown_warnings = warning_lines(self.reports.items, self.notices)
+        times = self.stage_seconds(stats, time.perf_counter() - t_finish)
         scene[properties.STATS_KEY] = dict(
-            photons_emitted=int(stats["photons_emitted"]), seconds_total=float(stats["seconds_total"]),
-            seconds_export=float(self.seconds_export), photons_per_second=float(photons_per_second),
+            photons_emitted=int(stats["photons_emitted"]), photons_per_second=float(photons_per_second),
             warning_count=len({t for level, t in self.reports.items if level == 'WARNING'} | set(self.notices)),
             objects=len(self.export.baked),
             photon_hits=int(stats["photon_hits"]), rays_traced=int(stats["rays_traced"]),
@@ -341,10 +347,15 @@ class BakeJob:
             noisiest=noisiest[0] if noisiest else "",
             noisiest_above=float(per_object[noisiest[0]]["error_above"]) if noisiest else 0.0,
             direct_samples=int(stats["direct_samples"]),
+            triangles=int(self.export.triangles), **times,
             warning_lines="\n".join(shown_warnings))
         LAST.clear()
-        LAST.update(stats=dict(stats, seconds_export=self.seconds_export,
-                               photons_per_second=photons_per_second, error_target=target),
+        cpu_times = {"cpu_seconds_" + k: float(v) for k, v in self.times.cpu.items()}
+        cpu_times["cpu_seconds_export_other"] = max(0.0, self.cpu_seconds_export - sum(self.times.cpu.values()))
+        LAST.update(stats=dict(stats, photons_per_second=photons_per_second, error_target=target,
+                               triangles=int(self.export.triangles), cpu_seconds_export=self.cpu_seconds_export,
+                               cpu_seconds_export_process=self.cpu_seconds_export_process,
+                               **times, **cpu_times),
                     warnings=list(warnings), objects=per_object, output_dir=out_dir, ols=ol_info,
                     csg_objects=list(self.export.csg_objects),
                     lsystems=[name for name, _ in self.export.lsystems], noisiest=noisiest,
@@ -352,6 +363,19 @@ class BakeJob:
         uvmaps.commit(self.created_uvs)  # kept: they belong to the baked lightmaps now
         self.created_uvs = []
         return LAST
+
+    def stage_seconds(self, stats, seconds_writeback):
+        """Seconds per stage for the statistics: seconds_export and its parts seconds_export_<stage>
+        (checks, uv, cages, depsgraph, meshes, materials, world, other), the engine's seconds_setup,
+        seconds_trace, seconds_direct and seconds_total, and seconds_writeback (EXRs, images,
+        materials)."""
+        out = {"seconds_" + k: float(v) for k, v in self.times.seconds.items()}
+        out["seconds_export_other"] = max(0.0, self.seconds_export - self.times.total())
+        out["seconds_export"] = float(self.seconds_export)
+        for k in ("seconds_setup", "seconds_trace", "seconds_direct", "seconds_total"):
+            out[k] = float(stats[k])
+        out["seconds_writeback"] = float(seconds_writeback)
+        return out
 
     def _wire(self, context, images, error_images, target, uv_maps):
         """Wire each baked object's materials to its lightmap image and its heat map, read through

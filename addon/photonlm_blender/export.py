@@ -19,7 +19,7 @@ import re
 
 import numpy as np
 
-from . import csg_export, lsystem, materials, properties, subdiv_export, uvmaps, world_export
+from . import csg_export, lsystem, materials, properties, stages, subdiv_export, uvmaps, world_export
 
 GEOMETRY_TYPES = {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT'}
 
@@ -131,7 +131,8 @@ def surface_area(pos, tris):
 
 
 def object_resolution(obj, area, density):
-    """density: the scene's properties.ResolutionRule."""
+    """density: the scene's properties.ResolutionRule; area: m^2, or a function giving it (called
+    only where the size follows from the area: the area of a large mesh costs time)."""
     return density(obj, area)
 
 
@@ -165,8 +166,10 @@ def ensure_lightmap_uvs(context, objects, reports):
 class SceneExport:
     """The bridge scene plus what the bake needs to bring results back."""
 
-    def __init__(self, plm_scene):
+    def __init__(self, plm_scene, times=None):
         self.scene = plm_scene
+        self.times = times if times is not None else stages.StageTimes()  # seconds per export stage
+        self.triangles = 0          # triangles the engine traces (refined ones for subdivision cages)
         self.baked = []             # BakedObject
         self.material_ids = {}      # material key -> engine id
         self.material_info = {}     # material key -> MaterialInfo
@@ -192,25 +195,30 @@ def _material_key(mat):
     return mat.name_full if mat is not None else None
 
 
-def export_scene(context, photonlm, reports, selected_only=False):
+def export_scene(context, photonlm, reports, selected_only=False, times=None):
     """Build a photonlm.Scene from the current view layer. Must run on the main thread.
 
     selected_only: only the selected objects get lightmaps (and selected L-system objects their
     light); every other visible object is exported as geometry that blocks and reflects light.
     A mesh the engine rejects (NaN coordinates, bad indices...) is reported and skipped.
+    times (a stages.StageTimes): where the seconds of each stage are added up.
     Returns a SceneExport; the caller closes .scene.
     """
+    times = times if times is not None else stages.StageTimes()
     scene = context.scene
     view_layer = context.view_layer
     cages = {}  # objects whose last modifier is a Subdivision Surface go as their cage (subdiv_export.py)
     if getattr(scene.photonlm, "native_subdivision", True):
-        cages = subdiv_export.read_cages(context, subdiv_export.candidates(
-            [o for o in view_layer.objects if is_renderable(o, view_layer)], reports), reports)
-    depsgraph = context.evaluated_depsgraph_get()
+        with times("export_cages"):
+            cages = subdiv_export.read_cages(context, subdiv_export.candidates(
+                [o for o in view_layer.objects if is_renderable(o, view_layer)], reports), reports)
+    with times("export_depsgraph"):
+        depsgraph = context.evaluated_depsgraph_get()
     density = properties.ResolutionRule(scene.photonlm)
     plm = photonlm.Scene()
-    export = SceneExport(plm)
-    world = world_export.start(scene.world)  # a sky to render renders beside the mesh export
+    export = SceneExport(plm, times)
+    with times("export_world"):
+        world = world_export.start(scene.world)  # a sky to render renders beside the mesh export
     try:
         default_id = _add_material(export, plm, None, reports)
         bake_names = {o.name for o in lightmap_objects(context, selected_only)}
@@ -232,12 +240,14 @@ def export_scene(context, photonlm, reports, selected_only=False):
                 continue
             with_lightmap = (not inst.is_instance) and orig.name in bake_names
             cage = None if inst.is_instance else cages.get(orig.name)
-            if cage is not None and _add_subdiv_object(export, plm, orig, obj_eval, cage, with_lightmap, density,
-                                                       default_id, reports):
-                continue
-            _add_object(export, plm, orig, obj_eval, inst.matrix_world.copy(), inst.is_instance,
-                        with_lightmap, density, default_id, reports)
-        world_export.set_world(plm, scene.world, reports, world)
+            with times("export_meshes"):
+                if cage is not None and _add_subdiv_object(export, plm, orig, obj_eval, cage, with_lightmap,
+                                                           density, default_id, reports):
+                    continue
+                _add_object(export, plm, orig, obj_eval, inst.matrix_world.copy(), inst.is_instance,
+                            with_lightmap, density, default_id, reports)
+        with times("export_world"):
+            world_export.set_world(plm, scene.world, reports, world)
     except BaseException:
         world.cancel()
         plm.close()
@@ -249,6 +259,11 @@ def _add_material(export, plm, mat, reports):
     key = _material_key(mat)
     if key in export.material_ids:
         return export.material_ids[key]
+    with export.times("export_materials"):
+        return _read_material(export, plm, mat, key, reports)
+
+
+def _read_material(export, plm, mat, key, reports):
     info = materials.read_material(mat)
     for note in info.notes:
         reports.warning(note)
@@ -297,13 +312,14 @@ def _add_object(export, plm, orig, obj_eval, matrix, is_instance, with_lightmap,
         with_lightmap = False
     resolution = 0
     if with_lightmap:
-        resolution = object_resolution(orig, surface_area(pos, tris), density)
+        resolution = object_resolution(orig, lambda: surface_area(pos, tris), density)
     try:
         mesh_id = plm.add_mesh(name, pos, tris, lightmap_uv=uv if with_lightmap else None,
                                material_ids=mat_ids, resolution=resolution)
     except Exception as e:  # the engine names the mesh and the first bad index
         reports.warning("object '%s' skipped: %s" % (orig.name, getattr(e, "message", e)))
         return
+    export.triangles += len(tris)
     if tex_uv is not None and hasattr(plm, "set_mesh_texture_uv"):
         plm.set_mesh_texture_uv(mesh_id, tex_uv)
     if normals is not None:
@@ -346,6 +362,7 @@ def _add_subdiv_object(export, plm, orig, obj_eval, cage, with_lightmap, density
         return False
     reports.info("object '%s': subdivision level %d refined by the engine from a cage of %d faces"
                  % (orig.name, cage.level, len(cage.face_sizes)))
+    export.triangles += cage.triangle_count()
     group = _ol_group(export, plm, orig, cage.triangle_count(), resolution, reports)
     if group is not None:
         plm.set_mesh_ol_group(mesh_id, group.group_id)

@@ -110,6 +110,43 @@ class PHOTONLM_PT_warnings(_Sub, bpy.types.Panel):
                 col.label(text=line, icon='ERROR' if i == 0 else 'BLANK1')
 
 
+# The Last Bake's stages: (label, statistic, indented under the one before).
+TIME_ROWS = (("Export", "seconds_export", False), ("Checks", "seconds_export_checks", True),
+             ("UV Maps", "seconds_export_uv", True), ("Cages", "seconds_export_cages", True),
+             ("Depsgraph", "seconds_export_depsgraph", True), ("Meshes", "seconds_export_meshes", True),
+             ("Materials", "seconds_export_materials", True), ("World", "seconds_export_world", True),
+             ("Engine", "seconds_total", False), ("Set-up", "seconds_setup", True),
+             ("Photons", "seconds_trace", True), ("Direct", "seconds_direct", True),
+             ("Write-back", "seconds_writeback", False))
+
+
+class PHOTONLM_PT_last_times(_Sub, bpy.types.Panel):
+    """Where the last bake's time went: the export's stages, the engine's and the write-back."""
+    bl_label = "Times"
+    bl_idname = "PHOTONLM_PT_last_times"
+    bl_parent_id = "PHOTONLM_PT_last_bake"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    @classmethod
+    def poll(cls, context):
+        return "seconds_writeback" in _stats(context.scene)
+
+    def draw(self, context):
+        stats = _stats(context.scene)
+        col = self.layout.column(align=True)
+        triangles = int(stats.get("triangles", 0))
+        for label, key, indent in TIME_ROWS:
+            if key not in stats:
+                continue
+            split = col.split(factor=0.45)
+            split.alignment = 'RIGHT'
+            split.label(text=("   " if indent else "") + label)
+            text = "%.2f s" % float(stats[key])
+            if key == "seconds_export" and triangles:
+                text += "  (%s triangles)" % short_count(triangles)
+            split.label(text=text)
+
+
 class PHOTONLM_PT_sampling(_Sub, bpy.types.Panel):
     bl_label = "Sampling"
     bl_idname = "PHOTONLM_PT_sampling"
@@ -272,7 +309,8 @@ class PHOTONLM_PT_special(_Sub, bpy.types.Panel):
         layout.operator_menu_enum("photonlm.add_lsystem", "preset", text="Add L-System", icon='OUTLINER_OB_CURVES')
 
 
-_CLASSES = (PHOTONLM_PT_lightmaps, PHOTONLM_PT_last_bake, PHOTONLM_PT_warnings, PHOTONLM_PT_sampling,
+_CLASSES = (PHOTONLM_PT_lightmaps, PHOTONLM_PT_last_bake, PHOTONLM_PT_warnings, PHOTONLM_PT_last_times,
+            PHOTONLM_PT_sampling,
             PHOTONLM_PT_output, PHOTONLM_PT_object, PHOTONLM_PT_special)
 
 

@@ -66,6 +66,8 @@ class ResolutionRule:
     def __call__(self, obj, area):
         if obj.photonlm.resolution > 0:
             return int(obj.photonlm.resolution)
+        if callable(area):
+            area = area()
         return resolution_from_area(area, self.density * float(obj.photonlm.density_scale),
                                     power_of_two=not self.atlas, largest=self.largest)
 

@@ -113,7 +113,8 @@ def _read_cage(mesh, matrix_world, level, use_creases):
     mesh.loops.foreach_get("vertex_index", loop_vert)
     # Polygons store their loops contiguously; if not in order, gather them face by face.
     if nf and (starts[0] != 0 or np.any(starts[1:] != np.cumsum(sizes)[:-1])):
-        order = np.concatenate([np.arange(s, s + n) for s, n in zip(starts, sizes)])
+        first = np.cumsum(sizes, dtype=np.int64) - sizes  # where each face's loops go in the output
+        order = np.repeat(starts.astype(np.int64) - first, sizes) + np.arange(int(sizes.sum()), dtype=np.int64)
     else:
         order = None
     face_indices = loop_vert if order is None else loop_vert[order]

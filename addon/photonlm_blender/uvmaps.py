@@ -237,6 +237,15 @@ def _copies(context, requests):
                 mesh = bpy.data.meshes.new_from_object(ev, preserve_all_data_layers=False, depsgraph=depsgraph)
                 mesh.name = HELPER_PREFIX + obj.name
                 out[(obj.name, stage)] = mesh
+    # A cage whose Subdivision Surface is the object's only modifier, without shape keys, is its own
+    # mesh: copied as it is, without switching the modifier off (which would evaluate the object twice).
+    direct = [(obj, st) for obj, st in requests
+              if st == CAGE and len(obj.modifiers) == 1 and obj.data.shape_keys is None]
+    for obj, st in direct:
+        mesh = obj.data.copy()
+        mesh.name = HELPER_PREFIX + obj.name
+        out[(obj.name, st)] = mesh
+    requests = [r for r in requests if r not in direct]
     if any(st == CAGE for _, st in requests):
         toggled = []
         try:
@@ -416,7 +425,9 @@ def _unwrap(context, mesh, matrix, res, subsurf=None, levels=()):
                 mesh.polygons.foreach_get("loop_start", starts)
                 sizes = np.empty(len(mesh.polygons), np.int32)
                 mesh.polygons.foreach_get("loop_total", sizes)
-                loops = np.concatenate([np.arange(starts[f], starts[f] + sizes[f]) for f in bad])
+                bad_starts, bad_sizes = starts[np.asarray(bad)].astype(np.int64), sizes[np.asarray(bad)]
+                first = np.cumsum(bad_sizes, dtype=np.int64) - bad_sizes
+                loops = np.repeat(bad_starts - first, bad_sizes) + np.arange(int(bad_sizes.sum()))
                 seams = np.empty(len(mesh.edges), bool)
                 mesh.edges.foreach_get("use_seam", seams)
                 seams[edge_of_loop[loops]] = True
@@ -555,7 +566,8 @@ def _stage_now(obj):
 
 def ensure_lightmap_uvs(context, objects, reports, resolution_of, native_subdivision=True):
     """Make or refresh the automatic lightmap UV maps of `objects` (see the module doc).
-    resolution_of(obj, area) gives an object's lightmap size from its world-space area.
+    resolution_of(obj, area) gives an object's lightmap size from its world-space area (a number,
+    or a function giving it).
     Returns a Changes list. Must run in Object Mode; the selection and active object are kept."""
     changes = Changes()
     todo = []
@@ -651,7 +663,7 @@ def _resolution(obj, copy, stage, resolution_of):
         pa = np.empty(len(copy.polygons), np.float32)
         copy.polygons.foreach_get("area", pa)
         return resolution_of(obj, float(pa.sum()) * abs(np.linalg.det(m[:3, :3])) ** (2.0 / 3.0))
-    return resolution_of(obj, triangle_area(copy, m))
+    return resolution_of(obj, lambda: triangle_area(copy, m))  # measured only for an Auto resolution
 
 
 def _make_one(context, obj, copy, stage, resolution_of, changes, reports, shared, why_full=None,
