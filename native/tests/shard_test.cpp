@@ -106,7 +106,7 @@ TEST(Shard, QuantizedSumsDoNotDependOnOrder) {
   std::mt19937_64 rng(5);
   std::uniform_real_distribution<float> flux(0.0f, 1.0f), tiny(0.0f, 1e-6f);
   const uint64_t texels = 7;
-  const plm::FluxQuantum q = plm::flux_quantum(1.0, 1000000);
+  const plm::FluxQuantum q = plm::flux_quantum(1.0);
   std::vector<plm::BatchOutput> batches(40);
   for (auto& b : batches)
     for (int i = 0; i < 500; ++i) {
@@ -133,10 +133,10 @@ TEST(Shard, QuantizedSumsDoNotDependOnOrder) {
   for (size_t i = batches.size(); i-- > 0;)
     for (size_t j = batches[i].hits.size(); j-- > 0;) r += batches[i].hits[j].r;
   EXPECT_NE(f, r);
-  // The rounding is far below a hit: relative 1e-9 of the summed flux.
+  // The rounding is far below a hit: relative 1e-7 of the summed flux.
   double exact = 0;
   for (size_t t = 0; t < texels; ++t) exact += forward.sum[3 * t];
-  EXPECT_NEAR(exact, f, 1e-9 * f);
+  EXPECT_NEAR(exact, f, 1e-7 * f);
 }
 
 TEST(Shard, BatchesOfShardsTileTheBake) {

@@ -147,8 +147,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   out.stats.seconds_direct = seconds_since(t_direct);
 
   // ---- Photon pass and final gather ------------------------------------------------
-  Accumulators acc(space.texel_count, scene.meshes.size(), lobes.any_lobes(),
-                   flux_quantum(emitted, settings.photon_count));
+  Accumulators acc(space.texel_count, scene.meshes.size(), lobes.any_lobes(), flux_quantum(emitted));
   GatherResult gather;  // empty unless the final gather ran
   const Estimator estimator{space, direct.sums, direct.noise, acc, settings.filter_radius, &gather};
   uint64_t photons = 0;
@@ -209,6 +208,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
           run_gather(last);
         }
       }
+      if (const std::string w = inexact_sums(acc); !w.empty()) out.warnings.push_back(w);
     } else
     run_in_groups(
         arena, batch_count, threads,

@@ -19,13 +19,12 @@ double carrier_texel_size(const TexelAreas& areas, Vec3d extent) {
 
 }  // namespace
 
-FluxQuantum flux_quantum(double emitted, uint64_t photons) {
-  const double n = photons ? double(std::min<uint64_t>(photons, uint64_t(1) << 40)) : std::ldexp(1.0, 36);
-  const double flux = std::max(4.0 * emitted, 1e-30);
+FluxQuantum flux_quantum(double emitted) {
+  const int e = int(std::ceil(std::log2(std::max(emitted, 1e-30))));
   FluxQuantum fq;
-  fq.q = std::ldexp(1.0, int(std::ceil(std::log2(flux * n))) - 50);
+  fq.q = std::ldexp(1.0, e - 26);
   fq.inv_q = 1.0 / fq.q;
-  fq.q2 = std::ldexp(1.0, int(std::ceil(std::log2(flux * flux * n))) - 50);
+  fq.q2 = std::ldexp(1.0, 2 * e - 26);
   fq.inv_q2 = 1.0 / fq.q2;
   return fq;
 }

@@ -61,12 +61,13 @@ struct FluxQuantum {
   double flux(double x) const { return round_to(x, inv_q, q); }
   double squared(double x) const { return round_to(x, inv_q2, q2); }
 };
-// The quantum for a bake whose lights emit `emitted` W (a hit carries about
-// that flux before the division by the photon count) with `photons` photons
-// (0: steered by a target, taken as 2^36): 2^-50 of 4 x emitted x photons, so a
-// texel's sum stays exact up to 32 x the flux of all photons, and a hit's
-// rounding is below 2^-51 x photons of the emitted flux (1e-9 of it at 2M photons).
-FluxQuantum flux_quantum(double emitted, uint64_t photons);
+// The quantum for a bake whose lights emit `emitted` W: with S the power of
+// two at or above it (a photon carries about that flux before the division by
+// the photon count), q = S / 2^26 and q2 = S^2 / 2^26. A float flux of S/4 or
+// more is a whole multiple of q (no rounding at all), a smaller one is off by
+// at most q / 2; a texel's sums stay exact up to 2^27 photons' worth of S, and
+// the squared-flux total (an integer) up to 2^37 hits of S.
+FluxQuantum flux_quantum(double emitted);
 
 // Photon sums per texel over all lightmaps, merged batch by batch in order.
 class Accumulators {

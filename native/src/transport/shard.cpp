@@ -177,6 +177,20 @@ uint64_t scene_hash(const Scene& scene) {
   return h.h;
 }
 
+std::string inexact_sums(const Accumulators& acc) {
+  const double limit = 0x1p53 * acc.quantum.q, limit2 = 0x1p53 * acc.quantum.q2;
+  uint64_t over = 0;
+  auto count = [&](const std::vector<double>& sum, const std::vector<double>& sum_sq) {
+    for (double v : sum) over += v >= limit;
+    for (double v : sum_sq) over += v >= limit2;
+  };
+  count(acc.sum, acc.sum_sq);
+  count(acc.caustic.sum, acc.caustic.sum_sq);
+  if (over == 0) return "";
+  return std::to_string(over) + " photon sums passed 2^53 flux quanta (over 2^27 photons' flux in one texel): "
+         "they are rounded, and the merged bake may differ from one machine's in their last bits";
+}
+
 void check_segments(const ShardJob& job) {
   const std::vector<std::string>& names = job.sources;
   const ShardLayout& L = job.layout;

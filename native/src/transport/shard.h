@@ -80,6 +80,11 @@ uint64_t scene_hash(const Scene& scene);
 // segment's source.
 void check_segments(const ShardJob& job);
 
+// "" where every sum of acc is below 2^53 quanta (exact, so the merge equals
+// the single-machine bake bit for bit); else a warning saying how many texels
+// passed it (their last bits may then depend on the shard count).
+std::string inexact_sums(const Accumulators& acc);
+
 // 64-bit hash of bytes (the part file's checksums): word-wise multiply-xor.
 uint64_t hash_bytes(const void* data, size_t size, uint64_t seed = 0);
 
