@@ -28,9 +28,11 @@ def cli(*args):
 
 
 def outputs(folder):
-    """Every file's bytes; report.json without what depends on the run (times, the scene path, threads)."""
+    """Every file's bytes (folders skipped); report.json without what depends on the run (times, the scene path, threads)."""
     files = {}
     for name in sorted(os.listdir(folder)):
+        if not (folder / name).is_file():
+            continue
         data = (folder / name).read_bytes()
         if name == "report.json":
             report = json.loads(data)
