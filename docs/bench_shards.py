@@ -7,18 +7,17 @@ A closed room (floor, ceiling, four walls, a box; 11 faces of res x res texels) 
 under the ceiling. Bakes it once (`photonlm bake`), then for each shard count N runs the N shards
 one after the other (`photonlm bake --shard K/N`, as N machines would run them at once) and the
 merge (`photonlm merge`), checks the merge's EXRs against the single bake byte for byte, and prints
-per N: the slowest shard, the sum over shards, the merge, the part files' total size and a part's
+per N, in CPU seconds (user + system): the slowest shard, the sum over shards, the merge, the part files' total size and a part's
 size per million texels, and the overhead of the sharded bake over the single one
 ((sum of shards + merge) / single - 1: each shard repeats the set-up, the merge reads the parts).
 """
 import argparse
 import json
 import os
-import re
+import resource
 import shutil
 import subprocess
 import tempfile
-import time
 
 
 def quad(name, origin, eu, ev, res, material):
@@ -57,12 +56,13 @@ def room(res, photons):
 
 
 def run(cmd):
-    t0 = time.perf_counter()
+    """CPU seconds (user + system) of the command: on a shared machine wall times say little."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     r = subprocess.run(cmd, capture_output=True, text=True)
-    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if r.returncode != 0:
         raise SystemExit("%s failed: %s" % (" ".join(cmd), r.stderr))
-    return wall, r.stdout
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), r.stdout
 
 
 def main():
@@ -84,8 +84,9 @@ def main():
         rep = json.load(open(os.path.join(single_dir, "report.json")))
         times = rep["times"]
         print("room: %d texels, %d photons, %d threads" % (texels, a.photons, a.threads))
-        print("single bake: %.2f s wall (set-up %.2f, direct %.2f, photons+gather %.2f)"
+        print("single bake: %.2f CPU s (wall: set-up %.2f, direct %.2f, photons+gather %.2f)"
               % (t_single, times["setup"], times["direct"], times["trace"]))
+        print("CPU seconds:")
         print("%6s %10s %10s %10s %12s %20s %9s %s" % ("shards", "max shard", "sum shards", "merge", "parts (MB)",
                                                        "MB/part/M texels", "overhead", "identical"))
         for n in a.shards:
