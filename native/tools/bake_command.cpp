@@ -292,7 +292,7 @@ std::string part_file_name(uint32_t shard, uint32_t count) {
 
 int write_bake_outputs(plm_result* r, const plm::SceneFile& scene, const plm_bake_settings& s,
                        const std::string& scene_label, const std::string& out_dir,
-                       std::chrono::steady_clock::time_point t0) {
+                       std::chrono::steady_clock::time_point t0, double check_target) {
   const std::string cmd = "photonlm";
   plm_bake_stats stats{};
   if (plm_result_stats(r, &stats) != PLM_OK) {
@@ -320,6 +320,10 @@ int write_bake_outputs(plm_result* r, const plm::SceneFile& scene, const plm_bak
                      {"p95", stats.error_p95},
                      {"above_twice_target", stats.error_above},
                      {"memory_estimate", stats.memory_estimate}};
+  if (check_target > 0.0)
+    report["target"] = {{"error", check_target},
+                        {"estimate", stats.error_estimate},
+                        {"met", stats.error_estimate <= check_target}};
   ordered_json warnings = ordered_json::array();
   for (uint32_t i = 0; i < plm_result_warning_count(r); ++i) {
     const char* w = plm_result_warning(r, i);

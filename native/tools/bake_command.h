@@ -30,8 +30,11 @@ int run_with_progress(const std::string& what, const std::function<plm_status(pl
 
 // Writes a bake's EXRs and report.json into out_dir as `photonlm bake` does
 // (each file atomically; all removed on failure). Returns the exit code.
+// check_target > 0: report.json also says whether the error estimate is at
+// or below it ("target": error, estimate, met), for a driver that bakes
+// rounds of shards until it is (docs/farm.md).
 int write_bake_outputs(plm_result* result, const plm::SceneFile& scene, const plm_bake_settings& settings,
                        const std::string& scene_label, const std::string& out_dir,
-                       std::chrono::steady_clock::time_point t0);
+                       std::chrono::steady_clock::time_point t0, double check_target = 0.0);
 
 }  // namespace plm_cli

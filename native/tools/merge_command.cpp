@@ -7,6 +7,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -36,6 +38,7 @@ int merge_command(int argc, char** argv) {
   std::vector<std::string> inputs;
   std::string out_dir, scene_path;
   uint64_t threads = 0;
+  double target = 0.0;
   for (int i = 0; i < argc; ++i) {
     const std::string opt = argv[i];
     if (opt.empty() || opt[0] != '-') {
@@ -48,6 +51,11 @@ int merge_command(int argc, char** argv) {
       out_dir = v;
     } else if (opt == "--scene") {
       scene_path = v;
+    } else if (opt == "--target-error") {
+      char* end = nullptr;
+      target = std::strtod(v.c_str(), &end);
+      if (v.empty() || *end || !(target > 0.0) || !std::isfinite(target))
+        return bad_input("--target-error: '" + v + "' is not a number > 0");
     } else if (opt == "--threads") {
       char* end = nullptr;
       threads = std::strtoull(v.c_str(), &end, 10);
@@ -100,9 +108,14 @@ int merge_command(int argc, char** argv) {
   });
   if (code != 0) return code;
   s.thread_count = uint32_t(threads);
-  const int written = write_bake_outputs(result, scene, s, scene_path, out_dir, t0);
+  const int written = write_bake_outputs(result, scene, s, scene_path, out_dir, t0, target);
+  plm_bake_stats stats{};
+  plm_result_stats(result, &stats);
   plm_result_release(result);
   if (written == 0) std::printf("merged %zu part(s) of %u shard(s)\n", parts.size(), count);
+  if (written == 0 && target > 0.0)
+    std::printf("target error %g %s (estimate %g)\n", target, stats.error_estimate <= target ? "met" : "not met",
+                stats.error_estimate);
   return written;
 }
 

@@ -4,7 +4,7 @@
 //   photonlm cornell [--photons N] [--res N] [--seed S] [-o DIR]
 //   photonlm bake SCENE.json -o DIR [--target-error X] [--time-budget S] [--photons N] [--seed N] [--threads N]
 //                 [--shard K/N]
-//   photonlm merge PART... -o DIR [--scene SCENE.json] [--threads N]
+//   photonlm merge PART... -o DIR [--scene SCENE.json] [--threads N] [--target-error X]
 // furnace/cornell: progress goes to stderr; results (time, photons, error) to stdout.
 // bake (bake_command.cpp): see docs/scene-file.md; shards and merge (merge_command.cpp): docs/farm.md.
 #include <chrono>
@@ -36,7 +36,7 @@ int usage(const char* error) {
                "       photonlm cornell [--photons N] [--res N] [--seed S] [--threads T] [-o DIR]\n"
                "       photonlm bake SCENE.json -o DIR [--target-error X] [--time-budget S] [--photons N]\n"
                "                     [--seed N] [--threads N] [--shard K/N]\n"
-               "       photonlm merge PART... -o DIR [--scene SCENE.json] [--threads N]\n"
+               "       photonlm merge PART... -o DIR [--scene SCENE.json] [--threads N] [--target-error X]\n"
                "furnace: closed box with uniform emission and albedo; the exact texel value is E/(1-R).\n"
                "cornell: Cornell box with a 200 W area light; writes one EXR per object with -o.\n"
                "bake: bakes a JSON scene file (docs/scene-file.md) into DIR: one EXR per lightmap and\n"
