@@ -263,7 +263,12 @@ int bake_command(int argc, char** argv) {
 
   if (a.shard_count > 0) {  // one shard of a sharded bake: its part file, nothing else (docs/farm.md)
     const std::string part = a.out_dir + "/" + part_file_name(a.shard, a.shard_count);
-    const std::string scene_path = std::filesystem::absolute(a.scene).lexically_normal().string();
+    std::string scene_path = std::filesystem::absolute(a.scene).lexically_normal().string();
+    if (scene_path.size() > 255) {  // the part keeps 255 bytes: the merge then needs --scene
+      std::fprintf(stderr, "warning: the scene's path is longer than 255 bytes and is not kept in the part; "
+                           "give it to photonlm merge with --scene\n");
+      scene_path.clear();
+    }
     const int code = run_with_progress("photonlm bake " + a.scene + " --shard " + std::to_string(a.shard + 1) + "/" +
                                            std::to_string(a.shard_count),
                                        [&](plm_progress_fn fn, void* user) {
