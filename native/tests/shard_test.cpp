@@ -249,7 +249,7 @@ TEST(Shard, MergeRefusesPartsThatDoNotBelong) {
     const auto odd = bake_shards(b.scene, t, 3, other.path);
     BakeResult r;
     EXPECT_EQ(merge(b.scene, {parts[0], odd[1], parts[2]}, r, error), PLM_ERROR_INVALID_ARGUMENT);
-    EXPECT_NE(error.find(odd[1] + ": does not belong with " + parts[0] + ": its seed 7 vs 8 differs"),
+    EXPECT_NE(error.find(odd[1] + ": does not belong with " + parts[0] + ": its seed 8 against 7"),
               std::string::npos)
         << error;
   }

@@ -279,17 +279,19 @@ PartHeader read_part_file(const std::string& path, std::vector<PhotonSegment>& s
 }
 
 std::string part_mismatch(const PartHeader& a, const PartHeader& b) {
+  // b's value first: the message is about b ("its seed 8 against 7").
   const plm_bake_settings &s = a.settings, &t = b.settings;
-  if (a.engine_version != b.engine_version) return "engine version " + a.engine_version + " vs " + b.engine_version;
+  auto against = [](const std::string& what, auto mine, auto theirs) {
+    return what + " " + std::to_string(mine) + " against " + std::to_string(theirs);
+  };
+  if (a.engine_version != b.engine_version) return "engine version " + b.engine_version + " against " + a.engine_version;
   if (a.scene_hash != b.scene_hash) return "scene (another scene or another version of it)";
-  if (s.seed != t.seed) return "seed " + std::to_string(s.seed) + " vs " + std::to_string(t.seed);
-  if (s.photon_count != t.photon_count)
-    return "photon count " + std::to_string(s.photon_count) + " vs " + std::to_string(t.photon_count);
+  if (s.seed != t.seed) return against("seed", t.seed, s.seed);
+  if (s.photon_count != t.photon_count) return against("photon count", t.photon_count, s.photon_count);
   if (s.max_bounces != t.max_bounces || s.direct_samples != t.direct_samples || s.filter_radius != t.filter_radius ||
       s.dilation != t.dilation || s.texel_value != t.texel_value || s.sampler != t.sampler)
     return "settings (max_bounces, direct_samples, filter_radius, dilation, texel_value or sampler)";
-  if (a.shard_count != b.shard_count)
-    return "shard count " + std::to_string(a.shard_count) + " vs " + std::to_string(b.shard_count);
+  if (a.shard_count != b.shard_count) return against("shard count", b.shard_count, a.shard_count);
   if (a.layout.batch_count != b.layout.batch_count || a.layout.texel_count != b.layout.texel_count ||
       a.layout.mesh_count != b.layout.mesh_count || a.layout.caustics != b.layout.caustics ||
       a.layout.quantum.q != b.layout.quantum.q || a.layout.quantum.q2 != b.layout.quantum.q2)
@@ -317,7 +319,7 @@ PartHeader load_parts(const std::vector<std::string>& paths, const std::string& 
   for (size_t i = 0; i < headers.size(); ++i) {
     const std::string why = part_mismatch(first, headers[i]);
     if (!why.empty())
-      fail(PLM_ERROR_INVALID_ARGUMENT, paths[i], ": does not belong with ", paths[0], ": its ", why, " differs");
+      fail(PLM_ERROR_INVALID_ARGUMENT, paths[i], ": does not belong with ", paths[0], ": its ", why);
     int& o = owner[headers[i].shard_index];
     if (o >= 0)
       fail(PLM_ERROR_INVALID_ARGUMENT, paths[i], ": shard ", headers[i].shard_index + 1, " of ", first.shard_count,

@@ -52,8 +52,8 @@ PartHeader read_part_header(const std::string& path);
 // Reads a whole part, checksums checked.
 PartHeader read_part_file(const std::string& path, std::vector<PhotonSegment>& segments);
 
-// Whether two parts' headers belong to the same bake (all but the shard
-// index); else "" is replaced by what differs.
+// "" where part b belongs to the same bake as part a (all but the shard
+// index agree), else what differs, b's value first ("seed 8 against 7").
 std::string part_mismatch(const PartHeader& a, const PartHeader& b);
 
 }  // namespace plm
