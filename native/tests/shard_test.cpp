@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -321,4 +322,17 @@ TEST(Shard, ShardRefusesWhatCannotBeSplit) {
   EXPECT_EQ(plm_bake_shard(b.scene, &s, 0, 2, nullptr, part.c_str(), nullptr, nullptr), PLM_ERROR_INVALID_ARGUMENT);
   EXPECT_NE(std::string(plm_last_error()).find("OL groups"), std::string::npos) << plm_last_error();
   EXPECT_FALSE(std::filesystem::exists(part));
+}
+
+// A sum past 2^53 quanta is no longer exact: the merge says so.
+TEST(Shard, SumsPastTheExactRangeAreReported) {
+  const plm::FluxQuantum q = plm::flux_quantum(100.0);
+  plm::Accumulators acc(4, 1, false, q);
+  EXPECT_EQ(plm::inexact_sums(acc), "");
+  acc.sum[5] = std::ldexp(1.0, 52) * q.q;  // still exact
+  EXPECT_EQ(plm::inexact_sums(acc), "");
+  acc.sum[5] = std::ldexp(1.0, 53) * q.q;
+  acc.sum_sq[2] = std::ldexp(1.0, 54) * q.q2;
+  EXPECT_NE(plm::inexact_sums(acc).find("2 photon sums passed 2^53 flux quanta"), std::string::npos)
+      << plm::inexact_sums(acc);
 }
