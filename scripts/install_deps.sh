@@ -3,7 +3,8 @@
 set -euo pipefail
 packages=(cmake g++ make libembree-dev libopenexr-dev libstb-dev openimageio-tools libtbb-dev
           libgtest-dev libbenchmark-dev python3-numpy python3-pytest python3-matplotlib blender xvfb
-          clang libclang-rt-14-dev nlohmann-json3-dev libosd-dev libtinygltf-dev patchelf)
+          clang libclang-rt-14-dev nlohmann-json3-dev libosd-dev libtinygltf-dev patchelf
+          slurmd slurmctld slurm-client munge)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -15,6 +15,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <set>
 #include <string>
 #include <vector>
@@ -39,6 +40,7 @@ void on_signal(int sig) {
 
 struct Args {
   std::string scene, out_dir;
+  uint32_t shard = 0, shard_count = 0;  // --shard K/N: shard K - 1 of N; 0 = not sharded
   bool has_target = false, has_budget = false, has_photons = false, has_seed = false, has_threads = false;
   double target_error = 0, time_budget = 0;
   uint64_t photons = 0;
@@ -95,6 +97,15 @@ std::string parse_args(int argc, char** argv, Args& a) {
       if (!parse_u64(v, 0xffffffffu, u)) return "--seed: '" + std::string(v) + "' is not an integer in [0, 2^32)";
       a.seed = uint32_t(u);
       a.has_seed = true;
+    } else if (opt == "--shard") {
+      const std::string text = v;
+      const size_t slash = text.find('/');
+      uint64_t k = 0, n = 0;
+      if (slash == std::string::npos || !parse_u64(text.substr(0, slash).c_str(), 1u << 20, k) ||
+          !parse_u64(text.substr(slash + 1).c_str(), 1u << 20, n) || k < 1 || k > n)
+        return "--shard: '" + text + "' is not K/N with 1 <= K <= N <= 1048576";
+      a.shard = uint32_t(k - 1);
+      a.shard_count = uint32_t(n);
     } else if (opt == "--threads") {
       if (!parse_u64(v, 0xffffffffu, u)) return "--threads: '" + std::string(v) + "' is not an integer >= 0";
       a.threads = uint32_t(u);
@@ -214,6 +225,24 @@ bool make_output_folder(const std::string& dir, std::string& error) {
   return false;
 }
 
+int run_with_progress(const std::string& what, const std::function<plm_status(plm_progress_fn, void*)>& call) {
+  std::signal(SIGINT, on_signal);
+  std::signal(SIGTERM, on_signal);
+  Progress progress;
+  progress.tty = isatty(fileno(stdout)) != 0;
+  const plm_status st = call(on_progress, &progress);
+  progress.finish_line();
+  if (st == PLM_ERROR_CANCELLED || (g_interrupted && st != PLM_OK)) {
+    std::fprintf(stderr, "%s: interrupted; nothing written\n", what.c_str());
+    return kInterrupted;
+  }
+  if (st != PLM_OK) {
+    std::fprintf(stderr, "%s: failed (%s): %s\n", what.c_str(), plm_status_string(st), plm_last_error());
+    return st == PLM_ERROR_INVALID_ARGUMENT || st == PLM_ERROR_INVALID_SCENE ? kBadInput : kBakeFailed;
+  }
+  return kOk;
+}
+
 int bake_command(int argc, char** argv) {
   Args a;
   const std::string arg_error = parse_args(argc, argv, a);
@@ -230,33 +259,55 @@ int bake_command(int argc, char** argv) {
   if (a.has_threads) s.thread_count = a.threads;
 
   if (!make_output_folder(a.out_dir, error)) return bad_input(error);
-
-  std::signal(SIGINT, on_signal);
-  std::signal(SIGTERM, on_signal);
-  Progress progress;
-  progress.tty = isatty(fileno(stdout)) != 0;
   const auto t0 = std::chrono::steady_clock::now();
-  ResultGuard result;
-  const plm_status st = plm_bake(scene.scene, &s, on_progress, &progress, &result.r);
-  progress.finish_line();
-  if (st == PLM_ERROR_CANCELLED || (g_interrupted && st != PLM_OK)) {
-    std::fprintf(stderr, "photonlm bake: interrupted; nothing written\n");
-    return kInterrupted;
-  }
-  if (st != PLM_OK) {
-    std::fprintf(stderr, "photonlm bake: %s: bake failed (%s): %s\n", a.scene.c_str(), plm_status_string(st),
-                 plm_last_error());
-    return st == PLM_ERROR_INVALID_ARGUMENT || st == PLM_ERROR_INVALID_SCENE ? kBadInput : kBakeFailed;
+
+  if (a.shard_count > 0) {  // one shard of a sharded bake: its part file, nothing else (docs/farm.md)
+    const std::string part = a.out_dir + "/" + part_file_name(a.shard, a.shard_count);
+    std::string scene_path = std::filesystem::absolute(a.scene).lexically_normal().string();
+    if (scene_path.size() > 255) {  // the part keeps 255 bytes: the merge then needs --scene
+      std::fprintf(stderr, "warning: the scene's path is longer than 255 bytes and is not kept in the part; "
+                           "give it to photonlm merge with --scene\n");
+      scene_path.clear();
+    }
+    const int code = run_with_progress("photonlm bake " + a.scene + " --shard " + std::to_string(a.shard + 1) + "/" +
+                                           std::to_string(a.shard_count),
+                                       [&](plm_progress_fn fn, void* user) {
+                                         return plm_bake_shard(scene.scene, &s, a.shard, a.shard_count,
+                                                               scene_path.c_str(), part.c_str(), fn, user);
+                                       });
+    if (code == kOk)
+      std::printf("shard %u of %u: %.3f s -> %s\n", a.shard + 1, a.shard_count,
+                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), part.c_str());
+    return code;
   }
 
+  ResultGuard result;
+  const int code = run_with_progress("photonlm bake: " + a.scene, [&](plm_progress_fn fn, void* user) {
+    return plm_bake(scene.scene, &s, fn, user, &result.r);
+  });
+  if (code != kOk) return code;
+  return write_bake_outputs(result.r, scene, s, a.scene, a.out_dir, t0);
+}
+
+std::string part_file_name(uint32_t shard, uint32_t count) {
+  char name[64];
+  std::snprintf(name, sizeof name, "part-%05u-of-%05u.plmpart", shard + 1, count);
+  return name;
+}
+
+int write_bake_outputs(plm_result* r, const plm::SceneFile& scene, const plm_bake_settings& s,
+                       const std::string& scene_label, const std::string& out_dir,
+                       std::chrono::steady_clock::time_point t0, double check_target) {
+  const std::string cmd = "photonlm";
   plm_bake_stats stats{};
-  if (plm_result_stats(result.r, &stats) != PLM_OK) {
-    std::fprintf(stderr, "photonlm bake: %s\n", plm_last_error());
+  if (plm_result_stats(r, &stats) != PLM_OK) {
+    std::fprintf(stderr, "%s: %s\n", cmd.c_str(), plm_last_error());
     return kBakeFailed;
   }
+  std::string error;
   ordered_json report;
   report["photonlm_version"] = plm_version();
-  report["scene"] = a.scene;
+  report["scene"] = scene_label;
   report["settings"] = settings_json(s);
   report["times"] = {{"setup", stats.seconds_setup},
                      {"direct", stats.seconds_direct},
@@ -274,9 +325,13 @@ int bake_command(int argc, char** argv) {
                      {"p95", stats.error_p95},
                      {"above_twice_target", stats.error_above},
                      {"memory_estimate", stats.memory_estimate}};
+  if (check_target > 0.0)
+    report["target"] = {{"error", check_target},
+                        {"estimate", stats.error_estimate},
+                        {"met", stats.error_estimate <= check_target}};
   ordered_json warnings = ordered_json::array();
-  for (uint32_t i = 0; i < plm_result_warning_count(result.r); ++i) {
-    const char* w = plm_result_warning(result.r, i);
+  for (uint32_t i = 0; i < plm_result_warning_count(r); ++i) {
+    const char* w = plm_result_warning(r, i);
     std::fprintf(stderr, "warning: %s\n", w);
     warnings.push_back(w);
   }
@@ -286,25 +341,25 @@ int bake_command(int argc, char** argv) {
   std::vector<std::string> written;
   auto abandon = [&](int code) {
     for (const std::string& f : written) std::remove(f.c_str());
-    if (code == kInterrupted) std::fprintf(stderr, "photonlm bake: interrupted; nothing written\n");
+    if (code == kInterrupted) std::fprintf(stderr, "photonlm: interrupted; nothing written\n");
     return code;
   };
   std::set<std::string> used;
-  const std::string dir = a.out_dir + "/";
+  const std::string dir = out_dir + "/";
   ordered_json meshes = ordered_json::array();
   for (const plm::SceneFileMesh& m : scene.meshes) {
     if (m.width == 0) continue;
     if (g_interrupted) return abandon(kInterrupted);
     const std::string name = file_name(m.name, "_lightmap.exr", used);
-    if (plm_result_write_exr(result.r, m.id, (dir + name).c_str()) != PLM_OK) {
-      std::fprintf(stderr, "photonlm bake: %s\n", plm_last_error());
+    if (plm_result_write_exr(r, m.id, (dir + name).c_str()) != PLM_OK) {
+      std::fprintf(stderr, "%s: %s\n", cmd.c_str(), plm_last_error());
       return abandon(kBakeFailed);
     }
     written.push_back(dir + name);
     const size_t n = size_t(m.width) * m.height;
     std::vector<float> rgb(3 * n), coverage(n);
     double sum[3] = {0, 0, 0}, area = 0;
-    if (plm_result_copy_lightmap(result.r, m.id, rgb.data(), nullptr, nullptr, coverage.data()) == PLM_OK) {
+    if (plm_result_copy_lightmap(r, m.id, rgb.data(), nullptr, nullptr, coverage.data()) == PLM_OK) {
       for (size_t t = 0; t < n; ++t) {
         if (coverage[t] <= 0) continue;
         for (int c = 0; c < 3; ++c) sum[c] += double(rgb[3 * t + c]) * coverage[t];
@@ -328,13 +383,13 @@ int bake_command(int argc, char** argv) {
   for (const plm::SceneFileOlGroup& g : scene.ol_groups) {
     if (g_interrupted) return abandon(kInterrupted);
     const std::string name = file_name(g.name, "_ol.exr", used);
-    if (plm_result_write_ol_exr(result.r, g.id, (dir + name).c_str()) != PLM_OK) {
-      std::fprintf(stderr, "photonlm bake: %s\n", plm_last_error());
+    if (plm_result_write_ol_exr(r, g.id, (dir + name).c_str()) != PLM_OK) {
+      std::fprintf(stderr, "%s: %s\n", cmd.c_str(), plm_last_error());
       return abandon(kBakeFailed);
     }
     written.push_back(dir + name);
     plm_ol_stats os{};
-    plm_result_ol_stats(result.r, g.id, &os);
+    plm_result_ol_stats(r, g.id, &os);
     groups.push_back({{"name", g.name},
                       {"file", name},
                       {"resolution", os.resolution},
@@ -349,7 +404,7 @@ int bake_command(int argc, char** argv) {
   if (g_interrupted) return abandon(kInterrupted);
   if (!write_atomic(dir + "report.json", report.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n",
                     error)) {
-    std::fprintf(stderr, "photonlm bake: cannot write the report: %s\n", error.c_str());
+    std::fprintf(stderr, "photonlm: cannot write the report: %s\n", error.c_str());
     return abandon(kBakeFailed);
   }
   std::printf("photons %llu, %.3f s, error estimate %.4f (median %.4f, p95 %.4f) -> %sreport.json\n",

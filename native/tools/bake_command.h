@@ -2,7 +2,12 @@
 // (docs/scene-file.md) into one EXR per lightmap and OL group plus a report.
 #pragma once
 
+#include <chrono>
+#include <functional>
 #include <string>
+
+#include "io/scene_file.h"
+#include "photonlm/photonlm.h"
 
 namespace plm_cli {
 
@@ -12,6 +17,24 @@ bool make_output_folder(const std::string& dir, std::string& error);
 
 // argv: the arguments after "bake". Returns the process exit code:
 // 0 ok, 1 bad input, 2 bake failure, 130 interrupted (SIGINT / SIGTERM).
+// With --shard K/N (1 <= K <= N) it bakes shard K of N: DIR gets only the
+// shard's part file, part_file_name(K - 1, N) (docs/farm.md).
 int bake_command(int argc, char** argv);
+
+// The part file of shard `shard` (0-based) of `count`: part-0000K-of-0000N.plmpart.
+std::string part_file_name(uint32_t shard, uint32_t count);
+
+// Runs call(progress, user) with the CLI's progress line and Ctrl-C handling;
+// returns 0 or the exit code of its failure, printing "what: failed (...)".
+int run_with_progress(const std::string& what, const std::function<plm_status(plm_progress_fn, void*)>& call);
+
+// Writes a bake's EXRs and report.json into out_dir as `photonlm bake` does
+// (each file atomically; all removed on failure). Returns the exit code.
+// check_target > 0: report.json also says whether the error estimate is at
+// or below it ("target": error, estimate, met), for a driver that bakes
+// rounds of shards until it is (docs/farm.md).
+int write_bake_outputs(plm_result* result, const plm::SceneFile& scene, const plm_bake_settings& settings,
+                       const std::string& scene_label, const std::string& out_dir,
+                       std::chrono::steady_clock::time_point t0, double check_target = 0.0);
 
 }  // namespace plm_cli

@@ -3,8 +3,10 @@
 //   photonlm furnace [--albedo R] [--emission E] [--photons N] [--res N] [-o DIR]
 //   photonlm cornell [--photons N] [--res N] [--seed S] [-o DIR]
 //   photonlm bake SCENE.json -o DIR [--target-error X] [--time-budget S] [--photons N] [--seed N] [--threads N]
+//                 [--shard K/N]
+//   photonlm merge PART... -o DIR [--scene SCENE.json] [--threads N] [--target-error X]
 // furnace/cornell: progress goes to stderr; results (time, photons, error) to stdout.
-// bake (bake_command.cpp): see docs/scene-file.md.
+// bake (bake_command.cpp): see docs/scene-file.md; shards and merge (merge_command.cpp): docs/farm.md.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -15,6 +17,7 @@
 
 #include "bake_command.h"
 #include "demo_scenes.h"
+#include "merge_command.h"
 
 namespace {
 
@@ -32,11 +35,14 @@ int usage(const char* error) {
                "       photonlm furnace [--albedo R] [--emission E] [--photons N] [--res N] [-o DIR]\n"
                "       photonlm cornell [--photons N] [--res N] [--seed S] [--threads T] [-o DIR]\n"
                "       photonlm bake SCENE.json -o DIR [--target-error X] [--time-budget S] [--photons N]\n"
-               "                     [--seed N] [--threads N]\n"
+               "                     [--seed N] [--threads N] [--shard K/N]\n"
+               "       photonlm merge PART... -o DIR [--scene SCENE.json] [--threads N] [--target-error X]\n"
                "furnace: closed box with uniform emission and albedo; the exact texel value is E/(1-R).\n"
                "cornell: Cornell box with a 200 W area light; writes one EXR per object with -o.\n"
                "bake: bakes a JSON scene file (docs/scene-file.md) into DIR: one EXR per lightmap and\n"
-               "      OL group, and report.json. Exit codes: 0 ok, 1 bad input, 2 bake failure, 130 interrupted.\n");
+               "      OL group, and report.json. Exit codes: 0 ok, 1 bad input, 2 bake failure, 130 interrupted.\n"
+               "      --shard K/N bakes the photons of shard K of N into DIR/part-K-of-N.plmpart (docs/farm.md).\n"
+               "merge: adds the part files of all N shards (files or folders) and writes what bake writes.\n");
   return 2;
 }
 
@@ -142,6 +148,7 @@ int run(const Options& o) {
 
 int main(int argc, char** argv) {
   if (argc >= 2 && std::strcmp(argv[1], "bake") == 0) return plm_cli::bake_command(argc - 2, argv + 2);
+  if (argc >= 2 && std::strcmp(argv[1], "merge") == 0) return plm_cli::merge_command(argc - 2, argv + 2);
   Options o;
   std::string error;
   if (!parse(argc, argv, o, error)) return usage(error.empty() ? nullptr : error.c_str());

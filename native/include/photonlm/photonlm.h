@@ -472,6 +472,30 @@ PLM_API plm_status plm_preview_lightmap_size(const plm_preview* preview, uint32_
 PLM_API plm_status plm_preview_copy_lightmap(const plm_preview* preview, uint32_t mesh_id, float* rgb,
                                              int* out_written);
 
+/* Sharded bakes (docs/farm.md): shard `shard` (0-based) of `shard_count` traces
+ * its share of the photon batches and writes their sums to part_path
+ * (atomically; the folder must exist), with the scene's hash, the settings and
+ * scene_path (any label up to 255 bytes, e.g. the scene file; NULL for none).
+ * plm_bake_merge adds every shard's sums and bakes the rest: the result is bit
+ * for bit plm_bake's with the same settings, whatever the shard count. Needs a
+ * photon count (no target error or time budget) and a scene without OL groups
+ * or L-system objects; else PLM_ERROR_INVALID_ARGUMENT says why. */
+PLM_API plm_status plm_bake_shard(plm_scene* scene, const plm_bake_settings* settings, uint32_t shard,
+                                  uint32_t shard_count, const char* scene_path, const char* part_path,
+                                  plm_progress_fn progress, void* user_data);
+/* What a part file holds: its bake's settings (thread_count 0), its shard and
+ * shard count, the scene_path it was given (copied, truncated to capacity - 1;
+ * scene_path may be NULL). Any of the out pointers may be NULL. */
+PLM_API plm_status plm_part_info(const char* part_path, plm_bake_settings* out_settings, uint32_t* out_shard,
+                                 uint32_t* out_shard_count, char* scene_path, size_t scene_path_capacity);
+/* Merges the parts of one sharded bake of `scene` (all of its shards, each once,
+ * in any order); a part that does not belong (another scene, seed, setting,
+ * engine version or shard count; damaged or truncated) is named in the error.
+ * thread_count is the merge's own (0 = all cores). */
+PLM_API plm_status plm_bake_merge(plm_scene* scene, const char* const* part_paths, uint32_t part_count,
+                                  uint32_t thread_count, plm_progress_fn progress, void* user_data,
+                                  plm_result** out_result);
+
 typedef struct plm_bake_stats {
   uint64_t photons_emitted;
   uint64_t photon_hits;      /* hits stored into lightmaps and orientation lightmaps */

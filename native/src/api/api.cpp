@@ -8,12 +8,14 @@
 
 #include "api/handles.h"
 #include "io/image_file.h"
+#include "io/partial_file.h"
 #include "lsystem/lsystem_object.h"
 #include "photonlm/photonlm.h"
 #include "scene/scene.h"
 #include "subdiv/limit_area.h"
 #include "subdiv/subdiv.h"
 #include "transport/bake.h"
+#include "transport/shard.h"
 #include "util/error.h"
 
 
@@ -385,6 +387,92 @@ plm_status plm_preview_copy_lightmap(const plm_preview* preview, uint32_t mesh_i
     } catch (const plm::Error& e) {
       plm::fail(e.status(), "plm_preview_copy_lightmap: ", e.what());
     }
+  });
+}
+
+plm_status plm_bake_shard(plm_scene* scene, const plm_bake_settings* settings, uint32_t shard, uint32_t shard_count,
+                          const char* scene_path, const char* part_path, plm_progress_fn progress, void* user_data) {
+  return guarded("plm_bake_shard", [&] {
+    require(scene, "plm_bake_shard", "scene");
+    require(part_path, "plm_bake_shard", "part_path");
+    if (shard_count == 0 || shard >= shard_count)
+      plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_bake_shard: shard ", shard, " of ", shard_count,
+                ": expected 0 <= shard < shard_count");
+    if (scene_path && std::strlen(scene_path) > 255)
+      plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_bake_shard: scene_path is longer than 255 bytes");
+    const plm_bake_settings s = settings ? *settings : plm::default_settings();
+    plm::ProgressFn fn;
+    if (progress) fn = [&](double f, const char* stage) { return progress(user_data, f, stage) != 0; };
+    plm::ShardJob job;
+    job.mode = plm::ShardJob::kTrace;
+    job.index = shard;
+    job.count = shard_count;
+    plm::bake(scene->scene, s, fn, nullptr, &job);
+    plm::PartHeader h;
+    h.engine_version = plm_version();
+    h.scene_hash = job.layout.scene_hash;
+    h.settings = s;
+    h.settings.thread_count = 0;
+    h.shard_index = shard;
+    h.shard_count = shard_count;
+    h.layout = job.layout;
+    h.scene_path = scene_path ? scene_path : "";
+    plm::write_part_file(part_path, h, job.segments);
+  });
+}
+
+plm_status plm_part_info(const char* part_path, plm_bake_settings* out_settings, uint32_t* out_shard,
+                         uint32_t* out_shard_count, char* scene_path, size_t scene_path_capacity) {
+  return guarded("plm_part_info", [&] {
+    require(part_path, "plm_part_info", "part_path");
+    const plm::PartHeader h = plm::read_part_header(part_path);
+    if (out_settings) *out_settings = h.settings;
+    if (out_shard) *out_shard = h.shard_index;
+    if (out_shard_count) *out_shard_count = h.shard_count;
+    if (scene_path && scene_path_capacity > 0) {
+      const size_t n = std::min(h.scene_path.size(), scene_path_capacity - 1);
+      std::memcpy(scene_path, h.scene_path.data(), n);
+      scene_path[n] = '\0';
+    }
+  });
+}
+
+plm_status plm_bake_merge(plm_scene* scene, const char* const* part_paths, uint32_t part_count, uint32_t thread_count,
+                          plm_progress_fn progress, void* user_data, plm_result** out_result) {
+  return guarded("plm_bake_merge", [&] {
+    require(scene, "plm_bake_merge", "scene");
+    require(out_result, "plm_bake_merge", "out_result");
+    *out_result = nullptr;
+    if (part_count > 0) require(part_paths, "plm_bake_merge", "part_paths");
+    std::vector<std::string> paths;
+    for (uint32_t i = 0; i < part_count; ++i) {
+      if (!part_paths[i]) plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_bake_merge: part_paths[", i, "] is NULL");
+      paths.push_back(part_paths[i]);
+    }
+    plm::ShardJob job;
+    const plm::PartHeader h = plm::load_parts(paths, plm_version(), plm::scene_hash(scene->scene), job);
+    plm_bake_settings s = plm::default_settings();
+    s.photon_count = h.settings.photon_count;
+    s.max_bounces = h.settings.max_bounces;
+    s.seed = h.settings.seed;
+    s.direct_samples = h.settings.direct_samples;
+    s.filter_radius = h.settings.filter_radius;
+    s.dilation = h.settings.dilation;
+    s.texel_value = h.settings.texel_value;
+    s.sampler = h.settings.sampler;
+    s.target_error = 0.0;
+    s.time_budget = 0.0;
+    s.thread_count = thread_count;
+    plm::ProgressFn fn;
+    if (progress) fn = [&](double f, const char* stage) { return progress(user_data, f, stage) != 0; };
+    auto* result = new plm_result();
+    try {
+      result->output = plm::bake(scene->scene, s, fn, nullptr, &job);
+    } catch (...) {
+      delete result;
+      throw;
+    }
+    *out_result = result;
   });
 }
 

@@ -29,6 +29,7 @@
 #include "transport/photon_sampler.h"
 #include "transport/photon_tracer.h"
 #include "transport/scheduler.h"
+#include "transport/shard.h"
 #include "transport/tracing.h"
 #include "transport/validate.h"
 #include "util/error.h"
@@ -65,12 +66,14 @@ plm_bake_settings default_settings() {
 }
 
 BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const ProgressFn& progress,
-                const PreviewHook* preview) {
+                const PreviewHook* preview, ShardJob* job) {
   const auto t_start = Clock::now();
   validate(scene, requested);
   BakeOutput out;
   out.stats.memory_estimate = check_memory(scene, out.warnings);  // before allocating anything
   const plm_bake_settings settings = effective_settings(scene, requested, out.warnings);
+  if (job) check_shardable(scene, settings);
+  const bool tracing_shard = job && job->mode == ShardJob::kTrace;
   Progress report(progress);
   const TimeBudget budget(settings.time_budget, t_start);
   LivePreview live(preview, t_start);  // snapshots for the host at check points (live_preview.h)
@@ -130,10 +133,11 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   const double direct_end = photon_pass ? kProgressDirect : kProgressPhotons;
 
   // ---- Direct pass ---------------------------------------------------------------
-  Accumulators acc(space.texel_count, scene.meshes.size(), lobes.any_lobes());  // photon sums (empty until then)
+  Accumulators acc(space.texel_count, scene.meshes.size(), lobes.any_lobes(),
+                   flux_quantum(emitted));  // photon sums (empty until then)
   DirectResult direct;
   const auto t_direct = Clock::now();
-  if (two_pass) {
+  if (two_pass && !tracing_shard) {
     const DirectPass pass(accel.handle(), surfaces, space.views, space.csg_views, space.areas, emitters, settings,
                           extent, textures.get(), passage.get());
     const double share = photon_pass ? kDirectBudgetShare : kDirectOnlyBudgetShare;
@@ -165,6 +169,16 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     const uint64_t batch_count = (cap + kBatchPhotons - 1) / kBatchPhotons;
     const PhotonTracer tracer(scene, accel.handle(), space.views, space.csg_views, ol_groups.views, emitters,
                               settings, extent, two_pass ? 1u : 0u, ls_ols.grids, textures.get(), &lobes);
+    // ---- Sharded bakes (transport/shard.h): trace one shard's batches and stop here.
+    if (job) job->layout = {scene_hash(scene), batch_count, space.texel_count, uint32_t(scene.meshes.size()),
+                            lobes.any_lobes(), acc.quantum};
+    if (tracing_shard) {
+      trace_shard(arena, tracer, threads, cap, acc, *job,
+                  [&](double f) { report(kProgressSetup + (kProgressPhotons - kProgressSetup) * f, "tracing photons"); });
+      out.stats.seconds_trace = seconds_since(t_trace);
+      out.stats.seconds_total = seconds_since(t_start);
+      return out;
+    }
     // The final gather (final_gather.h) looks up radiosity on meshes: not in
     // scenes with CSG solids, L-systems or textures, nor with few bounces.
     const bool gather_wanted = two_pass && scene.csgs.empty() && scene.lsystems.empty() && !textures &&
@@ -193,6 +207,21 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     CheckSchedule checks;
     bool done = false;
     auto last_report = t_trace - std::chrono::seconds(1);
+    if (job && job->mode == ShardJob::kMerge) {  // every shard's sums, in batch order
+      check_segments(*job);
+      for (const PhotonSegment& seg : job->segments) {
+        acc.add(seg.acc);
+        out.stats.rays_traced += seg.rays;
+        out.stats.paths_truncated += seg.truncated;
+        truncated_flux += seg.truncated_flux;
+        photons = std::min(cap, seg.end * kBatchPhotons);
+        if (gather_wanted && !gathered && !targeted && seg.end == kCheckBatches) {
+          estimate(arena, estimator, photons, last);
+          run_gather(last);
+        }
+      }
+      if (const std::string w = inexact_sums(acc); !w.empty()) out.warnings.push_back(w);
+    } else
     run_in_groups(
         arena, batch_count, threads,
         [&](uint64_t first, uint64_t n) {
@@ -216,7 +245,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
             ol_hits += merge_ol_hits(b, bo, ol_groups, ls_ols, out.lsystems);
             out.stats.rays_traced += bo.rays;
             out.stats.paths_truncated += bo.truncated;
-            truncated_flux += bo.truncated_flux;
+            truncated_flux += acc.quantum.flux(bo.truncated_flux);
             photons = std::min(cap, (b + 1) * kBatchPhotons);
             if (gather_wanted && !gathered && !targeted && b + 1 == kCheckBatches) {
               estimate(arena, estimator, photons, last);

@@ -88,10 +88,15 @@ using ProgressFn = std::function<bool(double fraction, const char* stage)>;
 plm_bake_settings default_settings();
 
 struct PreviewHook;  // live_preview.h
+struct ShardJob;     // transport/shard.h
 
 // Throws plm::Error on invalid input and PLM_ERROR_CANCELLED on cancel.
 // preview (may be null): snapshots of the lightmaps while the bake runs.
+// With a shard job the bake is one part of a sharded bake (transport/shard.h):
+// kTrace traces the shard's photon batches into job->segments and returns
+// after them (no direct pass, no outputs); kMerge takes every shard's
+// segments instead of tracing photons and bakes the rest as usual.
 BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const ProgressFn& progress,
-                const PreviewHook* preview = nullptr);
+                const PreviewHook* preview = nullptr, ShardJob* job = nullptr);
 
 }  // namespace plm

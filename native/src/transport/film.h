@@ -42,25 +42,55 @@ struct TexelSpace {
 // Adds each mesh's warnings (validate.h) and the CSG solids'.
 TexelSpace build_texel_space(const Scene& scene, std::vector<std::string>& warnings);
 
+// Photon fluxes are added as whole multiples of a power-of-two quantum
+// (docs/design.md "Photon pass"): each hit is rounded to the quantum once,
+// and sums of such multiples are exact in double precision while below 2^53
+// quanta, so the sums do not depend on the order of addition. Shards of a
+// bake (transport/shard.h) then add up to the single-machine sums bit for bit.
+struct FluxQuantum {
+  double q = 1.0, inv_q = 1.0;    // of a flux
+  double q2 = 1.0, inv_q2 = 1.0;  // of a squared flux
+  // x rounded to the nearest multiple of quantum (|x| < 2^51 quanta) by the
+  // 1.5 x 2^52 trick; inv and quantum are powers of two, so the products are
+  // exact (an FMA gives the same) and only the addition rounds. IEEE
+  // arithmetic (no -ffast-math) keeps (y + k) - k from being folded.
+  static double round_to(double x, double inv, double quantum) {
+    constexpr double kMagic = 0x1.8p52;
+    return ((x * inv + kMagic) - kMagic) * quantum;
+  }
+  double flux(double x) const { return round_to(x, inv_q, q); }
+  double squared(double x) const { return round_to(x, inv_q2, q2); }
+};
+// The quantum for a bake whose lights emit `emitted` W: with S the power of
+// two at or above it (a photon carries about that flux before the division by
+// the photon count), q = S / 2^26 and q2 = S^2 / 2^26. A float flux of S/4 or
+// more is a whole multiple of q (no rounding at all), a smaller one is off by
+// at most q / 2; a texel's sums stay exact up to 2^27 photons' worth of S, and
+// the squared-flux total (an integer) up to 2^37 hits of S.
+FluxQuantum flux_quantum(double emitted);
+
 // Photon sums per texel over all lightmaps, merged batch by batch in order.
 class Accumulators {
  public:
   // caustics: the scene has lobes, and caustic photons (BatchOutput::caustic_hits) get sums of their own.
-  Accumulators(uint64_t texels, size_t meshes, bool caustics = false)
-      : sum(3 * texels, 0.0), sum_sq(texels, 0.0), hits(texels, 0), back_lit(meshes, 0) {
+  Accumulators(uint64_t texels, size_t meshes, bool caustics = false, FluxQuantum quantum_in = {})
+      : sum(3 * texels, 0.0), sum_sq(texels, 0.0), hits(texels, 0), back_lit(meshes, 0), quantum(quantum_in) {
     if (caustics) caustic.resize(texels);
   }
   std::vector<double> sum, sum_sq;  // flux / pick probability (not yet divided by the photon count)
   std::vector<uint32_t> hits;
   std::vector<uint8_t> back_lit;  // per mesh: a photon reached its back
-  double total_sq = 0.0;
+  double total_sq = 0.0;  // total_sq_q quanta of FluxQuantum::q2
+  uint64_t total_sq_q = 0;
   uint64_t total_hits = 0;
+  FluxQuantum quantum;
   // Caustic photons' sums (empty without lobes): their own reconstruction
   // and variance (film_estimate.h), added to the texel.
   struct CausticSums {
     std::vector<double> sum, sum_sq;
     std::vector<uint32_t> hits;
     double total_sq = 0.0;
+    uint64_t total_sq_q = 0;
     uint64_t total_hits = 0;
     void resize(uint64_t texels) {
       sum.assign(3 * texels, 0.0);
@@ -76,41 +106,37 @@ class Accumulators {
   double phantom_sq() const { return total_hits ? total_sq / double(total_hits) : 0.0; }
 
   void merge(const BatchOutput& bo) {
-    // Locals: the stores through the arrays could otherwise alias total_sq
-    // (a loop-carried sum kept in memory). Same operations, same order.
-    double* const s = sum.data();
-    double* const s2 = sum_sq.data();
-    uint32_t* const n = hits.data();
-    double total = total_sq;
-    for (const Hit& h : bo.hits) {
-      const size_t t = h.texel;
-      s[3 * t] += h.r;
-      s[3 * t + 1] += h.g;
-      s[3 * t + 2] += h.b;
-      const double a = (double(h.r) + h.g + h.b) / 3.0;
-      s2[t] += a * a;
-      total += a * a;
-      ++n[t];
-    }
-    total_sq = total;
+    merge_hits(bo.hits, sum.data(), sum_sq.data(), hits.data(), total_sq_q);
+    total_sq = double(total_sq_q) * quantum.q2;
     total_hits += bo.hits.size();
     for (const uint32_t m : bo.back_meshes) back_lit[m] = 1;
-    if (!bo.caustic_hits.empty()) merge_caustics(bo.caustic_hits);
+    if (!bo.caustic_hits.empty()) {
+      merge_hits(bo.caustic_hits, caustic.sum.data(), caustic.sum_sq.data(), caustic.hits.data(), caustic.total_sq_q);
+      caustic.total_sq = double(caustic.total_sq_q) * quantum.q2;
+      caustic.total_hits += bo.caustic_hits.size();
+    }
   }
 
+  // Adds the sums of other (the same texels, meshes and quantum): exact, so
+  // the order in which accumulators are added does not matter.
+  void add(const Accumulators& other);
+
  private:
-  void merge_caustics(const std::vector<Hit>& hits_in) {
-    for (const Hit& h : hits_in) {
+  // Every flux and squared flux is rounded to the quantum before it is added.
+  void merge_hits(const std::vector<Hit>& in, double* s, double* s2, uint32_t* n, uint64_t& total_q) const {
+    uint64_t total = total_q;  // a local: the stores through the arrays could otherwise alias it
+    for (const Hit& h : in) {
       const size_t t = h.texel;
-      caustic.sum[3 * t] += h.r;
-      caustic.sum[3 * t + 1] += h.g;
-      caustic.sum[3 * t + 2] += h.b;
+      s[3 * t] += quantum.flux(h.r);
+      s[3 * t + 1] += quantum.flux(h.g);
+      s[3 * t + 2] += quantum.flux(h.b);
       const double a = (double(h.r) + h.g + h.b) / 3.0;
-      caustic.sum_sq[t] += a * a;
-      caustic.total_sq += a * a;
-      ++caustic.hits[t];
+      const double sq = quantum.squared(a * a);
+      s2[t] += sq;
+      total += uint64_t(sq * quantum.inv_q2);
+      ++n[t];
     }
-    caustic.total_hits += hits_in.size();
+    total_q = total;
   }
 };
 

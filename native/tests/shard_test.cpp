@@ -1,0 +1,338 @@
+// Sharded bakes (transport/shard.h, io/partial_file.h): the merge of N shards is
+// the single-machine bake bit for bit, for any N; parts that do not belong
+// together, or are damaged, are refused naming the part.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "demo_scenes.h"
+#include "photonlm/photonlm.h"
+#include "test_support.h"
+#include "transport/film.h"
+#include "transport/photon_tracer.h"
+#include "transport/shard.h"
+
+namespace {
+
+using plm_test::BakeResult;
+using plm_test::Map;
+
+struct TempDir {
+  std::string path;
+  TempDir() {
+    path = (std::filesystem::temp_directory_path() / ("plm_shard_test_" + std::to_string(getpid()) + "_" +
+                                                       std::to_string(counter()++)))
+               .string();
+    std::filesystem::create_directories(path);
+  }
+  ~TempDir() { std::filesystem::remove_all(path); }
+  static int& counter() {
+    static int n = 0;
+    return n;
+  }
+};
+
+plm_bake_settings small_settings(uint64_t photons) {
+  plm_bake_settings s;
+  plm_bake_settings_default(&s);
+  s.photon_count = photons;
+  s.direct_samples = 4;
+  s.seed = 7;
+  s.thread_count = 2;
+  return s;
+}
+
+std::vector<std::string> bake_shards(plm_scene* scene, const plm_bake_settings& s, uint32_t n, const std::string& dir,
+                                     const char* scene_label = "cornell") {
+  std::vector<std::string> parts;
+  for (uint32_t k = 0; k < n; ++k) {
+    parts.push_back(dir + "/part-" + std::to_string(k) + "-of-" + std::to_string(n) + ".plmpart");
+    EXPECT_EQ(plm_bake_shard(scene, &s, k, n, scene_label, parts.back().c_str(), nullptr, nullptr), PLM_OK)
+        << plm_last_error();
+  }
+  return parts;
+}
+
+// Merges `parts`; returns the status and leaves the message in error.
+plm_status merge(plm_scene* scene, const std::vector<std::string>& parts, BakeResult& out, std::string& error) {
+  std::vector<const char*> p;
+  for (const std::string& s : parts) p.push_back(s.c_str());
+  const plm_status st = plm_bake_merge(scene, p.data(), uint32_t(p.size()), 2, nullptr, nullptr, &out.r);
+  error = st == PLM_OK ? "" : plm_last_error();
+  return st;
+}
+
+void expect_same_bits(const std::vector<float>& a, const std::vector<float>& b, const char* what, uint32_t mesh) {
+  ASSERT_EQ(a.size(), b.size());
+  EXPECT_EQ(std::memcmp(a.data(), b.data(), a.size() * sizeof(float)), 0) << what << " of mesh " << mesh;
+}
+
+void expect_identical(const BakeResult& one, const BakeResult& merged, uint32_t meshes) {
+  for (uint32_t m = 0; m < meshes; ++m) {
+    uint32_t w = 0, h = 0;
+    if (plm_result_lightmap_size(one.r, m, &w, &h) != PLM_OK || w == 0) continue;
+    const Map a = one.map(m), b = merged.map(m);
+    expect_same_bits(a.rgb, b.rgb, "rgb", m);
+    expect_same_bits(a.error, b.error, "error", m);
+    expect_same_bits(a.hits, b.hits, "hits", m);
+    expect_same_bits(a.coverage, b.coverage, "coverage", m);
+  }
+  plm_bake_stats x{}, y{};
+  ASSERT_EQ(plm_result_stats(one.r, &x), PLM_OK);
+  ASSERT_EQ(plm_result_stats(merged.r, &y), PLM_OK);
+  EXPECT_EQ(x.photons_emitted, y.photons_emitted);
+  EXPECT_EQ(x.photon_hits, y.photon_hits);
+  EXPECT_EQ(x.rays_traced, y.rays_traced);
+  EXPECT_EQ(x.paths_truncated, y.paths_truncated);
+  EXPECT_EQ(x.direct_samples, y.direct_samples);
+  EXPECT_EQ(std::memcmp(&x.error_estimate, &y.error_estimate, sizeof(double)), 0);
+  EXPECT_EQ(std::memcmp(&x.error_p95, &y.error_p95, sizeof(double)), 0);
+}
+
+uint32_t mesh_count(const plm_demo::SceneBuilder& b) { return uint32_t(b.mesh_names.size()); }
+
+}  // namespace
+
+// Fluxes rounded to the quantum add up exactly: any order, any split into
+// partial sums, gives the same bits (what makes shards merge exactly).
+TEST(Shard, QuantizedSumsDoNotDependOnOrder) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<float> flux(0.0f, 1.0f), tiny(0.0f, 1e-6f);
+  const uint64_t texels = 7;
+  const plm::FluxQuantum q = plm::flux_quantum(1.0);
+  std::vector<plm::BatchOutput> batches(40);
+  for (auto& b : batches)
+    for (int i = 0; i < 500; ++i) {
+      const float f = (i % 3 == 0) ? tiny(rng) : flux(rng);
+      b.hits.push_back({uint32_t(rng() % texels), f, f * 0.5f, f * 0.25f});
+    }
+  plm::Accumulators forward(texels, 1, false, q), backward(texels, 1, false, q), split(texels, 1, false, q),
+      second(texels, 1, false, q);
+  for (const auto& b : batches) forward.merge(b);
+  for (size_t i = batches.size(); i-- > 0;) backward.merge(batches[i]);
+  for (size_t i = 0; i < 13; ++i) split.merge(batches[i]);
+  for (size_t i = 13; i < batches.size(); ++i) second.merge(batches[i]);
+  split.add(second);
+  for (const plm::Accumulators* a : {&backward, &split}) {
+    EXPECT_EQ(std::memcmp(a->sum.data(), forward.sum.data(), forward.sum.size() * sizeof(double)), 0);
+    EXPECT_EQ(std::memcmp(a->sum_sq.data(), forward.sum_sq.data(), forward.sum_sq.size() * sizeof(double)), 0);
+    EXPECT_EQ(a->total_sq_q, forward.total_sq_q);
+    EXPECT_EQ(a->hits, forward.hits);
+  }
+  // Plain double sums of the same hits do depend on the order (so the test can fail).
+  double f = 0, r = 0;
+  for (const auto& b : batches)
+    for (const auto& h : b.hits) f += h.r;
+  for (size_t i = batches.size(); i-- > 0;)
+    for (size_t j = batches[i].hits.size(); j-- > 0;) r += batches[i].hits[j].r;
+  EXPECT_NE(f, r);
+  // The rounding is far below a hit: relative 1e-7 of the summed flux.
+  double exact = 0;
+  for (size_t t = 0; t < texels; ++t) exact += forward.sum[3 * t];
+  EXPECT_NEAR(exact, f, 1e-7 * f);
+}
+
+TEST(Shard, BatchesOfShardsTileTheBake) {
+  for (uint64_t batches : {1u, 5u, 16u, 17u, 100u})
+    for (uint32_t n : {1u, 2u, 3u, 7u, 20u}) {
+      uint64_t next = 0;
+      for (uint32_t k = 0; k < n; ++k) {
+        const auto [first, last] = plm::shard_batches(batches, k, n);
+        EXPECT_EQ(first, next);
+        EXPECT_LE(last - first, batches / n + 1);
+        for (const auto& [b, e] : plm::shard_segments(first, last)) EXPECT_FALSE(b < 16 && e > 16);
+        next = last;
+      }
+      EXPECT_EQ(next, batches);
+    }
+}
+
+// A Cornell box (final gather on, 150 k photons: the gather's estimate after
+// 16 batches falls inside a shard): 1, 2, 3 and 4 shards merge to the
+// single-machine bake bit for bit.
+TEST(Shard, MergeEqualsSingleBakeForAnyShardCount) {
+  plm_demo::SceneBuilder b;
+  plm_demo::build_cornell(b, 12);
+  ASSERT_TRUE(b.ok()) << b.error;
+  const plm_bake_settings s = small_settings(150000);
+  BakeResult one;
+  ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &one.r), PLM_OK) << plm_last_error();
+  for (uint32_t n = 1; n <= 4; ++n) {
+    SCOPED_TRACE("shards " + std::to_string(n));
+    TempDir dir;
+    plm_bake_settings shard_settings = s;
+    shard_settings.thread_count = n;  // threads differ between machines too
+    const auto parts = bake_shards(b.scene, shard_settings, n, dir.path);
+    BakeResult merged;
+    std::string error;
+    ASSERT_EQ(merge(b.scene, parts, merged, error), PLM_OK) << error;
+    expect_identical(one, merged, mesh_count(b));
+  }
+}
+
+// Fewer batches than shards (some shards trace nothing), fewer than 16
+// batches (the gather comes last), and photons that do not fill a batch.
+TEST(Shard, FewPhotonsManyShards) {
+  plm_demo::SceneBuilder b;
+  plm_demo::build_cornell(b, 8);
+  ASSERT_TRUE(b.ok()) << b.error;
+  const plm_bake_settings s = small_settings(3 * 4096 + 100);
+  BakeResult one;
+  ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &one.r), PLM_OK) << plm_last_error();
+  TempDir dir;
+  const auto parts = bake_shards(b.scene, s, 6, dir.path);
+  BakeResult merged;
+  std::string error;
+  ASSERT_EQ(merge(b.scene, parts, merged, error), PLM_OK) << error;
+  expect_identical(one, merged, mesh_count(b));
+}
+
+// Glass (caustic photons have sums of their own) on the Cornell box's floor box.
+TEST(Shard, CausticSumsMergeExactly) {
+  plm_demo::SceneBuilder b;
+  const uint32_t white = b.material("white", {0.7f, 0.7f, 0.7f});
+  const uint32_t glass = b.material("glass", {0.0f, 0.0f, 0.0f});
+  plm_lobe lobe;
+  plm_lobe_default(&lobe, PLM_LOBE_GLASS);
+  ASSERT_EQ(plm_scene_add_material_lobe(b.scene, glass, &lobe), PLM_OK) << plm_last_error();
+  b.quad("floor", {-1, -1, 0}, {2, 0, 0}, {0, 2, 0}, white, 16);
+  b.box("glass block", {0, 0, 0.4f}, {0.4f, 0.4f, 0.2f}, 0.3f, glass, 0);
+  plm_light light;
+  plm_light_default(&light, PLM_LIGHT_POINT);
+  light.power = 100;
+  light.matrix[3] = 0.1f;
+  light.matrix[11] = 1.2f;
+  b.light(light, "lamp");
+  ASSERT_TRUE(b.ok()) << b.error;
+  const plm_bake_settings s = small_settings(100000);
+  BakeResult one;
+  ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &one.r), PLM_OK) << plm_last_error();
+  TempDir dir;
+  const auto parts = bake_shards(b.scene, s, 3, dir.path);
+  BakeResult merged;
+  std::string error;
+  ASSERT_EQ(merge(b.scene, parts, merged, error), PLM_OK) << error;
+  expect_identical(one, merged, mesh_count(b));
+}
+
+// Parts that do not belong together are refused, naming the part.
+TEST(Shard, MergeRefusesPartsThatDoNotBelong) {
+  plm_demo::SceneBuilder b;
+  plm_demo::build_cornell(b, 6);
+  ASSERT_TRUE(b.ok()) << b.error;
+  plm_bake_settings s = small_settings(40000);
+  s.direct_samples = 1;
+  TempDir dir;
+  const auto parts = bake_shards(b.scene, s, 3, dir.path);
+  std::string error;
+  {  // a shard missing
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, {parts[0], parts[2]}, r, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find("shard(s) 2 of 3 missing"), std::string::npos) << error;
+  }
+  {  // a shard twice
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, {parts[0], parts[1], parts[2], parts[1]}, r, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find(parts[1] + ": shard 2 of 3 is also " + parts[1]), std::string::npos) << error;
+  }
+  {  // another seed
+    TempDir other;
+    plm_bake_settings t = s;
+    t.seed = 8;
+    const auto odd = bake_shards(b.scene, t, 3, other.path);
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, {parts[0], odd[1], parts[2]}, r, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find(odd[1] + ": does not belong with " + parts[0] + ": its seed 8 against 7"),
+              std::string::npos)
+        << error;
+  }
+  {  // another scene given to the merge
+    plm_demo::SceneBuilder c;
+    plm_demo::build_cornell(c, 7);
+    BakeResult r;
+    EXPECT_EQ(merge(c.scene, parts, r, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find("another scene"), std::string::npos) << error;
+  }
+  {  // a damaged payload byte, then a truncated file
+    const std::string bad = dir.path + "/bad.plmpart";
+    std::filesystem::copy_file(parts[1], bad);
+    {
+      std::fstream f(bad, std::ios::in | std::ios::out | std::ios::binary);
+      f.seekp(2000);
+      char c = 0;
+      f.read(&c, 1);
+      c ^= 0x10;
+      f.seekp(2000);
+      f.write(&c, 1);
+    }
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, {parts[0], bad, parts[2]}, r, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find(bad + ": the part file's sums are damaged (checksum)"), std::string::npos) << error;
+    std::filesystem::resize_file(bad, std::filesystem::file_size(parts[1]) - 10);
+    BakeResult r2;
+    EXPECT_EQ(merge(b.scene, {parts[0], bad, parts[2]}, r2, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find(bad + ": the part file holds"), std::string::npos) << error;
+    std::filesystem::resize_file(bad, 100);
+    BakeResult r3;
+    EXPECT_EQ(merge(b.scene, {parts[0], bad, parts[2]}, r3, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find(bad + ": too short for a part file"), std::string::npos) << error;
+  }
+  {  // not a part file at all
+    const std::string text = dir.path + "/text.plmpart";
+    std::ofstream(text) << std::string(600, 'x');
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, {text}, r, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find(text + ": not a photonlm part file"), std::string::npos) << error;
+  }
+  // No temporary files are left next to the parts.
+  for (const auto& e : std::filesystem::directory_iterator(dir.path))
+    EXPECT_EQ(e.path().string().find(".tmp-"), std::string::npos) << e.path();
+}
+
+// What cannot be split is refused up front with the reason.
+TEST(Shard, ShardRefusesWhatCannotBeSplit) {
+  plm_demo::SceneBuilder b;
+  plm_demo::build_cornell(b, 6);
+  ASSERT_TRUE(b.ok()) << b.error;
+  TempDir dir;
+  const std::string part = dir.path + "/p.plmpart";
+  plm_bake_settings s = small_settings(40000);
+  s.target_error = 0.05;
+  EXPECT_EQ(plm_bake_shard(b.scene, &s, 0, 2, nullptr, part.c_str(), nullptr, nullptr), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(plm_last_error()).find("target error"), std::string::npos) << plm_last_error();
+  s = small_settings(40000);
+  s.time_budget = 3;
+  EXPECT_EQ(plm_bake_shard(b.scene, &s, 0, 2, nullptr, part.c_str(), nullptr, nullptr), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(plm_last_error()).find("time budget"), std::string::npos) << plm_last_error();
+  s = small_settings(40000);
+  EXPECT_EQ(plm_bake_shard(b.scene, &s, 2, 2, nullptr, part.c_str(), nullptr, nullptr), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_EQ(plm_bake_shard(b.scene, &s, 0, 2, nullptr, (dir.path + "/no/such/folder/p").c_str(), nullptr, nullptr),
+            PLM_ERROR_IO);
+  EXPECT_NE(std::string(plm_last_error()).find("no/such/folder/p"), std::string::npos) << plm_last_error();
+  uint32_t group = 0;
+  ASSERT_EQ(plm_scene_add_ol_group(b.scene, "props", 0, &group), PLM_OK) << plm_last_error();
+  EXPECT_EQ(plm_bake_shard(b.scene, &s, 0, 2, nullptr, part.c_str(), nullptr, nullptr), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(std::string(plm_last_error()).find("OL groups"), std::string::npos) << plm_last_error();
+  EXPECT_FALSE(std::filesystem::exists(part));
+}
+
+// A sum past 2^53 quanta is no longer exact: the merge says so.
+TEST(Shard, SumsPastTheExactRangeAreReported) {
+  const plm::FluxQuantum q = plm::flux_quantum(100.0);
+  plm::Accumulators acc(4, 1, false, q);
+  EXPECT_EQ(plm::inexact_sums(acc), "");
+  acc.sum[5] = std::ldexp(1.0, 52) * q.q;  // still exact
+  EXPECT_EQ(plm::inexact_sums(acc), "");
+  acc.sum[5] = std::ldexp(1.0, 53) * q.q;
+  acc.sum_sq[2] = std::ldexp(1.0, 54) * q.q2;
+  EXPECT_NE(plm::inexact_sums(acc).find("2 photon sums passed 2^53 flux quanta"), std::string::npos)
+      << plm::inexact_sums(acc);
+}
