@@ -4,8 +4,11 @@ Everything is built from scratch in Python (no .blend files). Lightmap UVs are l
 explicitly (texel-aligned rectangles, uniform texel density inside each object), so the
 layout is the same in every Blender process and no texel straddles two faces.
 """
+import json
 import math
 import os
+import shutil
+import subprocess
 import sys
 import time
 
@@ -580,3 +583,50 @@ def evaluated_lightmap_triangles(obj):
         return pos[tv].reshape(nt, 3, 3), uv
     finally:
         ev.to_mesh_clear()
+
+
+# ---- Tests that need a window (the modal operator) -------------------------------------------
+
+WINDOWED_RESULT = "PHOTONLM_WINDOWED_RESULT"  # set in the windowed child: where its JSON result goes
+
+
+def is_windowed_child():
+    return bool(os.environ.get(WINDOWED_RESULT))
+
+
+def write_windowed_result(result, quit=True):
+    """In the windowed child: hand `result` (a JSON-able dict) to the parent, then quit Blender."""
+    with open(os.environ[WINDOWED_RESULT], "w") as f:
+        json.dump(result, f)
+    if quit:
+        bpy.ops.wm.quit_blender()
+
+
+def run_windowed(checks, name, script, timeout):
+    """Re-run `script` in a windowed Blender under xvfb-run and return the dict its child wrote
+    (write_windowed_result), or None where xvfb-run is missing (printed as SKIP). A child that
+    failed or wrote nothing fails the checks and ends the test."""
+    xvfb = shutil.which("xvfb-run")
+    if xvfb is None:
+        print("SKIP %s: xvfb-run not found (the modal path needs a window)" % name)
+        return None
+    result_path = os.path.join(out_dir(name), name + "_result.json")
+    if os.path.exists(result_path):
+        os.remove(result_path)
+    env = dict(os.environ, **{WINDOWED_RESULT: result_path})
+    cmd = [xvfb, "-a", "-s", "-screen 0 1280x800x24", bpy.app.binary_path, "--factory-startup",
+           "--python", os.path.abspath(script)]
+    t0 = time.perf_counter()
+    try:
+        proc = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=timeout)
+        text, code = proc.stdout.decode("utf-8", "replace"), proc.returncode
+    except subprocess.TimeoutExpired as e:
+        text, code = (e.stdout or b"").decode("utf-8", "replace"), -1
+    print("\n".join(l for l in text.splitlines() if "PhotonLM" in l or "CHILD" in l))
+    ran = os.path.exists(result_path)
+    r = json.load(open(result_path)) if ran else {}
+    if not checks.check(ran and "error" not in r, "windowed Blender ran (%.1f s, exit %d) %s"
+                        % (time.perf_counter() - t0, code, r.get("error", ""))):
+        print(text[-4000:])
+        checks.finish()
+    return r

@@ -14,10 +14,7 @@ materials: checked first, then it is told so, the viewport staying in Solid shad
   3. a bake cancelled after a refresh, over the lightmaps of 2.: images (pixels), node trees
      and the set of images and materials are exactly as before.
 """
-import json
 import os
-import shutil
-import subprocess
 import sys
 import time
 
@@ -27,7 +24,6 @@ import scenes  # noqa: E402
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 
-RESULT_NAME = "live_result.json"
 PHOTONS = 6_000_000
 INTERVAL = 0.3
 WATCHED = ("floor", "back", "left")  # walls whose lightmap covers the whole image
@@ -35,30 +31,9 @@ WATCHED = ("floor", "back", "left")  # walls whose lightmap covers the whole ima
 
 def parent():
     checks = scenes.Checks("live_preview")
-    xvfb = shutil.which("xvfb-run")
-    if xvfb is None:
-        print("SKIP live_preview: xvfb-run not found (the modal path needs a window)")
+    r = scenes.run_windowed(checks, "live_preview", __file__, timeout=600)
+    if r is None:
         return
-    out = scenes.out_dir("live")
-    result_path = os.path.join(out, RESULT_NAME)
-    if os.path.exists(result_path):
-        os.remove(result_path)
-    env = dict(os.environ, PHOTONLM_LIVE_CHILD="1", PHOTONLM_LIVE_RESULT=result_path)
-    cmd = [xvfb, "-a", "-s", "-screen 0 1280x800x24", bpy.app.binary_path, "--factory-startup",
-           "--python", os.path.abspath(__file__)]
-    t0 = time.perf_counter()
-    try:
-        proc = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=600)
-        text, code = proc.stdout.decode("utf-8", "replace"), proc.returncode
-    except subprocess.TimeoutExpired as e:
-        text, code = (e.stdout or b"").decode("utf-8", "replace"), -1
-    print("\n".join(l for l in text.splitlines() if "PhotonLM" in l or "CHILD" in l))
-    ran = os.path.exists(result_path)
-    r = json.load(open(result_path)) if ran else {}
-    if not checks.check(ran and "error" not in r, "windowed Blender ran (%.1f s, exit %d) %s"
-                        % (time.perf_counter() - t0, code, r.get("error", ""))):
-        print(text[-4000:])
-        checks.finish()
     checks.check(not r["watched_solid"] and r["watched_material"],
                  "previews are wanted in Material Preview, not in Solid shading")
     # 1. cancelled before any bake
@@ -158,9 +133,7 @@ def child():
         scenes.setup_paths()
         from photonlm_blender import bake, live_preview, operators  # noqa: F401
     except Exception as e:  # noqa: BLE001 -- report to the parent and quit, never hang
-        with open(os.environ["PHOTONLM_LIVE_RESULT"], "w") as f:
-            json.dump({"error": "child set-up failed: %s" % e}, f)
-        bpy.ops.wm.quit_blender()
+        scenes.write_windowed_result({"error": "child set-up failed: %s" % e})
         return
     _child(bake, live_preview, operators)
 
@@ -186,9 +159,7 @@ def _child(bake, live_preview, operators):
             return sorted(bpy.ops.photonlm.bake('INVOKE_DEFAULT'))
 
     def finish():
-        with open(os.environ["PHOTONLM_LIVE_RESULT"], "w") as f:
-            json.dump(res, f)
-        bpy.ops.wm.quit_blender()
+        scenes.write_windowed_result(res)
 
     def tick():
         try:
@@ -309,7 +280,7 @@ def _child(bake, live_preview, operators):
     print("CHILD started", flush=True)
 
 
-if os.environ.get("PHOTONLM_LIVE_CHILD"):
+if scenes.is_windowed_child():
     child()
 else:
     parent()

@@ -8,10 +8,7 @@ while Blender keeps processing events (timer ticks during the bake); a second mo
 cancelled after one second (the Esc handler's flag) must stop promptly and leave the images,
 files and statistics of the first bake untouched.
 """
-import json
 import os
-import shutil
-import subprocess
 import sys
 import time
 
@@ -21,35 +18,13 @@ import scenes  # noqa: E402
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 
-RESULT_NAME = "modal_result.json"
 
 
 def parent():
     checks = scenes.Checks("modal_operator")
-    xvfb = shutil.which("xvfb-run")
-    if xvfb is None:
-        print("SKIP modal_operator: xvfb-run not found (the modal path needs a window)")
+    r = scenes.run_windowed(checks, "modal_operator", __file__, timeout=300)
+    if r is None:
         return
-    out = scenes.out_dir("modal")
-    result_path = os.path.join(out, RESULT_NAME)
-    if os.path.exists(result_path):
-        os.remove(result_path)
-    env = dict(os.environ, PHOTONLM_MODAL_CHILD="1", PHOTONLM_MODAL_RESULT=result_path)
-    cmd = [xvfb, "-a", "-s", "-screen 0 1280x800x24", bpy.app.binary_path, "--factory-startup",
-           "--python", os.path.abspath(__file__)]
-    t0 = time.perf_counter()
-    try:
-        proc = subprocess.run(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=300)
-        text, code = proc.stdout.decode("utf-8", "replace"), proc.returncode
-    except subprocess.TimeoutExpired as e:
-        text, code = (e.stdout or b"").decode("utf-8", "replace"), -1
-    print("\n".join(l for l in text.splitlines() if "PhotonLM" in l or "CHILD" in l))
-    ran = os.path.exists(result_path)
-    r = json.load(open(result_path)) if ran else {}
-    if not checks.check(ran and "error" not in r, "windowed Blender ran (%.1f s, exit %d) %s"
-                        % (time.perf_counter() - t0, code, r.get("error", ""))):
-        print(text[-4000:])
-        checks.finish()
     checks.check(r["invoke"] == ["RUNNING_MODAL"], "invoke starts a modal operator (%s)" % r["invoke"])
     checks.check(r["ticks"] >= 3, "Blender kept running during the bake (%d timer ticks)" % r["ticks"])
     checks.check(r["objects"] == sorted(scenes.CORNELL_OBJECTS), "modal bake produced the 7 lightmaps")
@@ -68,9 +43,7 @@ def child():
         scenes.setup_paths()
         from photonlm_blender import bake, operators  # noqa: F401
     except Exception as e:  # noqa: BLE001 -- report to the parent and quit, never hang
-        with open(os.environ["PHOTONLM_MODAL_RESULT"], "w") as f:
-            json.dump({"error": "child set-up failed: %s" % e}, f)
-        bpy.ops.wm.quit_blender()
+        scenes.write_windowed_result({"error": "child set-up failed: %s" % e})
         return
     _child(bake, operators)
 
@@ -99,9 +72,7 @@ def _child(bake, operators):
         return imgs, scene.photonlm.last_photons, scene.photonlm.last_time
 
     def finish():
-        with open(os.environ["PHOTONLM_MODAL_RESULT"], "w") as f:
-            json.dump(res, f)
-        bpy.ops.wm.quit_blender()
+        scenes.write_windowed_result(res)
 
     def tick():
         try:
@@ -161,7 +132,7 @@ def _child(bake, operators):
     print("CHILD started", flush=True)
 
 
-if os.environ.get("PHOTONLM_MODAL_CHILD"):
+if scenes.is_windowed_child():
     child()
 else:
     parent()
