@@ -92,7 +92,7 @@ void trace_shard(tbb::task_arena& arena, const PhotonTracer& tracer, unsigned th
           if (batches.size() < n) batches.resize(n);
           tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n, 1), [&](const tbb::blocked_range<uint64_t>& r) {
             for (uint64_t b = r.begin(); b < r.end(); ++b) {
-              const uint64_t p0 = (begin + group_first + b) * kBatchPhotons;
+              const uint64_t p0 = (seg.begin + group_first + b) * kBatchPhotons;
               tracer.trace_batch(p0, std::min<uint64_t>(kBatchPhotons, cap - p0), batches[b]);
             }
           });
