@@ -124,7 +124,7 @@ def main():
         print("bake_blend: OL %-21s -> %s" % (name, o["path"]), flush=True)
     print("bake_blend: %d lightmaps, %s photons in %.2f s, error estimate %.4f (median %.4f, p95 %.4f), "
           "%d warnings" % (len(last["objects"]), "{:,}".format(int(st["photons_emitted"])), st["seconds_total"],
-                           st["error_estimate"], st["error_median"], st["error_p95"], len(last["warnings"])),
+                           st["error_estimate"], st["error_median"], st["error_p95"], st["warning_count"]),
           flush=True)
     if args.save:
         try:

@@ -52,8 +52,8 @@ def main():
     st = last["stats"]
     print("baked %d lightmaps (%dx%d): %s photons in %.2f s = %.2f M photons/s (scene export %.3f s, %d warnings)"
           % (len(last["objects"]), args.resolution, args.resolution, "{:,}".format(st["photons_emitted"]),
-             st["seconds_total"], st["photons_per_second"] / 1e6, st["seconds_export"], len(last["warnings"])))
-    for w in last["warnings"]:
+             st["seconds_total"], st["photons_per_second"] / 1e6, st["seconds_export"], st["warning_count"]))
+    for w in sorted({t for level, t in last["reports"] if level == 'WARNING'}):
         print("  warning:", w)
 
     with open(os.path.join(HERE, "cornell_reference.json")) as f:

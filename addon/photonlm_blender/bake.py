@@ -333,10 +333,12 @@ class BakeJob:
         if float(stats["error_above"]) > properties.NOISY_SHARE:
             self.notices.append(noisy_message(stats, noisiest, per_object, self.settings["target_error"] > 0.0))
         shown_warnings = warning_lines(self.reports.items, self.notices)
+        # Every distinct warning: the engine's, the add-on's and the notices (noisy texels, memory).
+        warning_count = len({t for level, t in self.reports.items if level == 'WARNING'} | set(self.notices))
         times = self.stage_seconds(stats, time.perf_counter() - t_finish)
         scene[properties.STATS_KEY] = dict(
             photons_emitted=int(stats["photons_emitted"]), photons_per_second=float(photons_per_second),
-            warning_count=len({t for level, t in self.reports.items if level == 'WARNING'} | set(self.notices)),
+            warning_count=warning_count,
             objects=len(self.export.baked),
             photon_hits=int(stats["photon_hits"]), rays_traced=int(stats["rays_traced"]),
             error_estimate=float(stats["error_estimate"]), error_direct=float(stats["error_direct"]),
@@ -353,6 +355,7 @@ class BakeJob:
         cpu_times = {"cpu_seconds_" + k: float(v) for k, v in self.times.cpu.items()}
         cpu_times["cpu_seconds_export_other"] = max(0.0, self.cpu_seconds_export - sum(self.times.cpu.values()))
         LAST.update(stats=dict(stats, photons_per_second=photons_per_second, error_target=target,
+                               warning_count=warning_count,
                                triangles=int(self.export.triangles), cpu_seconds_export=self.cpu_seconds_export,
                                cpu_seconds_export_process=self.cpu_seconds_export_process,
                                **times, **cpu_times),

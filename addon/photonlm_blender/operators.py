@@ -93,7 +93,7 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
                     "(%.1f %% of the texels above %.3g %%), %d warnings"
                     % (len(last["objects"]), "{:,}".format(int(s["photons_emitted"])), s["seconds_total"],
                        s["photons_per_second"] / 1e6, 100.0 * s["error_estimate"], 100.0 * s["error_above"],
-                       200.0 * s["error_target"], len(last["warnings"])))
+                       200.0 * s["error_target"], s["warning_count"]))
         # Last, so that the status bar shows them: the bake came close to the memory free, or much
         # of the lightmap is noisy.
         for text in job.notices:
