@@ -602,6 +602,13 @@ def write_windowed_result(result, quit=True):
         bpy.ops.wm.quit_blender()
 
 
+def view3d_override():
+    """Context override for operators that need the window's 3D viewport (the modal bake)."""
+    win = bpy.context.window_manager.windows[0]
+    area = next(a for a in win.screen.areas if a.type == 'VIEW_3D')
+    return dict(window=win, screen=win.screen, area=area)
+
+
 def run_windowed(checks, name, script, timeout):
     """Re-run `script` in a windowed Blender under xvfb-run and return the dict its child wrote
     (write_windowed_result), or None where xvfb-run is missing (printed as SKIP). A child that

@@ -149,13 +149,8 @@ def _child(bake, live_preview, operators):
     res = {}
     state = {"phase": "fresh_start"}
 
-    def win_ctx():
-        win = bpy.context.window_manager.windows[0]
-        area = next(a for a in win.screen.areas if a.type == 'VIEW_3D')
-        return dict(window=win, screen=win.screen, area=area)
-
     def invoke():
-        with bpy.context.temp_override(**win_ctx()):
+        with bpy.context.temp_override(**scenes.view3d_override()):
             return sorted(bpy.ops.photonlm.bake('INVOKE_DEFAULT'))
 
     def finish():
@@ -193,8 +188,8 @@ def _child(bake, live_preview, operators):
             # Previews are copied only while a viewport shows materials; Eevee drawing them in
             # software (Xvfb) would starve the window's timers, so the viewport stays in Solid and
             # the add-on is told it is watched, after checking that it looks at the shading.
-            shading = win_ctx()["area"].spaces.active.shading
-            with bpy.context.temp_override(**win_ctx()):
+            shading = scenes.view3d_override()["area"].spaces.active.shading
+            with bpy.context.temp_override(**scenes.view3d_override()):
                 shading.type = 'SOLID'
                 res["watched_solid"] = live_preview.watched(bpy.context)
                 shading.type = 'MATERIAL'

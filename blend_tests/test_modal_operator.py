@@ -57,11 +57,6 @@ def _child(bake, operators):
     res = {"ticks": 0}
     state = {"phase": "start"}
 
-    def win_ctx():
-        win = bpy.context.window_manager.windows[0]
-        area = next(a for a in win.screen.areas if a.type == 'VIEW_3D')
-        return dict(window=win, screen=win.screen, area=area)
-
     def snapshot():
         imgs = {}
         for name, o in bake.LAST.get("objects", {}).items():
@@ -85,7 +80,7 @@ def _child(bake, operators):
     def step():
         phase = state["phase"]
         if phase == "start":
-            with bpy.context.temp_override(**win_ctx()):
+            with bpy.context.temp_override(**scenes.view3d_override()):
                 res["invoke"] = sorted(bpy.ops.photonlm.bake('INVOKE_DEFAULT'))
             state["phase"] = "first"
             return 0.1
@@ -105,7 +100,7 @@ def _child(bake, operators):
             state["before"] = snapshot()
             scene.photonlm.photons = 2_000_000_000
             scene.photonlm.target_error = 0.0  # exactly that many photons: long enough to cancel
-            with bpy.context.temp_override(**win_ctx()):
+            with bpy.context.temp_override(**scenes.view3d_override()):
                 res["invoke2"] = sorted(bpy.ops.photonlm.bake('INVOKE_DEFAULT'))
             state["phase"] = "second"
             state["t_start"] = time.perf_counter()

@@ -154,18 +154,7 @@ def setup_ui():
 
     props.spaces.active.context = 'RENDER'
 
-    space = view3d.spaces.active
-    space.shading.type = 'MATERIAL'
-    space.shading.use_scene_lights = True
-    space.shading.use_scene_world = True
-    space.overlay.show_overlays = False
-    space.show_gizmo = False
-    space.lens = 60.0
-    r3d = space.region_3d
-    r3d.view_perspective = 'PERSP'
-    r3d.view_location = (0.0, 0.0, 1.0)
-    r3d.view_rotation = (0.7071068, 0.7071068, 0.0, 0.0)  # looking along +y, z up
-    r3d.view_distance = 3.5
+    ws.cornell_view(view3d)
     for area in screen.areas:
         area.tag_redraw()
     return win, screen, view3d, props

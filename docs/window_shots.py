@@ -53,6 +53,23 @@ def biggest_area(screen, kind):
     return max(areas, key=lambda a: a.width * a.height) if areas else None
 
 
+def cornell_view(view3d):
+    """The 3D viewport in Material Preview with the scene's lights and world, no overlays, looking
+    into the Cornell box of blend_tests/scenes.py."""
+    space = view3d.spaces.active
+    space.shading.type = 'MATERIAL'
+    space.shading.use_scene_lights = True
+    space.shading.use_scene_world = True
+    space.overlay.show_overlays = False
+    space.show_gizmo = False
+    space.lens = 60.0
+    r3d = space.region_3d
+    r3d.view_perspective = 'PERSP'
+    r3d.view_location = (0.0, 0.0, 1.0)
+    r3d.view_rotation = (0.7071068, 0.7071068, 0.0, 0.0)  # looking along +y, z up
+    r3d.view_distance = 3.5
+
+
 def window_region(area):
     return next(r for r in area.regions if r.type == 'WINDOW')
 
