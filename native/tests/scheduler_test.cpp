@@ -63,21 +63,32 @@ TEST(Scheduler, RunInGroupsCoversEverythingInOrderAndStopsWhenAsked) {
 
 TEST(Scheduler, ChecksAreAtFixedBatchCountsWhateverTheGroups) {
   // The checks come at the same batch counts however the batches are grouped
-  // (group sizes follow the clock): merges go batch by batch.
-  auto checks_with_groups = [](const std::vector<uint64_t>& groups) {
+  // (group sizes follow the clock): no group crosses the next check.
+  tbb::task_arena arena(1);
+  auto checks_with_groups = [&](uint64_t granule, uint64_t max_group) {
     CheckSchedule schedule;
     std::vector<uint64_t> at;
-    uint64_t merged = 0;
-    for (uint64_t g : groups)
-      for (uint64_t end = merged + g; merged < end; ++merged)
-        if (schedule.due(merged + 1)) at.push_back(merged + 1);
+    run_in_groups(
+        arena, 400, granule, [](uint64_t, uint64_t) {},
+        [&](uint64_t end) {
+          if (schedule.due(end)) at.push_back(end);
+          return true;
+        },
+        max_group, [&](uint64_t) { return schedule.next(); });
     return at;
   };
-  const std::vector<uint64_t> one_by_one(400, 1), uneven = {1, 7, 64, 3, 100, 25, 200};
-  const std::vector<uint64_t> a = checks_with_groups(one_by_one), b = checks_with_groups(uneven);
+  const std::vector<uint64_t> a = checks_with_groups(1, 1), b = checks_with_groups(7, 0);
   EXPECT_EQ(a, b);
   const std::vector<uint64_t> expected = {16, 32, 48, 64, 80, 96, 112, 128, 160, 192, 240, 288, 352};
   EXPECT_EQ(a, expected);
+  // Without the boundary, groups of 7 pass over the checks.
+  CheckSchedule schedule;
+  uint64_t checked = 0;
+  run_in_groups(arena, 400, 7, [](uint64_t, uint64_t) {}, [&](uint64_t end) {
+    checked += schedule.due(end);
+    return true;
+  }, 7);
+  EXPECT_LT(checked, expected.size());
   // Multiples of kCheckBatches, each at most a quarter (plus one step) after the last.
   uint64_t check = kCheckBatches;
   for (int i = 0; i < 60; ++i) {

@@ -4,8 +4,6 @@
 // flows from one to the next.
 #include "transport/bake.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
@@ -26,6 +24,7 @@
 #include "transport/material_table.h"
 #include "transport/ol_film.h"
 #include "transport/passage.h"
+#include "transport/photon_batches.h"
 #include "transport/photon_sampler.h"
 #include "transport/photon_tracer.h"
 #include "transport/scheduler.h"
@@ -201,7 +200,6 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
                                   return !budget.spent(kGatherBudgetShare);
                                 });
     };
-    std::vector<BatchOutput> batches;
     double truncated_flux = 0.0;
     uint64_t ol_hits = 0, merged = 0;
     CheckSchedule checks;
@@ -221,37 +219,32 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
         }
       }
       if (const std::string w = inexact_sums(acc); !w.empty()) out.warnings.push_back(w);
-    } else
-    run_in_groups(
-        arena, batch_count, threads,
-        [&](uint64_t first, uint64_t n) {
-          if (batches.size() < n) batches.resize(n);
-          tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n, 1), [&](const tbb::blocked_range<uint64_t>& r) {
-            for (uint64_t b = r.begin(); b < r.end(); ++b) {
-              const uint64_t p0 = (first + b) * kBatchPhotons;
-              tracer.trace_batch(p0, std::min<uint64_t>(kBatchPhotons, cap - p0), batches[b]);
+    } else {
+      PhotonBatches batches(tracer, acc, threads, cap);
+      run_in_groups(
+          arena, batch_count, threads, [&](uint64_t first, uint64_t n) { batches.trace(first, n); },
+          [&](uint64_t end) {
+            // The texel sums hold every batch before `end` (exact, in any
+            // order); OL hits and counts are merged here in batch order.
+            for (uint64_t b = merged; b < end; ++b) {
+              const BatchOutput& bo = batches.kept(b - merged);
+              ol_hits += merge_ol_hits(b, bo, ol_groups, ls_ols, out.lsystems);
+              out.stats.rays_traced += bo.rays;
+              out.stats.paths_truncated += bo.truncated;
+              truncated_flux += acc.quantum.flux(bo.truncated_flux);
             }
-          });
-        },
-        [&](uint64_t end) {
-          // Merge in batch order. Without a target the gather runs after
-          // kCheckBatches batches; with one, the error is checked at fixed
-          // batch counts and the gather runs at the first check the photons
-          // alone do not pass (loose targets cost what photons alone do).
-          double fraction = double(end) / double(batch_count);
-          for (uint64_t b = merged; b < end && !done; ++b) {
-            const BatchOutput& bo = batches[b - merged];
-            acc.merge(bo);
-            ol_hits += merge_ol_hits(b, bo, ol_groups, ls_ols, out.lsystems);
-            out.stats.rays_traced += bo.rays;
-            out.stats.paths_truncated += bo.truncated;
-            truncated_flux += acc.quantum.flux(bo.truncated_flux);
-            photons = std::min(cap, (b + 1) * kBatchPhotons);
-            if (gather_wanted && !gathered && !targeted && b + 1 == kCheckBatches) {
+            merged = end;
+            photons = std::min(cap, end * kBatchPhotons);
+            // Without a target the gather runs after kCheckBatches batches;
+            // with one, the error is checked at fixed batch counts and the
+            // gather runs at the first check the photons alone do not pass
+            // (loose targets cost what photons alone do).
+            double fraction = double(end) / double(batch_count);
+            if (gather_wanted && !gathered && !targeted && end == kCheckBatches) {
               estimate(arena, estimator, photons, last);
               run_gather(last);
             }
-            if (targeted && checks.due(b + 1)) {
+            if (targeted && checks.due(end)) {
               estimate(arena, estimator, photons, last);
               done = target_reached(last.error, settings.target_error);
               if (!done && gather_wanted && !gathered) {
@@ -265,21 +258,23 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
               }
               fraction = std::max(fraction, target_progress(last.error.relative, settings.target_error));
             }
-          }
-          merged = end;
-          if (!done) live.check(arena, scene, estimator, photons, settings.dilation);
-          if (budget.seconds() > 0.0) fraction = std::max(fraction, budget.elapsed() / budget.seconds());
-          done = done || budget.spent(kPhotonBudgetShare);
-          if (seconds_since(last_report) >= kPhotonReportInterval) {
-            last_report = Clock::now();
-            report(direct_end + (kProgressPhotons - direct_end) * std::min(fraction, 1.0),
-                   steered ? "tracing photons to the target" : "tracing photons");
-          }
-          return !done;
-        },
-        // One batch a thread per group: the batches' hits are merged while
-        // they are still in cache.
-        threads);
+            if (!done) live.check(arena, scene, estimator, photons, settings.dilation);
+            if (budget.seconds() > 0.0) fraction = std::max(fraction, budget.elapsed() / budget.seconds());
+            done = done || budget.spent(kPhotonBudgetShare);
+            if (seconds_since(last_report) >= kPhotonReportInterval) {
+              last_report = Clock::now();
+              report(direct_end + (kProgressPhotons - direct_end) * std::min(fraction, 1.0),
+                     steered ? "tracing photons to the target" : "tracing photons");
+            }
+            return !done;
+          },
+          0,
+          // Groups end at the gather's batch count and at every check.
+          [&](uint64_t first) {
+            uint64_t stop = first < kCheckBatches ? kCheckBatches : batch_count;
+            return targeted ? std::min(stop, checks.next()) : stop;
+          });
+    }
     // Fewer photons than kCheckBatches batches, no target: the gather comes last.
     if (gather_wanted && !gathered && photons > 0 && !targeted) {
       estimate(arena, estimator, photons, last);

@@ -1,8 +1,8 @@
 // The bake's film: every lightmap texel in one global index (meshes with
 // texels of their own, mesh after mesh, then CSG solids' sub-texels), the
 // covered texels in that order (the direct pass and the final gather work
-// through these), and the photon sums per texel, merged batch by batch in
-// batch order so that they never depend on the thread count.
+// through these), and the photon sums per texel, exact in any order of
+// addition so that they never depend on the thread count.
 #pragma once
 
 #include <cstddef>
@@ -69,7 +69,7 @@ struct FluxQuantum {
 // the squared-flux total (an integer) up to 2^37 hits of S.
 FluxQuantum flux_quantum(double emitted);
 
-// Photon sums per texel over all lightmaps, merged batch by batch in order.
+// Photon sums per texel over all lightmaps.
 class Accumulators {
  public:
   // caustics: the scene has lobes, and caustic photons (BatchOutput::caustic_hits) get sums of their own.
@@ -105,15 +105,13 @@ class Accumulators {
   // with few hits from looking exact.
   double phantom_sq() const { return total_hits ? total_sq / double(total_hits) : 0.0; }
 
+  // Adds one batch's hits (transport/photon_batches.h adds them from several threads).
   void merge(const BatchOutput& bo) {
-    merge_hits(bo.hits, sum.data(), sum_sq.data(), hits.data(), total_sq_q);
-    total_sq = double(total_sq_q) * quantum.q2;
-    total_hits += bo.hits.size();
+    add_totals(bo.hits.size(), add_hits(bo.hits.data(), bo.hits.data() + bo.hits.size(), false), false);
     for (const uint32_t m : bo.back_meshes) back_lit[m] = 1;
     if (!bo.caustic_hits.empty()) {
-      merge_hits(bo.caustic_hits, caustic.sum.data(), caustic.sum_sq.data(), caustic.hits.data(), caustic.total_sq_q);
-      caustic.total_sq = double(caustic.total_sq_q) * quantum.q2;
-      caustic.total_hits += bo.caustic_hits.size();
+      const Hit* h = bo.caustic_hits.data();
+      add_totals(bo.caustic_hits.size(), add_hits(h, h + bo.caustic_hits.size(), true), true);
     }
   }
 
@@ -121,22 +119,38 @@ class Accumulators {
   // the order in which accumulators are added does not matter.
   void add(const Accumulators& other);
 
- private:
-  // Every flux and squared flux is rounded to the quantum before it is added.
-  void merge_hits(const std::vector<Hit>& in, double* s, double* s2, uint32_t* n, uint64_t& total_q) const {
-    uint64_t total = total_q;  // a local: the stores through the arrays could otherwise alias it
-    for (const Hit& h : in) {
-      const size_t t = h.texel;
-      s[3 * t] += quantum.flux(h.r);
-      s[3 * t + 1] += quantum.flux(h.g);
-      s[3 * t + 2] += quantum.flux(h.b);
-      const double a = (double(h.r) + h.g + h.b) / 3.0;
+  // Adds hits [h, end) to the texel sums (caustic: the caustic sums), each
+  // flux and squared flux rounded to the quantum; returns the squared fluxes
+  // in quanta of q2, for add_totals.
+  uint64_t add_hits(const Hit* h, const Hit* end, bool caustic_hits) {
+    double* s = caustic_hits ? caustic.sum.data() : sum.data();
+    double* s2 = caustic_hits ? caustic.sum_sq.data() : sum_sq.data();
+    uint32_t* n = caustic_hits ? caustic.hits.data() : hits.data();
+    uint64_t total = 0;  // a local: the stores through the arrays could otherwise alias it
+    for (; h != end; ++h) {
+      const size_t t = h->texel;
+      s[3 * t] += quantum.flux(h->r);
+      s[3 * t + 1] += quantum.flux(h->g);
+      s[3 * t + 2] += quantum.flux(h->b);
+      const double a = (double(h->r) + h->g + h->b) / 3.0;
       const double sq = quantum.squared(a * a);
       s2[t] += sq;
       total += uint64_t(sq * quantum.inv_q2);
       ++n[t];
     }
-    total_q = total;
+    return total;
+  }
+  // Counts `count` hits whose squared fluxes sum to sq_q quanta.
+  void add_totals(uint64_t count, uint64_t sq_q, bool caustic_hits) {
+    if (caustic_hits) {
+      caustic.total_sq_q += sq_q;
+      caustic.total_sq = double(caustic.total_sq_q) * quantum.q2;
+      caustic.total_hits += count;
+    } else {
+      total_sq_q += sq_q;
+      total_sq = double(total_sq_q) * quantum.q2;
+      total_hits += count;
+    }
   }
 };
 

@@ -1,8 +1,8 @@
 // The photon tracer ([Thesis §3.5.2]): photons leave the lights in proportion to
 // their power, bounce diffusely with Russian roulette, and every front-side
 // hit on a lightmapped surface is recorded for the texel it lands in. A batch
-// of photons writes its hits into a BatchOutput; the caller merges batches in
-// order (transport/film.h, transport/ol_film.h).
+// of photons writes its hits into a BatchOutput; transport/photon_batches.h
+// adds its texel hits to the sums, transport/ol_film.h its OL hits in order.
 #pragma once
 
 #include <embree3/rtcore.h>

@@ -85,19 +85,27 @@ class GroupSizer {
 
 // Runs work(first, count) over [0, total) in groups sized by GroupSizer, so
 // that after(done) -- progress, cancel, steering -- runs several times a
-// second on the calling thread. after returns false to stop early.
-template <typename Work, typename After>
+// second on the calling thread. after returns false to stop early. No group
+// crosses boundary(first), the first count after `first` at which after must
+// run (the photon pass's checks).
+template <typename Work, typename After, typename Boundary>
 void run_in_groups(tbb::task_arena& arena, uint64_t total, uint64_t granule, Work&& work, After&& after,
-                   uint64_t max_group = 0) {
+                   uint64_t max_group, Boundary&& boundary) {
   GroupSizer sizer(granule, max_group);
   for (uint64_t first = 0; first < total;) {
-    const uint64_t n = std::min(sizer.size(), total - first);
+    const uint64_t n = std::min({sizer.size(), total - first, std::max<uint64_t>(boundary(first), first + 1) - first});
     const auto t0 = Clock::now();
     arena.execute([&] { work(first, n); });
     first += n;
     sizer.finished(seconds_since(t0));
     if (!after(first)) return;
   }
+}
+
+template <typename Work, typename After>
+void run_in_groups(tbb::task_arena& arena, uint64_t total, uint64_t granule, Work&& work, After&& after,
+                   uint64_t max_group = 0) {
+  run_in_groups(arena, total, granule, work, after, max_group, [total](uint64_t) { return total; });
 }
 
 // ---- Photon pass --------------------------------------------------------------
@@ -133,12 +141,13 @@ double target_progress(double relative, double target);
 class CheckSchedule {
  public:
   // Whether the error is checked once `batches` batches are merged; moves on
-  // to the next check when it is. Batches are merged one at a time, in order.
+  // to the next check when it is. Merges stop at each check (next()).
   bool due(uint64_t batches) {
     if (batches != next_) return false;
     next_ = next_check(next_);
     return true;
   }
+  uint64_t next() const { return next_; }
 
  private:
   uint64_t next_ = kCheckBatches;

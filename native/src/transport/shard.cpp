@@ -1,11 +1,10 @@
 #include "transport/shard.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cstring>
 
+#include "transport/photon_batches.h"
 #include "transport/photon_sampler.h"
 #include "transport/photon_tracer.h"
 #include "transport/scheduler.h"
@@ -85,20 +84,13 @@ void trace_shard(tbb::task_arena& arena, const PhotonTracer& tracer, unsigned th
     seg.begin = begin;
     seg.end = end;
     seg.acc = shape;  // zero sums of the right shape
-    std::vector<BatchOutput> batches;
+    PhotonBatches batches(tracer, seg.acc, threads, cap);
     run_in_groups(
         arena, end - begin, threads,
         [&](uint64_t group_first, uint64_t n) {
-          if (batches.size() < n) batches.resize(n);
-          tbb::parallel_for(tbb::blocked_range<uint64_t>(0, n, 1), [&](const tbb::blocked_range<uint64_t>& r) {
-            for (uint64_t b = r.begin(); b < r.end(); ++b) {
-              const uint64_t p0 = (seg.begin + group_first + b) * kBatchPhotons;
-              tracer.trace_batch(p0, std::min<uint64_t>(kBatchPhotons, cap - p0), batches[b]);
-            }
-          });
+          batches.trace(seg.begin + group_first, n);
           for (uint64_t b = 0; b < n; ++b) {
-            const BatchOutput& bo = batches[b];
-            seg.acc.merge(bo);
+            const BatchOutput& bo = batches.kept(b);
             seg.rays += bo.rays;
             seg.truncated += bo.truncated;
             seg.truncated_flux += seg.acc.quantum.flux(bo.truncated_flux);
@@ -107,8 +99,7 @@ void trace_shard(tbb::task_arena& arena, const PhotonTracer& tracer, unsigned th
         [&](uint64_t merged) {
           progress(double(done + merged) / double(std::max<uint64_t>(total, 1)));
           return true;
-        },
-        threads);
+        });
     done += end - begin;
     job.segments.push_back(std::move(seg));
   }
