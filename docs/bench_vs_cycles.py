@@ -9,6 +9,7 @@ Scenes (same objects, same fixed texel-aligned lightmap UVs for both bakers):
   open      sun + uniform sky over an 8 m ground plane with three boxes (mostly direct light)
   interior  a closed 4 x 4 x 2.5 m room with a window hole; sun and sky outside (mostly indirect)
   open_sky  the open scene under a Nishita sky with its sun disc (not in the default --scenes)
+  open_sphere  the open scene with a smooth-shaded sphere resting on the ground (not in the default)
 
 Reference: Cycles DIFFUSE bake, pass filter DIRECT + INDIRECT (no COLOR: irradiance / pi),
 32 bounces, no clamping, box pixel filter, as two independent halves (seeds 1 and 2) averaged.
@@ -142,7 +143,27 @@ def build_open_sky():
     return objs, "Nishita sky with its sun disc (35 deg up), ground albedo ~0.36, three boxes"
 
 
-SCENES = {"cornell": build_cornell, "open": build_open, "interior": build_interior, "open_sky": build_open_sky}
+def build_open_sphere():
+    """The open scene with a smooth-shaded UV sphere (radius 0.75 m, 48 x 24) resting on the ground:
+    a curved object whose shading normals both bakers interpolate. Its lightmap UVs are the
+    sphere's own latitude-longitude map (no overlaps), 64 x 64."""
+    objs, _ = build_open()
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=48, ring_count=24, radius=0.75, location=(2.0, -2.0, 0.75))
+    ball = bpy.context.active_object
+    ball.name = "sphere"
+    mesh = ball.data
+    mesh.polygons.foreach_set("use_smooth", np.ones(len(mesh.polygons), bool))
+    uv = np.empty(2 * len(mesh.loops), np.float32)
+    mesh.uv_layers["UVMap"].data.foreach_get("uv", uv)
+    mesh.uv_layers.new(name="lightmap").data.foreach_set("uv", uv)
+    mesh.materials.append(scenes.diffuse_material("mat_sphere", (0.7, 0.7, 0.7)))
+    ball.photonlm.resolution = 64
+    return objs + [ball], ("sun 4 W/m^2 at 45 deg + sky (0.3, 0.4, 0.6), ground albedo ~0.36, three boxes "
+                           "and a smooth sphere (r 0.75 m, 48 x 24)")
+
+
+SCENES = {"cornell": build_cornell, "open": build_open, "interior": build_interior, "open_sky": build_open_sky,
+          "open_sphere": build_open_sphere}
 
 
 # ---- bakes ---------------------------------------------------------------------------------------

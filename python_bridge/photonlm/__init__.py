@@ -26,7 +26,7 @@ from ._lib import LibraryNotFoundError, library_path
 
 __all__ = ["version", "PhotonlmError", "BakeCancelled", "LibraryNotFoundError", "Scene", "Result", "Preview",
            "Lightmap", "OrientationLightmap", "library_path", "lsystem_flatten", "LSYSTEM_SHAPES",
-           "subdiv_refine", "default_settings", "write_lightmap_exr", "read_lightmap_exr"]
+           "subdiv_refine", "default_settings", "part_info", "write_lightmap_exr", "read_lightmap_exr"]
 
 _C = _lib.lib
 _OK = 0
@@ -630,38 +630,12 @@ class Scene(_Handle):
         and returns quickly. Returning False cancels, an exception cancels and is re-raised.
         Previews change nothing: the result equals that of a bake without them.
         """
-        settings = _lib.plm_bake_settings()
-        _C.plm_bake_settings_default(ctypes.byref(settings))
-        given = dict(photons=photons, max_bounces=max_bounces, seed=seed, threads=threads, dilation=dilation,
-                     target_error=target_error, time_budget=time_budget, direct_samples=direct_samples,
-                     filter_radius=filter_radius, texel_value=texel_value, sampler=sampler)
-        for name, value in given.items():
-            if value is None:
-                continue
-            field = _SETTING_FIELDS[name]
-            if name in _SETTING_CHOICES:
-                value = _choice(value, name, _SETTING_CHOICES[name])
-            elif name in ("target_error", "time_budget"):
-                value = float(value)
-                if not value >= 0.0:
-                    raise ValueError("%s must be a number >= 0, got %r" % (name, value))
-            else:
-                value = _uint(value, name, 64 if name == "photons" else 32)
-            setattr(settings, field, value)
+        settings = _bake_settings(photons=photons, max_bounces=max_bounces, seed=seed, threads=threads,
+                                  dilation=dilation, target_error=target_error, time_budget=time_budget,
+                                  direct_samples=direct_samples, filter_radius=filter_radius,
+                                  texel_value=texel_value, sampler=sampler)
         raised = []
-
-        def on_progress(_user_data, fraction, stage):
-            try:
-                if progress is not None:
-                    keep = progress(float(fraction), (stage or b"").decode("utf-8", "replace"))
-                    if keep is not None and not keep:
-                        return 0
-                return 1
-            except BaseException as e:  # KeyboardInterrupt too: cancel, re-raise after plm_bake
-                raised.append(e)
-                return 0
-
-        callback = _lib.progress_fn(on_progress)  # referenced until plm_bake returns
+        callback = _progress_callback(progress, raised)  # referenced until plm_bake returns
         out = _lib.ResultPtr()
         if preview is None:
             status = _C.plm_bake(self._h, ctypes.byref(settings), callback, None, ctypes.byref(out))
@@ -685,12 +659,102 @@ class Scene(_Handle):
             preview_callback = _lib.preview_fn(on_preview)
             status = _C.plm_bake_with_preview(self._h, ctypes.byref(settings), callback, preview_callback,
                                               interval, None, ctypes.byref(out))
+        return _result(status, out, raised)
+
+    def bake_shard(self, shard, shard_count, part_path, scene_path=None, progress=None, **settings):
+        """Bake shard `shard` (0-based) of `shard_count`: trace its share of the photons and write
+        their sums to part_path (written whole or not at all), for merge() on this or another
+        machine (docs/farm.md). settings as for bake(); a sharded bake needs a photon count (no
+        target_error or time_budget) and a scene without OL groups or L-system objects. scene_path
+        is recorded in the part (what `photonlm merge` reads the scene from when not given one)."""
+        s = _bake_settings(**settings)
+        raised = []
+        callback = _progress_callback(progress, raised)
+        status = _C.plm_bake_shard(self._h, ctypes.byref(s), _uint(shard, "shard", 32),
+                                   _uint(shard_count, "shard_count", 32),
+                                   None if scene_path is None else os.fsencode(scene_path), os.fsencode(part_path),
+                                   callback, None)
         if raised:
-            if status == _OK:
-                _C.plm_result_release(out)
             raise raised[0]
         _check(status)
-        return Result(out)
+
+    def merge(self, part_paths, threads=None, progress=None):
+        """Merge the part files of every shard of one sharded bake of this scene (each once, any
+        order) into a Result: bit for bit what bake() with the same settings returns. A part that
+        does not belong (another scene, seed, setting, engine version or shard count; damaged or
+        truncated; a shard missing or given twice) raises PhotonlmError naming it."""
+        paths = [os.fsencode(p) for p in part_paths]
+        array = (ctypes.c_char_p * max(len(paths), 1))(*paths)
+        raised = []
+        callback = _progress_callback(progress, raised)
+        out = _lib.ResultPtr()
+        status = _C.plm_bake_merge(self._h, array, len(paths), _uint(threads or 0, "threads", 32), callback, None,
+                                   ctypes.byref(out))
+        return _result(status, out, raised)
+
+
+def part_info(part_path):
+    """What a part file says of itself: dict(shard=, shard_count=, scene_path=, settings=dict(...))
+    (settings under bake()'s names; threads is not recorded)."""
+    s = _lib.plm_bake_settings()
+    shard, count = ctypes.c_uint32(), ctypes.c_uint32()
+    path = ctypes.create_string_buffer(4096)
+    _check(_C.plm_part_info(os.fsencode(part_path), ctypes.byref(s), ctypes.byref(shard), ctypes.byref(count),
+                            path, len(path)))
+    settings = _settings_dict(s)
+    del settings["threads"]
+    return dict(shard=shard.value, shard_count=count.value, scene_path=os.fsdecode(path.value) or None,
+                settings=settings)
+
+
+def _bake_settings(**given):
+    """plm_bake_settings with the engine's defaults and the given values (None = default), checked."""
+    settings = _lib.plm_bake_settings()
+    _C.plm_bake_settings_default(ctypes.byref(settings))
+    for name, value in given.items():
+        if name not in _SETTING_FIELDS:
+            raise TypeError("unknown bake setting %r (known: %s)" % (name, ", ".join(sorted(_SETTING_FIELDS))))
+        if value is None:
+            continue
+        field = _SETTING_FIELDS[name]
+        if name in _SETTING_CHOICES:
+            value = _choice(value, name, _SETTING_CHOICES[name])
+        elif name in ("target_error", "time_budget"):
+            value = float(value)
+            if not value >= 0.0:
+                raise ValueError("%s must be a number >= 0, got %r" % (name, value))
+        else:
+            value = _uint(value, name, 64 if name == "photons" else 32)
+        setattr(settings, field, value)
+    return settings
+
+
+def _progress_callback(progress, raised):
+    """A progress_fn calling progress(fraction, stage); False or an exception (kept in `raised`,
+    re-raised by the caller after the engine returns; Ctrl-C too) cancels."""
+
+    def on_progress(_user_data, fraction, stage):
+        try:
+            if progress is not None:
+                keep = progress(float(fraction), (stage or b"").decode("utf-8", "replace"))
+                if keep is not None and not keep:
+                    return 0
+            return 1
+        except BaseException as e:  # noqa: BLE001 -- cancel, re-raise after the engine returns
+            raised.append(e)
+            return 0
+
+    return _lib.progress_fn(on_progress)
+
+
+def _result(status, out, raised):
+    """A Result from a bake's status and handle, re-raising what a callback raised."""
+    if raised:
+        if status == _OK:
+            _C.plm_result_release(out)
+        raise raised[0]
+    _check(status)
+    return Result(out)
 
 
 class Preview:
@@ -793,6 +857,11 @@ def default_settings():
     arguments: the one place they are defined."""
     settings = _lib.plm_bake_settings()
     _C.plm_bake_settings_default(ctypes.byref(settings))
+    return _settings_dict(settings)
+
+
+def _settings_dict(settings):
+    """plm_bake_settings by the names of Scene.bake's arguments."""
     out = {}
     for name, field in _SETTING_FIELDS.items():
         value = getattr(settings, field)

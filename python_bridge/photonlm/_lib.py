@@ -8,7 +8,7 @@ import ctypes
 import glob
 import os
 import sys
-from ctypes import POINTER, c_char_p, c_double, c_float, c_int, c_int32, c_uint32, c_uint64, c_void_p
+from ctypes import POINTER, c_char_p, c_double, c_float, c_int, c_int32, c_size_t, c_uint32, c_uint64, c_void_p
 
 __all__ = ["LibraryNotFoundError", "lib", "library_path"]
 
@@ -212,6 +212,11 @@ _SIGNATURES = {
                             POINTER(ResultPtr)]),
     "plm_bake_with_preview": (status_t, [ScenePtr, POINTER(plm_bake_settings), progress_fn, preview_fn, c_double,
                                          c_void_p, POINTER(ResultPtr)]),
+    "plm_bake_shard": (status_t, [ScenePtr, POINTER(plm_bake_settings), c_uint32, c_uint32, c_char_p, c_char_p,
+                                  progress_fn, c_void_p]),
+    "plm_part_info": (status_t, [c_char_p, POINTER(plm_bake_settings), UInt32Ptr, UInt32Ptr, c_char_p, c_size_t]),
+    "plm_bake_merge": (status_t, [ScenePtr, POINTER(c_char_p), c_uint32, c_uint32, progress_fn, c_void_p,
+                                  POINTER(ResultPtr)]),
     "plm_preview_photons": (status_t, [PreviewPtr, POINTER(c_uint64)]),
     "plm_preview_lightmap_size": (status_t, [PreviewPtr, c_uint32, UInt32Ptr, UInt32Ptr]),
     "plm_preview_copy_lightmap": (status_t, [PreviewPtr, c_uint32, FloatPtr, POINTER(c_int)]),

@@ -418,6 +418,7 @@ plm_status plm_bake_shard(plm_scene* scene, const plm_bake_settings* settings, u
     h.layout = job.layout;
     h.scene_path = scene_path ? scene_path : "";
     plm::write_part_file(part_path, h, job.segments);
+    if (fn) fn(1.0, "done");
   });
 }
 

@@ -179,6 +179,10 @@ File open_part(const std::string& path, unsigned char* header, uint64_t& payload
   if (std::fread(header, 1, kPartHeaderBytes, f.get()) != kPartHeaderBytes)
     fail(PLM_ERROR_INVALID_ARGUMENT, path, ": too short for a part file (truncated?)");
   out = decode_header(header, path, payload_bytes, payload_sum);
+  if (std::fseek(f.get(), 0, SEEK_END) != 0 || uint64_t(std::ftell(f.get())) != kPartHeaderBytes + payload_bytes)
+    fail(PLM_ERROR_INVALID_ARGUMENT, path, ": the part file holds ", std::ftell(f.get()), " bytes where its header gives ",
+         kPartHeaderBytes + payload_bytes, " (truncated or damaged)");
+  std::fseek(f.get(), long(kPartHeaderBytes), SEEK_SET);
   return f;
 }
 
@@ -241,10 +245,6 @@ PartHeader read_part_file(const std::string& path, std::vector<PhotonSegment>& s
   uint64_t bytes = 0, want_sum = 0;
   PartHeader h;
   File f = open_part(path, buf, bytes, want_sum, h);
-  if (std::fseek(f.get(), 0, SEEK_END) != 0 || uint64_t(std::ftell(f.get())) != kPartHeaderBytes + bytes)
-    fail(PLM_ERROR_INVALID_ARGUMENT, path, ": the part file holds ", std::ftell(f.get()), " bytes where its header gives ",
-         kPartHeaderBytes + bytes, " (truncated or damaged)");
-  std::fseek(f.get(), long(kPartHeaderBytes), SEEK_SET);
   const ShardLayout& L = h.layout;
   Reader r{f.get(), path};
   segments.clear();

@@ -45,7 +45,8 @@ struct PartHeader {
 // Writes the part atomically; throws PLM_ERROR_IO naming path.
 void write_part_file(const std::string& path, const PartHeader& header, const std::vector<PhotonSegment>& segments);
 
-// Reads and checks a part's header (the payload is not read); throws
+// Reads and checks a part's header and the file's length (the payload is
+// not read); throws
 // PLM_ERROR_INVALID_ARGUMENT or PLM_ERROR_IO naming path.
 PartHeader read_part_header(const std::string& path);
 

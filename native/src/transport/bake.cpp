@@ -176,6 +176,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
                   [&](double f) { report(kProgressSetup + (kProgressPhotons - kProgressSetup) * f, "tracing photons"); });
       out.stats.seconds_trace = seconds_since(t_trace);
       out.stats.seconds_total = seconds_since(t_start);
+      report(kProgressPhotons, "writing the part file");  // the caller writes it, then reports the end
       return out;
     }
     // The final gather (final_gather.h) looks up radiosity on meshes: not in
