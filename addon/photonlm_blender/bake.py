@@ -352,13 +352,9 @@ class BakeJob:
             triangles=int(self.export.triangles), **times,
             warning_lines="\n".join(shown_warnings))
         LAST.clear()
-        cpu_times = {"cpu_seconds_" + k: float(v) for k, v in self.times.cpu.items()}
-        cpu_times["cpu_seconds_export_other"] = max(0.0, self.cpu_seconds_export - sum(self.times.cpu.values()))
         LAST.update(stats=dict(stats, photons_per_second=photons_per_second, error_target=target,
-                               warning_count=warning_count,
-                               triangles=int(self.export.triangles), cpu_seconds_export=self.cpu_seconds_export,
-                               cpu_seconds_export_process=self.cpu_seconds_export_process,
-                               **times, **cpu_times),
+                               warning_count=warning_count, triangles=int(self.export.triangles),
+                               **times, **self.export_cpu_seconds()),
                     warnings=list(warnings), objects=per_object, output_dir=out_dir, ols=ol_info,
                     csg_objects=list(self.export.csg_objects),
                     lsystems=[name for name, _ in self.export.lsystems], noisiest=noisiest,
@@ -366,6 +362,14 @@ class BakeJob:
         uvmaps.commit(self.created_uvs)  # kept: they belong to the baked lightmaps now
         self.created_uvs = []
         return LAST
+
+    def export_cpu_seconds(self):
+        """CPU seconds of the export and its stages, for LAST (scripts and benchmarks)."""
+        out = {"cpu_seconds_" + k: float(v) for k, v in self.times.cpu.items()}
+        out["cpu_seconds_export_other"] = max(0.0, self.cpu_seconds_export - sum(self.times.cpu.values()))
+        out["cpu_seconds_export"] = self.cpu_seconds_export
+        out["cpu_seconds_export_process"] = self.cpu_seconds_export_process
+        return out
 
     def stage_seconds(self, stats, seconds_writeback):
         """Seconds per stage for the statistics: seconds_export and its parts seconds_export_<stage>
