@@ -22,13 +22,18 @@ a world colour and a cube traced as an exact CSG box (its lightmap lives on its 
    - the Last Bake statistics are the report's (photons, error, times) and the in-Blender bake's
      to within float noise; the per-object texel counts, measured from the UV layout, equal the
      engine's coverage counts of the in-Blender bake to within 2 %.
-4. An object with its own orientation lightmap (a plain `photonlm bake`: shards refuse OL groups):
-   the OL image is imported bit for bit.
+4. Orientation lightmaps (a plain `photonlm bake`: shards refuse OL groups): an object's own and a
+   collection's holding a geometry-only object. Both OL images are imported bit for bit, equal the
+   in-Blender bake's (same tolerance), list the bake's objects, and the node setups equal the
+   in-Blender bake's (the geometry-only object looks its light up in the collection's OL).
 5. Bad input, each refused by the operator with a message naming the fault, nothing changed, Blender
    alive: no such folder, a folder without report.json, a folder of shard parts (and a Slurm folder
    whose merge did not run), a report that is not JSON, a report of another scene (no object
    matches), a missing EXR, an unreadable EXR, an EXR of the wrong size. A report with one object
    the .blend lacks (renamed): a warning naming it, the rest imported.
+6. Layout Atlas: the imported lightmaps are packed into the same pages (bit for bit: R, G, B, error,
+   hits), blocks and node setups as an in-Blender atlas bake makes.
+7. In a saved .blend with the folder //lightmaps/, the images link their copies relative to it.
 """
 import filecmp
 import json
@@ -242,22 +247,57 @@ def main():
                  "with Pack the 8 images are packed into the .blend, still bit for bit (%d)" % len(packed))
     scene.photonlm.pack_lightmaps = False
 
-    # ---- 4. an orientation lightmap (plain photonlm bake) ------------------------------------------
+    # ---- 4. orientation lightmaps (a plain photonlm bake: shards refuse OL groups) --------------------
     objs["tall_box"].photonlm.mode = 'ORIENTATION'
     objs["tall_box"].photonlm.ol_resolution = 8
+    props = bpy.data.collections.new("props")
+    scene.collection.children.link(props)
+    props.photonlm.orientation_lightmap = True
+    props.photonlm.ol_resolution = 8
+    bpy.ops.mesh.primitive_cube_add(size=0.2, location=(-0.6, -0.4, 0.1))
+    pebble = bpy.context.active_object
+    pebble.name = "pebble"
+    pebble.data.materials.append(scenes.diffuse_material("mat_pebble", (0.6, 0.5, 0.4)))
+    pebble.photonlm.enabled = False  # geometry only: its light goes into the collection's OL
+    for c in list(pebble.users_collection):
+        c.objects.unlink(pebble)
+    props.objects.link(pebble)
     ol_json = os.path.join(out, "farm_ol", "scene.json")
     bpy.ops.photonlm.export_scene_file(filepath=ol_json)
     ol_out = os.path.join(out, "farm_ol", "out")
     r = run([cli, "bake", ol_json, "-o", ol_out, "--threads", "1"])
-    checks.check(r.returncode == 0, "photonlm bake of the scene with an OL: exit code %d" % r.returncode)
+    checks.check(r.returncode == 0, "photonlm bake of the scene with two OLs: exit code %d" % r.returncode)
+    scene.photonlm.output_dir = os.path.join(out, "lightmaps_blender_ol")
+    bpy.ops.photonlm.bake()
+    ref_ols = {g: (o["objects"], image_rgb(bpy.data.images[g + "_ol"])) for g, o in bake.LAST["ols"].items()}
+    ref_wiring = snapshot(baked_objs + [pebble])
+    bpy.ops.photonlm.remove_preview()
+    scene.photonlm.output_dir = os.path.join(out, "lightmaps_import_ol")
     res, msg = import_folder(ol_out)
-    ol_image = bpy.data.images.get("tall_box_ol")
     with open(os.path.join(ol_out, "report.json")) as f:
-        ol_file = os.path.join(ol_out, json.load(f)["ol_groups"][0]["file"])
-    checks.check(res == {'FINISHED'} and list(bake.LAST["ols"]) == ["tall_box"] and ol_image is not None
-                 and np.array_equal(image_rgb(ol_image), photonlm.read_lightmap_exr(ol_file).rgb),
-                 "the OL of 'tall_box' is imported bit for bit (%s %s)" % (res, msg))
+        ol_files = {g["name"]: os.path.join(ol_out, g["file"]) for g in json.load(f)["ol_groups"]}
+    got = bake.LAST.get("ols", {})
+    exact = [g for g, name in (("tall_box", "tall_box"), ("collection_props", "collection props"))
+             if g in got and name in ol_files
+             and np.array_equal(image_rgb(bpy.data.images[g + "_ol"]), photonlm.read_lightmap_exr(ol_files[name]).rgb)]
+    checks.check(res == {'FINISHED'} and sorted(got) == sorted(ref_ols) == ["collection_props", "tall_box"]
+                 and all(got[g]["objects"] == ref_ols[g][0] for g in got) and len(exact) == 2,
+                 "both OLs (an object's, a collection's) are imported bit for bit, with the bake's objects "
+                 "(%s; exact: %s; %s)" % ({g: o["objects"] for g, o in got.items()}, exact, msg))
+    worst = max(float(np.max(np.abs(image_rgb(bpy.data.images[g + "_ol"]) - ref_ols[g][1]))) for g in ref_ols)
+    scale = max(float(np.max(ref_ols[g][1])) for g in ref_ols)
+    checks.check(worst <= TOL * scale, "the imported OLs equal the in-Blender bake's: max |diff| %.3g <= %.0e x %.4g"
+                 % (worst, TOL, scale))
+    got_wiring = snapshot(baked_objs + [pebble])
+    diff = [m for m in ref_wiring if ref_wiring[m] != got_wiring.get(m)]
+    groups = [n.node_tree.name for n in pebble.active_material.node_tree.nodes
+              if n.bl_idname == 'ShaderNodeGroup' and n.node_tree is not None]
+    checks.check(not diff and "PhotonLM OL Lookup" in groups,
+                 "the node setups equal the in-Blender bake's, the pebble looks up the collection's OL (differing: %s)"
+                 % diff)
     objs["tall_box"].photonlm.mode = 'LIGHTMAP'
+    bpy.data.objects.remove(pebble)
+    scene.photonlm.output_dir = os.path.join(out, "lightmaps_import")
 
     # ---- 5. bad input ---------------------------------------------------------------------------------
     res, msg = import_folder(merged)  # the state every refusal must leave as it is
@@ -321,6 +361,41 @@ def main():
                  and warned and "not in this .blend" in warned[0],
                  "an object the .blend lacks: warned (%s), the other 7 imported" % (warned[:1],))
     objs["floor"].name = "floor"
+
+    # ---- 6. an atlas: the imported lightmaps go into pages as an in-Blender atlas bake puts them ------
+    from photonlm_blender import atlas
+    scene.photonlm.lightmap_layout = 'ATLAS'
+    scene.photonlm.output_dir = os.path.join(out, "atlas_blender")
+    bpy.ops.photonlm.bake()
+    ref_pages = {os.path.basename(o["path"]) for o in bake.LAST["objects"].values()}
+    ref_pages = {f: photonlm.read_lightmap_exr(os.path.join(out, "atlas_blender", f)) for f in ref_pages}
+    ref_wiring = snapshot(baked_objs)
+    ref_layout = scene[atlas.LAYOUT_KEY].to_dict()
+    bpy.ops.photonlm.remove_preview()
+    scene.photonlm.output_dir = os.path.join(out, "atlas_import")
+    res, msg = import_folder(merged)
+    same = [f for f, lm in ref_pages.items() if all(np.array_equal(a, b) for a, b in zip(
+        photonlm.read_lightmap_exr(os.path.join(out, "atlas_import", f))[:3], lm[:3]))]
+    ref_layout.pop("files")
+    got_layout = scene[atlas.LAYOUT_KEY].to_dict()
+    got_layout.pop("files")
+    checks.check(res == {'FINISHED'} and len(same) == len(ref_pages) >= 1 and got_layout == ref_layout
+                 and snapshot(baked_objs) == ref_wiring,
+                 "Layout Atlas: the import packs the same %d page(s) as an in-Blender atlas bake, bit for bit "
+                 "(R, G, B, error, hits), the same blocks and node setups (%s)" % (len(ref_pages), msg))
+    scene.photonlm.lightmap_layout = 'OBJECT'
+
+    # ---- 7. a saved .blend links the images relative to it --------------------------------------------
+    saved = os.path.join(out, "saved", "room.blend")
+    os.makedirs(os.path.dirname(saved))
+    bpy.ops.wm.save_as_mainfile(filepath=saved)
+    scene = bpy.context.scene
+    scene.photonlm.output_dir = "//lightmaps/"
+    res, msg = import_folder(merged)
+    paths = {bpy.data.images[n + "_lightmap"].filepath for n in ref_rgb}
+    checks.check(res == {'FINISHED'} and paths == {"//lightmaps/%s_lightmap.exr" % n for n in ref_rgb}
+                 and all(os.path.isfile(os.path.join(out, "saved", "lightmaps", n + "_lightmap.exr")) for n in ref_rgb),
+                 "in a saved .blend the images link their copies relative to it: %s" % sorted(paths)[:2])
     checks.finish()
 
 

@@ -222,7 +222,7 @@ class FolderJob(bake.BakeJob):
                                                          _coverage(obj, size[0], size[1], depsgraph)))
             self.export.baked.append(export.BakedObject(obj, i, size[0], size[1], _materials_of(obj)))
         for i, entry in enumerate(report.get("ol_groups", []) or []):
-            group = self._ol_group(i, entry, report_path)
+            group = self._ol_group(i, entry, report_path, context.view_layer)
             if group is None:
                 continue
             path = os.path.join(self.folder, entry["file"])
@@ -259,7 +259,7 @@ class FolderJob(bake.BakeJob):
                               % (what, path, lm.rgb.shape[1], lm.rgb.shape[0], size[0], size[1]))
         return lm
 
-    def _ol_group(self, i, entry, report_path):
+    def _ol_group(self, i, entry, report_path, view_layer):
         """The export.OlGroup of report entry ol_groups[i] (its collection's or its object's), or None
         with a warning when the .blend has neither."""
         name = _string(entry.get("name")) if isinstance(entry, dict) else None
@@ -270,7 +270,8 @@ class FolderJob(bake.BakeJob):
         coll = bpy.data.collections.get(name[len(COLLECTION_PREFIX):]) if name.startswith(COLLECTION_PREFIX) else None
         if coll is not None:
             group = export.OlGroup(i, "collection_" + coll.name, "collection '%s' (from the bake folder)" % coll.name)
-            group.objects = [o.name for o in coll.objects if o.type in export.GEOMETRY_TYPES]
+            group.objects = sorted(o.name for o in coll.objects
+                                   if o.type in export.GEOMETRY_TYPES and export.is_renderable(o, view_layer))
         elif bpy.data.objects.get(name) is not None:
             group = export.OlGroup(i, name, "object '%s' (from the bake folder)" % name)
             group.objects = [name]
