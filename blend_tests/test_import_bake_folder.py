@@ -187,7 +187,7 @@ def main():
     last = bake.LAST
     checks.check(res == {'FINISHED'} and sorted(last.get("objects", {})) == sorted(ref_rgb),
                  "the import operator brought in the 8 lightmaps (%s %s)" % (res, msg))
-    worst_bits, not_equal, unlinked = 0, [], []
+    not_equal, unlinked = [], []
     for name, path in farm_files.items():
         image = bpy.data.images.get(name + "_lightmap")
         exr = photonlm.read_lightmap_exr(path).rgb

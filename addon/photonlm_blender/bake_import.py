@@ -194,7 +194,8 @@ class FolderJob(bake.BakeJob):
         self.report = report
         self.export = FolderExport()
         stats = result_stats(report, report_path)
-        warnings = [w for w in report.get("warnings", []) if isinstance(w, str)]
+        warnings = report.get("warnings") if isinstance(report.get("warnings"), list) else []
+        warnings = [w for w in warnings if isinstance(w, str)]
         depsgraph = context.evaluated_depsgraph_get()
         lightmaps, ols, missing = {}, {}, []
         for i, entry in enumerate(report["meshes"]):
@@ -216,6 +217,10 @@ class FolderJob(bake.BakeJob):
                                      "(save the .blend after exporting the scene file: the export makes the map)"
                                      % (name, uvmaps.LIGHTMAP_UV))
                 continue
+            res = int(obj.photonlm.resolution)
+            if res > 0 and tuple(size) != (res, res):
+                self.reports.warning("object '%s' has a Resolution of %d, its lightmap in the bake is %d x %d: "
+                                     "changed since the export?" % (name, res, size[0], size[1]))
             path = os.path.join(self.folder, file)
             lm = self._read_exr(name, path, tuple(size))
             lightmaps[i] = (path, self.photonlm.Lightmap(lm.rgb, lm.error, lm.hits,
