@@ -121,6 +121,39 @@ def snapshot(objs):
     return {o.active_material.name: wiring(o.active_material) for o in objs}
 
 
+class Layout:
+    """Stands in for bpy.types.UILayout: records the labels and operators a panel draws."""
+
+    def __init__(self, lines):
+        object.__setattr__(self, "lines", lines)
+
+    def __setattr__(self, name, value):  # use_property_split, scale_y, enabled...: ignored
+        pass
+
+    def _child(self, *args, **kwargs):
+        return Layout(self.lines)
+
+    column = row = box = split = _child
+
+    def label(self, text="", icon='NONE', **kwargs):
+        self.lines.append(("label", text))
+
+    def prop(self, data, name, text=None, **kwargs):
+        self.lines.append(("prop", name))
+
+    def operator(self, idname, text=None, **kwargs):
+        self.lines.append(("operator", idname))
+
+
+def drawn(panel_class):
+    lines = []
+
+    class Panel:
+        layout = Layout(lines)
+    panel_class.draw(Panel, bpy.context)
+    return lines
+
+
 def import_folder(folder):
     """The operator's result and its error message ('' when none)."""
     try:
@@ -233,6 +266,15 @@ def main():
                  and "seconds_import" in st,
                  "the Last Bake panel shows photons %s, error %s, time %s, objects %s, imported from %s"
                  % (p.last_photons, p.last_error, p.last_time, p.last_objects, st.get("imported_from")))
+    from photonlm_blender import bake_import, panel
+    labels = [t for kind, t in drawn(panel.PHOTONLM_PT_last_bake) if kind == "label"]
+    times = [t for kind, t in drawn(panel.PHOTONLM_PT_last_times) if kind == "label"]
+    checks.check(("operator", "photonlm.import_bake_folder") in drawn(panel.PHOTONLM_PT_output)
+                 and bake_import.menu_import in bpy.types.TOPBAR_MT_file_import._dyn_ui_initialize()
+                 and any(t.startswith("Imported from") for t in labels) and "Reading Folder" in times
+                 and "Write-back" in times,
+                 "the Lightmaps sub-panel has the import button, File > Import the entry; Last Bake says where the "
+                 "figures came from, Times shows reading the folder (%s)" % [t for t in labels if "Imported" in t])
     texel_diff = {n: (last["objects"][n]["texels"], ref_texels[n]) for n in ref_texels
                   if abs(last["objects"][n]["texels"] - ref_texels[n]) > 0.02 * ref_texels[n]}
     checks.check(not texel_diff, "per-object texel counts from the UV layout match the engine's coverage "
