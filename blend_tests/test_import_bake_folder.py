@@ -20,8 +20,9 @@ a world colour and a cube traced as an exact CSG box (its lightmap lives on its 
      only float summation order can differ; a mapping error (the wrong object's EXR, a flipped or
      shifted image) moves texels by far more;
    - the Last Bake statistics are the report's (photons, error, times) and the in-Blender bake's
-     to within float noise; the per-object texel counts, measured from the UV layout, equal the
-     engine's coverage counts of the in-Blender bake to within 2 %.
+     to within float noise; per object, the covered texels and those above twice the error (the
+     report's counts) and the Noisiest hint equal the in-Blender bake's; from a report without the
+     counts, the texels with photon hits are counted.
 4. Orientation lightmaps (a plain `photonlm bake`: shards refuse OL groups): an object's own and a
    collection's holding a geometry-only object. Both OL images are imported bit for bit, equal the
    in-Blender bake's (same tolerance), list the bake's objects, and the node setups equal the
@@ -197,7 +198,7 @@ def main():
     # ---- 2. the in-Blender bake: the truth for wiring and statistics ---------------------------------
     scene.photonlm.output_dir = os.path.join(out, "lightmaps_blender")
     res = bpy.ops.photonlm.bake()
-    ref = bake.LAST
+    ref = dict(bake.LAST)  # LAST is cleared by the next bake or import
     ref_rgb = {n: np.array(o["rgb"], np.float32) for n, o in ref["objects"].items()}
     ref_texels = {n: o["texels"] for n, o in ref["objects"].items()}
     ref_stats = dict(ref["stats"])
@@ -275,10 +276,28 @@ def main():
                  and "Write-back" in times,
                  "the Lightmaps sub-panel has the import button, File > Import the entry; Last Bake says where the "
                  "figures came from, Times shows reading the folder (%s)" % [t for t in labels if "Imported" in t])
-    texel_diff = {n: (last["objects"][n]["texels"], ref_texels[n]) for n in ref_texels
-                  if abs(last["objects"][n]["texels"] - ref_texels[n]) > 0.02 * ref_texels[n]}
-    checks.check(not texel_diff, "per-object texel counts from the UV layout match the engine's coverage "
-                 "(differing: %s)" % texel_diff)
+    counts = {n: (last["objects"][n]["texels"], last["objects"][n]["texels_above"]) for n in ref_texels}
+    ref_counts = {n: (ref_texels[n], ref["objects"][n]["texels_above"]) for n in ref_texels}
+    checks.check(counts == ref_counts and last["noisiest"] == ref["noisiest"],
+                 "per object the covered texels and those above twice the error (the report's) equal the in-Blender "
+                 "bake's, and so does the Noisiest hint: %s" % counts)
+    # A report without the counts: the texels with photon hits count as covered (hits are recorded only there).
+    plain = os.path.join(out, "no_counts")
+    shutil.copytree(merged, plain)
+    with open(os.path.join(plain, "report.json")) as f:
+        doc = json.load(f)
+    for m in doc["meshes"]:
+        del m["texels"], m["texels_above_twice_target"]
+    with open(os.path.join(plain, "report.json"), "w") as f:
+        json.dump(doc, f)
+    res, msg = import_folder(plain)
+    last = bake.LAST
+    wrong = [n for n in ref_texels if last["objects"][n]["texels"] != int(np.count_nonzero(
+        (np.asarray(ref["objects"][n]["coverage"]) > 0) & (photonlm.read_lightmap_exr(farm_files[n]).hits > 0)))]
+    checks.check(res == {'FINISHED'} and not wrong,
+                 "a report without per-mesh counts: the covered texels with photon hits are counted (%s; wrong: %s)"
+                 % ({n: (last["objects"][n]["texels"], ref_texels[n]) for n in ref_texels}, wrong))
+    import_folder(merged)
 
     scene.photonlm.pack_lightmaps = True
     res, msg = import_folder(merged)

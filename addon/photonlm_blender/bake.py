@@ -282,9 +282,7 @@ class BakeJob:
                     error_image = load_image(b.object_name + "_error", error_path, pack)
                     error_image[materials.TAG] = materials.ERROR_IMAGE_TAG
                     error_images[b.object_name] = error_image
-                covered = lm.coverage > 0.0
-                texels = int(np.count_nonzero(covered))
-                above = int(np.count_nonzero(relative[covered] > 2.0 * target))
+                texels, above = self.texel_counts(b, lm, relative, target)
                 small = b.width * b.height <= 1024 * 1024
                 per_object[b.object_name] = dict(mesh_id=b.mesh_id,
                                                  image=None if atlas_mode else images[b.object_name].name,
@@ -362,6 +360,11 @@ class BakeJob:
         uvmaps.commit(self.created_uvs)  # kept: they belong to the baked lightmaps now
         self.created_uvs = []
         return LAST
+
+    def texel_counts(self, baked, lm, relative, target):
+        """An object's covered texels and those of them above twice the target error."""
+        covered = lm.coverage > 0.0
+        return int(np.count_nonzero(covered)), int(np.count_nonzero(relative[covered] > 2.0 * target))
 
     def export_cpu_seconds(self):
         """CPU seconds of the export and its stages, for LAST (scripts and benchmarks)."""

@@ -26,7 +26,7 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, StringProperty
 
-from . import atlas, bake, bridge, export, properties, uvcheck, uvmaps
+from . import atlas, bake, bridge, export, properties, uvmaps
 
 REPORT = "report.json"
 PART_PATTERN = "part-*-of-*.plmpart"
@@ -94,19 +94,10 @@ def result_stats(report, path):
                 memory_estimate=float(n("stats", "memory_estimate")))
 
 
-def _coverage(obj, width, height, depsgraph):
-    """The share of each texel inside the object's lightmap UV islands (rows bottom first), measured
-    on its evaluated mesh (the report does not hold the engine's coverage): the texel counts of the
-    statistics. All ones where it cannot be measured (a map that is not square)."""
-    if width != height:
-        return np.ones((height, width), np.float32)
-    with export.evaluated_mesh(obj, depsgraph) as (_, mesh):
-        if mesh is None or len(mesh.loop_triangles) == 0:
-            return np.ones((height, width), np.float32)
-        uv = export.mesh_arrays(mesh, obj.matrix_world, True)[3]
-    if uv is None:
-        return np.ones((height, width), np.float32)
-    return np.minimum(uvcheck.texel_coverage(uv, width)[0], 1.0).astype(np.float32)
+def coverage_mask(hits):
+    """Which texels lie inside the UV islands as far as the EXR tells: those with photon hits (the
+    engine records hits only there; dilated texels hold none)."""
+    return (hits > 0.0).astype(np.float32)
 
 
 class FolderResult:
@@ -196,8 +187,8 @@ class FolderJob(bake.BakeJob):
         stats = result_stats(report, report_path)
         warnings = report.get("warnings") if isinstance(report.get("warnings"), list) else []
         warnings = [w for w in warnings if isinstance(w, str)]
-        depsgraph = context.evaluated_depsgraph_get()
         lightmaps, ols, missing = {}, {}, []
+        self.counts = {}  # mesh id -> (texels, texels above twice the target) from the report
         for i, entry in enumerate(report["meshes"]):
             name = _string(entry.get("name")) if isinstance(entry, dict) else None
             file = _string(entry.get("file")) if isinstance(entry, dict) else None
@@ -223,8 +214,10 @@ class FolderJob(bake.BakeJob):
                                      "changed since the export?" % (name, res, size[0], size[1]))
             path = os.path.join(self.folder, file)
             lm = self._read_exr(name, path, tuple(size))
-            lightmaps[i] = (path, self.photonlm.Lightmap(lm.rgb, lm.error, lm.hits,
-                                                         _coverage(obj, size[0], size[1], depsgraph)))
+            lightmaps[i] = (path, self.photonlm.Lightmap(lm.rgb, lm.error, lm.hits, coverage_mask(lm.hits)))
+            counts = (entry.get("texels"), entry.get("texels_above_twice_target"))
+            if all(isinstance(c, int) and not isinstance(c, bool) for c in counts):
+                self.counts[i] = counts
             self.export.baked.append(export.BakedObject(obj, i, size[0], size[1], _materials_of(obj)))
         for i, entry in enumerate(report.get("ol_groups", []) or []):
             group = self._ol_group(i, entry, report_path, context.view_layer)
@@ -286,6 +279,14 @@ class FolderJob(bake.BakeJob):
             return None
         self.export.ol_groups[("report", i)] = group
         return group
+
+    def texel_counts(self, baked, lm, relative, target):
+        """The engine's counts from the report (its meshes' `texels`, `texels_above_twice_target`);
+        for a report without them, counted over the texels with photon hits (a covered texel no
+        photon reached then counts as outside)."""
+        if baked.mesh_id in self.counts:
+            return self.counts[baked.mesh_id]
+        return super().texel_counts(baked, lm, relative, target)
 
     def stage_seconds(self, stats, seconds_writeback):
         """The engine's stages from the report, reading the folder, and the write-back."""
