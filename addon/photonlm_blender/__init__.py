@@ -18,6 +18,7 @@ Modules
     bake        one bake job: prepare (main thread) / run (any thread) / finish (main thread)
     operators   bpy.ops.photonlm.bake (modal with progress bar, or synchronous)
     scene_file_export  File > Export > PhotonLM scene (.json) for `photonlm bake` on batch machines
+    bake_import  File > Import > PhotonLM bake folder: lightmaps baked from a scene file, brought back
     panel       Render Properties > PhotonLM Lightmaps
 """
 
@@ -34,16 +35,16 @@ bl_info = {
 if "bpy" in locals():  # re-running register() after a reload in the same session
     import importlib
     for _name in ("bridge", "properties", "uvcheck", "uvmaps", "csg_export", "lsystem", "export", "materials", "bake",
-                  "operators", "scene_file_export", "panel"):
+                  "operators", "scene_file_export", "bake_import", "panel"):
         if _name in locals():
             importlib.reload(locals()[_name])
 
 import bpy  # noqa: E402  (after the reload block)
 
 from . import bridge, properties, uvmaps, csg_export, lsystem, export, materials, bake, operators, panel  # noqa: E402,F401
-from . import scene_file_export  # noqa: E402
+from . import scene_file_export, bake_import  # noqa: E402
 
-_MODULES = (properties, lsystem, operators, scene_file_export, panel)
+_MODULES = (properties, lsystem, operators, scene_file_export, bake_import, panel)
 
 
 def register():

@@ -282,9 +282,7 @@ class BakeJob:
                     error_image = load_image(b.object_name + "_error", error_path, pack)
                     error_image[materials.TAG] = materials.ERROR_IMAGE_TAG
                     error_images[b.object_name] = error_image
-                covered = lm.coverage > 0.0
-                texels = int(np.count_nonzero(covered))
-                above = int(np.count_nonzero(relative[covered] > 2.0 * target))
+                texels, above = self.texel_counts(b, lm, relative, target)
                 small = b.width * b.height <= 1024 * 1024
                 per_object[b.object_name] = dict(mesh_id=b.mesh_id,
                                                  image=None if atlas_mode else images[b.object_name].name,
@@ -352,13 +350,9 @@ class BakeJob:
             triangles=int(self.export.triangles), **times,
             warning_lines="\n".join(shown_warnings))
         LAST.clear()
-        cpu_times = {"cpu_seconds_" + k: float(v) for k, v in self.times.cpu.items()}
-        cpu_times["cpu_seconds_export_other"] = max(0.0, self.cpu_seconds_export - sum(self.times.cpu.values()))
         LAST.update(stats=dict(stats, photons_per_second=photons_per_second, error_target=target,
-                               warning_count=warning_count,
-                               triangles=int(self.export.triangles), cpu_seconds_export=self.cpu_seconds_export,
-                               cpu_seconds_export_process=self.cpu_seconds_export_process,
-                               **times, **cpu_times),
+                               warning_count=warning_count, triangles=int(self.export.triangles),
+                               **times, **self.export_cpu_seconds()),
                     warnings=list(warnings), objects=per_object, output_dir=out_dir, ols=ol_info,
                     csg_objects=list(self.export.csg_objects),
                     lsystems=[name for name, _ in self.export.lsystems], noisiest=noisiest,
@@ -366,6 +360,19 @@ class BakeJob:
         uvmaps.commit(self.created_uvs)  # kept: they belong to the baked lightmaps now
         self.created_uvs = []
         return LAST
+
+    def texel_counts(self, baked, lm, relative, target):
+        """An object's covered texels and those of them above twice the target error."""
+        covered = lm.coverage > 0.0
+        return int(np.count_nonzero(covered)), int(np.count_nonzero(relative[covered] > 2.0 * target))
+
+    def export_cpu_seconds(self):
+        """CPU seconds of the export and its stages, for LAST (scripts and benchmarks)."""
+        out = {"cpu_seconds_" + k: float(v) for k, v in self.times.cpu.items()}
+        out["cpu_seconds_export_other"] = max(0.0, self.cpu_seconds_export - sum(self.times.cpu.values()))
+        out["cpu_seconds_export"] = self.cpu_seconds_export
+        out["cpu_seconds_export_process"] = self.cpu_seconds_export_process
+        return out
 
     def stage_seconds(self, stats, seconds_writeback):
         """Seconds per stage for the statistics: seconds_export and its parts seconds_export_<stage>

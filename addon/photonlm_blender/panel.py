@@ -92,6 +92,9 @@ class PHOTONLM_PT_last_bake(_Sub, bpy.types.Panel):
             split.label(text=value + _suffix(stats, prop))
         if settings.last_hint:
             layout.label(text=settings.last_hint, icon='ERROR')
+        if stats.get("imported_from"):
+            for i, line in enumerate(wrap("Imported from %s" % stats["imported_from"], context, indent=2)):
+                layout.label(text=line, icon='IMPORT' if i == 0 else 'BLANK1')
 
 
 class PHOTONLM_PT_warnings(_Sub, bpy.types.Panel):
@@ -117,7 +120,7 @@ TIME_ROWS = (("Export", "seconds_export", False), ("Checks", "seconds_export_che
              ("Materials", "seconds_export_materials", True), ("World", "seconds_export_world", True),
              ("Engine", "seconds_total", False), ("Set-up", "seconds_setup", True),
              ("Photons", "seconds_trace", True), ("Direct", "seconds_direct", True),
-             ("Write-back", "seconds_writeback", False))
+             ("Reading Folder", "seconds_import", False), ("Write-back", "seconds_writeback", False))
 
 
 class PHOTONLM_PT_last_times(_Sub, bpy.types.Panel):
@@ -183,7 +186,9 @@ class PHOTONLM_PT_output(_Sub, bpy.types.Panel):
         col.prop(settings, "native_subdivision", text="Engine Subdivision")
         col.prop(settings, "output_dir", text="Folder")
         col.prop(settings, "pack_lightmaps", text="Pack")
-        layout.operator("photonlm.export_scene_file", text="Export Scene File...", icon='EXPORT')
+        row = layout.row(align=True)
+        row.operator("photonlm.export_scene_file", text="Export Scene File...", icon='EXPORT')
+        row.operator("photonlm.import_bake_folder", text="Import Bake Folder...", icon='IMPORT')
 
 
 def short_count(n):

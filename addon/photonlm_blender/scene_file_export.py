@@ -10,8 +10,9 @@ are kept: the lightmaps baked from the file belong to them).
 
 Where the lightmaps go: each object with a lightmap is a mesh named after the object, and
 `photonlm bake` writes it to <object name>_lightmap.exr (unsafe characters as '_'). The file's
-"metadata" lists, per object, the mesh index and that file name (and the OL groups'), so a
-script can load them back (scripts/bake_blend.py does it for the add-on's own bakes).
+"metadata" lists, per object, the mesh index and that file name (and the OL groups'), for
+scripts; File > Import > PhotonLM bake folder (bake_import.py) brings the baked folder back by
+the mesh names report.json lists.
 """
 import os
 import types

@@ -346,6 +346,8 @@ int write_bake_outputs(plm_result* r, const plm::SceneFile& scene, const plm_bak
   };
   std::set<std::string> used;
   const std::string dir = out_dir + "/";
+  // Twice the target error, or twice the RMS error estimate without a target (the heat map's scale).
+  const float above_limit = float(2.0 * (s.target_error > 0.0 ? double(s.target_error) : stats.error_estimate));
   ordered_json meshes = ordered_json::array();
   for (const plm::SceneFileMesh& m : scene.meshes) {
     if (m.width == 0) continue;
@@ -357,13 +359,18 @@ int write_bake_outputs(plm_result* r, const plm::SceneFile& scene, const plm_bak
     }
     written.push_back(dir + name);
     const size_t n = size_t(m.width) * m.height;
-    std::vector<float> rgb(3 * n), coverage(n);
+    std::vector<float> rgb(3 * n), error(n), coverage(n);
     double sum[3] = {0, 0, 0}, area = 0;
-    if (plm_result_copy_lightmap(r, m.id, rgb.data(), nullptr, nullptr, coverage.data()) == PLM_OK) {
+    uint64_t texels = 0, above = 0;
+    if (plm_result_copy_lightmap(r, m.id, rgb.data(), error.data(), nullptr, coverage.data()) == PLM_OK) {
       for (size_t t = 0; t < n; ++t) {
         if (coverage[t] <= 0) continue;
         for (int c = 0; c < 3; ++c) sum[c] += double(rgb[3 * t + c]) * coverage[t];
         area += coverage[t];
+        // The add-on's per-object count (bake.py): relative error = error / mean RGB, in float.
+        const float value = (rgb[3 * t] + rgb[3 * t + 1] + rgb[3 * t + 2]) / 3.0f;
+        ++texels;
+        if (value > 0.0f && error[t] / value > above_limit) ++above;
       }
     }
     const double k = area > 0 ? 1.0 / area : 0.0;
@@ -373,6 +380,8 @@ int write_bake_outputs(plm_result* r, const plm::SceneFile& scene, const plm_bak
     jm["size"] = {m.width, m.height};
     jm["mean"] = {sum[0] * k, sum[1] * k, sum[2] * k};
     jm["mean_value"] = (sum[0] + sum[1] + sum[2]) * k / 3.0;
+    jm["texels"] = texels;
+    jm["texels_above_twice_target"] = above;
     jm["ol_group"] = m.ol_group >= 0 ? ordered_json(scene.ol_groups[size_t(m.ol_group)].name) : ordered_json();
     meshes.push_back(jm);
     std::printf("%-24s %5ux%-5u mean %.6g -> %s\n", m.name.c_str(), m.width, m.height, (sum[0] + sum[1] + sum[2]) * k / 3.0,

@@ -5,7 +5,10 @@ import re
 import shutil
 import subprocess
 
+import numpy as np
 import pytest
+
+import photonlm
 
 
 def cli_path():
@@ -80,6 +83,17 @@ def test_bake_writes_exrs_and_report(tmp_path):
     assert 0.3 < meshes["floor"]["mean_value"] < 3.0
     assert report["ol_groups"][0]["file"] == "my_props_ol.exr"
     assert report["ol_groups"][0]["resolution"] == 4
+    # The quads cover their whole maps; texels above twice the RMS error estimate (no target), counted
+    # as the add-on counts them (relative error = error / mean RGB), from the EXR.
+    assert meshes["floor"]["texels"] == 64 and meshes["Floor"]["texels"] == 8
+    for m in meshes.values():
+        lm = photonlm.read_lightmap_exr(out / m["file"])
+        value = lm.rgb.sum(axis=2, dtype=np.float32) / np.float32(3.0)
+        relative = np.zeros_like(value)
+        np.divide(lm.error, value, out=relative, where=value > 0)
+        limit = np.float32(2.0 * report["stats"]["error_estimate"])
+        assert m["texels_above_twice_target"] == int(np.count_nonzero(relative > limit)), m
+    assert 0 < meshes["floor"]["texels_above_twice_target"] < 64  # 20,000 photons: some noisy texels, not all
     # Plain progress lines when stdout is not a terminal.
     assert "%" in r.stdout and "\r" not in r.stdout
 
