@@ -19,6 +19,8 @@
 #include "transport/film.h"
 #include "transport/photon_tracer.h"
 #include "transport/shard.h"
+#include "transport/texel_ranges.h"
+#include "io/partial_file.h"
 
 namespace {
 
@@ -335,4 +337,194 @@ TEST(Shard, SumsPastTheExactRangeAreReported) {
   acc.sum_sq[2] = std::ldexp(1.0, 54) * q.q2;
   EXPECT_NE(plm::inexact_sums(acc).find("2 photon sums passed 2^53 flux quanta"), std::string::npos)
       << plm::inexact_sums(acc);
+}
+
+// ---- Texel ranges (transport/texel_ranges.h): the direct pass and the final
+// gather split by ranges of covered texels.
+namespace {
+
+std::vector<std::string> bake_ranges(plm_scene* scene, const plm_bake_settings& s, uint32_t stage, uint32_t n,
+                                     const std::vector<std::string>& inputs, const std::string& dir) {
+  std::vector<const char*> in;
+  for (const std::string& p : inputs) in.push_back(p.c_str());
+  std::vector<std::string> parts;
+  for (uint32_t k = 0; k < n; ++k) {
+    parts.push_back(dir + (stage == PLM_TEXELS_DIRECT ? "/direct-" : "/gather-") + std::to_string(k) + "-of-" +
+                    std::to_string(n) + ".plmpart");
+    EXPECT_EQ(plm_bake_texels(scene, &s, stage, k, n, in.data(), uint32_t(in.size()), "cornell", parts.back().c_str(),
+                              nullptr, nullptr),
+              PLM_OK)
+        << plm_last_error();
+  }
+  return parts;
+}
+
+std::vector<std::string> joined(std::initializer_list<std::vector<std::string>> lists) {
+  std::vector<std::string> out;
+  for (const auto& l : lists) out.insert(out.end(), l.begin(), l.end());
+  return out;
+}
+
+}  // namespace
+
+TEST(TexelRanges, RangesTileTheCoveredTexels) {
+  for (size_t covered : {0u, 1u, 5u, 1000u, 1001u})
+    for (uint32_t n : {1u, 2u, 3u, 7u}) {
+      size_t next = 0;
+      for (uint32_t k = 0; k < n; ++k) {
+        const plm::CoveredSlice r = plm::texel_range(covered, k, n);
+        EXPECT_EQ(r.begin, next);
+        EXPECT_LE(r.size(), covered / n + 1);
+        EXPECT_GE(r.size(), covered / n);
+        next = r.end;
+      }
+      EXPECT_EQ(next, covered);
+    }
+}
+
+// A Cornell box with the final gather: 1, 2 and 3 texel ranges (direct pass
+// and gather), over 2 or 3 photon shards, merge to the single-machine bake
+// bit for bit; so do direct parts alone (the merge gathers) and gather parts
+// alone (the merge runs the direct pass). direct_samples 4: one round (the
+// phantom sample comes before the calibration's extra samples); 1: a second
+// round for every texel.
+TEST(TexelRanges, MergeEqualsSingleBakeForAnyRangeCount) {
+  plm_demo::SceneBuilder b;
+  plm_demo::build_cornell(b, 12);
+  ASSERT_TRUE(b.ok()) << b.error;
+  for (uint32_t direct_samples : {4u, 1u}) {
+    plm_bake_settings s = small_settings(150000);
+    s.direct_samples = direct_samples;
+    BakeResult one;
+    ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &one.r), PLM_OK) << plm_last_error();
+    for (uint32_t n = 1; n <= 3; ++n) {
+      SCOPED_TRACE("direct samples " + std::to_string(direct_samples) + ", ranges " + std::to_string(n));
+      TempDir dir;
+      plm_bake_settings machine = s;
+      machine.thread_count = n;  // threads differ between machines too
+      const auto photons = bake_shards(b.scene, machine, n == 3 ? 3 : 2, dir.path);
+      const auto direct = bake_ranges(b.scene, machine, PLM_TEXELS_DIRECT, n, {}, dir.path);
+      const plm::PartHeader h = plm::read_part_header(direct[0]);
+      EXPECT_EQ(h.direct_rounds, direct_samples == 1 ? 2u : 1u);
+      EXPECT_GT(h.calibration_count, 0u);
+      const auto gather = bake_ranges(b.scene, machine, PLM_TEXELS_GATHER, n, joined({photons, direct}), dir.path);
+      EXPECT_TRUE(plm::read_part_header(gather[0]).gathered);
+      BakeResult merged;
+      std::string error;
+      ASSERT_EQ(merge(b.scene, joined({gather, direct, photons}), merged, error), PLM_OK) << error;
+      expect_identical(one, merged, mesh_count(b));
+      if (n != 2) continue;
+      BakeResult direct_only, gather_only;
+      ASSERT_EQ(merge(b.scene, joined({photons, direct}), direct_only, error), PLM_OK) << error;
+      expect_identical(one, direct_only, mesh_count(b));
+      ASSERT_EQ(merge(b.scene, joined({photons, gather}), gather_only, error), PLM_OK) << error;
+      expect_identical(one, gather_only, mesh_count(b));
+    }
+  }
+}
+
+// Without a final gather (max_bounces below the gather's 64): gather parts
+// hold no texels, and the merge is still the single bake.
+TEST(TexelRanges, BakeWithoutGather) {
+  plm_demo::SceneBuilder b;
+  plm_demo::build_cornell(b, 8);
+  ASSERT_TRUE(b.ok()) << b.error;
+  plm_bake_settings s = small_settings(60000);
+  s.max_bounces = 8;
+  BakeResult one;
+  ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &one.r), PLM_OK) << plm_last_error();
+  TempDir dir;
+  const auto photons = bake_shards(b.scene, s, 2, dir.path);
+  const auto direct = bake_ranges(b.scene, s, PLM_TEXELS_DIRECT, 3, {}, dir.path);
+  const auto gather = bake_ranges(b.scene, s, PLM_TEXELS_GATHER, 2, joined({photons, direct}), dir.path);
+  EXPECT_FALSE(plm::read_part_header(gather[1]).gathered);
+  EXPECT_EQ(std::filesystem::file_size(gather[1]), plm::kPartHeaderBytes);
+  BakeResult merged;
+  std::string error;
+  ASSERT_EQ(merge(b.scene, joined({photons, direct, gather}), merged, error), PLM_OK) << error;
+  expect_identical(one, merged, mesh_count(b));
+}
+
+// Texel parts that do not belong are refused, naming the part or the range.
+TEST(TexelRanges, MergeRefusesRangesThatDoNotBelong) {
+  plm_demo::SceneBuilder b;
+  plm_demo::build_cornell(b, 6);
+  ASSERT_TRUE(b.ok()) << b.error;
+  const plm_bake_settings s = small_settings(40000);
+  TempDir dir;
+  const auto photons = bake_shards(b.scene, s, 2, dir.path);
+  const auto direct = bake_ranges(b.scene, s, PLM_TEXELS_DIRECT, 3, {}, dir.path);
+  const auto gather = bake_ranges(b.scene, s, PLM_TEXELS_GATHER, 3, joined({photons, direct}), dir.path);
+  std::string error;
+  {  // a direct range missing
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, joined({photons, {direct[0], direct[2]}, gather}), r, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find("direct range(s) 2 of 3 missing"), std::string::npos) << error;
+  }
+  {  // a gather range twice
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, joined({photons, direct, gather, {gather[1]}}), r, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find(gather[1] + ": gather range 2 of 3 is also " + gather[1]), std::string::npos) << error;
+  }
+  {  // direct parts of two range counts
+    TempDir other;
+    const auto halves = bake_ranges(b.scene, s, PLM_TEXELS_DIRECT, 2, {}, other.path);
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, joined({photons, {direct[0], halves[1], direct[2]}, gather}), r, error),
+              PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find(halves[1] + ": does not belong with " + direct[0] + ": its range count 2 against 3"),
+              std::string::npos)
+        << error;
+  }
+  {  // a direct range of another seed
+    TempDir other;
+    plm_bake_settings t = s;
+    t.seed = 8;
+    const auto odd = bake_ranges(b.scene, t, PLM_TEXELS_DIRECT, 3, {}, other.path);
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, joined({photons, {direct[0], odd[1], direct[2]}}), r, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find(odd[1] + ": does not belong with " + photons[0] + ": its seed 8 against 7"),
+              std::string::npos)
+        << error;
+  }
+  {  // gathers made over direct light of another target
+    TempDir other;
+    plm_bake_settings t = s;
+    t.target_error = 0.05;
+    const auto targeted = bake_ranges(b.scene, t, PLM_TEXELS_DIRECT, 3, {}, other.path);
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, joined({photons, targeted, gather}), r, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find(gather[0] + ": its gather looked up direct light baked to the target error 0"),
+              std::string::npos)
+        << error;
+  }
+  {  // a damaged direct part
+    const std::string bad = dir.path + "/bad.plmpart";
+    std::filesystem::copy_file(direct[1], bad);
+    {
+      std::fstream f(bad, std::ios::in | std::ios::out | std::ios::binary);
+      f.seekp(600);
+      char c = 0;
+      f.read(&c, 1);
+      c ^= 0x10;
+      f.seekp(600);
+      f.write(&c, 1);
+    }
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, joined({photons, {direct[0], bad, direct[2]}}), r, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find(bad + ": the part file's sums are damaged (checksum)"), std::string::npos) << error;
+  }
+  {  // texel parts without photon parts; a direct range given parts
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, joined({direct, gather}), r, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find("no photon parts"), std::string::npos) << error;
+    const char* in[] = {photons[0].c_str()};
+    EXPECT_EQ(plm_bake_texels(b.scene, &s, PLM_TEXELS_DIRECT, 0, 2, in, 1, nullptr,
+                              (dir.path + "/d.plmpart").c_str(), nullptr, nullptr),
+              PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(std::string(plm_last_error()).find("reads no parts"), std::string::npos) << plm_last_error();
+    EXPECT_EQ(plm_bake_texels(b.scene, &s, PLM_TEXELS_GATHER, 3, 3, nullptr, 0, nullptr,
+                              (dir.path + "/g.plmpart").c_str(), nullptr, nullptr),
+              PLM_ERROR_INVALID_ARGUMENT);
+  }
 }
