@@ -19,6 +19,7 @@
 #include "transport/film.h"
 #include "transport/photon_tracer.h"
 #include "transport/shard.h"
+#include "transport/scheduler.h"
 #include "transport/texel_ranges.h"
 #include "io/partial_file.h"
 
@@ -527,4 +528,83 @@ TEST(TexelRanges, MergeRefusesRangesThatDoNotBelong) {
                               (dir.path + "/g.plmpart").c_str(), nullptr, nullptr),
               PLM_ERROR_INVALID_ARGUMENT);
   }
+}
+
+// Direct ranges under a target (the rule in docs/design.md "Sharded bakes"):
+// each range's rounds aim at the target relative to the whole's mean with
+// the whole's phantom sample, so the merged direct light meets the direct
+// pass's share of the target, measured against a bake with 1024 direct
+// samples a texel (the same photons: the images then differ by the direct
+// light's error), and the error the merge reports is honest. A room whose
+// last range (a box on the floor, mostly in shadow) is far darker than the
+// rest: with its own mean and phantom sample that range would stop early.
+TEST(TexelRanges, DirectRangesMeetTheTargetTogether) {
+  plm_demo::SceneBuilder b;
+  const uint32_t white = b.material("white", {0.75f, 0.75f, 0.75f});
+  const uint32_t res = 12;
+  b.quad("floor", {0, 0, 0}, {4, 0, 0}, {0, 4, 0}, white, res);
+  b.quad("ceiling", {0, 0, 3}, {0, 4, 0}, {4, 0, 0}, white, res);
+  b.quad("wall_x0", {0, 0, 0}, {0, 4, 0}, {0, 0, 3}, white, res);
+  b.quad("wall_x1", {4, 0, 0}, {0, 0, 3}, {0, 4, 0}, white, res);
+  b.quad("wall_y0", {0, 0, 0}, {0, 0, 3}, {4, 0, 0}, white, res);
+  b.quad("wall_y1", {0, 4, 0}, {4, 0, 0}, {0, 0, 3}, white, res);
+  b.quad("box_x0", {1.5f, 1.5f, 0}, {0, 0, 1}, {0, 1, 0}, white, 2 * res);
+  b.quad("box_x1", {2.5f, 1.5f, 0}, {0, 1, 0}, {0, 0, 1}, white, 2 * res);
+  b.quad("box_y0", {1.5f, 1.5f, 0}, {1, 0, 0}, {0, 0, 1}, white, 2 * res);
+  plm_light light;
+  plm_light_default(&light, PLM_LIGHT_POINT);
+  light.power = 800;
+  light.matrix[3] = 2.0f;
+  light.matrix[7] = 3.6f;
+  light.matrix[11] = 2.7f;
+  b.light(light, "lamp");
+  ASSERT_TRUE(b.ok()) << b.error;
+  const double target = 0.03;
+  plm_bake_settings s = small_settings(150000);
+  s.direct_samples = 16;
+  plm_bake_settings fine = s;
+  fine.direct_samples = 1024;
+  BakeResult reference;
+  ASSERT_EQ(plm_bake(b.scene, &fine, nullptr, nullptr, &reference.r), PLM_OK) << plm_last_error();
+  TempDir dir;
+  const auto photons = bake_shards(b.scene, s, 2, dir.path);
+  plm_bake_settings targeted = s;
+  targeted.target_error = target;
+  const auto direct = bake_ranges(b.scene, targeted, PLM_TEXELS_DIRECT, 3, {}, dir.path);
+  BakeResult merged;
+  std::string error;
+  ASSERT_EQ(merge(b.scene, joined({photons, direct}), merged, error), PLM_OK) << error;
+  double sq = 0.0, sum = 0.0;
+  size_t n = 0;
+  for (uint32_t m = 0; m < mesh_count(b); ++m) {
+    uint32_t w = 0, h = 0;
+    if (plm_result_lightmap_size(reference.r, m, &w, &h) != PLM_OK || w == 0) continue;
+    const Map a = merged.map(m), r = reference.map(m);
+    for (size_t t = 0; t < size_t(w) * h; ++t) {
+      if (r.coverage[t] <= 0.0f) continue;
+      const double va = (a.rgb[3 * t] + a.rgb[3 * t + 1] + a.rgb[3 * t + 2]) / 3.0;
+      const double vr = (r.rgb[3 * t] + r.rgb[3 * t + 1] + r.rgb[3 * t + 2]) / 3.0;
+      sq += (va - vr) * (va - vr);
+      sum += vr;
+      ++n;
+    }
+  }
+  ASSERT_GT(n, 0u);
+  const double measured = std::sqrt(sq / double(n)) / (sum / double(n));
+  plm_bake_stats stats{}, single_stats{};
+  ASSERT_EQ(plm_result_stats(merged.r, &stats), PLM_OK);
+  BakeResult single;
+  ASSERT_EQ(plm_bake(b.scene, &targeted, nullptr, nullptr, &single.r), PLM_OK) << plm_last_error();
+  ASSERT_EQ(plm_result_stats(single.r, &single_stats), PLM_OK);
+  std::printf("direct ranges under a %.0f %% target: measured %.2f %%, reported direct part %.2f %%, %llu samples; "
+              "one machine: reported %.2f %%, %llu samples\n",
+              100 * target, 100 * measured, 100 * stats.error_direct, (unsigned long long)stats.direct_samples,
+              100 * single_stats.error_direct, (unsigned long long)single_stats.direct_samples);
+  // The direct pass's share of the target, as one machine's rounds aim at it
+  // (the ranges' own means and phantom samples give 2.11 % here).
+  EXPECT_LT(stats.error_direct, plm::DirectSchedule::kDirectShareOfTarget * target);
+  EXPECT_LT(measured, plm::DirectSchedule::kDirectShareOfTarget * target);
+  EXPECT_LT(measured, 2.0 * stats.error_direct);  // the report does not understate it
+  // About the samples one machine takes for that target.
+  EXPECT_LT(double(stats.direct_samples), 1.5 * double(single_stats.direct_samples));
 }

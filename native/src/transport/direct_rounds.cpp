@@ -50,6 +50,36 @@ std::vector<DirectCalibration> calibrate_direct(tbb::task_arena& arena, const Di
   return out;
 }
 
+// The mean texel value and the phantom sample (typical_sample) of all
+// covered texels, estimated from every step-th (those the calibration picks)
+// with `samples` samples of a round of their own: what a texel range's rounds
+// aim at under a target. Its own texels' would let a range keep an error that
+// is under the target for it but not for the whole: the target is relative
+// to the whole's mean, and the merge gives every texel the whole's phantom
+// sample. Every range draws the same estimate. Mean negative where the scene
+// has too few texels.
+struct WholeEstimate {
+  double mean = -1.0, typical = 0.0;
+};
+
+WholeEstimate estimate_whole(tbb::task_arena& arena, const DirectPass& pass, const std::vector<CoveredTexel>& covered,
+                             uint32_t samples) {
+  constexpr uint32_t kMeanRound = 0xFE;  // a key neither refinement rounds nor the calibration use
+  const size_t step = std::max<size_t>(4, covered.size() / 1024);
+  const size_t m = covered.size() / step;
+  if (m == 0) return {};
+  std::vector<DirectSums> sums(m);
+  arena.execute([&] {
+    tbb::parallel_for(size_t(0), m, [&](size_t k) {
+      const CoveredTexel& c = covered[k * step];
+      pass.sample_texel(c.mesh, c.texel, kMeanRound, samples, sums[k]);
+    });
+  });
+  double mean = 0.0;
+  for (const DirectSums& d : sums) mean += d.mean();
+  return {mean / double(m), typical_sample(sums)};
+}
+
 }  // namespace
 
 double calibration_scale(const std::vector<DirectCalibration>& records) {
@@ -78,6 +108,9 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
   for (uint32_t i = 0; i < todo.size(); ++i) todo[i] = i;
   std::vector<uint32_t> want(direct.size(), schedule.first());
   std::vector<DirectTexelNoise> noise(direct.size());
+  const bool whole = slice.begin == 0 && slice.end == covered.size();
+  const WholeEstimate aim =
+      settings.target_error > 0.0 && !whole ? estimate_whole(arena, pass, covered, schedule.first()) : WholeEstimate();
   for (uint32_t round = 0; round < rounds && !todo.empty(); ++round) {
     run_in_groups(
         arena, todo.size(), 64,
@@ -102,11 +135,13 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
       out.noise.scale = calibration_scale(out.calibration);
     }
     out.rounds = round + 1;
+    DirectNoise aim_noise = out.noise;
+    if (aim.mean >= 0.0) aim_noise.typical = aim.typical;
     for (size_t i = 0; i < direct.size(); ++i) {
       const DirectSums& d = direct[i];
-      noise[i] = {d.count, d.variance_of_mean(out.noise), d.phantom_variance_of_mean(out.noise)};
+      noise[i] = {d.count, d.variance_of_mean(aim_noise), d.phantom_variance_of_mean(aim_noise)};
     }
-    todo = schedule.next_round(round, mean, noise, want);
+    todo = schedule.next_round(round, aim.mean >= 0.0 ? aim.mean : mean, noise, want);
     if (control.round_done) control.round_done(round, out);
     if (control.stop()) break;
   }

@@ -50,8 +50,10 @@ struct DirectControl {
 
 // Over the covered texels of `slice` (all by default): a texel's sums depend
 // on it alone (its own random numbers, its own sample counts) without a
-// target; the calibration texels are picked in the whole covered order; the
-// rounds' allocation under a target reads the slice's texels only.
+// target; the calibration texels are picked in the whole covered order. Under
+// a target a slice's rounds read its own texels' noise and aim at the target
+// relative to an estimate of the whole's mean (whole_mean in the .cpp), so
+// that slices each under it put the whole under it.
 DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, const std::vector<CoveredTexel>& covered,
                              const plm_bake_settings& settings, const DirectControl& control,
                              CoveredSlice slice = {});
