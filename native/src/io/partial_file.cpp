@@ -578,6 +578,7 @@ PartHeader load_parts(const std::vector<std::string>& paths, const std::string& 
       }
     }
   }
+  const std::vector<size_t> owner = in_order(paths, headers, photon_parts);
   const std::vector<size_t> direct_parts =
       of[1].empty() ? std::vector<size_t>() : in_order(paths, headers, of[size_t(PartKind::kDirect)]);
   const std::vector<size_t> gather_parts =
@@ -590,7 +591,6 @@ PartHeader load_parts(const std::vector<std::string>& paths, const std::string& 
          "target error ", headers[gather_parts[0]].direct_target, " where the direct ",
          direct_parts.empty() ? "pass of the merge has none" : "parts given have " + std::to_string(direct_target),
          "; give the merge the direct parts its gather stage read");
-  std::vector<size_t> owner = in_order(paths, headers, photon_parts);
 
   const ShardLayout& L = first.layout;
   const uint64_t cut = std::min<uint64_t>(kCheckBatches, L.batch_count);
