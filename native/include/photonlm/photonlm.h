@@ -501,8 +501,9 @@ PLM_API plm_status plm_bake_texels(plm_scene* scene, const plm_bake_settings* se
                                    uint32_t part_count, const char* scene_path, const char* part_path,
                                    plm_progress_fn progress, void* user_data);
 /* What a part file holds: its bake's settings (thread_count 0), its shard and
- * shard count, the scene_path it was given (copied, truncated to capacity - 1;
- * scene_path may be NULL). Any of the out pointers may be NULL. */
+ * shard count (a direct or gather part: its texel range and range count), the
+ * scene_path it was given (copied, truncated to capacity - 1; scene_path may
+ * be NULL). Any of the out pointers may be NULL. */
 PLM_API plm_status plm_part_info(const char* part_path, plm_bake_settings* out_settings, uint32_t* out_shard,
                                  uint32_t* out_shard_count, char* scene_path, size_t scene_path_capacity);
 /* Merges the parts of one sharded bake of `scene` (all of its shards, each once,

@@ -139,8 +139,8 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   if (job) job->layout = shard_layout(scene, settings, space, acc);  // sharded bakes (transport/shard.h)
   DirectResult direct;
   const auto t_direct = Clock::now();
-  if (two_pass && !tracing_shard && job && !job->direct.empty()) {
-    direct = join_direct(job->direct, settings.sampler, space.covered.size());  // the texel ranges' (transport/texel_ranges.h)
+  if (two_pass && !tracing_shard && job && !job->direct.empty()) {  // the texel ranges' (transport/texel_ranges.h)
+    direct = join_direct(job->direct, settings.sampler, space.covered.size());
     out.stats.direct_samples = direct.samples;
   } else if (two_pass && !tracing_shard) {
     const DirectPass pass(accel.handle(), surfaces, space.views, space.csg_views, space.areas, emitters, settings,
