@@ -424,14 +424,48 @@ TEST(TexelRanges, MergeEqualsSingleBakeForAnyRangeCount) {
   }
 }
 
-// Without a final gather (max_bounces below the gather's 64): gather parts
-// hold no texels, and the merge is still the single bake.
-TEST(TexelRanges, BakeWithoutGather) {
+// A CSG ball in the Cornell box: its sub-texels are covered texels of the
+// last ranges, and there is no final gather (CSG solids): gather parts hold
+// no texels, and the merge is still the single bake.
+TEST(TexelRanges, CsgSubTexelsAndNoGather) {
   plm_demo::SceneBuilder b;
   plm_demo::build_cornell(b, 8);
+  const uint32_t grey = b.material("ball grey", {0.5f, 0.5f, 0.5f});
+  plm_csg_primitive ball{};  // radius 0.2 at (0.4, 0.5, 0.25), beside the boxes
+  ball.shape = PLM_CSG_SPHERE;
+  ball.material = grey;
+  const double m[12] = {0.2, 0, 0, 0.4, 0, 0.2, 0, 0.5, 0, 0, 0.2, 0.25};
+  for (int i = 0; i < 12; ++i) ball.matrix[i] = m[i];
+  const plm_csg_node leaf = {PLM_CSG_LEAF, 0, 0};
+  uint32_t solid = 0;
+  ASSERT_EQ(plm_scene_add_csg(b.scene, "ball", &ball, 1, &leaf, 1, nullptr, 0, 0, &solid), PLM_OK) << plm_last_error();
+  // Carrier: a 16 x 8 latitude-longitude sphere around it.
+  const uint32_t nu = 16, nv = 8;
+  std::vector<float> pos, uv;
+  std::vector<uint32_t> idx;
+  for (uint32_t j = 0; j <= nv; ++j)
+    for (uint32_t i = 0; i <= nu; ++i) {
+      const double phi = 2 * M_PI * i / nu, theta = M_PI * j / nv;
+      pos.insert(pos.end(), {float(0.4 + 0.2 * std::sin(theta) * std::cos(phi)),
+                             float(0.5 + 0.2 * std::sin(theta) * std::sin(phi)), float(0.25 - 0.2 * std::cos(theta))});
+    }
+  for (uint32_t j = 0; j < nv; ++j)
+    for (uint32_t i = 0; i < nu; ++i) {
+      const uint32_t a = j * (nu + 1) + i, c = a + nu + 1;
+      const float u0 = float(i) / nu, u1 = float(i + 1) / nu, v0 = float(j) / nv, v1 = float(j + 1) / nv;
+      idx.insert(idx.end(), {a, a + 1, c + 1, a, c + 1, c});
+      uv.insert(uv.end(), {u0, v0, u1, v0, u1, v1, u0, v0, u1, v1, u0, v1});
+    }
+  const uint32_t tris = uint32_t(idx.size() / 3);
+  std::vector<uint32_t> mats(tris, grey);
+  uint32_t carrier = 0;
+  ASSERT_EQ(plm_scene_add_mesh(b.scene, "ball mesh", pos.data(), uint32_t(pos.size() / 3), idx.data(), tris, uv.data(),
+                               mats.data(), nu, nv, &carrier),
+            PLM_OK)
+      << plm_last_error();
+  ASSERT_EQ(plm_scene_set_csg_carrier(b.scene, solid, carrier), PLM_OK) << plm_last_error();
   ASSERT_TRUE(b.ok()) << b.error;
-  plm_bake_settings s = small_settings(60000);
-  s.max_bounces = 8;
+  const plm_bake_settings s = small_settings(60000);
   BakeResult one;
   ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &one.r), PLM_OK) << plm_last_error();
   TempDir dir;
@@ -443,7 +477,10 @@ TEST(TexelRanges, BakeWithoutGather) {
   BakeResult merged;
   std::string error;
   ASSERT_EQ(merge(b.scene, joined({photons, direct, gather}), merged, error), PLM_OK) << error;
-  expect_identical(one, merged, mesh_count(b));
+  expect_identical(one, merged, carrier + 1);  // the carrier's lightmap (the ball's sub-texels) too
+  uint32_t w = 0, h = 0;
+  ASSERT_EQ(plm_result_lightmap_size(one.r, carrier, &w, &h), PLM_OK);
+  EXPECT_EQ(w, nu);
 }
 
 // Texel parts that do not belong are refused, naming the part or the range.
