@@ -645,3 +645,29 @@ TEST(TexelRanges, DirectRangesMeetTheTargetTogether) {
   // About the samples one machine takes for that target.
   EXPECT_LT(double(stats.direct_samples), 1.5 * double(single_stats.direct_samples));
 }
+
+// A range's gather reads only the shards that hold the batches its estimate
+// looks up (the first 16 of 37 here: shards 1 and 2 of 3); the merge reads
+// them all. A damaged third shard passes the gather and stops the merge.
+TEST(TexelRanges, GatherReadsOnlyTheFirstBatchesShards) {
+  plm_demo::SceneBuilder b;
+  plm_demo::build_cornell(b, 6);
+  ASSERT_TRUE(b.ok()) << b.error;
+  const plm_bake_settings s = small_settings(150000);
+  TempDir dir;
+  const auto photons = bake_shards(b.scene, s, 3, dir.path);
+  {
+    std::fstream f(photons[2], std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(1000);
+    char c = 0;
+    f.read(&c, 1);
+    c ^= 0x10;
+    f.seekp(1000);
+    f.write(&c, 1);
+  }
+  const auto gather = bake_ranges(b.scene, s, PLM_TEXELS_GATHER, 2, photons, dir.path);
+  BakeResult r;
+  std::string error;
+  EXPECT_EQ(merge(b.scene, joined({photons, gather}), r, error), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(error.find(photons[2] + ": the part file's sums are damaged (checksum)"), std::string::npos) << error;
+}

@@ -600,8 +600,12 @@ PartHeader load_parts(const std::vector<std::string>& paths, const std::string& 
   late.end = L.batch_count;
   early.acc = late.acc = Accumulators(L.texel_count, L.mesh_count, L.caustics, L.quantum);
   // Parts in shard order; their segments must follow each other without gaps.
+  // A range's gather looks up the first `cut` batches only: it reads the
+  // shards that hold them and passes over the rest (the merge reads all).
+  const bool early_only = job.mode == ShardJob::kGather;
   uint64_t next = 0;
   for (uint32_t k = 0; k < first.shard_count; ++k) {
+    if (early_only && shard_batches(L.batch_count, k, first.shard_count).first >= cut) break;
     const std::string& path = paths[owner[k]];
     std::vector<PhotonSegment> segments;
     read_part_file(path, segments);
@@ -609,6 +613,10 @@ PartHeader load_parts(const std::vector<std::string>& paths, const std::string& 
       if (s.begin != next || s.end <= s.begin || s.end > L.batch_count || (s.begin < cut && s.end > cut))
         fail(PLM_ERROR_INVALID_ARGUMENT, path, ": holds photon batches ", s.begin, "-", s.end, " where batch ", next,
              " was expected next");
+      if (early_only && s.begin >= cut) {
+        next = s.end;
+        continue;
+      }
       PhotonSegment& into = s.end <= cut ? early : late;
       into.acc.add(s.acc);
       into.rays += s.rays;
@@ -617,7 +625,7 @@ PartHeader load_parts(const std::vector<std::string>& paths, const std::string& 
       next = s.end;
     }
   }
-  if (next != L.batch_count)
+  if (early_only ? next < cut : next != L.batch_count)
     fail(PLM_ERROR_INVALID_ARGUMENT, "the parts hold photon batches up to ", next, " of ", L.batch_count);
   if (job.mode != ShardJob::kGather) {
     job.mode = ShardJob::kMerge;
@@ -635,7 +643,7 @@ PartHeader load_parts(const std::vector<std::string>& paths, const std::string& 
   job.sources.clear();
   job.segments.push_back(std::move(early));
   job.sources.push_back("the parts' batches 0-" + std::to_string(cut));
-  if (late.end > late.begin) {
+  if (late.end > late.begin && !early_only) {
     job.segments.push_back(std::move(late));
     job.sources.push_back("the parts' batches " + std::to_string(cut) + "-" + std::to_string(L.batch_count));
   }

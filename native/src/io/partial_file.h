@@ -94,8 +94,9 @@ namespace plm {
 // bake; direct parts share one target, gather parts were made from it) and
 // adds the photon sums, exactly, into at most two segments: batches [0,
 // kCheckBatches) and the rest (the final gather reads the estimate between
-// them); direct and gather parts go to job.direct and job.gather in range
-// order. Errors name the part. Returns the first photon part's header (its
+// them; a range's gather reads only the shards of the first segment, as its
+// estimate needs no more); direct and gather parts go to job.direct and
+// job.gather in range order. Errors name the part. Returns the first photon part's header (its
 // settings are the bake's).
 PartHeader load_parts(const std::vector<std::string>& paths, const std::string& engine_version, uint64_t scene_hash,
                       ShardJob& job);

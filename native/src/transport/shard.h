@@ -94,9 +94,9 @@ ShardLayout shard_layout(const Scene& scene, const plm_bake_settings& settings, 
 // file names or sizes).
 uint64_t scene_hash(const Scene& scene);
 
-// The merge's checks: the segments tile [0, layout.batch_count) in order and
-// every one holds layout's texels, meshes and quantum. Messages name the
-// segment's source.
+// The merge's checks: the segments tile [0, layout.batch_count) in order
+// (a range's gather: the batches before kCheckBatches) and every one holds
+// layout's texels, meshes and quantum. Messages name the segment's source.
 void check_segments(const ShardJob& job);
 
 // "" where every sum of acc is below 2^53 quanta (exact, so the merge equals
