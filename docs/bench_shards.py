@@ -2,6 +2,7 @@
 
     /usr/bin/python3 docs/bench_shards.py [--photonlm build/bin/photonlm] [--res 128] [--photons 16000000]
                                           [--shards 1 2 4 8] [--threads 2]
+    /usr/bin/python3 docs/bench_shards.py --ranges 1 2 4 8 [--objects 32] [--photons 2000000] [--threads 2]
 
 A closed room (floor, ceiling, four walls, a box; 11 faces of res x res texels) lit by a point light
 under the ceiling. Bakes it once (`photonlm bake`), then for each shard count N runs the N shards
@@ -10,6 +11,13 @@ merge (`photonlm merge`), checks the merge's EXRs against the single bake byte f
 per N, in CPU seconds (user + system): the slowest shard, the sum over shards, the merge, the part files' total size and a part's
 size per million texels, and the overhead of the sharded bake over the single one
 ((sum of shards + merge) / single - 1: each shard repeats the set-up, the merge reads the parts).
+
+With --ranges: the open sunlit courtyard of docs/bench_open_courtyard.py (--objects spheres of 16
+rings, 64 x 64 texels each, a ground and four walls), where the direct pass and the final gather are
+most of the bake. Bakes it once, then 2 photon shards and, per range count M, the M direct ranges
+(`--direct K/M`) and the M gather ranges (`--gather K/M`) one after the other and the merge; prints
+the slowest and summed direct and gather tasks, the merge, the direct and gather parts' sizes, the
+overhead ((all tasks + merge) / single - 1) and whether the merge equals the single bake.
 """
 import argparse
 import json
@@ -65,6 +73,52 @@ def run(cmd):
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), r.stdout
 
 
+def texel_ranges(a, tmp):
+    import sys
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import bench_open_courtyard
+    folder = os.path.join(tmp, "court")
+    bench_open_courtyard.build(folder, a.objects, 16, False, {"photon_count": a.photons, "seed": 1})
+    scene = os.path.join(folder, "scene.json")
+    threads = ["--threads", str(a.threads)]
+    single_dir = os.path.join(tmp, "single")
+    t_single, _ = run([a.photonlm, "bake", scene, "-o", single_dir] + threads)
+    rep = json.load(open(os.path.join(single_dir, "report.json")))
+    times = rep["times"]
+    print("open courtyard: %d objects, %d photons, %d threads, %d direct samples"
+          % (a.objects, a.photons, a.threads, rep["direct_samples"]))
+    print("single bake: %.2f CPU s (wall: set-up %.2f, direct %.2f, photons+gather %.2f, total %.2f)"
+          % (t_single, times["setup"], times["direct"], times["trace"], times["total"]))
+    photon_dir = os.path.join(tmp, "photons")
+    t_photons = sum(run([a.photonlm, "bake", scene, "--shard", "%d/2" % k, "-o", photon_dir] + threads)[0]
+                    for k in (1, 2))
+    t_setup, _ = run([a.photonlm, "bake", scene, "--shard", "1/100000", "-o", os.path.join(tmp, "empty")] + threads)
+    t_merge0, _ = run([a.photonlm, "merge", photon_dir, "-o", os.path.join(tmp, "merged0")] + threads)
+    print("2 photon shards: %.2f CPU s in all; a set-up alone %.2f CPU s; their merge alone (direct pass and "
+          "gather on the merging machine) %.2f CPU s" % (t_photons, t_setup, t_merge0))
+    print("CPU seconds:")
+    print("%6s %10s %10s %10s %10s %8s %12s %12s %9s %s" % ("ranges", "max direct", "sum direct", "max gather",
+                                                           "sum gather", "merge", "direct (MB)", "gather (MB)",
+                                                           "overhead", "identical"))
+    for m in a.ranges:
+        parts = os.path.join(tmp, "parts%d" % m)
+        shutil.copytree(photon_dir, parts)
+        direct = [run([a.photonlm, "bake", scene, "--direct", "%d/%d" % (k, m), "-o", parts] + threads)[0]
+                  for k in range(1, m + 1)]
+        gather = [run([a.photonlm, "bake", scene, "--gather", "%d/%d" % (k, m), "-o", parts] + threads)[0]
+                  for k in range(1, m + 1)]
+        size = {kind: sum(os.path.getsize(os.path.join(parts, p)) for p in os.listdir(parts) if p.startswith(kind))
+                for kind in ("direct", "gather")}
+        merged = os.path.join(tmp, "merged%d" % m)
+        t_merge, _ = run([a.photonlm, "merge", parts, "-o", merged] + threads)
+        same = all(open(os.path.join(single_dir, f), "rb").read() == open(os.path.join(merged, f), "rb").read()
+                   for f in os.listdir(single_dir) if f.endswith(".exr"))
+        overhead = (t_photons + sum(direct) + sum(gather) + t_merge) / t_single - 1.0
+        print("%6d %10.2f %10.2f %10.2f %10.2f %8.2f %12.2f %12.2f %8.1f%% %s"
+              % (m, max(direct), sum(direct), max(gather), sum(gather), t_merge, size["direct"] / 1e6,
+                 size["gather"] / 1e6, 100 * overhead, "yes" if same else "NO"))
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--photonlm", default=os.path.join(os.path.dirname(__file__), "..", "build", "bin", "photonlm"))
@@ -72,8 +126,16 @@ def main():
     ap.add_argument("--photons", type=int, default=16000000)
     ap.add_argument("--shards", type=int, nargs="+", default=[1, 2, 4, 8])
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--ranges", type=int, nargs="*", help="texel range counts (the open courtyard)")
+    ap.add_argument("--objects", type=int, default=32)
     a = ap.parse_args()
     tmp = tempfile.mkdtemp(prefix="plm_bench_shards_")
+    if a.ranges:
+        try:
+            texel_ranges(a, tmp)
+        finally:
+            shutil.rmtree(tmp)
+        return
     try:
         scene = os.path.join(tmp, "room.json")
         with open(scene, "w") as f:

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # A photonlm bake split over a Slurm cluster (docs/farm.md):
 #
-#   scripts/slurm_bake.sh SCENE.json -o OUT_DIR --shards N [--partition P] [--time T]
+#   scripts/slurm_bake.sh SCENE.json -o OUT_DIR --shards N [--texel-ranges M] [--partition P] [--time T]
 #                         [--photons N] [--seed S] [--threads T] [--retries R] [--photonlm PATH] [--wait]
 #                         [--target-error X [--max-rounds R]]
 #
@@ -11,6 +11,10 @@
 # missing or does not belong, so a lost shard fails the merge cleanly. A shard that fails is
 # requeued (scontrol requeue) up to R times (default 2). Part files are written to a temporary
 # name and renamed, and the merge reads only *.plmpart files, so nothing half-written is read.
+# With --texel-ranges M the direct pass runs as a second array of M tasks beside the shards
+# (`photonlm bake SCENE --direct K/M`, it needs no photons) and the final gather as a third
+# that starts once both have succeeded (afterok; `photonlm bake SCENE --gather K/M`, reading
+# the parts); the merge then joins them. A task of either is requeued like a shard.
 # OUT_DIR, the scene (and the files it names) and photonlm must be on a filesystem every
 # node sees at the same path. Prints the two job ids; --wait blocks until the merge ends and
 # exits with its status. The result is bit for bit `photonlm bake SCENE -o OUT_DIR`.
@@ -25,13 +29,14 @@ usage() {
   exit 1
 }
 
-scene="" out="" shards="" partition="" time_limit="" photons="" seed="" threads="" retries=2 wait=0 target=""
+scene="" out="" shards="" ranges=0 partition="" time_limit="" photons="" seed="" threads="" retries=2 wait=0 target=""
 max_rounds=4
 photonlm="${PHOTONLM:-}"
 while [ $# -gt 0 ]; do
   case "$1" in
     -o|--out) out="$2"; shift 2 ;;
     --shards) shards="$2"; shift 2 ;;
+    --texel-ranges) ranges="$2"; shift 2 ;;
     --partition) partition="$2"; shift 2 ;;
     --time) time_limit="$2"; shift 2 ;;
     --photons) photons="$2"; shift 2 ;;
@@ -50,6 +55,7 @@ while [ $# -gt 0 ]; do
 done
 [ -n "$scene" ] && [ -n "$out" ] && [ -n "$shards" ] || usage
 [[ "$shards" =~ ^[1-9][0-9]*$ ]] || { echo "slurm_bake: --shards '$shards' is not an integer >= 1" >&2; exit 1; }
+[[ "$ranges" =~ ^[0-9]+$ ]] || { echo "slurm_bake: --texel-ranges '$ranges' is not an integer >= 0" >&2; exit 1; }
 [[ "$retries" =~ ^[0-9]+$ ]] || { echo "slurm_bake: --retries '$retries' is not an integer >= 0" >&2; exit 1; }
 [ -f "$scene" ] || { echo "slurm_bake: $scene: no such scene file" >&2; exit 1; }
 command -v sbatch > /dev/null || { echo "slurm_bake: sbatch not found: is this a Slurm login node?" >&2; exit 1; }
@@ -79,24 +85,30 @@ options=()
 [ -z "$seed" ] || options+=(--seed "$seed")
 [ -z "$threads" ] || options+=(--threads "$threads")
 
-# The shard job: bake shard K = SLURM_ARRAY_TASK_ID; on failure requeue itself while
-# SLURM_RESTART_COUNT < retries, else fail. PHOTONLM_TEST_KILL_SHARD=K kills shard K's first
-# attempt (the retry test, python_bridge/tests/test_slurm.py).
-cat > "$jobs/shard.sh" <<EOF
+# One task of an array: STAGE (shard, direct or gather) K = SLURM_ARRAY_TASK_ID of N; on failure
+# it requeues itself while SLURM_RESTART_COUNT < retries, else fails. PHOTONLM_TEST_KILL=STAGE:K
+# kills that task's first attempt (the retry tests, python_bridge/tests/test_slurm.py).
+cat > "$jobs/task.sh" <<EOF
 #!/usr/bin/env bash
 set -u
+stage=\$1 n=\$2
 k=\$SLURM_ARRAY_TASK_ID
 attempt=\${SLURM_RESTART_COUNT:-0}
-echo "shard \$k of $shards, attempt \$((attempt + 1)) on \$(hostname)"
-$(q "$photonlm") bake $(q "$scene") --shard "\$k/$shards" -o $(q "$parts") $(q ${options[@]+"${options[@]}"}) &
+case \$stage in
+  shard) args=(--shard "\$k/\$n" $(q ${options[@]+"${options[@]}"})) ;;
+  direct) args=(--direct "\$k/\$n" $(q ${options[@]+"${options[@]}"}) ${target:+--target-error $target}) ;;
+  gather) args=(--gather "\$k/\$n" ${threads:+--threads $threads}) ;;
+esac
+echo "\$stage \$k of \$n, attempt \$((attempt + 1)) on \$(hostname)"
+$(q "$photonlm") bake $(q "$scene") "\${args[@]}" -o $(q "$parts") &
 pid=\$!
-if [ "\${PHOTONLM_TEST_KILL_SHARD:-}" = "\$k" ] && [ "\$attempt" = 0 ]; then kill -KILL \$pid; fi
+if [ "\${PHOTONLM_TEST_KILL:-}" = "\$stage:\$k" ] && [ "\$attempt" = 0 ]; then kill -KILL \$pid; fi
 wait \$pid
 status=\$?
 if [ \$status -ne 0 ]; then
-  echo "shard \$k failed (exit \$status)" >&2
+  echo "\$stage \$k failed (exit \$status)" >&2
   if [ "\$attempt" -lt $retries ]; then
-    echo "requeueing shard \$k" >&2
+    echo "requeueing \$stage \$k" >&2
     scontrol requeue "\${SLURM_ARRAY_JOB_ID}_\${k}" && sleep 60
   fi
 fi
@@ -106,18 +118,32 @@ cat > "$jobs/merge.sh" <<EOF
 #!/usr/bin/env bash
 exec $(q "$photonlm") merge $(q "$parts") -o $(q "$out") ${threads:+--threads $threads} ${target:+--target-error $target}
 EOF
-chmod +x "$jobs/shard.sh" "$jobs/merge.sh"
+chmod +x "$jobs/task.sh" "$jobs/merge.sh"
 
 common=()
 [ -z "$partition" ] || common+=(--partition "$partition")
 [ -z "$time_limit" ] || common+=(--time "$time_limit")
 [ -z "$threads" ] || common+=(--cpus-per-task "$threads")
-array=$(sbatch --parsable --job-name=plm-shard --array="1-$shards" --requeue --open-mode=append \
-               --output="$logs/shard-%a.log" ${common[@]+"${common[@]}"} "$jobs/shard.sh")
-array="${array%%;*}"
-merge_args=(--parsable --job-name=plm-merge --dependency="afterany:$array" --output="$logs/merge.log" ${common[@]+"${common[@]}"})
-[ "$wait" = 0 ] || merge_args+=(--wait)
+# stage STAGE COUNT [sbatch options]: submits an array of COUNT tasks; prints its job id.
+stage() {
+  local id
+  id=$(sbatch --parsable --job-name="plm-$1" --array="1-$2" --requeue --open-mode=append \
+              --output="$logs/$1-%a.log" ${common[@]+"${common[@]}"} "${@:3}" "$jobs/task.sh" "$1" "$2")
+  echo "${id%%;*}"
+}
+array=$(stage shard "$shards")
 echo "shards: job array $array (${shards} tasks), parts in $parts"
+after="afterany:$array"
+if [ "$ranges" -gt 0 ]; then
+  # The direct pass needs no photons: it runs beside the shards. The gather needs both; a stage
+  # that failed for good cancels it (kill-on-invalid-dep) and the merge says what is missing.
+  direct=$(stage direct "$ranges")
+  gather=$(stage gather "$ranges" --dependency="afterok:$array:$direct" --kill-on-invalid-dep=yes)
+  echo "texel ranges: direct pass job array $direct, final gather job array $gather (${ranges} tasks each)"
+  after="afterany:$array:$direct:$gather"
+fi
+merge_args=(--parsable --job-name=plm-merge --dependency="$after" --output="$logs/merge.log" ${common[@]+"${common[@]}"})
+[ "$wait" = 0 ] || merge_args+=(--wait)
 set +e
 merge=$(sbatch "${merge_args[@]}" "$jobs/merge.sh")
 status=$?

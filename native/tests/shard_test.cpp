@@ -19,6 +19,9 @@
 #include "transport/film.h"
 #include "transport/photon_tracer.h"
 #include "transport/shard.h"
+#include "transport/scheduler.h"
+#include "transport/texel_ranges.h"
+#include "io/partial_file.h"
 
 namespace {
 
@@ -335,4 +338,336 @@ TEST(Shard, SumsPastTheExactRangeAreReported) {
   acc.sum_sq[2] = std::ldexp(1.0, 54) * q.q2;
   EXPECT_NE(plm::inexact_sums(acc).find("2 photon sums passed 2^53 flux quanta"), std::string::npos)
       << plm::inexact_sums(acc);
+}
+
+// ---- Texel ranges (transport/texel_ranges.h): the direct pass and the final
+// gather split by ranges of covered texels.
+namespace {
+
+std::vector<std::string> bake_ranges(plm_scene* scene, const plm_bake_settings& s, uint32_t stage, uint32_t n,
+                                     const std::vector<std::string>& inputs, const std::string& dir) {
+  std::vector<const char*> in;
+  for (const std::string& p : inputs) in.push_back(p.c_str());
+  std::vector<std::string> parts;
+  for (uint32_t k = 0; k < n; ++k) {
+    parts.push_back(dir + (stage == PLM_TEXELS_DIRECT ? "/direct-" : "/gather-") + std::to_string(k) + "-of-" +
+                    std::to_string(n) + ".plmpart");
+    EXPECT_EQ(plm_bake_texels(scene, &s, stage, k, n, in.data(), uint32_t(in.size()), "cornell", parts.back().c_str(),
+                              nullptr, nullptr),
+              PLM_OK)
+        << plm_last_error();
+  }
+  return parts;
+}
+
+std::vector<std::string> joined(std::initializer_list<std::vector<std::string>> lists) {
+  std::vector<std::string> out;
+  for (const auto& l : lists) out.insert(out.end(), l.begin(), l.end());
+  return out;
+}
+
+}  // namespace
+
+TEST(TexelRanges, RangesTileTheCoveredTexels) {
+  for (size_t covered : {0u, 1u, 5u, 1000u, 1001u})
+    for (uint32_t n : {1u, 2u, 3u, 7u}) {
+      size_t next = 0;
+      for (uint32_t k = 0; k < n; ++k) {
+        const plm::CoveredSlice r = plm::texel_range(covered, k, n);
+        EXPECT_EQ(r.begin, next);
+        EXPECT_LE(r.size(), covered / n + 1);
+        EXPECT_GE(r.size(), covered / n);
+        next = r.end;
+      }
+      EXPECT_EQ(next, covered);
+    }
+}
+
+// A Cornell box with the final gather: 1, 2 and 3 texel ranges (direct pass
+// and gather), over 2 or 3 photon shards, merge to the single-machine bake
+// bit for bit; so do direct parts alone (the merge gathers) and gather parts
+// alone (the merge runs the direct pass). direct_samples 4: one round (the
+// phantom sample comes before the calibration's extra samples); 1: a second
+// round for every texel.
+TEST(TexelRanges, MergeEqualsSingleBakeForAnyRangeCount) {
+  plm_demo::SceneBuilder b;
+  plm_demo::build_cornell(b, 12);
+  ASSERT_TRUE(b.ok()) << b.error;
+  for (uint32_t direct_samples : {4u, 1u}) {
+    plm_bake_settings s = small_settings(150000);
+    s.direct_samples = direct_samples;
+    BakeResult one;
+    ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &one.r), PLM_OK) << plm_last_error();
+    for (uint32_t n = 1; n <= 3; ++n) {
+      SCOPED_TRACE("direct samples " + std::to_string(direct_samples) + ", ranges " + std::to_string(n));
+      TempDir dir;
+      plm_bake_settings machine = s;
+      machine.thread_count = n;  // threads differ between machines too
+      const auto photons = bake_shards(b.scene, machine, n == 3 ? 3 : 2, dir.path);
+      const auto direct = bake_ranges(b.scene, machine, PLM_TEXELS_DIRECT, n, {}, dir.path);
+      const plm::PartHeader h = plm::read_part_header(direct[0]);
+      EXPECT_EQ(h.direct_rounds, direct_samples == 1 ? 2u : 1u);
+      EXPECT_GT(h.calibration_count, 0u);
+      const auto gather = bake_ranges(b.scene, machine, PLM_TEXELS_GATHER, n, joined({photons, direct}), dir.path);
+      EXPECT_TRUE(plm::read_part_header(gather[0]).gathered);
+      BakeResult merged;
+      std::string error;
+      ASSERT_EQ(merge(b.scene, joined({gather, direct, photons}), merged, error), PLM_OK) << error;
+      expect_identical(one, merged, mesh_count(b));
+      if (n != 2) continue;
+      BakeResult direct_only, gather_only;
+      ASSERT_EQ(merge(b.scene, joined({photons, direct}), direct_only, error), PLM_OK) << error;
+      expect_identical(one, direct_only, mesh_count(b));
+      ASSERT_EQ(merge(b.scene, joined({photons, gather}), gather_only, error), PLM_OK) << error;
+      expect_identical(one, gather_only, mesh_count(b));
+    }
+  }
+}
+
+// A CSG ball in the Cornell box: its sub-texels are covered texels of the
+// last ranges, and there is no final gather (CSG solids): gather parts hold
+// no texels, and the merge is still the single bake.
+TEST(TexelRanges, CsgSubTexelsAndNoGather) {
+  plm_demo::SceneBuilder b;
+  plm_demo::build_cornell(b, 8);
+  const uint32_t grey = b.material("ball grey", {0.5f, 0.5f, 0.5f});
+  plm_csg_primitive ball{};  // radius 0.2 at (0.4, 0.5, 0.25), beside the boxes
+  ball.shape = PLM_CSG_SPHERE;
+  ball.material = grey;
+  const double m[12] = {0.2, 0, 0, 0.4, 0, 0.2, 0, 0.5, 0, 0, 0.2, 0.25};
+  for (int i = 0; i < 12; ++i) ball.matrix[i] = m[i];
+  const plm_csg_node leaf = {PLM_CSG_LEAF, 0, 0};
+  uint32_t solid = 0;
+  ASSERT_EQ(plm_scene_add_csg(b.scene, "ball", &ball, 1, &leaf, 1, nullptr, 0, 0, &solid), PLM_OK) << plm_last_error();
+  // Carrier: a 16 x 8 latitude-longitude sphere around it.
+  const uint32_t nu = 16, nv = 8;
+  std::vector<float> pos, uv;
+  std::vector<uint32_t> idx;
+  for (uint32_t j = 0; j <= nv; ++j)
+    for (uint32_t i = 0; i <= nu; ++i) {
+      const double phi = 2 * M_PI * i / nu, theta = M_PI * j / nv;
+      pos.insert(pos.end(), {float(0.4 + 0.2 * std::sin(theta) * std::cos(phi)),
+                             float(0.5 + 0.2 * std::sin(theta) * std::sin(phi)), float(0.25 - 0.2 * std::cos(theta))});
+    }
+  for (uint32_t j = 0; j < nv; ++j)
+    for (uint32_t i = 0; i < nu; ++i) {
+      const uint32_t a = j * (nu + 1) + i, c = a + nu + 1;
+      const float u0 = float(i) / nu, u1 = float(i + 1) / nu, v0 = float(j) / nv, v1 = float(j + 1) / nv;
+      idx.insert(idx.end(), {a, a + 1, c + 1, a, c + 1, c});
+      uv.insert(uv.end(), {u0, v0, u1, v0, u1, v1, u0, v0, u1, v1, u0, v1});
+    }
+  const uint32_t tris = uint32_t(idx.size() / 3);
+  std::vector<uint32_t> mats(tris, grey);
+  uint32_t carrier = 0;
+  ASSERT_EQ(plm_scene_add_mesh(b.scene, "ball mesh", pos.data(), uint32_t(pos.size() / 3), idx.data(), tris, uv.data(),
+                               mats.data(), nu, nv, &carrier),
+            PLM_OK)
+      << plm_last_error();
+  ASSERT_EQ(plm_scene_set_csg_carrier(b.scene, solid, carrier), PLM_OK) << plm_last_error();
+  ASSERT_TRUE(b.ok()) << b.error;
+  const plm_bake_settings s = small_settings(60000);
+  BakeResult one;
+  ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &one.r), PLM_OK) << plm_last_error();
+  TempDir dir;
+  const auto photons = bake_shards(b.scene, s, 2, dir.path);
+  const auto direct = bake_ranges(b.scene, s, PLM_TEXELS_DIRECT, 3, {}, dir.path);
+  const auto gather = bake_ranges(b.scene, s, PLM_TEXELS_GATHER, 2, joined({photons, direct}), dir.path);
+  EXPECT_FALSE(plm::read_part_header(gather[1]).gathered);
+  EXPECT_EQ(std::filesystem::file_size(gather[1]), plm::kPartHeaderBytes);
+  BakeResult merged;
+  std::string error;
+  ASSERT_EQ(merge(b.scene, joined({photons, direct, gather}), merged, error), PLM_OK) << error;
+  expect_identical(one, merged, carrier + 1);  // the carrier's lightmap (the ball's sub-texels) too
+  uint32_t w = 0, h = 0;
+  ASSERT_EQ(plm_result_lightmap_size(one.r, carrier, &w, &h), PLM_OK);
+  EXPECT_EQ(w, nu);
+}
+
+// Texel parts that do not belong are refused, naming the part or the range.
+TEST(TexelRanges, MergeRefusesRangesThatDoNotBelong) {
+  plm_demo::SceneBuilder b;
+  plm_demo::build_cornell(b, 6);
+  ASSERT_TRUE(b.ok()) << b.error;
+  const plm_bake_settings s = small_settings(40000);
+  TempDir dir;
+  const auto photons = bake_shards(b.scene, s, 2, dir.path);
+  const auto direct = bake_ranges(b.scene, s, PLM_TEXELS_DIRECT, 3, {}, dir.path);
+  const auto gather = bake_ranges(b.scene, s, PLM_TEXELS_GATHER, 3, joined({photons, direct}), dir.path);
+  std::string error;
+  {  // a direct range missing
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, joined({photons, {direct[0], direct[2]}, gather}), r, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find("direct range(s) 2 of 3 missing"), std::string::npos) << error;
+  }
+  {  // a gather range twice
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, joined({photons, direct, gather, {gather[1]}}), r, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find(gather[1] + ": gather range 2 of 3 is also " + gather[1]), std::string::npos) << error;
+  }
+  {  // direct parts of two range counts
+    TempDir other;
+    const auto halves = bake_ranges(b.scene, s, PLM_TEXELS_DIRECT, 2, {}, other.path);
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, joined({photons, {direct[0], halves[1], direct[2]}, gather}), r, error),
+              PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find(halves[1] + ": does not belong with " + direct[0] + ": its range count 2 against 3"),
+              std::string::npos)
+        << error;
+  }
+  {  // a direct range of another seed
+    TempDir other;
+    plm_bake_settings t = s;
+    t.seed = 8;
+    const auto odd = bake_ranges(b.scene, t, PLM_TEXELS_DIRECT, 3, {}, other.path);
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, joined({photons, {direct[0], odd[1], direct[2]}}), r, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find(odd[1] + ": does not belong with " + photons[0] + ": its seed 8 against 7"),
+              std::string::npos)
+        << error;
+  }
+  {  // gathers made over direct light of another target
+    TempDir other;
+    plm_bake_settings t = s;
+    t.target_error = 0.05;
+    const auto targeted = bake_ranges(b.scene, t, PLM_TEXELS_DIRECT, 3, {}, other.path);
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, joined({photons, targeted, gather}), r, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find(gather[0] + ": its gather looked up direct light baked to the target error 0"),
+              std::string::npos)
+        << error;
+  }
+  {  // a damaged direct part
+    const std::string bad = dir.path + "/bad.plmpart";
+    std::filesystem::copy_file(direct[1], bad);
+    {
+      std::fstream f(bad, std::ios::in | std::ios::out | std::ios::binary);
+      f.seekp(600);
+      char c = 0;
+      f.read(&c, 1);
+      c ^= 0x10;
+      f.seekp(600);
+      f.write(&c, 1);
+    }
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, joined({photons, {direct[0], bad, direct[2]}}), r, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find(bad + ": the part file's sums are damaged (checksum)"), std::string::npos) << error;
+  }
+  {  // texel parts without photon parts; a direct range given parts
+    BakeResult r;
+    EXPECT_EQ(merge(b.scene, joined({direct, gather}), r, error), PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(error.find("no photon parts"), std::string::npos) << error;
+    const char* in[] = {photons[0].c_str()};
+    EXPECT_EQ(plm_bake_texels(b.scene, &s, PLM_TEXELS_DIRECT, 0, 2, in, 1, nullptr,
+                              (dir.path + "/d.plmpart").c_str(), nullptr, nullptr),
+              PLM_ERROR_INVALID_ARGUMENT);
+    EXPECT_NE(std::string(plm_last_error()).find("reads no parts"), std::string::npos) << plm_last_error();
+    EXPECT_EQ(plm_bake_texels(b.scene, &s, PLM_TEXELS_GATHER, 3, 3, nullptr, 0, nullptr,
+                              (dir.path + "/g.plmpart").c_str(), nullptr, nullptr),
+              PLM_ERROR_INVALID_ARGUMENT);
+  }
+}
+
+// Direct ranges under a target (the rule in docs/design.md "Sharded bakes"):
+// each range's rounds aim at the target relative to the whole's mean with
+// the whole's phantom sample, so the merged direct light meets the direct
+// pass's share of the target, measured against a bake with 1024 direct
+// samples a texel (the same photons: the images then differ by the direct
+// light's error), and the error the merge reports is honest. A room whose
+// last range (a box on the floor, mostly in shadow) is far darker than the
+// rest: with its own mean and phantom sample that range would stop early.
+TEST(TexelRanges, DirectRangesMeetTheTargetTogether) {
+  plm_demo::SceneBuilder b;
+  const uint32_t white = b.material("white", {0.75f, 0.75f, 0.75f});
+  const uint32_t res = 12;
+  b.quad("floor", {0, 0, 0}, {4, 0, 0}, {0, 4, 0}, white, res);
+  b.quad("ceiling", {0, 0, 3}, {0, 4, 0}, {4, 0, 0}, white, res);
+  b.quad("wall_x0", {0, 0, 0}, {0, 4, 0}, {0, 0, 3}, white, res);
+  b.quad("wall_x1", {4, 0, 0}, {0, 0, 3}, {0, 4, 0}, white, res);
+  b.quad("wall_y0", {0, 0, 0}, {0, 0, 3}, {4, 0, 0}, white, res);
+  b.quad("wall_y1", {0, 4, 0}, {4, 0, 0}, {0, 0, 3}, white, res);
+  b.quad("box_x0", {1.5f, 1.5f, 0}, {0, 0, 1}, {0, 1, 0}, white, 2 * res);
+  b.quad("box_x1", {2.5f, 1.5f, 0}, {0, 1, 0}, {0, 0, 1}, white, 2 * res);
+  b.quad("box_y0", {1.5f, 1.5f, 0}, {1, 0, 0}, {0, 0, 1}, white, 2 * res);
+  plm_light light;
+  plm_light_default(&light, PLM_LIGHT_POINT);
+  light.power = 800;
+  light.matrix[3] = 2.0f;
+  light.matrix[7] = 3.6f;
+  light.matrix[11] = 2.7f;
+  b.light(light, "lamp");
+  ASSERT_TRUE(b.ok()) << b.error;
+  const double target = 0.03;
+  plm_bake_settings s = small_settings(150000);
+  s.direct_samples = 16;
+  plm_bake_settings fine = s;
+  fine.direct_samples = 1024;
+  BakeResult reference;
+  ASSERT_EQ(plm_bake(b.scene, &fine, nullptr, nullptr, &reference.r), PLM_OK) << plm_last_error();
+  TempDir dir;
+  const auto photons = bake_shards(b.scene, s, 2, dir.path);
+  plm_bake_settings targeted = s;
+  targeted.target_error = target;
+  const auto direct = bake_ranges(b.scene, targeted, PLM_TEXELS_DIRECT, 3, {}, dir.path);
+  BakeResult merged;
+  std::string error;
+  ASSERT_EQ(merge(b.scene, joined({photons, direct}), merged, error), PLM_OK) << error;
+  double sq = 0.0, sum = 0.0;
+  size_t n = 0;
+  for (uint32_t m = 0; m < mesh_count(b); ++m) {
+    uint32_t w = 0, h = 0;
+    if (plm_result_lightmap_size(reference.r, m, &w, &h) != PLM_OK || w == 0) continue;
+    const Map a = merged.map(m), r = reference.map(m);
+    for (size_t t = 0; t < size_t(w) * h; ++t) {
+      if (r.coverage[t] <= 0.0f) continue;
+      const double va = (a.rgb[3 * t] + a.rgb[3 * t + 1] + a.rgb[3 * t + 2]) / 3.0;
+      const double vr = (r.rgb[3 * t] + r.rgb[3 * t + 1] + r.rgb[3 * t + 2]) / 3.0;
+      sq += (va - vr) * (va - vr);
+      sum += vr;
+      ++n;
+    }
+  }
+  ASSERT_GT(n, 0u);
+  const double measured = std::sqrt(sq / double(n)) / (sum / double(n));
+  plm_bake_stats stats{}, single_stats{};
+  ASSERT_EQ(plm_result_stats(merged.r, &stats), PLM_OK);
+  BakeResult single;
+  ASSERT_EQ(plm_bake(b.scene, &targeted, nullptr, nullptr, &single.r), PLM_OK) << plm_last_error();
+  ASSERT_EQ(plm_result_stats(single.r, &single_stats), PLM_OK);
+  std::printf("direct ranges under a %.0f %% target: measured %.2f %%, reported direct part %.2f %%, %llu samples; "
+              "one machine: reported %.2f %%, %llu samples\n",
+              100 * target, 100 * measured, 100 * stats.error_direct, (unsigned long long)stats.direct_samples,
+              100 * single_stats.error_direct, (unsigned long long)single_stats.direct_samples);
+  // The direct pass's share of the target, as one machine's rounds aim at it
+  // (the ranges' own means and phantom samples give 2.11 % here).
+  EXPECT_LT(stats.error_direct, plm::DirectSchedule::kDirectShareOfTarget * target);
+  EXPECT_LT(measured, plm::DirectSchedule::kDirectShareOfTarget * target);
+  EXPECT_LT(measured, 2.0 * stats.error_direct);  // the report does not understate it
+  // About the samples one machine takes for that target.
+  EXPECT_LT(double(stats.direct_samples), 1.5 * double(single_stats.direct_samples));
+}
+
+// A range's gather reads only the shards that hold the batches its estimate
+// looks up (the first 16 of 37 here: shards 1 and 2 of 3); the merge reads
+// them all. A damaged third shard passes the gather and stops the merge.
+TEST(TexelRanges, GatherReadsOnlyTheFirstBatchesShards) {
+  plm_demo::SceneBuilder b;
+  plm_demo::build_cornell(b, 6);
+  ASSERT_TRUE(b.ok()) << b.error;
+  const plm_bake_settings s = small_settings(150000);
+  TempDir dir;
+  const auto photons = bake_shards(b.scene, s, 3, dir.path);
+  {
+    std::fstream f(photons[2], std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(1000);
+    char c = 0;
+    f.read(&c, 1);
+    c ^= 0x10;
+    f.seekp(1000);
+    f.write(&c, 1);
+  }
+  const auto gather = bake_ranges(b.scene, s, PLM_TEXELS_GATHER, 2, photons, dir.path);
+  BakeResult r;
+  std::string error;
+  EXPECT_EQ(merge(b.scene, joined({photons, gather}), r, error), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(error.find(photons[2] + ": the part file's sums are damaged (checksum)"), std::string::npos) << error;
 }

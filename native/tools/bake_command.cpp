@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
@@ -41,6 +42,10 @@ void on_signal(int sig) {
 struct Args {
   std::string scene, out_dir;
   uint32_t shard = 0, shard_count = 0;  // --shard K/N: shard K - 1 of N; 0 = not sharded
+  // --direct K/N or --gather K/N: texel range K - 1 of N; 0 = none
+  uint32_t range = 0, range_count = 0;
+  int stage = -1;  // PLM_TEXELS_DIRECT or PLM_TEXELS_GATHER with a range
+  std::vector<std::string> parts;  // --parts: what the gather reads (default: the output folder)
   bool has_target = false, has_budget = false, has_photons = false, has_seed = false, has_threads = false;
   double target_error = 0, time_budget = 0;
   uint64_t photons = 0;
@@ -97,15 +102,24 @@ std::string parse_args(int argc, char** argv, Args& a) {
       if (!parse_u64(v, 0xffffffffu, u)) return "--seed: '" + std::string(v) + "' is not an integer in [0, 2^32)";
       a.seed = uint32_t(u);
       a.has_seed = true;
-    } else if (opt == "--shard") {
+    } else if (opt == "--shard" || opt == "--direct" || opt == "--gather") {
       const std::string text = v;
       const size_t slash = text.find('/');
       uint64_t k = 0, n = 0;
       if (slash == std::string::npos || !parse_u64(text.substr(0, slash).c_str(), 1u << 20, k) ||
           !parse_u64(text.substr(slash + 1).c_str(), 1u << 20, n) || k < 1 || k > n)
-        return "--shard: '" + text + "' is not K/N with 1 <= K <= N <= 1048576";
-      a.shard = uint32_t(k - 1);
-      a.shard_count = uint32_t(n);
+        return opt + ": '" + text + "' is not K/N with 1 <= K <= N <= 1048576";
+      if (a.shard_count > 0 || a.range_count > 0) return "only one of --shard, --direct and --gather";
+      if (opt == "--shard") {
+        a.shard = uint32_t(k - 1);
+        a.shard_count = uint32_t(n);
+      } else {
+        a.range = uint32_t(k - 1);
+        a.range_count = uint32_t(n);
+        a.stage = opt == "--direct" ? PLM_TEXELS_DIRECT : PLM_TEXELS_GATHER;
+      }
+    } else if (opt == "--parts") {
+      a.parts.push_back(v);
     } else if (opt == "--threads") {
       if (!parse_u64(v, 0xffffffffu, u)) return "--threads: '" + std::string(v) + "' is not an integer >= 0";
       a.threads = uint32_t(u);
@@ -116,6 +130,7 @@ std::string parse_args(int argc, char** argv, Args& a) {
   }
   if (a.scene.empty()) return "no scene file given (usage: photonlm bake SCENE.json -o DIR [options])";
   if (a.out_dir.empty()) return "no output folder given (-o DIR)";
+  if (!a.parts.empty() && a.stage != PLM_TEXELS_GATHER) return "--parts is for --gather K/N";
   return "";
 }
 
@@ -261,14 +276,36 @@ int bake_command(int argc, char** argv) {
   if (!make_output_folder(a.out_dir, error)) return bad_input(error);
   const auto t0 = std::chrono::steady_clock::now();
 
-  if (a.shard_count > 0) {  // one shard of a sharded bake: its part file, nothing else (docs/farm.md)
-    const std::string part = a.out_dir + "/" + part_file_name(a.shard, a.shard_count);
-    std::string scene_path = std::filesystem::absolute(a.scene).lexically_normal().string();
+  std::string scene_path;  // what a part file records
+  if (a.shard_count > 0 || a.range_count > 0) {
+    scene_path = std::filesystem::absolute(a.scene).lexically_normal().string();
     if (scene_path.size() > 255) {  // the part keeps 255 bytes: the merge then needs --scene
       std::fprintf(stderr, "warning: the scene's path is longer than 255 bytes and is not kept in the part; "
                            "give it to photonlm merge with --scene\n");
       scene_path.clear();
     }
+  }
+  if (a.range_count > 0) {  // one texel range's direct pass or gather: its part file (docs/farm.md)
+    const bool direct = a.stage == PLM_TEXELS_DIRECT;
+    const std::string part = a.out_dir + "/" + texel_part_file_name(direct, a.range, a.range_count);
+    std::vector<std::string> inputs;
+    if (!direct && !find_part_files(a.parts.empty() ? std::vector<std::string>{a.out_dir} : a.parts, inputs, error))
+      return bad_input(error);
+    std::vector<const char*> paths;
+    for (const std::string& p : inputs) paths.push_back(p.c_str());
+    const std::string what = "photonlm bake " + a.scene + (direct ? " --direct " : " --gather ") +
+                             std::to_string(a.range + 1) + "/" + std::to_string(a.range_count);
+    const int code = run_with_progress(what, [&](plm_progress_fn fn, void* user) {
+      return plm_bake_texels(scene.scene, &s, uint32_t(a.stage), a.range, a.range_count, paths.data(),
+                             uint32_t(paths.size()), scene_path.c_str(), part.c_str(), fn, user);
+    });
+    if (code == kOk)
+      std::printf("%s range %u of %u: %.3f s -> %s\n", direct ? "direct" : "gather", a.range + 1, a.range_count,
+                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), part.c_str());
+    return code;
+  }
+  if (a.shard_count > 0) {  // one shard of a sharded bake: its part file, nothing else (docs/farm.md)
+    const std::string part = a.out_dir + "/" + part_file_name(a.shard, a.shard_count);
     const int code = run_with_progress("photonlm bake " + a.scene + " --shard " + std::to_string(a.shard + 1) + "/" +
                                            std::to_string(a.shard_count),
                                        [&](plm_progress_fn fn, void* user) {
@@ -293,6 +330,39 @@ std::string part_file_name(uint32_t shard, uint32_t count) {
   char name[64];
   std::snprintf(name, sizeof name, "part-%05u-of-%05u.plmpart", shard + 1, count);
   return name;
+}
+
+std::string texel_part_file_name(bool direct, uint32_t range, uint32_t count) {
+  char name[64];
+  std::snprintf(name, sizeof name, "%s-%05u-of-%05u.plmpart", direct ? "direct" : "gather", range + 1, count);
+  return name;
+}
+
+bool find_part_files(const std::vector<std::string>& inputs, std::vector<std::string>& parts, std::string& error) {
+  // Only *.plmpart: temporary files (being written) end otherwise.
+  auto is_part = [](const std::filesystem::path& p) {
+    return p.extension() == ".plmpart" && std::filesystem::is_regular_file(p);
+  };
+  for (const std::string& in : inputs) {
+    std::error_code ec;
+    if (std::filesystem::is_directory(in, ec)) {
+      std::vector<std::string> found;
+      for (const auto& e : std::filesystem::directory_iterator(in, ec))
+        if (is_part(e.path())) found.push_back(e.path().string());
+      if (found.empty()) {
+        error = in + ": no part files (*.plmpart) in this folder";
+        return false;
+      }
+      std::sort(found.begin(), found.end());
+      parts.insert(parts.end(), found.begin(), found.end());
+    } else if (std::filesystem::is_regular_file(in, ec)) {
+      parts.push_back(in);
+    } else {
+      error = in + ": no such part file or folder";
+      return false;
+    }
+  }
+  return true;
 }
 
 int write_bake_outputs(plm_result* r, const plm::SceneFile& scene, const plm_bake_settings& s,

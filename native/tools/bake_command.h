@@ -5,6 +5,7 @@
 #include <chrono>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "io/scene_file.h"
 #include "photonlm/photonlm.h"
@@ -18,11 +19,21 @@ bool make_output_folder(const std::string& dir, std::string& error);
 // argv: the arguments after "bake". Returns the process exit code:
 // 0 ok, 1 bad input, 2 bake failure, 130 interrupted (SIGINT / SIGTERM).
 // With --shard K/N (1 <= K <= N) it bakes shard K of N: DIR gets only the
-// shard's part file, part_file_name(K - 1, N) (docs/farm.md).
+// shard's part file, part_file_name(K - 1, N) (docs/farm.md). With --direct
+// K/N the direct pass of texel range K of N, with --gather K/N [--parts
+// PATH...] its final gather over the photon and direct parts in PATH (default
+// DIR): DIR gets texel_part_file_name(...).
 int bake_command(int argc, char** argv);
 
 // The part file of shard `shard` (0-based) of `count`: part-0000K-of-0000N.plmpart.
 std::string part_file_name(uint32_t shard, uint32_t count);
+// The part file of texel range `range` (0-based) of `count`: direct-0000K-of-0000N.plmpart
+// (direct pass) or gather-0000K-of-0000N.plmpart (final gather).
+std::string texel_part_file_name(bool direct, uint32_t range, uint32_t count);
+
+// The part files among inputs: files named, and every *.plmpart in the
+// folders named (sorted). On failure returns false and the message.
+bool find_part_files(const std::vector<std::string>& inputs, std::vector<std::string>& parts, std::string& error);
 
 // Runs call(progress, user) with the CLI's progress line and Ctrl-C handling;
 // returns 0 or the exit code of its failure, printing "what: failed (...)".

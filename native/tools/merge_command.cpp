@@ -1,16 +1,15 @@
 // `photonlm merge PART... -o DIR`: adds the part files of a sharded bake
-// (`photonlm bake SCENE --shard K/N`) and writes what `photonlm bake SCENE`
+// (`photonlm bake SCENE --shard K/N`, and optionally its texel ranges'
+// `--direct K/N` and `--gather K/N`) and writes what `photonlm bake SCENE`
 // writes, bit for bit (docs/farm.md). A PART is a part file or a folder of
 // them; the scene is the one the parts name unless --scene gives another path
 // to it (a farm whose machines mount it elsewhere).
 #include "merge_command.h"
 
-#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <cstdio>
-#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -26,10 +25,6 @@ constexpr int kBadInput = 1;
 int bad_input(const std::string& message) {
   std::fprintf(stderr, "photonlm merge: %s\n", message.c_str());
   return kBadInput;
-}
-
-bool is_part(const std::filesystem::path& p) {
-  return p.extension() == ".plmpart" && std::filesystem::is_regular_file(p);
 }
 
 }  // namespace
@@ -68,34 +63,18 @@ int merge_command(int argc, char** argv) {
   if (inputs.empty()) return bad_input("no part files or folders given (usage: photonlm merge PART... -o DIR)");
   if (out_dir.empty()) return bad_input("no output folder given (-o DIR)");
 
-  // Part files: those named, and every *.plmpart in the folders named (temporary files end otherwise).
   std::vector<std::string> parts;
-  for (const std::string& in : inputs) {
-    std::error_code ec;
-    if (std::filesystem::is_directory(in, ec)) {
-      std::vector<std::string> found;
-      for (const auto& e : std::filesystem::directory_iterator(in, ec))
-        if (is_part(e.path())) found.push_back(e.path().string());
-      if (found.empty()) return bad_input(in + ": no part files (*.plmpart) in this folder");
-      std::sort(found.begin(), found.end());
-      parts.insert(parts.end(), found.begin(), found.end());
-    } else if (std::filesystem::is_regular_file(in, ec)) {
-      parts.push_back(in);
-    } else {
-      return bad_input(in + ": no such part file or folder");
-    }
-  }
+  std::string error;
+  if (!find_part_files(inputs, parts, error)) return bad_input(error);
 
   plm_bake_settings s{};
-  uint32_t shard = 0, count = 0;
   char named_scene[256] = {0};
-  if (plm_part_info(parts[0].c_str(), &s, &shard, &count, named_scene, sizeof named_scene) != PLM_OK)
+  if (plm_part_info(parts[0].c_str(), &s, nullptr, nullptr, named_scene, sizeof named_scene) != PLM_OK)
     return bad_input(plm_last_error());
   if (scene_path.empty()) scene_path = named_scene;
   if (scene_path.empty()) return bad_input(parts[0] + ": names no scene file; give one with --scene");
 
   plm::SceneFile scene;
-  std::string error;
   if (!plm::read_scene_file(scene_path, plm::SceneFileOptions{}, scene, error)) return bad_input(error);
   if (!make_output_folder(out_dir, error)) return bad_input(error);
 
@@ -112,7 +91,7 @@ int merge_command(int argc, char** argv) {
   plm_bake_stats stats{};
   plm_result_stats(result, &stats);
   plm_result_release(result);
-  if (written == 0) std::printf("merged %zu part(s) of %u shard(s)\n", parts.size(), count);
+  if (written == 0) std::printf("merged %zu part file(s)\n", parts.size());
   if (written == 0 && target > 0.0)
     std::printf("target error %g %s (estimate %g)\n", target, stats.error_estimate <= target ? "met" : "not met",
                 stats.error_estimate);

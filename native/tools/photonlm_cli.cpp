@@ -3,7 +3,7 @@
 //   photonlm furnace [--albedo R] [--emission E] [--photons N] [--res N] [-o DIR]
 //   photonlm cornell [--photons N] [--res N] [--seed S] [-o DIR]
 //   photonlm bake SCENE.json -o DIR [--target-error X] [--time-budget S] [--photons N] [--seed N] [--threads N]
-//                 [--shard K/N]
+//                 [--shard K/N | --direct K/N | --gather K/N [--parts PATH]...]
 //   photonlm merge PART... -o DIR [--scene SCENE.json] [--threads N] [--target-error X]
 // furnace/cornell: progress goes to stderr; results (time, photons, error) to stdout.
 // bake (bake_command.cpp): see docs/scene-file.md; shards and merge (merge_command.cpp): docs/farm.md.
@@ -35,14 +35,18 @@ int usage(const char* error) {
                "       photonlm furnace [--albedo R] [--emission E] [--photons N] [--res N] [-o DIR]\n"
                "       photonlm cornell [--photons N] [--res N] [--seed S] [--threads T] [-o DIR]\n"
                "       photonlm bake SCENE.json -o DIR [--target-error X] [--time-budget S] [--photons N]\n"
-               "                     [--seed N] [--threads N] [--shard K/N]\n"
+               "                     [--seed N] [--threads N] [--shard K/N | --direct K/N | --gather K/N [--parts P]]\n"
                "       photonlm merge PART... -o DIR [--scene SCENE.json] [--threads N] [--target-error X]\n"
                "furnace: closed box with uniform emission and albedo; the exact texel value is E/(1-R).\n"
                "cornell: Cornell box with a 200 W area light; writes one EXR per object with -o.\n"
                "bake: bakes a JSON scene file (docs/scene-file.md) into DIR: one EXR per lightmap and\n"
                "      OL group, and report.json. Exit codes: 0 ok, 1 bad input, 2 bake failure, 130 interrupted.\n"
-               "      --shard K/N bakes the photons of shard K of N into DIR/part-K-of-N.plmpart (docs/farm.md).\n"
-               "merge: adds the part files of all N shards (files or folders) and writes what bake writes.\n");
+               "      --shard K/N bakes the photons of shard K of N into DIR/part-K-of-N.plmpart (docs/farm.md);\n"
+               "      --direct K/N the direct pass of texel range K of N into DIR/direct-K-of-N.plmpart;\n"
+               "      --gather K/N the final gather of texel range K of N over the photon and direct parts in\n"
+               "      P (default DIR) into DIR/gather-K-of-N.plmpart.\n"
+               "merge: adds the part files of all N shards (files or folders; direct and gather parts of\n"
+               "      every texel range too, if given) and writes what bake writes.\n");
   return 2;
 }
 

@@ -88,3 +88,40 @@ def test_bad_shard_options(tmp_path, scene):
     assert cli("merge", "-o", tmp_path / "m").returncode == 1
     r = cli("merge", tmp_path / "nothing_here", "-o", tmp_path / "m")
     assert r.returncode == 1 and "no such part file or folder" in r.stderr, r.stderr
+
+
+@pytest.mark.parametrize("ranges", [1, 3])
+def test_texel_ranges_merge_into_the_single_bake(tmp_path, scene, ranges):
+    """Photon shards, then the direct pass and the final gather by texel ranges, all in one folder."""
+    path, single = scene
+    parts = tmp_path / "parts"
+    for k in (1, 2):
+        assert cli("bake", path, "--shard", "%d/2" % k, "-o", parts).returncode == 0
+    for k in range(1, ranges + 1):
+        r = cli("bake", path, "--direct", "%d/%d" % (k, ranges), "-o", parts, "--threads", k)
+        assert r.returncode == 0, r.stderr
+    for k in range(1, ranges + 1):  # reads the folder it writes to: gather parts there are passed over
+        r = cli("bake", path, "--gather", "%d/%d" % (k, ranges), "-o", parts)
+        assert r.returncode == 0, r.stderr
+    names = ["%s-%05d-of-%05d.plmpart" % (kind, k, ranges) for kind in ("direct", "gather") for k in range(1, ranges + 1)]
+    assert sorted(os.listdir(parts)) == sorted(names + ["part-00001-of-00002.plmpart", "part-00002-of-00002.plmpart"])
+    r = cli("merge", parts, "-o", tmp_path / "merged")
+    assert r.returncode == 0, r.stderr
+    merged = outputs(tmp_path / "merged")
+    for name in single:
+        assert merged[name] == single[name], name
+
+
+def test_texel_range_options(tmp_path, scene):
+    path, _ = scene
+    r = cli("bake", path, "--direct", "3/2", "-o", tmp_path / "p")
+    assert r.returncode == 1 and "--direct: '3/2' is not K/N" in r.stderr, r.stderr
+    r = cli("bake", path, "--direct", "1/2", "--shard", "1/2", "-o", tmp_path / "p")
+    assert r.returncode == 1 and "only one of --shard, --direct and --gather" in r.stderr, r.stderr
+    r = cli("bake", path, "--direct", "1/2", "--parts", tmp_path, "-o", tmp_path / "p")
+    assert r.returncode == 1 and "--parts is for --gather" in r.stderr, r.stderr
+    assert cli("bake", path, "--direct", "1/2", "-o", tmp_path / "p").returncode == 0
+    r = cli("bake", path, "--gather", "1/2", "-o", tmp_path / "p")  # no photon parts there
+    assert r.returncode == 1 and "no photon parts" in r.stderr, r.stderr
+    r = cli("merge", tmp_path / "p", "-o", tmp_path / "m")
+    assert r.returncode == 1 and "no photon parts" in r.stderr, r.stderr

@@ -1,6 +1,7 @@
 """scripts/slurm_bake.sh against a real Slurm on this machine: munged, slurmctld and slurmd are started
 from a generated configuration (a one-node cluster, ports of their own, everything under a temporary
 folder), a 4-shard bake must equal `photonlm bake` bit for bit with one shard killed once (and requeued),
+so must one whose direct pass and final gather run as arrays of texel ranges (a gather task killed once),
 a shard that stays dead must fail the merge cleanly, and the daemons are stopped. Skips, saying why,
 where Slurm is not installed (Debian: apt-get install slurmd slurmctld slurm-client munge) or this is
 not root (the daemons run as root here)."""
@@ -127,8 +128,9 @@ def single(tmp_path_factory):
 
 
 def slurm_bake(env, scene, out, *args, kill=None):
+    """kill: "STAGE:K", the task whose first attempt is killed."""
     if kill is not None:
-        env = dict(env, PHOTONLM_TEST_KILL_SHARD=str(kill))
+        env = dict(env, PHOTONLM_TEST_KILL=kill)
     return subprocess.run(["bash", SCRIPT, str(scene), "-o", str(out), "--shards", "4", "--wait",
                            "--photonlm", CLI] + list(args), env=env, capture_output=True, text=True, timeout=240)
 
@@ -136,7 +138,7 @@ def slurm_bake(env, scene, out, *args, kill=None):
 def test_four_shards_with_one_killed_once_equal_one_machine(slurm, single, tmp_path):
     scene, expected = single
     out = tmp_path / "out"
-    r = slurm_bake(slurm, scene, out, kill=2)
+    r = slurm_bake(slurm, scene, out, kill="shard:2")
     assert r.returncode == 0, r.stdout + r.stderr + (out / "logs" / "merge.log").read_text()
     log = (out / "logs" / "shard-2.log").read_text()
     assert "shard 2 failed (exit 137)" in log and "attempt 2" in log, log
@@ -148,7 +150,7 @@ def test_four_shards_with_one_killed_once_equal_one_machine(slurm, single, tmp_p
 def test_a_shard_that_stays_dead_fails_the_merge_cleanly(slurm, single, tmp_path):
     scene, _ = single
     out = tmp_path / "out"
-    r = slurm_bake(slurm, scene, out, "--retries", "0", kill=3)
+    r = slurm_bake(slurm, scene, out, "--retries", "0", kill="shard:3")
     assert r.returncode != 0, r.stdout + r.stderr
     merge_log = (out / "logs" / "merge.log").read_text()
     assert "shard(s) 3 of 4 missing" in merge_log, merge_log
@@ -165,3 +167,21 @@ def test_rounds_reach_a_target_error(slurm, single, tmp_path):
     report = json.loads((out / "report.json").read_text())
     assert report["target"]["met"] and report["stats"]["error_estimate"] <= 0.03, report
     assert report["settings"]["photon_count"] > 20000
+
+
+def test_texel_ranges_with_one_gather_killed_once_equal_one_machine(slurm, single, tmp_path):
+    """4 shards and 2 texel ranges: the direct arrays run beside the shards, the gather array after both."""
+    scene, expected = single
+    out = tmp_path / "out"
+    r = slurm_bake(slurm, scene, out, "--texel-ranges", "2", kill="gather:1")
+    assert r.returncode == 0, r.stdout + r.stderr + (out / "logs" / "merge.log").read_text()
+    assert "final gather job array" in r.stdout, r.stdout
+    log = (out / "logs" / "gather-1.log").read_text()
+    assert "gather 1 failed (exit 137)" in log and "attempt 2" in log, log
+    assert "direct 2 of 2, attempt 1" in (out / "logs" / "direct-2.log").read_text()
+    assert sorted(os.listdir(out / "parts")) == sorted(
+        ["part-%05d-of-00004.plmpart" % k for k in range(1, 5)]
+        + ["%s-%05d-of-00002.plmpart" % (kind, k) for kind in ("direct", "gather") for k in (1, 2)])
+    got = outputs(out)
+    for name in expected:
+        assert got[name] == expected[name], name

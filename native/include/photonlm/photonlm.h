@@ -483,14 +483,34 @@ PLM_API plm_status plm_preview_copy_lightmap(const plm_preview* preview, uint32_
 PLM_API plm_status plm_bake_shard(plm_scene* scene, const plm_bake_settings* settings, uint32_t shard,
                                   uint32_t shard_count, const char* scene_path, const char* part_path,
                                   plm_progress_fn progress, void* user_data);
+/* The texel ranges of a sharded bake (docs/farm.md): range `range` (0-based)
+ * of `range_count` contiguous ranges of the covered texels, balanced by count.
+ * PLM_TEXELS_DIRECT runs the direct pass of its texels and reads no parts; its
+ * settings are plm_bake_shard's, and a target_error is allowed (the range's
+ * rounds then bring its own texels' direct error under it). PLM_TEXELS_GATHER
+ * runs the final gather of its texels over the photon parts and the direct
+ * parts among part_paths (gather parts there are passed over; without direct
+ * parts it runs the whole direct pass itself), with the settings the parts
+ * hold (of `settings`, which may be NULL, only thread_count is used). Either
+ * writes its part to part_path (atomically); plm_bake_merge takes these parts
+ * beside the photon parts and is then still bit for bit plm_bake's (without a
+ * target). Parts that do not belong together are refused, naming the part. */
+typedef enum plm_texel_stage { PLM_TEXELS_DIRECT = 0, PLM_TEXELS_GATHER = 1 } plm_texel_stage;
+PLM_API plm_status plm_bake_texels(plm_scene* scene, const plm_bake_settings* settings, uint32_t stage,
+                                   uint32_t range, uint32_t range_count, const char* const* part_paths,
+                                   uint32_t part_count, const char* scene_path, const char* part_path,
+                                   plm_progress_fn progress, void* user_data);
 /* What a part file holds: its bake's settings (thread_count 0), its shard and
- * shard count, the scene_path it was given (copied, truncated to capacity - 1;
- * scene_path may be NULL). Any of the out pointers may be NULL. */
+ * shard count (a direct or gather part: its texel range and range count), the
+ * scene_path it was given (copied, truncated to capacity - 1; scene_path may
+ * be NULL). Any of the out pointers may be NULL. */
 PLM_API plm_status plm_part_info(const char* part_path, plm_bake_settings* out_settings, uint32_t* out_shard,
                                  uint32_t* out_shard_count, char* scene_path, size_t scene_path_capacity);
 /* Merges the parts of one sharded bake of `scene` (all of its shards, each once,
- * in any order); a part that does not belong (another scene, seed, setting,
- * engine version or shard count; damaged or truncated) is named in the error.
+ * in any order; optionally every direct range and every gather range, each
+ * once); a part that does not belong (another scene, seed, setting, engine
+ * version, shard or range count, target error; damaged or truncated) is named
+ * in the error.
  * thread_count is the merge's own (0 = all cores). */
 PLM_API plm_status plm_bake_merge(plm_scene* scene, const char* const* part_paths, uint32_t part_count,
                                   uint32_t thread_count, plm_progress_fn progress, void* user_data,

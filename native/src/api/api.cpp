@@ -16,6 +16,7 @@
 #include "subdiv/subdiv.h"
 #include "transport/bake.h"
 #include "transport/shard.h"
+#include "transport/texel_ranges.h"
 #include "util/error.h"
 
 
@@ -422,6 +423,94 @@ plm_status plm_bake_shard(plm_scene* scene, const plm_bake_settings* settings, u
   });
 }
 
+namespace {
+
+// The bake's settings from a part's header, with the caller's thread count.
+plm_bake_settings settings_of(const plm::PartHeader& h, uint32_t thread_count) {
+  plm_bake_settings s = plm::default_settings();
+  s.photon_count = h.settings.photon_count;
+  s.max_bounces = h.settings.max_bounces;
+  s.seed = h.settings.seed;
+  s.direct_samples = h.settings.direct_samples;
+  s.filter_radius = h.settings.filter_radius;
+  s.dilation = h.settings.dilation;
+  s.texel_value = h.settings.texel_value;
+  s.sampler = h.settings.sampler;
+  s.target_error = 0.0;
+  s.time_budget = 0.0;
+  s.thread_count = thread_count;
+  return s;
+}
+
+std::vector<std::string> part_list(const char* fn, const char* const* part_paths, uint32_t part_count) {
+  if (part_count > 0) require(part_paths, fn, "part_paths");
+  std::vector<std::string> paths;
+  for (uint32_t i = 0; i < part_count; ++i) {
+    if (!part_paths[i]) plm::fail(PLM_ERROR_INVALID_ARGUMENT, fn, ": part_paths[", i, "] is NULL");
+    paths.push_back(part_paths[i]);
+  }
+  return paths;
+}
+
+}  // namespace
+
+plm_status plm_bake_texels(plm_scene* scene, const plm_bake_settings* settings, uint32_t stage, uint32_t range,
+                           uint32_t range_count, const char* const* part_paths, uint32_t part_count,
+                           const char* scene_path, const char* part_path, plm_progress_fn progress, void* user_data) {
+  return guarded("plm_bake_texels", [&] {
+    require(scene, "plm_bake_texels", "scene");
+    require(part_path, "plm_bake_texels", "part_path");
+    if (stage != PLM_TEXELS_DIRECT && stage != PLM_TEXELS_GATHER)
+      plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_bake_texels: stage ", stage,
+                " is neither PLM_TEXELS_DIRECT nor PLM_TEXELS_GATHER");
+    if (range_count == 0 || range >= range_count)
+      plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_bake_texels: range ", range, " of ", range_count,
+                ": expected 0 <= range < range_count");
+    if (scene_path && std::strlen(scene_path) > 255)
+      plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_bake_texels: scene_path is longer than 255 bytes");
+    const std::vector<std::string> paths = part_list("plm_bake_texels", part_paths, part_count);
+    plm::ShardJob job;
+    job.mode = stage == PLM_TEXELS_DIRECT ? plm::ShardJob::kDirect : plm::ShardJob::kGather;
+    job.index = range;
+    job.count = range_count;
+    plm_bake_settings s = settings ? *settings : plm::default_settings();
+    double direct_target = s.target_error;
+    if (stage == PLM_TEXELS_GATHER) {
+      const plm::PartHeader first = plm::load_parts(paths, plm_version(), plm::scene_hash(scene->scene), job);
+      s = settings_of(first, s.thread_count);
+      direct_target = job.direct_target;
+    } else if (part_count > 0) {
+      plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_bake_texels: the direct pass of a texel range reads no parts (",
+                part_count, " given)");
+    }
+    plm::ProgressFn fn;
+    if (progress) fn = [&](double f, const char* st) { return progress(user_data, f, st) != 0; };
+    plm::bake(scene->scene, s, fn, nullptr, &job);
+    plm::PartHeader h;
+    h.engine_version = plm_version();
+    h.scene_hash = job.layout.scene_hash;
+    h.settings = s;
+    h.settings.thread_count = 0;
+    h.settings.target_error = 0.0;
+    h.shard_index = range;
+    h.shard_count = range_count;
+    h.layout = job.layout;
+    h.scene_path = scene_path ? scene_path : "";
+    const plm::CoveredSlice slice = plm::texel_range(job.layout.covered, range, range_count);
+    h.range_begin = slice.begin;
+    h.range_end = slice.end;
+    h.direct_target = direct_target;
+    if (stage == PLM_TEXELS_DIRECT) {
+      h.kind = plm::PartKind::kDirect;
+      plm::write_direct_part(part_path, h, job.direct.at(0));
+    } else {
+      h.kind = plm::PartKind::kGather;
+      h.gathered = job.gathered;
+      plm::write_gather_part(part_path, h, job.gather.at(0));
+    }
+  });
+}
+
 plm_status plm_part_info(const char* part_path, plm_bake_settings* out_settings, uint32_t* out_shard,
                          uint32_t* out_shard_count, char* scene_path, size_t scene_path_capacity) {
   return guarded("plm_part_info", [&] {
@@ -444,26 +533,10 @@ plm_status plm_bake_merge(plm_scene* scene, const char* const* part_paths, uint3
     require(scene, "plm_bake_merge", "scene");
     require(out_result, "plm_bake_merge", "out_result");
     *out_result = nullptr;
-    if (part_count > 0) require(part_paths, "plm_bake_merge", "part_paths");
-    std::vector<std::string> paths;
-    for (uint32_t i = 0; i < part_count; ++i) {
-      if (!part_paths[i]) plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_bake_merge: part_paths[", i, "] is NULL");
-      paths.push_back(part_paths[i]);
-    }
+    const std::vector<std::string> paths = part_list("plm_bake_merge", part_paths, part_count);
     plm::ShardJob job;
     const plm::PartHeader h = plm::load_parts(paths, plm_version(), plm::scene_hash(scene->scene), job);
-    plm_bake_settings s = plm::default_settings();
-    s.photon_count = h.settings.photon_count;
-    s.max_bounces = h.settings.max_bounces;
-    s.seed = h.settings.seed;
-    s.direct_samples = h.settings.direct_samples;
-    s.filter_radius = h.settings.filter_radius;
-    s.dilation = h.settings.dilation;
-    s.texel_value = h.settings.texel_value;
-    s.sampler = h.settings.sampler;
-    s.target_error = 0.0;
-    s.time_budget = 0.0;
-    s.thread_count = thread_count;
+    const plm_bake_settings s = settings_of(h, thread_count);
     plm::ProgressFn fn;
     if (progress) fn = [&](double f, const char* stage) { return progress(user_data, f, stage) != 0; };
     auto* result = new plm_result();

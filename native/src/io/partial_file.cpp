@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "transport/scheduler.h"
+#include "transport/texel_ranges.h"
 #include "util/error.h"
 
 namespace plm {
@@ -49,6 +50,25 @@ struct Cursor {
 uint64_t segment_bytes(uint64_t texels, uint32_t meshes, bool caustics) {
   const uint64_t sums = texels * (3 * 8 + 8 + 4);
   return 9 * 8 + sums + meshes + (caustics ? sums : 0);
+}
+
+// Texel parts' records: DirectSums, DirectCalibration, GatherSums + GatherInfo.
+constexpr uint64_t kDirectTexelBytes = 6 * 8 + 2 * 4, kCalibrationBytes = 8 + 8 + 8 + 4 + 4 + 8,
+                   kGatherTexelBytes = 5 * 8 + 2 * 4 + 4 + 4 + 8 + 4;
+// Texel records are packed and checksummed this many at a time (writer and reader alike).
+constexpr size_t kTexelChunk = 4096;
+
+uint64_t payload_bytes_of(const PartHeader& h) {
+  const uint64_t texels = h.range_end - h.range_begin;
+  switch (h.kind) {
+    case PartKind::kPhotons:
+      return h.segment_count * segment_bytes(h.layout.texel_count, h.layout.mesh_count, h.layout.caustics);
+    case PartKind::kDirect:
+      return texels * kDirectTexelBytes + uint64_t(h.calibration_count) * kCalibrationBytes;
+    case PartKind::kGather:
+      return h.gathered ? texels * kGatherTexelBytes : 0;
+  }
+  return 0;
 }
 
 struct FileCloser {
@@ -124,6 +144,14 @@ void encode_header(const PartHeader& h, uint64_t payload_bytes, uint64_t payload
   c.put(payload_bytes);
   c.put(payload_sum);
   c.put_chars(h.scene_path, kPathChars);
+  c.put(uint32_t(h.kind));
+  c.put(uint32_t(h.gathered));
+  c.put(h.layout.covered);
+  c.put(h.range_begin);
+  c.put(h.range_end);
+  c.put(h.direct_target);
+  c.put(h.direct_rounds);
+  c.put(h.calibration_count);
   Cursor end{buf, kPartHeaderBytes - 8};
   end.put(hash_bytes(buf, kPartHeaderBytes - 8));
 }
@@ -162,10 +190,22 @@ PartHeader decode_header(unsigned char* buf, const std::string& path, uint64_t& 
   payload_bytes = c.get<uint64_t>();
   payload_sum = c.get<uint64_t>();
   h.scene_path = c.get_chars(kPathChars);
-  if (h.shard_count == 0 || h.shard_index >= h.shard_count || h.segment_count > 2)
-    fail(PLM_ERROR_INVALID_ARGUMENT, path, ": shard ", h.shard_index, " of ", h.shard_count, " with ",
-         h.segment_count, " segments is not a valid part");
-  const uint64_t want = h.segment_count * segment_bytes(h.layout.texel_count, h.layout.mesh_count, h.layout.caustics);
+  const uint32_t kind = c.get<uint32_t>();
+  h.kind = PartKind(kind);
+  h.gathered = c.get<uint32_t>() != 0;
+  h.layout.covered = c.get<uint64_t>();
+  h.range_begin = c.get<uint64_t>();
+  h.range_end = c.get<uint64_t>();
+  h.direct_target = c.get<double>();
+  h.direct_rounds = c.get<uint32_t>();
+  h.calibration_count = c.get<uint32_t>();
+  const bool texel_part = h.kind != PartKind::kPhotons;
+  if (kind > 2 || h.shard_count == 0 || h.shard_index >= h.shard_count ||
+      h.segment_count > (texel_part ? 0u : 2u) || h.range_begin > h.range_end || h.range_end > h.layout.covered)
+    fail(PLM_ERROR_INVALID_ARGUMENT, path, ": a part of kind ", kind, ", shard or range ", h.shard_index, " of ",
+         h.shard_count, " with ", h.segment_count, " segments and texels ", h.range_begin, "-", h.range_end,
+         " is not a valid part");
+  const uint64_t want = payload_bytes_of(h);
   if (payload_bytes != want)
     fail(PLM_ERROR_INVALID_ARGUMENT, path, ": the header gives ", payload_bytes, " payload bytes where its sizes need ",
          want);
@@ -186,41 +226,24 @@ File open_part(const std::string& path, unsigned char* header, uint64_t& payload
   return f;
 }
 
-}  // namespace
-
-void write_part_file(const std::string& path, const PartHeader& header, const std::vector<PhotonSegment>& segments) {
+// Writes header and payload (fill(Writer&) writes payload_bytes_of(header) bytes) to a temporary
+// file in path's folder, flushed to disk, then renames it to path.
+template <typename Fill>
+void write_part(const std::string& path, const PartHeader& header, Fill&& fill) {
   char host[64] = {0};
   gethostname(host, sizeof host - 1);
   const std::string tmp = path + ".tmp-" + host + "-" + std::to_string(getpid());
   File f(std::fopen(tmp.c_str(), "wb"));
   if (!f) fail(PLM_ERROR_IO, tmp, ": cannot create the part file: ", std::strerror(errno));
-  const ShardLayout& L = header.layout;
-  const uint64_t payload = segments.size() * segment_bytes(L.texel_count, L.mesh_count, L.caustics);
+  const uint64_t payload = payload_bytes_of(header);
   unsigned char buf[kPartHeaderBytes];
   // The header first with a zero checksum (space), then again once the payload's is known.
   encode_header(header, payload, 0, buf);
   Writer w{f.get()};
   w.ok = std::fwrite(buf, 1, kPartHeaderBytes, f.get()) == kPartHeaderBytes;
   w.sum = 0;
-  for (const PhotonSegment& s : segments) {
-    const Accumulators& a = s.acc;
-    for (uint64_t v : {s.begin, s.end, s.rays, s.truncated, a.total_hits, a.total_sq_q, a.caustic.total_hits,
-                       a.caustic.total_sq_q})
-      w.value(v);
-    w.value(s.truncated_flux);
-    w.array(a.sum);
-    w.array(a.sum_sq);
-    w.array(a.hits);
-    w.array(a.back_lit);
-    if (L.caustics) {
-      w.array(a.caustic.sum);
-      w.array(a.caustic.sum_sq);
-      w.array(a.caustic.hits);
-    }
-  }
-  PartHeader h = header;
-  h.segment_count = uint32_t(segments.size());
-  encode_header(h, payload, w.sum, buf);
+  fill(w);
+  encode_header(header, payload, w.sum, buf);
   bool ok = w.ok && std::fseek(f.get(), 0, SEEK_SET) == 0 &&
             std::fwrite(buf, 1, kPartHeaderBytes, f.get()) == kPartHeaderBytes && std::fflush(f.get()) == 0 &&
             fsync(fileno(f.get())) == 0;
@@ -232,6 +255,183 @@ void write_part_file(const std::string& path, const PartHeader& header, const st
   }
 }
 
+// Opens a part of kind `kind`, checks its size against its header, and reads
+// its payload with read(Reader&, header); the checksum is checked after.
+template <typename Read>
+PartHeader read_part(const std::string& path, PartKind kind, Read&& read) {
+  unsigned char buf[kPartHeaderBytes];
+  uint64_t bytes = 0, want_sum = 0;
+  PartHeader h;
+  File f = open_part(path, buf, bytes, want_sum, h);
+  if (h.kind != kind)
+    fail(PLM_ERROR_INVALID_ARGUMENT, path, ": a ", part_kind_name(h.kind), " where a ", part_kind_name(kind),
+         " was expected");
+  Reader r{f.get(), path};
+  read(r, h);
+  if (r.sum != want_sum) fail(PLM_ERROR_INVALID_ARGUMENT, path, ": the part file's sums are damaged (checksum)");
+  return h;
+}
+
+// Per-texel records packed kTexelChunk at a time: put(i, cursor) writes record i.
+template <typename Put>
+void write_records(Writer& w, size_t count, uint64_t record_bytes, Put&& put) {
+  std::vector<unsigned char> chunk(std::min(count, kTexelChunk) * record_bytes);
+  for (size_t i0 = 0; i0 < count; i0 += kTexelChunk) {
+    const size_t n = std::min(kTexelChunk, count - i0);
+    Cursor c{chunk.data()};
+    for (size_t i = i0; i < i0 + n; ++i) put(i, c);
+    w.bytes(chunk.data(), n * record_bytes);
+  }
+}
+
+template <typename Get>
+void read_records(Reader& r, size_t count, uint64_t record_bytes, Get&& get) {
+  std::vector<unsigned char> chunk(std::min(count, kTexelChunk) * record_bytes);
+  for (size_t i0 = 0; i0 < count; i0 += kTexelChunk) {
+    const size_t n = std::min(kTexelChunk, count - i0);
+    r.bytes(chunk.data(), n * record_bytes);
+    Cursor c{chunk.data()};
+    for (size_t i = i0; i < i0 + n; ++i) get(i, c);
+  }
+}
+
+void put_stratified(Cursor& c, const StratifiedSums& s) {
+  for (double v : {s.rgb[0], s.rgb[1], s.rgb[2], s.sum_sq, s.pair_sq}) c.put(v);
+  c.put(s.paired);
+  c.put(s.count);
+}
+
+void get_stratified(Cursor& c, StratifiedSums& s) {
+  for (double* v : {&s.rgb[0], &s.rgb[1], &s.rgb[2], &s.sum_sq, &s.pair_sq}) *v = c.get<double>();
+  s.paired = c.get<uint32_t>();
+  s.count = c.get<uint32_t>();
+}
+
+}  // namespace
+
+const char* part_kind_name(PartKind kind) {
+  switch (kind) {
+    case PartKind::kPhotons: return "photon part";
+    case PartKind::kDirect: return "direct part";
+    case PartKind::kGather: return "gather part";
+  }
+  return "part";
+}
+
+void write_part_file(const std::string& path, const PartHeader& header, const std::vector<PhotonSegment>& segments) {
+  PartHeader h = header;
+  h.kind = PartKind::kPhotons;
+  h.segment_count = uint32_t(segments.size());
+  const bool caustics = h.layout.caustics;
+  write_part(path, h, [&](Writer& w) {
+    for (const PhotonSegment& s : segments) {
+      const Accumulators& a = s.acc;
+      for (uint64_t v : {s.begin, s.end, s.rays, s.truncated, a.total_hits, a.total_sq_q, a.caustic.total_hits,
+                         a.caustic.total_sq_q})
+        w.value(v);
+      w.value(s.truncated_flux);
+      w.array(a.sum);
+      w.array(a.sum_sq);
+      w.array(a.hits);
+      w.array(a.back_lit);
+      if (caustics) {
+        w.array(a.caustic.sum);
+        w.array(a.caustic.sum_sq);
+        w.array(a.caustic.hits);
+      }
+    }
+  });
+}
+
+void write_direct_part(const std::string& path, const PartHeader& header, const DirectResult& direct) {
+  PartHeader h = header;
+  h.kind = PartKind::kDirect;
+  h.segment_count = 0;
+  h.calibration_count = uint32_t(direct.calibration.size());
+  h.direct_rounds = direct.rounds;
+  if (direct.sums.size() != h.range_end - h.range_begin)
+    fail(PLM_ERROR_INTERNAL, path, ": ", direct.sums.size(), " direct sums for texels ", h.range_begin, "-",
+         h.range_end);
+  write_part(path, h, [&](Writer& w) {
+    write_records(w, direct.sums.size(), kDirectTexelBytes, [&](size_t i, Cursor& c) {
+      put_stratified(c, direct.sums[i]);
+      c.put(direct.sums[i].choice_sq);
+    });
+    write_records(w, direct.calibration.size(), kCalibrationBytes, [&](size_t i, Cursor& c) {
+      const DirectCalibration& r = direct.calibration[i];
+      c.put(r.texel);
+      c.put(r.measured);
+      c.put(r.estimated);
+      c.put(r.used);
+      c.put(r.count_before);
+      c.put(r.sum_sq_before);
+    });
+  });
+}
+
+void write_gather_part(const std::string& path, const PartHeader& header, const GatherResult& gather) {
+  PartHeader h = header;
+  h.kind = PartKind::kGather;
+  h.segment_count = 0;
+  const size_t texels = h.gathered ? h.range_end - h.range_begin : 0;
+  if (gather.sums.size() != texels || gather.info.size() != texels)
+    fail(PLM_ERROR_INTERNAL, path, ": ", gather.sums.size(), " gather sums for texels ", h.range_begin, "-",
+         h.range_end);
+  write_part(path, h, [&](Writer& w) {
+    write_records(w, texels, kGatherTexelBytes, [&](size_t i, Cursor& c) {
+      put_stratified(c, gather.sums[i]);
+      const GatherInfo& g = gather.info[i];
+      c.put(g.unknown);
+      c.put(g.dark);
+      c.put(g.lookup_error);
+      c.put(g.hit_distance);
+    });
+  });
+}
+
+PartHeader read_direct_part(const std::string& path, DirectResult& direct) {
+  return read_part(path, PartKind::kDirect, [&](Reader& r, const PartHeader& h) {
+    direct = DirectResult();
+    direct.rounds = h.direct_rounds;
+    direct.sums.resize(h.range_end - h.range_begin);
+    read_records(r, direct.sums.size(), kDirectTexelBytes, [&](size_t i, Cursor& c) {
+      get_stratified(c, direct.sums[i]);
+      direct.sums[i].choice_sq = c.get<double>();
+    });
+    direct.calibration.resize(h.calibration_count);
+    read_records(r, direct.calibration.size(), kCalibrationBytes, [&](size_t i, Cursor& c) {
+      DirectCalibration& d = direct.calibration[i];
+      d.texel = c.get<uint64_t>();
+      d.measured = c.get<double>();
+      d.estimated = c.get<double>();
+      d.used = c.get<uint32_t>();
+      d.count_before = c.get<uint32_t>();
+      d.sum_sq_before = c.get<double>();
+    });
+    for (const DirectCalibration& d : direct.calibration)
+      if (d.texel < h.range_begin || d.texel >= h.range_end)
+        fail(PLM_ERROR_INVALID_ARGUMENT, path, ": a calibration texel (", d.texel, ") outside its range ",
+             h.range_begin, "-", h.range_end);
+  });
+}
+
+PartHeader read_gather_part(const std::string& path, GatherResult& gather) {
+  return read_part(path, PartKind::kGather, [&](Reader& r, const PartHeader& h) {
+    gather = GatherResult();
+    const size_t texels = h.gathered ? h.range_end - h.range_begin : 0;
+    gather.sums.resize(texels);
+    gather.info.resize(texels);
+    read_records(r, texels, kGatherTexelBytes, [&](size_t i, Cursor& c) {
+      get_stratified(c, gather.sums[i]);
+      GatherInfo& g = gather.info[i];
+      g.unknown = c.get<uint32_t>();
+      g.dark = c.get<uint32_t>();
+      g.lookup_error = c.get<double>();
+      g.hit_distance = c.get<float>();
+    });
+  });
+}
+
 PartHeader read_part_header(const std::string& path) {
   unsigned char buf[kPartHeaderBytes];
   uint64_t bytes = 0, sum = 0;
@@ -241,41 +441,36 @@ PartHeader read_part_header(const std::string& path) {
 }
 
 PartHeader read_part_file(const std::string& path, std::vector<PhotonSegment>& segments) {
-  unsigned char buf[kPartHeaderBytes];
-  uint64_t bytes = 0, want_sum = 0;
-  PartHeader h;
-  File f = open_part(path, buf, bytes, want_sum, h);
-  const ShardLayout& L = h.layout;
-  Reader r{f.get(), path};
-  segments.clear();
-  for (uint32_t i = 0; i < h.segment_count; ++i) {
-    PhotonSegment s;
-    s.acc = Accumulators(L.texel_count, L.mesh_count, L.caustics, L.quantum);
-    Accumulators& a = s.acc;
-    s.begin = r.value<uint64_t>();
-    s.end = r.value<uint64_t>();
-    s.rays = r.value<uint64_t>();
-    s.truncated = r.value<uint64_t>();
-    a.total_hits = r.value<uint64_t>();
-    a.total_sq_q = r.value<uint64_t>();
-    a.caustic.total_hits = r.value<uint64_t>();
-    a.caustic.total_sq_q = r.value<uint64_t>();
-    s.truncated_flux = r.value<double>();
-    r.array(a.sum);
-    r.array(a.sum_sq);
-    r.array(a.hits);
-    r.array(a.back_lit);
-    if (L.caustics) {
-      r.array(a.caustic.sum);
-      r.array(a.caustic.sum_sq);
-      r.array(a.caustic.hits);
+  return read_part(path, PartKind::kPhotons, [&](Reader& r, const PartHeader& h) {
+    const ShardLayout& L = h.layout;
+    segments.clear();
+    for (uint32_t i = 0; i < h.segment_count; ++i) {
+      PhotonSegment s;
+      s.acc = Accumulators(L.texel_count, L.mesh_count, L.caustics, L.quantum);
+      Accumulators& a = s.acc;
+      s.begin = r.value<uint64_t>();
+      s.end = r.value<uint64_t>();
+      s.rays = r.value<uint64_t>();
+      s.truncated = r.value<uint64_t>();
+      a.total_hits = r.value<uint64_t>();
+      a.total_sq_q = r.value<uint64_t>();
+      a.caustic.total_hits = r.value<uint64_t>();
+      a.caustic.total_sq_q = r.value<uint64_t>();
+      s.truncated_flux = r.value<double>();
+      r.array(a.sum);
+      r.array(a.sum_sq);
+      r.array(a.hits);
+      r.array(a.back_lit);
+      if (L.caustics) {
+        r.array(a.caustic.sum);
+        r.array(a.caustic.sum_sq);
+        r.array(a.caustic.hits);
+      }
+      a.total_sq = double(a.total_sq_q) * L.quantum.q2;
+      a.caustic.total_sq = double(a.caustic.total_sq_q) * L.quantum.q2;
+      segments.push_back(std::move(s));
     }
-    a.total_sq = double(a.total_sq_q) * L.quantum.q2;
-    a.caustic.total_sq = double(a.caustic.total_sq_q) * L.quantum.q2;
-    segments.push_back(std::move(s));
-  }
-  if (r.sum != want_sum) fail(PLM_ERROR_INVALID_ARGUMENT, path, ": the part file's sums are damaged (checksum)");
-  return h;
+  });
 }
 
 std::string part_mismatch(const PartHeader& a, const PartHeader& b) {
@@ -291,8 +486,13 @@ std::string part_mismatch(const PartHeader& a, const PartHeader& b) {
   if (s.max_bounces != t.max_bounces || s.direct_samples != t.direct_samples || s.filter_radius != t.filter_radius ||
       s.dilation != t.dilation || s.texel_value != t.texel_value || s.sampler != t.sampler)
     return "settings (max_bounces, direct_samples, filter_radius, dilation, texel_value or sampler)";
-  if (a.shard_count != b.shard_count) return against("shard count", b.shard_count, a.shard_count);
+  if (a.kind == b.kind && a.shard_count != b.shard_count)
+    return against(a.kind == PartKind::kPhotons ? "shard count" : "range count", b.shard_count, a.shard_count);
+  if (a.kind == b.kind && a.direct_target != b.direct_target)
+    return against("target error", b.direct_target, a.direct_target);
+  if (a.kind == b.kind && a.gathered != b.gathered) return "final gather (another version of the scene?)";
   if (a.layout.batch_count != b.layout.batch_count || a.layout.texel_count != b.layout.texel_count ||
+      a.layout.covered != b.layout.covered ||
       a.layout.mesh_count != b.layout.mesh_count || a.layout.caustics != b.layout.caustics ||
       a.layout.quantum.q != b.layout.quantum.q || a.layout.quantum.q2 != b.layout.quantum.q2)
     return "sizes (batches, texels, meshes or flux quantum)";
@@ -303,35 +503,94 @@ std::string part_mismatch(const PartHeader& a, const PartHeader& b) {
 
 namespace plm {
 
+namespace {
+
+// What the parts of `kind` are called in messages.
+const char* unit_name(PartKind kind) {
+  return kind == PartKind::kPhotons ? "shard" : kind == PartKind::kDirect ? "direct range" : "gather range";
+}
+
+// Checks that the parts `members` (indices into paths, all of one kind and
+// count) hold every shard or range exactly once; returns them in that order.
+std::vector<size_t> in_order(const std::vector<std::string>& paths, const std::vector<PartHeader>& headers,
+                             const std::vector<size_t>& members) {
+  const PartHeader& lead = headers[members[0]];
+  const char* unit = unit_name(lead.kind);
+  std::vector<int64_t> owner(lead.shard_count, -1);
+  for (size_t i : members) {
+    int64_t& o = owner[headers[i].shard_index];
+    if (o >= 0)
+      fail(PLM_ERROR_INVALID_ARGUMENT, paths[i], ": ", unit, " ", headers[i].shard_index + 1, " of ", lead.shard_count,
+           " is also ", paths[size_t(o)]);
+    o = int64_t(i);
+  }
+  std::string missing;
+  for (uint32_t k = 0; k < lead.shard_count; ++k)
+    if (owner[k] < 0) missing += (missing.empty() ? "" : ", ") + std::to_string(k + 1);
+  if (!missing.empty())
+    fail(PLM_ERROR_INVALID_ARGUMENT, unit, "(s) ", missing, " of ", lead.shard_count, " missing: ", members.size(),
+         " ", part_kind_name(lead.kind), " file(s) given");
+  return std::vector<size_t>(owner.begin(), owner.end());
+}
+
+}  // namespace
+
 PartHeader load_parts(const std::vector<std::string>& paths, const std::string& engine_version, uint64_t hash,
                       ShardJob& job) {
   if (paths.empty()) fail(PLM_ERROR_INVALID_ARGUMENT, "no part files to merge");
   std::vector<PartHeader> headers;
   for (const std::string& p : paths) headers.push_back(read_part_header(p));
-  const PartHeader& first = headers[0];
+  // The parts by kind; a range's gather passes over gather parts (its
+  // siblings may share its folder).
+  std::vector<size_t> of[3];
+  for (size_t i = 0; i < headers.size(); ++i)
+    if (!(job.mode == ShardJob::kGather && headers[i].kind == PartKind::kGather))
+      of[size_t(headers[i].kind)].push_back(i);
+  std::vector<size_t>& photon_parts = of[size_t(PartKind::kPhotons)];
+  if (photon_parts.empty())
+    fail(PLM_ERROR_INVALID_ARGUMENT, "no photon parts (part-K-of-N.plmpart) among the ", paths.size(),
+         " part file(s) given, the first ", paths[0], " (a ", part_kind_name(headers[0].kind),
+         "): every shard's photons are needed");
+  const size_t ref = photon_parts[0];
+  const PartHeader& first = headers[ref];
   if (first.engine_version != engine_version)
-    fail(PLM_ERROR_INVALID_ARGUMENT, paths[0], ": written by photonlm ", first.engine_version, ", this is ",
+    fail(PLM_ERROR_INVALID_ARGUMENT, paths[ref], ": written by photonlm ", first.engine_version, ", this is ",
          engine_version, "; bake the shards and merge with one version");
   if (first.scene_hash != hash)
-    fail(PLM_ERROR_INVALID_ARGUMENT, paths[0], ": its shard baked another scene (or another version of '",
+    fail(PLM_ERROR_INVALID_ARGUMENT, paths[ref], ": its shard baked another scene (or another version of '",
          first.scene_path, "') than the one given to the merge");
-  std::vector<int> owner(first.shard_count, -1);
-  for (size_t i = 0; i < headers.size(); ++i) {
-    const std::string why = part_mismatch(first, headers[i]);
-    if (!why.empty())
-      fail(PLM_ERROR_INVALID_ARGUMENT, paths[i], ": does not belong with ", paths[0], ": its ", why);
-    int& o = owner[headers[i].shard_index];
-    if (o >= 0)
-      fail(PLM_ERROR_INVALID_ARGUMENT, paths[i], ": shard ", headers[i].shard_index + 1, " of ", first.shard_count,
-           " is also ", paths[size_t(o)]);
-    o = int(i);
+  for (const std::vector<size_t>& group : of) {
+    if (group.empty()) continue;
+    const size_t lead = group[0];
+    for (size_t i : group) {
+      const PartHeader& h = headers[i];
+      std::string why = part_mismatch(first, h);
+      size_t against = ref;
+      if (why.empty() && h.kind != PartKind::kPhotons) why = part_mismatch(headers[lead], h), against = lead;
+      if (!why.empty())
+        fail(PLM_ERROR_INVALID_ARGUMENT, paths[i], ": does not belong with ", paths[against], ": its ", why);
+      if (h.kind != PartKind::kPhotons) {
+        const CoveredSlice want = texel_range(h.layout.covered, h.shard_index, h.shard_count);
+        if (h.range_begin != want.begin || h.range_end != want.end)
+          fail(PLM_ERROR_INVALID_ARGUMENT, paths[i], ": holds covered texels ", h.range_begin, "-", h.range_end,
+               " where ", unit_name(h.kind), " ", h.shard_index + 1, " of ", h.shard_count, " is ", want.begin, "-",
+               want.end);
+      }
+    }
   }
-  std::string missing;
-  for (uint32_t k = 0; k < first.shard_count; ++k)
-    if (owner[k] < 0) missing += (missing.empty() ? "" : ", ") + std::to_string(k + 1);
-  if (!missing.empty())
-    fail(PLM_ERROR_INVALID_ARGUMENT, "shard(s) ", missing, " of ", first.shard_count, " missing: ", paths.size(),
-         " part file(s) given");
+  const std::vector<size_t> owner = in_order(paths, headers, photon_parts);
+  const std::vector<size_t> direct_parts =
+      of[1].empty() ? std::vector<size_t>() : in_order(paths, headers, of[size_t(PartKind::kDirect)]);
+  const std::vector<size_t> gather_parts =
+      of[2].empty() ? std::vector<size_t>() : in_order(paths, headers, of[size_t(PartKind::kGather)]);
+  // The gathers looked up an estimate made with the direct passes given here
+  // (or, with no direct parts, with the merge's own: no target).
+  const double direct_target = direct_parts.empty() ? 0.0 : headers[direct_parts[0]].direct_target;
+  if (!gather_parts.empty() && headers[gather_parts[0]].direct_target != direct_target)
+    fail(PLM_ERROR_INVALID_ARGUMENT, paths[gather_parts[0]], ": its gather looked up direct light baked to the "
+         "target error ", headers[gather_parts[0]].direct_target, " where the direct ",
+         direct_parts.empty() ? "pass of the merge has none" : "parts given have " + std::to_string(direct_target),
+         "; give the merge the direct parts its gather stage read");
 
   const ShardLayout& L = first.layout;
   const uint64_t cut = std::min<uint64_t>(kCheckBatches, L.batch_count);
@@ -341,15 +600,23 @@ PartHeader load_parts(const std::vector<std::string>& paths, const std::string& 
   late.end = L.batch_count;
   early.acc = late.acc = Accumulators(L.texel_count, L.mesh_count, L.caustics, L.quantum);
   // Parts in shard order; their segments must follow each other without gaps.
+  // A range's gather looks up the first `cut` batches only: it reads the
+  // shards that hold them and passes over the rest (the merge reads all).
+  const bool early_only = job.mode == ShardJob::kGather;
   uint64_t next = 0;
   for (uint32_t k = 0; k < first.shard_count; ++k) {
-    const std::string& path = paths[size_t(owner[k])];
+    if (early_only && shard_batches(L.batch_count, k, first.shard_count).first >= cut) break;
+    const std::string& path = paths[owner[k]];
     std::vector<PhotonSegment> segments;
     read_part_file(path, segments);
     for (const PhotonSegment& s : segments) {
       if (s.begin != next || s.end <= s.begin || s.end > L.batch_count || (s.begin < cut && s.end > cut))
         fail(PLM_ERROR_INVALID_ARGUMENT, path, ": holds photon batches ", s.begin, "-", s.end, " where batch ", next,
              " was expected next");
+      if (early_only && s.begin >= cut) {
+        next = s.end;
+        continue;
+      }
       PhotonSegment& into = s.end <= cut ? early : late;
       into.acc.add(s.acc);
       into.rays += s.rays;
@@ -358,15 +625,25 @@ PartHeader load_parts(const std::vector<std::string>& paths, const std::string& 
       next = s.end;
     }
   }
-  if (next != L.batch_count)
+  if (early_only ? next < cut : next != L.batch_count)
     fail(PLM_ERROR_INVALID_ARGUMENT, "the parts hold photon batches up to ", next, " of ", L.batch_count);
-  job.mode = ShardJob::kMerge;
-  job.count = first.shard_count;
+  if (job.mode != ShardJob::kGather) {
+    job.mode = ShardJob::kMerge;
+    job.count = first.shard_count;
+  }
+  job.direct_target = direct_target;
+  job.direct.assign(direct_parts.size(), DirectResult());
+  for (size_t k = 0; k < direct_parts.size(); ++k) read_direct_part(paths[direct_parts[k]], job.direct[k]);
+  job.gather.clear();
+  if (!gather_parts.empty() && headers[gather_parts[0]].gathered) {
+    job.gather.assign(gather_parts.size(), GatherResult());
+    for (size_t k = 0; k < gather_parts.size(); ++k) read_gather_part(paths[gather_parts[k]], job.gather[k]);
+  }
   job.segments.clear();
   job.sources.clear();
   job.segments.push_back(std::move(early));
   job.sources.push_back("the parts' batches 0-" + std::to_string(cut));
-  if (late.end > late.begin) {
+  if (late.end > late.begin && !early_only) {
     job.segments.push_back(std::move(late));
     job.sources.push_back("the parts' batches " + std::to_string(cut) + "-" + std::to_string(L.batch_count));
   }

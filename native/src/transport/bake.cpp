@@ -29,6 +29,7 @@
 #include "transport/photon_tracer.h"
 #include "transport/scheduler.h"
 #include "transport/shard.h"
+#include "transport/texel_ranges.h"
 #include "transport/tracing.h"
 #include "transport/validate.h"
 #include "util/error.h"
@@ -71,7 +72,7 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   BakeOutput out;
   out.stats.memory_estimate = check_memory(scene, out.warnings);  // before allocating anything
   const plm_bake_settings settings = effective_settings(scene, requested, out.warnings);
-  if (job) check_shardable(scene, settings);
+  if (job) check_shardable(scene, settings, job->mode);
   const bool tracing_shard = job && job->mode == ShardJob::kTrace;
   Progress report(progress);
   const TimeBudget budget(settings.time_budget, t_start);
@@ -134,9 +135,13 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
   // ---- Direct pass ---------------------------------------------------------------
   Accumulators acc(space.texel_count, scene.meshes.size(), lobes.any_lobes(),
                    flux_quantum(emitted));  // photon sums (empty until then)
+  if (job) job->layout = shard_layout(scene, settings, space, acc);  // sharded bakes (transport/shard.h)
   DirectResult direct;
   const auto t_direct = Clock::now();
-  if (two_pass && !tracing_shard) {
+  if (two_pass && !tracing_shard && job && !job->direct.empty()) {  // the texel ranges' (transport/texel_ranges.h)
+    direct = join_direct(job->direct, settings.sampler, space.covered.size());
+    out.stats.direct_samples = direct.samples;
+  } else if (two_pass && !tracing_shard) {
     const DirectPass pass(accel.handle(), surfaces, space.views, space.csg_views, space.areas, emitters, settings,
                           extent, textures.get(), passage.get());
     const double share = photon_pass ? kDirectBudgetShare : kDirectOnlyBudgetShare;
@@ -149,10 +154,16 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
         const Estimator est{space, sofar.sums, sofar.noise, acc, settings.filter_radius, nullptr};
         live.check(arena, scene, est, 0, settings.dilation, round == 0);
       };
-    direct = run_direct_pass(arena, pass, space.covered, settings, control);
+    direct = run_direct_pass(arena, pass, space.covered, settings, control,
+                             job_slice(job, ShardJob::kDirect, space.covered.size()));
     out.stats.direct_samples = direct.samples;
   }
   out.stats.seconds_direct = seconds_since(t_direct);
+  if (job && job->mode == ShardJob::kDirect) {  // a texel range's direct pass: its sums are the part
+    job->direct.assign(1, std::move(direct));
+    out.stats.seconds_total = seconds_since(t_start);
+    return out;
+  }
 
   // ---- Photon pass and final gather ------------------------------------------------
   GatherResult gather;  // empty unless the final gather ran
@@ -169,8 +180,6 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     const PhotonTracer tracer(scene, accel.handle(), space.views, space.csg_views, ol_groups.views, emitters,
                               settings, extent, two_pass ? 1u : 0u, ls_ols.grids, textures.get(), &lobes);
     // ---- Sharded bakes (transport/shard.h): trace one shard's batches and stop here.
-    if (job) job->layout = {scene_hash(scene), batch_count, space.texel_count, uint32_t(scene.meshes.size()),
-                            lobes.any_lobes(), acc.quantum};
     if (tracing_shard) {
       trace_shard(arena, tracer, threads, cap, acc, *job,
                   [&](double f) { report(kProgressSetup + (kProgressPhotons - kProgressSetup) * f, "tracing photons"); });
@@ -193,20 +202,25 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
       gathered = true;
       ++gathers;
       if (budget.spent(kGatherBudgetShare)) return;
+      if (job && !job->gather.empty()) {  // the texel ranges' (transport/texel_ranges.h)
+        gather = join_gather(job->gather, space.covered.size());
+        return;
+      }
       const FinalGather final_gather(accel.handle(), surfaces, space.views, space.areas, settings, extent,
                                      passage.get(), lobes.any_lobes());
       gather = run_final_gather(arena, final_gather, space, now.values, tracer.triangle_albedos(),
                                 acc.back_lit.data(), gather_samples(settings.target_error, gathers - 1), [&] {
                                   report(direct_end, "final gather");
                                   return !budget.spent(kGatherBudgetShare);
-                                });
+                                },
+                                job_slice(job, ShardJob::kGather, space.covered.size()));
     };
     double truncated_flux = 0.0;
     uint64_t ol_hits = 0, merged = 0;
     CheckSchedule checks;
     bool done = false;
     auto last_report = t_trace - std::chrono::seconds(1);
-    if (job && job->mode == ShardJob::kMerge) {  // every shard's sums, in batch order
+    if (job && (job->mode == ShardJob::kMerge || job->mode == ShardJob::kGather)) {  // every shard's sums, in order
       check_segments(*job);
       for (const PhotonSegment& seg : job->segments) {
         acc.add(seg.acc);
@@ -280,6 +294,12 @@ BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const Pr
     if (gather_wanted && !gathered && photons > 0 && !targeted) {
       estimate(arena, estimator, photons, last);
       run_gather(last);
+    }
+    if (job && job->mode == ShardJob::kGather) {  // a texel range's gather: its sums are the part
+      job->gathered = gathered;
+      job->gather.assign(1, std::move(gather));
+      out.stats.seconds_total = seconds_since(t_start);
+      return out;
     }
     out.stats.photons_emitted = photons;
     out.stats.photon_hits = acc.total_hits + acc.caustic.total_hits + ol_hits;

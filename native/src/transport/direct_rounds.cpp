@@ -14,57 +14,110 @@ namespace {
 // (a pair straddles the strata of the light choice). The true variance is
 // measured on a quarter of the texels (at most 1024) spread over all lightmaps by one more,
 // independent round (a Sobol key of its own): for two independent means a, b,
-// E[(a - b)^2] = Var a + Var b. Returns true / pair-difference variance; the
-// extra samples join those texels' sums.
-double calibrate_direct(tbb::task_arena& arena, const DirectPass& pass, const std::vector<CoveredTexel>& covered,
-                        std::vector<DirectSums>& direct, uint32_t samples) {
+// E[(a - b)^2] = Var a + Var b (calibration_scale). The calibration texels are
+// every step-th of the whole covered order; those in the slice (direct[0] is
+// covered texel `first`) are measured here, and the extra samples join their sums.
+std::vector<DirectCalibration> calibrate_direct(tbb::task_arena& arena, const DirectPass& pass,
+                                                const std::vector<CoveredTexel>& covered, size_t first,
+                                                std::vector<DirectSums>& direct, uint32_t samples) {
   constexpr uint32_t kCalibrationRound = 0xFF;  // a key no refinement round uses
   const size_t step = std::max<size_t>(4, covered.size() / 1024);
   const size_t m = covered.size() / step;
-  std::vector<DirectSums> extra(m);
+  const size_t k0 = (first + step - 1) / step, k1 = std::min(m, (first + direct.size() + step - 1) / step);
+  std::vector<DirectSums> extra(k1 > k0 ? k1 - k0 : 0);
   arena.execute([&] {
-    tbb::parallel_for(size_t(0), m, [&](size_t k) {
-      const CoveredTexel& c = covered[k * step];
-      pass.sample_texel(c.mesh, c.texel, kCalibrationRound, samples, extra[k]);
+    tbb::parallel_for(size_t(0), extra.size(), [&](size_t j) {
+      const CoveredTexel& c = covered[(k0 + j) * step];
+      pass.sample_texel(c.mesh, c.texel, kCalibrationRound, samples, extra[j]);
     });
   });
-  double measured = 0.0, estimated = 0.0;
-  size_t used = 0;
-  for (size_t k = 0; k < m; ++k) {
-    DirectSums& a = direct[k * step];
-    const DirectSums& b = extra[k];
+  std::vector<DirectCalibration> out(extra.size());
+  for (size_t j = 0; j < extra.size(); ++j) {
+    DirectCalibration& r = out[j];
+    r.texel = (k0 + j) * step;
+    DirectSums& a = direct[r.texel - first];
+    const DirectSums& b = extra[j];
+    r.count_before = a.count;
+    r.sum_sq_before = a.sum_sq;
     if (a.paired && b.paired) {
       const double d = a.mean() - b.mean();
-      measured += d * d;
-      estimated += a.pair_variance_of_mean() + b.pair_variance_of_mean();
-      ++used;
+      r.measured = d * d;
+      r.estimated = a.pair_variance_of_mean() + b.pair_variance_of_mean();
+      r.used = 1;
     }
     a.merge(b);
   }
-  if (used < 32 || !(estimated > 0.0)) return 1.0;
-  return std::clamp(measured / estimated, 1e-4, 4.0);
+  return out;
+}
+
+// The mean texel value and the phantom sample (typical_sample) of all
+// covered texels, estimated from every step-th (those the calibration picks)
+// with `samples` samples of a round of their own: what a texel range's rounds
+// aim at under a target. Its own texels' would let a range keep an error that
+// is under the target for it but not for the whole: the target is relative
+// to the whole's mean, and the merge gives every texel the whole's phantom
+// sample. Every range draws the same estimate. Mean negative where the scene
+// has too few texels.
+struct WholeEstimate {
+  double mean = -1.0, typical = 0.0;
+};
+
+WholeEstimate estimate_whole(tbb::task_arena& arena, const DirectPass& pass, const std::vector<CoveredTexel>& covered,
+                             uint32_t samples) {
+  constexpr uint32_t kMeanRound = 0xFE;  // a key neither refinement rounds nor the calibration use
+  const size_t step = std::max<size_t>(4, covered.size() / 1024);
+  const size_t m = covered.size() / step;
+  if (m == 0) return {};
+  std::vector<DirectSums> sums(m);
+  arena.execute([&] {
+    tbb::parallel_for(size_t(0), m, [&](size_t k) {
+      const CoveredTexel& c = covered[k * step];
+      pass.sample_texel(c.mesh, c.texel, kMeanRound, samples, sums[k]);
+    });
+  });
+  double mean = 0.0;
+  for (const DirectSums& d : sums) mean += d.mean();
+  return {mean / double(m), typical_sample(sums)};
 }
 
 }  // namespace
 
+double calibration_scale(const std::vector<DirectCalibration>& records) {
+  double measured = 0.0, estimated = 0.0;
+  size_t used = 0;
+  for (const DirectCalibration& r : records)
+    if (r.used) {
+      measured += r.measured;
+      estimated += r.estimated;
+      ++used;
+    }
+  if (used < 32 || !(estimated > 0.0)) return 1.0;
+  return std::clamp(measured / estimated, 1e-4, 4.0);
+}
+
 DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, const std::vector<CoveredTexel>& covered,
-                             const plm_bake_settings& settings, const DirectControl& control) {
+                             const plm_bake_settings& settings, const DirectControl& control, CoveredSlice slice) {
   DirectResult out;
   std::vector<DirectSums>& direct = out.sums;
-  direct.resize(covered.size());
+  slice = slice.clamped(covered.size());
+  const CoveredTexel* const texels = covered.data() + slice.begin;
+  direct.resize(slice.size());
   const DirectSchedule schedule(settings.target_error, settings.direct_samples);
   const uint32_t rounds = DirectSchedule::kMaxRounds;
-  std::vector<uint32_t> todo(covered.size());
+  std::vector<uint32_t> todo(direct.size());
   for (uint32_t i = 0; i < todo.size(); ++i) todo[i] = i;
-  std::vector<uint32_t> want(covered.size(), schedule.first());
-  std::vector<DirectTexelNoise> noise(covered.size());
+  std::vector<uint32_t> want(direct.size(), schedule.first());
+  std::vector<DirectTexelNoise> noise(direct.size());
+  const bool whole = slice.begin == 0 && slice.end == covered.size();
+  const WholeEstimate aim =
+      settings.target_error > 0.0 && !whole ? estimate_whole(arena, pass, covered, schedule.first()) : WholeEstimate();
   for (uint32_t round = 0; round < rounds && !todo.empty(); ++round) {
     run_in_groups(
         arena, todo.size(), 64,
         [&](uint64_t first_texel, uint64_t n) {
           tbb::parallel_for(tbb::blocked_range<uint64_t>(first_texel, first_texel + n, 16), [&](const auto& r) {
             for (uint64_t k = r.begin(); k < r.end(); ++k) {
-              const CoveredTexel& c = covered[todo[k]];
+              const CoveredTexel& c = texels[todo[k]];
               pass.sample_texel(c.mesh, c.texel, round, want[todo[k]], direct[todo[k]]);
             }
           });
@@ -77,13 +130,18 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
     for (const DirectSums& d : direct) mean += d.mean();
     mean /= double(std::max<size_t>(direct.size(), 1));
     out.noise.typical = typical_sample(direct);
-    if (round == 0 && settings.sampler != PLM_SAMPLER_RANDOM)
-      out.noise.scale = calibrate_direct(arena, pass, covered, direct, schedule.first());
+    if (round == 0 && settings.sampler != PLM_SAMPLER_RANDOM) {
+      out.calibration = calibrate_direct(arena, pass, covered, slice.begin, direct, schedule.first());
+      out.noise.scale = calibration_scale(out.calibration);
+    }
+    out.rounds = round + 1;
+    DirectNoise aim_noise = out.noise;
+    if (aim.mean >= 0.0) aim_noise.typical = aim.typical;
     for (size_t i = 0; i < direct.size(); ++i) {
       const DirectSums& d = direct[i];
-      noise[i] = {d.count, d.variance_of_mean(out.noise), d.phantom_variance_of_mean(out.noise)};
+      noise[i] = {d.count, d.variance_of_mean(aim_noise), d.phantom_variance_of_mean(aim_noise)};
     }
-    todo = schedule.next_round(round, mean, noise, want);
+    todo = schedule.next_round(round, aim.mean >= 0.0 ? aim.mean : mean, noise, want);
     if (control.round_done) control.round_done(round, out);
     if (control.stop()) break;
   }

@@ -16,10 +16,26 @@
 
 namespace plm {
 
+// Round 0's calibration at one of its texels (calibrate_direct): the squared
+// difference of the two independent means and the sum of their
+// pair-difference variances (used: both had pairs), and the texel's count and
+// squared sum before the extra samples joined it.
+struct DirectCalibration {
+  uint64_t texel = 0;  // in the covered order
+  double measured = 0.0, estimated = 0.0;
+  uint32_t used = 0;
+  uint32_t count_before = 0;
+  double sum_sq_before = 0.0;
+};
+
 struct DirectResult {
-  std::vector<DirectSums> sums;  // per covered texel
+  std::vector<DirectSums> sums;  // per covered texel of the slice, from its first
   DirectNoise noise;
   uint64_t samples = 0;  // in all
+  // What a texel range's direct pass hands to the merge (transport/texel_ranges.h):
+  // round 0's calibration texels in order, and the rounds that ran.
+  std::vector<DirectCalibration> calibration;
+  uint32_t rounds = 0;
 };
 
 // progress(f) runs on the calling thread between groups of texels, f the
@@ -32,7 +48,18 @@ struct DirectControl {
   std::function<void(uint32_t round, const DirectResult& sofar)> round_done;
 };
 
+// Over the covered texels of `slice` (all by default): a texel's sums depend
+// on it alone (its own random numbers, its own sample counts) without a
+// target; the calibration texels are picked in the whole covered order. Under
+// a target a slice's rounds read its own texels' noise and aim at the target
+// relative to an estimate of the whole's mean (whole_mean in the .cpp), so
+// that slices each under it put the whole under it.
 DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, const std::vector<CoveredTexel>& covered,
-                             const plm_bake_settings& settings, const DirectControl& control);
+                             const plm_bake_settings& settings, const DirectControl& control,
+                             CoveredSlice slice = {});
+
+// true / pair-difference variance from calibration records in order (1 with
+// fewer than 32 used).
+double calibration_scale(const std::vector<DirectCalibration>& records);
 
 }  // namespace plm

@@ -5,6 +5,7 @@
 // addition so that they never depend on the thread count.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -23,6 +24,14 @@ namespace plm {
 // sub-texel `texel` of CSG solid mesh - mesh count.
 struct CoveredTexel {
   uint32_t mesh, texel;  // local texel of that mesh
+};
+
+// Covered texels [begin, end) in the covered order: all of them by default,
+// one texel range of a sharded bake otherwise (transport/texel_ranges.h).
+struct CoveredSlice {
+  size_t begin = 0, end = SIZE_MAX;
+  CoveredSlice clamped(size_t covered) const { return {std::min(begin, covered), std::min(end, covered)}; }
+  size_t size() const { return end - begin; }
 };
 
 struct TexelSpace {

@@ -149,7 +149,7 @@ SurfaceHit FinalGather::passed(const RayPacket& packet, unsigned l, Vec3 dir, Ve
 GatherResult run_final_gather(tbb::task_arena& arena, const FinalGather& gather, const TexelSpace& space,
                               const std::vector<std::vector<float>>& images,
                               const std::vector<std::vector<Vec3>>& albedo, const uint8_t* back_lit, uint32_t samples,
-                              const std::function<bool()>& after_group) {
+                              const std::function<bool()>& after_group, CoveredSlice slice) {
   std::vector<float> radiosity(3 * space.texel_count, 0.0f), error(space.texel_count, 0.0f);
   for (size_t i = 0; i < images.size(); ++i) {
     const std::vector<float>& img = images[i];
@@ -160,12 +160,13 @@ GatherResult run_final_gather(tbb::task_arena& arena, const FinalGather& gather,
     }
   }
   const GatherSource source{radiosity.data(), error.data(), &albedo, back_lit};
-  const std::vector<CoveredTexel>& covered = space.covered;
+  slice = slice.clamped(space.covered.size());
+  const CoveredTexel* const covered = space.covered.data() + slice.begin;
   GatherResult out;
-  out.sums.resize(covered.size());
-  out.info.resize(covered.size());
+  out.sums.resize(slice.size());
+  out.info.resize(slice.size());
   run_in_groups(
-      arena, covered.size(), 64,
+      arena, slice.size(), 64,
       [&](uint64_t first_texel, uint64_t n) {
         tbb::parallel_for(tbb::blocked_range<uint64_t>(first_texel, first_texel + n, 16), [&](const auto& r) {
           for (uint64_t k = r.begin(); k < r.end(); ++k)

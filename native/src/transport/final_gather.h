@@ -106,10 +106,12 @@ struct GatherResult {
 // Estimate holds them) with each triangle's `albedo` and the meshes whose
 // backs photons reached (`back_lit`). after_group() runs on the calling
 // thread between groups of texels; false stops the gather (texels left
-// without rays keep the photon estimate).
+// without rays keep the photon estimate). Over the covered texels of `slice`
+// (all by default; the sums then start at its first): a texel's rays depend
+// on it and the images alone, so slices give the same sums as one run.
 GatherResult run_final_gather(tbb::task_arena& arena, const FinalGather& gather, const TexelSpace& space,
                               const std::vector<std::vector<float>>& images,
                               const std::vector<std::vector<Vec3>>& albedo, const uint8_t* back_lit, uint32_t samples,
-                              const std::function<bool()>& after_group);
+                              const std::function<bool()>& after_group, CoveredSlice slice = {});
 
 }  // namespace plm

@@ -105,11 +105,21 @@ void trace_shard(tbb::task_arena& arena, const PhotonTracer& tracer, unsigned th
   }
 }
 
-void check_shardable(const Scene& scene, const plm_bake_settings& s) {
+ShardLayout shard_layout(const Scene& scene, const plm_bake_settings& settings, const TexelSpace& space,
+                         const Accumulators& acc) {
+  const uint64_t cap = settings.photon_count ? settings.photon_count : (uint64_t(1) << 40);
+  return {scene_hash(scene),  (cap + kBatchPhotons - 1) / kBatchPhotons, space.texel_count, space.covered.size(),
+          uint32_t(scene.meshes.size()), !acc.caustic.empty(), acc.quantum};
+}
+
+void check_shardable(const Scene& scene, const plm_bake_settings& s, ShardJob::Mode mode) {
   if (s.time_budget > 0.0)
     fail(PLM_ERROR_INVALID_ARGUMENT, "a sharded bake cannot have a time budget (", s.time_budget,
          " s): its photon count would depend on each machine's speed; set a photon count instead");
-  if (s.target_error > 0.0)
+  if ((mode == ShardJob::kDirect || mode == ShardJob::kGather) && s.direct_samples == 0)
+    fail(PLM_ERROR_INVALID_ARGUMENT, "texel ranges split the direct pass and the final gather, and with 0 direct "
+         "samples the bake has neither: shard its photons alone");
+  if (s.target_error > 0.0 && mode != ShardJob::kDirect)
     fail(PLM_ERROR_INVALID_ARGUMENT, "a sharded bake cannot have a target error (", s.target_error,
          "): its photon count depends on the estimate; set a photon count instead");
   if (s.direct_samples > 0 && s.max_bounces == 0)
@@ -201,8 +211,10 @@ void check_segments(const ShardJob& job) {
            " texels where the scene has ", L.texel_count, ")");
     next = s.end;
   }
-  if (next != L.batch_count)
-    fail(PLM_ERROR_INVALID_ARGUMENT, "the parts hold photon batches up to ", next, " of ", L.batch_count,
+  // A range's gather needs the batches its estimate reads, the first kCheckBatches.
+  const uint64_t end = job.mode == ShardJob::kGather ? std::min(kCheckBatches, L.batch_count) : L.batch_count;
+  if (next != end)
+    fail(PLM_ERROR_INVALID_ARGUMENT, "the parts hold photon batches up to ", next, " of ", end,
          ": a shard is missing");
 }
 

@@ -17,7 +17,9 @@
 
 #include "photonlm/photonlm.h"
 #include "scene/scene.h"
+#include "transport/direct_rounds.h"
 #include "transport/film.h"
+#include "transport/final_gather.h"
 
 namespace plm {
 
@@ -35,17 +37,29 @@ struct ShardLayout {
   uint64_t scene_hash = 0;
   uint64_t batch_count = 0;  // batches of the whole bake
   uint64_t texel_count = 0;
+  uint64_t covered = 0;      // covered texels (what texel ranges split)
   uint32_t mesh_count = 0;
   bool caustics = false;
   FluxQuantum quantum;
 };
 
-// The photon pass of one part of a sharded bake (bake.h bake(..., job)).
+// One part of a sharded bake (bake.h bake(..., job)): kTrace traces a
+// shard's photons; kDirect runs the direct pass of a texel range, kGather the
+// final gather of one over the photon and direct parts
+// (transport/texel_ranges.h); kMerge bakes the rest from every part.
 struct ShardJob {
-  enum Mode { kTrace, kMerge } mode = kTrace;
-  uint32_t index = 0, count = 1;        // kTrace: this shard of count
-  std::vector<PhotonSegment> segments;  // kTrace: what it traced; kMerge: every shard's, in batch order
-  std::vector<std::string> sources;     // kMerge: the part each segment came from (for messages)
+  enum Mode { kTrace, kMerge, kDirect, kGather } mode = kTrace;
+  uint32_t index = 0, count = 1;        // kTrace: this shard of count; kDirect, kGather: this texel range of count
+  std::vector<PhotonSegment> segments;  // kTrace: what it traced; kMerge, kGather: every shard's, in batch order
+  std::vector<std::string> sources;     // kMerge, kGather: the part each segment came from (for messages)
+  // kDirect: its range's direct pass; kMerge, kGather: every range's, in
+  // order, from the direct parts (empty: the bake runs the direct pass).
+  std::vector<DirectResult> direct;
+  // kGather: its range's gather; kMerge: every range's from the gather parts
+  // (empty: the merge gathers, if the bake has a final gather).
+  std::vector<GatherResult> gather;
+  bool gathered = false;                // kGather: the bake has a final gather (else its part holds no texels)
+  double direct_target = 0.0;           // kMerge, kGather: the direct parts' target error (0: none)
   ShardLayout layout;                   // set by the bake
 };
 
@@ -67,17 +81,22 @@ std::vector<std::pair<uint64_t, uint64_t>> shard_segments(uint64_t first, uint64
 
 // Throws PLM_ERROR_INVALID_ARGUMENT (naming the setting or feature) where a
 // bake cannot be split: no photon pass, a time budget or a target error (the photon count
-// then depends on timing or on the estimate), OL groups and L-system objects.
-void check_shardable(const Scene& scene, const plm_bake_settings& settings);
+// then depends on timing or on the estimate; a texel range's direct pass may
+// have a target), OL groups and L-system objects; texel ranges without a direct pass.
+void check_shardable(const Scene& scene, const plm_bake_settings& settings, ShardJob::Mode mode = ShardJob::kTrace);
+
+// The layout of a bake of `scene` with these settings, texels and sums.
+ShardLayout shard_layout(const Scene& scene, const plm_bake_settings& settings, const TexelSpace& space,
+                         const Accumulators& acc);
 
 // A 64-bit hash of what the photon pass reads from the scene: geometry, UVs,
 // lightmap sizes, materials, lights, world (textures and world maps by their
 // file names or sizes).
 uint64_t scene_hash(const Scene& scene);
 
-// The merge's checks: the segments tile [0, layout.batch_count) in order and
-// every one holds layout's texels, meshes and quantum. Messages name the
-// segment's source.
+// The merge's checks: the segments tile [0, layout.batch_count) in order
+// (a range's gather: the batches before kCheckBatches) and every one holds
+// layout's texels, meshes and quantum. Messages name the segment's source.
 void check_segments(const ShardJob& job);
 
 // "" where every sum of acc is below 2^53 quanta (exact, so the merge equals
