@@ -148,6 +148,55 @@ TEST(Reconstruct, ChoosesTheRadiusWithTheLeastEstimatedError) {
   EXPECT_EQ(reconstruct_indirect(a, 16, 16, {flux.data(), sq.data(), hits.data()}, params, value, mse), 0u);
 }
 
+// A sliver texel (1 % covered, pooling with nobody) under uniform light: the
+// error it reports is its true error, as for a whole texel. Photons hit it
+// 100x less often than a whole texel, so its variance is 1 / (its area) x
+// that of a texel's worth of area, not 1 / area^2: a whole phantom hit on it
+// reported 2.5x its true error here (6x its variance; on the subdivided
+// monkeys' island borders 140x their variance), and held a courtyard's error
+// estimate above its target.
+TEST(Reconstruct, SliverReportsItsTrueError) {
+  Mesh m;
+  // A: an 8 x 16 m floor on the map's left half (1 m^2 texels); S: a 0.1 x 0.1 m
+  // wall far away (another normal: it pools with nothing) in 1 % of texel (12, 8).
+  m.positions = {{0, 0, 0}, {8, 0, 0}, {8, 16, 0}, {0, 16, 0}, {20, 0, 0}, {20, 0.1f, 0}, {20, 0.1f, 0.1f},
+                 {20, 0, 0.1f}, {}};
+  m.vertex_count = 8;
+  m.indices = {0, 1, 2, 0, 2, 3, 4, 5, 6, 4, 6, 7};
+  const float u0 = 12.0f / 16, u1 = 12.1f / 16, v0 = 8.0f / 16, v1 = 8.1f / 16;
+  m.uv = {0, 0, 0.5f, 0, 0.5f, 1, 0, 0, 0.5f, 1, 0, 1, u0, v0, u1, v0, u1, v1, u0, v0, u1, v1, u0, v1};
+  m.lightmap_width = m.lightmap_height = 16;
+  const TexelAreas a = compute_texel_areas(m);
+  const uint32_t sliver = 8 * 16 + 12;
+  ASSERT_NEAR(a.coverage[sliver], 0.01, 1e-4);
+  double total_area = 0.0;
+  for (double x : a.area) total_area += x;
+  // Photons of flux 1 spread uniformly: texel t gets Poisson(N area_t / total) hits;
+  // every texel's true value is 1 / (pi total). N: 20 hits per whole texel.
+  const double photons = 20.0 * total_area / 1.0, truth = 1.0 / (kPiD * total_area);
+  ReconstructParams params;
+  params.photons = photons;
+  params.phantom_sq = 1.0;
+  std::mt19937 gen(11);
+  std::vector<double> flux(3 * 256), sq(256), value, mse;
+  std::vector<uint32_t> hits(256);
+  double true_sq = 0.0, reported = 0.0;
+  const int trials = 4000;
+  for (int k = 0; k < trials; ++k) {
+    for (uint32_t t = 0; t < 256; ++t) {
+      hits[t] = a.area[t] > 0.0 ? uint32_t(std::poisson_distribution<int>(photons * a.area[t] / total_area)(gen)) : 0;
+      for (int c = 0; c < 3; ++c) flux[3 * t + c] = hits[t];
+      sq[t] = hits[t];
+    }
+    reconstruct_indirect(a, 16, 16, {flux.data(), sq.data(), hits.data()}, params, value, mse);
+    true_sq += (value[3 * sliver] - truth) * (value[3 * sliver] - truth);
+    reported += mse[sliver];
+  }
+  const double ratio = std::sqrt(reported / true_sq);  // reported / true RMS error
+  EXPECT_GT(ratio, 0.8);
+  EXPECT_LT(ratio, 1.25);
+}
+
 // With the direct light as a guide, pooling stops at a contact shadow: a
 // noisy lit half next to a dark half (no light at all) leaks nothing into it.
 TEST(Reconstruct, GuideStopsPoolingAtShadowEdges) {

@@ -52,6 +52,7 @@ double guide_floor_of(const TexelAreas& ta, const double* guide, size_t n) {
 struct Pooled {
   double flux[3] = {0, 0, 0};
   double sq = 0, area = 0;
+  double cover = 0;  // covered fraction, in texels
 };
 
 // Pools texel t with its same-surface neighbours ring by ring up to radius
@@ -64,6 +65,7 @@ void pool_rings(const TexelAreas& ta, uint32_t width, uint32_t height, const Pho
   for (int c = 0; c < 3; ++c) p.flux[c] = s.flux[3 * size_t(t) + c];
   p.sq = s.sq[t];
   p.area = ta.area[t];
+  p.cover = ta.coverage[t];
   at(0u, p);
   for (uint32_t r = 1; r <= r_max; ++r) {
     const float reach = 1.5f * float(r + 1) * texel_width;
@@ -78,6 +80,7 @@ void pool_rings(const TexelAreas& ta, uint32_t width, uint32_t height, const Pho
         for (int c = 0; c < 3; ++c) p.flux[c] += s.flux[3 * size_t(m) + c];
         p.sq += s.sq[m];
         p.area += ta.area[m];
+        p.cover += ta.coverage[m];
       }
     }
     at(r, p);
@@ -100,9 +103,14 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
   const double guide_floor = params.guide ? guide_floor_of(ta, params.guide, n) : 0.0;
 
   auto mean_value = [&](const Pooled& p) { return (p.flux[0] + p.flux[1] + p.flux[2]) / 3.0 * to_value / p.area; };
+  // The phantom is one average hit per texel's worth of area: a pool that
+  // covers a fraction c of a texel gets c of it. A hit lands in a sliver c
+  // times as often as in a whole texel, so its variance grows as 1 / area,
+  // not 1 / area^2 (one whole phantom hit on a 1 % sliver overstates its
+  // error 100x, since photons hit it 100x less often than a texel).
   auto variance = [&](const Pooled& p) {
     const double k = to_value / p.area;
-    return (p.sq + params.phantom_sq) * k * k;
+    return (p.sq + params.phantom_sq * std::min(1.0, p.cover)) * k * k;
   };
   // Unbiased estimate of a pooled texel's squared bias; noisy, negative at
   // times: only sums over many texels are used.

@@ -32,8 +32,9 @@ struct PhotonSums {
 struct ReconstructParams {
   uint32_t max_radius = 2;     // texels; 0 = each texel alone (barely covered ones still pool)
   double photons = 1.0;        // photons traced: sums are divided by it
-  double phantom_sq = 0.0;     // squared flux of one average hit, added to every variance so
-                               // that texels with few hits do not look exact
+  double phantom_sq = 0.0;     // squared flux of one average hit, added (per texel's worth of
+                               // covered area) to every variance so that texels with few hits
+                               // do not look exact
   float min_coverage = 0.25f;  // texels below it always pool with their neighbours (radius >= 1)
   // Optional guide per texel (the direct light): texels pool only with
   // neighbours of similar guide, so indirect light does not leak across the

@@ -99,7 +99,8 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
         } else if (mesh_hit) {
           const MeshView& hv = views_[mesh];
           const Mesh& hm = *hv.mesh;
-          const int64_t ht = uv_texel(&hm.uv[6 * size_t(prim)], h.u, h.v, hm.lightmap_width, hm.lightmap_height);
+          const int64_t ht =
+              covered_uv_texel(&hm.uv[6 * size_t(prim)], h.u, h.v, hm.lightmap_width, hm.lightmap_height, hv.texel_area);
           // A texel that other objects may be pressed against may be partly
           // in contact, and its value (its central square's, or the mean over
           // it) then says little of the lit part next to them: a ray that

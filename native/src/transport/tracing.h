@@ -54,6 +54,23 @@ inline int64_t uv_texel(const float* uv, float bu, float bv, uint32_t width, uin
   return int64_t(uint64_t(sy) * width + uint64_t(sx));
 }
 
+// The texel of a hit at barycentric (bu, bv) of a triangle (corner UVs uv),
+// as uv_texel, where `area` (world area per texel) says the texel is covered.
+// A hit on the triangle's edge where that edge lies on a texel boundary may
+// round into the uncovered texel beyond it: then the texel of the point
+// moved a little towards the triangle's centroid, which the triangle covers.
+// -1 where no covered texel is found (a triangle without UV area).
+inline int64_t covered_uv_texel(const float* uv, float bu, float bv, uint32_t width, uint32_t height,
+                                const double* area) {
+  int64_t t = uv_texel(uv, bu, bv, width, height);
+  if (t >= 0 && area[t] > 0.0) return t;
+  for (const float s : {1e-4f, 1e-3f, 1e-2f, 1e-1f, 1.0f}) {
+    t = uv_texel(uv, bu + s * (1.0f / 3.0f - bu), bv + s * (1.0f / 3.0f - bv), width, height);
+    if (t >= 0 && area[t] > 0.0) return t;
+  }
+  return -1;
+}
+
 // Geometry ids of the triangles to skip: SurfaceMap::mesh_geometry(mesh).
 struct TraceContext {
   HitContext hits;  // first member: Embree hands back a pointer to its context
