@@ -407,6 +407,10 @@ class SceneFileWriter:
         m = self.meshes[self._index(mesh, self.meshes, "mesh")]
         m["smooth"], m["normals"] = bool(smooth), None
 
+    def refine_subdiv_meshes(self, threads=0):
+        """photonlm.Scene.refine_subdiv_meshes: nothing to do (the engine refines the cages when the
+        file is read)."""
+
     def set_world(self, radiance):
         self.world = {"radiance": _floats(_rgb(radiance, "radiance"), "world radiance")}
         self.world_pixels = None

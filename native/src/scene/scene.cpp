@@ -53,7 +53,17 @@ uint32_t Scene::add_material(const char* name, const float albedo[3], const floa
 uint32_t Scene::add_mesh(const char* name, const float* positions, uint32_t vertex_count,
                          const uint32_t* indices, uint32_t triangle_count, const float* uv,
                          const uint32_t* material_ids, uint32_t width, uint32_t height) {
-  const std::string owner = "mesh " + quoted_or(name, meshes.size());
+  Mesh mesh;
+  mesh.name = name && *name ? name : "#" + std::to_string(meshes.size());
+  set_mesh_geometry(mesh, "mesh " + quoted_or(name, meshes.size()), positions, vertex_count, indices, triangle_count,
+                    uv, material_ids, width, height);
+  meshes.push_back(std::move(mesh));
+  return static_cast<uint32_t>(meshes.size() - 1);
+}
+
+void Scene::set_mesh_geometry(Mesh& mesh, const std::string& owner, const float* positions, uint32_t vertex_count,
+                              const uint32_t* indices, uint32_t triangle_count, const float* uv,
+                              const uint32_t* material_ids, uint32_t width, uint32_t height) const {
   if (vertex_count == 0 || triangle_count == 0)
     fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": has ", vertex_count, " vertices and ", triangle_count,
          " triangles; both must be > 0");
@@ -67,8 +77,6 @@ uint32_t Scene::add_mesh(const char* name, const float* positions, uint32_t vert
     fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": has a ", width, " x ", height,
          " lightmap but no lightmap UVs (pass UVs, or size 0 x 0 for geometry only)");
 
-  Mesh mesh;
-  mesh.name = name && *name ? name : "#" + std::to_string(meshes.size());
   mesh.vertex_count = vertex_count;
   mesh.positions.resize(size_t(vertex_count) + 1);
   for (uint32_t i = 0; i < vertex_count; ++i) {
@@ -111,8 +119,6 @@ uint32_t Scene::add_mesh(const char* name, const float* positions, uint32_t vert
   }
   mesh.lightmap_width = width;
   mesh.lightmap_height = height;
-  meshes.push_back(std::move(mesh));
-  return static_cast<uint32_t>(meshes.size() - 1);
 }
 
 plm_light default_light(plm_light_type type) {
@@ -237,7 +243,8 @@ void Scene::set_material_texture(uint32_t material, int slot, const char* path, 
 }
 
 void Scene::set_mesh_texture_uv(uint32_t mesh, const float* uv) {
-  Mesh& m = existing(meshes, mesh, "set mesh texture UV", "mesh", "meshes");
+  if (existing(meshes, mesh, "set mesh texture UV", "mesh", "meshes").pending) refine_cages();
+  Mesh& m = meshes[mesh];
   if (!uv) {
     m.texture_uv.clear();
     return;
@@ -251,7 +258,8 @@ void Scene::set_mesh_texture_uv(uint32_t mesh, const float* uv) {
 }
 
 void Scene::set_mesh_normals(uint32_t mesh, const float* normals) {
-  Mesh& m = existing(meshes, mesh, "set mesh normals", "mesh", "meshes");
+  if (existing(meshes, mesh, "set mesh normals", "mesh", "meshes").pending) refine_cages();
+  Mesh& m = meshes[mesh];
   m.normals.clear();
   if (!normals) return;
   std::vector<Vec3> values(size_t(m.triangle_count()) * 3);
@@ -277,6 +285,10 @@ void Scene::set_mesh_normals(uint32_t mesh, const float* normals) {
 
 void Scene::set_mesh_smooth(uint32_t mesh, bool smooth) {
   Mesh& m = existing(meshes, mesh, "set mesh smooth", "mesh", "meshes");
+  if (m.pending) {  // applied after the refinement (refine_cages), with it
+    set_pending_smooth(m, smooth);
+    return;
+  }
   if (!smooth) {
     m.normals.clear();
     return;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -46,8 +47,25 @@ struct RefinedMesh {
 // Blender 3.4 maps an edge crease c in [0, 1] to OpenSubdiv sharpness 10 c^2.
 inline float blender_crease_to_sharpness(float crease) { return crease * crease * 10.0f; }
 
-// Refines the cage; throws plm::Error (naming `owner` and the bad index) on
-// invalid input or when the result would exceed kMaxRefinedTriangles.
+// A cage that prepare() checked and copied: its arrays, its welded UVs and
+// OpenSubdiv's base-level topology (which OpenSubdiv accepted), owned.
+struct PreparedCage;
+struct PreparedCageDelete {
+  void operator()(PreparedCage* cage) const;
+};
+using PreparedCagePtr = std::unique_ptr<PreparedCage, PreparedCageDelete>;
+
+// Checks the cage and copies it; throws plm::Error (naming `owner` and the bad
+// index) on invalid input, on a topology OpenSubdiv rejects, or when the result
+// would exceed kMaxRefinedTriangles. What refine() does later can then fail only
+// for want of memory (or an engine bug), never for the input.
+PreparedCagePtr prepare(const std::string& owner, const Cage& cage);
+
+// Refines a prepared cage (consumed). Large cages use the calling thread's
+// TBB arena for their per-vertex work; the result does not depend on threads.
+RefinedMesh refine(const std::string& owner, PreparedCagePtr cage);
+
+// prepare() then refine().
 RefinedMesh refine(const std::string& owner, const Cage& cage);
 
 }  // namespace plm::subdiv
