@@ -259,6 +259,10 @@ void Scene::set_mesh_texture_uv(uint32_t mesh, const float* uv) {
 
 void Scene::set_mesh_normals(uint32_t mesh, const float* normals) {
   if (existing(meshes, mesh, "set mesh normals", "mesh", "meshes").pending) refine_cages();
+  store_mesh_normals(mesh, normals);
+}
+
+void Scene::store_mesh_normals(uint32_t mesh, const float* normals) {
   Mesh& m = meshes[mesh];
   m.normals.clear();
   if (!normals) return;
@@ -293,6 +297,11 @@ void Scene::set_mesh_smooth(uint32_t mesh, bool smooth) {
     m.normals.clear();
     return;
   }
+  store_smooth_normals(mesh);
+}
+
+void Scene::store_smooth_normals(uint32_t mesh) {
+  const Mesh& m = meshes[mesh];
   std::vector<Vec3d> vertex(m.vertex_count);
   for (uint32_t t = 0; t < m.triangle_count(); ++t) {
     Vec3d p[3];
@@ -312,7 +321,7 @@ void Scene::set_mesh_smooth(uint32_t mesh, bool smooth) {
     const Vec3d n = vertex[m.indices[k]];
     corners[3 * k] = float(n.x), corners[3 * k + 1] = float(n.y), corners[3 * k + 2] = float(n.z);
   }
-  set_mesh_normals(mesh, corners.data());
+  store_mesh_normals(mesh, corners.data());
 }
 
 void Scene::set_mesh_ol_group(uint32_t mesh, uint32_t group) {

@@ -137,6 +137,10 @@ struct Scene {
   void refine_cages(unsigned thread_count = 0);
   bool has_pending_cages() const;
   void set_pending_smooth(Mesh& mesh, bool smooth);  // set_mesh_smooth of a mesh still pending
+  // set_mesh_normals and set_mesh_smooth's work on a mesh that has its triangles
+  // (no refine_cages first; refine_cages itself uses them, one mesh per thread).
+  void store_mesh_normals(uint32_t mesh, const float* normals);
+  void store_smooth_normals(uint32_t mesh);
   uint32_t add_light(const char* name, const plm_light& light);
   void set_world(const float radiance[3]);
   void set_world_map(const float* rgb, uint32_t width, uint32_t height, const float rotation[9], float strength);

@@ -3,8 +3,10 @@
 // all cages added since, one TBB task per cage (a large cage also splits its
 // per-vertex work), before anything reads the scene's triangles.
 #include <algorithm>
+#include <cstdint>
 #include <exception>
 #include <new>
+#include <unordered_map>
 #include <vector>
 
 #include <tbb/blocked_range.h>
@@ -68,45 +70,102 @@ void Scene::set_pending_smooth(Mesh& mesh, bool smooth) {
   mesh.normals.clear();
 }
 
+namespace {
+
+// Runs f; an exception it throws becomes p's error.
+template <typename F>
+void keep_error(PendingCage& p, F&& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    p.status = e.status();
+    p.error = e.what();
+  } catch (const std::bad_alloc&) {
+    p.status = PLM_ERROR_OUT_OF_MEMORY;
+    p.error = p.owner + ": out of memory while refining the subdivision cage";
+  } catch (const std::exception& e) {
+    p.status = PLM_ERROR_INTERNAL;
+    p.error = p.owner + ": internal error while refining the subdivision cage: " + e.what();
+  }
+}
+
+}  // namespace
+
 void Scene::refine_cages(unsigned thread_count) {
   std::vector<uint32_t> ids;
   for (size_t id = 0; id < meshes.size(); ++id)
     if (meshes[id].pending) ids.push_back(uint32_t(id));
   if (ids.empty()) return;
-  // Each task writes its own mesh only; the scene's vectors keep their sizes meanwhile.
-  auto refine_one = [&](uint32_t id) {
-    Mesh& mesh = meshes[id];
-    PendingCage& p = *mesh.pending;
-    if (p.status != PLM_OK) return;  // failed before: its cage is gone
-    try {
-      const subdiv::RefinedMesh r = subdiv::refine(p.owner, std::move(p.cage));
-      set_mesh_geometry(mesh, p.owner, r.positions.data(), r.vertex_count(), r.indices.data(), r.triangle_count(),
-                        r.uv.empty() ? nullptr : r.uv.data(), r.material_ids.empty() ? nullptr : r.material_ids.data(),
-                        mesh.lightmap_width, mesh.lightmap_height);
-      const bool smooth = p.smooth;
-      mesh.pending.reset();
-      if (smooth) set_mesh_smooth(id, true);
-    } catch (const Error& e) {
-      p.status = e.status();
-      p.error = e.what();
-    } catch (const std::bad_alloc&) {
-      p.status = PLM_ERROR_OUT_OF_MEMORY;
-      p.error = p.owner + ": out of memory while refining the subdivision cage";
-    } catch (const std::exception& e) {
-      p.status = PLM_ERROR_INTERNAL;
-      p.error = p.owner + ": internal error while refining the subdivision cage: " + e.what();
-    }
+  // Cages of one topology (copies of a mesh) share OpenSubdiv's refinement plan: the
+  // first of them, its leader, makes it.
+  struct Group {
+    uint32_t leader;
+    subdiv::RefinementPlanPtr plan;
   };
+  std::vector<Group> groups;
+  std::vector<size_t> group_of(ids.size(), SIZE_MAX);
+  {
+    std::unordered_map<uint64_t, std::vector<size_t>> by_hash;  // topology hash -> groups
+    for (size_t k = 0; k < ids.size(); ++k) {
+      const PendingCage& p = *meshes[ids[k]].pending;
+      if (p.status != PLM_OK) continue;  // failed before: its cage is gone
+      std::vector<size_t>& candidates = by_hash[subdiv::topology_hash(*p.cage)];
+      for (size_t g : candidates)
+        if (subdiv::same_topology(*meshes[groups[g].leader].pending->cage, *p.cage)) group_of[k] = g;
+      if (group_of[k] == SIZE_MAX) {
+        group_of[k] = groups.size();
+        candidates.push_back(groups.size());
+        groups.push_back(Group{ids[k], nullptr});
+      }
+    }
+  }
+  // Each task writes its own group or mesh only; the scene's vectors keep their sizes meanwhile.
   const int threads = thread_count ? int(thread_count) : tbb::task_arena::automatic;
   tbb::task_arena arena(threads);
   arena.execute([&] {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, groups.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t g = r.begin(); g < r.end(); ++g) {
+        PendingCage& p = *meshes[groups[g].leader].pending;
+        keep_error(p, [&] { groups[g].plan = subdiv::plan(p.owner, *p.cage); });
+      }
+    });
     tbb::parallel_for(tbb::blocked_range<size_t>(0, ids.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t k = r.begin(); k < r.end(); ++k) refine_one(ids[k]);
+      for (size_t k = r.begin(); k < r.end(); ++k) {
+        if (group_of[k] == SIZE_MAX) continue;
+        const uint32_t id = ids[k];
+        Mesh& mesh = meshes[id];
+        PendingCage& p = *mesh.pending;
+        const Group& group = groups[group_of[k]];
+        if (!group.plan) {  // its leader's plan failed
+          if (id != group.leader) {
+            const PendingCage& leader = *meshes[group.leader].pending;
+            p.status = leader.status;
+            p.error = p.owner + ": its topology's refinement failed (" + leader.error + ")";
+          }
+          continue;
+        }
+        keep_error(p, [&] {
+          const subdiv::RefinedMesh r = subdiv::refine(*group.plan, *p.cage);
+          set_mesh_geometry(mesh, p.owner, r.positions.data(), r.vertex_count(), r.indices.data(),
+                            r.triangle_count(), r.uv.empty() ? nullptr : r.uv.data(),
+                            r.material_ids.empty() ? nullptr : r.material_ids.data(), mesh.lightmap_width,
+                            mesh.lightmap_height);
+          if (p.smooth) store_smooth_normals(id);
+        });
+      }
     });
   });
+  groups.clear();  // the plans, before the cages they were made from
+  for (uint32_t id : ids) {
+    Mesh& mesh = meshes[id];
+    if (mesh.pending->status == PLM_OK) mesh.pending.reset();
+  }
   for (uint32_t id : ids) {
     const Mesh& mesh = meshes[id];
-    if (mesh.pending && mesh.pending->status != PLM_OK) fail(mesh.pending->status, mesh.pending->error);
+    if (mesh.pending) {
+      mesh.pending->cage.reset();
+      fail(mesh.pending->status, mesh.pending->error);
+    }
   }
 }
 

@@ -24,6 +24,7 @@
 #include <unordered_set>
 
 #include <opensubdiv/far/patchMap.h>
+#include <opensubdiv/far/patchTable.h>
 #include <opensubdiv/far/patchTableFactory.h>
 #include <opensubdiv/far/primvarRefiner.h>
 #include <opensubdiv/far/ptexIndices.h>
@@ -150,48 +151,62 @@ void face_corner_ptex(const Far::TopologyRefiner& refiner, int level, std::vecto
   }
 }
 
-// Blender's limit surface: patches of an adaptive refinement (as Blender's OpenSubdiv
-// evaluator builds them), evaluated at ptex coordinates, in parallel (each entry on its
-// own). found[i] tells whether entry i got a value: not where no face holds it (a loose
-// vertex) or no patch is found (should not happen).
-void evaluate_patches(const Far::TopologyDescriptor& desc, const std::vector<Point3>& base_vertex,
-                      const std::vector<Point2>* base_fvar, const std::vector<PtexCoord>& vertex_at,
-                      std::vector<Point3>& pos_out, std::vector<uint8_t>& vertex_found,
-                      const std::vector<PtexCoord>& fvar_at, std::vector<Point2>& fvar_out,
-                      std::vector<uint8_t>& fvar_found, const std::string& owner) {
-  std::unique_ptr<Far::TopologyRefiner> refiner = detail::blender_refiner(desc, owner);
-  const bool fvar = base_fvar != nullptr;
+// Blender's limit surface for one topology: the patches of an adaptive refinement, as
+// Blender's OpenSubdiv evaluator builds them.
+struct LimitPatches {
+  std::unique_ptr<Far::TopologyRefiner> refiner;
+  std::unique_ptr<Far::PatchTable> table;
+  std::unique_ptr<Far::PatchMap> map;
+};
+
+LimitPatches limit_patches(const Far::TopologyDescriptor& desc, bool fvar, const std::string& owner) {
+  LimitPatches lp;
+  lp.refiner = detail::blender_refiner(desc, owner);
   Far::TopologyRefiner::AdaptiveOptions adaptive(kBlenderQuality);
   adaptive.considerFVarChannels = fvar;
   adaptive.useInfSharpPatch = true;
-  refiner->RefineAdaptive(adaptive);
+  lp.refiner->RefineAdaptive(adaptive);
   Far::PatchTableFactory::Options po(kBlenderQuality);
   po.SetEndCapType(Far::PatchTableFactory::Options::ENDCAP_GREGORY_BASIS);
   po.useInfSharpPatch = true;
   po.generateFVarTables = fvar;
   po.generateFVarLegacyLinearPatches = false;
-  std::unique_ptr<Far::PatchTable> table(Far::PatchTableFactory::Create(*refiner, po));
-  if (!table) fail(PLM_ERROR_INTERNAL, owner, ": OpenSubdiv could not build the limit-surface patches");
+  lp.table.reset(Far::PatchTableFactory::Create(*lp.refiner, po));
+  if (!lp.table) fail(PLM_ERROR_INTERNAL, owner, ": OpenSubdiv could not build the limit-surface patches");
+  lp.map = std::make_unique<Far::PatchMap>(*lp.table);
+  return lp;
+}
 
-  const std::vector<Point3> cv = detail::patch_control_points(*refiner, *table, base_vertex);
-  Far::PrimvarRefiner primvar(*refiner);
+// The patches evaluated at ptex coordinates, in parallel (each entry on its own).
+// found[i] tells whether entry i got a value: not where no face holds it (a loose
+// vertex) or no patch is found (should not happen).
+void evaluate_patches(const LimitPatches& lp, const std::vector<Point3>& base_vertex,
+                      const std::vector<Point2>* base_fvar, const std::vector<PtexCoord>& vertex_at,
+                      std::vector<Point3>& pos_out, std::vector<uint8_t>& vertex_found,
+                      const std::vector<PtexCoord>& fvar_at, std::vector<Point2>& fvar_out,
+                      std::vector<uint8_t>& fvar_found) {
+  const Far::TopologyRefiner& refiner = *lp.refiner;
+  const Far::PatchTable& table = *lp.table;
+  const Far::PatchMap& map = *lp.map;
+  const bool fvar = base_fvar != nullptr;
+  const std::vector<Point3> cv = detail::patch_control_points(refiner, table, base_vertex);
+  Far::PrimvarRefiner primvar(refiner);
   std::vector<Point2> fv;
   if (fvar) {
-    fv.resize(size_t(refiner->GetNumFVarValuesTotal(0) + table->GetNumLocalPointsFaceVarying(0)));
+    fv.resize(size_t(refiner.GetNumFVarValuesTotal(0) + table.GetNumLocalPointsFaceVarying(0)));
     std::copy(base_fvar->begin(), base_fvar->end(), fv.begin());
     size_t fo = 0;
-    for (int l = 1; l <= refiner->GetMaxLevel(); ++l) {
-      const size_t n_parent = size_t(refiner->GetLevel(l - 1).GetNumFVarValues(0));
+    for (int l = 1; l <= refiner.GetMaxLevel(); ++l) {
+      const size_t n_parent = size_t(refiner.GetLevel(l - 1).GetNumFVarValues(0));
       Point2* src = fv.data() + fo;
       Point2* dst = src + n_parent;
       primvar.InterpolateFaceVarying(l, src, dst, 0);
       fo += n_parent;
     }
-    if (table->GetNumLocalPointsFaceVarying(0) > 0)
-      table->ComputeLocalPointValuesFaceVarying(fv.data(), fv.data() + refiner->GetNumFVarValuesTotal(0), 0);
+    if (table.GetNumLocalPointsFaceVarying(0) > 0)
+      table.ComputeLocalPointValuesFaceVarying(fv.data(), fv.data() + refiner.GetNumFVarValuesTotal(0), 0);
   }
 
-  const Far::PatchMap map(*table);
   vertex_found.assign(vertex_at.size(), 0);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, vertex_at.size(), kGrain), [&](const tbb::blocked_range<size_t>& r) {
     double w[20], wu[20], wv[20];
@@ -200,9 +215,9 @@ void evaluate_patches(const Far::TopologyDescriptor& desc, const std::vector<Poi
       if (pc.face < 0) continue;
       const Far::PatchTable::PatchHandle* h = map.FindPatch(pc.face, pc.u, pc.v);
       if (!h) continue;
-      const Far::ConstIndexArray cvs = table->GetPatchVertices(*h);
+      const Far::ConstIndexArray cvs = table.GetPatchVertices(*h);
       if (cvs.size() > 20) continue;
-      table->EvaluateBasis(*h, pc.u, pc.v, w, wu, wv);
+      table.EvaluateBasis(*h, pc.u, pc.v, w, wu, wv);
       Point3 p;
       for (int k = 0; k < cvs.size(); ++k) p.AddWithWeight(cv[size_t(cvs[k])], float(w[k]));
       pos_out[i] = p;
@@ -218,9 +233,9 @@ void evaluate_patches(const Far::TopologyDescriptor& desc, const std::vector<Poi
       if (pc.face < 0) continue;
       const Far::PatchTable::PatchHandle* h = map.FindPatch(pc.face, pc.u, pc.v);
       if (!h) continue;
-      const Far::ConstIndexArray cvs = table->GetPatchFVarValues(*h, 0);
+      const Far::ConstIndexArray cvs = table.GetPatchFVarValues(*h, 0);
       if (cvs.size() > 20) continue;
-      table->EvaluateBasisFaceVarying(*h, pc.u, pc.v, w, wu, wv, nullptr, nullptr, nullptr, 0);
+      table.EvaluateBasisFaceVarying(*h, pc.u, pc.v, w, wu, wv, nullptr, nullptr, nullptr, 0);
       Point2 t;
       for (int k = 0; k < cvs.size(); ++k) t.AddWithWeight(fv[size_t(cvs[k])], float(w[k]));
       fvar_out[i] = t;
@@ -371,13 +386,92 @@ PreparedCagePtr prepare(const std::string& owner, const Cage& c) {
 
 RefinedMesh refine(const std::string& owner, const Cage& cage) { return refine(owner, prepare(owner, cage)); }
 
-RefinedMesh refine(const std::string& owner, PreparedCagePtr prepared) {
-  const Cage c = prepared->view();
-  const Far::TopologyDescriptor& desc = prepared->topology->desc;
-  Far::TopologyRefiner& refiner = *prepared->refiner;
-  Far::TopologyRefiner::UniformOptions uniform(int(c.level));
+namespace {
+
+template <typename T>
+uint64_t hash_values(uint64_t h, const std::vector<T>& v) {
+  h = (h ^ v.size()) * 1099511628211ull;
+  const unsigned char* b = reinterpret_cast<const unsigned char*>(v.data());
+  for (size_t i = 0; i < v.size() * sizeof(T); ++i) h = (h ^ b[i]) * 1099511628211ull;  // FNV-1a
+  return h;
+}
+
+}  // namespace
+
+uint64_t topology_hash(const PreparedCage& c) {
+  uint64_t h = 14695981039346656037ull;
+  h = (h ^ (c.positions.size() / 3)) * 1099511628211ull;
+  h = (h ^ c.level) * 1099511628211ull;
+  h = (h ^ (c.uv.empty() ? 0u : 1u)) * 1099511628211ull;
+  h = hash_values(h, c.face_sizes);
+  h = hash_values(h, c.face_indices);
+  h = hash_values(h, c.crease_edges);
+  h = hash_values(h, c.crease_weights);
+  return hash_values(h, c.uv_index);
+}
+
+bool same_topology(const PreparedCage& a, const PreparedCage& b) {
+  return a.positions.size() == b.positions.size() && a.level == b.level && a.uv.empty() == b.uv.empty() &&
+         a.face_sizes == b.face_sizes && a.face_indices == b.face_indices && a.crease_edges == b.crease_edges &&
+         a.crease_weights == b.crease_weights && a.uv_index == b.uv_index;
+}
+
+// What refining depends on besides the cage's vertex and UV values: OpenSubdiv's uniform
+// refinement, the limit patches and where each refined vertex lies on them. Cages of one
+// topology share it (read only).
+struct RefinementPlan {
+  std::unique_ptr<Far::TopologyRefiner> uniform;  // refined to the cage's level
+  LimitPatches patches;
+  std::vector<PtexCoord> vertex_at, fvar_at;  // per refined vertex / UV value of the last level
+};
+
+void RefinementPlanDelete::operator()(RefinementPlan* plan) const { delete plan; }
+
+RefinementPlanPtr plan(const std::string& owner, PreparedCage& cage) {
+  RefinementPlanPtr p(new RefinementPlan);
+  const bool uv = !cage.uv.empty();
+  p->uniform = std::move(cage.refiner);
+  Far::TopologyRefiner& refiner = *p->uniform;
+  const int level = int(cage.level);
+  Far::TopologyRefiner::UniformOptions uniform(level);
   uniform.fullTopologyInLastLevel = true;  // needed by Limit / LimitFaceVarying
   refiner.RefineUniform(uniform);
+  const Far::TopologyLevel& last = refiner.GetLevel(level);
+  std::vector<int> face_ptex;
+  std::vector<std::array<double, 8>> face_uv;
+  face_corner_ptex(refiner, level, face_ptex, face_uv);
+  p->vertex_at.resize(size_t(last.GetNumVertices()));
+  p->fvar_at.resize(uv ? size_t(last.GetNumFVarValues(0)) : 0);
+  for (int f = 0; f < last.GetNumFaces(); ++f) {
+    const Far::ConstIndexArray fv = last.GetFaceVertices(f);
+    for (int k = 0; k < fv.size() && k < 4; ++k) {
+      PtexCoord& a = p->vertex_at[size_t(fv[k])];
+      if (a.face < 0) a = PtexCoord{face_ptex[size_t(f)], face_uv[size_t(f)][2 * k], face_uv[size_t(f)][2 * k + 1]};
+    }
+    if (!uv) continue;
+    const Far::ConstIndexArray fuv = last.GetFaceFVarValues(f, 0);
+    for (int k = 0; k < fuv.size() && k < 4; ++k) {
+      PtexCoord& a = p->fvar_at[size_t(fuv[k])];
+      if (a.face < 0) a = PtexCoord{face_ptex[size_t(f)], face_uv[size_t(f)][2 * k], face_uv[size_t(f)][2 * k + 1]};
+    }
+  }
+  for (int f = 0; f < last.GetNumFaces(); ++f) {
+    const int n = last.GetFaceVertices(f).size();
+    if (n != 4)  // Catmull-Clark refinement makes only quads
+      fail(PLM_ERROR_INTERNAL, owner, ": refined face ", f, " has ", n, " vertices instead of 4");
+  }
+  p->patches = limit_patches(cage.topology->desc, uv, owner);
+  return p;
+}
+
+RefinedMesh refine(const std::string& owner, PreparedCagePtr prepared) {
+  const RefinementPlanPtr p = plan(owner, *prepared);
+  return refine(*p, *prepared);
+}
+
+RefinedMesh refine(const RefinementPlan& plan, const PreparedCage& prepared) {
+  const Cage c = prepared.view();
+  const Far::TopologyRefiner& refiner = *plan.uniform;
   const Far::TopologyLevel& last = refiner.GetLevel(int(c.level));
 
   // ---- material ids, level by level ----
@@ -396,37 +490,18 @@ RefinedMesh refine(const std::string& owner, PreparedCagePtr prepared) {
   std::vector<Point3> base_pos(c.vertex_count);
   for (uint32_t i = 0; i < c.vertex_count; ++i)
     base_pos[i] = Point3{c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]};
-  std::vector<Point3> limit(size_t(last.GetNumVertices()));
-  std::vector<Point2> uv_limit(c.uv ? size_t(last.GetNumFVarValues(0)) : 0);
+  std::vector<Point3> limit(plan.vertex_at.size());
+  std::vector<Point2> uv_limit(plan.fvar_at.size());
   std::vector<uint8_t> vertex_found, fvar_found;
-  {
-    std::vector<int> face_ptex;
-    std::vector<std::array<double, 8>> face_uv;
-    face_corner_ptex(refiner, int(c.level), face_ptex, face_uv);
-    std::vector<PtexCoord> vertex_at(limit.size()), fvar_at(uv_limit.size());
-    for (int f = 0; f < last.GetNumFaces(); ++f) {
-      const Far::ConstIndexArray fv = last.GetFaceVertices(f);
-      for (int k = 0; k < fv.size() && k < 4; ++k) {
-        PtexCoord& a = vertex_at[size_t(fv[k])];
-        if (a.face < 0) a = PtexCoord{face_ptex[size_t(f)], face_uv[size_t(f)][2 * k], face_uv[size_t(f)][2 * k + 1]};
-      }
-      if (!c.uv) continue;
-      const Far::ConstIndexArray fuv = last.GetFaceFVarValues(f, 0);
-      for (int k = 0; k < fuv.size() && k < 4; ++k) {
-        PtexCoord& a = fvar_at[size_t(fuv[k])];
-        if (a.face < 0) a = PtexCoord{face_ptex[size_t(f)], face_uv[size_t(f)][2 * k], face_uv[size_t(f)][2 * k + 1]};
-      }
-    }
-    evaluate_patches(desc, base_pos, c.uv ? &prepared->uv_values : nullptr, vertex_at, limit, vertex_found,
-                     fvar_at, uv_limit, fvar_found, owner);
-  }
+  evaluate_patches(plan.patches, base_pos, c.uv ? &prepared.uv_values : nullptr, plan.vertex_at, limit, vertex_found,
+                   plan.fvar_at, uv_limit, fvar_found);
 
   // ---- where no patch holds a vertex (a loose vertex): the exact limit of the uniform refinement ----
   const bool all_vertices = std::all_of(vertex_found.begin(), vertex_found.end(), [](uint8_t f) { return f != 0; });
   const bool all_fvar = std::all_of(fvar_found.begin(), fvar_found.end(), [](uint8_t f) { return f != 0; });
   if (!all_vertices || !all_fvar) {
     std::vector<Point3> pos = base_pos, pos_next;
-    std::vector<Point2> uv = prepared->uv_values, uv_next;
+    std::vector<Point2> uv = prepared.uv_values, uv_next;
     for (int l = 1; l <= int(c.level); ++l) {
       const Far::TopologyLevel& child = refiner.GetLevel(l);
       pos_next.assign(size_t(child.GetNumVertices()), Point3{});
@@ -452,11 +527,6 @@ RefinedMesh refine(const std::string& owner, PreparedCagePtr prepared) {
 
   // ---- the triangle mesh ----
   const size_t faces = size_t(last.GetNumFaces());
-  for (size_t f = 0; f < faces; ++f) {
-    const int n = last.GetFaceVertices(int(f)).size();
-    if (n != 4)  // Catmull-Clark refinement makes only quads
-      fail(PLM_ERROR_INTERNAL, owner, ": refined face ", f, " has ", n, " vertices instead of 4");
-  }
   RefinedMesh out;
   out.positions.resize(limit.size() * 3);
   out.indices.resize(faces * 6);

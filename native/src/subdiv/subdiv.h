@@ -68,4 +68,25 @@ RefinedMesh refine(const std::string& owner, PreparedCagePtr cage);
 // prepare() then refine().
 RefinedMesh refine(const std::string& owner, const Cage& cage);
 
+// What refining a cage depends on besides its vertex and UV values (OpenSubdiv's
+// refinements and limit patches): made once and shared, read only, by every
+// cage of the same topology.
+struct RefinementPlan;
+struct RefinementPlanDelete {
+  void operator()(RefinementPlan* plan) const;
+};
+using RefinementPlanPtr = std::unique_ptr<RefinementPlan, RefinementPlanDelete>;
+
+// The plan of a prepared cage's topology; takes the cage's base refiner, so the
+// cage is then refined with this plan only.
+RefinementPlanPtr plan(const std::string& owner, PreparedCage& cage);
+// Refines a prepared cage with the plan of a cage of the same topology (same_topology);
+// the result is refine()'s, bit for bit.
+RefinedMesh refine(const RefinementPlan& plan, const PreparedCage& cage);
+
+// Cages of one topology: the same faces, creases, UV seams (welded UV indices)
+// and level. topology_hash is equal for them (and rarely for others).
+uint64_t topology_hash(const PreparedCage& cage);
+bool same_topology(const PreparedCage& a, const PreparedCage& b);
+
 }  // namespace plm::subdiv
