@@ -19,7 +19,7 @@ reuse both (as a second bake of an unchanged scene does). The scene is evaluated
 first bake (an artist's scene is, by the viewport). By default the add-on exports the monkeys
 as their cages and the engine refines them (Native Subdivision); --blender-subdiv exports Blender's
 subdivided meshes instead (every triangle then passes through the export). --profile runs the bake
-under cProfile and writes the 40 most expensive functions to DIR/profile.txt. --export-only runs
+(or the export) under cProfile and writes the 40 most expensive functions to DIR/profile_<k>.txt. --export-only runs
 only the add-on's export (as the operator does, lightmap UV maps kept), --bakes times, and skips
 the engine: the export stages in a minute. The export (and the engine's refinement of the cages
 in it) uses every core the process may run on: `taskset -c 0 blender ...` measures one thread.
@@ -192,9 +192,19 @@ def export_once(args, k):
     """The operator's export alone (bake.BakeJob), its lightmap UV maps kept; the engine's scene is
     released unbaked. Per-stage seconds and CPU seconds as bake_once prints them."""
     from photonlm_blender import bake, uvmaps
+    if args.profile:
+        import cProfile
+        import pstats
+        prof = cProfile.Profile()
+        prof.enable()
     t0 = time.perf_counter()
     job = bake.BakeJob(bpy.context)
     wall = time.perf_counter() - t0
+    if args.profile:
+        prof.disable()
+        with open(os.path.join(args.out, "profile_%d.txt" % k), "w") as f:
+            pstats.Stats(prof, stream=f).sort_stats("cumulative").print_stats(40)
+            pstats.Stats(prof, stream=f).sort_stats("tottime").print_stats(40)
     uvmaps.commit(job.created_uvs)
     job.created_uvs = []
     triangles = int(job.export.triangles)
