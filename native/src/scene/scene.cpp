@@ -1,7 +1,12 @@
 #include "scene/scene.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "lsystem/lsystem_object.h"
 #include "ol/octahedral.h"
@@ -302,18 +307,36 @@ void Scene::set_mesh_smooth(uint32_t mesh, bool smooth) {
 
 void Scene::store_smooth_normals(uint32_t mesh) {
   const Mesh& m = meshes[mesh];
-  std::vector<Vec3d> vertex(m.vertex_count);
-  for (uint32_t t = 0; t < m.triangle_count(); ++t) {
-    Vec3d p[3];
-    for (int c = 0; c < 3; ++c) p[c] = to_double(m.vertex(t, c));
-    const Vec3d n = cross(p[1] - p[0], p[2] - p[0]);
-    const double len = length(n);
-    if (!(len > 0.0)) continue;
-    for (int c = 0; c < 3; ++c) {
-      const Vec3d a = p[(c + 1) % 3] - p[c], b = p[(c + 2) % 3] - p[c];
-      const double angle = std::atan2(length(cross(a, b)), dot(a, b));
-      Vec3d& v = vertex[m.indices[3 * t + c]];
-      v = v + n * (angle / len);
+  // Each corner's share of its vertex normal (its triangle's normal weighted by the corner's
+  // angle) in parallel, a block of triangles at a time; the shares are then added up in
+  // triangle order, so the sums do not depend on threads.
+  constexpr uint32_t kBlock = 1u << 16, kGrain = 2048;
+  std::vector<Vec3d> vertex(m.vertex_count), share(size_t(std::min(kBlock, m.triangle_count())) * 3);
+  std::vector<uint8_t> used(share.size() / 3);
+  for (uint32_t first = 0; first < m.triangle_count(); first += kBlock) {
+    const uint32_t count = std::min(kBlock, m.triangle_count() - first);
+    tbb::parallel_for(tbb::blocked_range<uint32_t>(0, count, kGrain), [&](const tbb::blocked_range<uint32_t>& r) {
+      for (uint32_t i = r.begin(); i < r.end(); ++i) {
+        const uint32_t t = first + i;
+        Vec3d p[3];
+        for (int c = 0; c < 3; ++c) p[c] = to_double(m.vertex(t, c));
+        const Vec3d n = cross(p[1] - p[0], p[2] - p[0]);
+        const double len = length(n);
+        used[i] = len > 0.0;
+        if (!used[i]) continue;
+        for (int c = 0; c < 3; ++c) {
+          const Vec3d a = p[(c + 1) % 3] - p[c], b = p[(c + 2) % 3] - p[c];
+          const double angle = std::atan2(length(cross(a, b)), dot(a, b));
+          share[3 * size_t(i) + size_t(c)] = n * (angle / len);
+        }
+      }
+    });
+    for (uint32_t i = 0; i < count; ++i) {
+      if (!used[i]) continue;
+      for (int c = 0; c < 3; ++c) {
+        Vec3d& v = vertex[m.indices[3 * (size_t(first) + i) + size_t(c)]];
+        v = v + share[3 * size_t(i) + size_t(c)];
+      }
     }
   }
   std::vector<float> corners(size_t(m.triangle_count()) * 9);
