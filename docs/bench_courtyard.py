@@ -19,10 +19,11 @@ reuse both (as a second bake of an unchanged scene does). The scene is evaluated
 first bake (an artist's scene is, by the viewport). By default the add-on exports the monkeys
 as their cages and the engine refines them (Native Subdivision); --blender-subdiv exports Blender's
 subdivided meshes instead (every triangle then passes through the export). --profile runs the bake
-(or the export) under cProfile and writes the 40 most expensive functions to DIR/profile_<k>.txt. --export-only runs
-only the add-on's export (as the operator does, lightmap UV maps kept), --bakes times, and skips
-the engine: the export stages in a minute. The export (and the engine's refinement of the cages
-in it) uses every core the process may run on: `taskset -c 0 blender ...` measures one thread.
+(or the export) under cProfile and writes the 40 most expensive functions to DIR/profile_<k>.txt.
+--export-only runs only the add-on's export (as the operator does, lightmap UV maps kept), --bakes
+times, and no bake: the export stages in about a minute. The export (and the engine's refinement
+of the cages in it) uses every core the process may run on: `taskset -c 0 blender ...` measures
+one thread.
 
 Printed and written to DIR/courtyard.json, per bake: objects, triangles (as the engine sees them),
 texels, the add-on's per-stage seconds (export stages, engine set-up / photons / direct, write-back)
