@@ -4,7 +4,7 @@ the add-on in headless Blender, with the time of every stage and the peak memory
     PHOTONLM_LIBRARY=$PWD/build/lib/libphotonlm.so PHOTONLM_SOURCE_DIR=$PWD \
         blender -b --factory-startup --python docs/bench_courtyard.py -- --out /tmp/bench_courtyard \
         [--objects 128] [--target 0.05] [--level 2] [--blender-subdiv] [--photons N] [--time-budget S]
-        [--bakes 2] [--scene-file] [--profile]
+        [--bakes 2] [--scene-file] [--profile] [--export-only]
 
 Scene: a ground and four walls (boxes) around N Suzanne monkeys on the ground, each with a Subdivision
 Surface modifier (render level --level, 2 by default: about 15,700 triangles a monkey) and smooth
@@ -19,7 +19,11 @@ reuse both (as a second bake of an unchanged scene does). The scene is evaluated
 first bake (an artist's scene is, by the viewport). By default the add-on exports the monkeys
 as their cages and the engine refines them (Native Subdivision); --blender-subdiv exports Blender's
 subdivided meshes instead (every triangle then passes through the export). --profile runs the bake
-under cProfile and writes the 40 most expensive functions to DIR/profile.txt.
+(or the export) under cProfile and writes the 40 most expensive functions to DIR/profile_<k>.txt.
+--export-only runs only the add-on's export (as the operator does, lightmap UV maps kept), --bakes
+times, and no bake: the export stages in about a minute. The export (and the engine's refinement
+of the cages in it) uses every core the process may run on: `taskset -c 0 blender ...` measures
+one thread.
 
 Printed and written to DIR/courtyard.json, per bake: objects, triangles (as the engine sees them),
 texels, the add-on's per-stage seconds (export stages, engine set-up / photons / direct, write-back)
@@ -159,6 +163,7 @@ def main():
     ap.add_argument("--time-budget", type=float, default=0.0, help="Time Budget in seconds (0: none)")
     ap.add_argument("--bakes", type=int, default=2, help="bakes in a row (the first makes the UV maps)")
     ap.add_argument("--profile", action="store_true", help="cProfile each bake into DIR/profile_<k>.txt")
+    ap.add_argument("--export-only", action="store_true", help="export only, no engine bake (export stages)")
     ap.add_argument("--scene-file", action="store_true",
                     help="also write the scene as a scene file, DIR/scene/courtyard.json (for `photonlm bake`)")
     args = ap.parse_args(argv)
@@ -174,7 +179,7 @@ def main():
     blender_triangles = evaluated_triangles(objs)  # also evaluates the scene, as a viewport would have
     results = []
     for k in range(args.bakes):
-        results.append(bake_once(args, k))
+        results.append(export_once(args, k) if args.export_only else bake_once(args, k))
     if args.scene_file:
         from photonlm_blender import scene_file_export
         path, _ = scene_file_export.export_scene_file(bpy.context, os.path.join(args.out, "scene", "courtyard.json"))
@@ -182,6 +187,52 @@ def main():
     with open(os.path.join(args.out, "courtyard.json"), "w") as f:
         json.dump(dict(monkeys=args.objects, level=args.level, native_subdivision=not args.blender_subdiv,
                        blender_triangles=blender_triangles, seconds_build=seconds_build, bakes=results), f, indent=1)
+
+
+def export_once(args, k):
+    """The operator's export alone (bake.BakeJob), its lightmap UV maps kept; the engine's scene is
+    released unbaked. Per-stage seconds and CPU seconds as bake_once prints them."""
+    from photonlm_blender import bake, uvmaps
+    if args.profile:
+        import cProfile
+        import pstats
+        prof = cProfile.Profile()
+        prof.enable()
+    t0 = time.perf_counter()
+    job = bake.BakeJob(bpy.context)
+    wall = time.perf_counter() - t0
+    if args.profile:
+        prof.disable()
+        with open(os.path.join(args.out, "profile_%d.txt" % k), "w") as f:
+            pstats.Stats(prof, stream=f).sort_stats("cumulative").print_stats(40)
+            pstats.Stats(prof, stream=f).sort_stats("tottime").print_stats(40)
+    uvmaps.commit(job.created_uvs)
+    job.created_uvs = []
+    triangles = int(job.export.triangles)
+    job.export.scene.close()
+    job.export.texture_files.cleanup()
+    stages = {"seconds_" + key: float(v) for key, v in job.times.seconds.items()}
+    stages["seconds_export"] = float(job.seconds_export)
+    cpu = {"cpu_seconds_" + key: float(v) for key, v in job.times.cpu.items()}
+    result = dict(bake=k + 1, objects=len(job.export.baked), triangles=triangles, wall_seconds=wall,
+                  stages=stages, cpu=cpu, cpu_seconds_export=job.cpu_seconds_export,
+                  cpu_seconds_export_process=job.cpu_seconds_export_process,
+                  export_seconds_per_million_triangles=job.seconds_export / (triangles / 1e6),
+                  export_cpu_seconds_per_million_triangles=job.cpu_seconds_export / (triangles / 1e6),
+                  export_process_cpu_seconds_per_million_triangles=job.cpu_seconds_export_process / (triangles / 1e6),
+                  cores=len(os.sched_getaffinity(0)))
+    print("export %d: %d objects, %.2f M triangles, native subdivision %s, %d cores"
+          % (k + 1, result["objects"], triangles / 1e6, bpy.context.scene.photonlm.native_subdivision,
+             result["cores"]))
+    for key, v in sorted(stages.items()):
+        c = cpu.get("cpu_" + key)
+        print("  %-32s %8.3f s%s" % (key, v, "  (CPU %.3f s)" % c if c is not None else ""))
+    print("export %.3f s = %.3f s per M triangles; CPU %.3f s of the main thread = %.3f s per M, "
+          "%.3f s of all threads = %.3f s per M"
+          % (job.seconds_export, result["export_seconds_per_million_triangles"], job.cpu_seconds_export,
+             result["export_cpu_seconds_per_million_triangles"], job.cpu_seconds_export_process,
+             result["export_process_cpu_seconds_per_million_triangles"]), flush=True)
+    return result
 
 
 def bake_once(args, k):

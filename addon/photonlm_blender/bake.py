@@ -376,7 +376,7 @@ class BakeJob:
 
     def stage_seconds(self, stats, seconds_writeback):
         """Seconds per stage for the statistics: seconds_export and its parts seconds_export_<stage>
-        (checks, uv, cages, depsgraph, meshes, materials, world, other), the engine's seconds_setup,
+        (checks, uv, cages, depsgraph, meshes, refine, materials, world, other), the engine's seconds_setup,
         seconds_trace, seconds_direct and seconds_total, and seconds_writeback (EXRs, images,
         materials)."""
         out = {"seconds_" + k: float(v) for k, v in self.times.seconds.items()}

@@ -176,6 +176,7 @@ class SceneExport:
         self.geometry_only = 0
         self.lights = 0
         self.ol_groups = {}         # key -> OlGroup
+        self.cages = 0              # objects added as subdivision cages (refined by the engine)
         self.csg_objects = []       # names of objects traced as exact CSG solids
         self.lsystems = []          # (object name, engine id) of L-system objects
         self.texture_files = materials.TextureFiles()  # images for the engine; cleanup() after the bake
@@ -246,6 +247,9 @@ def export_scene(context, photonlm, reports, selected_only=False, times=None):
                     continue
                 _add_object(export, plm, orig, obj_eval, inst.matrix_world.copy(), inst.is_instance,
                             with_lightmap, density, default_id, reports)
+        if export.cages:
+            with times("export_refine"):  # the engine refines every cage at once, on every core
+                plm.refine_subdiv_meshes()
         with times("export_world"):
             world_export.set_world(plm, scene.world, reports, world)
     except BaseException:
@@ -362,6 +366,7 @@ def _add_subdiv_object(export, plm, orig, obj_eval, cage, with_lightmap, density
         return False
     reports.info("object '%s': subdivision level %d refined by the engine from a cage of %d faces"
                  % (orig.name, cage.level, len(cage.face_sizes)))
+    export.cages += 1
     export.triangles += cage.triangle_count()
     group = _ol_group(export, plm, orig, cage.triangle_count(), resolution, reports)
     if group is not None:

@@ -117,6 +117,7 @@ class PHOTONLM_PT_warnings(_Sub, bpy.types.Panel):
 TIME_ROWS = (("Export", "seconds_export", False), ("Checks", "seconds_export_checks", True),
              ("UV Maps", "seconds_export_uv", True), ("Cages", "seconds_export_cages", True),
              ("Depsgraph", "seconds_export_depsgraph", True), ("Meshes", "seconds_export_meshes", True),
+             ("Refinement", "seconds_export_refine", True),
              ("Materials", "seconds_export_materials", True), ("World", "seconds_export_world", True),
              ("Engine", "seconds_total", False), ("Set-up", "seconds_setup", True),
              ("Photons", "seconds_trace", True), ("Direct", "seconds_direct", True),

@@ -362,6 +362,12 @@ class Scene(_Handle):
         self.__dict__.setdefault("_mesh_triangles", {})[out.value] = 2 * corners * 4 ** (level - 1)
         return out.value
 
+    def refine_subdiv_meshes(self, threads=0):
+        """Refine every cage add_subdiv_mesh added since the last call, in parallel on `threads`
+        threads (0: all cores); bake() does it itself. add_subdiv_mesh checks each cage (its errors
+        name the mesh); this fails only for want of memory, naming the mesh."""
+        _check(_C.plm_scene_refine_subdiv_meshes(self._h, _uint(threads, "threads")))
+
     LOBE_KINDS = {"glossy": 0, "fresnel": 1, "glass": 2, "refraction": 3, "transparent": 4}
 
     def add_material_lobe(self, material, kind, color, roughness=0.0, ior=None, abbe=0.0, weight=1.0):

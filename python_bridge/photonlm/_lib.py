@@ -199,6 +199,7 @@ _SIGNATURES = {
     "plm_scene_add_subdiv_mesh": (status_t, [ScenePtr, c_char_p, FloatPtr, c_uint32, UInt32Ptr, c_uint32,
                                              UInt32Ptr, FloatPtr, UInt32Ptr, UInt32Ptr, FloatPtr, c_uint32,
                                              c_uint32, c_uint32, c_uint32, UInt32Ptr]),
+    "plm_scene_refine_subdiv_meshes": (status_t, [ScenePtr, c_uint32]),
     "plm_subdiv_refine": (status_t, [FloatPtr, c_uint32, UInt32Ptr, c_uint32, UInt32Ptr, FloatPtr, UInt32Ptr,
                                      FloatPtr, c_uint32, c_uint32, FloatPtr, c_uint32, UInt32Ptr, FloatPtr,
                                      c_uint32, UInt32Ptr, UInt32Ptr]),

@@ -165,7 +165,7 @@ class SceneFileWriter:
     def add_subdiv_mesh(self, name, positions, face_sizes, face_indices, level, lightmap_uv=None,
                         material_ids=None, crease_edges=None, crease_weights=None, resolution=0):
         """photonlm.Scene.add_subdiv_mesh: a Catmull-Clark cage, written inline as a mesh with a
-        "subdivision" object (the engine refines it when the file is read, never this writer).
+        "subdivision" object (the engine refines it when it bakes the file, never this writer).
         The checks of the bridge (its _cage) plus those the file reader and the engine would make
         later, so a bad cage fails here naming the mesh and the index."""
         pos, sizes, fidx, uv, edges, weights, _ = _cage(name, positions, face_sizes, face_indices,
@@ -406,6 +406,10 @@ class SceneFileWriter:
     def set_mesh_smooth(self, mesh, smooth=True):
         m = self.meshes[self._index(mesh, self.meshes, "mesh")]
         m["smooth"], m["normals"] = bool(smooth), None
+
+    def refine_subdiv_meshes(self, threads=0):
+        """photonlm.Scene.refine_subdiv_meshes: nothing to write (the engine refines the cages when
+        it bakes the file)."""
 
     def set_world(self, radiance):
         self.world = {"radiance": _floats(_rgb(radiance, "radiance"), "world radiance")}

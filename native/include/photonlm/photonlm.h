@@ -220,7 +220,10 @@ PLM_API plm_status plm_scene_add_mesh(plm_scene* scene, const char* name,
  *   crease_weights  crease_count Blender edge creases in [0, 1]
  *   level           1..10; the refined mesh has 2 * sum(face_sizes) * 4^(level-1)
  *                   triangles, and more than 2^25 is an error.
- * Errors name the mesh and the first bad vertex, face, corner or crease. */
+ * Errors name the mesh and the first bad vertex, face, corner or crease. The
+ * cage is checked (OpenSubdiv's own topology checks included) and copied here;
+ * the refinement itself waits for plm_scene_refine_subdiv_meshes or the bake,
+ * which refine all waiting cages together, in parallel. */
 PLM_API plm_status plm_scene_add_subdiv_mesh(plm_scene* scene, const char* name,
                                              const float* positions, uint32_t vertex_count,
                                              const uint32_t* face_sizes, uint32_t face_count,
@@ -229,6 +232,14 @@ PLM_API plm_status plm_scene_add_subdiv_mesh(plm_scene* scene, const char* name,
                                              const float* crease_weights, uint32_t crease_count,
                                              uint32_t level, uint32_t lightmap_width,
                                              uint32_t lightmap_height, uint32_t* out_mesh_id);
+
+/* Refines every cage added by plm_scene_add_subdiv_mesh since the last call, in
+ * parallel on thread_count threads (0 = all cores); the result does not depend
+ * on the threads. The bakes call it themselves; a host calls it to have the
+ * work done (and timed) where it chooses. A cage accepted by the add call fails
+ * here only for want of memory; the error names the mesh (the lowest id among
+ * those that failed), and every later call and bake fails with it again. */
+PLM_API plm_status plm_scene_refine_subdiv_meshes(plm_scene* scene, uint32_t thread_count);
 
 /* The refinement plm_scene_add_subdiv_mesh makes, returned to the caller (to
  * check it against Blender, or to preview it). Same cage arguments (lightmap_uv

@@ -238,25 +238,19 @@ plm_status plm_scene_add_subdiv_mesh(plm_scene* scene, const char* name, const f
     if (lightmap_width > 0 && !lightmap_uv)
       plm::fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": has a ", lightmap_width, " x ", lightmap_height,
                 " lightmap but no lightmap UVs (pass UVs, or size 0 x 0 for geometry only)");
-    if (material_ids) {
-      for (uint32_t f = 0; f < face_count; ++f)
-        if (material_ids[f] >= scene->scene.materials.size())
-          plm::fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": cage face ", f, " uses material ", material_ids[f],
-                    " but the scene has ", scene->scene.materials.size(),
-                    " materials (add materials before meshes)");
-    }
     plm::subdiv::Cage cage = make_cage(positions, vertex_count, face_sizes, face_count, face_indices,
                                        lightmap_width > 0 ? lightmap_uv : nullptr, crease_edges, crease_weights,
                                        crease_count, level);
     cage.material_ids = material_ids;
-    const plm::subdiv::RefinedMesh m = plm::subdiv::refine(owner, cage);
-    const uint32_t id = scene->scene.add_mesh(name, m.positions.data(), m.vertex_count(), m.indices.data(),
-                                              m.triangle_count(), m.uv.empty() ? nullptr : m.uv.data(),
-                                              m.material_ids.empty() ? nullptr : m.material_ids.data(),
-                                              lightmap_width, lightmap_height);
-    // Kept for the OL areas on the limit surface, should the mesh join an OL group.
-    scene->scene.meshes[id].cage = std::make_shared<const plm::subdiv::CageCopy>(plm::subdiv::CageCopy::of(cage));
+    const uint32_t id = scene->scene.add_subdiv_mesh(name, cage, lightmap_width, lightmap_height);
     if (out_mesh_id) *out_mesh_id = id;
+  });
+}
+
+plm_status plm_scene_refine_subdiv_meshes(plm_scene* scene, uint32_t thread_count) {
+  return guarded("plm_scene_refine_subdiv_meshes", [&] {
+    require(scene, "plm_scene_refine_subdiv_meshes", "scene");
+    scene->scene.refine_cages(thread_count);
   });
 }
 
@@ -535,6 +529,7 @@ plm_status plm_bake_merge(plm_scene* scene, const char* const* part_paths, uint3
     *out_result = nullptr;
     const std::vector<std::string> paths = part_list("plm_bake_merge", part_paths, part_count);
     plm::ShardJob job;
+    scene->scene.refine_cages(thread_count);  // the hash is of the refined triangles, as the shards' were
     const plm::PartHeader h = plm::load_parts(paths, plm_version(), plm::scene_hash(scene->scene), job);
     const plm_bake_settings s = settings_of(h, thread_count);
     plm::ProgressFn fn;

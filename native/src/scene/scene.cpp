@@ -1,7 +1,12 @@
 #include "scene/scene.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "lsystem/lsystem_object.h"
 #include "ol/octahedral.h"
@@ -53,7 +58,17 @@ uint32_t Scene::add_material(const char* name, const float albedo[3], const floa
 uint32_t Scene::add_mesh(const char* name, const float* positions, uint32_t vertex_count,
                          const uint32_t* indices, uint32_t triangle_count, const float* uv,
                          const uint32_t* material_ids, uint32_t width, uint32_t height) {
-  const std::string owner = "mesh " + quoted_or(name, meshes.size());
+  Mesh mesh;
+  mesh.name = name && *name ? name : "#" + std::to_string(meshes.size());
+  set_mesh_geometry(mesh, "mesh " + quoted_or(name, meshes.size()), positions, vertex_count, indices, triangle_count,
+                    uv, material_ids, width, height);
+  meshes.push_back(std::move(mesh));
+  return static_cast<uint32_t>(meshes.size() - 1);
+}
+
+void Scene::set_mesh_geometry(Mesh& mesh, const std::string& owner, const float* positions, uint32_t vertex_count,
+                              const uint32_t* indices, uint32_t triangle_count, const float* uv,
+                              const uint32_t* material_ids, uint32_t width, uint32_t height) const {
   if (vertex_count == 0 || triangle_count == 0)
     fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": has ", vertex_count, " vertices and ", triangle_count,
          " triangles; both must be > 0");
@@ -67,8 +82,6 @@ uint32_t Scene::add_mesh(const char* name, const float* positions, uint32_t vert
     fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": has a ", width, " x ", height,
          " lightmap but no lightmap UVs (pass UVs, or size 0 x 0 for geometry only)");
 
-  Mesh mesh;
-  mesh.name = name && *name ? name : "#" + std::to_string(meshes.size());
   mesh.vertex_count = vertex_count;
   mesh.positions.resize(size_t(vertex_count) + 1);
   for (uint32_t i = 0; i < vertex_count; ++i) {
@@ -111,8 +124,6 @@ uint32_t Scene::add_mesh(const char* name, const float* positions, uint32_t vert
   }
   mesh.lightmap_width = width;
   mesh.lightmap_height = height;
-  meshes.push_back(std::move(mesh));
-  return static_cast<uint32_t>(meshes.size() - 1);
 }
 
 plm_light default_light(plm_light_type type) {
@@ -237,7 +248,8 @@ void Scene::set_material_texture(uint32_t material, int slot, const char* path, 
 }
 
 void Scene::set_mesh_texture_uv(uint32_t mesh, const float* uv) {
-  Mesh& m = existing(meshes, mesh, "set mesh texture UV", "mesh", "meshes");
+  if (existing(meshes, mesh, "set mesh texture UV", "mesh", "meshes").pending) refine_cages();
+  Mesh& m = meshes[mesh];
   if (!uv) {
     m.texture_uv.clear();
     return;
@@ -251,7 +263,12 @@ void Scene::set_mesh_texture_uv(uint32_t mesh, const float* uv) {
 }
 
 void Scene::set_mesh_normals(uint32_t mesh, const float* normals) {
-  Mesh& m = existing(meshes, mesh, "set mesh normals", "mesh", "meshes");
+  if (existing(meshes, mesh, "set mesh normals", "mesh", "meshes").pending) refine_cages();
+  store_mesh_normals(mesh, normals);
+}
+
+void Scene::store_mesh_normals(uint32_t mesh, const float* normals) {
+  Mesh& m = meshes[mesh];
   m.normals.clear();
   if (!normals) return;
   std::vector<Vec3> values(size_t(m.triangle_count()) * 3);
@@ -277,22 +294,49 @@ void Scene::set_mesh_normals(uint32_t mesh, const float* normals) {
 
 void Scene::set_mesh_smooth(uint32_t mesh, bool smooth) {
   Mesh& m = existing(meshes, mesh, "set mesh smooth", "mesh", "meshes");
+  if (m.pending) {  // applied after the refinement (refine_cages), with it
+    set_pending_smooth(m, smooth);
+    return;
+  }
   if (!smooth) {
     m.normals.clear();
     return;
   }
-  std::vector<Vec3d> vertex(m.vertex_count);
-  for (uint32_t t = 0; t < m.triangle_count(); ++t) {
-    Vec3d p[3];
-    for (int c = 0; c < 3; ++c) p[c] = to_double(m.vertex(t, c));
-    const Vec3d n = cross(p[1] - p[0], p[2] - p[0]);
-    const double len = length(n);
-    if (!(len > 0.0)) continue;
-    for (int c = 0; c < 3; ++c) {
-      const Vec3d a = p[(c + 1) % 3] - p[c], b = p[(c + 2) % 3] - p[c];
-      const double angle = std::atan2(length(cross(a, b)), dot(a, b));
-      Vec3d& v = vertex[m.indices[3 * t + c]];
-      v = v + n * (angle / len);
+  store_smooth_normals(mesh);
+}
+
+void Scene::store_smooth_normals(uint32_t mesh) {
+  const Mesh& m = meshes[mesh];
+  // Each corner's share of its vertex normal (its triangle's normal weighted by the corner's
+  // angle) in parallel, a block of triangles at a time; the shares are then added up in
+  // triangle order, so the sums do not depend on threads.
+  constexpr uint32_t kBlock = 1u << 16, kGrain = 2048;
+  std::vector<Vec3d> vertex(m.vertex_count), share(size_t(std::min(kBlock, m.triangle_count())) * 3);
+  std::vector<uint8_t> used(share.size() / 3);
+  for (uint32_t first = 0; first < m.triangle_count(); first += kBlock) {
+    const uint32_t count = std::min(kBlock, m.triangle_count() - first);
+    tbb::parallel_for(tbb::blocked_range<uint32_t>(0, count, kGrain), [&](const tbb::blocked_range<uint32_t>& r) {
+      for (uint32_t i = r.begin(); i < r.end(); ++i) {
+        const uint32_t t = first + i;
+        Vec3d p[3];
+        for (int c = 0; c < 3; ++c) p[c] = to_double(m.vertex(t, c));
+        const Vec3d n = cross(p[1] - p[0], p[2] - p[0]);
+        const double len = length(n);
+        used[i] = len > 0.0;
+        if (!used[i]) continue;
+        for (int c = 0; c < 3; ++c) {
+          const Vec3d a = p[(c + 1) % 3] - p[c], b = p[(c + 2) % 3] - p[c];
+          const double angle = std::atan2(length(cross(a, b)), dot(a, b));
+          share[3 * size_t(i) + size_t(c)] = n * (angle / len);
+        }
+      }
+    });
+    for (uint32_t i = 0; i < count; ++i) {
+      if (!used[i]) continue;
+      for (int c = 0; c < 3; ++c) {
+        Vec3d& v = vertex[m.indices[3 * (size_t(first) + i) + size_t(c)]];
+        v = v + share[3 * size_t(i) + size_t(c)];
+      }
     }
   }
   std::vector<float> corners(size_t(m.triangle_count()) * 9);
@@ -300,7 +344,7 @@ void Scene::set_mesh_smooth(uint32_t mesh, bool smooth) {
     const Vec3d n = vertex[m.indices[k]];
     corners[3 * k] = float(n.x), corners[3 * k + 1] = float(n.y), corners[3 * k + 2] = float(n.z);
   }
-  set_mesh_normals(mesh, corners.data());
+  store_mesh_normals(mesh, corners.data());
 }
 
 void Scene::set_mesh_ol_group(uint32_t mesh, uint32_t group) {

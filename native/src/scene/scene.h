@@ -20,8 +20,10 @@ namespace lsystem {
 class LSystemObject;
 }
 namespace subdiv {
+struct Cage;
 struct CageCopy;
 }
+struct PendingCage;
 
 // Coordinates beyond this (m) are rejected: photons start up to a few scene
 // radii out, and Embree accepts ray origins only up to ~1.8e18.
@@ -57,6 +59,8 @@ struct Mesh {
   // Subdivision meshes: the cage, whose limit surface gives the mesh's OL areas
   // (subdiv/limit_area.h); null for other meshes.
   std::shared_ptr<const subdiv::CageCopy> cage;
+  // A subdivision mesh waiting for Scene::refine_cages (no triangles yet); null once refined.
+  std::shared_ptr<PendingCage> pending;
 
   uint32_t triangle_count() const { return static_cast<uint32_t>(indices.size() / 3); }
   bool has_lightmap() const { return lightmap_width > 0; }
@@ -117,6 +121,26 @@ struct Scene {
   uint32_t add_mesh(const char* name, const float* positions, uint32_t vertex_count,
                     const uint32_t* indices, uint32_t triangle_count, const float* uv,
                     const uint32_t* material_ids, uint32_t width, uint32_t height);
+  // Checks a mesh's triangles as add_mesh does (errors name `owner`) and puts
+  // them into `mesh`; reads only the materials' count.
+  void set_mesh_geometry(Mesh& mesh, const std::string& owner, const float* positions, uint32_t vertex_count,
+                         const uint32_t* indices, uint32_t triangle_count, const float* uv,
+                         const uint32_t* material_ids, uint32_t width, uint32_t height) const;
+  // Subdivision meshes (scene/subdiv_meshes.cpp): the cage is checked and
+  // copied here (errors name the mesh) and refined by refine_cages(), which
+  // every use of the scene's triangles runs first; until then the mesh has
+  // its name, lightmap size and groups, no triangles.
+  uint32_t add_subdiv_mesh(const char* name, const subdiv::Cage& cage, uint32_t width, uint32_t height);
+  // Refines every pending cage, in parallel on thread_count threads (0: all
+  // cores); results do not depend on threads. Errors name the mesh (the
+  // lowest id among those that failed), and again on every later call.
+  void refine_cages(unsigned thread_count = 0);
+  bool has_pending_cages() const;
+  void set_pending_smooth(Mesh& mesh, bool smooth);  // set_mesh_smooth of a mesh still pending
+  // set_mesh_normals and set_mesh_smooth's work on a mesh that has its triangles
+  // (no refine_cages first; refine_cages itself uses them, one mesh per thread).
+  void store_mesh_normals(uint32_t mesh, const float* normals);
+  void store_smooth_normals(uint32_t mesh);
   uint32_t add_light(const char* name, const plm_light& light);
   void set_world(const float radiance[3]);
   void set_world_map(const float* rgb, uint32_t width, uint32_t height, const float rotation[9], float strength);

@@ -19,15 +19,19 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <memory>
 #include <unordered_set>
 
 #include <opensubdiv/far/patchMap.h>
+#include <opensubdiv/far/patchTable.h>
 #include <opensubdiv/far/patchTableFactory.h>
 #include <opensubdiv/far/primvarRefiner.h>
 #include <opensubdiv/far/ptexIndices.h>
 #include <opensubdiv/far/topologyDescriptor.h>
 #include <opensubdiv/far/topologyRefinerFactory.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include "scene/scene.h"
 #include "util/error.h"
@@ -92,6 +96,9 @@ std::vector<int> weld_uvs(const Cage& c, size_t corner_count, std::vector<Point2
 
 using detail::kBlenderQuality;
 
+// Vertices per task of the per-vertex loops: a cage refined to fewer stays on one thread.
+constexpr size_t kGrain = 8192;
+
 // Where a refined vertex lies: ptex face and (u, v) in it.
 struct PtexCoord {
   int face = -1;
@@ -144,77 +151,134 @@ void face_corner_ptex(const Far::TopologyRefiner& refiner, int level, std::vecto
   }
 }
 
-// Blender's limit surface: patches of an adaptive refinement (as Blender's OpenSubdiv
-// evaluator builds them), evaluated at ptex coordinates. Entries whose patch is not found
-// (should not happen) keep their input value.
-void evaluate_patches(const Far::TopologyDescriptor& desc,
-                      const std::vector<Point3>& base_vertex, const std::vector<Point2>* base_fvar, const std::vector<PtexCoord>& vertex_at,
-                      std::vector<Point3>& pos_out, const std::vector<PtexCoord>* fvar_at,
-                      std::vector<Point2>* fvar_out, const std::string& owner) {
-  std::unique_ptr<Far::TopologyRefiner> refiner = detail::blender_refiner(desc, owner);
-  const bool fvar = base_fvar != nullptr;
+// Blender's limit surface for one topology: the patches of an adaptive refinement, as
+// Blender's OpenSubdiv evaluator builds them.
+struct LimitPatches {
+  std::unique_ptr<Far::TopologyRefiner> refiner;
+  std::unique_ptr<Far::PatchTable> table;
+  std::unique_ptr<Far::PatchMap> map;
+};
+
+LimitPatches limit_patches(const Far::TopologyDescriptor& desc, bool fvar, const std::string& owner) {
+  LimitPatches lp;
+  lp.refiner = detail::blender_refiner(desc, owner);
   Far::TopologyRefiner::AdaptiveOptions adaptive(kBlenderQuality);
   adaptive.considerFVarChannels = fvar;
   adaptive.useInfSharpPatch = true;
-  refiner->RefineAdaptive(adaptive);
+  lp.refiner->RefineAdaptive(adaptive);
   Far::PatchTableFactory::Options po(kBlenderQuality);
   po.SetEndCapType(Far::PatchTableFactory::Options::ENDCAP_GREGORY_BASIS);
   po.useInfSharpPatch = true;
   po.generateFVarTables = fvar;
   po.generateFVarLegacyLinearPatches = false;
-  std::unique_ptr<Far::PatchTable> table(Far::PatchTableFactory::Create(*refiner, po));
-  if (!table) fail(PLM_ERROR_INTERNAL, owner, ": OpenSubdiv could not build the limit-surface patches");
+  lp.table.reset(Far::PatchTableFactory::Create(*lp.refiner, po));
+  if (!lp.table) fail(PLM_ERROR_INTERNAL, owner, ": OpenSubdiv could not build the limit-surface patches");
+  lp.map = std::make_unique<Far::PatchMap>(*lp.table);
+  return lp;
+}
 
-  const std::vector<Point3> cv = detail::patch_control_points(*refiner, *table, base_vertex);
-  Far::PrimvarRefiner primvar(*refiner);
+// The patches evaluated at ptex coordinates, in parallel (each entry on its own).
+// found[i] tells whether entry i got a value: not where no face holds it (a loose
+// vertex) or no patch is found (should not happen).
+void evaluate_patches(const LimitPatches& lp, const std::vector<Point3>& base_vertex,
+                      const std::vector<Point2>* base_fvar, const std::vector<PtexCoord>& vertex_at,
+                      std::vector<Point3>& pos_out, std::vector<uint8_t>& vertex_found,
+                      const std::vector<PtexCoord>& fvar_at, std::vector<Point2>& fvar_out,
+                      std::vector<uint8_t>& fvar_found) {
+  const Far::TopologyRefiner& refiner = *lp.refiner;
+  const Far::PatchTable& table = *lp.table;
+  const Far::PatchMap& map = *lp.map;
+  const bool fvar = base_fvar != nullptr;
+  const std::vector<Point3> cv = detail::patch_control_points(refiner, table, base_vertex);
+  Far::PrimvarRefiner primvar(refiner);
   std::vector<Point2> fv;
   if (fvar) {
-    fv.resize(size_t(refiner->GetNumFVarValuesTotal(0) + table->GetNumLocalPointsFaceVarying(0)));
+    fv.resize(size_t(refiner.GetNumFVarValuesTotal(0) + table.GetNumLocalPointsFaceVarying(0)));
     std::copy(base_fvar->begin(), base_fvar->end(), fv.begin());
     size_t fo = 0;
-    for (int l = 1; l <= refiner->GetMaxLevel(); ++l) {
-      const size_t n_parent = size_t(refiner->GetLevel(l - 1).GetNumFVarValues(0));
+    for (int l = 1; l <= refiner.GetMaxLevel(); ++l) {
+      const size_t n_parent = size_t(refiner.GetLevel(l - 1).GetNumFVarValues(0));
       Point2* src = fv.data() + fo;
       Point2* dst = src + n_parent;
       primvar.InterpolateFaceVarying(l, src, dst, 0);
       fo += n_parent;
     }
-    if (table->GetNumLocalPointsFaceVarying(0) > 0)
-      table->ComputeLocalPointValuesFaceVarying(fv.data(), fv.data() + refiner->GetNumFVarValuesTotal(0), 0);
+    if (table.GetNumLocalPointsFaceVarying(0) > 0)
+      table.ComputeLocalPointValuesFaceVarying(fv.data(), fv.data() + refiner.GetNumFVarValuesTotal(0), 0);
   }
 
-  const Far::PatchMap map(*table);
-  double w[20], wu[20], wv[20];
-  for (size_t i = 0; i < vertex_at.size(); ++i) {
-    const PtexCoord& pc = vertex_at[i];
-    if (pc.face < 0) continue;
-    const Far::PatchTable::PatchHandle* h = map.FindPatch(pc.face, pc.u, pc.v);
-    if (!h) continue;
-    const Far::ConstIndexArray cvs = table->GetPatchVertices(*h);
-    if (cvs.size() > 20) continue;
-    table->EvaluateBasis(*h, pc.u, pc.v, w, wu, wv);
-    Point3 p;
-    for (int k = 0; k < cvs.size(); ++k) p.AddWithWeight(cv[size_t(cvs[k])], float(w[k]));
-    pos_out[i] = p;
-  }
+  vertex_found.assign(vertex_at.size(), 0);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, vertex_at.size(), kGrain), [&](const tbb::blocked_range<size_t>& r) {
+    double w[20], wu[20], wv[20];
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const PtexCoord& pc = vertex_at[i];
+      if (pc.face < 0) continue;
+      const Far::PatchTable::PatchHandle* h = map.FindPatch(pc.face, pc.u, pc.v);
+      if (!h) continue;
+      const Far::ConstIndexArray cvs = table.GetPatchVertices(*h);
+      if (cvs.size() > 20) continue;
+      table.EvaluateBasis(*h, pc.u, pc.v, w, wu, wv);
+      Point3 p;
+      for (int k = 0; k < cvs.size(); ++k) p.AddWithWeight(cv[size_t(cvs[k])], float(w[k]));
+      pos_out[i] = p;
+      vertex_found[i] = 1;
+    }
+  });
+  fvar_found.assign(fvar_at.size(), 0);
   if (!fvar) return;
-  for (size_t i = 0; i < fvar_at->size(); ++i) {
-    const PtexCoord& pc = (*fvar_at)[i];
-    if (pc.face < 0) continue;
-    const Far::PatchTable::PatchHandle* h = map.FindPatch(pc.face, pc.u, pc.v);
-    if (!h) continue;
-    const Far::ConstIndexArray cvs = table->GetPatchFVarValues(*h, 0);
-    if (cvs.size() > 20) continue;
-    table->EvaluateBasisFaceVarying(*h, pc.u, pc.v, w, wu, wv, nullptr, nullptr, nullptr, 0);
-    Point2 t;
-    for (int k = 0; k < cvs.size(); ++k) t.AddWithWeight(fv[size_t(cvs[k])], float(w[k]));
-    (*fvar_out)[i] = t;
-  }
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, fvar_at.size(), kGrain), [&](const tbb::blocked_range<size_t>& r) {
+    double w[20], wu[20], wv[20];
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const PtexCoord& pc = fvar_at[i];
+      if (pc.face < 0) continue;
+      const Far::PatchTable::PatchHandle* h = map.FindPatch(pc.face, pc.u, pc.v);
+      if (!h) continue;
+      const Far::ConstIndexArray cvs = table.GetPatchFVarValues(*h, 0);
+      if (cvs.size() > 20) continue;
+      table.EvaluateBasisFaceVarying(*h, pc.u, pc.v, w, wu, wv, nullptr, nullptr, nullptr, 0);
+      Point2 t;
+      for (int k = 0; k < cvs.size(); ++k) t.AddWithWeight(fv[size_t(cvs[k])], float(w[k]));
+      fvar_out[i] = t;
+      fvar_found[i] = 1;
+    }
+  });
 }
 
 }  // namespace
 
-RefinedMesh refine(const std::string& owner, const Cage& c) {
+// The cage as prepare() checked it: owned copies of the caller's arrays, the
+// welded UVs and the base-level refiner (RefineUniform refines it in place).
+struct PreparedCage {
+  std::vector<float> positions, uv, crease_weights;
+  std::vector<uint32_t> face_sizes, face_indices, material_ids, crease_edges;
+  uint32_t level = 1;
+  std::vector<Point2> uv_values;  // welded (weld_uvs), one per distinct corner UV of a vertex
+  std::vector<int> uv_index;      // per corner, into uv_values
+  std::unique_ptr<detail::Topology> topology;
+  Far::TopologyDescriptor::FVarChannel channel;
+  std::unique_ptr<Far::TopologyRefiner> refiner;
+
+  // A Cage over the copies.
+  Cage view() const {
+    Cage c;
+    c.positions = positions.data();
+    c.vertex_count = uint32_t(positions.size() / 3);
+    c.face_sizes = face_sizes.data();
+    c.face_count = uint32_t(face_sizes.size());
+    c.face_indices = face_indices.data();
+    c.uv = uv.empty() ? nullptr : uv.data();
+    c.material_ids = material_ids.empty() ? nullptr : material_ids.data();
+    c.crease_edges = crease_edges.empty() ? nullptr : crease_edges.data();
+    c.crease_weights = crease_weights.empty() ? nullptr : crease_weights.data();
+    c.crease_count = uint32_t(crease_weights.size());
+    c.level = level;
+    return c;
+  }
+};
+
+void PreparedCageDelete::operator()(PreparedCage* cage) const { delete cage; }
+
+PreparedCagePtr prepare(const std::string& owner, const Cage& c) {
   // ---- validation: every error names the cage and the index ----
   if (c.vertex_count == 0 || c.face_count == 0)
     fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": the subdivision cage has ", c.vertex_count, " vertices and ",
@@ -294,113 +358,205 @@ RefinedMesh refine(const std::string& owner, const Cage& c) {
       fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": crease ", e, " has weight ", w, "; Blender creases are in [0, 1]");
   }
 
-  // ---- topology for OpenSubdiv ----
-  std::vector<Point2> uv_values;
-  std::vector<int> uv_index;
-  if (c.uv) uv_index = weld_uvs(c, size_t(corner_count), uv_values);
-
-  detail::Topology topology(c);
-  Far::TopologyDescriptor& desc = topology.desc;
-  Far::TopologyDescriptor::FVarChannel channel;
-  if (c.uv) {
-    channel.numValues = int(uv_values.size());
-    channel.valueIndices = uv_index.data();
-    desc.numFVarChannels = 1;
-    desc.fvarChannels = &channel;
+  // ---- the copy, and its topology as OpenSubdiv sees it ----
+  PreparedCagePtr p(new PreparedCage);
+  p->positions.assign(c.positions, c.positions + 3 * size_t(c.vertex_count));
+  p->face_sizes.assign(c.face_sizes, c.face_sizes + c.face_count);
+  p->face_indices.assign(c.face_indices, c.face_indices + corner_count);
+  if (c.uv) p->uv.assign(c.uv, c.uv + 2 * corner_count);
+  if (c.material_ids) p->material_ids.assign(c.material_ids, c.material_ids + c.face_count);
+  if (c.crease_count > 0) {
+    p->crease_edges.assign(c.crease_edges, c.crease_edges + 2 * size_t(c.crease_count));
+    p->crease_weights.assign(c.crease_weights, c.crease_weights + c.crease_count);
   }
+  p->level = c.level;
+  const Cage own = p->view();
+  if (own.uv) p->uv_index = weld_uvs(own, size_t(corner_count), p->uv_values);
+  p->topology = std::make_unique<detail::Topology>(own);
+  Far::TopologyDescriptor& desc = p->topology->desc;
+  if (own.uv) {
+    p->channel.numValues = int(p->uv_values.size());
+    p->channel.valueIndices = p->uv_index.data();
+    desc.numFVarChannels = 1;
+    desc.fvarChannels = &p->channel;
+  }
+  p->refiner = detail::blender_refiner(desc, owner);  // OpenSubdiv's own checks of the topology
+  return p;
+}
 
-  std::unique_ptr<Far::TopologyRefiner> refiner = detail::blender_refiner(desc, owner);
+RefinedMesh refine(const std::string& owner, const Cage& cage) { return refine(owner, prepare(owner, cage)); }
 
-  Far::TopologyRefiner::UniformOptions uniform(int(c.level));
+namespace {
+
+template <typename T>
+uint64_t hash_values(uint64_t h, const std::vector<T>& v) {
+  h = (h ^ v.size()) * 1099511628211ull;
+  const unsigned char* b = reinterpret_cast<const unsigned char*>(v.data());
+  for (size_t i = 0; i < v.size() * sizeof(T); ++i) h = (h ^ b[i]) * 1099511628211ull;  // FNV-1a
+  return h;
+}
+
+}  // namespace
+
+uint64_t topology_hash(const PreparedCage& c) {
+  uint64_t h = 14695981039346656037ull;
+  h = (h ^ (c.positions.size() / 3)) * 1099511628211ull;
+  h = (h ^ c.level) * 1099511628211ull;
+  h = (h ^ (c.uv.empty() ? 0u : 1u)) * 1099511628211ull;
+  h = hash_values(h, c.face_sizes);
+  h = hash_values(h, c.face_indices);
+  h = hash_values(h, c.crease_edges);
+  h = hash_values(h, c.crease_weights);
+  return hash_values(h, c.uv_index);
+}
+
+bool same_topology(const PreparedCage& a, const PreparedCage& b) {
+  return a.positions.size() == b.positions.size() && a.level == b.level && a.uv.empty() == b.uv.empty() &&
+         a.face_sizes == b.face_sizes && a.face_indices == b.face_indices && a.crease_edges == b.crease_edges &&
+         a.crease_weights == b.crease_weights && a.uv_index == b.uv_index;
+}
+
+// What refining depends on besides the cage's vertex and UV values: OpenSubdiv's uniform
+// refinement, the limit patches and where each refined vertex lies on them. Cages of one
+// topology share it (read only).
+struct RefinementPlan {
+  std::unique_ptr<Far::TopologyRefiner> uniform;  // refined to the cage's level
+  LimitPatches patches;
+  std::vector<PtexCoord> vertex_at, fvar_at;  // per refined vertex / UV value of the last level
+};
+
+void RefinementPlanDelete::operator()(RefinementPlan* plan) const { delete plan; }
+
+RefinementPlanPtr plan(const std::string& owner, PreparedCage& cage) {
+  RefinementPlanPtr p(new RefinementPlan);
+  const bool uv = !cage.uv.empty();
+  p->uniform = std::move(cage.refiner);
+  Far::TopologyRefiner& refiner = *p->uniform;
+  const int level = int(cage.level);
+  Far::TopologyRefiner::UniformOptions uniform(level);
   uniform.fullTopologyInLastLevel = true;  // needed by Limit / LimitFaceVarying
-  refiner->RefineUniform(uniform);
-
-  // ---- interpolate level by level, then move to the limit ----
-  Far::PrimvarRefiner primvar(*refiner);
-  std::vector<Point3> pos(c.vertex_count), pos_next;
-  for (uint32_t i = 0; i < c.vertex_count; ++i)
-    pos[i] = Point3{c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]};
-  std::vector<uint32_t> mat, mat_next;
-  if (c.material_ids) mat.assign(c.material_ids, c.material_ids + c.face_count);
-  const std::vector<Point3> base_pos = pos;
-  const std::vector<Point2> base_uv = uv_values;
-  std::vector<Point2> uv = std::move(uv_values), uv_next;
-  for (int l = 1; l <= int(c.level); ++l) {
-    const Far::TopologyLevel& child = refiner->GetLevel(l);
-    pos_next.assign(size_t(child.GetNumVertices()), Point3{});
-    primvar.Interpolate(l, pos, pos_next);
-    pos.swap(pos_next);
-    if (c.uv) {
-      uv_next.assign(size_t(child.GetNumFVarValues(0)), Point2{});
-      primvar.InterpolateFaceVarying(l, uv, uv_next, 0);
-      uv.swap(uv_next);
+  refiner.RefineUniform(uniform);
+  const Far::TopologyLevel& last = refiner.GetLevel(level);
+  std::vector<int> face_ptex;
+  std::vector<std::array<double, 8>> face_uv;
+  face_corner_ptex(refiner, level, face_ptex, face_uv);
+  p->vertex_at.resize(size_t(last.GetNumVertices()));
+  p->fvar_at.resize(uv ? size_t(last.GetNumFVarValues(0)) : 0);
+  for (int f = 0; f < last.GetNumFaces(); ++f) {
+    const Far::ConstIndexArray fv = last.GetFaceVertices(f);
+    for (int k = 0; k < fv.size() && k < 4; ++k) {
+      PtexCoord& a = p->vertex_at[size_t(fv[k])];
+      if (a.face < 0) a = PtexCoord{face_ptex[size_t(f)], face_uv[size_t(f)][2 * k], face_uv[size_t(f)][2 * k + 1]};
     }
-    if (c.material_ids) {
-      mat_next.assign(size_t(child.GetNumFaces()), 0u);
+    if (!uv) continue;
+    const Far::ConstIndexArray fuv = last.GetFaceFVarValues(f, 0);
+    for (int k = 0; k < fuv.size() && k < 4; ++k) {
+      PtexCoord& a = p->fvar_at[size_t(fuv[k])];
+      if (a.face < 0) a = PtexCoord{face_ptex[size_t(f)], face_uv[size_t(f)][2 * k], face_uv[size_t(f)][2 * k + 1]};
+    }
+  }
+  for (int f = 0; f < last.GetNumFaces(); ++f) {
+    const int n = last.GetFaceVertices(f).size();
+    if (n != 4)  // Catmull-Clark refinement makes only quads
+      fail(PLM_ERROR_INTERNAL, owner, ": refined face ", f, " has ", n, " vertices instead of 4");
+  }
+  p->patches = limit_patches(cage.topology->desc, uv, owner);
+  return p;
+}
+
+RefinedMesh refine(const std::string& owner, PreparedCagePtr prepared) {
+  const RefinementPlanPtr p = plan(owner, *prepared);
+  return refine(*p, *prepared);
+}
+
+RefinedMesh refine(const RefinementPlan& plan, const PreparedCage& prepared) {
+  const Cage c = prepared.view();
+  const Far::TopologyRefiner& refiner = *plan.uniform;
+  const Far::TopologyLevel& last = refiner.GetLevel(int(c.level));
+
+  // ---- material ids, level by level ----
+  Far::PrimvarRefiner primvar(refiner);
+  std::vector<uint32_t> mat, mat_next;
+  if (c.material_ids) {
+    mat.assign(c.material_ids, c.material_ids + c.face_count);
+    for (int l = 1; l <= int(c.level); ++l) {
+      mat_next.assign(size_t(refiner.GetLevel(l).GetNumFaces()), 0u);
       primvar.InterpolateFaceUniform(l, mat, mat_next);
       mat.swap(mat_next);
     }
   }
-  std::vector<Point3> limit(pos.size());
-  primvar.Limit(pos, limit);
-  std::vector<Point2> uv_limit(uv.size());
-  if (c.uv) primvar.LimitFaceVarying(uv, uv_limit, 0);
 
-  // Blender evaluates the limit surface on patches, at the ptex coordinates of the vertices.
-  {
-    const Far::TopologyLevel& last = refiner->GetLevel(int(c.level));
-    std::vector<int> face_ptex;
-    std::vector<std::array<double, 8>> face_uv;
-    face_corner_ptex(*refiner, int(c.level), face_ptex, face_uv);
-    std::vector<PtexCoord> vertex_at(limit.size()), fvar_at(uv_limit.size());
-    for (int f = 0; f < last.GetNumFaces(); ++f) {
-      const Far::ConstIndexArray fv = last.GetFaceVertices(f);
-      for (int k = 0; k < fv.size() && k < 4; ++k) {
-        PtexCoord& a = vertex_at[size_t(fv[k])];
-        if (a.face < 0) a = PtexCoord{face_ptex[size_t(f)], face_uv[size_t(f)][2 * k], face_uv[size_t(f)][2 * k + 1]};
-      }
-      if (!c.uv) continue;
-      const Far::ConstIndexArray fuv = last.GetFaceFVarValues(f, 0);
-      for (int k = 0; k < fuv.size() && k < 4; ++k) {
-        PtexCoord& a = fvar_at[size_t(fuv[k])];
-        if (a.face < 0) a = PtexCoord{face_ptex[size_t(f)], face_uv[size_t(f)][2 * k], face_uv[size_t(f)][2 * k + 1]};
+  // ---- Blender's limit surface: patches evaluated at the ptex coordinates of the vertices ----
+  std::vector<Point3> base_pos(c.vertex_count);
+  for (uint32_t i = 0; i < c.vertex_count; ++i)
+    base_pos[i] = Point3{c.positions[3 * i], c.positions[3 * i + 1], c.positions[3 * i + 2]};
+  std::vector<Point3> limit(plan.vertex_at.size());
+  std::vector<Point2> uv_limit(plan.fvar_at.size());
+  std::vector<uint8_t> vertex_found, fvar_found;
+  evaluate_patches(plan.patches, base_pos, c.uv ? &prepared.uv_values : nullptr, plan.vertex_at, limit, vertex_found,
+                   plan.fvar_at, uv_limit, fvar_found);
+
+  // ---- where no patch holds a vertex (a loose vertex): the exact limit of the uniform refinement ----
+  const bool all_vertices = std::all_of(vertex_found.begin(), vertex_found.end(), [](uint8_t f) { return f != 0; });
+  const bool all_fvar = std::all_of(fvar_found.begin(), fvar_found.end(), [](uint8_t f) { return f != 0; });
+  if (!all_vertices || !all_fvar) {
+    std::vector<Point3> pos = base_pos, pos_next;
+    std::vector<Point2> uv = prepared.uv_values, uv_next;
+    for (int l = 1; l <= int(c.level); ++l) {
+      const Far::TopologyLevel& child = refiner.GetLevel(l);
+      pos_next.assign(size_t(child.GetNumVertices()), Point3{});
+      primvar.Interpolate(l, pos, pos_next);
+      pos.swap(pos_next);
+      if (c.uv) {
+        uv_next.assign(size_t(child.GetNumFVarValues(0)), Point2{});
+        primvar.InterpolateFaceVarying(l, uv, uv_next, 0);
+        uv.swap(uv_next);
       }
     }
-    evaluate_patches(desc, base_pos, c.uv ? &base_uv : nullptr,
-                     vertex_at, limit, &fvar_at, &uv_limit, owner);
+    std::vector<Point3> exact(pos.size());
+    primvar.Limit(pos, exact);
+    for (size_t i = 0; i < limit.size(); ++i)
+      if (!vertex_found[i]) limit[i] = exact[i];
+    if (c.uv) {
+      std::vector<Point2> exact_uv(uv.size());
+      primvar.LimitFaceVarying(uv, exact_uv, 0);
+      for (size_t i = 0; i < uv_limit.size(); ++i)
+        if (!fvar_found[i]) uv_limit[i] = exact_uv[i];
+    }
   }
 
   // ---- the triangle mesh ----
-  const Far::TopologyLevel& last = refiner->GetLevel(int(c.level));
+  const size_t faces = size_t(last.GetNumFaces());
   RefinedMesh out;
   out.positions.resize(limit.size() * 3);
-  for (size_t i = 0; i < limit.size(); ++i) {
-    out.positions[3 * i] = float(limit[i].x);
-    out.positions[3 * i + 1] = float(limit[i].y);
-    out.positions[3 * i + 2] = float(limit[i].z);
-  }
-  const int faces = last.GetNumFaces();
-  out.indices.reserve(size_t(faces) * 6);
-  if (c.uv) out.uv.reserve(size_t(faces) * 12);
-  if (c.material_ids) out.material_ids.reserve(size_t(faces) * 2);
+  out.indices.resize(faces * 6);
+  if (c.uv) out.uv.resize(faces * 12);
+  if (c.material_ids) out.material_ids.resize(faces * 2);
   static constexpr int kTri[2][3] = {{0, 1, 2}, {0, 2, 3}};
-  for (int f = 0; f < faces; ++f) {
-    const Far::ConstIndexArray fv = last.GetFaceVertices(f);
-    if (fv.size() != 4)  // Catmull-Clark refinement makes only quads
-      fail(PLM_ERROR_INTERNAL, owner, ": refined face ", f, " has ", fv.size(), " vertices instead of 4");
-    Far::ConstIndexArray fuv;
-    if (c.uv) fuv = last.GetFaceFVarValues(f, 0);
-    for (const auto& t : kTri) {
-      for (int j : t) {
-        out.indices.push_back(uint32_t(fv[j]));
-        if (c.uv) {
-          out.uv.push_back(float(uv_limit[size_t(fuv[j])].u));
-          out.uv.push_back(float(uv_limit[size_t(fuv[j])].v));
-        }
-      }
-      if (c.material_ids) out.material_ids.push_back(mat[size_t(f)]);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, limit.size(), kGrain), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      out.positions[3 * i] = float(limit[i].x);
+      out.positions[3 * i + 1] = float(limit[i].y);
+      out.positions[3 * i + 2] = float(limit[i].z);
     }
-  }
+  });
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, faces, kGrain / 4), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t f = r.begin(); f < r.end(); ++f) {
+      const Far::ConstIndexArray fv = last.GetFaceVertices(int(f));
+      for (int t = 0; t < 2; ++t) {
+        for (int k = 0; k < 3; ++k) out.indices[6 * f + 3 * size_t(t) + size_t(k)] = uint32_t(fv[kTri[t][k]]);
+        if (c.material_ids) out.material_ids[2 * f + size_t(t)] = mat[f];
+      }
+      if (!c.uv) continue;
+      const Far::ConstIndexArray fuv = last.GetFaceFVarValues(int(f), 0);
+      for (int t = 0; t < 2; ++t)
+        for (int k = 0; k < 3; ++k) {
+          const Point2& q = uv_limit[size_t(fuv[kTri[t][k]])];
+          out.uv[12 * f + 6 * size_t(t) + 2 * size_t(k)] = float(q.u);
+          out.uv[12 * f + 6 * size_t(t) + 2 * size_t(k) + 1] = float(q.v);
+        }
+    }
+  });
   return out;
 }
 

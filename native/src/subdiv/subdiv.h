@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -46,8 +47,46 @@ struct RefinedMesh {
 // Blender 3.4 maps an edge crease c in [0, 1] to OpenSubdiv sharpness 10 c^2.
 inline float blender_crease_to_sharpness(float crease) { return crease * crease * 10.0f; }
 
-// Refines the cage; throws plm::Error (naming `owner` and the bad index) on
-// invalid input or when the result would exceed kMaxRefinedTriangles.
+// A cage that prepare() checked and copied: its arrays, its welded UVs and
+// OpenSubdiv's base-level topology (which OpenSubdiv accepted), owned.
+struct PreparedCage;
+struct PreparedCageDelete {
+  void operator()(PreparedCage* cage) const;
+};
+using PreparedCagePtr = std::unique_ptr<PreparedCage, PreparedCageDelete>;
+
+// Checks the cage and copies it; throws plm::Error (naming `owner` and the bad
+// index) on invalid input, on a topology OpenSubdiv rejects, or when the result
+// would exceed kMaxRefinedTriangles. What refine() does later can then fail only
+// for want of memory (or an engine bug), never for the input.
+PreparedCagePtr prepare(const std::string& owner, const Cage& cage);
+
+// Refines a prepared cage (consumed). Large cages use the calling thread's
+// TBB arena for their per-vertex work; the result does not depend on threads.
+RefinedMesh refine(const std::string& owner, PreparedCagePtr cage);
+
+// prepare() then refine().
 RefinedMesh refine(const std::string& owner, const Cage& cage);
+
+// What refining a cage depends on besides its vertex and UV values (OpenSubdiv's
+// refinements and limit patches): made once and shared, read only, by every
+// cage of the same topology.
+struct RefinementPlan;
+struct RefinementPlanDelete {
+  void operator()(RefinementPlan* plan) const;
+};
+using RefinementPlanPtr = std::unique_ptr<RefinementPlan, RefinementPlanDelete>;
+
+// The plan of a prepared cage's topology; takes the cage's base refiner, so the
+// cage is then refined with this plan only.
+RefinementPlanPtr plan(const std::string& owner, PreparedCage& cage);
+// Refines a prepared cage with the plan of a cage of the same topology (same_topology);
+// the result is refine()'s, bit for bit.
+RefinedMesh refine(const RefinementPlan& plan, const PreparedCage& cage);
+
+// Cages of one topology: the same faces, creases, UV seams (welded UV indices)
+// and level. topology_hash is equal for them (and rarely for others).
+uint64_t topology_hash(const PreparedCage& cage);
+bool same_topology(const PreparedCage& a, const PreparedCage& b);
 
 }  // namespace plm::subdiv

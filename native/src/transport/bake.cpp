@@ -65,9 +65,11 @@ plm_bake_settings default_settings() {
   return s;
 }
 
-BakeOutput bake(const Scene& scene, const plm_bake_settings& requested, const ProgressFn& progress,
+BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const ProgressFn& progress,
                 const PreviewHook* preview, ShardJob* job) {
   const auto t_start = Clock::now();
+  pending_scene.refine_cages(requested.thread_count);
+  const Scene& scene = pending_scene;
   validate(scene, requested);
   BakeOutput out;
   out.stats.memory_estimate = check_memory(scene, out.warnings);  // before allocating anything

@@ -96,7 +96,9 @@ struct ShardJob;     // transport/shard.h
 // kTrace traces the shard's photon batches into job->segments and returns
 // after them (no direct pass, no outputs); kMerge takes every shard's
 // segments instead of tracing photons and bakes the rest as usual.
-BakeOutput bake(const Scene& scene, const plm_bake_settings& settings, const ProgressFn& progress,
+// The scene's pending subdivision cages are refined first (Scene::refine_cages,
+// counted in the set-up time).
+BakeOutput bake(Scene& scene, const plm_bake_settings& settings, const ProgressFn& progress,
                 const PreviewHook* preview = nullptr, ShardJob* job = nullptr);
 
 }  // namespace plm
