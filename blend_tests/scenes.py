@@ -37,6 +37,12 @@ def out_dir(name):
     return d
 
 
+def cli_path():
+    """The photonlm CLI built beside PHOTONLM_LIBRARY (build/bin beside build/lib)."""
+    lib = os.environ.get("PHOTONLM_LIBRARY", "")
+    return os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(lib)), "..", "bin", "photonlm"))
+
+
 def clear_scene():
     """Remove every object, mesh, material, light, image and world; set a black world."""
     for coll in (bpy.data.objects, bpy.data.meshes, bpy.data.materials, bpy.data.lights,

@@ -54,11 +54,6 @@ SEED = 11
 TOL = 1e-5
 
 
-def cli_path():
-    lib = os.environ.get("PHOTONLM_LIBRARY", "")
-    return os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(lib)), "..", "bin", "photonlm"))
-
-
 def run(cmd, timeout=300):
     print("$ " + " ".join(cmd), flush=True)
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
@@ -171,7 +166,7 @@ def main():
     out = scenes.out_dir("import_bake_folder")
     shutil.rmtree(out, ignore_errors=True)
     os.makedirs(out)
-    cli = cli_path()
+    cli = scenes.cli_path()
     checks.check(os.access(cli, os.X_OK), "the photonlm CLI is at %s" % cli)
 
     objs = build_scene()

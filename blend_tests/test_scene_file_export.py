@@ -39,11 +39,6 @@ SEED = 7
 TOL = 1e-5
 
 
-def cli_path():
-    lib = os.environ.get("PHOTONLM_LIBRARY", "")
-    return os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(lib)), "..", "bin", "photonlm"))
-
-
 def exr_rgb(path):
     """(h, w, 3) float32, row 0 = bottom (as the engine's lightmap arrays)."""
     image = bpy.data.images.load(path, check_existing=False)
@@ -117,7 +112,7 @@ def main():
     out = scenes.out_dir("scene_file_export")
     shutil.rmtree(out, ignore_errors=True)
     os.makedirs(out)
-    cli = cli_path()
+    cli = scenes.cli_path()
     checks.check(os.access(cli, os.X_OK), "the photonlm CLI is at %s" % cli)
 
     build_scene()

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <new>
 #include <string>
 
@@ -385,6 +386,31 @@ plm_status plm_preview_copy_lightmap(const plm_preview* preview, uint32_t mesh_i
   });
 }
 
+namespace {
+
+// Bakes a shard's or texel range's job (index of count) and hands write the
+// header of its part (engine, scene, settings without the thread count,
+// layout, scene path); progress ends at 1 once write has written the file.
+void bake_part(plm_scene* scene, const plm_bake_settings& s, plm::ShardJob& job, const char* scene_path,
+               plm_progress_fn progress, void* user_data, const std::function<void(plm::PartHeader&)>& write) {
+  plm::ProgressFn fn;
+  if (progress) fn = [&](double f, const char* stage) { return progress(user_data, f, stage) != 0; };
+  plm::bake(scene->scene, s, fn, nullptr, &job);
+  plm::PartHeader h;
+  h.engine_version = plm_version();
+  h.scene_hash = job.layout.scene_hash;
+  h.settings = s;
+  h.settings.thread_count = 0;
+  h.shard_index = job.index;
+  h.shard_count = job.count;
+  h.layout = job.layout;
+  h.scene_path = scene_path ? scene_path : "";
+  write(h);
+  if (fn) fn(1.0, "done");
+}
+
+}  // namespace
+
 plm_status plm_bake_shard(plm_scene* scene, const plm_bake_settings* settings, uint32_t shard, uint32_t shard_count,
                           const char* scene_path, const char* part_path, plm_progress_fn progress, void* user_data) {
   return guarded("plm_bake_shard", [&] {
@@ -396,24 +422,12 @@ plm_status plm_bake_shard(plm_scene* scene, const plm_bake_settings* settings, u
     if (scene_path && std::strlen(scene_path) > 255)
       plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_bake_shard: scene_path is longer than 255 bytes");
     const plm_bake_settings s = settings ? *settings : plm::default_settings();
-    plm::ProgressFn fn;
-    if (progress) fn = [&](double f, const char* stage) { return progress(user_data, f, stage) != 0; };
     plm::ShardJob job;
     job.mode = plm::ShardJob::kTrace;
     job.index = shard;
     job.count = shard_count;
-    plm::bake(scene->scene, s, fn, nullptr, &job);
-    plm::PartHeader h;
-    h.engine_version = plm_version();
-    h.scene_hash = job.layout.scene_hash;
-    h.settings = s;
-    h.settings.thread_count = 0;
-    h.shard_index = shard;
-    h.shard_count = shard_count;
-    h.layout = job.layout;
-    h.scene_path = scene_path ? scene_path : "";
-    plm::write_part_file(part_path, h, job.segments);
-    if (fn) fn(1.0, "done");
+    bake_part(scene, s, job, scene_path, progress, user_data,
+              [&](plm::PartHeader& h) { plm::write_part_file(part_path, h, job.segments); });
   });
 }
 
@@ -477,31 +491,21 @@ plm_status plm_bake_texels(plm_scene* scene, const plm_bake_settings* settings, 
       plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_bake_texels: the direct pass of a texel range reads no parts (",
                 part_count, " given)");
     }
-    plm::ProgressFn fn;
-    if (progress) fn = [&](double f, const char* st) { return progress(user_data, f, st) != 0; };
-    plm::bake(scene->scene, s, fn, nullptr, &job);
-    plm::PartHeader h;
-    h.engine_version = plm_version();
-    h.scene_hash = job.layout.scene_hash;
-    h.settings = s;
-    h.settings.thread_count = 0;
-    h.settings.target_error = 0.0;
-    h.shard_index = range;
-    h.shard_count = range_count;
-    h.layout = job.layout;
-    h.scene_path = scene_path ? scene_path : "";
-    const plm::CoveredSlice slice = plm::texel_range(job.layout.covered, range, range_count);
-    h.range_begin = slice.begin;
-    h.range_end = slice.end;
-    h.direct_target = direct_target;
-    if (stage == PLM_TEXELS_DIRECT) {
-      h.kind = plm::PartKind::kDirect;
-      plm::write_direct_part(part_path, h, job.direct.at(0));
-    } else {
-      h.kind = plm::PartKind::kGather;
-      h.gathered = job.gathered;
-      plm::write_gather_part(part_path, h, job.gather.at(0));
-    }
+    bake_part(scene, s, job, scene_path, progress, user_data, [&](plm::PartHeader& h) {
+      h.settings.target_error = 0.0;
+      const plm::CoveredSlice slice = plm::texel_range(job.layout.covered, range, range_count);
+      h.range_begin = slice.begin;
+      h.range_end = slice.end;
+      h.direct_target = direct_target;
+      if (stage == PLM_TEXELS_DIRECT) {
+        h.kind = plm::PartKind::kDirect;
+        plm::write_direct_part(part_path, h, job.direct.at(0));
+      } else {
+        h.kind = plm::PartKind::kGather;
+        h.gathered = job.gathered;
+        plm::write_gather_part(part_path, h, job.gather.at(0));
+      }
+    });
   });
 }
 
