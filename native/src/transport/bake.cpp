@@ -92,7 +92,8 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
   const float extent = length(hi - lo);
 
   report(0.02, "computing texel areas");
-  TexelSpace space = build_texel_space(scene, out.warnings);
+  TexelSpace space;
+  arena.execute([&] { space = build_texel_space(scene, out.warnings); });
   OlGroups ol_groups = build_ol_groups(scene, out.warnings);
   if (!scene.lsystems.empty()) report(0.03, "estimating L-system OL areas");
   const LSystemOls ls_ols = build_lsystem_ols(scene, arena, out.lsystems, out.warnings);

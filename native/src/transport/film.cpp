@@ -1,5 +1,7 @@
 #include "transport/film.h"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 
@@ -59,12 +61,16 @@ TexelSpace build_texel_space(const Scene& scene, std::vector<std::string>& warni
   s.views.resize(scene.meshes.size());
   s.normals.resize(scene.meshes.size());
   s.covered_begin.assign(scene.meshes.size(), 0);
+  // Normals and texel areas per mesh in parallel (the caller's arena), the
+  // global texel order and the warnings in mesh order after.
+  tbb::parallel_for(size_t(0), scene.meshes.size(), [&](size_t i) {
+    s.normals[i] = triangle_normals(scene.meshes[i]);
+    if (scene.meshes[i].has_lightmap()) s.areas[i] = compute_texel_areas(scene.meshes[i]);
+  });
   for (size_t i = 0; i < scene.meshes.size(); ++i) {
     const Mesh& mesh = scene.meshes[i];
-    s.normals[i] = triangle_normals(mesh);
     s.views[i] = {&mesh, s.texel_count, nullptr, s.normals[i].data()};
     s.covered_begin[i] = s.covered.size();
-    if (mesh.has_lightmap()) s.areas[i] = compute_texel_areas(mesh);
     if (scene.own_texels(mesh)) {
       s.views[i].texel_area = s.areas[i].area.data();
       const uint32_t n = mesh.lightmap_width * mesh.lightmap_height;

@@ -49,6 +49,7 @@ struct TexelSpace {
 // their OL, CSG carriers' from their solid: they have no texels here) and
 // the sub-texels of CSG solids with a carrier, at the carrier's texel size.
 // Adds each mesh's warnings (validate.h) and the CSG solids'.
+// Runs its per-mesh work in parallel: call it inside the bake's arena.
 TexelSpace build_texel_space(const Scene& scene, std::vector<std::string>& warnings);
 
 // Photon fluxes are added as whole multiples of a power-of-two quantum
