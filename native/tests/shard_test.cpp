@@ -119,10 +119,14 @@ TEST(Shard, QuantizedSumsDoNotDependOnOrder) {
     }
   plm::Accumulators forward(texels, 1, false, q), backward(texels, 1, false, q), split(texels, 1, false, q),
       second(texels, 1, false, q);
-  for (const auto& b : batches) forward.merge(b);
-  for (size_t i = batches.size(); i-- > 0;) backward.merge(batches[i]);
-  for (size_t i = 0; i < 13; ++i) split.merge(batches[i]);
-  for (size_t i = 13; i < batches.size(); ++i) second.merge(batches[i]);
+  // A batch's hits added as the photon pass adds them (transport/photon_batches.h).
+  auto merge = [](plm::Accumulators& a, const plm::BatchOutput& b) {
+    a.add_totals(b.hits.size(), a.add_hits(b.hits.data(), b.hits.data() + b.hits.size(), false), false);
+  };
+  for (const auto& b : batches) merge(forward, b);
+  for (size_t i = batches.size(); i-- > 0;) merge(backward, batches[i]);
+  for (size_t i = 0; i < 13; ++i) merge(split, batches[i]);
+  for (size_t i = 13; i < batches.size(); ++i) merge(second, batches[i]);
   split.add(second);
   for (const plm::Accumulators* a : {&backward, &split}) {
     EXPECT_EQ(std::memcmp(a->sum.data(), forward.sum.data(), forward.sum.size() * sizeof(double)), 0);

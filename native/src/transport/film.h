@@ -115,23 +115,14 @@ class Accumulators {
   // with few hits from looking exact.
   double phantom_sq() const { return total_hits ? total_sq / double(total_hits) : 0.0; }
 
-  // Adds one batch's hits (transport/photon_batches.h adds them from several threads).
-  void merge(const BatchOutput& bo) {
-    add_totals(bo.hits.size(), add_hits(bo.hits.data(), bo.hits.data() + bo.hits.size(), false), false);
-    for (const uint32_t m : bo.back_meshes) back_lit[m] = 1;
-    if (!bo.caustic_hits.empty()) {
-      const Hit* h = bo.caustic_hits.data();
-      add_totals(bo.caustic_hits.size(), add_hits(h, h + bo.caustic_hits.size(), true), true);
-    }
-  }
-
   // Adds the sums of other (the same texels, meshes and quantum): exact, so
   // the order in which accumulators are added does not matter.
   void add(const Accumulators& other);
 
   // Adds hits [h, end) to the texel sums (caustic: the caustic sums), each
   // flux and squared flux rounded to the quantum; returns the squared fluxes
-  // in quanta of q2, for add_totals.
+  // in quanta of q2, for add_totals (transport/photon_batches.h calls both
+  // from several threads, one texel block at a time).
   uint64_t add_hits(const Hit* h, const Hit* end, bool caustic_hits) {
     double* s = caustic_hits ? caustic.sum.data() : sum.data();
     double* s2 = caustic_hits ? caustic.sum_sq.data() : sum_sq.data();
