@@ -255,13 +255,23 @@ def _node(tree, role, idname, frame=None):
     return n
 
 
+def _link(tree, from_socket, to_socket):
+    """Link two sockets unless they are linked already: every new link updates the node tree,
+    and a bake wires each material again."""
+    for link in to_socket.links:
+        if link.from_socket == from_socket:
+            return link
+    return tree.links.new(from_socket, to_socket)
+
+
 def _feed(tree, target, source_socket, default):
     """Make `target` take what `source_socket` takes: the same link, or its default value."""
+    source = source_socket.links[0].from_socket if source_socket is not None and source_socket.is_linked else None
     for link in list(target.links):
-        tree.links.remove(link)
-    if source_socket is not None and source_socket.is_linked:
-        link = source_socket.links[0]
-        tree.links.new(link.from_socket, target)
+        if link.from_socket != source:
+            tree.links.remove(link)
+    if source is not None:
+        _link(tree, source, target)
     elif source_socket is not None:
         value = source_socket.default_value
         try:
@@ -385,17 +395,15 @@ def wire_material(mat, image, render_engine, orientation=False, error_image=None
     mul.use_clamp = False
     mul.inputs['Fac'].default_value = 1.0
     links = tree.links
-    links.new(uv.outputs['Vector' if orientation else 'UV'], tex.inputs['Vector'])
-    for link in list(mul.inputs['Color1'].links):
-        links.remove(link)
+    _link(tree, uv.outputs['Vector' if orientation else 'UV'], tex.inputs['Vector'])
     emit.inputs['Strength'].default_value = 1.0
     if info.color_socket is not None and info.color_socket.is_linked:
         _feed(tree, mul.inputs['Color1'], info.color_socket, (0.8, 0.8, 0.8, 1.0))
         emit.inputs['Strength'].default_value = info.preview_factor  # the diffuse weight of that colour
     else:
-        mul.inputs['Color1'].default_value = tuple(info.albedo) + (1.0,)
-    links.new(tex.outputs['Color'], mul.inputs['Color2'])
-    links.new(mul.outputs['Color'], emit.inputs['Color'])
+        _feed(tree, mul.inputs['Color1'], None, tuple(info.albedo) + (1.0,))
+    _link(tree, tex.outputs['Color'], mul.inputs['Color2'])
+    _link(tree, mul.outputs['Color'], emit.inputs['Color'])
 
     # The specular part keeps the material's own shading (a copy of its closures without the
     # diffuse part, which carries the emission too).
@@ -417,23 +425,23 @@ def wire_material(mat, image, render_engine, orientation=False, error_image=None
         ref = info.emission_texture
         if ref is not None and ref.node.id_data == tree:
             _feed(tree, emit0.inputs['Color'], None, (1.0, 1.0, 1.0, 1.0))
-            links.new(ref.node.outputs['Color'], emit0.inputs['Color'])
+            _link(tree, ref.node.outputs['Color'], emit0.inputs['Color'])
             _feed(tree, emit0.inputs['Strength'], None, float(info.emission[0]))
         else:
             _feed(tree, emit0.inputs['Color'], None, tuple(info.emission) + (1.0,))
             _feed(tree, emit0.inputs['Strength'], None, 1.0 if ref is None else 0.0)
-    links.new(emit.outputs['Emission'], add.inputs[0])
-    links.new(emit0.outputs['Emission'], add.inputs[1])
+    _link(tree, emit.outputs['Emission'], add.inputs[0])
+    _link(tree, emit0.outputs['Emission'], add.inputs[1])
     if closures is not None:
         add2 = _node(tree, "add_closures", 'ShaderNodeAddShader', frame)
         add2.location = (x0 + 260.0 * 4.5, y0 - 200.0)
-        links.new(add.outputs['Shader'], add2.inputs[0])
-        links.new(closures, add2.inputs[1])
-        links.new(add2.outputs['Shader'], out.inputs['Surface'])
+        _link(tree, add.outputs['Shader'], add2.inputs[0])
+        _link(tree, closures, add2.inputs[1])
+        _link(tree, add2.outputs['Shader'], out.inputs['Surface'])
     else:
         for n in [n for n in tree.nodes if n.get(TAG) == "add_closures"]:
             tree.nodes.remove(n)
-        links.new(add.outputs['Shader'], out.inputs['Surface'])
+        _link(tree, add.outputs['Shader'], out.inputs['Surface'])
     for link in list(out.inputs['Volume'].links) + list(out.inputs['Displacement'].links):
         links.remove(link)
 
@@ -477,16 +485,17 @@ def _wire_heat_map(tree, frame, uv, error_image, target_error, x0, y0):
     ramp.color_ramp.interpolation = 'LINEAR'
     ramp.color_ramp.color_mode = 'RGB'
     elements = ramp.color_ramp.elements
-    while len(elements) > 1:
-        elements.remove(elements[-1])
-    elements[0].position = HEAT_RAMP[0][0]
-    elements[0].color = tuple(HEAT_RAMP[0][1]) + (1.0,)
-    for position, colour in HEAT_RAMP[1:]:
-        elements.new(position).color = tuple(colour) + (1.0,)
+    if not _ramp_is(elements, HEAT_RAMP):
+        while len(elements) > 1:
+            elements.remove(elements[-1])
+        elements[0].position = HEAT_RAMP[0][0]
+        elements[0].color = tuple(HEAT_RAMP[0][1]) + (1.0,)
+        for position, colour in HEAT_RAMP[1:]:
+            elements.new(position).color = tuple(colour) + (1.0,)
     links = tree.links
-    links.new(uv.outputs['UV'], tex.inputs['Vector'])
-    links.new(tex.outputs['Color'], scale.inputs[0])
-    links.new(scale.outputs['Value'], ramp.inputs['Fac'])
+    _link(tree, uv.outputs['UV'], tex.inputs['Vector'])
+    _link(tree, tex.outputs['Color'], scale.inputs[0])
+    _link(tree, scale.outputs['Value'], ramp.inputs['Fac'])
     # Faces seen at a grazing angle a little darker, so that the shapes read under flat colours.
     facing = _node(tree, "error_facing", 'ShaderNodeLayerWeight', frame)
     shade = _node(tree, "error_shade", 'ShaderNodeMath', frame)
@@ -502,15 +511,22 @@ def _wire_heat_map(tree, frame, uv, error_image, target_error, x0, y0):
     mix.blend_type = 'MULTIPLY'
     mix.use_clamp = False
     mix.inputs['Fac'].default_value = 1.0
-    links.new(facing.outputs['Facing'], shade.inputs[0])
-    links.new(ramp.outputs['Color'], mix.inputs['Color1'])
-    links.new(shade.outputs['Value'], mix.inputs['Color2'])
-    links.new(mix.outputs['Color'], emit.inputs['Color'])
+    _link(tree, facing.outputs['Facing'], shade.inputs[0])
+    _link(tree, ramp.outputs['Color'], mix.inputs['Color1'])
+    _link(tree, shade.outputs['Value'], mix.inputs['Color2'])
+    _link(tree, mix.outputs['Color'], emit.inputs['Color'])
     emit.inputs['Strength'].default_value = 1.0
-    links.new(emit.outputs['Emission'], out.inputs['Surface'])
+    _link(tree, emit.outputs['Emission'], out.inputs['Surface'])
     for link in list(out.inputs['Volume'].links) + list(out.inputs['Displacement'].links):
         links.remove(link)
     return out
+
+
+def _ramp_is(elements, stops):
+    """Whether a colour ramp's elements are `stops` ((position, rgb), ...), to float precision."""
+    return len(elements) == len(stops) and all(
+        abs(e.position - p) < 1e-6 and all(abs(a - b) < 1e-6 for a, b in zip(e.color, tuple(c) + (1.0,)))
+        for e, (p, c) in zip(elements, stops))
 
 
 def _remember_active(tree):

@@ -8,13 +8,16 @@
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStringAttribute.h>
+#include <OpenEXR/ImfThreading.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdio>
 #include <cstring>
 #include <exception>
 #include <fstream>
 #include <memory>
+#include <thread>
 
 #define STB_IMAGE_IMPLEMENTATION
 #define STBI_FAILURE_USERMSG
@@ -222,7 +225,14 @@ void write_exr_atomic(const std::string& path, uint32_t width, uint32_t height,
       fb.insert(channel_names[c], Imf::Slice(Imf::FLOAT, base + c * sizeof(float), nc * sizeof(float),
                                              row * sizeof(float)));
     }
-    Imf::OutputFile file(tmp.c_str(), header);
+    // Blocks of scanlines are compressed in parallel (OpenEXR's own pool, up
+    // to 8 threads): zlib is most of a large lightmap's write.
+    static const int threads = [] {
+      const int n = int(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
+      Imf::setGlobalThreadCount(n);
+      return n;
+    }();
+    Imf::OutputFile file(tmp.c_str(), header, threads);
     file.setFrameBuffer(fb);
     file.writePixels(int(height));
   } catch (const std::exception& e) {
