@@ -22,16 +22,12 @@ double target_progress(double relative, double target) {
   return std::min(1.0, std::pow(target / std::max(relative, 1e-12), 2.0));
 }
 
-double work_share(double target_error) {
-  if (!(target_error > kBaseTarget)) return 1.0;
-  return std::max(kLeastWorkShare, std::pow(kBaseTarget / target_error, 2.0));
-}
-
 uint32_t gather_samples(double target_error, uint32_t gathers_before) {
+  constexpr double kBaseTarget = 0.02;  // the target kGatherSamples rays are enough for
   const double more = std::pow(4.0, double(std::min(gathers_before, 4u)));
   const double base = target_error > 0.0
-                          ? std::clamp(kGatherSamples * std::pow(kBaseTarget / target_error, 2.0),
-                                       std::round(kGatherSamples * work_share(target_error)), double(kMaxGatherSamples))
+                          ? std::clamp(kGatherSamples * std::pow(kBaseTarget / target_error, 2.0), double(kGatherSamples),
+                                       double(kMaxGatherSamples))
                           : double(kGatherSamples);
   return uint32_t(std::min(base * more, double(kMaxGatherSamples)));
 }
@@ -39,12 +35,7 @@ uint32_t gather_samples(double target_error, uint32_t gathers_before) {
 DirectSchedule::DirectSchedule(double target_error, uint32_t direct_samples)
     : target_(target_error),
       direct_samples_(direct_samples),
-      first_(target_error > 0.0
-                 ? std::min(direct_samples,
-                            std::max(kLeastFirstSamples,
-                                     uint32_t(std::lround(kFirstTargetSamples * work_share(target_error)))))
-                 : direct_samples),
-      top_up_(std::max(first_, uint32_t(std::lround(direct_samples * work_share(target_error))))) {}
+      first_(target_error > 0.0 ? std::min(direct_samples, kFirstTargetSamples) : direct_samples) {}
 
 std::vector<uint32_t> DirectSchedule::next_round(uint32_t round, double mean,
                                                  const std::vector<DirectTexelNoise>& texels,
@@ -69,16 +60,16 @@ std::vector<uint32_t> DirectSchedule::next_round(uint32_t round, double mean,
   const double aim = mean_var > 4.0 * allowed * allowed ? 2.0 : 1.0;
   const double budget = aim * allowed * allowed * count;
   const double max_total = double(std::max(first_, direct_samples_)) * kMaxDirectGrowth;
-  // First up to direct_samples x work_share everywhere where the phantom
-  // sample is most of the estimate: it is no measure of a texel's own noise
-  // to allocate by (dark texels of an interior).
-  const bool top_up = refine && round == 0 && first_ < top_up_ && phantom_var > 0.5 * mean_var;
+  // First up to direct_samples everywhere where the phantom sample is most of
+  // the estimate: it is no measure of a texel's own noise to allocate by
+  // (dark texels of an interior).
+  const bool top_up = refine && round == 0 && first_ < direct_samples_ && phantom_var > 0.5 * mean_var;
   std::vector<uint32_t> next;
   for (uint32_t i = 0; i < texels.size(); ++i) {
     const DirectTexelNoise& d = texels[i];
     double extra = 0.0;
     if (top_up) {
-      extra = double(top_up_ - first_);
+      extra = double(direct_samples_ - first_);
     } else if (refine) {
       extra = weight[i] * std::pow(sum_weight / budget, 1.0 / a) - double(d.count);
       extra = std::min({extra, kMaxRoundGrowth * std::max(d.count, first_), max_total - double(d.count)});

@@ -10,7 +10,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <vector>
@@ -109,34 +108,17 @@ void run_in_groups(tbb::task_arena& arena, uint64_t total, uint64_t granule, Wor
   run_in_groups(arena, total, granule, work, after, max_group, [total](uint64_t) { return total; });
 }
 
-// ---- Loose targets ----------------------------------------------------------
-// The smallest bake -- the photons before the first check, the first direct
-// round and the gather's rays -- is sized for a kBaseTarget target. A looser
-// target T needs (kBaseTarget / T)^2 of that work (the error falls as
-// 1 / sqrt(work)), down to kLeastWorkShare of it; tighter targets and bakes
-// without a target do it all (1).
-constexpr double kBaseTarget = 0.02, kLeastWorkShare = 0.25;
-double work_share(double target_error);
-
 // ---- Photon pass --------------------------------------------------------------
-// The error target is checked after kCheckBatches batches (for a loose target
-// after kCheckBatches x work_share, at least half as many: the gather that
-// runs there looks their estimate up, and its error estimate takes that
-// estimate's error as fully correlated), then at fixed batch counts growing
-// by a quarter (multiples of kCheckBatches); the final gather runs at the
-// first check, or without a target after kCheckBatches.
+// The error target is checked after kCheckBatches batches, then at fixed
+// batch counts growing by a quarter (multiples of kCheckBatches); the final
+// gather runs at the first check, or without a target after kCheckBatches.
 constexpr uint64_t kCheckBatches = 16;
-inline uint64_t first_check(double target_error) {
-  const double batches = double(kCheckBatches) * work_share(target_error);
-  return std::max<uint64_t>(kCheckBatches / 2, uint64_t(std::lround(batches)));
-}
 // The photon pass stops when the photons' own part of the error is under this
 // share of the target: photons lower neither the direct nor the gather's part.
 constexpr double kPhotonShareOfTarget = 0.5;
 
 // The check after the one at `check` batches.
 inline uint64_t next_check(uint64_t check) {
-  if (check < kCheckBatches) return kCheckBatches;
   return std::max(check + kCheckBatches, (check * 5 / 4) / kCheckBatches * kCheckBatches);
 }
 
@@ -158,7 +140,6 @@ double target_progress(double relative, double target);
 // When the photon pass checks its error: at fixed batch counts only.
 class CheckSchedule {
  public:
-  explicit CheckSchedule(uint64_t first = kCheckBatches) : next_(first) {}
   // Whether the error is checked once `batches` batches are merged; moves on
   // to the next check when it is. Merges stop at each check (next()).
   bool due(uint64_t batches) {
@@ -169,23 +150,22 @@ class CheckSchedule {
   uint64_t next() const { return next_; }
 
  private:
-  uint64_t next_;
+  uint64_t next_ = kCheckBatches;
 };
 
 // ---- Final gather -------------------------------------------------------------
-// Rays per texel: kGatherSamples x work_share for targets of kBaseTarget and
-// looser, 4x as many for half the target error below it, and 4x as many again
-// for each gather before (regather below; at most kMaxGatherSamples).
+// Rays per texel: kGatherSamples, 4x as many for half the target error under
+// a target below 2 %, and 4x as many again for each gather before (regather
+// below; at most kMaxGatherSamples).
 constexpr uint32_t kGatherSamples = 16, kMaxGatherSamples = 256;
 uint32_t gather_samples(double target_error, uint32_t gathers_before = 0);
 // Under a target the gather runs at the first check the photons alone do not
 // pass, and at once again (kMaxGathers in all) while the target is not met and
 // the gather's own part of the error is above kPhotonShareOfTarget x the
-// target: that part is the spread
-// of its rays and the error of the texels they look up (other objects, the
-// ground; taken as fully correlated), which photons do not lower. Each
-// gather has 4x the rays of the one before and looks up the estimate it
-// improved.
+// target: that part is the spread of its rays and the error of the texels
+// they look up (other objects, the ground; taken as fully correlated), which
+// photons do not lower. Each gather has 4x the rays of the one before and
+// looks up the estimate it improved.
 constexpr uint32_t kMaxGathers = 3;
 inline bool regather(uint32_t gathers, const ErrorParts& e, double target) {
   return gathers < kMaxGathers && e.relative > target && e.gather > kPhotonShareOfTarget * target;
@@ -200,8 +180,7 @@ struct DirectTexelNoise {
 };
 
 // How many direct samples each texel gets in each round. Round 0 gives every
-// texel direct_samples (with a target at most kFirstTargetSamples x
-// work_share, at least kLeastFirstSamples). Then, with
+// texel direct_samples (with a target at most kFirstTargetSamples). Then, with
 // a target, while the direct part's RMS error is above kDirectShareOfTarget x
 // target (the rest is the photons'), each texel gets its share of the fewest
 // samples that reach it, re-estimated after each round: a texel's variance v_i
@@ -210,14 +189,13 @@ struct DirectTexelNoise {
 // m_i = c w_i, w_i = (v_i n_i^a)^(1 / (a + 1)), c = (sum_j w_j / budget)^(1 / a)
 // (for a = 1: m_i ~ the per-sample deviation). Where the noise is plainer, the
 // next round adds the rest. After round 0, if the phantom sample is most of
-// the estimate, every texel is first topped up to direct_samples x
-// work_share. Texels
+// the estimate, every texel is first topped up to direct_samples. Texels
 // without two samples get direct_samples x 2^round (texels that see a light
 // rarely, the sky through a window, need thousands).
 class DirectSchedule {
  public:
   static constexpr uint32_t kMaxRounds = 16;
-  static constexpr uint32_t kFirstTargetSamples = 16, kLeastFirstSamples = 8;
+  static constexpr uint32_t kFirstTargetSamples = 16;
   // Stratified samples over a shadow edge: n^-1.5; plain noise: n^-1.
   static constexpr double kDirectConvergence = 1.5;
   static constexpr double kDirectShareOfTarget = 0.7;
@@ -239,7 +217,7 @@ class DirectSchedule {
 
  private:
   double target_;
-  uint32_t direct_samples_, first_, top_up_;
+  uint32_t direct_samples_, first_;
 };
 
 }  // namespace plm
