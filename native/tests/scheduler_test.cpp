@@ -105,9 +105,15 @@ TEST(Scheduler, StopsAtTheTargetAndNotOnALooseEstimate) {
   EXPECT_TRUE(target_reached({0.02, 0.0, 0.0}, target));
   EXPECT_TRUE(target_reached({0.015, 0.01, 0.0}, target));
   EXPECT_FALSE(target_reached({0.0201, 0.0, 0.0}, target));
-  // Above the target, but the photons' part is under half of it: more
-  // photons would not reach a target that the direct and gather parts miss.
+  // Above the target, but the direct part alone misses it: photons cannot
+  // lower that part.
   EXPECT_TRUE(target_reached({0.03, 0.025, 0.014}, target));
+  // Above the target with all but the direct part under half of it.
+  EXPECT_TRUE(target_reached({0.021, 0.0185, 0.009}, target));
+  // Above the target, most of it the gather's: more photons take weight
+  // from the gather (each texel weighs the two by variance), so go on
+  // (the Cornell box at 0.7 % stopped after 65,536 photons at 1.06 %).
+  EXPECT_FALSE(target_reached({0.0106 * 2 / 0.7, 0.0026 * 2 / 0.7, 0.0099 * 2 / 0.7}, target));
   // Above the target with the photons' part above half of it: go on.
   EXPECT_FALSE(target_reached({0.03, 0.01, 0.0}, target));
   EXPECT_FALSE(target_reached({0.5, 0.0, 0.0}, target));

@@ -13,9 +13,8 @@ void Progress::operator()(double fraction, const char* stage) {
 }
 
 bool target_reached(const ErrorParts& e, double target) {
-  const double photon_err =
-      std::sqrt(std::max(0.0, e.relative * e.relative - e.direct * e.direct - e.gather * e.gather));
-  return e.relative <= target || photon_err <= kPhotonShareOfTarget * target;
+  const double rest = std::sqrt(std::max(0.0, e.relative * e.relative - e.direct * e.direct));
+  return e.relative <= target || e.direct >= target || rest <= kPhotonShareOfTarget * target;
 }
 
 double target_progress(double relative, double target) {

@@ -113,8 +113,9 @@ void run_in_groups(tbb::task_arena& arena, uint64_t total, uint64_t granule, Wor
 // batch counts growing by a quarter (multiples of kCheckBatches); the final
 // gather runs at the first check, or without a target after kCheckBatches.
 constexpr uint64_t kCheckBatches = 16;
-// The photon pass stops when the photons' own part of the error is under this
-// share of the target: photons lower neither the direct nor the gather's part.
+// The photon pass stops when all but the direct part of the error is under
+// this share of the target: photons do not lower the direct part, but they
+// do lower the gather's (each texel weighs photons and gather by variance).
 constexpr double kPhotonShareOfTarget = 0.5;
 
 // The check after the one at `check` batches.
@@ -129,8 +130,9 @@ struct ErrorParts {
   double gather = 0.0;    // the final gather's part
 };
 
-// Whether the photon pass stops at a check: the target is reached, or the
-// photons' part of the error is under kPhotonShareOfTarget x the target.
+// Whether the photon pass stops at a check: the target is reached, the
+// direct part alone misses it, or all but the direct part is under
+// kPhotonShareOfTarget x the target.
 bool target_reached(const ErrorParts& e, double target);
 
 // Progress towards the target at a check: (target / error)^2 (the error falls
