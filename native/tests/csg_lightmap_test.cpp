@@ -264,6 +264,39 @@ TEST(CsgLightmap, SubTexelAreasConvergeToBoundaryArea) {
   }
 }
 
+// A sub-texel's cover is its share of its texel (the phantom hit of its error
+// estimate is scaled by it): 1 uncut, the cut texel's sub-texels share at most
+// the whole texel, each in proportion to its area.
+TEST(CsgLightmap, SubTexelsCoverTheirShareOfTheTexel) {
+  const CsgObject obj = make({prim(Shape::Box, {1, 1, 1}, {0, 0, 0}), prim(Shape::Sphere, {1.2, 1.2, 1.2}, {0, 0, 0})},
+                             Op::Intersection);
+  const CsgLightmap lm = lightmap(obj, 0.05, 16);
+  ASSERT_GT(lm.stats().cut, 0u);
+  double least = 1.0;
+  uint32_t checked = 0;
+  for (uint32_t texel = 0; texel < lm.texel_count(); ++texel) {
+    if (lm.texel_first_sub(texel) == CsgLightmap::kNone) continue;
+    const uint32_t first = lm.texel_first_sub(texel), n = lm.texel_sub_count(texel);
+    if (!lm.texel_cut(texel)) {
+      ASSERT_EQ(lm.cover(first), 1.0);
+      continue;
+    }
+    double sum = 0.0;
+    for (uint32_t k = 0; k < n; ++k) {
+      const double c = lm.cover(first + k);
+      ASSERT_GT(c, 0.0);
+      sum += c;
+      least = std::min(least, c);
+      // area / cover is the whole texel's area, the same for every sub-texel of it
+      EXPECT_NEAR(lm.area(first + k) / c, lm.area(first) / lm.cover(first), 1e-9 * lm.area(first) / lm.cover(first));
+    }
+    EXPECT_LE(sum, 1.0 + 1e-6);
+    ++checked;
+  }
+  EXPECT_GT(checked, 100u);
+  EXPECT_LT(least, 0.05);  // slivers: a whole phantom hit would overstate their error 20x and more
+}
+
 TEST(CsgLightmap, BoxIntersectSphereArea) {
   // 1 < R < sqrt(2): the sphere cuts a disk of radius sqrt(R^2 - 1) from each
   // face, and its six caps beyond the faces do not overlap.

@@ -456,6 +456,19 @@ int64_t CsgLightmap::nearest_in_texel(uint32_t texel, double cx, double cy, doub
   return best;
 }
 
+double CsgLightmap::cover(uint32_t sub) const {
+  const SubTexel& st = subs_[sub];
+  const Texel& tx = texels_[st.texel];
+  if (tx.cut == kNone) return 1.0;
+  const int cells = g_ * g_;
+  const uint16_t* labels = &labels_[size_t(tx.cut) * cells];
+  const float* weights = &weights_[size_t(tx.cut) * cells];
+  double w = 0.0;
+  for (int c = 0; c < cells; ++c)
+    if (labels[c] == st.label) w += weights[c];
+  return w / cells;
+}
+
 int64_t CsgLightmap::sub_texel_of_hit(uint32_t prim, int face, Vec3d p) const {
   const uint32_t fi = face_index(prim, face);
   if (fi == kNone) return -1;

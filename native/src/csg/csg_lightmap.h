@@ -128,6 +128,9 @@ class CsgLightmap {
 
   uint32_t sub_texel_count() const { return uint32_t(subs_.size()); }
   double area(uint32_t sub) const { return subs_[sub].area; }
+  // The share of its texel's area that sub-texel `sub` covers: 1 for an uncut
+  // texel, its cells' share of the area element for a cut one.
+  double cover(uint32_t sub) const;
   Vec3d point(uint32_t sub) const { return subs_[sub].p; }    // representative point on the sub-texel
   Vec3d normal(uint32_t sub) const { return subs_[sub].n; }   // the solid's outward normal there
   uint32_t texel_of_sub(uint32_t sub) const { return subs_[sub].texel; }

@@ -26,14 +26,18 @@ double percentile(std::vector<double>& v, double q) {
 
 double Estimator::csg_texel(size_t c, uint32_t sub, uint64_t photons, double value3[3]) const {
   const size_t g = space.csg_views[c].texel_offset + sub;
-  const double k = 1.0 / (kPiD * double(std::max<uint64_t>(photons, 1)) * space.csg_views[c].lightmap->area(sub));
-  const double phantom_sq = acc.phantom_sq();
+  const csg::CsgLightmap& lm = *space.csg_views[c].lightmap;
+  const double k = 1.0 / (kPiD * double(std::max<uint64_t>(photons, 1)) * lm.area(sub));
+  // The phantom hit scaled by the sub-texel's share of its texel, as a mesh
+  // texel's (reconstruct.cpp): photons hit a sliver that much less often.
+  const double cover = lm.cover(sub);
+  const double phantom_sq = acc.phantom_sq() * cover;
   double variance = 0.0;
   for (int ch = 0; ch < 3; ++ch) value3[ch] = photons ? acc.sum[3 * g + ch] * k : 0.0;
   if (photons) variance = (acc.sum_sq[g] + phantom_sq) * k * k;
   if (photons && !acc.caustic.empty() && acc.caustic.hits[g]) {
     for (int ch = 0; ch < 3; ++ch) value3[ch] += acc.caustic.sum[3 * g + ch] * k;
-    variance += (acc.caustic.sum_sq[g] + acc.caustic.phantom_sq()) * k * k;
+    variance += (acc.caustic.sum_sq[g] + acc.caustic.phantom_sq() * cover) * k * k;
   }
   if (!direct.empty()) {
     const DirectSums& d = direct[space.covered_begin[space.views.size() + c] + sub];
