@@ -225,12 +225,13 @@ void write_exr_atomic(const std::string& path, uint32_t width, uint32_t height,
       fb.insert(channel_names[c], Imf::Slice(Imf::FLOAT, base + c * sizeof(float), nc * sizeof(float),
                                              row * sizeof(float)));
     }
-    // Blocks of scanlines are compressed in parallel (OpenEXR's own pool, up
-    // to 8 threads): zlib is most of a large lightmap's write.
+    // Blocks of scanlines are compressed in parallel on OpenEXR's own pool:
+    // zlib is most of a large lightmap's write. A host that set the pool up
+    // (Blender) keeps its own; otherwise it gets up to 8 threads.
     static const int threads = [] {
-      const int n = int(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
-      Imf::setGlobalThreadCount(n);
-      return n;
+      if (Imf::globalThreadCount() == 0)
+        Imf::setGlobalThreadCount(int(std::clamp(std::thread::hardware_concurrency(), 1u, 8u)));
+      return Imf::globalThreadCount();
     }();
     Imf::OutputFile file(tmp.c_str(), header, threads);
     file.setFrameBuffer(fb);
