@@ -14,7 +14,6 @@
 #include <tbb/task_arena.h>
 
 #include "scene/scene.h"
-#include "subdiv/limit_area.h"
 #include "subdiv/subdiv.h"
 #include "util/error.h"
 
@@ -55,7 +54,7 @@ uint32_t Scene::add_subdiv_mesh(const char* name, const subdiv::Cage& cage, uint
   mesh.lightmap_width = width;
   mesh.lightmap_height = height;
   // Kept for the OL areas on the limit surface, should the mesh join an OL group.
-  mesh.cage = std::make_shared<const subdiv::CageCopy>(subdiv::CageCopy::of(cage));
+  mesh.cage = subdiv::shape(*pending->cage);
   mesh.pending = std::move(pending);
   meshes.push_back(std::move(mesh));
   return static_cast<uint32_t>(index);

@@ -18,35 +18,6 @@
 
 namespace plm::subdiv {
 
-CageCopy CageCopy::of(const Cage& c) {
-  CageCopy k;
-  k.positions.assign(c.positions, c.positions + 3 * size_t(c.vertex_count));
-  k.face_sizes.assign(c.face_sizes, c.face_sizes + c.face_count);
-  size_t corners = 0;
-  for (uint32_t n : k.face_sizes) corners += n;
-  k.face_indices.assign(c.face_indices, c.face_indices + corners);
-  if (c.crease_count > 0) {
-    k.crease_edges.assign(c.crease_edges, c.crease_edges + 2 * size_t(c.crease_count));
-    k.crease_weights.assign(c.crease_weights, c.crease_weights + c.crease_count);
-  }
-  k.level = c.level;
-  return k;
-}
-
-Cage CageCopy::view() const {
-  Cage c;
-  c.positions = positions.data();
-  c.vertex_count = uint32_t(positions.size() / 3);
-  c.face_sizes = face_sizes.data();
-  c.face_count = uint32_t(face_sizes.size());
-  c.face_indices = face_indices.data();
-  c.crease_edges = crease_edges.empty() ? nullptr : crease_edges.data();
-  c.crease_weights = crease_weights.empty() ? nullptr : crease_weights.data();
-  c.crease_count = uint32_t(crease_weights.size());
-  c.level = level;
-  return c;
-}
-
 namespace {
 
 using namespace OpenSubdiv;

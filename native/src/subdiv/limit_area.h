@@ -23,20 +23,6 @@
 
 namespace plm::subdiv {
 
-// What limit-surface sampling needs of a cage, owned (no UVs or materials):
-// about (24 + 4 n) bytes per cage vertex of valence n, 4^(level-1) times
-// less than the refined mesh.
-struct CageCopy {
-  std::vector<float> positions;
-  std::vector<uint32_t> face_sizes, face_indices, crease_edges;
-  std::vector<float> crease_weights;
-  uint32_t level = 1;
-
-  // c must be valid (refine() accepted it).
-  static CageCopy of(const Cage& c);
-  Cage view() const;
-};
-
 // Samples per subdivision mesh in a bake ([Thesis §8.2] used 20000 per OL).
 constexpr uint64_t kLimitAreaSamples = 20000;
 

@@ -246,12 +246,42 @@ void evaluate_patches(const LimitPatches& lp, const std::vector<Point3>& base_ve
 
 }  // namespace
 
-// The cage as prepare() checked it: owned copies of the caller's arrays, the
-// welded UVs and the base-level refiner (RefineUniform refines it in place).
+CageCopy CageCopy::of(const Cage& c) {
+  CageCopy k;
+  k.positions.assign(c.positions, c.positions + 3 * size_t(c.vertex_count));
+  k.face_sizes.assign(c.face_sizes, c.face_sizes + c.face_count);
+  size_t corners = 0;
+  for (uint32_t n : k.face_sizes) corners += n;
+  k.face_indices.assign(c.face_indices, c.face_indices + corners);
+  if (c.crease_count > 0) {
+    k.crease_edges.assign(c.crease_edges, c.crease_edges + 2 * size_t(c.crease_count));
+    k.crease_weights.assign(c.crease_weights, c.crease_weights + c.crease_count);
+  }
+  k.level = c.level;
+  return k;
+}
+
+Cage CageCopy::view() const {
+  Cage c;
+  c.positions = positions.data();
+  c.vertex_count = uint32_t(positions.size() / 3);
+  c.face_sizes = face_sizes.data();
+  c.face_count = uint32_t(face_sizes.size());
+  c.face_indices = face_indices.data();
+  c.crease_edges = crease_edges.empty() ? nullptr : crease_edges.data();
+  c.crease_weights = crease_weights.empty() ? nullptr : crease_weights.data();
+  c.crease_count = uint32_t(crease_weights.size());
+  c.level = level;
+  return c;
+}
+
+// The cage as prepare() checked it: its shape (shared with the mesh, for the
+// OL areas on the limit surface), owned copies of its UVs and material ids,
+// the welded UVs and the base-level refiner (RefineUniform refines it in place).
 struct PreparedCage {
-  std::vector<float> positions, uv, crease_weights;
-  std::vector<uint32_t> face_sizes, face_indices, material_ids, crease_edges;
-  uint32_t level = 1;
+  std::shared_ptr<const CageCopy> shape;
+  std::vector<float> uv;
+  std::vector<uint32_t> material_ids;
   std::vector<Point2> uv_values;  // welded (weld_uvs), one per distinct corner UV of a vertex
   std::vector<int> uv_index;      // per corner, into uv_values
   std::unique_ptr<detail::Topology> topology;
@@ -260,18 +290,9 @@ struct PreparedCage {
 
   // A Cage over the copies.
   Cage view() const {
-    Cage c;
-    c.positions = positions.data();
-    c.vertex_count = uint32_t(positions.size() / 3);
-    c.face_sizes = face_sizes.data();
-    c.face_count = uint32_t(face_sizes.size());
-    c.face_indices = face_indices.data();
+    Cage c = shape->view();
     c.uv = uv.empty() ? nullptr : uv.data();
     c.material_ids = material_ids.empty() ? nullptr : material_ids.data();
-    c.crease_edges = crease_edges.empty() ? nullptr : crease_edges.data();
-    c.crease_weights = crease_weights.empty() ? nullptr : crease_weights.data();
-    c.crease_count = uint32_t(crease_weights.size());
-    c.level = level;
     return c;
   }
 };
@@ -360,16 +381,9 @@ PreparedCagePtr prepare(const std::string& owner, const Cage& c) {
 
   // ---- the copy, and its topology as OpenSubdiv sees it ----
   PreparedCagePtr p(new PreparedCage);
-  p->positions.assign(c.positions, c.positions + 3 * size_t(c.vertex_count));
-  p->face_sizes.assign(c.face_sizes, c.face_sizes + c.face_count);
-  p->face_indices.assign(c.face_indices, c.face_indices + corner_count);
+  p->shape = std::make_shared<const CageCopy>(CageCopy::of(c));
   if (c.uv) p->uv.assign(c.uv, c.uv + 2 * corner_count);
   if (c.material_ids) p->material_ids.assign(c.material_ids, c.material_ids + c.face_count);
-  if (c.crease_count > 0) {
-    p->crease_edges.assign(c.crease_edges, c.crease_edges + 2 * size_t(c.crease_count));
-    p->crease_weights.assign(c.crease_weights, c.crease_weights + c.crease_count);
-  }
-  p->level = c.level;
   const Cage own = p->view();
   if (own.uv) p->uv_index = weld_uvs(own, size_t(corner_count), p->uv_values);
   p->topology = std::make_unique<detail::Topology>(own);
@@ -398,22 +412,26 @@ uint64_t hash_values(uint64_t h, const std::vector<T>& v) {
 
 }  // namespace
 
+std::shared_ptr<const CageCopy> shape(const PreparedCage& cage) { return cage.shape; }
+
 uint64_t topology_hash(const PreparedCage& c) {
+  const CageCopy& s = *c.shape;
   uint64_t h = 14695981039346656037ull;
-  h = (h ^ (c.positions.size() / 3)) * 1099511628211ull;
-  h = (h ^ c.level) * 1099511628211ull;
+  h = (h ^ (s.positions.size() / 3)) * 1099511628211ull;
+  h = (h ^ s.level) * 1099511628211ull;
   h = (h ^ (c.uv.empty() ? 0u : 1u)) * 1099511628211ull;
-  h = hash_values(h, c.face_sizes);
-  h = hash_values(h, c.face_indices);
-  h = hash_values(h, c.crease_edges);
-  h = hash_values(h, c.crease_weights);
+  h = hash_values(h, s.face_sizes);
+  h = hash_values(h, s.face_indices);
+  h = hash_values(h, s.crease_edges);
+  h = hash_values(h, s.crease_weights);
   return hash_values(h, c.uv_index);
 }
 
 bool same_topology(const PreparedCage& a, const PreparedCage& b) {
-  return a.positions.size() == b.positions.size() && a.level == b.level && a.uv.empty() == b.uv.empty() &&
-         a.face_sizes == b.face_sizes && a.face_indices == b.face_indices && a.crease_edges == b.crease_edges &&
-         a.crease_weights == b.crease_weights && a.uv_index == b.uv_index;
+  const CageCopy &x = *a.shape, &y = *b.shape;
+  return x.positions.size() == y.positions.size() && x.level == y.level && a.uv.empty() == b.uv.empty() &&
+         x.face_sizes == y.face_sizes && x.face_indices == y.face_indices && x.crease_edges == y.crease_edges &&
+         x.crease_weights == y.crease_weights && a.uv_index == b.uv_index;
 }
 
 // What refining depends on besides the cage's vertex and UV values: OpenSubdiv's uniform
@@ -432,7 +450,7 @@ RefinementPlanPtr plan(const std::string& owner, PreparedCage& cage) {
   const bool uv = !cage.uv.empty();
   p->uniform = std::move(cage.refiner);
   Far::TopologyRefiner& refiner = *p->uniform;
-  const int level = int(cage.level);
+  const int level = int(cage.shape->level);
   Far::TopologyRefiner::UniformOptions uniform(level);
   uniform.fullTopologyInLastLevel = true;  // needed by Limit / LimitFaceVarying
   refiner.RefineUniform(uniform);

@@ -47,8 +47,23 @@ struct RefinedMesh {
 // Blender 3.4 maps an edge crease c in [0, 1] to OpenSubdiv sharpness 10 c^2.
 inline float blender_crease_to_sharpness(float crease) { return crease * crease * 10.0f; }
 
-// A cage that prepare() checked and copied: its arrays, its welded UVs and
-// OpenSubdiv's base-level topology (which OpenSubdiv accepted), owned.
+// A cage's shape, owned (no UVs or materials): what limit-surface sampling
+// (limit_area.h) needs of it; about (24 + 4 n) bytes per cage vertex of
+// valence n, 4^(level-1) times less than the refined mesh.
+struct CageCopy {
+  std::vector<float> positions;
+  std::vector<uint32_t> face_sizes, face_indices, crease_edges;
+  std::vector<float> crease_weights;
+  uint32_t level = 1;
+
+  // c must be valid (prepare() accepted it).
+  static CageCopy of(const Cage& c);
+  Cage view() const;
+};
+
+// A cage that prepare() checked and copied: its shape, UVs and material ids,
+// its welded UVs and OpenSubdiv's base-level topology (which OpenSubdiv
+// accepted), owned.
 struct PreparedCage;
 struct PreparedCageDelete {
   void operator()(PreparedCage* cage) const;
@@ -60,6 +75,8 @@ using PreparedCagePtr = std::unique_ptr<PreparedCage, PreparedCageDelete>;
 // would exceed kMaxRefinedTriangles. What refine() does later can then fail only
 // for want of memory (or an engine bug), never for the input.
 PreparedCagePtr prepare(const std::string& owner, const Cage& cage);
+// The prepared cage's shape, shared (it outlives the prepared cage).
+std::shared_ptr<const CageCopy> shape(const PreparedCage& cage);
 
 // Refines a prepared cage (consumed). Large cages use the calling thread's
 // TBB arena for their per-vertex work; the result does not depend on threads.
