@@ -145,30 +145,8 @@ TEST(CsgBake, SphereUnderTheSunIsCosineOverPi) {
   ASSERT_EQ(plm_scene_add_csg(b.scene, "ball", &ball, 1, &leaf, 1, nullptr, 0, 0, &solid), PLM_OK) << plm_last_error();
   // Carrier: a 64 x 32 latitude-longitude sphere, u = longitude, v = latitude.
   const uint32_t nu = 64, nv = 32;
-  std::vector<float> pos;
-  std::vector<uint32_t> idx;
-  std::vector<float> uv;
-  auto vertex = [&](uint32_t i, uint32_t j) {
-    const double phi = 2 * M_PI * i / nu, theta = M_PI * j / nv;
-    pos.insert(pos.end(), {float(std::sin(theta) * std::cos(phi)), float(std::sin(theta) * std::sin(phi)),
-                           float(-std::cos(theta))});
-  };
-  for (uint32_t j = 0; j <= nv; ++j)
-    for (uint32_t i = 0; i <= nu; ++i) vertex(i, j);
-  for (uint32_t j = 0; j < nv; ++j)
-    for (uint32_t i = 0; i < nu; ++i) {
-      const uint32_t a = j * (nu + 1) + i, c = a + nu + 1;
-      const float u0 = float(i) / nu, u1 = float(i + 1) / nu, v0 = float(j) / nv, v1 = float(j + 1) / nv;
-      idx.insert(idx.end(), {a, a + 1, c + 1, a, c + 1, c});
-      uv.insert(uv.end(), {u0, v0, u1, v0, u1, v1, u0, v0, u1, v1, u0, v1});
-    }
-  const uint32_t tris = uint32_t(idx.size() / 3);
-  std::vector<uint32_t> mats(tris, grey);
-  uint32_t carrier = 0;
-  ASSERT_EQ(plm_scene_add_mesh(b.scene, "ball mesh", pos.data(), uint32_t(pos.size() / 3), idx.data(), tris, uv.data(),
-                               mats.data(), nu, nv, &carrier),
-            PLM_OK)
-      << plm_last_error();
+  const double centre[3] = {0, 0, 0};
+  const uint32_t carrier = plm_test::add_latlong_sphere(b.scene, "ball mesh", centre, 1.0, nu, nv, grey);
   ASSERT_EQ(plm_scene_set_csg_carrier(b.scene, solid, carrier), PLM_OK) << plm_last_error();
   plm_light sun;
   plm_light_default(&sun, PLM_LIGHT_SUN);

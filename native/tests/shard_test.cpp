@@ -271,15 +271,7 @@ TEST(Shard, MergeRefusesPartsThatDoNotBelong) {
   {  // a damaged payload byte, then a truncated file
     const std::string bad = dir.path + "/bad.plmpart";
     std::filesystem::copy_file(parts[1], bad);
-    {
-      std::fstream f(bad, std::ios::in | std::ios::out | std::ios::binary);
-      f.seekp(2000);
-      char c = 0;
-      f.read(&c, 1);
-      c ^= 0x10;
-      f.seekp(2000);
-      f.write(&c, 1);
-    }
+    plm_test::flip_byte(bad, 2000);
     BakeResult r;
     EXPECT_EQ(merge(b.scene, {parts[0], bad, parts[2]}, r, error), PLM_ERROR_INVALID_ARGUMENT);
     EXPECT_NE(error.find(bad + ": the part file's sums are damaged (checksum)"), std::string::npos) << error;
@@ -444,29 +436,8 @@ TEST(TexelRanges, CsgSubTexelsAndNoGather) {
   uint32_t solid = 0;
   ASSERT_EQ(plm_scene_add_csg(b.scene, "ball", &ball, 1, &leaf, 1, nullptr, 0, 0, &solid), PLM_OK) << plm_last_error();
   // Carrier: a 16 x 8 latitude-longitude sphere around it.
-  const uint32_t nu = 16, nv = 8;
-  std::vector<float> pos, uv;
-  std::vector<uint32_t> idx;
-  for (uint32_t j = 0; j <= nv; ++j)
-    for (uint32_t i = 0; i <= nu; ++i) {
-      const double phi = 2 * M_PI * i / nu, theta = M_PI * j / nv;
-      pos.insert(pos.end(), {float(0.4 + 0.2 * std::sin(theta) * std::cos(phi)),
-                             float(0.5 + 0.2 * std::sin(theta) * std::sin(phi)), float(0.25 - 0.2 * std::cos(theta))});
-    }
-  for (uint32_t j = 0; j < nv; ++j)
-    for (uint32_t i = 0; i < nu; ++i) {
-      const uint32_t a = j * (nu + 1) + i, c = a + nu + 1;
-      const float u0 = float(i) / nu, u1 = float(i + 1) / nu, v0 = float(j) / nv, v1 = float(j + 1) / nv;
-      idx.insert(idx.end(), {a, a + 1, c + 1, a, c + 1, c});
-      uv.insert(uv.end(), {u0, v0, u1, v0, u1, v1, u0, v0, u1, v1, u0, v1});
-    }
-  const uint32_t tris = uint32_t(idx.size() / 3);
-  std::vector<uint32_t> mats(tris, grey);
-  uint32_t carrier = 0;
-  ASSERT_EQ(plm_scene_add_mesh(b.scene, "ball mesh", pos.data(), uint32_t(pos.size() / 3), idx.data(), tris, uv.data(),
-                               mats.data(), nu, nv, &carrier),
-            PLM_OK)
-      << plm_last_error();
+  const double centre[3] = {0.4, 0.5, 0.25};
+  const uint32_t carrier = plm_test::add_latlong_sphere(b.scene, "ball mesh", centre, 0.2, 16, 8, grey);
   ASSERT_EQ(plm_scene_set_csg_carrier(b.scene, solid, carrier), PLM_OK) << plm_last_error();
   ASSERT_TRUE(b.ok()) << b.error;
   const plm_bake_settings s = small_settings(60000);
@@ -484,7 +455,7 @@ TEST(TexelRanges, CsgSubTexelsAndNoGather) {
   expect_identical(one, merged, carrier + 1);  // the carrier's lightmap (the ball's sub-texels) too
   uint32_t w = 0, h = 0;
   ASSERT_EQ(plm_result_lightmap_size(one.r, carrier, &w, &h), PLM_OK);
-  EXPECT_EQ(w, nu);
+  EXPECT_EQ(w, 16u);
 }
 
 // Texel parts that do not belong are refused, naming the part or the range.
@@ -543,15 +514,7 @@ TEST(TexelRanges, MergeRefusesRangesThatDoNotBelong) {
   {  // a damaged direct part
     const std::string bad = dir.path + "/bad.plmpart";
     std::filesystem::copy_file(direct[1], bad);
-    {
-      std::fstream f(bad, std::ios::in | std::ios::out | std::ios::binary);
-      f.seekp(600);
-      char c = 0;
-      f.read(&c, 1);
-      c ^= 0x10;
-      f.seekp(600);
-      f.write(&c, 1);
-    }
+    plm_test::flip_byte(bad, 600);
     BakeResult r;
     EXPECT_EQ(merge(b.scene, joined({photons, {direct[0], bad, direct[2]}}), r, error), PLM_ERROR_INVALID_ARGUMENT);
     EXPECT_NE(error.find(bad + ": the part file's sums are damaged (checksum)"), std::string::npos) << error;
@@ -660,15 +623,7 @@ TEST(TexelRanges, GatherReadsOnlyTheFirstBatchesShards) {
   const plm_bake_settings s = small_settings(150000);
   TempDir dir;
   const auto photons = bake_shards(b.scene, s, 3, dir.path);
-  {
-    std::fstream f(photons[2], std::ios::in | std::ios::out | std::ios::binary);
-    f.seekp(1000);
-    char c = 0;
-    f.read(&c, 1);
-    c ^= 0x10;
-    f.seekp(1000);
-    f.write(&c, 1);
-  }
+  plm_test::flip_byte(photons[2], 1000);
   const auto gather = bake_ranges(b.scene, s, PLM_TEXELS_GATHER, 2, photons, dir.path);
   BakeResult r;
   std::string error;

@@ -10,6 +10,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <map>
 #include <string>
 #include <vector>
@@ -102,6 +103,48 @@ inline std::vector<double> hole_view_factors() {
       out[size_t(j) * 8 + size_t(i)] = sum / (k * k);
     }
   return out;
+}
+
+// A latitude-longitude sphere of nu x nv quads around `centre` (u = longitude,
+// v = latitude from the -z pole; a lightmap of nu x nv texels, one per quad)
+// in `material`: the carrier of a CSG sphere. Returns the mesh id.
+inline uint32_t add_latlong_sphere(plm_scene* scene, const char* name, const double centre[3], double radius,
+                                   uint32_t nu, uint32_t nv, uint32_t material) {
+  std::vector<float> pos, uv;
+  std::vector<uint32_t> idx;
+  for (uint32_t j = 0; j <= nv; ++j)
+    for (uint32_t i = 0; i <= nu; ++i) {
+      const double phi = 2 * M_PI * i / nu, theta = M_PI * j / nv;
+      pos.insert(pos.end(), {float(centre[0] + radius * std::sin(theta) * std::cos(phi)),
+                             float(centre[1] + radius * std::sin(theta) * std::sin(phi)),
+                             float(centre[2] - radius * std::cos(theta))});
+    }
+  for (uint32_t j = 0; j < nv; ++j)
+    for (uint32_t i = 0; i < nu; ++i) {
+      const uint32_t a = j * (nu + 1) + i, c = a + nu + 1;
+      const float u0 = float(i) / nu, u1 = float(i + 1) / nu, v0 = float(j) / nv, v1 = float(j + 1) / nv;
+      idx.insert(idx.end(), {a, a + 1, c + 1, a, c + 1, c});
+      uv.insert(uv.end(), {u0, v0, u1, v0, u1, v1, u0, v0, u1, v1, u0, v1});
+    }
+  const uint32_t tris = uint32_t(idx.size() / 3);
+  const std::vector<uint32_t> mats(tris, material);
+  uint32_t id = 0;
+  EXPECT_EQ(plm_scene_add_mesh(scene, name, pos.data(), uint32_t(pos.size() / 3), idx.data(), tris, uv.data(),
+                               mats.data(), nu, nv, &id),
+            PLM_OK)
+      << plm_last_error();
+  return id;
+}
+
+// Flips bit 4 of the byte at `offset` of a file (a damaged part file, say).
+inline void flip_byte(const std::string& path, std::streamoff offset) {
+  std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+  f.seekp(offset);
+  char c = 0;
+  f.read(&c, 1);
+  c ^= 0x10;
+  f.seekp(offset);
+  f.write(&c, 1);
 }
 
 // An EXR file's float channels by name, read with the OpenEXR library: each
