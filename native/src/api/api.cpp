@@ -110,9 +110,6 @@ plm_status run_bake(const char* function, plm_scene* scene, const plm_bake_setti
   });
 }
 
-}  // namespace
-
-namespace {
 
 // The cage arguments of plm_scene_add_subdiv_mesh and plm_subdiv_refine.
 plm::subdiv::Cage make_cage(const float* positions, uint32_t vertex_count, const uint32_t* face_sizes,
@@ -131,6 +128,56 @@ plm::subdiv::Cage make_cage(const float* positions, uint32_t vertex_count, const
   cage.crease_count = crease_count;
   cage.level = level;
   return cage;
+}
+
+
+// Bakes a shard's or texel range's job (index of count) and hands write the
+// header of its part (engine, scene, settings without the thread count,
+// layout, scene path); progress ends at 1 once write has written the file.
+void bake_part(plm_scene* scene, const plm_bake_settings& s, plm::ShardJob& job, const char* scene_path,
+               plm_progress_fn progress, void* user_data, const std::function<void(plm::PartHeader&)>& write) {
+  plm::ProgressFn fn;
+  if (progress) fn = [&](double f, const char* stage) { return progress(user_data, f, stage) != 0; };
+  plm::bake(scene->scene, s, fn, nullptr, &job);
+  plm::PartHeader h;
+  h.engine_version = plm_version();
+  h.scene_hash = job.layout.scene_hash;
+  h.settings = s;
+  h.settings.thread_count = 0;
+  h.shard_index = job.index;
+  h.shard_count = job.count;
+  h.layout = job.layout;
+  h.scene_path = scene_path ? scene_path : "";
+  write(h);
+  if (fn) fn(1.0, "done");
+}
+
+
+// The bake's settings from a part's header, with the caller's thread count.
+plm_bake_settings settings_of(const plm::PartHeader& h, uint32_t thread_count) {
+  plm_bake_settings s = plm::default_settings();
+  s.photon_count = h.settings.photon_count;
+  s.max_bounces = h.settings.max_bounces;
+  s.seed = h.settings.seed;
+  s.direct_samples = h.settings.direct_samples;
+  s.filter_radius = h.settings.filter_radius;
+  s.dilation = h.settings.dilation;
+  s.texel_value = h.settings.texel_value;
+  s.sampler = h.settings.sampler;
+  s.target_error = 0.0;
+  s.time_budget = 0.0;
+  s.thread_count = thread_count;
+  return s;
+}
+
+std::vector<std::string> part_list(const char* fn, const char* const* part_paths, uint32_t part_count) {
+  if (part_count > 0) require(part_paths, fn, "part_paths");
+  std::vector<std::string> paths;
+  for (uint32_t i = 0; i < part_count; ++i) {
+    if (!part_paths[i]) plm::fail(PLM_ERROR_INVALID_ARGUMENT, fn, ": part_paths[", i, "] is NULL");
+    paths.push_back(part_paths[i]);
+  }
+  return paths;
 }
 
 }  // namespace
@@ -386,31 +433,6 @@ plm_status plm_preview_copy_lightmap(const plm_preview* preview, uint32_t mesh_i
   });
 }
 
-namespace {
-
-// Bakes a shard's or texel range's job (index of count) and hands write the
-// header of its part (engine, scene, settings without the thread count,
-// layout, scene path); progress ends at 1 once write has written the file.
-void bake_part(plm_scene* scene, const plm_bake_settings& s, plm::ShardJob& job, const char* scene_path,
-               plm_progress_fn progress, void* user_data, const std::function<void(plm::PartHeader&)>& write) {
-  plm::ProgressFn fn;
-  if (progress) fn = [&](double f, const char* stage) { return progress(user_data, f, stage) != 0; };
-  plm::bake(scene->scene, s, fn, nullptr, &job);
-  plm::PartHeader h;
-  h.engine_version = plm_version();
-  h.scene_hash = job.layout.scene_hash;
-  h.settings = s;
-  h.settings.thread_count = 0;
-  h.shard_index = job.index;
-  h.shard_count = job.count;
-  h.layout = job.layout;
-  h.scene_path = scene_path ? scene_path : "";
-  write(h);
-  if (fn) fn(1.0, "done");
-}
-
-}  // namespace
-
 plm_status plm_bake_shard(plm_scene* scene, const plm_bake_settings* settings, uint32_t shard, uint32_t shard_count,
                           const char* scene_path, const char* part_path, plm_progress_fn progress, void* user_data) {
   return guarded("plm_bake_shard", [&] {
@@ -430,37 +452,6 @@ plm_status plm_bake_shard(plm_scene* scene, const plm_bake_settings* settings, u
               [&](plm::PartHeader& h) { plm::write_part_file(part_path, h, job.segments); });
   });
 }
-
-namespace {
-
-// The bake's settings from a part's header, with the caller's thread count.
-plm_bake_settings settings_of(const plm::PartHeader& h, uint32_t thread_count) {
-  plm_bake_settings s = plm::default_settings();
-  s.photon_count = h.settings.photon_count;
-  s.max_bounces = h.settings.max_bounces;
-  s.seed = h.settings.seed;
-  s.direct_samples = h.settings.direct_samples;
-  s.filter_radius = h.settings.filter_radius;
-  s.dilation = h.settings.dilation;
-  s.texel_value = h.settings.texel_value;
-  s.sampler = h.settings.sampler;
-  s.target_error = 0.0;
-  s.time_budget = 0.0;
-  s.thread_count = thread_count;
-  return s;
-}
-
-std::vector<std::string> part_list(const char* fn, const char* const* part_paths, uint32_t part_count) {
-  if (part_count > 0) require(part_paths, fn, "part_paths");
-  std::vector<std::string> paths;
-  for (uint32_t i = 0; i < part_count; ++i) {
-    if (!part_paths[i]) plm::fail(PLM_ERROR_INVALID_ARGUMENT, fn, ": part_paths[", i, "] is NULL");
-    paths.push_back(part_paths[i]);
-  }
-  return paths;
-}
-
-}  // namespace
 
 plm_status plm_bake_texels(plm_scene* scene, const plm_bake_settings* settings, uint32_t stage, uint32_t range,
                            uint32_t range_count, const char* const* part_paths, uint32_t part_count,
