@@ -19,6 +19,7 @@ namespace {
 using plm_demo::SceneBuilder;
 using plm_demo::V3;
 using plm_test::bake;
+using plm_test::open_scene;
 
 using Lightmap = plm_test::Map;
 using Baked = plm_test::BakeResult;
@@ -425,24 +426,6 @@ TEST(Bake, WorldLightOnOpenPlaneIsItsRadiance) {
 // the error at a given photon count, stays unbiased, and reports its error
 // honestly. Reference: the same scene without the gather (max_bounces 63
 // turns it off) at 32x the photons and 256 direct samples.
-void open_scene(SceneBuilder& b) {
-  const uint32_t ground = b.material("ground", {0.35f, 0.42f, 0.30f});
-  const uint32_t white = b.material("box", {0.8f, 0.8f, 0.8f});
-  b.quad("ground", {-4, -4, 0}, {8, 0, 0}, {0, 8, 0}, ground, 32);
-  b.box("box", {0, 0, 0.75f}, {1.0f, 1.0f, 1.5f}, 0.35f, white, 8);
-  plm_light sun;
-  plm_light_default(&sun, PLM_LIGHT_SUN);
-  sun.power = 4.0f;
-  const float a = float(M_PI / 4.0);  // 45 degrees from the zenith
-  sun.matrix[5] = std::cos(a);
-  sun.matrix[6] = -std::sin(a);
-  sun.matrix[9] = std::sin(a);
-  sun.matrix[10] = std::cos(a);
-  b.light(sun, "sun");
-  const float sky[3] = {0.3f, 0.4f, 0.6f};
-  EXPECT_EQ(plm_scene_set_world(b.scene, sky), PLM_OK);
-}
-
 TEST(Bake, FinalGatherLowersOpenSceneErrorUnbiased) {
   SceneBuilder b;
   open_scene(b);
@@ -473,8 +456,7 @@ TEST(Bake, FinalGatherLowersOpenSceneErrorUnbiased) {
   const double rep_g = std::sqrt(est_g / n) / mean, rep_p = std::sqrt(est_p / n) / mean;
   std::printf("[ measured ] open scene, 131072 photons: gather %.2f %% (reported %.2f %%), photons only %.2f %% "
               "(reported %.2f %%)\n", 100 * err_g, 100 * rep_g, 100 * err_p, 100 * rep_p);
-  // Measured: gather 1.16 % (reported 0.75 %), photons only 1.38 % (reported 0.97 %); at 0.25 m
-  // texels and this photon count both estimates are low by about a third (docs/design.md).
+  // Measured: gather 0.95 % (reported 0.98 %), photons only 1.10 % (reported 1.47 %).
   EXPECT_LT(err_g, 0.9 * err_p);
   EXPECT_NEAR(sum_g / sum_ref, 1.0, 0.005);
   EXPECT_GT(rep_g, err_g / 2.0);

@@ -244,11 +244,15 @@ TEST(Scheduler, DirectRoundZeroTopsUpWhereThePhantomDominates) {
   const DirectSchedule s(0.02, 64);
   const double a2 = std::pow(DirectSchedule::kDirectShareOfTarget * 0.02, 2.0);
   std::vector<uint32_t> want(3, 0);
-  // Most of the variance is the phantom sample's: every texel gets the rest
-  // of direct_samples, whatever its own variance.
+  // Most of the variance is the phantom sample's: every texel gets as many
+  // samples again (kTopUpGrowth), whatever its own variance ...
   const std::vector<DirectTexelNoise> t = texels({0.5 * a2, 1.0 * a2, 2.0 * a2}, 16, 0.9);
   EXPECT_EQ(s.next_round(0, 1.0, t, want).size(), 3u);
-  EXPECT_EQ(want, (std::vector<uint32_t>{48, 48, 48}));
+  EXPECT_EQ(want, (std::vector<uint32_t>{16, 16, 16}));
+  // ... at most up to direct_samples.
+  const DirectSchedule few(0.02, 24);
+  EXPECT_EQ(few.next_round(0, 1.0, t, want).size(), 3u);
+  EXPECT_EQ(want, (std::vector<uint32_t>{8, 8, 8}));
   // Only in round 0; later rounds follow the texels' noise.
   std::vector<uint32_t> later(3, 0);
   EXPECT_EQ(s.next_round(1, 1.0, t, later), (std::vector<uint32_t>{2}));

@@ -420,6 +420,27 @@ TEST(TexelRanges, MergeEqualsSingleBakeForAnyRangeCount) {
   }
 }
 
+// An open sunlit scene whose ground's sky light is pooled over neighbouring
+// texels (transport/direct_pool.h): the ranges' parts carry the samples'
+// world part, and the merge pools across the ranges' borders as one machine
+// does, bit for bit.
+TEST(TexelRanges, SkyLightPooledAcrossRangesAsOnOneMachine) {
+  plm_demo::SceneBuilder b;
+  plm_test::open_scene(b);
+  ASSERT_TRUE(b.ok()) << b.error;
+  plm_bake_settings s = small_settings(65536);
+  s.direct_samples = 16;
+  BakeResult one;
+  ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &one.r), PLM_OK) << plm_last_error();
+  TempDir dir;
+  const auto photons = bake_shards(b.scene, s, 2, dir.path);
+  const auto direct = bake_ranges(b.scene, s, PLM_TEXELS_DIRECT, 3, {}, dir.path);
+  BakeResult merged;
+  std::string error;
+  ASSERT_EQ(merge(b.scene, joined({photons, direct}), merged, error), PLM_OK) << error;
+  expect_identical(one, merged, mesh_count(b));
+}
+
 // A CSG ball in the Cornell box: its sub-texels are covered texels of the
 // last ranges, and there is no final gather (CSG solids): gather parts hold
 // no texels, and the merge is still the single bake.

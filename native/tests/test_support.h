@@ -61,6 +61,32 @@ struct BakeResult {
   }
 };
 
+// An open sunlit scene: an 8 x 8 m ground (ground_res texels a side) with a
+// 1 x 1 x 1.5 m box on it turned 0.35 rad (a 3 x 2 atlas of 8 x 8 texel
+// faces), a sun 45 degrees from the zenith (4 W/m^2) and a sky (0.3, 0.4, 0.6).
+template <typename Builder>
+void open_scene(Builder& b, bool sun = true, bool sky = true, uint32_t ground_res = 32) {
+  const uint32_t ground = b.material("ground", {0.35f, 0.42f, 0.30f});
+  const uint32_t white = b.material("box", {0.8f, 0.8f, 0.8f});
+  b.quad("ground", {-4, -4, 0}, {8, 0, 0}, {0, 8, 0}, ground, ground_res);
+  b.box("box", {0, 0, 0.75f}, {1.0f, 1.0f, 1.5f}, 0.35f, white, 8);
+  if (sun) {
+    plm_light l;
+    plm_light_default(&l, PLM_LIGHT_SUN);
+    l.power = 4.0f;
+    const float a = float(M_PI / 4.0);
+    l.matrix[5] = std::cos(a);
+    l.matrix[6] = -std::sin(a);
+    l.matrix[9] = std::sin(a);
+    l.matrix[10] = std::cos(a);
+    b.light(l, "sun");
+  }
+  if (sky) {
+    const float radiance[3] = {0.3f, 0.4f, 0.6f};
+    EXPECT_EQ(plm_scene_set_world(b.scene, radiance), PLM_OK);
+  }
+}
+
 // The engine's default settings with a photon count (the cap with a target) and direct samples.
 inline plm_bake_settings settings_with(uint64_t photons, uint32_t direct_samples, uint32_t max_bounces = 1024) {
   plm_bake_settings s;

@@ -53,7 +53,7 @@ uint64_t segment_bytes(uint64_t texels, uint32_t meshes, bool caustics) {
 }
 
 // Texel parts' records: DirectSums, DirectCalibration, GatherSums + GatherInfo.
-constexpr uint64_t kDirectTexelBytes = 6 * 8 + 2 * 4, kCalibrationBytes = 8 + 8 + 8 + 4 + 4 + 8,
+constexpr uint64_t kDirectTexelBytes = 6 * 8 + 2 * 4 + 6 * 4 + 2 * 4, kCalibrationBytes = 8 + 8 + 8 + 4 + 4 + 8 + 4 * 8 + 4 + 4,
                    kGatherTexelBytes = 5 * 8 + 2 * 4 + 4 + 4 + 8 + 4;
 // Texel records are packed and checksummed this many at a time (writer and reader alike).
 constexpr size_t kTexelChunk = 4096;
@@ -354,8 +354,13 @@ void write_direct_part(const std::string& path, const PartHeader& header, const 
          h.range_end);
   write_part(path, h, [&](Writer& w) {
     write_records(w, direct.sums.size(), kDirectTexelBytes, [&](size_t i, Cursor& c) {
-      put_stratified(c, direct.sums[i]);
-      c.put(direct.sums[i].choice_sq);
+      const DirectSums& d = direct.sums[i];
+      put_stratified(c, d);
+      c.put(d.choice_sq);
+      for (float v : {d.sky_rgb[0], d.sky_rgb[1], d.sky_rgb[2], d.sky_pair_sq, d.other_pair_sq, d.sky_inv_distance})
+        c.put(v);
+      c.put(d.sky_rays);
+      c.put(d.sky_blocked);
     });
     write_records(w, direct.calibration.size(), kCalibrationBytes, [&](size_t i, Cursor& c) {
       const DirectCalibration& r = direct.calibration[i];
@@ -365,6 +370,9 @@ void write_direct_part(const std::string& path, const PartHeader& header, const 
       c.put(r.used);
       c.put(r.count_before);
       c.put(r.sum_sq_before);
+      for (double v : {r.sky_measured, r.sky_estimated, r.other_measured, r.other_estimated}) c.put(v);
+      c.put(r.used_split);
+      c.put(uint32_t(0));  // padding
     });
   });
 }
@@ -395,8 +403,14 @@ PartHeader read_direct_part(const std::string& path, DirectResult& direct) {
     direct.rounds = h.direct_rounds;
     direct.sums.resize(h.range_end - h.range_begin);
     read_records(r, direct.sums.size(), kDirectTexelBytes, [&](size_t i, Cursor& c) {
-      get_stratified(c, direct.sums[i]);
-      direct.sums[i].choice_sq = c.get<double>();
+      DirectSums& d = direct.sums[i];
+      get_stratified(c, d);
+      d.choice_sq = c.get<double>();
+      for (float* v : {&d.sky_rgb[0], &d.sky_rgb[1], &d.sky_rgb[2], &d.sky_pair_sq, &d.other_pair_sq,
+                       &d.sky_inv_distance})
+        *v = c.get<float>();
+      d.sky_rays = c.get<uint32_t>();
+      d.sky_blocked = c.get<uint32_t>();
     });
     direct.calibration.resize(h.calibration_count);
     read_records(r, direct.calibration.size(), kCalibrationBytes, [&](size_t i, Cursor& c) {
@@ -407,6 +421,9 @@ PartHeader read_direct_part(const std::string& path, DirectResult& direct) {
       d.used = c.get<uint32_t>();
       d.count_before = c.get<uint32_t>();
       d.sum_sq_before = c.get<double>();
+      for (double* v : {&d.sky_measured, &d.sky_estimated, &d.other_measured, &d.other_estimated}) *v = c.get<double>();
+      d.used_split = c.get<uint32_t>();
+      c.get<uint32_t>();  // padding
     });
     for (const DirectCalibration& d : direct.calibration)
       if (d.texel < h.range_begin || d.texel >= h.range_end)

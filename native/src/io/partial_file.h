@@ -19,8 +19,8 @@
 //     squared-flux quanta in all; per texel RGB flux sums (3 doubles), squared
 //     sums (double), hit counts (uint32); per mesh back-lit flags (byte);
 //     the same for caustic photons where the scene has specular lobes.
-//   payload of a direct part: per texel of the range its DirectSums (56
-//     bytes), then the calibration records (40 bytes each)
+//   payload of a direct part: per texel of the range its DirectSums (88
+//     bytes), then the calibration records (80 bytes each)
 //   payload of a gather part (where the bake gathers): per texel of the
 //     range its GatherSums and GatherInfo (68 bytes)
 //
@@ -38,7 +38,7 @@
 
 namespace plm {
 
-constexpr uint32_t kPartFormatVersion = 2;
+constexpr uint32_t kPartFormatVersion = 3;
 constexpr size_t kPartHeaderBytes = 512;
 
 enum class PartKind : uint32_t { kPhotons = 0, kDirect = 1, kGather = 2 };

@@ -142,7 +142,7 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
   DirectResult direct;
   const auto t_direct = Clock::now();
   if (two_pass && !tracing_shard && job && !job->direct.empty()) {  // the texel ranges' (transport/texel_ranges.h)
-    direct = join_direct(job->direct, settings.sampler, space.covered.size());
+    arena.execute([&] { direct = join_direct(job->direct, settings.sampler, space); });
     out.stats.direct_samples = direct.samples;
   } else if (two_pass && !tracing_shard) {
     const DirectPass pass(accel.handle(), surfaces, space.views, space.csg_views, space.areas, emitters, settings,
@@ -154,10 +154,10 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
         nullptr};
     if (live.active())  // previews between rounds; the first shows the first round at once
       control.round_done = [&](uint32_t round, const DirectResult& sofar) {
-        const Estimator est{space, sofar.sums, sofar.noise, acc, settings.filter_radius, nullptr};
+        const Estimator est{space, sofar.values, acc, settings.filter_radius, nullptr};
         live.check(arena, scene, est, 0, settings.dilation, round == 0);
       };
-    direct = run_direct_pass(arena, pass, space.covered, settings, control,
+    direct = run_direct_pass(arena, pass, space, settings, control,
                              job_slice(job, ShardJob::kDirect, space.covered.size()));
     out.stats.direct_samples = direct.samples;
   }
@@ -170,7 +170,7 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
 
   // ---- Photon pass and final gather ------------------------------------------------
   GatherResult gather;  // empty unless the final gather ran
-  const Estimator estimator{space, direct.sums, direct.noise, acc, settings.filter_radius, &gather};
+  const Estimator estimator{space, direct.values, acc, settings.filter_radius, &gather};
   uint64_t photons = 0;
   Estimate last;  // the latest estimate
   if (two_pass) live.check(arena, scene, estimator, 0, settings.dilation);  // the direct light alone

@@ -36,8 +36,25 @@ double DirectSums::pair_variance_of_mean() const {
   return (pair_sq * (n / double(paired)) + choice_sq) / (n * n);
 }
 
+double DirectSums::sky_pair_variance_of_mean() const {
+  if (paired == 0) return 0.0;
+  const double n = double(count);
+  return double(sky_pair_sq) * (n / double(paired)) / (n * n);
+}
+
+double DirectSums::other_pair_variance_of_mean() const {
+  if (paired == 0) return 0.0;
+  const double n = double(count);
+  return (double(other_pair_sq) * (n / double(paired)) + choice_sq) / (n * n);
+}
+
 void DirectSums::merge(const DirectSums& o) {
-  for (int c = 0; c < 3; ++c) rgb[c] += o.rgb[c];
+  for (int c = 0; c < 3; ++c) rgb[c] += o.rgb[c], sky_rgb[c] += o.sky_rgb[c];
+  sky_pair_sq += o.sky_pair_sq;
+  other_pair_sq += o.other_pair_sq;
+  sky_inv_distance += o.sky_inv_distance;
+  sky_rays += o.sky_rays;
+  sky_blocked += o.sky_blocked;
   sum_sq += o.sum_sq;
   pair_sq += o.pair_sq;
   choice_sq += o.choice_sq;
@@ -63,6 +80,11 @@ DirectPass::DirectPass(RTCScene rtc, const SurfaceMap& surfaces, const std::vect
       local_choice_(!all_lights_ && emitters.size() <= kMaxLocalChoice) {
   if (!all_lights_ && emitters.size() <= kCandidates)
     for (uint32_t k = 0; k < emitters.size(); ++k) all_candidates_.push_back(k);
+  is_sky_.assign(emitters.size(), 0);
+  for (size_t k = 0; k < emitters.size(); ++k)
+    if (emitters[k].kind == EmitterKind::World && emitters[k].map_part != 1 && emitters[k].portals.empty())
+      is_sky_[k] = 1, split_sky_ = true;
+  split_sky_ = split_sky_ && all_lights_ && !passage_;
   triangle_emitter_.resize(views.size());
   for (size_t k = 0; k < emitters.size(); ++k) {
     if (emitters[k].kind != EmitterKind::Triangle) continue;
@@ -143,6 +165,8 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
   const uint8_t* contact = csg ? nullptr : views_[mesh_id].contact;
   const SobolGroup light_dims(sobol_key, 0), mis_dims(sobol_key, 1), piece_dims(sobol_key, 2), surface_dims(sobol_key, 3);
   StratumPairs pairs;
+  uint32_t previous_stratum = ~0u;  // split_sky_: the last sample's stratum, world part and rest
+  double previous_sky = 0.0, previous_other = 0.0;
   // With the local choice, pairs are two successive samples of the same
   // light: the choice is stratified, so pairs of different lights would count
   // the lights' differences as noise. (With the
@@ -184,6 +208,7 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
   constexpr uint32_t kChunk = 8;
   struct Pending {
     Vec3 origin, normal, shading, e;  // normal: geometric; shading: the interpolated one (smooth meshes)
+    Vec3 sky;                         // the world's part of e (split_sky_)
     float v[2];
     size_t k;
     uint32_t tri;
@@ -193,8 +218,31 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
   RayPacket packet;
   Vec3 lane_value[RayPacket::kLanes];  // a lane's irradiance if nothing blocks it
   uint32_t lane_sample[RayPacket::kLanes];
+  bool lane_sky[RayPacket::kLanes];     // a ray to the world's smooth part (split_sky_)
+  bool packet_sky = false;              // some lane is
+  const bool split_sky = split_sky_ && !csg;
   auto trace_packet = [&] {
     const unsigned lanes = packet.size;
+    if (split_sky && packet_sky) {  // the world's rays also bring back how far their blocker is
+      packet.intersect(rtc_);
+      packet_sky = false;
+      for (unsigned l = 0; l < lanes; ++l) {
+        Pending& ps = chunk[lane_sample[l]];
+        const bool blocked = packet.rh.hit.geomID[l] != RTC_INVALID_GEOMETRY_ID;
+        if (lane_sky[l]) {
+          ++sums.sky_rays;
+          if (blocked) {
+            ++sums.sky_blocked;
+            sums.sky_inv_distance += 1.0f / std::fmax(packet.rh.ray.tfar[l], offset_scale_);
+          } else {
+            ps.sky += lane_value[l];
+          }
+        }
+        if (!blocked) ps.e += lane_value[l];
+      }
+      return;
+    }
+    packet_sky = false;
     if constexpr (kPassage) {
       Vec3 through[RayPacket::kLanes];
       passage_->occluded(packet, rtc_, through);
@@ -211,7 +259,7 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
       const uint32_t j = j0 + c;
       Pending& ps = chunk[c];
       ps.inside = ps.contact = false;
-      ps.e = {0, 0, 0};
+      ps.e = ps.sky = {0, 0, 0};
       float x = origin_x + (float(j % m) + rng.next_float()) * side;
       float y = origin_y + (float(j / m) + rng.next_float()) * side;
       Vec3 p, normal;
@@ -312,6 +360,8 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
         }
         lane_value[packet.size] = ds.irradiance * (weight / (kPi * probability(kk)));
         lane_sample[packet.size] = c;
+        lane_sky[packet.size] = split_sky && is_sky_[kk];
+        packet_sky = packet_sky || lane_sky[packet.size];
         const bool triangle = em.kind == EmitterKind::Triangle;
         packet.add(ps.origin, ds.dir, std::isinf(ds.distance) ? ds.distance : ds.distance * (1.0f - 1e-4f), tc.skip_geom,
                    tri, triangle ? SurfaceMap::mesh_geometry(em.mesh) : RTC_INVALID_GEOMETRY_ID,
@@ -364,6 +414,15 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
         }
       }
       const double a = sums.add(e);
+      if (split_sky) {  // the world's part and the rest, paired as the whole is
+        const double sky = (double(ps.sky.x) + ps.sky.y + ps.sky.z) / 3.0;
+        for (int ch = 0; ch < 3; ++ch) sums.sky_rgb[ch] += ps.sky[ch];  // float: ample for a texel's samples
+        if (j % 2 == 1 && previous_stratum == j - 1) {
+          sums.sky_pair_sq += float((sky - previous_sky) * (sky - previous_sky));
+          sums.other_pair_sq += float((a - sky - previous_other) * (a - sky - previous_other));
+        }
+        previous_stratum = j, previous_sky = sky, previous_other = a - sky;
+      }
       if (!local_choice_) {
         pairs.add(j, a, sums);
       } else {

@@ -23,12 +23,21 @@ struct DirectNoise {
   double typical = 0.0;  // RMS of all direct samples of all texels (the phantom sample, see below)
   double scale = 1.0;    // true / pair-difference variance, measured with independent replicates:
                          // below 1 for Sobol points, whose pairs differ more than their means vary
+  double sky_scale = 1.0, other_scale = 1.0;  // the same for the world's part and the rest (DirectSums::sky_rgb)
 };
 
 // Per covered texel: sums of (irradiance / pi) samples.
 struct DirectSums : StratifiedSums {
   double choice_sq = 0; // with one light chosen per sample: the spread of the lights' sample counts
                         // (n^2 x its variance of the mean), summed over rounds
+  // Where every sample sends a shadow ray to every light (DirectPass::all_lights_)
+  // and the world lights the scene: the world's part of the samples (its sky
+  // light), which the estimate pools over neighbouring texels (direct_pool.h).
+  float sky_rgb[3] = {0, 0, 0};
+  float sky_pair_sq = 0, other_pair_sq = 0;  // pair differences of the world's part and of the rest
+  float sky_inv_distance = 0;  // sum of 1 / distance over the world's shadow rays that something blocks
+  uint32_t sky_rays = 0;       // the world's shadow rays (0: the samples are not split)
+  uint32_t sky_blocked = 0;    // those that something blocks
   // Squared standard error of the mean, noise.typical as the phantom sample
   // (StratifiedSums::variance_of_mean), with choice_sq and noise.scale.
   double variance_of_mean(const DirectNoise& noise) const {
@@ -38,6 +47,11 @@ struct DirectSums : StratifiedSums {
   double phantom_variance_of_mean(const DirectNoise& noise) const;
   // The same from the stratum pairs and choice_sq alone (0 without pairs), unscaled.
   double pair_variance_of_mean() const;
+  // The same of the world's part and of the rest (with choice_sq) of split samples.
+  double sky_pair_variance_of_mean() const;
+  double other_pair_variance_of_mean() const;
+  // Mean RGB of the world's part.
+  double sky_mean() const { return count ? (double(sky_rgb[0]) + sky_rgb[1] + sky_rgb[2]) / (3.0 * count) : 0.0; }
   // Adds another set of samples of the same texel.
   void merge(const DirectSums& o);
 };
@@ -113,6 +127,12 @@ class DirectPass {
   // kMaxLocalChoice lights (emissive meshes), one chosen by power.
   static constexpr size_t kAllLights = 4, kCandidates = 32, kMaxLocalChoice = 256;
   bool all_lights_;
+  // All lights, a world among them, no passable materials: each sample's
+  // world part is kept apart (DirectSums::sky_rgb), and its shadow rays are
+  // intersected for their distance (the reach of the pooling). is_sky_[k]:
+  // emitter k is the world's smooth part (not a map's sun, which is sharp).
+  bool split_sky_ = false;
+  std::vector<uint8_t> is_sky_;
   bool local_choice_;
   std::vector<uint32_t> all_candidates_;  // 0 .. lights - 1 when there are at most kCandidates
 };

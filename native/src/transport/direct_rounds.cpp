@@ -14,7 +14,7 @@ namespace {
 // (a pair straddles the strata of the light choice). The true variance is
 // measured on a quarter of the texels (at most 1024) spread over all lightmaps by one more,
 // independent round (a Sobol key of its own): for two independent means a, b,
-// E[(a - b)^2] = Var a + Var b (calibration_scale). The calibration texels are
+// E[(a - b)^2] = Var a + Var b (calibrate). The calibration texels are
 // every step-th of the whole covered order; those in the slice (direct[0] is
 // covered texel `first`) are measured here, and the extra samples join their sums.
 std::vector<DirectCalibration> calibrate_direct(tbb::task_arena& arena, const DirectPass& pass,
@@ -44,6 +44,14 @@ std::vector<DirectCalibration> calibrate_direct(tbb::task_arena& arena, const Di
       r.measured = d * d;
       r.estimated = a.pair_variance_of_mean() + b.pair_variance_of_mean();
       r.used = 1;
+      if (a.sky_rays && b.sky_rays) {
+        const double ds = a.sky_mean() - b.sky_mean(), dother = d - ds;
+        r.sky_measured = ds * ds;
+        r.sky_estimated = a.sky_pair_variance_of_mean() + b.sky_pair_variance_of_mean();
+        r.other_measured = dother * dother;
+        r.other_estimated = a.other_pair_variance_of_mean() + b.other_pair_variance_of_mean();
+        r.used_split = 1;
+      }
     }
     a.merge(b);
   }
@@ -80,23 +88,32 @@ WholeEstimate estimate_whole(tbb::task_arena& arena, const DirectPass& pass, con
   return {mean / double(m), typical_sample(sums)};
 }
 
-}  // namespace
-
-double calibration_scale(const std::vector<DirectCalibration>& records) {
-  double measured = 0.0, estimated = 0.0;
-  size_t used = 0;
-  for (const DirectCalibration& r : records)
-    if (r.used) {
-      measured += r.measured;
-      estimated += r.estimated;
-      ++used;
-    }
+// measured / estimated from `used` records (1 with fewer than 32).
+double ratio(double measured, double estimated, size_t used) {
   if (used < 32 || !(estimated > 0.0)) return 1.0;
   return std::clamp(measured / estimated, 1e-4, 4.0);
 }
 
-DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, const std::vector<CoveredTexel>& covered,
+}  // namespace
+
+void calibrate(const std::vector<DirectCalibration>& records, DirectNoise& noise) {
+  double m = 0.0, e = 0.0, sky_m = 0.0, sky_e = 0.0, other_m = 0.0, other_e = 0.0;
+  size_t used = 0, split = 0;
+  for (const DirectCalibration& r : records) {
+    if (!r.used) continue;
+    m += r.measured, e += r.estimated, ++used;
+    if (!r.used_split) continue;
+    sky_m += r.sky_measured, sky_e += r.sky_estimated, other_m += r.other_measured, other_e += r.other_estimated;
+    ++split;
+  }
+  noise.scale = ratio(m, e, used);
+  noise.sky_scale = ratio(sky_m, sky_e, split);
+  noise.other_scale = ratio(other_m, other_e, split);
+}
+
+DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, const TexelSpace& space,
                              const plm_bake_settings& settings, const DirectControl& control, CoveredSlice slice) {
+  const std::vector<CoveredTexel>& covered = space.covered;
   DirectResult out;
   std::vector<DirectSums>& direct = out.sums;
   slice = slice.clamped(covered.size());
@@ -132,14 +149,16 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
     out.noise.typical = typical_sample(direct);
     if (round == 0 && settings.sampler != PLM_SAMPLER_RANDOM) {
       out.calibration = calibrate_direct(arena, pass, covered, slice.begin, direct, schedule.first());
-      out.noise.scale = calibration_scale(out.calibration);
+      calibrate(out.calibration, out.noise);
     }
     out.rounds = round + 1;
     DirectNoise aim_noise = out.noise;
     if (aim.mean >= 0.0) aim_noise.typical = aim.typical;
+    // The variances the estimate will use, the sky light pooled (direct_pool.h).
+    arena.execute([&] { out.values = pool_direct(space, direct, slice.begin, aim_noise); });
     for (size_t i = 0; i < direct.size(); ++i) {
       const DirectSums& d = direct[i];
-      noise[i] = {d.count, d.variance_of_mean(aim_noise), d.phantom_variance_of_mean(aim_noise)};
+      noise[i] = {d.count, out.values.variance[i], out.values.phantom[i]};
     }
     todo = schedule.next_round(round, aim.mean >= 0.0 ? aim.mean : mean, noise, want);
     if (control.round_done) control.round_done(round, out);

@@ -12,6 +12,7 @@
 
 #include "photonlm/photonlm.h"
 #include "transport/direct.h"
+#include "transport/direct_pool.h"
 #include "transport/film.h"
 
 namespace plm {
@@ -23,7 +24,10 @@ namespace plm {
 struct DirectCalibration {
   uint64_t texel = 0;  // in the covered order
   double measured = 0.0, estimated = 0.0;
-  uint32_t used = 0;
+  // The same for the world's part and for the rest of split samples
+  // (DirectSums::sky_rgb): each calibrated on its own (used_split).
+  double sky_measured = 0.0, sky_estimated = 0.0, other_measured = 0.0, other_estimated = 0.0;
+  uint32_t used = 0, used_split = 0;
   uint32_t count_before = 0;
   double sum_sq_before = 0.0;
 };
@@ -31,6 +35,7 @@ struct DirectCalibration {
 struct DirectResult {
   std::vector<DirectSums> sums;  // per covered texel of the slice, from its first
   DirectNoise noise;
+  DirectValues values;  // the estimate's direct light (pool_direct) after the last round
   uint64_t samples = 0;  // in all
   // What a texel range's direct pass hands to the merge (transport/texel_ranges.h):
   // round 0's calibration texels in order, and the rounds that ran.
@@ -54,12 +59,13 @@ struct DirectControl {
 // a target a slice's rounds read its own texels' noise and aim at the target
 // relative to an estimate of the whole's mean (whole_mean in the .cpp), so
 // that slices each under it put the whole under it.
-DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, const std::vector<CoveredTexel>& covered,
+DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, const TexelSpace& space,
                              const plm_bake_settings& settings, const DirectControl& control,
                              CoveredSlice slice = {});
 
 // true / pair-difference variance from calibration records in order (1 with
-// fewer than 32 used).
-double calibration_scale(const std::vector<DirectCalibration>& records);
+// fewer than 32 used): noise.scale, and sky_scale and other_scale for the
+// parts of split samples.
+void calibrate(const std::vector<DirectCalibration>& records, DirectNoise& noise);
 
 }  // namespace plm

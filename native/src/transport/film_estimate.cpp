@@ -40,10 +40,9 @@ double Estimator::csg_texel(size_t c, uint32_t sub, uint64_t photons, double val
     variance += (acc.caustic.sum_sq[g] + acc.caustic.phantom_sq() * cover) * k * k;
   }
   if (!direct.empty()) {
-    const DirectSums& d = direct[space.covered_begin[space.views.size() + c] + sub];
-    if (d.count)
-      for (int ch = 0; ch < 3; ++ch) value3[ch] += d.rgb[ch] / d.count;
-    variance += d.variance_of_mean(direct_noise);
+    const size_t k = space.covered_begin[space.views.size() + c] + sub;
+    for (int ch = 0; ch < 3; ++ch) value3[ch] += direct.value3[3 * k + ch];
+    variance += direct.variance[k];
   }
   return variance;
 }
@@ -74,7 +73,7 @@ void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vecto
     if (!(space.areas[i].area[t] > 0.0)) continue;
     const GatherInfo& info = gather->info[k];
     const GatherSums& g = gather->sums[k];
-    const DirectSums& d = direct[k++];
+    const double direct_mean = direct.mean(k++);
     // The fit reaches no further than kGatherReach x the harmonic mean
     // distance of the texel's gather hits: near a wall the bounce light
     // changes faster than a plane follows. A texel whose rays met dark
@@ -84,7 +83,7 @@ void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vecto
     if (info.dark) radius[t] = 0;
     if (info.unknown || g.count == 0) continue;
     usable[t] = 1;
-    guide[t] = info.dark ? -1.0 : d.mean();
+    guide[t] = info.dark ? -1.0 : direct_mean;
     for (int c = 0; c < 3; ++c) g_mean[3 * t + c] = g.rgb[c] / g.count;
     // Every ray met a dark back (the texel's points are under a box): no
     // light reaches them.
@@ -130,7 +129,7 @@ void Estimator::texels(size_t i, uint64_t photons, std::vector<double>& value3, 
     guide.assign(space.areas[i].area.size(), 0.0);
     size_t k = space.covered_begin[i];
     for (size_t t = 0; t < guide.size(); ++t)
-      if (space.areas[i].area[t] > 0.0) guide[t] = direct[k++].mean();
+      if (space.areas[i].area[t] > 0.0) guide[t] = direct.mean(k++);
     params.guide = guide.data();
   }
   if (photons > 0) {
@@ -146,10 +145,8 @@ void Estimator::texels(size_t i, uint64_t photons, std::vector<double>& value3, 
   size_t k = space.covered_begin[i];
   for (size_t t = 0; t < variance.size(); ++t) {
     if (!(space.areas[i].area[t] > 0.0)) continue;
-    const DirectSums& d = direct[k++];
-    if (d.count)
-      for (int c = 0; c < 3; ++c) value3[3 * t + c] += d.rgb[c] / d.count;
-    variance[t] += d.variance_of_mean(direct_noise);
+    for (int c = 0; c < 3; ++c) value3[3 * t + c] += direct.value3[3 * k + c];
+    variance[t] += direct.variance[k++];
   }
 }
 
@@ -213,7 +210,7 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
       else ++e.dark_texels;
     }
   }
-  for (const DirectSums& d : est.direct) var_direct += d.variance_of_mean(est.direct_noise);
+  for (const double v : est.direct.variance) var_direct += v;
   if (count > 0.0 && value_sum > 0.0) {
     const double mean = value_sum / count;
     e.relative = std::sqrt(var_sum / count) / mean;

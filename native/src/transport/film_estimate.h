@@ -12,7 +12,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "transport/direct.h"
+#include "transport/direct_pool.h"
 #include "transport/film.h"
 #include "transport/final_gather.h"
 #include "transport/scheduler.h"
@@ -22,8 +22,7 @@ namespace plm {
 // Everything the estimate of a texel needs.
 struct Estimator {
   const TexelSpace& space;
-  const std::vector<DirectSums>& direct;  // per covered texel, or empty
-  const DirectNoise& direct_noise;
+  const DirectValues& direct;  // per covered texel (direct_pool.h), or empty
   const Accumulators& acc;
   uint32_t filter_radius;
   const GatherResult* gather = nullptr;  // per covered texel (empty sums without a gather)

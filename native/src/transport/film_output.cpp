@@ -86,9 +86,8 @@ void transfer_csg(const Estimator& est, size_t c, uint64_t photons, const TexelA
 // squared bias against the texel: the larger of the lightmap's mean of
 // (texel - OL)^2 - both variances (unbiased for the mean squared bias) and the
 // texel's own such difference where it exceeds two standard deviations.
-void blend_backup(const ol::OrientationLightmap& map, const TexelAreas& areas, const std::vector<DirectSums>& direct,
-                  size_t first_covered, const DirectNoise& noise, std::vector<double>& value3,
-                  std::vector<double>& variance) {
+void blend_backup(const ol::OrientationLightmap& map, const TexelAreas& areas, const DirectValues& direct,
+                  size_t first_covered, std::vector<double>& value3, std::vector<double>& variance) {
   struct Parts {
     size_t t;
     double ind[3], var_ind, ol[3], var_ol, var_direct, direct[3], diff_sq;
@@ -100,9 +99,8 @@ void blend_backup(const ol::OrientationLightmap& map, const TexelAreas& areas, c
     if (!(areas.area[t] > 0.0)) continue;
     Parts p{t, {0, 0, 0}, 0.0, {0, 0, 0}, 0.0, 0.0, {0, 0, 0}, 0.0};
     if (!direct.empty()) {
-      const DirectSums& d = direct[k++];
-      for (int c = 0; c < 3; ++c) p.direct[c] = d.count ? d.rgb[c] / d.count : 0.0;
-      p.var_direct = d.variance_of_mean(noise);
+      for (int c = 0; c < 3; ++c) p.direct[c] = direct.value3[3 * k + c];
+      p.var_direct = direct.variance[k++];
     }
     for (int c = 0; c < 3; ++c) p.ind[c] = value3[3 * t + c] - p.direct[c];
     p.var_ind = std::max(0.0, variance[t] - p.var_direct);
@@ -162,8 +160,7 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
     } else {
       if (backed_up && ols[size_t(mesh.ol_group)].finalized()) {
         arena.execute([&] { est.texels(i, photons, value3, variance); });
-        blend_backup(ols[size_t(mesh.ol_group)], areas[i], est.direct, est.space.covered_begin[i], est.direct_noise,
-                     value3, variance);
+        blend_backup(ols[size_t(mesh.ol_group)], areas[i], est.direct, est.space.covered_begin[i], value3, variance);
         for (size_t t = 0; t < n; ++t)
           if (areas[i].area[t] > 0.0) store_texel(value3, variance, t, values.data());
       } else {

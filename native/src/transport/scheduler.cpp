@@ -59,16 +59,19 @@ std::vector<uint32_t> DirectSchedule::next_round(uint32_t round, double mean,
   const double aim = mean_var > 4.0 * allowed * allowed ? 2.0 : 1.0;
   const double budget = aim * allowed * allowed * count;
   const double max_total = double(std::max(first_, direct_samples_)) * kMaxDirectGrowth;
-  // First up to direct_samples everywhere where the phantom sample is most of
-  // the estimate: it is no measure of a texel's own noise to allocate by
-  // (dark texels of an interior).
-  const bool top_up = refine && round == 0 && first_ < direct_samples_ && phantom_var > 0.5 * mean_var;
+  // First up to kTopUpGrowth x first (at most direct_samples) everywhere
+  // where the phantom sample is most of the estimate: it is no measure of a
+  // texel's own noise to allocate by (dark texels of an interior), and it
+  // falls as 1 / n^2. All the way to direct_samples at once cost open scenes
+  // 1.6x the time to a 2 % target once the sky light was pooled.
+  const uint32_t top_up_to = std::min(direct_samples_, kTopUpGrowth * first_);
+  const bool top_up = refine && round == 0 && first_ < top_up_to && phantom_var > 0.5 * mean_var;
   std::vector<uint32_t> next;
   for (uint32_t i = 0; i < texels.size(); ++i) {
     const DirectTexelNoise& d = texels[i];
     double extra = 0.0;
     if (top_up) {
-      extra = double(direct_samples_ - first_);
+      extra = double(top_up_to - first_);
     } else if (refine) {
       extra = weight[i] * std::pow(sum_weight / budget, 1.0 / a) - double(d.count);
       extra = std::min({extra, kMaxRoundGrowth * std::max(d.count, first_), max_total - double(d.count)});

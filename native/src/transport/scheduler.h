@@ -191,13 +191,15 @@ struct DirectTexelNoise {
 // m_i = c w_i, w_i = (v_i n_i^a)^(1 / (a + 1)), c = (sum_j w_j / budget)^(1 / a)
 // (for a = 1: m_i ~ the per-sample deviation). Where the noise is plainer, the
 // next round adds the rest. After round 0, if the phantom sample is most of
-// the estimate, every texel is first topped up to direct_samples. Texels
+// the estimate, every texel is first topped up to kTopUpGrowth x its first
+// samples (at most direct_samples), which cuts the phantom's part fourfold. Texels
 // without two samples get direct_samples x 2^round (texels that see a light
 // rarely, the sky through a window, need thousands).
 class DirectSchedule {
  public:
   static constexpr uint32_t kMaxRounds = 16;
   static constexpr uint32_t kFirstTargetSamples = 16;
+  static constexpr uint32_t kTopUpGrowth = 2;
   // Stratified samples over a shadow edge: n^-1.5; plain noise: n^-1.
   static constexpr double kDirectConvergence = 1.5;
   static constexpr double kDirectShareOfTarget = 0.7;

@@ -18,7 +18,8 @@ CoveredSlice job_slice(const ShardJob* job, ShardJob::Mode mode, size_t covered)
   return texel_range(covered, job->index, job->count);
 }
 
-DirectResult join_direct(std::vector<DirectResult>& ranges, uint32_t sampler, size_t covered) {
+DirectResult join_direct(std::vector<DirectResult>& ranges, uint32_t sampler, const TexelSpace& space) {
+  const size_t covered = space.covered.size();
   DirectResult out;
   for (DirectResult& r : ranges) {
     if (out.sums.empty()) out.sums = std::move(r.sums);
@@ -31,7 +32,7 @@ DirectResult join_direct(std::vector<DirectResult>& ranges, uint32_t sampler, si
     fail(PLM_ERROR_INVALID_ARGUMENT, "the direct parts hold ", out.sums.size(), " texels where the scene covers ",
          covered);
   for (const DirectSums& d : out.sums) out.samples += d.count;
-  if (sampler != PLM_SAMPLER_RANDOM) out.noise.scale = calibration_scale(out.calibration);
+  if (sampler != PLM_SAMPLER_RANDOM) calibrate(out.calibration, out.noise);
   // typical_sample's sum, with the calibration texels' squared sums and counts
   // before their extra samples where round 0 was the last.
   const bool before = out.rounds == 1;
@@ -50,6 +51,7 @@ DirectResult join_direct(std::vector<DirectResult>& ranges, uint32_t sampler, si
     if (count) texel_sq += sum_sq / count, sampled += 1.0;
   }
   out.noise.typical = sampled > 0.0 ? std::sqrt(texel_sq / sampled) : 0.0;
+  out.values = pool_direct(space, out.sums, 0, out.noise);
   return out;
 }
 

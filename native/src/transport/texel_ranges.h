@@ -30,7 +30,7 @@ CoveredSlice job_slice(const ShardJob* job, ShardJob::Mode mode, size_t covered)
 // the sums in order, the calibration's scale from all its texels in order
 // (1 with the random sampler), the phantom sample as the last round computed
 // it (after round 0 alone: before the calibration's extra samples joined).
-DirectResult join_direct(std::vector<DirectResult>& ranges, uint32_t sampler, size_t covered);
+DirectResult join_direct(std::vector<DirectResult>& ranges, uint32_t sampler, const TexelSpace& space);
 
 // Every range's gather (in range order, moved from) as one machine's.
 // Both throw PLM_ERROR_INVALID_ARGUMENT where the ranges do not hold `covered` texels.

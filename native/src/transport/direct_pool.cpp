@@ -1,0 +1,136 @@
+#include "transport/direct_pool.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+#include "lightmap/reconstruct.h"
+
+namespace plm {
+namespace {
+
+bool split(const DirectSums& d) { return d.sky_rays > 0 && d.paired > 0 && d.count > 0; }
+
+// A split texel's variances of the mean: the world's part and the rest from
+// their own pairs (the light choice's spread goes with the rest), each scaled
+// by its own calibration, and the phantom sample's part.
+struct SplitVariance {
+  double sky, other, phantom;
+};
+SplitVariance split_variance(const DirectSums& d, const DirectNoise& noise) {
+  const double n = double(d.count), m = d.mean();
+  return {noise.sky_scale * d.sky_pair_variance_of_mean(), noise.other_scale * d.other_pair_variance_of_mean(),
+          noise.scale * (noise.typical - m) * (noise.typical - m) / (n * n)};
+}
+
+// One lightmap's texels (t, mesh-local) in the slice with split samples:
+// sky3 their world part's mean, var their pair variance of it, phantom their
+// phantom sample's variance, guide their direct mean (-1 for the others, which
+// pool with none), radius the reach of their fit.
+struct SkyMap {
+  std::vector<double> sky3, var, phantom, guide;
+  std::vector<uint8_t> radius;
+  size_t pooled = 0;
+};
+
+}  // namespace
+
+DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>& sums, size_t first,
+                         const DirectNoise& noise) {
+  DirectValues out;
+  const size_t end = first + sums.size();
+  out.value3.resize(3 * sums.size());
+  out.variance.resize(sums.size());
+  out.phantom.resize(sums.size());
+  for (size_t j = 0; j < sums.size(); ++j) {  // the texels' own values, replaced below where pooled
+    const DirectSums& d = sums[j];
+    for (int c = 0; c < 3; ++c) out.value3[3 * j + c] = d.count ? d.rgb[c] / d.count : 0.0;
+    out.variance[j] = d.variance_of_mean(noise);
+    out.phantom[j] = d.phantom_variance_of_mean(noise);
+  }
+  SkyMap m;
+  std::vector<double> fit1, var1, fit2, var2, best_phantom, ignored;
+  for (size_t i = 0; i < space.views.size(); ++i) {
+    if (!space.views[i].texel_area) continue;
+    const TexelAreas& ta = space.areas[i];
+    const size_t n = ta.area.size(), k0 = space.covered_begin[i];
+    m.sky3.assign(3 * n, 0.0);
+    m.var.assign(n, 0.0);
+    m.phantom.assign(n, 0.0);
+    m.guide.assign(n, -1.0);
+    m.radius.assign(n, 0);
+    m.pooled = 0;
+    const double width = texel_width(ta);
+    for (size_t t = 0, k = k0; t < n; ++t) {
+      if (!(ta.area[t] > 0.0)) continue;
+      const size_t kk = k++;
+      if (kk < first || kk >= end || !split(sums[kk - first])) continue;
+      const DirectSums& d = sums[kk - first];
+      const SplitVariance v = split_variance(d, noise);
+      for (int c = 0; c < 3; ++c) m.sky3[3 * t + c] = double(d.sky_rgb[c]) / d.count;
+      m.var[t] = v.sky;
+      m.phantom[t] = v.phantom;
+      m.guide[t] = d.mean();
+      // Ambient occlusion changes over about the distance to what blocks the
+      // sky: the harmonic mean of the blocked rays' distances.
+      const double reach = d.sky_blocked ? kSkyReach * double(d.sky_blocked) / double(d.sky_inv_distance)
+                                         : std::numeric_limits<double>::infinity();
+      m.radius[t] = uint8_t(std::min(double(kSkyRadius), std::floor(reach / std::max(width, 1e-30))));
+      ++m.pooled;
+    }
+    if (m.pooled < kMinPooledTexels) continue;
+    const uint32_t w = space.views[i].mesh->lightmap_width, h = space.views[i].mesh->lightmap_height;
+    // The radius with the least estimated mean squared error over the
+    // lightmap's split texels: a fit's variance plus its squared bias. The
+    // bias of a linear fit over a window of radius r grows as r^2 (the
+    // curvature it cannot follow), so fits of radius 1 and 2 differ by 3/4 of
+    // the latter's bias: E (f2 - f1)^2 = (3/4 b2)^2 + var1 - var2 (nested
+    // windows), averaged over the lightmap. Their difference is an average of
+    // many texels and far less noisy than a texel's own mean, whose
+    // variance estimate is rough (Sobol pairs, one calibration for all).
+    // Radius 0 keeps the own means, exact in mean. The chosen fit's squared
+    // bias joins every texel's variance.
+    static_assert(kSkyRadius == 2, "the bias estimate compares the fits of radius 1 and 2");
+    reconstruct_linear(ta, w, h, m.sky3.data(), m.var.data(), m.guide.data(), 1, fit1, var1, m.radius.data());
+    reconstruct_linear(ta, w, h, m.sky3.data(), m.var.data(), m.guide.data(), 2, fit2, var2, m.radius.data());
+    double var0_sum = 0.0, var1_sum = 0.0, var2_sum = 0.0, excess = 0.0;
+    for (size_t t = 0; t < n; ++t) {
+      if (m.guide[t] < 0.0) continue;
+      const double d = (fit2[3 * t] + fit2[3 * t + 1] + fit2[3 * t + 2] - fit1[3 * t] - fit1[3 * t + 1] -
+                        fit1[3 * t + 2]) / 3.0;
+      var0_sum += m.var[t], var1_sum += var1[t], var2_sum += var2[t];
+      excess += d * d - std::max(0.0, var1[t] - var2[t]);
+    }
+    const double count = double(m.pooled);
+    const double bias2 = std::max(0.0, excess / count) * (16.0 / 9.0), bias1 = bias2 / 16.0;
+    const double mse[3] = {var0_sum / count, var1_sum / count + bias1, var2_sum / count + bias2};
+    const uint32_t best_r = uint32_t(std::min_element(mse, mse + 3) - mse);
+    if (best_r == 0) continue;
+    const std::vector<double>& best3 = best_r == 1 ? fit1 : fit2;
+    const std::vector<double>& best_var = best_r == 1 ? var1 : var2;
+    const double best_bias = best_r == 1 ? bias1 : bias2;
+    // The phantom sample -- the prior for what a texel's own few samples may
+    // have missed -- is averaged by the fit's weights with its neighbours':
+    // their samples count as evidence too.
+    reconstruct_linear(ta, w, h, m.sky3.data(), m.phantom.data(), m.guide.data(), best_r, ignored, best_phantom,
+                       m.radius.data());
+    for (size_t t = 0, k = k0; t < n; ++t) {
+      if (!(ta.area[t] > 0.0)) continue;
+      const size_t kk = k++;
+      if (m.guide[t] < 0.0) continue;
+      const DirectSums& d = sums[kk - first];
+      const SplitVariance v = split_variance(d, noise);
+      double* value = &out.value3[3 * (kk - first)];
+      // Light is not negative: a linear fit can dip below 0 where the sky
+      // falls steeply (at a contact), the rest by float rounding where it is 0.
+      for (int c = 0; c < 3; ++c)
+        value[c] = std::max(0.0, (d.rgb[c] - double(d.sky_rgb[c])) / d.count) + std::max(0.0, best3[3 * t + c]);
+      out.phantom[kk - first] = best_phantom[t];
+      out.variance[kk - first] = v.other + best_var[t] + best_phantom[t] + best_bias;
+    }
+  }
+  return out;
+}
+
+}  // namespace plm
