@@ -145,7 +145,8 @@ TEST(Scheduler, BudgetSharesAreRespected) {
 
 TEST(Scheduler, GatherRaysGrowWithTheSquareOfTheTarget) {
   EXPECT_EQ(gather_samples(0.0), kGatherSamples);
-  EXPECT_EQ(gather_samples(0.05), kGatherSamples);
+  EXPECT_EQ(gather_samples(0.05), kLeastGatherSamples);  // (2 / 5)^2 of 16, at least 4
+  EXPECT_EQ(gather_samples(0.03), 7u);                   // (2 / 3)^2 of 16
   EXPECT_EQ(gather_samples(0.02), kGatherSamples);
   EXPECT_EQ(gather_samples(0.01), 4 * kGatherSamples);
   EXPECT_EQ(gather_samples(0.001), kMaxGatherSamples);
@@ -155,8 +156,8 @@ TEST(Scheduler, GatherRaysGrowWithTheSquareOfTheTarget) {
 // kMaxGatherSamples), and runs while the target is not met and the gather's
 // part of the error is above half the target, at most kMaxGathers in all.
 TEST(Scheduler, FurtherGathersHaveMoreRaysWhileTheirPartIsLarge) {
-  EXPECT_EQ(gather_samples(0.05, 1), 4 * kGatherSamples);
-  EXPECT_EQ(gather_samples(0.05, 2), 16 * kGatherSamples);
+  EXPECT_EQ(gather_samples(0.05, 1), 4 * kLeastGatherSamples);
+  EXPECT_EQ(gather_samples(0.05, 2), 16 * kLeastGatherSamples);
   EXPECT_EQ(gather_samples(0.01, 1), 16 * kGatherSamples);
   EXPECT_EQ(gather_samples(0.01, 2), kMaxGatherSamples);
   ErrorParts e;
@@ -189,6 +190,27 @@ TEST(Scheduler, DirectRoundsWithoutTargetOnlyFillTexelsWithoutPairs) {
   EXPECT_EQ(want[2], 64u * 64);
   EXPECT_EQ(s.next_round(12, 1.0, t, want), (std::vector<uint32_t>{1, 2}));
   EXPECT_EQ(want[2], 64u * 256);  // at most 2^8
+}
+
+// A loose target does (2 % / T)^2 of the smallest bake, down to a quarter,
+// each part above a floor of its own: the first check (after 4 batches at
+// 4 % and looser, then the usual 16, 32, ...) and the gather's rays (4); 2 %
+// and tighter, and no target, do it all.
+TEST(Scheduler, LooseTargetsDoLessOfTheSmallestBake) {
+  EXPECT_EQ(loose_share(0.0), 1.0);
+  EXPECT_EQ(loose_share(0.01), 1.0);
+  EXPECT_EQ(loose_share(0.02), 1.0);
+  EXPECT_NEAR(loose_share(0.03), 4.0 / 9.0, 1e-12);
+  EXPECT_EQ(loose_share(0.08), kLeastShare);
+  EXPECT_EQ(first_check(0.0), kCheckBatches);
+  EXPECT_EQ(first_check(0.02), kCheckBatches);
+  EXPECT_EQ(first_check(0.03), 7u);
+  EXPECT_EQ(first_check(0.05), kLeastCheckBatches);
+  CheckSchedule checks(first_check(0.05));
+  std::vector<uint64_t> at;
+  for (uint64_t b = 1; b <= 64; ++b)
+    if (checks.due(b)) at.push_back(b);
+  EXPECT_EQ(at, (std::vector<uint64_t>{4, 16, 32, 48, 64}));
 }
 
 TEST(Scheduler, DirectRoundsStopAtTheTarget) {

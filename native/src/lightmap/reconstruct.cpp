@@ -13,10 +13,10 @@ double texel_width(const TexelAreas& ta) {
   return total_cover > 0.0 ? std::sqrt(total_area / total_cover) : 0.0;
 }
 
-bool same_surface(const TexelAreas& ta, uint32_t a, uint32_t b, float reach) {
+bool same_surface(const TexelAreas& ta, uint32_t a, uint32_t b, float reach, float min_cos) {
   if (!(ta.area[b] > 0.0)) return false;
   const Vec3 gap = ta.position[b] - ta.position[a];
-  return dot(ta.normal[a], ta.normal[b]) >= 0.9f && dot(gap, gap) <= reach * reach;
+  return dot(ta.normal[a], ta.normal[b]) >= min_cos && dot(gap, gap) <= reach * reach;
 }
 
 namespace {
@@ -182,7 +182,7 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
 
 void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, const double* mean3,
                         const double* variance, const double* guide, uint32_t radius, std::vector<double>& value3,
-                        std::vector<double>& var_out, const uint8_t* texel_radius) {
+                        std::vector<double>& var_out, const uint8_t* texel_radius, float min_cos) {
   const size_t n = size_t(width) * height;
   value3.assign(3 * n, 0.0);
   var_out.assign(n, 0.0);
@@ -197,7 +197,7 @@ void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, c
       const int64_t r = texel_radius ? std::min<uint32_t>(texel_radius[t], r_max) : r_max;
       const int64_t x = t % width, y = t / width;
       auto pools = [&](uint32_t k) {  // texel k takes part in t's fit
-        return k == t || (same_surface(ta, t, k, reach) && (!guide || similar_guide(guide, k, t, floor)));
+        return k == t || (same_surface(ta, t, k, reach, min_cos) && (!guide || similar_guide(guide, k, t, floor)));
       };
       // Normal equations of the fit v = a + b dx + c dy, weights = texel areas.
       double m[6] = {0, 0, 0, 0, 0, 0};  // s1, sx, sy, sxx, sxy, syy

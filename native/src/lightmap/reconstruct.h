@@ -49,7 +49,7 @@ double texel_width(const TexelAreas& ta);
 
 // True if texel b continues texel a's surface: normals within ~25 degrees,
 // world positions within `reach` (m).
-bool same_surface(const TexelAreas& ta, uint32_t a, uint32_t b, float reach);
+bool same_surface(const TexelAreas& ta, uint32_t a, uint32_t b, float reach, float min_cos = 0.9f);
 
 // Writes per texel the indirect irradiance / pi (3 values) and its estimated
 // mean squared error (variance + squared bias); texels without area get 0.
@@ -63,9 +63,10 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
 // the same-surface, similar-guide texels within `radius`: its value at the
 // texel's centre, and that value's variance. Unlike a mean, a linear fit has
 // no first-order bias where the neighbourhood is one-sided (a wall's foot).
-// `texel_radius` (optional) caps the radius per texel.
+// `texel_radius` (optional) caps the radius per texel; min_cos is the least
+// cosine between the normals of texels that fit together (same_surface).
 void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, const double* mean3,
                         const double* variance, const double* guide, uint32_t radius, std::vector<double>& value3,
-                        std::vector<double>& var_out, const uint8_t* texel_radius = nullptr);
+                        std::vector<double>& var_out, const uint8_t* texel_radius = nullptr, float min_cos = 0.9f);
 
 }  // namespace plm

@@ -220,7 +220,7 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
     };
     double truncated_flux = 0.0;
     uint64_t ol_hits = 0, merged = 0;
-    CheckSchedule checks;
+    CheckSchedule checks(first_check(settings.target_error));
     bool done = false;
     auto last_report = t_trace - std::chrono::seconds(1);
     if (job && (job->mode == ShardJob::kMerge || job->mode == ShardJob::kGather)) {  // every shard's sums, in order

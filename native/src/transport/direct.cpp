@@ -221,9 +221,12 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
   bool lane_sky[RayPacket::kLanes];     // a ray to the world's smooth part (split_sky_)
   bool packet_sky = false;              // some lane is
   const bool split_sky = split_sky_ && !csg;
+  // Round 0's world rays also bring back how far their blocker is (the reach
+  // of the pooling); later rounds only need to know whether one is there.
+  const bool measure_reach = split_sky && round == 0;
   auto trace_packet = [&] {
     const unsigned lanes = packet.size;
-    if (split_sky && packet_sky) {  // the world's rays also bring back how far their blocker is
+    if (measure_reach && packet_sky) {
       packet.intersect(rtc_);
       packet_sky = false;
       for (unsigned l = 0; l < lanes; ++l) {
@@ -250,8 +253,13 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
       return;
     }
     packet.occluded(rtc_);
-    for (unsigned l = 0; l < lanes; ++l)
-      if (!packet.blocked(l)) chunk[lane_sample[l]].e += lane_value[l];
+    for (unsigned l = 0; l < lanes; ++l) {
+      if (packet.blocked(l)) continue;
+      chunk[lane_sample[l]].e += lane_value[l];
+      if (lane_sky[l]) chunk[lane_sample[l]].sky += lane_value[l];
+    }
+    if (split_sky)
+      for (unsigned l = 0; l < lanes; ++l) sums.sky_rays += lane_sky[l];
   };
   for (uint32_t j0 = 0; j0 < n; j0 += kChunk) {
     const uint32_t chunk_size = std::min(kChunk, n - j0);

@@ -35,9 +35,10 @@ struct DirectSums : StratifiedSums {
   // light), which the estimate pools over neighbouring texels (direct_pool.h).
   float sky_rgb[3] = {0, 0, 0};
   float sky_pair_sq = 0, other_pair_sq = 0;  // pair differences of the world's part and of the rest
-  float sky_inv_distance = 0;  // sum of 1 / distance over the world's shadow rays that something blocks
   uint32_t sky_rays = 0;       // the world's shadow rays (0: the samples are not split)
-  uint32_t sky_blocked = 0;    // those that something blocks
+  // Round 0's world rays that something blocks, and the sum of 1 / distance to it.
+  uint32_t sky_blocked = 0;
+  float sky_inv_distance = 0;
   // Squared standard error of the mean, noise.typical as the phantom sample
   // (StratifiedSums::variance_of_mean), with choice_sq and noise.scale.
   double variance_of_mean(const DirectNoise& noise) const {

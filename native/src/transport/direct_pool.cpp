@@ -10,6 +10,7 @@
 namespace plm {
 namespace {
 
+
 bool split(const DirectSums& d) { return d.sky_rays > 0 && d.paired > 0 && d.count > 0; }
 
 // A split texel's variances of the mean: the world's part and the rest from
@@ -86,35 +87,38 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
     // bias of a linear fit over a window of radius r grows as r^2 (the
     // curvature it cannot follow), so fits of radius 1 and 2 differ by 3/4 of
     // the latter's bias: E (f2 - f1)^2 = (3/4 b2)^2 + var1 - var2 (nested
-    // windows), averaged over the lightmap. Their difference is an average of
-    // many texels and far less noisy than a texel's own mean, whose
-    // variance estimate is rough (Sobol pairs, one calibration for all).
-    // Radius 0 keeps the own means, exact in mean. The chosen fit's squared
-    // bias joins every texel's variance.
+    // windows), averaged over the texels whose reach allows radius 2. Their
+    // difference is an average of many texels and far less noisy than a
+    // texel's own mean, whose variance estimate is rough (Sobol pairs, one
+    // calibration for all). Radius 0 keeps the own means, exact in mean. Each
+    // pooled texel's variance takes the squared bias of its radius.
     static_assert(kSkyRadius == 2, "the bias estimate compares the fits of radius 1 and 2");
-    reconstruct_linear(ta, w, h, m.sky3.data(), m.var.data(), m.guide.data(), 1, fit1, var1, m.radius.data());
-    reconstruct_linear(ta, w, h, m.sky3.data(), m.var.data(), m.guide.data(), 2, fit2, var2, m.radius.data());
+    reconstruct_linear(ta, w, h, m.sky3.data(), m.var.data(), m.guide.data(), 1, fit1, var1, m.radius.data(), kSkyMinCos);
+    reconstruct_linear(ta, w, h, m.sky3.data(), m.var.data(), m.guide.data(), 2, fit2, var2, m.radius.data(), kSkyMinCos);
     double var0_sum = 0.0, var1_sum = 0.0, var2_sum = 0.0, excess = 0.0;
+    size_t reach1 = 0, reach2 = 0;  // texels whose reach allows radius 1, 2
     for (size_t t = 0; t < n; ++t) {
       if (m.guide[t] < 0.0) continue;
+      var0_sum += m.var[t], var1_sum += var1[t], var2_sum += var2[t];
+      reach1 += m.radius[t] >= 1;
+      if (m.radius[t] < 2) continue;
+      ++reach2;
       const double d = (fit2[3 * t] + fit2[3 * t + 1] + fit2[3 * t + 2] - fit1[3 * t] - fit1[3 * t + 1] -
                         fit1[3 * t + 2]) / 3.0;
-      var0_sum += m.var[t], var1_sum += var1[t], var2_sum += var2[t];
       excess += d * d - std::max(0.0, var1[t] - var2[t]);
     }
+    if (reach2 < kMinPooledTexels / 4) continue;  // too few texels to estimate the bias by
     const double count = double(m.pooled);
-    const double bias2 = std::max(0.0, excess / count) * (16.0 / 9.0), bias1 = bias2 / 16.0;
-    const double mse[3] = {var0_sum / count, var1_sum / count + bias1, var2_sum / count + bias2};
+    const double bias1 = std::max(0.0, excess / double(reach2)) / 9.0;  // (4/3)^2 / 16 of the mean excess
+    const double bias[3] = {0.0, bias1, 16.0 * bias1};
+    const double mse[3] = {var0_sum / count, (var1_sum + double(reach1) * bias[1]) / count,
+                           (var2_sum + double(reach2) * bias[2] + double(reach1 - reach2) * bias[1]) / count};
     const uint32_t best_r = uint32_t(std::min_element(mse, mse + 3) - mse);
     if (best_r == 0) continue;
     const std::vector<double>& best3 = best_r == 1 ? fit1 : fit2;
     const std::vector<double>& best_var = best_r == 1 ? var1 : var2;
-    const double best_bias = best_r == 1 ? bias1 : bias2;
-    // The phantom sample -- the prior for what a texel's own few samples may
-    // have missed -- is averaged by the fit's weights with its neighbours':
-    // their samples count as evidence too.
     reconstruct_linear(ta, w, h, m.sky3.data(), m.phantom.data(), m.guide.data(), best_r, ignored, best_phantom,
-                       m.radius.data());
+                       m.radius.data(), kSkyMinCos);
     for (size_t t = 0, k = k0; t < n; ++t) {
       if (!(ta.area[t] > 0.0)) continue;
       const size_t kk = k++;
@@ -127,7 +131,7 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
       for (int c = 0; c < 3; ++c)
         value[c] = std::max(0.0, (d.rgb[c] - double(d.sky_rgb[c])) / d.count) + std::max(0.0, best3[3 * t + c]);
       out.phantom[kk - first] = best_phantom[t];
-      out.variance[kk - first] = v.other + best_var[t] + best_phantom[t] + best_bias;
+      out.variance[kk - first] = v.other + best_var[t] + best_phantom[t] + bias[std::min<uint32_t>(m.radius[t], best_r)];
     }
   }
   return out;

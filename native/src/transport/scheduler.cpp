@@ -21,11 +21,20 @@ double target_progress(double relative, double target) {
   return std::min(1.0, std::pow(target / std::max(relative, 1e-12), 2.0));
 }
 
+double loose_share(double target_error) {
+  if (!(target_error > kBaseTarget)) return 1.0;
+  return std::max(kLeastShare, std::pow(kBaseTarget / target_error, 2.0));
+}
+
+uint64_t first_check(double target_error) {
+  return std::max(kLeastCheckBatches, uint64_t(std::lround(double(kCheckBatches) * loose_share(target_error))));
+}
+
 uint32_t gather_samples(double target_error, uint32_t gathers_before) {
-  constexpr double kBaseTarget = 0.02;  // the target kGatherSamples rays are enough for
   const double more = std::pow(4.0, double(std::min(gathers_before, 4u)));
+  const double least = std::max(double(kLeastGatherSamples), std::round(kGatherSamples * loose_share(target_error)));
   const double base = target_error > 0.0
-                          ? std::clamp(kGatherSamples * std::pow(kBaseTarget / target_error, 2.0), double(kGatherSamples),
+                          ? std::clamp(kGatherSamples * std::pow(kBaseTarget / target_error, 2.0), least,
                                        double(kMaxGatherSamples))
                           : double(kGatherSamples);
   return uint32_t(std::min(base * more, double(kMaxGatherSamples)));

@@ -108,11 +108,23 @@ void run_in_groups(tbb::task_arena& arena, uint64_t total, uint64_t granule, Wor
   run_in_groups(arena, total, granule, work, after, max_group, [total](uint64_t) { return total; });
 }
 
+// ---- Loose targets ----------------------------------------------------------
+// The smallest bake's photons before the first check and final gather rays
+// are sized for a kBaseTarget target; a
+// looser target T does loose_share(T) = (kBaseTarget / T)^2 of it (the error
+// falls as 1 / sqrt(work)), down to kLeastShare; tighter targets and bakes
+// without a target do it all. Each part keeps a floor of its own.
+constexpr double kBaseTarget = 0.02, kLeastShare = 0.25;
+double loose_share(double target_error);
+
 // ---- Photon pass --------------------------------------------------------------
-// The error target is checked after kCheckBatches batches, then at fixed
-// batch counts growing by a quarter (multiples of kCheckBatches); the final
-// gather runs at the first check, or without a target after kCheckBatches.
-constexpr uint64_t kCheckBatches = 16;
+// The error target is checked after kCheckBatches batches (for a loose target
+// after first_check(T): kCheckBatches x loose_share(T), at least
+// kLeastCheckBatches), then at kCheckBatches and at fixed batch counts growing
+// by a quarter (multiples of kCheckBatches); the final gather runs at the
+// first check, or without a target after kCheckBatches.
+constexpr uint64_t kCheckBatches = 16, kLeastCheckBatches = 4;
+uint64_t first_check(double target_error);
 // The photon pass stops when all but the direct part of the error is under
 // this share of the target: photons do not lower the direct part, but they
 // do lower the gather's (each texel weighs photons and gather by variance).
@@ -120,6 +132,7 @@ constexpr double kPhotonShareOfTarget = 0.5;
 
 // The check after the one at `check` batches.
 inline uint64_t next_check(uint64_t check) {
+  if (check < kCheckBatches) return kCheckBatches;
   return std::max(check + kCheckBatches, (check * 5 / 4) / kCheckBatches * kCheckBatches);
 }
 
@@ -142,6 +155,7 @@ double target_progress(double relative, double target);
 // When the photon pass checks its error: at fixed batch counts only.
 class CheckSchedule {
  public:
+  explicit CheckSchedule(uint64_t first = kCheckBatches) : next_(first) {}
   // Whether the error is checked once `batches` batches are merged; moves on
   // to the next check when it is. Merges stop at each check (next()).
   bool due(uint64_t batches) {
@@ -152,14 +166,15 @@ class CheckSchedule {
   uint64_t next() const { return next_; }
 
  private:
-  uint64_t next_ = kCheckBatches;
+  uint64_t next_;
 };
 
 // ---- Final gather -------------------------------------------------------------
 // Rays per texel: kGatherSamples, 4x as many for half the target error under
-// a target below 2 %, and 4x as many again for each gather before (regather
+// a target below 2 %, kGatherSamples x loose_share above it (at least
+// kLeastGatherSamples), and 4x as many again for each gather before (regather
 // below; at most kMaxGatherSamples).
-constexpr uint32_t kGatherSamples = 16, kMaxGatherSamples = 256;
+constexpr uint32_t kGatherSamples = 16, kMaxGatherSamples = 256, kLeastGatherSamples = 4;
 uint32_t gather_samples(double target_error, uint32_t gathers_before = 0);
 // Under a target the gather runs at the first check the photons alone do not
 // pass, and at once again (kMaxGathers in all) while the target is not met and
@@ -182,7 +197,11 @@ struct DirectTexelNoise {
 };
 
 // How many direct samples each texel gets in each round. Round 0 gives every
-// texel direct_samples (with a target at most kFirstTargetSamples). Then, with
+// texel direct_samples (with a target at most kFirstTargetSamples: loose
+// targets keep them, since the calibration of the variance estimate depends on
+// the count -- Sobol pairs of 8 samples overstate their variance 0.74x, of 16
+// samples 0.39x on the 21-monkey courtyard -- and a first round of 8 took it
+// 2.2x the samples to 3 %). Then, with
 // a target, while the direct part's RMS error is above kDirectShareOfTarget x
 // target (the rest is the photons'), each texel gets its share of the fewest
 // samples that reach it, re-estimated after each round: a texel's variance v_i
