@@ -19,6 +19,7 @@ the texels' relative error (standard error / value; 0 where the texel has no lig
 and B, loaded as the image <object>_error for the heat-map preview.
 """
 import atexit
+import concurrent.futures
 import os
 import shutil
 import tempfile
@@ -260,39 +261,51 @@ class BakeJob:
             error_images = {}
             atlas_mode = atlas.is_atlas(scene)
             atlas_blocks, uv_maps = {}, {}
-            for b in self.export.baked:
-                lm = result.lightmap(b.mesh_id)
-                relative = relative_error(lm.rgb, lm.error)
-                path = error_path = None
-                if atlas_mode:  # written into atlas pages below
-                    atlas_blocks[b.object_name] = lm
-                else:
-                    base = export.safe_file_name(b.object_name)
-                    fname = base + "_lightmap.exr"
-                    k = 1
-                    while fname.lower() in used_files:
-                        k += 1
-                        fname = "%s_%d_lightmap.exr" % (base, k)
-                    used_files.add(fname.lower())
-                    path = os.path.join(out_dir, fname)
-                    result.write_exr(b.mesh_id, path)
-                    images[b.object_name] = load_image(b.object_name + "_lightmap", path, pack)
-                    error_path = path[:-len("_lightmap.exr")] + "_error.exr"
-                    write_error_exr(error_path, error_image_pixels(relative))
-                    error_image = load_image(b.object_name + "_error", error_path, pack)
-                    error_image[materials.TAG] = materials.ERROR_IMAGE_TAG
-                    error_images[b.object_name] = error_image
-                texels, above = self.texel_counts(b, lm, relative, target)
-                small = b.width * b.height <= 1024 * 1024
-                per_object[b.object_name] = dict(mesh_id=b.mesh_id,
-                                                 image=None if atlas_mode else images[b.object_name].name,
-                                                 path=path, size=(b.width, b.height), coverage=lm.coverage,
-                                                 rgb=lm.rgb if small else None,
-                                                 error=lm.error if small else None,
-                                                 error_image=None if atlas_mode else error_images[b.object_name].name,
-                                                 error_path=error_path,
-                                                 texels=texels, texels_above=above,
-                                                 error_above=above / texels if texels else 0.0)
+            # The EXRs are written on threads (the engine's calls release the GIL): a small
+            # object's two files cost about 0.8 ms each, which on a small scene is most of the
+            # write-back. At most a few objects' writes wait at a time (each holds its heat map's
+            # pixels). The images are loaded once all are written.
+            writes, paths = [], {}
+            workers = os.cpu_count() or 1
+            with concurrent.futures.ThreadPoolExecutor(max_workers=workers) as pool:
+                for b in self.export.baked:
+                    lm = result.lightmap(b.mesh_id)
+                    relative = relative_error(lm.rgb, lm.error)
+                    path = error_path = None
+                    if atlas_mode:  # written into atlas pages below
+                        atlas_blocks[b.object_name] = lm
+                    else:
+                        base = export.safe_file_name(b.object_name)
+                        fname = base + "_lightmap.exr"
+                        k = 1
+                        while fname.lower() in used_files:
+                            k += 1
+                            fname = "%s_%d_lightmap.exr" % (base, k)
+                        used_files.add(fname.lower())
+                        path = os.path.join(out_dir, fname)
+                        error_path = path[:-len("_lightmap.exr")] + "_error.exr"
+                        if len(writes) > 4 * workers:
+                            writes[len(writes) - 4 * workers - 1].result()
+                        writes.append(pool.submit(result.write_exr, b.mesh_id, path))
+                        writes.append(pool.submit(write_error_exr, error_path, error_image_pixels(relative)))
+                        paths[b.object_name] = (path, error_path)
+                    texels, above = self.texel_counts(b, lm, relative, target)
+                    small = b.width * b.height <= 1024 * 1024
+                    per_object[b.object_name] = dict(mesh_id=b.mesh_id, path=path, size=(b.width, b.height),
+                                                     coverage=lm.coverage, rgb=lm.rgb if small else None,
+                                                     error=lm.error if small else None, error_path=error_path,
+                                                     texels=texels, texels_above=above,
+                                                     error_above=above / texels if texels else 0.0)
+                for w in writes:
+                    w.result()  # the first failure, if any, as the call raised it
+            for name, (path, error_path) in paths.items():
+                images[name] = load_image(name + "_lightmap", path, pack)
+                error_image = load_image(name + "_error", error_path, pack)
+                error_image[materials.TAG] = materials.ERROR_IMAGE_TAG
+                error_images[name] = error_image
+            for name, o in per_object.items():
+                o["image"] = images[name].name if name in images else None
+                o["error_image"] = error_images[name].name if name in error_images else None
             stale = []
             if atlas_mode:
                 images, error_images, uv_maps, stale = atlas.store(context, self, atlas_blocks, out_dir, pack,
@@ -467,26 +480,9 @@ def error_image_pixels(relative):
 
 def write_error_exr(path, relative):
     """Write a (h, w) float32 array (row 0 = bottom) into R, G and B of an EXR of 16-bit floats (ZIP),
-    atomically. Half floats keep 3 significant digits: plenty for a heat map, a tenth of the size."""
-    h, w = relative.shape
-    tmp = path[:-4] + ".tmp.exr"
-    image = bpy.data.images.new("PhotonLM error (writing)", w, h, alpha=False, float_buffer=True)
-    settings_scene = bpy.data.scenes.new("PhotonLM error (writing)")  # its file settings, not the user's
-    try:
-        image.colorspace_settings.name = 'Non-Color'  # before the pixels: changing it regenerates them
-        px = np.ones((h, w, 4), np.float32)
-        px[..., :3] = relative[..., None]
-        image.pixels.foreach_set(px.ravel())
-        fmt = settings_scene.render.image_settings
-        fmt.file_format = 'OPEN_EXR'
-        fmt.color_mode = 'RGB'
-        fmt.color_depth = '16'
-        fmt.exr_codec = 'ZIP'
-        image.save_render(tmp, scene=settings_scene)  # EXR is written linear: no view transform
-    finally:
-        bpy.data.images.remove(image)
-        bpy.data.scenes.remove(settings_scene)
-    os.replace(tmp, path)
+    atomically, with the engine's writer (no bpy: it may run on a thread). Half floats keep 3
+    significant digits: plenty for a heat map, a tenth of the size."""
+    bridge.get().write_heat_map_exr(path, relative)
 
 
 def warning_lines(reports, notices, limit=20):

@@ -26,7 +26,8 @@ from ._lib import LibraryNotFoundError, library_path
 
 __all__ = ["version", "PhotonlmError", "BakeCancelled", "LibraryNotFoundError", "Scene", "Result", "Preview",
            "Lightmap", "OrientationLightmap", "library_path", "lsystem_flatten", "LSYSTEM_SHAPES",
-           "subdiv_refine", "default_settings", "part_info", "write_lightmap_exr", "read_lightmap_exr"]
+           "subdiv_refine", "default_settings", "part_info", "write_lightmap_exr", "write_heat_map_exr",
+           "read_lightmap_exr"]
 
 _C = _lib.lib
 _OK = 0
@@ -831,6 +832,16 @@ def write_lightmap_exr(path, rgb, error=None, hits=None):
         planes.append(a)
     _check(_C.plm_write_lightmap_exr(os.fsencode(os.fspath(path)), w, h, _ptr(rgb, ctypes.c_float),
                                      *(_ptr(a, ctypes.c_float) for a in planes)))
+
+
+def write_heat_map_exr(path, values):
+    """Write a (h, w) map of one value per texel (row 0 = bottom) as the R, G and B of an EXR of 16-bit
+    floats, atomically. The call releases the GIL: several can run at once on threads."""
+    values = np.ascontiguousarray(values, dtype=np.float32)
+    if values.ndim != 2:
+        raise ValueError("values must have shape (h, w), got %s" % (values.shape,))
+    h, w = values.shape
+    _check(_C.plm_write_heat_map_exr(os.fsencode(os.fspath(path)), w, h, _ptr(values, ctypes.c_float)))
 
 
 def read_lightmap_exr(path):

@@ -230,6 +230,7 @@ _SIGNATURES = {
                                             FloatPtr]),
     "plm_result_write_exr": (status_t, [ResultPtr, c_uint32, c_char_p]),
     "plm_write_lightmap_exr": (status_t, [c_char_p, c_uint32, c_uint32, FloatPtr, FloatPtr, FloatPtr]),
+    "plm_write_heat_map_exr": (status_t, [c_char_p, c_uint32, c_uint32, FloatPtr]),
     "plm_read_lightmap_exr": (status_t, [c_char_p, UInt32Ptr, UInt32Ptr, FloatPtr, FloatPtr, FloatPtr]),
     "plm_scene_add_ol_group": (status_t, [ScenePtr, c_char_p, c_uint32, UInt32Ptr]),
     "plm_scene_set_mesh_ol_group": (status_t, [ScenePtr, c_uint32, c_uint32]),

@@ -583,6 +583,12 @@ PLM_API plm_status plm_result_write_exr(const plm_result* result, uint32_t mesh_
 PLM_API plm_status plm_write_lightmap_exr(const char* path, uint32_t width, uint32_t height,
                                           const float* rgb, const float* error, const float* hits);
 
+/* A map of one value per texel (the add-on's heat map of relative errors)
+ * written as R = G = B in 16-bit floats (3 significant digits, half the
+ * size of floats), ZIP-compressed, rows bottom first, atomically. values
+ * holds width * height floats. */
+PLM_API plm_status plm_write_heat_map_exr(const char* path, uint32_t width, uint32_t height, const float* values);
+
 /* Reads an EXR written by plm_result_write_exr or plm_write_lightmap_exr into
  * caller-owned buffers. With rgb, error and hits all NULL only the size is
  * returned; otherwise *width and *height must hold the file's size (the call

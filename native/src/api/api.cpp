@@ -603,6 +603,20 @@ plm_status plm_write_lightmap_exr(const char* path, uint32_t width, uint32_t hei
   });
 }
 
+plm_status plm_write_heat_map_exr(const char* path, uint32_t width, uint32_t height, const float* values) {
+  return guarded("plm_write_heat_map_exr", [&] {
+    require(path, "plm_write_heat_map_exr", "path");
+    require(values, "plm_write_heat_map_exr", "values");
+    if (width == 0 || height == 0 || double(width) * double(height) > double(1u << 28))
+      plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_write_heat_map_exr: '", path, "': size ", width, " x ", height,
+                " is not between 1 x 1 and 2^28 texels");
+    const size_t n = size_t(width) * height;
+    std::vector<float> rgb(3 * n);
+    for (size_t t = 0; t < n; ++t) rgb[3 * t] = rgb[3 * t + 1] = rgb[3 * t + 2] = values[t];
+    plm::write_exr_atomic(path, width, height, {"R", "G", "B"}, rgb.data(), true);
+  });
+}
+
 plm_status plm_read_lightmap_exr(const char* path, uint32_t* width, uint32_t* height, float* rgb, float* error,
                                  float* hits) {
   return guarded("plm_read_lightmap_exr", [&] {

@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <Imath/half.h>
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
@@ -204,7 +205,7 @@ void image_file_size(const std::string& path, const std::string& owner, const ch
 }
 
 void write_exr_atomic(const std::string& path, uint32_t width, uint32_t height,
-                      const std::vector<std::string>& channel_names, const float* pixels) {
+                      const std::vector<std::string>& channel_names, const float* pixels, bool half) {
   if (path.empty()) fail(PLM_ERROR_INVALID_ARGUMENT, "EXR path is empty");
   static std::atomic<uint64_t> counter{0};
   const std::string tmp = path + ".tmp-" + std::to_string(::getpid()) + "-" + std::to_string(counter++);
@@ -220,10 +221,17 @@ void write_exr_atomic(const std::string& path, uint32_t width, uint32_t height,
       std::memcpy(&top_first[y * row], pixels + (size_t(height) - 1 - y) * row, row * sizeof(float));
     Imf::FrameBuffer fb;
     char* base = reinterpret_cast<char*>(top_first.data());
+    std::vector<Imath::half> halves;
+    size_t size = sizeof(float);
+    if (half) {
+      halves.assign(top_first.begin(), top_first.end());
+      base = reinterpret_cast<char*>(halves.data());
+      size = sizeof(Imath::half);
+    }
+    const Imf::PixelType type = half ? Imf::HALF : Imf::FLOAT;
     for (size_t c = 0; c < nc; ++c) {
-      header.channels().insert(channel_names[c], Imf::Channel(Imf::FLOAT));
-      fb.insert(channel_names[c], Imf::Slice(Imf::FLOAT, base + c * sizeof(float), nc * sizeof(float),
-                                             row * sizeof(float)));
+      header.channels().insert(channel_names[c], Imf::Channel(type));
+      fb.insert(channel_names[c], Imf::Slice(type, base + c * size, nc * size, row * size));
     }
     // Blocks of scanlines are compressed in parallel on OpenEXR's own pool:
     // zlib is most of a large lightmap's write. A host that set the pool up

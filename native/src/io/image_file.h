@@ -33,9 +33,9 @@ void image_file_size(const std::string& path, const std::string& owner, const ch
 // temporary file in the target folder, renamed over the target once complete;
 // a failed write leaves no file behind. pixels: width * height *
 // channel_names.size() floats, rows bottom first (UV order); the file gets rows
-// top first. Throws plm::Error (PLM_ERROR_IO) on failure.
+// top first; half: channels of 16-bit floats. Throws plm::Error (PLM_ERROR_IO) on failure.
 void write_exr_atomic(const std::string& path, uint32_t width, uint32_t height,
-                      const std::vector<std::string>& channel_names, const float* pixels);
+                      const std::vector<std::string>& channel_names, const float* pixels, bool half = false);
 
 // R, G, B from rgb (3 floats per pixel) and one more channel per plane
 // (width * height floats each, named `names`), interleaved into one image and
