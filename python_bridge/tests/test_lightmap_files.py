@@ -40,6 +40,19 @@ def test_reads_a_baked_lightmap_file(tmp_path):
     assert np.array_equal(got.hits, want.hits) and want.rgb.max() > 0
 
 
+def test_heat_map_round_trip(tmp_path):
+    """A heat map: one value a texel, read back as the R, G and B of 16-bit floats."""
+    values = np.linspace(0.001, 3.0, 35, dtype=np.float32).reshape(5, 7)
+    path = tmp_path / "floor_error.exr"
+    photonlm.write_heat_map_exr(path, values)
+    got = photonlm.read_lightmap_exr(path)
+    assert got.rgb.shape == (5, 7, 3)
+    assert np.allclose(got.rgb[..., 0], values, rtol=5e-4)
+    assert np.array_equal(got.rgb[..., 0], got.rgb[..., 1]) and np.array_equal(got.rgb[..., 0], got.rgb[..., 2])
+    with pytest.raises(ValueError, match="values must have shape"):
+        photonlm.write_heat_map_exr(path, np.zeros((4, 4, 3), np.float32))
+
+
 def test_bad_input_is_refused(tmp_path):
     with pytest.raises(ValueError, match="rgb must have shape"):
         photonlm.write_lightmap_exr(tmp_path / "x.exr", np.zeros((4, 4), np.float32))
