@@ -10,6 +10,7 @@ Scenes (same objects, same fixed texel-aligned lightmap UVs for both bakers):
   interior  a closed 4 x 4 x 2.5 m room with a window hole; sun and sky outside (mostly indirect)
   open_sky  the open scene under a Nishita sky with its sun disc (not in the default --scenes)
   open_sphere  the open scene with a smooth-shaded sphere resting on the ground (not in the default)
+  open_sphere_fine  the same with 4x the texels a side (256 x 256 maps, 0.03125 m texels; not in the default)
 
 Reference: Cycles DIFFUSE bake, pass filter DIRECT + INDIRECT (no COLOR: irradiance / pi),
 32 bounces, no clamping, box pixel filter, as two independent halves (seeds 1 and 2) averaged.
@@ -64,18 +65,19 @@ def _rect_quad(origin, u_axis, v_axis, u_len, v_len, uv0, texel, res):
     return tuple(tuple(p) for p in pts) + ((i / res, j / res, (i + nu) / res, (j + nv) / res),)
 
 
-def build_open():
+def build_open(density=1):
     """Sun (strength 4, 45 degrees up) and a uniform sky over an 8 x 8 m ground with three boxes.
-    Uniform texel size 0.125 m: ground 64 x 64, boxes 64 x 64 maps (partly used)."""
-    T = 0.125
+    Uniform texel size 0.125 m / density: ground 64 x 64, boxes 64 x 64 maps (partly used), each
+    x density."""
+    T, R = 0.125 / density, 64 * density
     mat = scenes.diffuse_material
-    objs = [scenes.plane("ground", mat("mat_ground", (0.35, 0.42, 0.30)), size=8.0, resolution=64)]
+    objs = [scenes.plane("ground", mat("mat_ground", (0.35, 0.42, 0.30)), size=8.0, resolution=R)]
     boxes = [("box_a", (-1.5, -1.0), 0.5, 0.5, 1.0, 20, (0.8, 0.8, 0.8)),
              ("box_b", (1.25, 0.0), 0.75, 0.5, 0.75, -10, (0.7, 0.3, 0.2)),
              ("box_c", (-0.25, 1.75), 0.5, 0.5, 2.0, 45, (0.45, 0.5, 0.7))]
     for name, c, hx, hy, h, ang, alb in boxes:
-        objs.append(scenes.quads_object(name, scenes.box_quads(c, hx, hy, h, math.radians(ang), T, 64),
-                                        mat("mat_" + name, alb), 64))
+        objs.append(scenes.quads_object(name, scenes.box_quads(c, hx, hy, h, math.radians(ang), T, R),
+                                        mat("mat_" + name, alb), R))
     scenes.add_light("sun", 'SUN', (0, 0, 10), rotation=(math.radians(45), 0, math.radians(30)),
                      energy=4.0, angle=math.radians(1.0))
     scenes.set_world_color((0.30, 0.40, 0.60), 1.0)
@@ -143,11 +145,11 @@ def build_open_sky():
     return objs, "Nishita sky with its sun disc (35 deg up), ground albedo ~0.36, three boxes"
 
 
-def build_open_sphere():
+def build_open_sphere(density=1):
     """The open scene with a smooth-shaded UV sphere (radius 0.75 m, 48 x 24) resting on the ground:
     a curved object whose shading normals both bakers interpolate. Its lightmap UVs are the
-    sphere's own latitude-longitude map (no overlaps), 64 x 64."""
-    objs, _ = build_open()
+    sphere's own latitude-longitude map (no overlaps), 64 x 64 (x density, as every map)."""
+    objs, _ = build_open(density)
     bpy.ops.mesh.primitive_uv_sphere_add(segments=48, ring_count=24, radius=0.75, location=(2.0, -2.0, 0.75))
     ball = bpy.context.active_object
     ball.name = "sphere"
@@ -157,13 +159,14 @@ def build_open_sphere():
     mesh.uv_layers["UVMap"].data.foreach_get("uv", uv)
     mesh.uv_layers.new(name="lightmap").data.foreach_set("uv", uv)
     mesh.materials.append(scenes.diffuse_material("mat_sphere", (0.7, 0.7, 0.7)))
-    ball.photonlm.resolution = 64
+    ball.photonlm.resolution = 64 * density
     return objs + [ball], ("sun 4 W/m^2 at 45 deg + sky (0.3, 0.4, 0.6), ground albedo ~0.36, three boxes "
-                           "and a smooth sphere (r 0.75 m, 48 x 24)")
+                           "and a smooth sphere (r 0.75 m, 48 x 24)" + (", %dx the texels a side" % density
+                                                                         if density > 1 else ""))
 
 
 SCENES = {"cornell": build_cornell, "open": build_open, "interior": build_interior, "open_sky": build_open_sky,
-          "open_sphere": build_open_sphere}
+          "open_sphere": build_open_sphere, "open_sphere_fine": lambda: build_open_sphere(density=4)}
 
 
 # ---- bakes ---------------------------------------------------------------------------------------

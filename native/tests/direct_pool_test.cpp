@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <vector>
@@ -45,11 +46,12 @@ struct Direct {
   DirectResult result;
   TexelSpace space;
 };
-Direct direct_pass(SceneBuilder& b, uint32_t samples, uint32_t seed) {
+Direct direct_pass(SceneBuilder& b, uint32_t samples, uint32_t seed, double target = 0.0) {
   const Scene& scene = b.scene->scene;
   plm_bake_settings s = default_settings();
   s.direct_samples = samples;
   s.seed = seed;
+  s.target_error = target;
   s.thread_count = 2;
   std::vector<std::string> warnings;
   Direct d;
@@ -94,6 +96,31 @@ TEST(DirectPool, SkyLightPooledIsCloserToTheTruthUnbiasedAndHonest) {
   EXPECT_NEAR(sum_pooled / sum_ref, 1.0, 0.003);
   EXPECT_GT(err_reported, 0.7 * err_pooled);
   EXPECT_LT(err_reported, 2.5 * err_pooled);  // conservative: the phantom sample (2.0x here)
+}
+
+// A loose target's probe (DirectSchedule::probe): under 8 % the open
+// scene's round 0 of 8 samples a texel meets the direct share and is kept;
+// under 4 % without the sun (the sky alone: its occluded share is all the
+// light near the box) it does not, and round 0 runs again with 16 (the
+// dropped probe counted in the samples traced).
+TEST(DirectPool, LooseTargetProbeIsKeptOrDropped) {
+  for (const double target : {0.08, 0.04}) {
+    SCOPED_TRACE(target);
+    SceneBuilder b;
+    open_scene(b, target > 0.05, true);
+    ASSERT_TRUE(b.ok()) << b.error;
+    const Direct d = direct_pass(b, 64, 1, target);
+    uint64_t in_sums = 0;
+    uint32_t least = ~0u;
+    for (const DirectSums& s : d.result.sums) in_sums += s.count, least = std::min(least, s.count);
+    if (target > 0.05) {
+      EXPECT_EQ(least, 9u);  // 8 rounded up to a square
+      EXPECT_EQ(d.result.samples, in_sums);
+    } else {
+      EXPECT_GE(least, 16u);
+      EXPECT_GT(d.result.samples, in_sums);  // the probe's samples, dropped
+    }
+  }
 }
 
 // Without a world, behind portals and in lightmaps too small to choose a

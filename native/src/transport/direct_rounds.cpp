@@ -123,7 +123,11 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
   const uint32_t rounds = DirectSchedule::kMaxRounds;
   std::vector<uint32_t> todo(direct.size());
   for (uint32_t i = 0; i < todo.size(); ++i) todo[i] = i;
-  std::vector<uint32_t> want(direct.size(), schedule.first());
+  // A loose target's round 0 first runs as a probe (DirectSchedule::probe):
+  // kept if it meets the target, dropped if not.
+  bool probing = schedule.probe() > 0;
+  uint64_t dropped = 0;
+  std::vector<uint32_t> want(direct.size(), probing ? schedule.probe() : schedule.first());
   std::vector<DirectTexelNoise> noise(direct.size());
   const bool whole = slice.begin == 0 && slice.end == covered.size();
   const WholeEstimate aim =
@@ -148,7 +152,8 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
     mean /= double(std::max<size_t>(direct.size(), 1));
     out.noise.typical = typical_sample(direct);
     if (round == 0 && settings.sampler != PLM_SAMPLER_RANDOM) {
-      out.calibration = calibrate_direct(arena, pass, covered, slice.begin, direct, schedule.first());
+      out.calibration = calibrate_direct(arena, pass, covered, slice.begin, direct,
+                                         probing ? schedule.probe() : schedule.first());
       calibrate(out.calibration, out.noise);
     }
     out.rounds = round + 1;
@@ -160,10 +165,22 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
       const DirectSums& d = direct[i];
       noise[i] = {d.count, out.values.variance[i], out.values.phantom[i]};
     }
-    todo = schedule.next_round(round, aim.mean >= 0.0 ? aim.mean : mean, noise, want);
+    const double aim_mean = aim.mean >= 0.0 ? aim.mean : mean;
+    if (probing) {
+      probing = false;
+      if (schedule.refines(aim_mean, noise) && !control.stop()) {  // round 0 again, with first() samples
+        for (DirectSums& d : direct) dropped += d.count, d = DirectSums();
+        out.calibration.clear();
+        std::fill(want.begin(), want.end(), schedule.first());
+        --round;  // the loop's ++round runs round 0 again
+        continue;
+      }
+    }
+    todo = schedule.next_round(round, aim_mean, noise, want);
     if (control.round_done) control.round_done(round, out);
     if (control.stop()) break;
   }
+  out.samples = dropped;  // a dropped probe's samples were traced too
   for (const DirectSums& d : direct) out.samples += d.count;
   return out;
 }

@@ -43,7 +43,17 @@ uint32_t gather_samples(double target_error, uint32_t gathers_before) {
 DirectSchedule::DirectSchedule(double target_error, uint32_t direct_samples)
     : target_(target_error),
       direct_samples_(direct_samples),
-      first_(target_error > 0.0 ? std::min(direct_samples, kFirstTargetSamples) : direct_samples) {}
+      first_(target_error > 0.0 ? std::min(direct_samples, kFirstTargetSamples) : direct_samples),
+      probe_(loose_share(target_error) <= kLeastShare ? kLeastProbeSamples : 0) {
+  if (probe_ >= first_) probe_ = 0;
+}
+
+bool DirectSchedule::refines(double mean, const std::vector<DirectTexelNoise>& texels) const {
+  double mean_var = 0.0;
+  for (const DirectTexelNoise& d : texels) mean_var += d.variance;
+  mean_var /= double(std::max<size_t>(texels.size(), 1));
+  return target_ > 0.0 && std::sqrt(mean_var) > kDirectShareOfTarget * target_ * mean;
+}
 
 std::vector<uint32_t> DirectSchedule::next_round(uint32_t round, double mean,
                                                  const std::vector<DirectTexelNoise>& texels,
