@@ -19,8 +19,12 @@ def main(src, dst):
     with open(src) as f:
         data = json.load(f)
     scenes = data["scenes"]
-    fig, axes = plt.subplots(1, len(scenes), figsize=(5.2 * len(scenes), 4.6), squeeze=False)
-    for ax, (name, r) in zip(axes[0], scenes.items()):
+    cols = min(3, len(scenes))
+    rows = (len(scenes) + cols - 1) // cols
+    fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 4.6 * rows), squeeze=False)
+    for ax in axes.flat[len(scenes):]:
+        ax.set_visible(False)
+    for ax, (name, r) in zip(axes.flat, scenes.items()):
         extra_legend = False
         series = [("cycles", "default", "tab:blue", "o", "Cycles"),
                   ("cycles", "no portal", "tab:cyan", "^", "Cycles without portal"),

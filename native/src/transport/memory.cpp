@@ -11,11 +11,12 @@ namespace plm {
 namespace {
 
 // Measured with `/usr/bin/time -v photonlm bake` on quads of 1024^2 and 2048^2
-// texels, wholly and half covered, and meshes of 0.5 M triangles: about 240
-// bytes for every texel of a lightmap (areas, sums, estimates, images), 160
-// more for each covered one (direct and gather sums), 300 per triangle (the
-// mesh, Embree's BVH, the hit tables) and 64 MB besides.
-constexpr uint64_t kBytesPerTexel = 240, kBytesPerCoveredTexel = 160, kBytesPerTriangle = 300;
+// texels under a sun and a sky, wholly and half covered, and meshes of 0.5 M
+// triangles: about 225 bytes for every texel of a lightmap (areas, sums,
+// estimates, images), 210 more for each covered one (direct and gather sums,
+// the direct values and the sky light's fits), 300 per triangle (the mesh,
+// Embree's BVH, the hit tables) and 64 MB besides.
+constexpr uint64_t kBytesPerTexel = 225, kBytesPerCoveredTexel = 210, kBytesPerTriangle = 300;
 constexpr uint64_t kBaseBytes = uint64_t(64) << 20;
 // Scenes with specular lobes keep the caustic photons' sums apart (film.h):
 // 3 + 1 doubles and a count per texel.
