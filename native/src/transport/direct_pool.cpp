@@ -10,7 +10,6 @@
 namespace plm {
 namespace {
 
-
 bool split(const DirectSums& d) { return d.sky_rays > 0 && d.paired > 0 && d.count > 0; }
 
 // A split texel's variances of the mean: the world's part and the rest from
@@ -93,8 +92,9 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
     // calibration for all). Radius 0 keeps the own means, exact in mean. Each
     // pooled texel's variance takes the squared bias of its radius.
     static_assert(kSkyRadius == 2, "the bias estimate compares the fits of radius 1 and 2");
-    reconstruct_linear(ta, w, h, m.sky3.data(), m.var.data(), m.guide.data(), 1, fit1, var1, m.radius.data(), kSkyMinCos);
-    reconstruct_linear(ta, w, h, m.sky3.data(), m.var.data(), m.guide.data(), 2, fit2, var2, m.radius.data(), kSkyMinCos);
+    const double* sky3 = m.sky3.data();
+    reconstruct_linear(ta, w, h, sky3, m.var.data(), m.guide.data(), 1, fit1, var1, m.radius.data(), kSkyMinCos);
+    reconstruct_linear(ta, w, h, sky3, m.var.data(), m.guide.data(), 2, fit2, var2, m.radius.data(), kSkyMinCos);
     double var0_sum = 0.0, var1_sum = 0.0, var2_sum = 0.0, excess = 0.0;
     size_t reach1 = 0, reach2 = 0;  // texels whose reach allows radius 1, 2
     for (size_t t = 0; t < n; ++t) {
@@ -117,7 +117,7 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
     if (best_r == 0) continue;
     const std::vector<double>& best3 = best_r == 1 ? fit1 : fit2;
     const std::vector<double>& best_var = best_r == 1 ? var1 : var2;
-    reconstruct_linear(ta, w, h, m.sky3.data(), m.phantom.data(), m.guide.data(), best_r, ignored, best_phantom,
+    reconstruct_linear(ta, w, h, sky3, m.phantom.data(), m.guide.data(), best_r, ignored, best_phantom,
                        m.radius.data(), kSkyMinCos);
     for (size_t t = 0, k = k0; t < n; ++t) {
       if (!(ta.area[t] > 0.0)) continue;
@@ -131,7 +131,8 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
       for (int c = 0; c < 3; ++c)
         value[c] = std::max(0.0, (d.rgb[c] - double(d.sky_rgb[c])) / d.count) + std::max(0.0, best3[3 * t + c]);
       out.phantom[kk - first] = best_phantom[t];
-      out.variance[kk - first] = v.other + best_var[t] + best_phantom[t] + bias[std::min<uint32_t>(m.radius[t], best_r)];
+      const double bias_sq = bias[std::min<uint32_t>(m.radius[t], best_r)];
+      out.variance[kk - first] = v.other + best_var[t] + best_phantom[t] + bias_sq;
     }
   }
   return out;
