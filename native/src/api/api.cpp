@@ -180,6 +180,13 @@ std::vector<std::string> part_list(const char* fn, const char* const* part_paths
   return paths;
 }
 
+// A caller's image to write: between 1 x 1 and 2^28 texels.
+void require_image_size(const char* function, const char* path, uint32_t width, uint32_t height) {
+  if (width == 0 || height == 0 || double(width) * double(height) > double(1u << 28))
+    plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": '", path, "': size ", width, " x ", height,
+              " is not between 1 x 1 and 2^28 texels");
+}
+
 }  // namespace
 
 extern "C" {
@@ -594,9 +601,7 @@ plm_status plm_write_lightmap_exr(const char* path, uint32_t width, uint32_t hei
   return guarded("plm_write_lightmap_exr", [&] {
     require(path, "plm_write_lightmap_exr", "path");
     require(rgb, "plm_write_lightmap_exr", "rgb");
-    if (width == 0 || height == 0 || double(width) * double(height) > double(1u << 28))
-      plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_write_lightmap_exr: '", path, "': size ", width, " x ", height,
-                " is not between 1 x 1 and 2^28 texels");
+    require_image_size("plm_write_lightmap_exr", path, width, height);
     const std::vector<float> zeros(error && hits ? 0 : size_t(width) * height, 0.0f);
     plm::write_rgb_exr_atomic(path, width, height, rgb, {"error", "hits"},
                               {error ? error : zeros.data(), hits ? hits : zeros.data()});
@@ -607,9 +612,7 @@ plm_status plm_write_heat_map_exr(const char* path, uint32_t width, uint32_t hei
   return guarded("plm_write_heat_map_exr", [&] {
     require(path, "plm_write_heat_map_exr", "path");
     require(values, "plm_write_heat_map_exr", "values");
-    if (width == 0 || height == 0 || double(width) * double(height) > double(1u << 28))
-      plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_write_heat_map_exr: '", path, "': size ", width, " x ", height,
-                " is not between 1 x 1 and 2^28 texels");
+    require_image_size("plm_write_heat_map_exr", path, width, height);
     const size_t n = size_t(width) * height;
     std::vector<float> rgb(3 * n);
     for (size_t t = 0; t < n; ++t) rgb[3 * t] = rgb[3 * t + 1] = rgb[3 * t + 2] = values[t];
