@@ -1,5 +1,7 @@
 #include "transport/direct_pool.h"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -49,10 +51,12 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
     out.variance[j] = d.variance_of_mean(noise);
     out.phantom[j] = d.phantom_variance_of_mean(noise);
   }
-  SkyMap m;
-  std::vector<double> fit1, var1, fit2, var2, best_phantom, ignored;
-  for (size_t i = 0; i < space.views.size(); ++i) {
-    if (!space.views[i].texel_area) continue;
+  // Lightmaps in parallel (each writes its own texels; its fits run in
+  // parallel too), so that many small ones keep every core busy.
+  tbb::parallel_for(size_t(0), space.views.size(), [&](size_t i) {
+    if (!space.views[i].texel_area) return;
+    SkyMap m;
+    std::vector<double> fit1, var1, fit2, var2, best_phantom, ignored;
     const TexelAreas& ta = space.areas[i];
     const size_t n = ta.area.size(), k0 = space.covered_begin[i];
     m.sky3.assign(3 * n, 0.0);
@@ -79,7 +83,7 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
       m.radius[t] = uint8_t(std::min(double(kSkyRadius), std::floor(reach / std::max(width, 1e-30))));
       ++m.pooled;
     }
-    if (m.pooled < kMinPooledTexels) continue;
+    if (m.pooled < kMinPooledTexels) return;
     const uint32_t w = space.views[i].mesh->lightmap_width, h = space.views[i].mesh->lightmap_height;
     // The radius with the least estimated mean squared error over the
     // lightmap's split texels: a fit's variance plus its squared bias. The
@@ -107,14 +111,14 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
                         fit1[3 * t + 2]) / 3.0;
       excess += d * d - std::max(0.0, var1[t] - var2[t]);
     }
-    if (reach2 < kMinPooledTexels / 4) continue;  // too few texels to estimate the bias by
+    if (reach2 < kMinPooledTexels / 4) return;  // too few texels to estimate the bias by
     const double count = double(m.pooled);
     const double bias1 = std::max(0.0, excess / double(reach2)) / 9.0;  // (4/3)^2 / 16 of the mean excess
     const double bias[3] = {0.0, bias1, 16.0 * bias1};
     const double mse[3] = {var0_sum / count, (var1_sum + double(reach1) * bias[1]) / count,
                            (var2_sum + double(reach2) * bias[2] + double(reach1 - reach2) * bias[1]) / count};
     const uint32_t best_r = uint32_t(std::min_element(mse, mse + 3) - mse);
-    if (best_r == 0) continue;
+    if (best_r == 0) return;
     const std::vector<double>& best3 = best_r == 1 ? fit1 : fit2;
     const std::vector<double>& best_var = best_r == 1 ? var1 : var2;
     reconstruct_linear(ta, w, h, sky3, m.phantom.data(), m.guide.data(), best_r, ignored, best_phantom,
@@ -134,7 +138,7 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
       const double bias_sq = bias[std::min<uint32_t>(m.radius[t], best_r)];
       out.variance[kk - first] = v.other + best_var[t] + best_phantom[t] + bias_sq;
     }
-  }
+  });
   return out;
 }
 
