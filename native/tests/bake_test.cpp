@@ -281,12 +281,8 @@ TEST(Bake, SeveralLightsAddUpWhateverTheLightChoice) {
     for (int k = 0; k + 1 < count; ++k)
       points.push_back({-3.0 + 1.7 * (k % 4), -2.0 + 1.3 * (k / 4), 1.0 + 0.5 * (k % 3), 200.0 * (1 + k % 5)});
     add_point_lights(b, points);
-    plm_light sun;
-    plm_light_default(&sun, PLM_LIGHT_SUN);
-    sun.power = 3.0f;
+    plm_light sun = plm_test::tilted_sun(3.0f, float(M_PI / 3.0));  // 60 degrees from the zenith: irradiance 1.5
     sun.angle = 0.0f;
-    const float a = float(M_PI / 3.0);  // 60 degrees from the zenith: irradiance 1.5
-    sun.matrix[5] = std::cos(a), sun.matrix[6] = -std::sin(a), sun.matrix[9] = std::sin(a), sun.matrix[10] = std::cos(a);
     b.light(sun, "sun");
     auto exact = [&](double x, double y) { return (1.5 + point_irradiance(points, x, y)) / M_PI; };
     Baked r;
@@ -364,15 +360,8 @@ TEST(Bake, ShadowEdgeInsideATexel) {
 }
 
 TEST(Bake, SunOverPlaneIsStrengthCosineOverPi) {
-  plm_light l;
-  plm_light_default(&l, PLM_LIGHT_SUN);
-  l.power = 3.0f;
-  // Tilt the sun 60 degrees from the zenith about the x axis (shines along -Z of its frame).
-  const float a = float(M_PI / 3.0);
-  l.matrix[5] = std::cos(a);
-  l.matrix[6] = -std::sin(a);
-  l.matrix[9] = std::sin(a);
-  l.matrix[10] = std::cos(a);
+  // The sun 60 degrees from the zenith (shines along -Z of its frame).
+  const plm_light l = plm_test::tilted_sun(3.0f, float(M_PI / 3.0));
   const Lightmap lm = lit_plane(l, 8, 1000000);
   const double exact = 3.0 * 0.5 / M_PI;
   for (size_t t = 0; t < lm.coverage.size(); ++t) EXPECT_NEAR(lm.value(t), exact, 0.03 * exact) << "texel " << t;

@@ -47,14 +47,8 @@ TEST(Footprint, BoxPointsCoverItsProjectedAreaUniformly) {
 }
 
 plm_light sun_at(float angle, float power) {
-  plm_light sun;
-  plm_light_default(&sun, PLM_LIGHT_SUN);
-  sun.power = power;
+  plm_light sun = plm_test::tilted_sun(power, angle);  // travels along (0, sin a, -cos a)
   sun.angle = 0.0f;
-  sun.matrix[5] = std::cos(angle);  // travels along (0, sin a, -cos a)
-  sun.matrix[6] = -std::sin(angle);
-  sun.matrix[9] = std::sin(angle);
-  sun.matrix[10] = std::cos(angle);
   return sun;
 }
 

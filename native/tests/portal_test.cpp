@@ -136,15 +136,8 @@ TEST(Portal, SunThroughAPortalKeepsItsFlux) {
     build_room(b);
     if (portal == 1) add_portal(b, -0.5f, 0.5f);
     if (portal == 2) add_portal(b, -0.5f, 0.0f);
-    plm_light sun;
-    plm_light_default(&sun, PLM_LIGHT_SUN);
-    sun.power = 2.0f;
     const float a = float(M_PI / 9.0);
-    sun.matrix[5] = std::cos(a);
-    sun.matrix[6] = -std::sin(a);
-    sun.matrix[9] = std::sin(a);
-    sun.matrix[10] = std::cos(a);
-    b.light(sun, "sun");
+    b.light(plm_test::tilted_sun(2.0f, a), "sun");
     plm_test::BakeResult r;
     const plm_bake_settings s = sky_settings(200000, 0);
     ASSERT_TRUE(b.ok()) << b.error;

@@ -25,11 +25,8 @@ plm_bake_settings settings(uint64_t photons, uint32_t max_bounces, uint32_t dire
 
 // A sun of strength `power` whose light travels along (0, sin a, -cos a).
 plm_light sun(float power, float a) {
-  plm_light l;
-  plm_light_default(&l, PLM_LIGHT_SUN);
-  l.power = power;
+  plm_light l = plm_test::tilted_sun(power, a);
   l.angle = 0.0f;
-  l.matrix[5] = std::cos(a), l.matrix[6] = -std::sin(a), l.matrix[9] = std::sin(a), l.matrix[10] = std::cos(a);
   return l;
 }
 

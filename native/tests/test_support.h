@@ -61,6 +61,19 @@ struct BakeResult {
   }
 };
 
+// A sun of strength `power` (W/m^2) tilted `a` radians from the zenith about
+// the x axis: its light travels along (0, sin a, -cos a).
+inline plm_light tilted_sun(float power, float a) {
+  plm_light l;
+  plm_light_default(&l, PLM_LIGHT_SUN);
+  l.power = power;
+  l.matrix[5] = std::cos(a);
+  l.matrix[6] = -std::sin(a);
+  l.matrix[9] = std::sin(a);
+  l.matrix[10] = std::cos(a);
+  return l;
+}
+
 // An open sunlit scene: an 8 x 8 m ground (ground_res texels a side) with a
 // 1 x 1 x 1.5 m box on it turned 0.35 rad (a 3 x 2 atlas of 8 x 8 texel
 // faces), a sun 45 degrees from the zenith (4 W/m^2) and a sky (0.3, 0.4, 0.6).
@@ -70,17 +83,7 @@ void open_scene(Builder& b, bool sun = true, bool sky = true, uint32_t ground_re
   const uint32_t white = b.material("box", {0.8f, 0.8f, 0.8f});
   b.quad("ground", {-4, -4, 0}, {8, 0, 0}, {0, 8, 0}, ground, ground_res);
   b.box("box", {0, 0, 0.75f}, {1.0f, 1.0f, 1.5f}, 0.35f, white, 8);
-  if (sun) {
-    plm_light l;
-    plm_light_default(&l, PLM_LIGHT_SUN);
-    l.power = 4.0f;
-    const float a = float(M_PI / 4.0);
-    l.matrix[5] = std::cos(a);
-    l.matrix[6] = -std::sin(a);
-    l.matrix[9] = std::sin(a);
-    l.matrix[10] = std::cos(a);
-    b.light(l, "sun");
-  }
+  if (sun) b.light(tilted_sun(4.0f, float(M_PI / 4.0)), "sun");
   if (sky) {
     const float radiance[3] = {0.3f, 0.4f, 0.6f};
     EXPECT_EQ(plm_scene_set_world(b.scene, radiance), PLM_OK);
