@@ -14,18 +14,6 @@ namespace {
 
 bool split(const DirectSums& d) { return d.sky_rays > 0 && d.paired > 0 && d.count > 0; }
 
-// A split texel's variances of the mean: the world's part and the rest from
-// their own pairs (the light choice's spread goes with the rest), each scaled
-// by its own calibration, and the phantom sample's part.
-struct SplitVariance {
-  double sky, other, phantom;
-};
-SplitVariance split_variance(const DirectSums& d, const DirectNoise& noise) {
-  const double n = double(d.count), m = d.mean();
-  return {noise.sky_scale * d.sky_pair_variance_of_mean(), noise.other_scale * d.other_pair_variance_of_mean(),
-          noise.scale * (noise.typical - m) * (noise.typical - m) / (n * n)};
-}
-
 // One lightmap's texels (t, mesh-local) in the slice with split samples:
 // sky3 their world part's mean, var their pair variance of it, phantom their
 // phantom sample's variance, guide their direct mean (-1 for the others, which
@@ -71,10 +59,11 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
       const size_t kk = k++;
       if (kk < first || kk >= end || !split(sums[kk - first])) continue;
       const DirectSums& d = sums[kk - first];
-      const SplitVariance v = split_variance(d, noise);
       for (int c = 0; c < 3; ++c) m.sky3[3 * t + c] = double(d.sky_rgb[c]) / d.count;
-      m.var[t] = v.sky;
-      m.phantom[t] = v.phantom;
+      // A split texel's world part and rest each have their own pairs and
+      // calibration (the light choice's spread goes with the rest).
+      m.var[t] = noise.sky_scale * d.sky_pair_variance_of_mean();
+      m.phantom[t] = out.phantom[kk - first];
       m.guide[t] = d.mean();
       // Ambient occlusion changes over about the distance to what blocks the
       // sky: the harmonic mean of the blocked rays' distances.
@@ -128,7 +117,6 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
       const size_t kk = k++;
       if (m.guide[t] < 0.0) continue;
       const DirectSums& d = sums[kk - first];
-      const SplitVariance v = split_variance(d, noise);
       double* value = &out.value3[3 * (kk - first)];
       // Light is not negative: a linear fit can dip below 0 where the sky
       // falls steeply (at a contact), the rest by float rounding where it is 0.
@@ -136,7 +124,8 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
         value[c] = std::max(0.0, (d.rgb[c] - double(d.sky_rgb[c])) / d.count) + std::max(0.0, best3[3 * t + c]);
       out.phantom[kk - first] = best_phantom[t];
       const double bias_sq = bias[std::min<uint32_t>(m.radius[t], best_r)];
-      out.variance[kk - first] = v.other + best_var[t] + best_phantom[t] + bias_sq;
+      out.variance[kk - first] =
+          noise.other_scale * d.other_pair_variance_of_mean() + best_var[t] + best_phantom[t] + bias_sq;
     }
   });
   return out;
