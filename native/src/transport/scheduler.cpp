@@ -51,8 +51,7 @@ DirectSchedule::DirectSchedule(double target_error, uint32_t direct_samples)
 bool DirectSchedule::refines(double mean, const std::vector<DirectTexelNoise>& texels) const {
   double mean_var = 0.0;
   for (const DirectTexelNoise& d : texels) mean_var += d.variance;
-  mean_var /= double(std::max<size_t>(texels.size(), 1));
-  return target_ > 0.0 && std::sqrt(mean_var) > kDirectShareOfTarget * target_ * mean;
+  return above_share(mean, mean_var / double(std::max<size_t>(texels.size(), 1)));
 }
 
 std::vector<uint32_t> DirectSchedule::next_round(uint32_t round, double mean,
@@ -72,7 +71,7 @@ std::vector<uint32_t> DirectSchedule::next_round(uint32_t round, double mean,
   mean_var /= count;
   phantom_var /= count;
   const double allowed = kDirectShareOfTarget * target_ * mean;
-  const bool refine = target_ > 0.0 && std::sqrt(mean_var) > allowed;
+  const bool refine = above_share(mean, mean_var);
   // Far from the target a round aims at twice the allowed variance (the rest
   // is left to the next round's new estimate).
   const double aim = mean_var > 4.0 * allowed * allowed ? 2.0 : 1.0;

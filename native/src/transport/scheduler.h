@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <vector>
@@ -199,8 +200,8 @@ struct DirectTexelNoise {
 // How many direct samples each texel gets in each round. Round 0 gives every
 // texel direct_samples (with a target at most kFirstTargetSamples: loose
 // targets keep them, since the calibration of the variance estimate depends on
-// the count -- Sobol pairs of 8 samples overstate their variance 0.74x, of 16
-// samples 0.39x on the 21-monkey courtyard -- and a first round of 8 took it
+// the count -- Sobol pairs of 8 samples overstate their variance 1.35x, of 16
+// samples 2.6x on the 21-monkey courtyard -- and a first round of 8 took it
 // 2.2x the samples to 3 %). Then, with
 // a target, while the direct part's RMS error is above kDirectShareOfTarget x
 // target (the rest is the photons'), each texel gets its share of the fewest
@@ -250,6 +251,11 @@ class DirectSchedule {
                                    std::vector<uint32_t>& want) const;
 
  private:
+  // Whether a mean texel variance mean_var is above the direct pass's share of the target.
+  bool above_share(double mean, double mean_var) const {
+    return target_ > 0.0 && std::sqrt(mean_var) > kDirectShareOfTarget * target_ * mean;
+  }
+
   double target_;
   uint32_t direct_samples_, first_, probe_;
 };
