@@ -110,7 +110,6 @@ plm_status run_bake(const char* function, plm_scene* scene, const plm_bake_setti
   });
 }
 
-
 // The cage arguments of plm_scene_add_subdiv_mesh and plm_subdiv_refine.
 plm::subdiv::Cage make_cage(const float* positions, uint32_t vertex_count, const uint32_t* face_sizes,
                             uint32_t face_count, const uint32_t* face_indices, const float* uv,
@@ -129,7 +128,6 @@ plm::subdiv::Cage make_cage(const float* positions, uint32_t vertex_count, const
   cage.level = level;
   return cage;
 }
-
 
 // Bakes a shard's or texel range's job (index of count) and hands write the
 // header of its part (engine, scene, settings without the thread count,
@@ -151,7 +149,6 @@ void bake_part(plm_scene* scene, const plm_bake_settings& s, plm::ShardJob& job,
   write(h);
   if (fn) fn(1.0, "done");
 }
-
 
 // The bake's settings from a part's header, with the caller's thread count.
 plm_bake_settings settings_of(const plm::PartHeader& h, uint32_t thread_count) {
