@@ -160,8 +160,7 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
   const Mesh* smooth = !csg && views_[mesh_id].mesh->smooth() ? views_[mesh_id].mesh : nullptr;
   const uint8_t* contact = csg ? nullptr : views_[mesh_id].contact;
   const SobolGroup light_dims(sobol_key, 0), mis_dims(sobol_key, 1), piece_dims(sobol_key, 2), surface_dims(sobol_key, 3);
-  StratumPairs pairs;
-  uint32_t previous_stratum = ~0u;  // split_sky_: the last sample's stratum, world part and rest
+  StratumPairs pairs, split_pairs;  // split_pairs: of the world part and the rest (split_sky_)
   double previous_sky = 0.0, previous_other = 0.0;
   // With the local choice, pairs are two successive samples of the same
   // light: the choice is stratified, so pairs of different lights would count
@@ -424,11 +423,11 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
       if (split_sky) {  // the world's part and the rest, paired as the whole is
         const double sky = (double(ps.sky.x) + ps.sky.y + ps.sky.z) / 3.0;
         for (int ch = 0; ch < 3; ++ch) sums.sky_rgb[ch] += ps.sky[ch];  // float: ample for a texel's samples
-        if (j % 2 == 1 && previous_stratum == j - 1) {
+        if (split_pairs.completes(j)) {
           sums.sky_pair_sq += float((sky - previous_sky) * (sky - previous_sky));
           sums.other_pair_sq += float((a - sky - previous_other) * (a - sky - previous_other));
         }
-        previous_stratum = j, previous_sky = sky, previous_other = a - sky;
+        previous_sky = sky, previous_other = a - sky;
       }
       if (!local_choice_) {
         pairs.add(j, a, sums);

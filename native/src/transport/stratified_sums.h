@@ -52,9 +52,14 @@ struct StratifiedSums {
 class StratumPairs {
  public:
   void add(uint32_t stratum, double value, StratifiedSums& sums) {
-    if (stratum % 2 == 1 && previous_ == stratum - 1) sums.add_pair(value, previous_value_);
-    previous_ = stratum;
+    if (completes(stratum)) sums.add_pair(value, previous_value_);
     previous_value_ = value;
+  }
+  // Notes a sample in `stratum`; whether it completes a pair with the last one.
+  bool completes(uint32_t stratum) {
+    const bool pair = stratum % 2 == 1 && previous_ == stratum - 1;
+    previous_ = stratum;
+    return pair;
   }
 
  private:
