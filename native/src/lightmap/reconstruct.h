@@ -53,10 +53,16 @@ bool same_surface(const TexelAreas& ta, uint32_t a, uint32_t b, float reach, flo
 
 // Writes per texel the indirect irradiance / pi (3 values) and its estimated
 // mean squared error (variance + squared bias); texels without area get 0.
+// With lookup_mse, also the error that a mean over many lookups (the final
+// gather's) sees: the pool's squared hits, or the phantom hit times the hits
+// the pool can expect at the lightmap's mean density where that is larger.
+// A pool that photons reach once in ten bakes is off by a hit once in ten;
+// the whole phantom, which bounds one texel's error, overstates such lookups
+// tenfold in variance where photons are sparse.
 // Returns the radius chosen for the lightmap.
 uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t height, const PhotonSums& sums,
                               const ReconstructParams& params, std::vector<double>& value3,
-                              std::vector<double>& mse);
+                              std::vector<double>& mse, std::vector<double>* lookup_mse = nullptr);
 
 // Per texel, a local linear fit (weighted by texel area) of per-texel means
 // `mean3` (3 per texel, independent estimates of variance `variance`) over

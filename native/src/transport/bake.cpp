@@ -170,7 +170,11 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
 
   // ---- Photon pass and final gather ------------------------------------------------
   GatherResult gather;  // empty unless the final gather ran
-  const Estimator estimator{space, direct.values, acc, settings.filter_radius, &gather};
+  // The final gather (final_gather.h) looks up radiosity on meshes: not in
+  // scenes with CSG solids, L-systems or textures, nor with few bounces.
+  const bool gather_wanted = photon_pass && two_pass && scene.csgs.empty() && scene.lsystems.empty() && !textures &&
+                             settings.max_bounces >= kGatherMinBounces;
+  const Estimator estimator{space, direct.values, acc, settings.filter_radius, &gather, gather_wanted};
   uint64_t photons = 0;
   Estimate last;  // the latest estimate
   if (two_pass) live.check(arena, scene, estimator, 0, settings.dilation);  // the direct light alone
@@ -191,10 +195,6 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
       report(kProgressPhotons, "writing the part file");  // the caller writes it, then reports the end
       return out;
     }
-    // The final gather (final_gather.h) looks up radiosity on meshes: not in
-    // scenes with CSG solids, L-systems or textures, nor with few bounces.
-    const bool gather_wanted = two_pass && scene.csgs.empty() && scene.lsystems.empty() && !textures &&
-                               settings.max_bounces >= kGatherMinBounces;
     bool gathered = false;
     uint32_t gathers = 0;
     // Runs from `now`, the estimate at a fixed batch count (so it is
@@ -211,7 +211,7 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
       }
       const FinalGather final_gather(accel.handle(), surfaces, space.views, space.areas, settings, extent,
                                      passage.get(), lobes.any_lobes());
-      gather = run_final_gather(arena, final_gather, space, now.values, tracer.triangle_albedos(),
+      gather = run_final_gather(arena, final_gather, space, now.values, now.lookup_error, tracer.triangle_albedos(),
                                 acc.back_lit.data(), gather_samples(settings.target_error, gathers - 1), [&] {
                                   report(direct_end, "final gather");
                                   return !budget.spent(kGatherBudgetShare);

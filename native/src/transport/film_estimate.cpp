@@ -61,7 +61,7 @@ double Estimator::csg_texel(size_t c, uint32_t sub, uint64_t photons, double val
 // tested against G for bias.
 // Adds the gather's part of the texels' variances, (1 - w)^2 var G, to *gather_part.
 void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vector<double>& variance,
-                               double* gather_part) const {
+                               double* gather_part, std::vector<double>* lookup) const {
   const Mesh& mesh = *space.views[i].mesh;
   const size_t n = variance.size();
   std::vector<double> g_mean(3 * n, 0.0), g_var(n, 0.0), g_value, g_fit_var;
@@ -107,17 +107,20 @@ void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vecto
       const double* pv = &value3[3 * t];
       const double* gv = &g_value[3 * t];
       const double diff = (pv[0] + pv[1] + pv[2] - gv[0] - gv[1] - gv[2]) / 3.0;
-      v_photons += std::max(0.0, diff * diff - v_photons - v_gather);
+      const double bias_sq = std::max(0.0, diff * diff - v_photons - v_gather);
+      v_photons += bias_sq;
+      if (lookup) (*lookup)[t] += bias_sq;
     }
     const double w = v_photons + v_gather > 0.0 ? v_gather / (v_photons + v_gather) : 0.0;
     for (int c = 0; c < 3; ++c) value3[3 * t + c] = w * value3[3 * t + c] + (1.0 - w) * g_value[3 * t + c];
     variance[t] = w * w * v_photons + (1.0 - w) * (1.0 - w) * v_gather;
+    if (lookup) (*lookup)[t] = w * w * (*lookup)[t] + (1.0 - w) * (1.0 - w) * v_gather;
     if (gather_part) *gather_part += (1.0 - w) * (1.0 - w) * v_gather;
   }
 }
 
 void Estimator::texels(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance,
-                       double* gather_part) const {
+                       double* gather_part, std::vector<double>* lookup) const {
   const Mesh& mesh = *space.views[i].mesh;
   const size_t g0 = space.views[i].texel_offset;
   ReconstructParams params;
@@ -134,19 +137,22 @@ void Estimator::texels(size_t i, uint64_t photons, std::vector<double>& value3, 
   }
   if (photons > 0) {
     reconstruct_indirect(space.areas[i], mesh.lightmap_width, mesh.lightmap_height,
-                         {&acc.sum[3 * g0], &acc.sum_sq[g0], &acc.hits[g0]}, params, value3, variance);
+                         {&acc.sum[3 * g0], &acc.sum_sq[g0], &acc.hits[g0]}, params, value3, variance, lookup);
   } else {
     value3.assign(3 * size_t(mesh.lightmap_width) * mesh.lightmap_height, 0.0);
     variance.assign(size_t(mesh.lightmap_width) * mesh.lightmap_height, 0.0);
+    if (lookup) lookup->assign(variance.size(), 0.0);
   }
-  if (photons > 0 && gather && !gather->sums.empty()) combine_gather(i, value3, variance, gather_part);
-  if (photons > 0 && !acc.caustic.empty()) add_caustics(i, photons, value3, variance);
+  if (photons > 0 && gather && !gather->sums.empty()) combine_gather(i, value3, variance, gather_part, lookup);
+  if (photons > 0 && !acc.caustic.empty()) add_caustics(i, photons, value3, variance, lookup);
   if (direct.empty()) return;
   size_t k = space.covered_begin[i];
   for (size_t t = 0; t < variance.size(); ++t) {
     if (!(space.areas[i].area[t] > 0.0)) continue;
     for (int c = 0; c < 3; ++c) value3[3 * t + c] += direct.value3[3 * k + c];
-    variance[t] += direct.variance[k++];
+    variance[t] += direct.variance[k];
+    if (lookup) (*lookup)[t] += direct.variance[k];
+    ++k;
   }
 }
 
@@ -155,21 +161,22 @@ void Estimator::texels(size_t i, uint64_t photons, std::vector<double>& value3, 
 // (a caustic's edges are not the direct light's) and with a pooling radius
 // of their own, chosen by the estimated error as for the ordinary photons;
 // their value and mean squared error add to the texel's.
-void Estimator::add_caustics(size_t i, uint64_t photons, std::vector<double>& value3,
-                             std::vector<double>& variance) const {
+void Estimator::add_caustics(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance,
+                             std::vector<double>* lookup) const {
   const Mesh& mesh = *space.views[i].mesh;
   const size_t g0 = space.views[i].texel_offset;
   ReconstructParams params;
   params.max_radius = filter_radius;
   params.photons = double(photons);
   params.phantom_sq = acc.caustic.phantom_sq();
-  std::vector<double> c_value, c_mse;
+  std::vector<double> c_value, c_mse, c_lookup;
   reconstruct_indirect(space.areas[i], mesh.lightmap_width, mesh.lightmap_height,
                        {&acc.caustic.sum[3 * g0], &acc.caustic.sum_sq[g0], &acc.caustic.hits[g0]}, params, c_value,
-                       c_mse);
+                       c_mse, lookup ? &c_lookup : nullptr);
   for (size_t t = 0; t < variance.size(); ++t) {
     for (int c = 0; c < 3; ++c) value3[3 * t + c] += c_value[3 * t + c];
     variance[t] += c_mse[t];
+    if (lookup) (*lookup)[t] += c_lookup[t];
   }
 }
 
@@ -177,18 +184,21 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
   out.photons = photons;
   out.gather_size = est.gather ? est.gather->sums.size() : 0;
   out.values.resize(est.space.views.size());
+  out.lookup_error.resize(est.lookups ? est.space.views.size() : 0);
   ErrorEstimate& e = out.error;
   e = ErrorEstimate{};
   double var_sum = 0.0, value_sum = 0.0, var_direct = 0.0, var_gather = 0.0, count = 0.0;
-  std::vector<double> value3, variance, per_texel;
+  std::vector<double> value3, variance, lookup, per_texel;
   for (size_t i = 0; i < est.space.views.size(); ++i) {
     if (!est.space.views[i].texel_area) continue;
-    arena.execute([&] { est.texels(i, photons, value3, variance, &var_gather); });
+    arena.execute([&] { est.texels(i, photons, value3, variance, &var_gather, est.lookups ? &lookup : nullptr); });
     std::vector<float>& img = out.values[i];
     img.assign(4 * variance.size(), 0.0f);
+    if (est.lookups) out.lookup_error[i].assign(variance.size(), 0.0f);
     for (size_t t = 0; t < variance.size(); ++t) {
       if (!(est.space.areas[i].area[t] > 0.0)) continue;
       store_texel(value3, variance, t, img.data());
+      if (est.lookups) out.lookup_error[i][t] = float(std::sqrt(lookup[t]));
       const double v = (value3[3 * t] + value3[3 * t + 1] + value3[3 * t + 2]) / 3.0;
       value_sum += v;
       var_sum += variance[t];

@@ -26,6 +26,8 @@ struct Estimator {
   const Accumulators& acc;
   uint32_t filter_radius;
   const GatherResult* gather = nullptr;  // per covered texel (empty sums without a gather)
+  // Whether estimates also give the error the final gather's lookups see (Estimate::lookup_error).
+  bool lookups = false;
 
   // Sub-texel `sub` of CSG solid c: irradiance / pi (3 values) and its
   // estimated mean squared error. No pooling: the photon estimate of the
@@ -35,14 +37,16 @@ struct Estimator {
 
   // Per texel of mesh i: irradiance / pi (3 values) and its estimated mean
   // squared error; the final gather's part of the variances is added to
-  // *gather_part.
+  // *gather_part. With `lookup`, also the mean squared error that the final
+  // gather's lookups see (reconstruct_indirect's lookup_mse for the photons).
   void texels(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance,
-              double* gather_part = nullptr) const;
+              double* gather_part = nullptr, std::vector<double>* lookup = nullptr) const;
 
  private:
   void combine_gather(size_t i, std::vector<double>& value3, std::vector<double>& variance,
-                      double* gather_part) const;
-  void add_caustics(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance) const;
+                      double* gather_part, std::vector<double>* lookup) const;
+  void add_caustics(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance,
+                    std::vector<double>* lookup) const;
 };
 
 // Estimated error over all covered texels: sqrt(mean variance) / mean value,
@@ -64,6 +68,9 @@ struct Estimate {
   size_t gather_size = 0;
   ErrorEstimate error;
   std::vector<std::vector<float>> values;
+  // Per mesh and texel, where the estimator has lookups: the error the final
+  // gather's lookups see (Estimator::texels).
+  std::vector<std::vector<float>> lookup_error;
 
   bool current(uint64_t p, const GatherResult& gather) const {
     return photons == p && gather_size == gather.sums.size();

@@ -149,6 +149,7 @@ SurfaceHit FinalGather::passed(const RayPacket& packet, unsigned l, Vec3 dir, Ve
 
 GatherResult run_final_gather(tbb::task_arena& arena, const FinalGather& gather, const TexelSpace& space,
                               const std::vector<std::vector<float>>& images,
+                              const std::vector<std::vector<float>>& errors,
                               const std::vector<std::vector<Vec3>>& albedo, const uint8_t* back_lit, uint32_t samples,
                               const std::function<bool()>& after_group, CoveredSlice slice) {
   std::vector<float> radiosity(3 * space.texel_count, 0.0f), error(space.texel_count, 0.0f);
@@ -157,7 +158,7 @@ GatherResult run_final_gather(tbb::task_arena& arena, const FinalGather& gather,
     const size_t g0 = space.views[i].texel_offset;
     for (size_t t = 0; 4 * t < img.size(); ++t) {
       for (int c = 0; c < 3; ++c) radiosity[3 * (g0 + t) + c] = img[4 * t + c];
-      error[g0 + t] = img[4 * t + 3];
+      error[g0 + t] = errors[i][t];
     }
   }
   const GatherSource source{radiosity.data(), error.data(), &albedo, back_lit};

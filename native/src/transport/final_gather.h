@@ -47,7 +47,7 @@ struct GatherInfo {
 // What the gather's rays look up.
 struct GatherSource {
   const float* radiosity = nullptr;  // 3 per global texel: irradiance / pi, direct + indirect (0 where uncovered)
-  const float* error = nullptr;      // 1 per global texel: the estimated error of its mean RGB
+  const float* error = nullptr;      // 1 per global texel: the error of its mean RGB that lookups see
   const std::vector<std::vector<Vec3>>* albedo = nullptr;  // per mesh, per triangle
   const uint8_t* back_lit = nullptr;  // per mesh: a photon reached its back (else its backs are dark)
 };
@@ -103,7 +103,8 @@ struct GatherResult {
 
 // Runs the gather with `samples` rays per covered texel (meshes only), looking
 // up `images` (per mesh: R, G, B, error per texel, as film_estimate.h's
-// Estimate holds them) with each triangle's `albedo` and the meshes whose
+// Estimate holds them) and `errors` (per mesh, the error per texel that
+// lookups see: Estimate::lookup_error) with each triangle's `albedo` and the meshes whose
 // backs photons reached (`back_lit`). after_group() runs on the calling
 // thread between groups of texels; false stops the gather (texels left
 // without rays keep the photon estimate). Over the covered texels of `slice`
@@ -111,6 +112,7 @@ struct GatherResult {
 // on it and the images alone, so slices give the same sums as one run.
 GatherResult run_final_gather(tbb::task_arena& arena, const FinalGather& gather, const TexelSpace& space,
                               const std::vector<std::vector<float>>& images,
+                              const std::vector<std::vector<float>>& errors,
                               const std::vector<std::vector<Vec3>>& albedo, const uint8_t* back_lit, uint32_t samples,
                               const std::function<bool()>& after_group, CoveredSlice slice = {});
 
