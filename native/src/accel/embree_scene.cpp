@@ -29,7 +29,13 @@ void EmbreeScene::build(const Scene& scene, unsigned thread_count) {
   if (!device_) fail(PLM_ERROR_INTERNAL, "cannot create the Embree device (error ", int(rtcGetDeviceError(nullptr)), ")");
   rtcSetDeviceErrorFunction(device_, on_embree_error, &error_);
   scene_ = rtcNewScene(device_);
-  rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_HIGH);
+  // The high-quality build's spatial splits cost about 0.8 us a triangle
+  // against 0.2 for the medium one, and pay back in traversal only on large
+  // scenes: 2.5 ms of a 30 ms bake of a 2.3 k-triangle scene, a wash on a
+  // 0.25 M-triangle courtyard (0.16 s of build against ~2 % of its rays).
+  size_t triangles = 0;
+  for (const Mesh& mesh : scene.meshes) triangles += mesh.triangle_count();
+  rtcSetSceneBuildQuality(scene_, triangles >= kHighQualityTriangles ? RTC_BUILD_QUALITY_HIGH : RTC_BUILD_QUALITY_MEDIUM);
   // Rays skip the triangle they leave through a context filter (see transport/bake.cpp).
   rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
   for (size_t id = 0; id < scene.meshes.size(); ++id) {

@@ -7,6 +7,7 @@
 
 #include <embree3/rtcore.h>
 
+#include <cstddef>
 #include <string>
 
 #include "scene/scene.h"
@@ -16,6 +17,10 @@ namespace plm {
 
 class EmbreeScene {
  public:
+  // Scenes with at least this many mesh triangles get Embree's high-quality
+  // build (spatial splits), smaller ones the medium one (embree_scene.cpp).
+  static constexpr size_t kHighQualityTriangles = 100000;
+
   // thread_count 0 = all cores. Throws plm::Error if Embree fails.
   EmbreeScene(const Scene& scene, unsigned thread_count);
   ~EmbreeScene();
