@@ -211,12 +211,16 @@ void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, c
       auto pools = [&](uint32_t k) {  // texel k takes part in t's fit
         return k == t || (same_surface(ta, t, k, reach, min_cos) && (!guide || similar_guide(guide, k, t, floor)));
       };
-      // Normal equations of the fit v = a + b dx + c dy, weights = texel areas.
+      // Normal equations of the fit v = a + b dx + c dy, weights = texel areas;
+      // the texels that take part, in row order, for the second loop.
       double m[6] = {0, 0, 0, 0, 0, 0};  // s1, sx, sy, sxx, sxy, syy
+      uint32_t part[(2 * kMaxRadius + 1) * (2 * kMaxRadius + 1)];
+      size_t parts = 0;
       for (int64_t yy = std::max<int64_t>(y - r, 0); yy <= std::min<int64_t>(y + r, int64_t(height) - 1); ++yy)
         for (int64_t xx = std::max<int64_t>(x - r, 0); xx <= std::min<int64_t>(x + r, int64_t(width) - 1); ++xx) {
           const uint32_t k = uint32_t(yy * width + xx);
           if (!pools(k)) continue;
+          part[parts++] = k;
           const double w = ta.area[k], dx = double(xx - x), dy = double(yy - y);
           m[0] += w, m[1] += w * dx, m[2] += w * dy, m[3] += w * dx * dx, m[4] += w * dx * dy, m[5] += w * dy * dy;
         }
@@ -227,14 +231,13 @@ void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, c
       const bool linear = det > 1e-6 * m[0] * m[0] * m[0];
       double e[3] = {linear ? c0 / det : 1.0 / m[0], linear ? c1 / det : 0.0, linear ? c2 / det : 0.0};
       double sum3[3] = {0, 0, 0}, var = 0.0;
-      for (int64_t yy = std::max<int64_t>(y - r, 0); yy <= std::min<int64_t>(y + r, int64_t(height) - 1); ++yy)
-        for (int64_t xx = std::max<int64_t>(x - r, 0); xx <= std::min<int64_t>(x + r, int64_t(width) - 1); ++xx) {
-          const uint32_t k = uint32_t(yy * width + xx);
-          if (!pools(k)) continue;
-          const double l = ta.area[k] * (e[0] + e[1] * double(xx - x) + e[2] * double(yy - y));
-          for (int c = 0; c < 3; ++c) sum3[c] += l * mean3[3 * size_t(k) + c];
-          var += l * l * variance[k];
-        }
+      for (size_t j = 0; j < parts; ++j) {
+        const uint32_t k = part[j];
+        const int64_t xx = k % width, yy = k / width;
+        const double l = ta.area[k] * (e[0] + e[1] * double(xx - x) + e[2] * double(yy - y));
+        for (int c = 0; c < 3; ++c) sum3[c] += l * mean3[3 * size_t(k) + c];
+        var += l * l * variance[k];
+      }
       for (int c = 0; c < 3; ++c) value3[3 * size_t(t) + c] = sum3[c];
       var_out[t] = var;
     }
