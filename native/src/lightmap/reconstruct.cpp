@@ -194,10 +194,12 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
 
 void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, const double* mean3,
                         const double* variance, const double* guide, uint32_t radius, std::vector<double>& value3,
-                        std::vector<double>& var_out, const uint8_t* texel_radius, float min_cos) {
+                        std::vector<double>& var_out, const uint8_t* texel_radius, float min_cos,
+                        const double* variance2, std::vector<double>* var2_out) {
   const size_t n = size_t(width) * height;
   value3.assign(3 * n, 0.0);
   var_out.assign(n, 0.0);
+  if (var2_out) var2_out->assign(n, 0.0);
   const float texel_width = float(plm::texel_width(ta));
   if (!(texel_width > 0.0f)) return;
   const float reach = 1.5f * float(radius + 1) * texel_width;
@@ -230,16 +232,18 @@ void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, c
       // An ill-posed fit (neighbours along a line, or none): the weighted mean.
       const bool linear = det > 1e-6 * m[0] * m[0] * m[0];
       double e[3] = {linear ? c0 / det : 1.0 / m[0], linear ? c1 / det : 0.0, linear ? c2 / det : 0.0};
-      double sum3[3] = {0, 0, 0}, var = 0.0;
+      double sum3[3] = {0, 0, 0}, var = 0.0, var2 = 0.0;
       for (size_t j = 0; j < parts; ++j) {
         const uint32_t k = part[j];
         const int64_t xx = k % width, yy = k / width;
         const double l = ta.area[k] * (e[0] + e[1] * double(xx - x) + e[2] * double(yy - y));
         for (int c = 0; c < 3; ++c) sum3[c] += l * mean3[3 * size_t(k) + c];
         var += l * l * variance[k];
+        if (var2_out) var2 += l * l * variance2[k];
       }
       for (int c = 0; c < 3; ++c) value3[3 * size_t(t) + c] = sum3[c];
       var_out[t] = var;
+      if (var2_out) (*var2_out)[t] = var2;
     }
   });
 }

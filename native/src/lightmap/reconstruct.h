@@ -71,8 +71,11 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
 // no first-order bias where the neighbourhood is one-sided (a wall's foot).
 // `texel_radius` (optional) caps the radius per texel; min_cos is the least
 // cosine between the normals of texels that fit together (same_surface).
+// With variance2 (optional), var2_out gets the fit's variance for those
+// per-texel variances too (another part of the means' error, same weights).
 void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, const double* mean3,
                         const double* variance, const double* guide, uint32_t radius, std::vector<double>& value3,
-                        std::vector<double>& var_out, const uint8_t* texel_radius = nullptr, float min_cos = 0.9f);
+                        std::vector<double>& var_out, const uint8_t* texel_radius = nullptr, float min_cos = 0.9f,
+                        const double* variance2 = nullptr, std::vector<double>* var2_out = nullptr);
 
 }  // namespace plm

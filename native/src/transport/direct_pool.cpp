@@ -44,7 +44,7 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
   tbb::parallel_for(size_t(0), space.views.size(), [&](size_t i) {
     if (!space.views[i].texel_area) return;
     SkyMap m;
-    std::vector<double> fit1, var1, fit2, var2, best_phantom, ignored;
+    std::vector<double> fit1, var1, phantom1, fit2, var2, phantom2;
     const TexelAreas& ta = space.areas[i];
     const size_t n = ta.area.size(), k0 = space.covered_begin[i];
     m.sky3.assign(3 * n, 0.0);
@@ -86,8 +86,10 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
     // pooled texel's variance takes the squared bias of its radius.
     static_assert(kSkyRadius == 2, "the bias estimate compares the fits of radius 1 and 2");
     const double* sky3 = m.sky3.data();
-    reconstruct_linear(ta, w, h, sky3, m.var.data(), m.guide.data(), 1, fit1, var1, m.radius.data(), kSkyMinCos);
-    reconstruct_linear(ta, w, h, sky3, m.var.data(), m.guide.data(), 2, fit2, var2, m.radius.data(), kSkyMinCos);
+    reconstruct_linear(ta, w, h, sky3, m.var.data(), m.guide.data(), 1, fit1, var1, m.radius.data(), kSkyMinCos,
+                       m.phantom.data(), &phantom1);
+    reconstruct_linear(ta, w, h, sky3, m.var.data(), m.guide.data(), 2, fit2, var2, m.radius.data(), kSkyMinCos,
+                       m.phantom.data(), &phantom2);
     double var0_sum = 0.0, var1_sum = 0.0, var2_sum = 0.0, excess = 0.0;
     size_t reach1 = 0, reach2 = 0;  // texels whose reach allows radius 1, 2
     for (size_t t = 0; t < n; ++t) {
@@ -110,8 +112,7 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
     if (best_r == 0) return;
     const std::vector<double>& best3 = best_r == 1 ? fit1 : fit2;
     const std::vector<double>& best_var = best_r == 1 ? var1 : var2;
-    reconstruct_linear(ta, w, h, sky3, m.phantom.data(), m.guide.data(), best_r, ignored, best_phantom,
-                       m.radius.data(), kSkyMinCos);
+    const std::vector<double>& best_phantom = best_r == 1 ? phantom1 : phantom2;
     for (size_t t = 0, k = k0; t < n; ++t) {
       if (!(ta.area[t] > 0.0)) continue;
       const size_t kk = k++;
