@@ -31,13 +31,7 @@ using plm_demo::SceneBuilder;
 // The open scene (test_support.h), optionally with a portal over the whole
 // ground through which the world is sampled.
 void open_scene(SceneBuilder& b, bool sun, bool sky, bool portal = false, uint32_t ground_res = 32) {
-  if (portal) {
-    plm_light p;
-    plm_light_default(&p, PLM_LIGHT_PORTAL);
-    p.size_x = p.size_y = 8.0f;
-    p.matrix[11] = 3.0f;
-    b.light(p, "portal");
-  }
+  if (portal) b.light(plm_test::portal(8.0f, 8.0f, 0.0f, 3.0f), "portal");
   plm_test::open_scene(b, sun, sky, ground_res);
 }
 

@@ -465,13 +465,7 @@ void build_room(SceneBuilder& b, bool portal) {
   b.quad("wall_east", {1, 1, 0}, {0, -2, 0}, {0, 0, 1}, black, 0);
   b.quad("wall_south", {1, -1, 0}, {-2, 0, 0}, {0, 0, 1}, black, 0);
   b.quad("wall_north", {-1, 1, 0}, {2, 0, 0}, {0, 0, 1}, black, 0);
-  if (portal) {
-    plm_light p;
-    plm_light_default(&p, PLM_LIGHT_PORTAL);
-    p.size_x = p.size_y = 1.0f;
-    p.matrix[11] = 1.0f;
-    b.light(p, "window");
-  }
+  if (portal) b.light(plm_test::portal(1.0f, 1.0f, 0.0f, 1.0f), "window");
 }
 
 double overlap(double a0, double a1, double b0, double b1) { return std::fmax(0.0, std::fmin(a1, b1) - std::fmax(a0, b0)); }

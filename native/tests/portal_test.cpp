@@ -31,13 +31,7 @@ void build_room(SceneBuilder& b) {
 
 // A portal x in [x0, x1], y in [-0.5, 0.5] at the ceiling, facing down (-Z of its frame).
 void add_portal(SceneBuilder& b, float x0, float x1) {
-  plm_light p;
-  plm_light_default(&p, PLM_LIGHT_PORTAL);
-  p.size_x = x1 - x0;
-  p.size_y = 1.0f;
-  p.matrix[3] = 0.5f * (x0 + x1);
-  p.matrix[11] = 1.0f;
-  b.light(p, "window");
+  b.light(plm_test::portal(x1 - x0, 1.0f, 0.5f * (x0 + x1), 1.0f), "window");
 }
 
 // Floor texel averages of the sky (radiance 1) through the hole: value = F.

@@ -74,6 +74,17 @@ inline plm_light tilted_sun(float power, float a) {
   return l;
 }
 
+// A portal of sx x sy m centred at (x, 0, z), facing down (-Z of its frame).
+inline plm_light portal(float sx, float sy, float x, float z) {
+  plm_light p;
+  plm_light_default(&p, PLM_LIGHT_PORTAL);
+  p.size_x = sx;
+  p.size_y = sy;
+  p.matrix[3] = x;
+  p.matrix[11] = z;
+  return p;
+}
+
 // An open sunlit scene: an 8 x 8 m ground (ground_res texels a side) with a
 // 1 x 1 x 1.5 m box on it turned 0.35 rad (a 3 x 2 atlas of 8 x 8 texel
 // faces), a sun 45 degrees from the zenith (4 W/m^2) and a sky (0.3, 0.4, 0.6).
