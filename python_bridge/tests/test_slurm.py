@@ -160,13 +160,13 @@ def test_a_shard_that_stays_dead_fails_the_merge_cleanly(slurm, single, tmp_path
 def test_rounds_reach_a_target_error(slurm, single, tmp_path):
     scene, _ = single
     out = tmp_path / "out"
-    # 20 k photons leave the estimate well above 3 %; the next round asks for what 1 / sqrt(photons) needs.
-    r = slurm_bake(slurm, scene, out, "--photons", "20000", "--target-error", "0.03", "--max-rounds", "3")
+    # 4 k photons leave the estimate above 3 %; the next round asks for what 1 / sqrt(photons) needs.
+    r = slurm_bake(slurm, scene, out, "--photons", "4000", "--target-error", "0.03", "--max-rounds", "3")
     assert r.returncode == 0, r.stdout + r.stderr
     assert "round 1: error estimate" in r.stdout and "round 2" in r.stdout and "target met" in r.stdout, r.stdout
     report = json.loads((out / "report.json").read_text())
     assert report["target"]["met"] and report["stats"]["error_estimate"] <= 0.03, report
-    assert report["settings"]["photon_count"] > 20000
+    assert report["settings"]["photon_count"] > 4000
 
 
 def test_texel_ranges_with_one_gather_killed_once_equal_one_machine(slurm, single, tmp_path):

@@ -54,7 +54,7 @@ uint64_t segment_bytes(uint64_t texels, uint32_t meshes, bool caustics) {
 
 // Texel parts' records: DirectSums, DirectCalibration, GatherSums + GatherInfo.
 constexpr uint64_t kDirectTexelBytes = 6 * 8 + 2 * 4 + 6 * 4 + 2 * 4, kCalibrationBytes = 8 + 8 + 8 + 4 + 4 + 8 + 4 * 8 + 4 + 4,
-                   kGatherTexelBytes = 5 * 8 + 2 * 4 + 4 + 4 + 8 + 4;
+                   kGatherTexelBytes = 5 * 8 + 2 * 4 + 4 + 4 + 4 * 8 + 3 * 4;
 // Texel records are packed and checksummed this many at a time (writer and reader alike).
 constexpr size_t kTexelChunk = 4096;
 
@@ -391,8 +391,8 @@ void write_gather_part(const std::string& path, const PartHeader& header, const 
       const GatherInfo& g = gather.info[i];
       c.put(g.unknown);
       c.put(g.dark);
-      c.put(g.lookup_error);
-      c.put(g.hit_distance);
+      for (double v : {g.lookup_all, g.lookup_cells, g.lookup_rays, g.lookup_wide}) c.put(v);
+      for (float v : {g.hit_distance, g.calibration_measured, g.calibration_estimated}) c.put(v);
     });
   });
 }
@@ -443,8 +443,8 @@ PartHeader read_gather_part(const std::string& path, GatherResult& gather) {
       GatherInfo& g = gather.info[i];
       g.unknown = c.get<uint32_t>();
       g.dark = c.get<uint32_t>();
-      g.lookup_error = c.get<double>();
-      g.hit_distance = c.get<float>();
+      for (double* v : {&g.lookup_all, &g.lookup_cells, &g.lookup_rays, &g.lookup_wide}) *v = c.get<double>();
+      for (float* v : {&g.hit_distance, &g.calibration_measured, &g.calibration_estimated}) *v = c.get<float>();
     });
   });
 }

@@ -38,7 +38,7 @@
 
 namespace plm {
 
-constexpr uint32_t kPartFormatVersion = 3;
+constexpr uint32_t kPartFormatVersion = 4;
 constexpr size_t kPartHeaderBytes = 512;
 
 enum class PartKind : uint32_t { kPhotons = 0, kDirect = 1, kGather = 2 };

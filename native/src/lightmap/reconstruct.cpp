@@ -91,11 +91,11 @@ void pool_rings(const TexelAreas& ta, uint32_t width, uint32_t height, const Pho
 
 uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t height, const PhotonSums& sums,
                               const ReconstructParams& params, std::vector<double>& value3,
-                              std::vector<double>& mse, std::vector<double>* lookup_mse) {
+                              std::vector<double>& mse, LookupError* lookup) {
   const size_t n = size_t(width) * height;
   value3.assign(3 * n, 0.0);
   mse.assign(n, 0.0);
-  if (lookup_mse) lookup_mse->assign(n, 0.0);
+  if (lookup) lookup->local.assign(n, 0.0), lookup->wide.assign(n, 0.0);
   const float texel_width = float(plm::texel_width(ta));
   if (!(texel_width > 0.0f)) return 0;
   const double to_value = 1.0 / (kPiD * params.photons);
@@ -164,9 +164,9 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
     if (total_mse(r) < total_mse(chosen)) chosen = r;
   const double mean_bias_sq = counted > 0.0 ? std::max(0.0, total_bias[chosen]) / counted : 0.0;
 
-  // Hits per texel's worth of covered area, for lookup_mse.
+  // Hits per texel's worth of covered area, for the lookups' local error.
   double density = 0.0;
-  if (lookup_mse) {
+  if (lookup) {
     double hits = 0.0, cover = 0.0;
     for (size_t t = 0; t < n; ++t)
       if (ta.area[t] > 0.0) hits += sums.hits[t], cover += ta.coverage[t];
@@ -184,8 +184,10 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
         const double k = to_value / p.area;
         for (int c = 0; c < 3; ++c) value3[3 * size_t(t) + c] = p.flux[c] * k;
         mse[t] = variance(p) + mean_bias_sq;
-        if (lookup_mse)
-          (*lookup_mse)[t] = std::max(p.sq, params.phantom_sq * p.cover * density) * k * k + mean_bias_sq;
+        if (lookup) {
+          lookup->local[t] = 0.5 * (p.sq + params.phantom_sq * p.cover * density) * k * k;
+          lookup->wide[t] = mean_bias_sq;
+        }
       });
     }
   });

@@ -51,18 +51,29 @@ double texel_width(const TexelAreas& ta);
 // world positions within `reach` (m).
 bool same_surface(const TexelAreas& ta, uint32_t a, uint32_t b, float reach, float min_cos = 0.9f);
 
+// The error that the final gather's lookups see per texel (squared), in two
+// parts by how far it is shared: `local` by the texels within a pool's reach
+// (the photons' noise, the direct light's), `wide` by the whole lightmap (the
+// pooling's bias, and what a gather carries in from the far texels it looked
+// up). A mean over lookups in many places averages the local part down and
+// keeps the wide part whole.
+struct LookupError {
+  std::vector<double> local, wide;
+};
+
 // Writes per texel the indirect irradiance / pi (3 values) and its estimated
 // mean squared error (variance + squared bias); texels without area get 0.
-// With lookup_mse, also the error that a mean over many lookups (the final
-// gather's) sees: the pool's squared hits, or the phantom hit times the hits
-// the pool can expect at the lightmap's mean density where that is larger.
-// A pool that photons reach once in ten bakes is off by a hit once in ten;
-// the whole phantom, which bounds one texel's error, overstates such lookups
-// tenfold in variance where photons are sparse.
+// With `lookup`, also the error that a mean over many lookups (the final
+// gather's) sees: locally the mean of the pool's squared hits and the phantom
+// hit times the hits the pool can expect at the lightmap's mean density (two
+// estimates of the pool's variance, the second never 0), and widely the
+// lightmap's mean squared bias. A pool that photons reach once in ten bakes
+// is off by a hit once in ten; the whole phantom, which bounds one texel's
+// error, overstates such lookups tenfold in variance where photons are sparse.
 // Returns the radius chosen for the lightmap.
 uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t height, const PhotonSums& sums,
                               const ReconstructParams& params, std::vector<double>& value3,
-                              std::vector<double>& mse, std::vector<double>* lookup_mse = nullptr);
+                              std::vector<double>& mse, LookupError* lookup = nullptr);
 
 // Per texel, a local linear fit (weighted by texel area) of per-texel means
 // `mean3` (3 per texel, independent estimates of variance `variance`) over

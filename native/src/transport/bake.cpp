@@ -211,7 +211,8 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
       }
       const FinalGather final_gather(accel.handle(), surfaces, space.views, space.areas, settings, extent,
                                      passage.get(), lobes.any_lobes());
-      gather = run_final_gather(arena, final_gather, space, now.values, now.lookup_error, tracer.triangle_albedos(),
+      gather = run_final_gather(arena, final_gather, space, now.values, now.lookup_local, now.lookup_wide,
+                                tracer.triangle_albedos(),
                                 acc.back_lit.data(), gather_samples(settings.target_error, gathers - 1), [&] {
                                   report(direct_end, "final gather");
                                   return !budget.spent(kGatherBudgetShare);

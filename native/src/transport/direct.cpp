@@ -28,21 +28,13 @@ float irradiance_guess(const Emitter& e, Vec3 p, Vec3 n) {
   return g >= 0.0f && g < 1e30f ? g : 0.0f;
 }
 
-// The variance of the mean from pair differences summing to pair_sum over the
-// texel's paired samples, with `extra` (n^2 x a variance of the mean) added.
-double pairs_of_mean(const DirectSums& d, double pair_sum, double extra) {
-  if (d.paired == 0) return 0.0;
-  const double n = double(d.count);
-  return (pair_sum * (n / double(d.paired)) + extra) / (n * n);
-}
-
 }  // namespace
 
-double DirectSums::pair_variance_of_mean() const { return pairs_of_mean(*this, pair_sq, choice_sq); }
+double DirectSums::pair_variance_of_mean() const { return pairs_of_mean(pair_sq, choice_sq); }
 
-double DirectSums::sky_pair_variance_of_mean() const { return pairs_of_mean(*this, sky_pair_sq, 0.0); }
+double DirectSums::sky_pair_variance_of_mean() const { return pairs_of_mean(sky_pair_sq); }
 
-double DirectSums::other_pair_variance_of_mean() const { return pairs_of_mean(*this, other_pair_sq, choice_sq); }
+double DirectSums::other_pair_variance_of_mean() const { return pairs_of_mean(other_pair_sq, choice_sq); }
 
 void DirectSums::merge(const DirectSums& o) {
   for (int c = 0; c < 3; ++c) rgb[c] += o.rgb[c], sky_rgb[c] += o.sky_rgb[c];

@@ -88,12 +88,6 @@ WholeEstimate estimate_whole(tbb::task_arena& arena, const DirectPass& pass, con
   return {mean / double(m), typical_sample(sums)};
 }
 
-// measured / estimated from `used` records (1 with fewer than 32).
-double ratio(double measured, double estimated, size_t used) {
-  if (used < 32 || !(estimated > 0.0)) return 1.0;
-  return std::clamp(measured / estimated, 1e-4, 4.0);
-}
-
 }  // namespace
 
 void calibrate(const std::vector<DirectCalibration>& records, DirectNoise& noise) {
@@ -106,9 +100,9 @@ void calibrate(const std::vector<DirectCalibration>& records, DirectNoise& noise
     sky_m += r.sky_measured, sky_e += r.sky_estimated, other_m += r.other_measured, other_e += r.other_estimated;
     ++split;
   }
-  noise.scale = ratio(m, e, used);
-  noise.sky_scale = ratio(sky_m, sky_e, split);
-  noise.other_scale = ratio(other_m, other_e, split);
+  noise.scale = calibration_ratio(m, e, used);
+  noise.sky_scale = calibration_ratio(sky_m, sky_e, split);
+  noise.other_scale = calibration_ratio(other_m, other_e, split);
 }
 
 DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, const TexelSpace& space,

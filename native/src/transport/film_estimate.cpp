@@ -14,6 +14,41 @@ constexpr uint32_t kGatherRadius = 2;
 // A texel's fit reaches at most kGatherReach x the harmonic mean distance of
 // its gather rays' hits (docs/design.md, "Final gather").
 constexpr double kGatherReach = 1.0;
+// Texels (of radius 2) a lightmap needs for an estimate of its gather fit's bias.
+constexpr size_t kMinBiasTexels = 16;
+
+// The gather fit's squared bias by radius (0 at radius 0). The bias of a
+// linear fit over a window of radius r grows as r^2 (the curvature it cannot
+// follow), so the fits of radius 1 and 2 differ by 3/4 of the latter's bias:
+// E (f2 - f1)^2 = (3/4 b2)^2 + var1 - var2 (nested windows), averaged over
+// the texels whose reach allows radius 2 (as the direct pass's sky pooling,
+// direct_pool.cpp). With the gather's variance calibrated, this bias is what
+// is left of its error where the bounce light curves (a box's foot).
+struct GatherFitBias {
+  double sq[kGatherRadius + 1] = {};
+};
+static_assert(kGatherRadius == 2, "the bias estimate compares the fits of radius 1 and 2");
+
+GatherFitBias gather_fit_bias(const TexelAreas& ta, uint32_t width, uint32_t height, const std::vector<double>& mean3,
+                              const std::vector<double>& var, const std::vector<double>& guide,
+                              const std::vector<uint8_t>& radius, const std::vector<uint8_t>& usable,
+                              const std::vector<double>& fit2, const std::vector<double>& var2) {
+  std::vector<double> fit1, var1;
+  reconstruct_linear(ta, width, height, mean3.data(), var.data(), guide.data(), 1, fit1, var1, radius.data());
+  double excess = 0.0;
+  size_t reach2 = 0;
+  for (size_t t = 0; t < radius.size(); ++t) {
+    if (!usable[t] || radius[t] < 2) continue;
+    const double d = (fit2[3 * t] + fit2[3 * t + 1] + fit2[3 * t + 2] - fit1[3 * t] - fit1[3 * t + 1] - fit1[3 * t + 2]) / 3.0;
+    excess += d * d - std::max(0.0, var1[t] - var2[t]);
+    ++reach2;
+  }
+  GatherFitBias out;
+  if (reach2 < kMinBiasTexels) return out;  // too few texels to estimate it by
+  out.sq[1] = std::max(0.0, excess / double(reach2)) / 9.0;  // (4/3)^2 / 16 of the mean excess
+  out.sq[2] = 16.0 * out.sq[1];
+  return out;
+}
 
 double percentile(std::vector<double>& v, double q) {
   if (v.empty()) return 0.0;
@@ -59,13 +94,23 @@ double Estimator::csg_texel(size_t c, uint32_t sub, uint64_t photons, double val
 // texels whose rays met dark backs (their G is their own). Where the fit is
 // narrowed, A (a mean over the whole texel, G over its central square) is
 // tested against G for bias.
+// var G: the fit's variance from the texels' own (their pair estimates,
+// calibrated: gather_scale), the fit's squared bias (gather_fit_bias), and
+// the error of what the rays looked up: its wide part whole; of its local
+// part, the share rho of ray pairs that look up the same errors (measured
+// within texels over the lightmap: pairs in one cell, GatherInfo) whole, the
+// rest averaged down by the fit like independent errors. Rays from
+// neighbouring texels are taken to meet the same cells as one texel's rays.
+// An open scene's gather rays spread over many cells (rho 0.01-0.25); rays
+// in a room meet more of the same.
 // Adds the gather's part of the texels' variances, (1 - w)^2 var G, to *gather_part.
 void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vector<double>& variance,
-                               double* gather_part, std::vector<double>* lookup) const {
+                               double* gather_part, LookupError* lookup) const {
   const Mesh& mesh = *space.views[i].mesh;
   const size_t n = variance.size();
   std::vector<double> g_mean(3 * n, 0.0), g_var(n, 0.0), g_value, g_fit_var;
-  std::vector<double> guide(n, -1.0), lookup_sq(n, 0.0);
+  std::vector<double> guide(n, -1.0), lookup_all(n, 0.0), lookup_rays(n, 0.0), lookup_wide(n, 0.0), rays_fit;
+  double shared = 0.0, pairs = 0.0;  // over the texels: ray pairs' products within one cell, and all
   std::vector<uint8_t> usable(n, 0), radius(n, uint8_t(kGatherRadius));
   const double width = texel_width(space.areas[i]);
   size_t k = space.covered_begin[i];
@@ -87,17 +132,25 @@ void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vecto
     for (int c = 0; c < 3; ++c) g_mean[3 * t + c] = g.rgb[c] / g.count;
     // Every ray met a dark back (the texel's points are under a box): no
     // light reaches them.
-    g_var[t] = info.dark == g.count ? 0.0 : g.variance_of_mean(gather->typical);
-    lookup_sq[t] = info.lookup_error * info.lookup_error;
+    g_var[t] = info.dark == g.count ? 0.0 : g.variance_of_mean(gather->typical, 0.0, gather->scale);
+    lookup_all[t] = info.lookup_all;
+    lookup_rays[t] = info.lookup_rays;
+    lookup_wide[t] = info.lookup_wide;
+    shared += info.lookup_cells - info.lookup_rays;
+    pairs += info.lookup_all - info.lookup_rays;
   }
   reconstruct_linear(space.areas[i], mesh.lightmap_width, mesh.lightmap_height, g_mean.data(), g_var.data(),
-                     guide.data(), kGatherRadius, g_value, g_fit_var, radius.data());
+                     guide.data(), kGatherRadius, g_value, g_fit_var, radius.data(), 0.9f, lookup_rays.data(),
+                     &rays_fit);
+  const double rho = pairs > 0.0 ? std::clamp(shared / pairs, 0.0, 1.0) : 1.0;
+  const GatherFitBias fit_bias = gather_fit_bias(space.areas[i], mesh.lightmap_width, mesh.lightmap_height, g_mean,
+                                                 g_var, guide, radius, usable, g_value, g_fit_var);
   for (size_t t = 0; t < n; ++t) {
     if (!usable[t]) continue;
-    // The lookups' errors are shared by neighbouring texels (their rays hit
-    // the same texels): the fit does not average them down.
-    double v_photons = variance[t];
-    const double v_gather = g_fit_var[t] + lookup_sq[t];
+    double v_photons = variance[t], bias_sq = 0.0;
+    const double v_lookups = (1.0 - rho) * rays_fit[t] + rho * lookup_all[t] + lookup_wide[t];
+    const double fit_bias_sq = fit_bias.sq[radius[t]];
+    const double v_gather = g_fit_var[t] + fit_bias_sq + v_lookups;
     if (radius[t] < kGatherRadius) {
       // Near a wall the photons' mean over the whole texel is biased
       // against the value over the points the direct light and the gather
@@ -107,20 +160,25 @@ void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vecto
       const double* pv = &value3[3 * t];
       const double* gv = &g_value[3 * t];
       const double diff = (pv[0] + pv[1] + pv[2] - gv[0] - gv[1] - gv[2]) / 3.0;
-      const double bias_sq = std::max(0.0, diff * diff - v_photons - v_gather);
+      bias_sq = std::max(0.0, diff * diff - v_photons - v_gather);
       v_photons += bias_sq;
-      if (lookup) (*lookup)[t] += bias_sq;
     }
     const double w = v_photons + v_gather > 0.0 ? v_gather / (v_photons + v_gather) : 0.0;
     for (int c = 0; c < 3; ++c) value3[3 * t + c] = w * value3[3 * t + c] + (1.0 - w) * g_value[3 * t + c];
     variance[t] = w * w * v_photons + (1.0 - w) * (1.0 - w) * v_gather;
-    if (lookup) (*lookup)[t] = w * w * (*lookup)[t] + (1.0 - w) * (1.0 - w) * v_gather;
+    // What a later gather's lookups see: the gather's own noise is local (its
+    // fit's reach); its fit's bias and what its lookups carried in from far
+    // texels are wide.
+    if (lookup) {
+      lookup->local[t] = w * w * lookup->local[t] + (1.0 - w) * (1.0 - w) * g_fit_var[t];
+      lookup->wide[t] = w * w * (lookup->wide[t] + bias_sq) + (1.0 - w) * (1.0 - w) * (fit_bias_sq + v_lookups);
+    }
     if (gather_part) *gather_part += (1.0 - w) * (1.0 - w) * v_gather;
   }
 }
 
 void Estimator::texels(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance,
-                       double* gather_part, std::vector<double>* lookup) const {
+                       double* gather_part, LookupError* lookup) const {
   const Mesh& mesh = *space.views[i].mesh;
   const size_t g0 = space.views[i].texel_offset;
   ReconstructParams params;
@@ -141,7 +199,7 @@ void Estimator::texels(size_t i, uint64_t photons, std::vector<double>& value3, 
   } else {
     value3.assign(3 * size_t(mesh.lightmap_width) * mesh.lightmap_height, 0.0);
     variance.assign(size_t(mesh.lightmap_width) * mesh.lightmap_height, 0.0);
-    if (lookup) lookup->assign(variance.size(), 0.0);
+    if (lookup) lookup->local.assign(variance.size(), 0.0), lookup->wide.assign(variance.size(), 0.0);
   }
   if (photons > 0 && gather && !gather->sums.empty()) combine_gather(i, value3, variance, gather_part, lookup);
   if (photons > 0 && !acc.caustic.empty()) add_caustics(i, photons, value3, variance, lookup);
@@ -151,7 +209,7 @@ void Estimator::texels(size_t i, uint64_t photons, std::vector<double>& value3, 
     if (!(space.areas[i].area[t] > 0.0)) continue;
     for (int c = 0; c < 3; ++c) value3[3 * t + c] += direct.value3[3 * k + c];
     variance[t] += direct.variance[k];
-    if (lookup) (*lookup)[t] += direct.variance[k];
+    if (lookup) lookup->local[t] += direct.variance[k];
     ++k;
   }
 }
@@ -162,21 +220,22 @@ void Estimator::texels(size_t i, uint64_t photons, std::vector<double>& value3, 
 // of their own, chosen by the estimated error as for the ordinary photons;
 // their value and mean squared error add to the texel's.
 void Estimator::add_caustics(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance,
-                             std::vector<double>* lookup) const {
+                             LookupError* lookup) const {
   const Mesh& mesh = *space.views[i].mesh;
   const size_t g0 = space.views[i].texel_offset;
   ReconstructParams params;
   params.max_radius = filter_radius;
   params.photons = double(photons);
   params.phantom_sq = acc.caustic.phantom_sq();
-  std::vector<double> c_value, c_mse, c_lookup;
+  std::vector<double> c_value, c_mse;
+  LookupError c_lookup;
   reconstruct_indirect(space.areas[i], mesh.lightmap_width, mesh.lightmap_height,
                        {&acc.caustic.sum[3 * g0], &acc.caustic.sum_sq[g0], &acc.caustic.hits[g0]}, params, c_value,
                        c_mse, lookup ? &c_lookup : nullptr);
   for (size_t t = 0; t < variance.size(); ++t) {
     for (int c = 0; c < 3; ++c) value3[3 * t + c] += c_value[3 * t + c];
     variance[t] += c_mse[t];
-    if (lookup) (*lookup)[t] += c_lookup[t];
+    if (lookup) lookup->local[t] += c_lookup.local[t], lookup->wide[t] += c_lookup.wide[t];
   }
 }
 
@@ -184,21 +243,29 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
   out.photons = photons;
   out.gather_size = est.gather ? est.gather->sums.size() : 0;
   out.values.resize(est.space.views.size());
-  out.lookup_error.resize(est.lookups ? est.space.views.size() : 0);
+  out.lookup_local.resize(est.lookups ? est.space.views.size() : 0);
+  out.lookup_wide.resize(out.lookup_local.size());
   ErrorEstimate& e = out.error;
   e = ErrorEstimate{};
   double var_sum = 0.0, value_sum = 0.0, var_direct = 0.0, var_gather = 0.0, count = 0.0;
-  std::vector<double> value3, variance, lookup, per_texel;
+  std::vector<double> value3, variance, per_texel;
+  LookupError lookup;
   for (size_t i = 0; i < est.space.views.size(); ++i) {
     if (!est.space.views[i].texel_area) continue;
     arena.execute([&] { est.texels(i, photons, value3, variance, &var_gather, est.lookups ? &lookup : nullptr); });
     std::vector<float>& img = out.values[i];
     img.assign(4 * variance.size(), 0.0f);
-    if (est.lookups) out.lookup_error[i].assign(variance.size(), 0.0f);
+    if (est.lookups) {
+      out.lookup_local[i].assign(variance.size(), 0.0f);
+      out.lookup_wide[i].assign(variance.size(), 0.0f);
+    }
     for (size_t t = 0; t < variance.size(); ++t) {
       if (!(est.space.areas[i].area[t] > 0.0)) continue;
       store_texel(value3, variance, t, img.data());
-      if (est.lookups) out.lookup_error[i][t] = float(std::sqrt(lookup[t]));
+      if (est.lookups) {
+        out.lookup_local[i][t] = float(std::sqrt(lookup.local[t]));
+        out.lookup_wide[i][t] = float(std::sqrt(lookup.wide[t]));
+      }
       const double v = (value3[3 * t] + value3[3 * t + 1] + value3[3 * t + 2]) / 3.0;
       value_sum += v;
       var_sum += variance[t];

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "lightmap/reconstruct.h"
 #include "transport/direct_pool.h"
 #include "transport/film.h"
 #include "transport/final_gather.h"
@@ -26,7 +27,7 @@ struct Estimator {
   const Accumulators& acc;
   uint32_t filter_radius;
   const GatherResult* gather = nullptr;  // per covered texel (empty sums without a gather)
-  // Whether estimates also give the error the final gather's lookups see (Estimate::lookup_error).
+  // Whether estimates also give the error the final gather's lookups see (Estimate::lookup_local, lookup_wide).
   bool lookups = false;
 
   // Sub-texel `sub` of CSG solid c: irradiance / pi (3 values) and its
@@ -38,15 +39,15 @@ struct Estimator {
   // Per texel of mesh i: irradiance / pi (3 values) and its estimated mean
   // squared error; the final gather's part of the variances is added to
   // *gather_part. With `lookup`, also the mean squared error that the final
-  // gather's lookups see (reconstruct_indirect's lookup_mse for the photons).
+  // gather's lookups see (reconstruct.h: LookupError).
   void texels(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance,
-              double* gather_part = nullptr, std::vector<double>* lookup = nullptr) const;
+              double* gather_part = nullptr, LookupError* lookup = nullptr) const;
 
  private:
   void combine_gather(size_t i, std::vector<double>& value3, std::vector<double>& variance,
-                      double* gather_part, std::vector<double>* lookup) const;
+                      double* gather_part, LookupError* lookup) const;
   void add_caustics(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance,
-                    std::vector<double>* lookup) const;
+                    LookupError* lookup) const;
 };
 
 // Estimated error over all covered texels: sqrt(mean variance) / mean value,
@@ -69,8 +70,8 @@ struct Estimate {
   ErrorEstimate error;
   std::vector<std::vector<float>> values;
   // Per mesh and texel, where the estimator has lookups: the error the final
-  // gather's lookups see (Estimator::texels).
-  std::vector<std::vector<float>> lookup_error;
+  // gather's lookups see, local and wide (Estimator::texels).
+  std::vector<std::vector<float>> lookup_local, lookup_wide;
 
   bool current(uint64_t p, const GatherResult& gather) const {
     return photons == p && gather_size == gather.sums.size();

@@ -11,12 +11,27 @@
 #include "util/sobol.h"
 
 namespace plm {
+namespace {
+
+constexpr uint32_t kCellCapacity = kMaxGatherSamples;  // rays whose cells a texel keeps apart
+constexpr uint32_t kCalibrationRound = 0xFF;            // the replicates' key (the gather's rounds count from 0)
+
+// A ray's share of the local lookup error and the cell it looked up.
+struct CellShare {
+  uint64_t cell;
+  double share;
+};
+
+}  // namespace
 
 FinalGather::FinalGather(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
                          const std::vector<TexelAreas>& areas, const plm_bake_settings& settings, float scene_extent,
                          const PassageTracer* passage, bool black_known)
     : rtc_(rtc), surfaces_(surfaces), views_(views), areas_(areas), points_(views, areas, settings),
-      seed_(settings.seed), offset_scale_(1e-6f * scene_extent), passage_(passage), black_known_(black_known) {}
+      seed_(settings.seed), offset_scale_(1e-6f * scene_extent),
+      // A texel's photon pool reaches filter_radius texels (at least 1 where
+      // barely covered): texels within a pool's width of each other share hits.
+      cell_side_(2 * std::max(settings.filter_radius, 1u) + 1), passage_(passage), black_known_(black_known) {}
 
 void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
                                const GatherSource& source, GatherSums& sums, GatherInfo& info) const {
@@ -35,7 +50,10 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
   const TexelPoints::TexelWindow tw = points_.texel_window(mesh_id, texel, m);
   const SobolGroup dir_dims(rng.next_u32(), 3), piece_dims(rng.next_u32(), 4);
   uint32_t back = 0, rays = 0;
-  double error_sum = 0.0, inverse_distance = 0.0;
+  double inverse_distance = 0.0, local_sum = 0.0, local_sq = 0.0, wide_sum = 0.0;
+  // The rays' shares of the local lookup error, by the cell they looked up.
+  CellShare cells[kCellCapacity];
+  uint32_t cell_count = 0;
   StratumPairs pairs;
   const Mesh* smooth = views_[mesh_id].mesh->smooth() ? views_[mesh_id].mesh : nullptr;
   const uint8_t* contact = views_[mesh_id].contact;
@@ -114,7 +132,14 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
               const float* d = source.radiosity + 3 * (hv.texel_offset + ht);
               const Vec3 a = kPassage ? (*source.albedo)[mesh][prim] * through : (*source.albedo)[mesh][prim];
               e = {a.x * d[0], a.y * d[1], a.z * d[2]};
-              error_sum += double(average(a)) * source.error[hv.texel_offset + ht];
+              const double albedo = average(a), local = albedo * source.local[hv.texel_offset + ht];
+              const uint64_t cell = uint64_t(mesh) << 42 | uint64_t(uint32_t(ht) / hm.lightmap_width / cell_side_) << 21 |
+                                    uint32_t(ht) % hm.lightmap_width / cell_side_;
+              if (cell_count < kCellCapacity) cells[cell_count++] = {cell, local};
+              else cells[kCellCapacity - 1].share += local;  // (more rays than room: taken as one cell)
+              local_sum += local;
+              local_sq += local * local;
+              wide_sum += albedo * source.wide[hv.texel_offset + ht];
               known = true;
             }
           }
@@ -134,7 +159,21 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
   // Many backs lit from behind are a surface whose light no lightmap holds
   // (lightmaps are one-sided).
   if (4 * back > rays) info.unknown += back;
-  info.lookup_error = rays ? error_sum / rays : 0.0;
+  if (rays) {
+    std::sort(cells, cells + cell_count, [](const CellShare& a, const CellShare& b) { return a.cell < b.cell; });
+    double cells_sq = 0.0;
+    for (uint32_t i = 0; i < cell_count;) {
+      double share = 0.0;
+      const uint64_t cell = cells[i].cell;
+      for (; i < cell_count && cells[i].cell == cell; ++i) share += cells[i].share;
+      cells_sq += share * share;
+    }
+    const double n_sq = double(rays) * double(rays);
+    info.lookup_all = local_sum * local_sum / n_sq;
+    info.lookup_cells = cells_sq / n_sq;
+    info.lookup_rays = local_sq / n_sq;
+    info.lookup_wide = wide_sum * wide_sum / n_sq;
+  }
   if (inverse_distance > 0.0) info.hit_distance = float(rays / inverse_distance);
 }
 
@@ -149,35 +188,63 @@ SurfaceHit FinalGather::passed(const RayPacket& packet, unsigned l, Vec3 dir, Ve
 
 GatherResult run_final_gather(tbb::task_arena& arena, const FinalGather& gather, const TexelSpace& space,
                               const std::vector<std::vector<float>>& images,
-                              const std::vector<std::vector<float>>& errors,
+                              const std::vector<std::vector<float>>& local,
+                              const std::vector<std::vector<float>>& wide,
                               const std::vector<std::vector<Vec3>>& albedo, const uint8_t* back_lit, uint32_t samples,
                               const std::function<bool()>& after_group, CoveredSlice slice) {
-  std::vector<float> radiosity(3 * space.texel_count, 0.0f), error(space.texel_count, 0.0f);
+  std::vector<float> radiosity(3 * space.texel_count, 0.0f), local_error(space.texel_count, 0.0f),
+      wide_error(space.texel_count, 0.0f);
   for (size_t i = 0; i < images.size(); ++i) {
     const std::vector<float>& img = images[i];
     const size_t g0 = space.views[i].texel_offset;
     for (size_t t = 0; 4 * t < img.size(); ++t) {
       for (int c = 0; c < 3; ++c) radiosity[3 * (g0 + t) + c] = img[4 * t + c];
-      error[g0 + t] = errors[i][t];
+      local_error[g0 + t] = local[i][t];
+      wide_error[g0 + t] = wide[i][t];
     }
   }
-  const GatherSource source{radiosity.data(), error.data(), &albedo, back_lit};
+  const GatherSource source{radiosity.data(), local_error.data(), wide_error.data(), &albedo, back_lit};
   slice = slice.clamped(space.covered.size());
   const CoveredTexel* const covered = space.covered.data() + slice.begin;
   GatherResult out;
+  const size_t step = gather_calibration_step(space.covered.size());
   out.sums.resize(slice.size());
   out.info.resize(slice.size());
   run_in_groups(
       arena, slice.size(), 64,
       [&](uint64_t first_texel, uint64_t n) {
         tbb::parallel_for(tbb::blocked_range<uint64_t>(first_texel, first_texel + n, 16), [&](const auto& r) {
-          for (uint64_t k = r.begin(); k < r.end(); ++k)
-            gather.sample_texel(covered[k].mesh, covered[k].texel, 0, samples, source, out.sums[k], out.info[k]);
+          for (uint64_t k = r.begin(); k < r.end(); ++k) {
+            GatherSums& a = out.sums[k];
+            GatherInfo& info = out.info[k];
+            gather.sample_texel(covered[k].mesh, covered[k].texel, 0, samples, source, a, info);
+            if ((slice.begin + k) % step != 0 || info.unknown) continue;
+            // A calibration texel: an independent replicate (it looks up the
+            // same estimate, so the difference holds the rays' noise alone).
+            GatherSums b;
+            GatherInfo b_info;
+            gather.sample_texel(covered[k].mesh, covered[k].texel, kCalibrationRound, samples, source, b, b_info);
+            if (!a.paired || !b.paired || b_info.unknown) continue;
+            const double d = a.mean() - b.mean();
+            info.calibration_measured = float(d * d);
+            info.calibration_estimated = float(a.pairs_of_mean(a.pair_sq) + b.pairs_of_mean(b.pair_sq));
+          }
         });
       },
       [&](uint64_t) { return after_group(); });
   out.typical = typical_sample(out.sums);
+  out.scale = gather_scale(out.info);
   return out;
+}
+
+size_t gather_calibration_step(size_t covered) { return std::max<size_t>(8, covered / 1024); }
+
+double gather_scale(const std::vector<GatherInfo>& info) {
+  double measured = 0.0, estimated = 0.0;
+  size_t used = 0;
+  for (const GatherInfo& g : info)
+    if (g.calibration_estimated > 0.0f) measured += g.calibration_measured, estimated += g.calibration_estimated, ++used;
+  return calibration_ratio(measured, estimated, used);
 }
 
 }  // namespace plm

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -33,6 +34,14 @@ struct StratifiedSums {
   void add_pair(double a, double b) {
     pair_sq += (a - b) * (a - b);
     paired += 2;
+  }
+  // The variance of the mean from pair differences summing to pair_sum over
+  // the paired samples, with `extra` (n^2 x a variance of the mean) added; 0
+  // without pairs.
+  double pairs_of_mean(double pair_sum, double extra = 0.0) const {
+    if (paired == 0) return 0.0;
+    const double n = double(count);
+    return (pair_sum * (n / double(paired)) + extra) / (n * n);
   }
   // Squared standard error of the mean, scaled by `scale`, with `extra` (n^2
   // x a variance of the mean from elsewhere) added. `typical` enters as one
@@ -75,6 +84,15 @@ double typical_sample(const std::vector<Sums>& sums) {
   for (const StratifiedSums& s : sums)
     if (s.count) texel_sq += s.sum_sq / s.count, sampled += 1.0;
   return sampled > 0.0 ? std::sqrt(texel_sq / sampled) : 0.0;
+}
+
+// The scale that makes pair estimates of the variance honest, from
+// calibration texels: for two independent means a, b of a texel, E[(a - b)^2]
+// = Var a + Var b, so the sum of the measured squared differences over the sum
+// of the estimated variances. 1 with fewer than 32 texels.
+inline double calibration_ratio(double measured, double estimated, size_t used) {
+  if (used < 32 || !(estimated > 0.0)) return 1.0;
+  return std::clamp(measured / estimated, 1e-4, 4.0);
 }
 
 }  // namespace plm

@@ -66,6 +66,7 @@ GatherResult join_gather(std::vector<GatherResult>& ranges, size_t covered) {
     fail(PLM_ERROR_INVALID_ARGUMENT, "the gather parts hold ", out.sums.size(), " texels where the scene covers ",
          covered);
   out.typical = typical_sample(out.sums);
+  out.scale = gather_scale(out.info);
   return out;
 }
 
