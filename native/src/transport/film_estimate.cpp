@@ -39,7 +39,8 @@ GatherFitBias gather_fit_bias(const TexelAreas& ta, uint32_t width, uint32_t hei
   size_t reach2 = 0;
   for (size_t t = 0; t < radius.size(); ++t) {
     if (!usable[t] || radius[t] < 2) continue;
-    const double d = (fit2[3 * t] + fit2[3 * t + 1] + fit2[3 * t + 2] - fit1[3 * t] - fit1[3 * t + 1] - fit1[3 * t + 2]) / 3.0;
+    const double d =
+        (fit2[3 * t] + fit2[3 * t + 1] + fit2[3 * t + 2] - fit1[3 * t] - fit1[3 * t + 1] - fit1[3 * t + 2]) / 3.0;
     excess += d * d - std::max(0.0, var1[t] - var2[t]);
     ++reach2;
   }

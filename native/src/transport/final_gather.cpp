@@ -133,8 +133,8 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
               const Vec3 a = kPassage ? (*source.albedo)[mesh][prim] * through : (*source.albedo)[mesh][prim];
               e = {a.x * d[0], a.y * d[1], a.z * d[2]};
               const double albedo = average(a), local = albedo * source.local[hv.texel_offset + ht];
-              const uint64_t cell = uint64_t(mesh) << 42 | uint64_t(uint32_t(ht) / hm.lightmap_width / cell_side_) << 21 |
-                                    uint32_t(ht) % hm.lightmap_width / cell_side_;
+              const uint32_t row = uint32_t(ht) / hm.lightmap_width, column = uint32_t(ht) % hm.lightmap_width;
+              const uint64_t cell = uint64_t(mesh) << 42 | uint64_t(row / cell_side_) << 21 | column / cell_side_;
               if (cell_count < kCellCapacity) cells[cell_count++] = {cell, local};
               else cells[kCellCapacity - 1].share += local;  // (more rays than room: taken as one cell)
               local_sum += local;
@@ -242,8 +242,12 @@ size_t gather_calibration_step(size_t covered) { return std::max<size_t>(8, cove
 double gather_scale(const std::vector<GatherInfo>& info) {
   double measured = 0.0, estimated = 0.0;
   size_t used = 0;
-  for (const GatherInfo& g : info)
-    if (g.calibration_estimated > 0.0f) measured += g.calibration_measured, estimated += g.calibration_estimated, ++used;
+  for (const GatherInfo& g : info) {
+    if (!(g.calibration_estimated > 0.0f)) continue;
+    measured += g.calibration_measured;
+    estimated += g.calibration_estimated;
+    ++used;
+  }
   return calibration_ratio(measured, estimated, used);
 }
 
