@@ -39,6 +39,16 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
     out.variance[j] = d.variance_of_mean(noise);
     out.phantom[j] = d.phantom_variance_of_mean(noise);
   }
+  // Split texels test every lamp with every sample (a sun behind a blocker
+  // is a known zero): only the world can be missed by all of a texel's samples
+  // (through a window), so their phantom is a typical world part, the RMS of
+  // the split texels' world means, not a typical sample, which the sun makes
+  // 3x larger in an open scene (the sky-lit side of a sphere reported 2.4x its
+  // error).
+  double sky_sq = 0.0, sky_texels = 0.0;
+  for (const DirectSums& d : sums)
+    if (split(d)) sky_sq += d.sky_mean() * d.sky_mean(), sky_texels += 1.0;
+  const double typical_sky = sky_texels > 0.0 ? std::sqrt(sky_sq / sky_texels) : 0.0;
   // Lightmaps in parallel (each writes its own texels; its fits run in
   // parallel too), so that many small ones keep every core busy.
   tbb::parallel_for(size_t(0), space.views.size(), [&](size_t i) {
@@ -63,7 +73,8 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
       // A split texel's world part and rest each have their own pairs and
       // calibration (the light choice's spread goes with the rest).
       m.var[t] = noise.sky_scale * d.sky_pair_variance_of_mean();
-      m.phantom[t] = out.phantom[kk - first];
+      const double missed = typical_sky - d.sky_mean();
+      m.phantom[t] = noise.scale * missed * missed / (double(d.count) * d.count);
       m.guide[t] = d.mean();
       // Ambient occlusion changes over about the distance to what blocks the
       // sky: the harmonic mean of the blocked rays' distances.

@@ -10,7 +10,8 @@
 // whose shadows are sharp -- stays the texel's own mean. A fit over a 5 x 5
 // neighbourhood averages about 25 texels' sky samples: in an open sunlit
 // scene, where the sky's occluded share is most of the direct noise, the
-// same error takes a fraction of the samples.
+// same error takes a fraction of the samples. The phantom sample of such
+// texels is a typical world part: the lamps cannot be missed by every sample.
 #pragma once
 
 #include <cstddef>

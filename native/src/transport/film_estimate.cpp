@@ -93,8 +93,8 @@ double Estimator::csg_texel(size_t c, uint32_t sub, uint64_t photons, double val
 // hits are near (kGatherReach). Texels whose gather met something it
 // cannot look up keep A, and pool with no other (a negative guide), as do
 // texels whose rays met dark backs (their G is their own). Where the fit is
-// narrowed, A (a mean over the whole texel, G over its central square) is
-// tested against G for bias.
+// narrowed, A (a mean over the whole texel) and G (over its central square)
+// are tested against each other for bias.
 // var G: the fit's variance from the texels' own (their pair estimates,
 // calibrated: gather_scale), the fit's squared bias (gather_fit_bias), and
 // the error of what the rays looked up: its wide part whole; of its local
@@ -148,22 +148,24 @@ void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vecto
                                                  g_var, guide, radius, usable, g_value, g_fit_var);
   for (size_t t = 0; t < n; ++t) {
     if (!usable[t]) continue;
-    double v_photons = variance[t], bias_sq = 0.0;
+    double bias_sq = 0.0;
     const double v_lookups = (1.0 - rho) * rays_fit[t] + rho * lookup_all[t] + lookup_wide[t];
     const double fit_bias_sq = fit_bias.sq[radius[t]];
-    const double v_gather = g_fit_var[t] + fit_bias_sq + v_lookups;
+    const double v_noise_p = variance[t], v_noise_g = g_fit_var[t] + fit_bias_sq + v_lookups;
     if (radius[t] < kGatherRadius) {
-      // Near a wall the photons' mean over the whole texel is biased
-      // against the value over the points the direct light and the gather
-      // sample (the central square): where the two disagree by more than
-      // their noise, the excess squared difference (an unbiased estimate of
-      // the squared bias) joins the photons' variance.
+      // Near a wall the photons' mean over the whole texel and the gather's
+      // over its central square may each be biased against the value at the
+      // centre (the edge of a box's contact or shadow crosses the texel):
+      // where the two disagree by more than their noise, the excess squared
+      // difference (an unbiased estimate of the squared bias between them),
+      // not knowing which one it is, joins both variances. The weights stay
+      // what the noise says; the error grows.
       const double* pv = &value3[3 * t];
       const double* gv = &g_value[3 * t];
       const double diff = (pv[0] + pv[1] + pv[2] - gv[0] - gv[1] - gv[2]) / 3.0;
-      bias_sq = std::max(0.0, diff * diff - v_photons - v_gather);
-      v_photons += bias_sq;
+      bias_sq = std::max(0.0, diff * diff - v_noise_p - v_noise_g);
     }
+    const double v_photons = v_noise_p + bias_sq, v_gather = v_noise_g + bias_sq;
     const double w = v_photons + v_gather > 0.0 ? v_gather / (v_photons + v_gather) : 0.0;
     for (int c = 0; c < 3; ++c) value3[3 * t + c] = w * value3[3 * t + c] + (1.0 - w) * g_value[3 * t + c];
     variance[t] = w * w * v_photons + (1.0 - w) * (1.0 - w) * v_gather;
@@ -172,7 +174,8 @@ void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vecto
     // texels are wide.
     if (lookup) {
       lookup->local[t] = w * w * lookup->local[t] + (1.0 - w) * (1.0 - w) * g_fit_var[t];
-      lookup->wide[t] = w * w * (lookup->wide[t] + bias_sq) + (1.0 - w) * (1.0 - w) * (fit_bias_sq + v_lookups);
+      lookup->wide[t] =
+          w * w * (lookup->wide[t] + bias_sq) + (1.0 - w) * (1.0 - w) * (fit_bias_sq + v_lookups + bias_sq);
     }
     if (gather_part) *gather_part += (1.0 - w) * (1.0 - w) * v_gather;
   }
