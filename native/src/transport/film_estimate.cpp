@@ -112,7 +112,7 @@ void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vecto
   std::vector<double> g_mean(3 * n, 0.0), g_var(n, 0.0), g_value, g_fit_var;
   std::vector<double> guide(n, -1.0), lookup_all(n, 0.0), lookup_rays(n, 0.0), lookup_wide(n, 0.0), rays_fit;
   double shared = 0.0, pairs = 0.0;  // over the texels: ray pairs' products within one cell, and all
-  std::vector<uint8_t> usable(n, 0), radius(n, uint8_t(kGatherRadius));
+  std::vector<uint8_t> usable(n, 0), radius(n, uint8_t(kGatherRadius)), all_dark(n, 0);
   const double width = texel_width(space.areas[i]);
   size_t k = space.covered_begin[i];
   for (size_t t = 0; t < n; ++t) {
@@ -133,7 +133,8 @@ void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vecto
     for (int c = 0; c < 3; ++c) g_mean[3 * t + c] = g.rgb[c] / g.count;
     // Every ray met a dark back (the texel's points are under a box): no
     // light reaches them.
-    g_var[t] = info.dark == g.count ? 0.0 : g.variance_of_mean(gather->typical, 0.0, gather->scale);
+    all_dark[t] = info.dark == g.count;
+    g_var[t] = all_dark[t] ? 0.0 : g.variance_of_mean(gather->typical, 0.0, gather->scale);
     lookup_all[t] = info.lookup_all;
     lookup_rays[t] = info.lookup_rays;
     lookup_wide[t] = info.lookup_wide;
@@ -159,13 +160,14 @@ void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vecto
       // where the two disagree by more than their noise, the excess squared
       // difference (an unbiased estimate of the squared bias between them),
       // not knowing which one it is, joins both variances. The weights stay
-      // what the noise says; the error grows.
+      // what the noise says; the error grows. A gather whose every ray met a
+      // known zero (a texel in contact) is exact: there the photons hold it.
       const double* pv = &value3[3 * t];
       const double* gv = &g_value[3 * t];
       const double diff = (pv[0] + pv[1] + pv[2] - gv[0] - gv[1] - gv[2]) / 3.0;
       bias_sq = std::max(0.0, diff * diff - v_noise_p - v_noise_g);
     }
-    const double v_photons = v_noise_p + bias_sq, v_gather = v_noise_g + bias_sq;
+    const double v_photons = v_noise_p + bias_sq, v_gather = v_noise_g + (all_dark[t] ? 0.0 : bias_sq);
     const double w = v_photons + v_gather > 0.0 ? v_gather / (v_photons + v_gather) : 0.0;
     for (int c = 0; c < 3; ++c) value3[3 * t + c] = w * value3[3 * t + c] + (1.0 - w) * g_value[3 * t + c];
     variance[t] = w * w * v_photons + (1.0 - w) * (1.0 - w) * v_gather;
