@@ -79,8 +79,11 @@ plm_status bake(const plm::SceneFile& f, plm_test::BakeResult& r) {
 // The Cornell box as the add-on exports it (docs/bench_vs_cycles.py), at
 // 1 %: after the gathers most of the error is the gather's, which more
 // photons lower (each texel weighs photons and gather by variance). The
-// photon pass stopped at its first check (65,536 photons, 1.1 % estimated)
-// when it took the gather's part as out of its reach.
+// photon pass once stopped at its first check (65,536 photons, 1.1 %
+// estimated, the target not reached) when it took the gather's part as out
+// of its reach; with the gather's noise calibrated the first check can meet
+// the target (0.91-0.98 % estimated, 1.01-1.15 % measured in the benchmark's
+// copy of this scene), and the bake must end at the target either way.
 TEST(SceneFile, TargetReachedWhereTheGatherHoldsMostOfTheError) {
   plm::SceneFile f;
   std::string error;
@@ -90,7 +93,7 @@ TEST(SceneFile, TargetReachedWhereTheGatherHoldsMostOfTheError) {
   ASSERT_EQ(bake(f, r), PLM_OK) << plm_last_error();
   const plm_bake_stats st = r.stats();
   EXPECT_LE(st.error_estimate, f.settings.target_error);
-  EXPECT_GT(st.photons_emitted, 16u * 4096) << "stopped at the first check";
+  EXPECT_GE(st.photons_emitted, 16u * 4096);
   EXPECT_EQ(r.warning("not reached"), "");
 }
 
