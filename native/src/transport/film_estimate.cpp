@@ -131,13 +131,13 @@ void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vecto
     usable[t] = 1;
     guide[t] = info.dark ? -1.0 : direct_mean;
     for (int c = 0; c < 3; ++c) g_mean[3 * t + c] = g.rgb[c] / g.count;
-    // Every ray met a dark back (the texel's points are under a box): no
-    // light reaches them.
     // The calibration's scale is the open texels' (most of them): next to a
     // wall, where the hemisphere holds an edge, neighbouring strata differ by
     // noise more than by the smooth change the scale takes out, so there the
     // pairs are not scaled down (the open test scene's box-foot texels).
     const double scale = radius[t] < kGatherRadius ? std::max(1.0, gather->scale) : gather->scale;
+    // Every ray met a dark back (the texel's points are under a box): no
+    // light reaches them.
     g_var[t] = info.dark == g.count ? 0.0 : g.variance_of_mean(gather->typical, 0.0, scale);
     lookup_all[t] = info.lookup_all;
     lookup_rays[t] = info.lookup_rays;
@@ -153,10 +153,10 @@ void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vecto
                                                  g_var, guide, radius, usable, g_value, g_fit_var);
   for (size_t t = 0; t < n; ++t) {
     if (!usable[t]) continue;
-    double bias_sq = 0.0;
+    double v_photons = variance[t], bias_sq = 0.0;
     const double v_lookups = (1.0 - rho) * rays_fit[t] + rho * lookup_all[t] + lookup_wide[t];
     const double fit_bias_sq = fit_bias.sq[radius[t]];
-    const double v_noise_p = variance[t], v_noise_g = g_fit_var[t] + fit_bias_sq + v_lookups;
+    const double v_gather = g_fit_var[t] + fit_bias_sq + v_lookups;
     if (radius[t] < kGatherRadius) {
       // Near a wall the photons' mean over the whole texel is biased
       // against the value over the points the direct light and the gather
@@ -168,9 +168,9 @@ void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vecto
       const double* pv = &value3[3 * t];
       const double* gv = &g_value[3 * t];
       const double diff = (pv[0] + pv[1] + pv[2] - gv[0] - gv[1] - gv[2]) / 3.0;
-      bias_sq = std::max(0.0, diff * diff - v_noise_p - v_noise_g);
+      bias_sq = std::max(0.0, diff * diff - v_photons - v_gather);
+      v_photons += bias_sq;
     }
-    const double v_photons = v_noise_p + bias_sq, v_gather = v_noise_g;
     const double w = v_photons + v_gather > 0.0 ? v_gather / (v_photons + v_gather) : 0.0;
     for (int c = 0; c < 3; ++c) value3[3 * t + c] = w * value3[3 * t + c] + (1.0 - w) * g_value[3 * t + c];
     variance[t] = w * w * v_photons + (1.0 - w) * (1.0 - w) * v_gather;
