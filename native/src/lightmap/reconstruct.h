@@ -16,6 +16,8 @@
 // honest.
 #pragma once
 
+#include <algorithm>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -88,5 +90,36 @@ void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, c
                         const double* variance, const double* guide, uint32_t radius, std::vector<double>& value3,
                         std::vector<double>& var_out, const uint8_t* texel_radius = nullptr, float min_cos = 0.9f,
                         const double* variance2 = nullptr, std::vector<double>* var2_out = nullptr);
+
+// The squared bias of local linear fits (reconstruct_linear) by radius (0 at
+// radius 0), from the fits of radius 1 and 2 and their variances (value3 and
+// var_out of each) over the n texels where takes_part(t) holds: those whose
+// reach allows radius 2. A linear fit's bias over a window of radius r grows
+// as r^2 (the curvature it cannot follow), so the two fits differ by 3/4 of
+// the larger one's bias: E (f2 - f1)^2 = (3/4 b2)^2 + var1 - var2 (nested
+// windows). Averaged over many texels the difference is far steadier than
+// a comparison with one texel's own noisy mean. `texels`: how many took part.
+struct FitBias {
+  double sq[3] = {0.0, 0.0, 0.0};
+  size_t texels = 0;
+};
+template <typename TakesPart>
+FitBias linear_fit_bias(const std::vector<double>& fit1, const std::vector<double>& var1,
+                        const std::vector<double>& fit2, const std::vector<double>& var2, size_t n,
+                        TakesPart takes_part) {
+  FitBias out;
+  double excess = 0.0;
+  for (size_t t = 0; t < n; ++t) {
+    if (!takes_part(t)) continue;
+    ++out.texels;
+    const double d =
+        (fit2[3 * t] + fit2[3 * t + 1] + fit2[3 * t + 2] - fit1[3 * t] - fit1[3 * t + 1] - fit1[3 * t + 2]) / 3.0;
+    excess += d * d - std::max(0.0, var1[t] - var2[t]);
+  }
+  if (out.texels == 0) return out;
+  out.sq[1] = std::max(0.0, excess / double(out.texels)) / 9.0;  // (4/3)^2 / 16 of the mean excess
+  out.sq[2] = 16.0 * out.sq[1];
+  return out;
+}
 
 }  // namespace plm

@@ -86,37 +86,31 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
     if (m.pooled < kMinPooledTexels) return;
     const uint32_t w = space.views[i].mesh->lightmap_width, h = space.views[i].mesh->lightmap_height;
     // The radius with the least estimated mean squared error over the
-    // lightmap's split texels: a fit's variance plus its squared bias. The
-    // bias of a linear fit over a window of radius r grows as r^2 (the
-    // curvature it cannot follow), so fits of radius 1 and 2 differ by 3/4 of
-    // the latter's bias: E (f2 - f1)^2 = (3/4 b2)^2 + var1 - var2 (nested
-    // windows), averaged over the texels whose reach allows radius 2. Their
-    // difference is an average of many texels and far less noisy than a
-    // texel's own mean, whose variance estimate is rough (Sobol pairs, one
-    // calibration for all). Radius 0 keeps the own means, exact in mean. Each
-    // pooled texel's variance takes the squared bias of its radius.
+    // lightmap's split texels: a fit's variance plus its squared bias
+    // (linear_fit_bias, over the texels whose reach allows radius 2; a
+    // texel's own mean is too noisy to compare with, its variance estimate
+    // rough: Sobol pairs, one calibration for all). Radius 0 keeps the own
+    // means, exact in mean. Each pooled texel's variance takes the squared
+    // bias of its radius.
     static_assert(kSkyRadius == 2, "the bias estimate compares the fits of radius 1 and 2");
     const double* sky3 = m.sky3.data();
     reconstruct_linear(ta, w, h, sky3, m.var.data(), m.guide.data(), 1, fit1, var1, m.radius.data(), kSkyMinCos,
                        m.phantom.data(), &phantom1);
     reconstruct_linear(ta, w, h, sky3, m.var.data(), m.guide.data(), 2, fit2, var2, m.radius.data(), kSkyMinCos,
                        m.phantom.data(), &phantom2);
-    double var0_sum = 0.0, var1_sum = 0.0, var2_sum = 0.0, excess = 0.0;
-    size_t reach1 = 0, reach2 = 0;  // texels whose reach allows radius 1, 2
+    double var0_sum = 0.0, var1_sum = 0.0, var2_sum = 0.0;
+    size_t reach1 = 0;  // texels whose reach allows radius 1
     for (size_t t = 0; t < n; ++t) {
       if (m.guide[t] < 0.0) continue;
       var0_sum += m.var[t], var1_sum += var1[t], var2_sum += var2[t];
       reach1 += m.radius[t] >= 1;
-      if (m.radius[t] < 2) continue;
-      ++reach2;
-      const double d = (fit2[3 * t] + fit2[3 * t + 1] + fit2[3 * t + 2] - fit1[3 * t] - fit1[3 * t + 1] -
-                        fit1[3 * t + 2]) / 3.0;
-      excess += d * d - std::max(0.0, var1[t] - var2[t]);
     }
+    const FitBias fit_bias =
+        linear_fit_bias(fit1, var1, fit2, var2, n, [&](size_t t) { return m.guide[t] >= 0.0 && m.radius[t] >= 2; });
+    const size_t reach2 = fit_bias.texels;
     if (reach2 < kMinPooledTexels / 4) return;  // too few texels to estimate the bias by
     const double count = double(m.pooled);
-    const double bias1 = std::max(0.0, excess / double(reach2)) / 9.0;  // (4/3)^2 / 16 of the mean excess
-    const double bias[3] = {0.0, bias1, 16.0 * bias1};
+    const double* bias = fit_bias.sq;
     const double mse[3] = {var0_sum / count, (var1_sum + double(reach1) * bias[1]) / count,
                            (var2_sum + double(reach2) * bias[2] + double(reach1 - reach2) * bias[1]) / count};
     const uint32_t best_r = uint32_t(std::min_element(mse, mse + 3) - mse);

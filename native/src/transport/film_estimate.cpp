@@ -17,38 +17,20 @@ constexpr double kGatherReach = 1.0;
 // Texels (of radius 2) a lightmap needs for an estimate of its gather fit's bias.
 constexpr size_t kMinBiasTexels = 16;
 
-// The gather fit's squared bias by radius (0 at radius 0). The bias of a
-// linear fit over a window of radius r grows as r^2 (the curvature it cannot
-// follow), so the fits of radius 1 and 2 differ by 3/4 of the latter's bias:
-// E (f2 - f1)^2 = (3/4 b2)^2 + var1 - var2 (nested windows), averaged over
-// the texels whose reach allows radius 2 (as the direct pass's sky pooling,
-// direct_pool.cpp). With the gather's variance calibrated, this bias is what
-// is left of its error where the bounce light curves (a box's foot).
-struct GatherFitBias {
-  double sq[kGatherRadius + 1] = {};
-};
+// The gather fit's squared bias by radius (linear_fit_bias over the usable
+// texels whose reach allows radius 2; none with fewer than kMinBiasTexels).
+// With the gather's variance calibrated, this bias is what is left of its
+// error where the bounce light curves (a box's foot).
 static_assert(kGatherRadius == 2, "the bias estimate compares the fits of radius 1 and 2");
-
-GatherFitBias gather_fit_bias(const TexelAreas& ta, uint32_t width, uint32_t height, const std::vector<double>& mean3,
-                              const std::vector<double>& var, const std::vector<double>& guide,
-                              const std::vector<uint8_t>& radius, const std::vector<uint8_t>& usable,
-                              const std::vector<double>& fit2, const std::vector<double>& var2) {
+FitBias gather_fit_bias(const TexelAreas& ta, uint32_t width, uint32_t height, const std::vector<double>& mean3,
+                        const std::vector<double>& var, const std::vector<double>& guide,
+                        const std::vector<uint8_t>& radius, const std::vector<uint8_t>& usable,
+                        const std::vector<double>& fit2, const std::vector<double>& var2) {
   std::vector<double> fit1, var1;
   reconstruct_linear(ta, width, height, mean3.data(), var.data(), guide.data(), 1, fit1, var1, radius.data());
-  double excess = 0.0;
-  size_t reach2 = 0;
-  for (size_t t = 0; t < radius.size(); ++t) {
-    if (!usable[t] || radius[t] < 2) continue;
-    const double d =
-        (fit2[3 * t] + fit2[3 * t + 1] + fit2[3 * t + 2] - fit1[3 * t] - fit1[3 * t + 1] - fit1[3 * t + 2]) / 3.0;
-    excess += d * d - std::max(0.0, var1[t] - var2[t]);
-    ++reach2;
-  }
-  GatherFitBias out;
-  if (reach2 < kMinBiasTexels) return out;  // too few texels to estimate it by
-  out.sq[1] = std::max(0.0, excess / double(reach2)) / 9.0;  // (4/3)^2 / 16 of the mean excess
-  out.sq[2] = 16.0 * out.sq[1];
-  return out;
+  const FitBias out =
+      linear_fit_bias(fit1, var1, fit2, var2, radius.size(), [&](size_t t) { return usable[t] && radius[t] >= 2; });
+  return out.texels < kMinBiasTexels ? FitBias() : out;
 }
 
 double percentile(std::vector<double>& v, double q) {
@@ -149,7 +131,7 @@ void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vecto
                      guide.data(), kGatherRadius, g_value, g_fit_var, radius.data(), 0.9f, lookup_rays.data(),
                      &rays_fit);
   const double rho = pairs > 0.0 ? std::clamp(shared / pairs, 0.0, 1.0) : 1.0;
-  const GatherFitBias fit_bias = gather_fit_bias(space.areas[i], mesh.lightmap_width, mesh.lightmap_height, g_mean,
+  const FitBias fit_bias = gather_fit_bias(space.areas[i], mesh.lightmap_width, mesh.lightmap_height, g_mean,
                                                  g_var, guide, radius, usable, g_value, g_fit_var);
   for (size_t t = 0; t < n; ++t) {
     if (!usable[t]) continue;
