@@ -93,7 +93,7 @@ TEST(DirectPool, SkyLightPooledIsCloserToTheTruthUnbiasedAndHonest) {
 }
 
 // A loose target's probe (DirectSchedule::probe): under 8 % the open
-// scene's round 0 of 8 samples a texel meets the direct share and is kept;
+// scene's round 0 of 4 samples a texel meets the direct share and is kept;
 // under 4 % without the sun (the sky alone: its occluded share is all the
 // light near the box) it does not, and round 0 runs again with 16 (the
 // dropped probe counted in the samples traced).
@@ -108,7 +108,7 @@ TEST(DirectPool, LooseTargetProbeIsKeptOrDropped) {
     uint32_t least = ~0u;
     for (const DirectSums& s : d.result.sums) in_sums += s.count, least = std::min(least, s.count);
     if (target > 0.05) {
-      EXPECT_EQ(least, 9u);  // 8 rounded up to a square
+      EXPECT_EQ(least, 4u);
       EXPECT_EQ(d.result.samples, in_sums);
     } else {
       EXPECT_GE(least, 16u);

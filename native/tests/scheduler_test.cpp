@@ -213,16 +213,20 @@ TEST(Scheduler, LooseTargetsDoLessOfTheSmallestBake) {
   EXPECT_EQ(at, (std::vector<uint64_t>{4, 16, 32, 48, 64}));
 }
 
-// Targets of 4 % and looser first probe round 0 with 8 samples a texel;
-// refines() tells whether a round's noise is above the direct share of the
+// Targets of 4 % and looser first probe round 0 with 9 samples a texel at
+// 4 %, fewer for looser targets (the error per sample count falling as
+// n^-0.75: 4 from 7.4 %, squares for the strata); refines() tells whether a round's noise is above the direct share of the
 // target (a probe that is, is dropped).
 TEST(Scheduler, LooseTargetsProbeRoundZero) {
   EXPECT_EQ(DirectSchedule(0.0, 64).probe(), 0u);
   EXPECT_EQ(DirectSchedule(0.02, 64).probe(), 0u);
   EXPECT_EQ(DirectSchedule(0.03, 64).probe(), 0u);
-  EXPECT_EQ(DirectSchedule(0.04, 64).probe(), DirectSchedule::kLeastProbeSamples);
-  EXPECT_EQ(DirectSchedule(0.08, 64).probe(), DirectSchedule::kLeastProbeSamples);
-  EXPECT_EQ(DirectSchedule(0.08, 8).probe(), 0u);  // no fewer than round 0's own
+  EXPECT_EQ(DirectSchedule(0.04, 64).probe(), 9u);
+  EXPECT_EQ(DirectSchedule(0.07, 64).probe(), 9u);
+  EXPECT_EQ(DirectSchedule(0.075, 64).probe(), 4u);
+  EXPECT_EQ(DirectSchedule(0.5, 64).probe(), 4u);  // pairs of strata
+  EXPECT_EQ(DirectSchedule(0.05, 9).probe(), 0u);  // no fewer than round 0's own
+  EXPECT_EQ(DirectSchedule(0.08, 9).probe(), 4u);
   const DirectSchedule s(0.05, 64);
   const double a2 = std::pow(DirectSchedule::kDirectShareOfTarget * 0.05, 2.0);
   EXPECT_FALSE(s.refines(1.0, texels({0.5 * a2, 0.9 * a2, 1.5 * a2}, 8)));

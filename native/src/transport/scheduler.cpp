@@ -44,8 +44,13 @@ DirectSchedule::DirectSchedule(double target_error, uint32_t direct_samples)
     : target_(target_error),
       direct_samples_(direct_samples),
       first_(target_error > 0.0 ? std::min(direct_samples, kFirstTargetSamples) : direct_samples),
-      probe_(loose_share(target_error) <= kLeastShare ? kLeastProbeSamples : 0) {
-  if (probe_ >= first_) probe_ = 0;
+      probe_(0) {
+  if (loose_share(target_error) > kLeastShare) return;
+  const double loosest = kBaseTarget / std::sqrt(kLeastShare);  // where the probe starts
+  const double n = double(kProbeSamples) * std::pow(loosest / target_error, 2.0 / kDirectConvergence);
+  // At least 2 x 2: a texel's noise is estimated from pairs of strata.
+  const uint32_t side = std::max(2u, uint32_t(std::ceil(std::sqrt(n) - 1e-9)));
+  probe_ = side * side < first_ ? side * side : 0;
 }
 
 bool DirectSchedule::refines(double mean, const std::vector<DirectTexelNoise>& texels) const {

@@ -218,7 +218,7 @@ struct DirectTexelNoise {
 class DirectSchedule {
  public:
   static constexpr uint32_t kMaxRounds = 16;
-  static constexpr uint32_t kFirstTargetSamples = 16, kLeastProbeSamples = 8;
+  static constexpr uint32_t kFirstTargetSamples = 16, kProbeSamples = 9;
   static constexpr uint32_t kTopUpGrowth = 2;
   // Stratified samples over a shadow edge: n^-1.5; plain noise: n^-1.
   static constexpr double kDirectConvergence = 1.5;
@@ -234,8 +234,12 @@ class DirectSchedule {
   // Samples per texel of round 0.
   uint32_t first() const { return first_; }
   // A loose target's probe: for targets of 4 % and looser (loose_share at
-  // its least), round 0 first runs with kLeastProbeSamples samples (0: no
-  // probe). If that meets the target the pass goes on from there; if not, its
+  // its least), round 0 first runs with fewer samples (0: no probe): 9 a
+  // texel at 4 %, looser targets as many fewer as keep the probe's error the
+  // same share of the target (its variance falling as n^-a,
+  // kDirectConvergence), rounded up to a square (the strata): 4 from 7.4 %,
+  // no fewer (a texel's noise is estimated from pairs of strata). At 8 % the
+  // fine sphere scene's bake takes 0.27 s instead of 0.33 s. If the probe meets the target the pass goes on from there; if not, its
   // samples are dropped and round 0 runs with first() -- topped up instead,
   // the calibration and the allocation that follows read two Sobol sets of 8
   // as one of 16, and a courtyard of 21 subdivided monkeys took 1.45x the
