@@ -1,5 +1,8 @@
 #include "transport/film_estimate.h"
 
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 
@@ -22,14 +25,11 @@ constexpr size_t kMinBiasTexels = 16;
 // With the gather's variance calibrated, this bias is what is left of its
 // error where the bounce light curves (a box's foot).
 static_assert(kGatherRadius == 2, "the bias estimate compares the fits of radius 1 and 2");
-FitBias gather_fit_bias(const TexelAreas& ta, uint32_t width, uint32_t height, const std::vector<double>& mean3,
-                        const std::vector<double>& var, const std::vector<double>& guide,
-                        const std::vector<uint8_t>& radius, const std::vector<uint8_t>& usable,
-                        const std::vector<double>& fit2, const std::vector<double>& var2) {
-  std::vector<double> fit1, var1;
-  reconstruct_linear(ta, width, height, mean3.data(), var.data(), guide.data(), 1, fit1, var1, radius.data());
-  const FitBias out =
-      linear_fit_bias(fit1, var1, fit2, var2, radius.size(), [&](size_t t) { return usable[t] && radius[t] >= 2; });
+FitBias gather_fit_bias(const TexelAreas& ta, uint32_t width, uint32_t height, EstimateBuffers& b) {
+  reconstruct_linear(ta, width, height, b.g_mean.data(), b.g_var.data(), b.g_guide.data(), 1, b.fit1, b.var1,
+                     b.radius.data());
+  const FitBias out = linear_fit_bias(b.fit1, b.var1, b.g_value, b.g_fit_var, b.radius.size(),
+                                      [&](size_t t) { return b.usable[t] && b.radius[t] >= 2; });
   return out.texels < kMinBiasTexels ? FitBias() : out;
 }
 
@@ -87,14 +87,24 @@ double Estimator::csg_texel(size_t c, uint32_t sub, uint64_t photons, double val
 // An open scene's gather rays spread over many cells (rho 0.01-0.25); rays
 // in a room meet more of the same.
 // Adds the gather's part of the texels' variances, (1 - w)^2 var G, to *gather_part.
-void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vector<double>& variance,
-                               double* gather_part, LookupError* lookup) const {
+void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part, LookupError* lookup) const {
   const Mesh& mesh = *space.views[i].mesh;
+  std::vector<double>& value3 = b.value3;
+  std::vector<double>& variance = b.variance;
   const size_t n = variance.size();
-  std::vector<double> g_mean(3 * n, 0.0), g_var(n, 0.0), g_value, g_fit_var;
-  std::vector<double> guide(n, -1.0), lookup_all(n, 0.0), lookup_rays(n, 0.0), lookup_wide(n, 0.0), rays_fit;
+  std::vector<double>& g_mean = b.g_mean;
+  std::vector<double>& g_var = b.g_var;
+  std::vector<double>& guide = b.g_guide;
+  std::vector<double>& lookup_rays = b.lookup_rays;
+  std::vector<uint8_t>& usable = b.usable;
+  std::vector<uint8_t>& radius = b.radius;
+  g_mean.assign(3 * n, 0.0);
+  g_var.assign(n, 0.0);
+  guide.assign(n, -1.0);
+  lookup_rays.assign(n, 0.0);
+  usable.assign(n, 0);
+  radius.assign(n, uint8_t(kGatherRadius));
   double shared = 0.0, pairs = 0.0;  // over the texels: ray pairs' products within one cell, and all
-  std::vector<uint8_t> usable(n, 0), radius(n, uint8_t(kGatherRadius));
   const double width = texel_width(space.areas[i]);
   size_t k = space.covered_begin[i];
   for (size_t t = 0; t < n; ++t) {
@@ -121,22 +131,23 @@ void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vecto
     // Every ray met a dark back (the texel's points are under a box): no
     // light reaches them.
     g_var[t] = info.dark == g.count ? 0.0 : g.variance_of_mean(gather->typical, 0.0, scale);
-    lookup_all[t] = info.lookup_all;
     lookup_rays[t] = info.lookup_rays;
-    lookup_wide[t] = info.lookup_wide;
     shared += info.lookup_cells - info.lookup_rays;
     pairs += info.lookup_all - info.lookup_rays;
   }
+  const std::vector<double>& g_value = b.g_value;
+  const std::vector<double>& g_fit_var = b.g_fit_var;
   reconstruct_linear(space.areas[i], mesh.lightmap_width, mesh.lightmap_height, g_mean.data(), g_var.data(),
-                     guide.data(), kGatherRadius, g_value, g_fit_var, radius.data(), 0.9f, lookup_rays.data(),
-                     &rays_fit);
+                     guide.data(), kGatherRadius, b.g_value, b.g_fit_var, radius.data(), 0.9f, lookup_rays.data(),
+                     &b.rays_fit);
   const double rho = pairs > 0.0 ? std::clamp(shared / pairs, 0.0, 1.0) : 1.0;
-  const FitBias fit_bias = gather_fit_bias(space.areas[i], mesh.lightmap_width, mesh.lightmap_height, g_mean,
-                                                 g_var, guide, radius, usable, g_value, g_fit_var);
-  for (size_t t = 0; t < n; ++t) {
+  const FitBias fit_bias = gather_fit_bias(space.areas[i], mesh.lightmap_width, mesh.lightmap_height, b);
+  for (size_t t = 0, k = space.covered_begin[i]; t < n; ++t) {
+    if (!(space.areas[i].area[t] > 0.0)) continue;
+    const GatherInfo& info = gather->info[k++];
     if (!usable[t]) continue;
     double v_photons = variance[t], bias_sq = 0.0;
-    const double v_lookups = (1.0 - rho) * rays_fit[t] + rho * lookup_all[t] + lookup_wide[t];
+    const double v_lookups = (1.0 - rho) * b.rays_fit[t] + rho * info.lookup_all + info.lookup_wide;
     const double fit_bias_sq = fit_bias.sq[radius[t]];
     const double v_gather = g_fit_var[t] + fit_bias_sq + v_lookups;
     if (radius[t] < kGatherRadius) {
@@ -167,15 +178,17 @@ void Estimator::combine_gather(size_t i, std::vector<double>& value3, std::vecto
   }
 }
 
-void Estimator::texels(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance,
-                       double* gather_part, LookupError* lookup) const {
+void Estimator::texels(size_t i, uint64_t photons, EstimateBuffers& b, double* gather_part, bool lookups) const {
+  std::vector<double>& value3 = b.value3;
+  std::vector<double>& variance = b.variance;
+  LookupError* lookup = lookups ? &b.lookup : nullptr;
   const Mesh& mesh = *space.views[i].mesh;
   const size_t g0 = space.views[i].texel_offset;
   ReconstructParams params;
   params.max_radius = filter_radius;
   params.photons = double(std::max<uint64_t>(photons, 1));
   params.phantom_sq = acc.phantom_sq();
-  std::vector<double> guide;
+  std::vector<double>& guide = b.guide;
   if (!direct.empty()) {  // the direct light guides the reconstruction
     guide.assign(space.areas[i].area.size(), 0.0);
     size_t k = space.covered_begin[i];
@@ -191,7 +204,7 @@ void Estimator::texels(size_t i, uint64_t photons, std::vector<double>& value3, 
     variance.assign(size_t(mesh.lightmap_width) * mesh.lightmap_height, 0.0);
     if (lookup) lookup->local.assign(variance.size(), 0.0), lookup->wide.assign(variance.size(), 0.0);
   }
-  if (photons > 0 && gather && !gather->sums.empty()) combine_gather(i, value3, variance, gather_part, lookup);
+  if (photons > 0 && gather && !gather->sums.empty()) combine_gather(i, b, gather_part, lookup);
   if (photons > 0 && !acc.caustic.empty()) add_caustics(i, photons, value3, variance, lookup);
   if (direct.empty()) return;
   size_t k = space.covered_begin[i];
@@ -232,37 +245,57 @@ void Estimator::add_caustics(size_t i, uint64_t photons, std::vector<double>& va
 void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Estimate& out) {
   out.photons = photons;
   out.gather_size = est.gather ? est.gather->sums.size() : 0;
-  out.values.resize(est.space.views.size());
-  out.lookup_local.resize(est.lookups ? est.space.views.size() : 0);
+  const size_t meshes = est.space.views.size();
+  out.values.resize(meshes);
+  out.lookup_local.resize(est.lookups ? meshes : 0);
   out.lookup_wide.resize(out.lookup_local.size());
   ErrorEstimate& e = out.error;
   e = ErrorEstimate{};
-  double var_sum = 0.0, value_sum = 0.0, var_direct = 0.0, var_gather = 0.0, count = 0.0;
-  std::vector<double> value3, variance, per_texel;
-  LookupError lookup;
-  for (size_t i = 0; i < est.space.views.size(); ++i) {
-    if (!est.space.views[i].texel_area) continue;
-    arena.execute([&] { est.texels(i, photons, value3, variance, &var_gather, est.lookups ? &lookup : nullptr); });
-    std::vector<float>& img = out.values[i];
-    img.assign(4 * variance.size(), 0.0f);
-    if (est.lookups) {
-      out.lookup_local[i].assign(variance.size(), 0.0f);
-      out.lookup_wide[i].assign(variance.size(), 0.0f);
-    }
-    for (size_t t = 0; t < variance.size(); ++t) {
-      if (!(est.space.areas[i].area[t] > 0.0)) continue;
-      store_texel(value3, variance, t, img.data());
+  // Lightmaps in parallel (their reconstructions run in parallel too), each
+  // with its own sums, added in order: the same for any thread count.
+  struct Sums {
+    double value = 0.0, var = 0.0, var_gather = 0.0, count = 0.0;
+    size_t dark = 0;
+    std::vector<double> per_texel;
+  };
+  std::vector<Sums> sums(meshes);
+  tbb::enumerable_thread_specific<EstimateBuffers> buffers;
+  arena.execute([&] {
+    tbb::parallel_for(size_t(0), meshes, [&](size_t i) {
+      if (!est.space.views[i].texel_area) return;
+      EstimateBuffers& b = buffers.local();
+      Sums& s = sums[i];
+      est.texels(i, photons, b, &s.var_gather, est.lookups);
+      const std::vector<double>& value3 = b.value3;
+      const std::vector<double>& variance = b.variance;
+      std::vector<float>& img = out.values[i];
+      img.assign(4 * variance.size(), 0.0f);
       if (est.lookups) {
-        out.lookup_local[i][t] = float(std::sqrt(lookup.local[t]));
-        out.lookup_wide[i][t] = float(std::sqrt(lookup.wide[t]));
+        out.lookup_local[i].assign(variance.size(), 0.0f);
+        out.lookup_wide[i].assign(variance.size(), 0.0f);
       }
-      const double v = (value3[3 * t] + value3[3 * t + 1] + value3[3 * t + 2]) / 3.0;
-      value_sum += v;
-      var_sum += variance[t];
-      count += 1.0;
-      if (v > 0.0) per_texel.push_back(std::sqrt(variance[t]) / v);
-      else ++e.dark_texels;
-    }
+      for (size_t t = 0; t < variance.size(); ++t) {
+        if (!(est.space.areas[i].area[t] > 0.0)) continue;
+        store_texel(value3, variance, t, img.data());
+        if (est.lookups) {
+          out.lookup_local[i][t] = float(std::sqrt(b.lookup.local[t]));
+          out.lookup_wide[i][t] = float(std::sqrt(b.lookup.wide[t]));
+        }
+        const double v = (value3[3 * t] + value3[3 * t + 1] + value3[3 * t + 2]) / 3.0;
+        s.value += v;
+        s.var += variance[t];
+        s.count += 1.0;
+        if (v > 0.0) s.per_texel.push_back(std::sqrt(variance[t]) / v);
+        else ++s.dark;
+      }
+    });
+  });
+  double var_sum = 0.0, value_sum = 0.0, var_direct = 0.0, var_gather = 0.0, count = 0.0;
+  std::vector<double> per_texel;
+  for (const Sums& s : sums) {
+    value_sum += s.value, var_sum += s.var, var_gather += s.var_gather, count += s.count;
+    e.dark_texels += s.dark;
+    per_texel.insert(per_texel.end(), s.per_texel.begin(), s.per_texel.end());
   }
   for (size_t c = 0; c < est.space.csg_views.size(); ++c) {
     if (!est.space.csg_views[c].lightmap) continue;

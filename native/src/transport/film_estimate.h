@@ -20,6 +20,17 @@
 
 namespace plm {
 
+// Buffers an estimate reuses from lightmap to lightmap (one set per thread):
+// a lightmap's texels, the photons' guide, and what combining them with the
+// gather works in.
+struct EstimateBuffers {
+  std::vector<double> value3, variance;
+  LookupError lookup;
+  std::vector<double> guide;
+  std::vector<double> g_guide, g_mean, g_var, g_value, g_fit_var, lookup_rays, rays_fit, fit1, var1;
+  std::vector<uint8_t> usable, radius;
+};
+
 // Everything the estimate of a texel needs.
 struct Estimator {
   const TexelSpace& space;
@@ -40,12 +51,12 @@ struct Estimator {
   // squared error; the final gather's part of the variances is added to
   // *gather_part. With `lookup`, also the mean squared error that the final
   // gather's lookups see (reconstruct.h: LookupError).
-  void texels(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance,
-              double* gather_part = nullptr, LookupError* lookup = nullptr) const;
+  // In `b`: value3 and variance; with `lookups`, b.lookup too.
+  void texels(size_t i, uint64_t photons, EstimateBuffers& b, double* gather_part = nullptr,
+              bool lookups = false) const;
 
  private:
-  void combine_gather(size_t i, std::vector<double>& value3, std::vector<double>& variance,
-                      double* gather_part, LookupError* lookup) const;
+  void combine_gather(size_t i, EstimateBuffers& b, double* gather_part, LookupError* lookup) const;
   void add_caustics(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance,
                     LookupError* lookup) const;
 };

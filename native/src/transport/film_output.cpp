@@ -139,7 +139,7 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
                      std::vector<LightmapImage>& images, std::vector<std::string>& warnings) {
   images.resize(scene.meshes.size());
   const std::vector<TexelAreas>& areas = est.space.areas;
-  std::vector<double> value3, variance;
+  EstimateBuffers b;
   const SceneSeams seams = find_scene_seams(scene);
   for (size_t i = 0; i < scene.meshes.size(); ++i) {
     const Mesh& mesh = scene.meshes[i];
@@ -159,10 +159,11 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
       transfer_csg(est, size_t(mesh.csg_carrier), photons, areas[i], values, img.hits, filled, warnings, mesh);
     } else {
       if (backed_up && ols[size_t(mesh.ol_group)].finalized()) {
-        arena.execute([&] { est.texels(i, photons, value3, variance); });
-        blend_backup(ols[size_t(mesh.ol_group)], areas[i], est.direct, est.space.covered_begin[i], value3, variance);
+        arena.execute([&] { est.texels(i, photons, b); });
+        blend_backup(ols[size_t(mesh.ol_group)], areas[i], est.direct, est.space.covered_begin[i], b.value3,
+                     b.variance);
         for (size_t t = 0; t < n; ++t)
-          if (areas[i].area[t] > 0.0) store_texel(value3, variance, t, values.data());
+          if (areas[i].area[t] > 0.0) store_texel(b.value3, b.variance, t, values.data());
       } else {
         values.swap(last.values[i]);  // the final estimate's texels
       }

@@ -21,8 +21,9 @@ const Mesh& Snapshot::lightmap_mesh(uint32_t mesh) const {
 bool Snapshot::copy_lightmap(uint32_t mesh, float* rgb) const {
   const Mesh& m = lightmap_mesh(mesh);
   if (!scene_.own_texels(m)) return false;  // an OL group's or a CSG solid's texels
-  std::vector<double> value3, variance;
-  arena_.execute([&] { est_.texels(mesh, photons_, value3, variance); });
+  EstimateBuffers b;
+  arena_.execute([&] { est_.texels(mesh, photons_, b); });
+  const std::vector<double>& value3 = b.value3;
   const size_t n = size_t(m.lightmap_width) * m.lightmap_height;
   const std::vector<double>& area = est_.space.areas[mesh].area;
   std::vector<float> values(3 * n, 0.0f);
