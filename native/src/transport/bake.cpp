@@ -7,6 +7,8 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <cmath>
 #include <memory>
 #include <thread>
@@ -202,6 +204,7 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
     // photons and gather by variance, so scenes where photons do better lose
     // only the gather's rays.
     auto run_gather = [&](const Estimate& now) {
+      struct T { std::chrono::steady_clock::time_point t = Clock::now(); ~T() { if (getenv("TIMING")) fprintf(stderr, "gather %.4f\n", seconds_since(t)); } } timer;
       gathered = true;
       ++gathers;
       if (budget.spent(kGatherBudgetShare)) return;
@@ -264,14 +267,14 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
               run_gather(last);
             }
             if (targeted && checks.due(end)) {
-              estimate(arena, estimator, photons, last);
+              { auto t0 = Clock::now(); estimate(arena, estimator, photons, last); if (getenv("TIMING")) fprintf(stderr, "estimate %.4f (photons %.4f)\n", seconds_since(t0), seconds_since(t_trace)); }
               done = target_reached(last.error, settings.target_error);
               if (!done && gather_wanted && !gathered) {
                 // Again while the gather's own part is large: each gather looks up the estimate the one
                 // before it improved (scheduler.h, regather).
                 do {
                   run_gather(last);
-                  estimate(arena, estimator, photons, last);
+                  { auto t0 = Clock::now(); estimate(arena, estimator, photons, last); if (getenv("TIMING")) fprintf(stderr, "estimate2 %.4f\n", seconds_since(t0)); }
                 } while (regather(gathers, last.error, settings.target_error));
                 done = target_reached(last.error, settings.target_error);
               }
@@ -334,8 +337,8 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
   finish_ol_groups(scene, photons, ol_groups, out.ols);
   finish_lsystems(photons, out.lsystems);
   report(kProgressPhotons, "writing lightmaps");
-  write_lightmaps(arena, scene, estimator, photons, ol_groups.maps, last, settings.dilation, out.lightmaps,
-                  out.warnings);
+  { auto t0 = Clock::now(); write_lightmaps(arena, scene, estimator, photons, ol_groups.maps, last, settings.dilation, out.lightmaps,
+                  out.warnings); if (getenv("TIMING")) fprintf(stderr, "write %.4f\n", seconds_since(t0)); }
 
   out.stats.seconds_total = seconds_since(t_start);
   report(1.0, "done");

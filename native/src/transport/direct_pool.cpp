@@ -1,5 +1,6 @@
 #include "transport/direct_pool.h"
 
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -17,11 +18,13 @@ bool split(const DirectSums& d) { return d.sky_rays > 0 && d.paired > 0 && d.cou
 // One lightmap's texels (t, mesh-local) in the slice with split samples:
 // sky3 their world part's mean, var their pair variance of it, phantom their
 // phantom sample's variance, guide their direct mean (-1 for the others, which
-// pool with none), radius the reach of their fit.
+// pool with none), radius the reach of their fit; and the fits of radius 1
+// and 2. One per thread, reused from lightmap to lightmap.
 struct SkyMap {
   std::vector<double> sky3, var, phantom, guide;
   std::vector<uint8_t> radius;
   size_t pooled = 0;
+  std::vector<double> fit1, var1, phantom1, fit2, var2, phantom2;
 };
 
 }  // namespace
@@ -51,10 +54,12 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
   const double typical_sky = sky_texels > 0.0 ? std::sqrt(sky_sq / sky_texels) : 0.0;
   // Lightmaps in parallel (each writes its own texels; its fits run in
   // parallel too), so that many small ones keep every core busy.
+  tbb::enumerable_thread_specific<SkyMap> maps;
   tbb::parallel_for(size_t(0), space.views.size(), [&](size_t i) {
     if (!space.views[i].texel_area) return;
-    SkyMap m;
-    std::vector<double> fit1, var1, phantom1, fit2, var2, phantom2;
+    SkyMap& m = maps.local();
+    std::vector<double> &fit1 = m.fit1, &var1 = m.var1, &phantom1 = m.phantom1;
+    std::vector<double> &fit2 = m.fit2, &var2 = m.var2, &phantom2 = m.phantom2;
     const TexelAreas& ta = space.areas[i];
     const size_t n = ta.area.size(), k0 = space.covered_begin[i];
     m.sky3.assign(3 * n, 0.0);

@@ -1,5 +1,8 @@
 #include "transport/film_output.h"
 
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 
@@ -139,52 +142,59 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
                      std::vector<LightmapImage>& images, std::vector<std::string>& warnings) {
   images.resize(scene.meshes.size());
   const std::vector<TexelAreas>& areas = est.space.areas;
-  EstimateBuffers b;
   const SceneSeams seams = find_scene_seams(scene);
-  for (size_t i = 0; i < scene.meshes.size(); ++i) {
-    const Mesh& mesh = scene.meshes[i];
-    if (!mesh.has_lightmap()) continue;
-    LightmapImage& img = images[i];
-    img.width = mesh.lightmap_width;
-    img.height = mesh.lightmap_height;
-    const size_t n = size_t(img.width) * img.height;
-    std::vector<float> values(4 * n, 0.0f);  // R, G, B, error: dilated together
-    std::vector<uint8_t> filled(n, 0);
-    img.hits.assign(n, 0.0f);
-    img.coverage = areas[i].coverage;
-    const bool backed_up = mesh.ol_group >= 0 && scene.ol_groups[size_t(mesh.ol_group)].backup;
-    if (mesh.ol_group >= 0 && !backed_up) {
-      resolve_ol(ols[size_t(mesh.ol_group)], areas[i], values, img.hits, filled);
-    } else if (mesh.csg_carrier >= 0) {
-      transfer_csg(est, size_t(mesh.csg_carrier), photons, areas[i], values, img.hits, filled, warnings, mesh);
-    } else {
-      if (backed_up && ols[size_t(mesh.ol_group)].finalized()) {
-        arena.execute([&] { est.texels(i, photons, b); });
-        blend_backup(ols[size_t(mesh.ol_group)], areas[i], est.direct, est.space.covered_begin[i], b.value3,
-                     b.variance);
-        for (size_t t = 0; t < n; ++t)
-          if (areas[i].area[t] > 0.0) store_texel(b.value3, b.variance, t, values.data());
+  // Meshes in parallel, each with its own warnings, joined in order.
+  std::vector<std::vector<std::string>> mesh_warnings(scene.meshes.size());
+  tbb::enumerable_thread_specific<EstimateBuffers> buffers;
+  arena.execute([&] {
+    tbb::parallel_for(size_t(0), scene.meshes.size(), [&](size_t i) {
+      const Mesh& mesh = scene.meshes[i];
+      if (!mesh.has_lightmap()) return;
+      LightmapImage& img = images[i];
+      img.width = mesh.lightmap_width;
+      img.height = mesh.lightmap_height;
+      const size_t n = size_t(img.width) * img.height;
+      std::vector<float> values(4 * n, 0.0f);  // R, G, B, error: dilated together
+      std::vector<uint8_t> filled(n, 0);
+      img.hits.assign(n, 0.0f);
+      img.coverage = areas[i].coverage;
+      const bool backed_up = mesh.ol_group >= 0 && scene.ol_groups[size_t(mesh.ol_group)].backup;
+      if (mesh.ol_group >= 0 && !backed_up) {
+        resolve_ol(ols[size_t(mesh.ol_group)], areas[i], values, img.hits, filled);
+      } else if (mesh.csg_carrier >= 0) {
+        transfer_csg(est, size_t(mesh.csg_carrier), photons, areas[i], values, img.hits, filled, mesh_warnings[i],
+                     mesh);
       } else {
-        values.swap(last.values[i]);  // the final estimate's texels
+        if (backed_up && ols[size_t(mesh.ol_group)].finalized()) {
+          EstimateBuffers& b = buffers.local();
+          est.texels(i, photons, b);
+          blend_backup(ols[size_t(mesh.ol_group)], areas[i], est.direct, est.space.covered_begin[i], b.value3,
+                       b.variance);
+          for (size_t t = 0; t < n; ++t)
+            if (areas[i].area[t] > 0.0) store_texel(b.value3, b.variance, t, values.data());
+        } else {
+          values.swap(last.values[i]);  // the final estimate's texels
+        }
+        for (size_t t = 0; t < n; ++t) {
+          if (!(areas[i].area[t] > 0.0)) continue;
+          img.hits[t] = float(est.acc.hits[est.space.views[i].texel_offset + t]);
+          if (!est.acc.caustic.empty())
+            img.hits[t] += float(est.acc.caustic.hits[est.space.views[i].texel_offset + t]);
+          filled[t] = 1;
+        }
       }
+      const std::vector<uint8_t> covered = filled;
+      dilate(values, 4, filled, img.width, img.height, dilation);
+      if (!seams.joint[i]) stitch_seams(seams.within[i], covered, values, 4, img.width, img.height);
+      img.rgb.resize(3 * n);
+      img.error.resize(n);
       for (size_t t = 0; t < n; ++t) {
-        if (!(areas[i].area[t] > 0.0)) continue;
-        img.hits[t] = float(est.acc.hits[est.space.views[i].texel_offset + t]);
-        if (!est.acc.caustic.empty()) img.hits[t] += float(est.acc.caustic.hits[est.space.views[i].texel_offset + t]);
-        filled[t] = 1;
+        for (int c = 0; c < 3; ++c) img.rgb[3 * t + c] = values[4 * t + c];
+        img.error[t] = values[4 * t + 3];
       }
-    }
-    const std::vector<uint8_t> covered = filled;
-    dilate(values, 4, filled, img.width, img.height, dilation);
-    if (!seams.joint[i])
-      arena.execute([&] { stitch_seams(seams.within[i], covered, values, 4, img.width, img.height); });
-    img.rgb.resize(3 * n);
-    img.error.resize(n);
-    for (size_t t = 0; t < n; ++t) {
-      for (int c = 0; c < 3; ++c) img.rgb[3 * t + c] = values[4 * t + c];
-      img.error[t] = values[4 * t + 3];
-    }
-  }
+    });
+  });
+  for (std::vector<std::string>& w : mesh_warnings) warnings.insert(warnings.end(), w.begin(), w.end());
   if (seams.between.empty()) return;
   // Meshes with seams between them: stitched together (their covered texels
   // are those with area, as they hold their own texels).
