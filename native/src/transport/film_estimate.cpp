@@ -178,7 +178,8 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
   }
 }
 
-void Estimator::texels(size_t i, uint64_t photons, EstimateBuffers& b, double* gather_part, bool lookups) const {
+void Estimator::texels(size_t i, uint64_t photons, EstimateBuffers& b, double* gather_part, bool lookups,
+                       PhotonPart* part) const {
   std::vector<double>& value3 = b.value3;
   std::vector<double>& variance = b.variance;
   LookupError* lookup = lookups ? &b.lookup : nullptr;
@@ -196,9 +197,30 @@ void Estimator::texels(size_t i, uint64_t photons, EstimateBuffers& b, double* g
       if (space.areas[i].area[t] > 0.0) guide[t] = direct.mean(k++);
     params.guide = guide.data();
   }
-  if (photons > 0) {
+  if (photons > 0 && part && part->photons == photons) {  // the photons' part as the estimate before made it
+    const size_t n = size_t(mesh.lightmap_width) * mesh.lightmap_height;
+    value3.assign(3 * n, 0.0);
+    variance.assign(n, 0.0);
+    if (lookup) lookup->local.assign(n, 0.0), lookup->wide.assign(n, 0.0);
+    for (size_t t = 0, k = space.covered_begin[i]; t < n; ++t) {
+      if (!(space.areas[i].area[t] > 0.0)) continue;
+      for (int c = 0; c < 3; ++c) value3[3 * t + c] = part->value3[3 * k + c];
+      variance[t] = part->mse[k];
+      if (lookup) lookup->local[t] = part->local[k], lookup->wide[t] = part->wide[k];
+      ++k;
+    }
+  } else if (photons > 0) {
     reconstruct_indirect(space.areas[i], mesh.lightmap_width, mesh.lightmap_height,
                          {&acc.sum[3 * g0], &acc.sum_sq[g0], &acc.hits[g0]}, params, value3, variance, lookup);
+    if (part) {
+      for (size_t t = 0, k = space.covered_begin[i]; t < variance.size(); ++t) {
+        if (!(space.areas[i].area[t] > 0.0)) continue;
+        for (int c = 0; c < 3; ++c) part->value3[3 * k + c] = value3[3 * t + c];
+        part->mse[k] = variance[t];
+        if (lookup) part->local[k] = lookup->local[t], part->wide[k] = lookup->wide[t];
+        ++k;
+      }
+    }
   } else {
     value3.assign(3 * size_t(mesh.lightmap_width) * mesh.lightmap_height, 0.0);
     variance.assign(size_t(mesh.lightmap_width) * mesh.lightmap_height, 0.0);
@@ -260,12 +282,22 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
   };
   std::vector<Sums> sums(meshes);
   tbb::enumerable_thread_specific<EstimateBuffers> buffers;
+  // Where a final gather will combine with them, the photons' part is kept
+  // for the estimate after it (the same photons).
+  PhotonPart* part = est.lookups && photons > 0 ? &out.photon_part : nullptr;
+  if (part && part->photons != photons) {
+    const size_t covered = est.space.covered.size();
+    part->value3.resize(3 * covered);
+    part->mse.resize(covered);
+    part->local.resize(covered);
+    part->wide.resize(covered);
+  }
   arena.execute([&] {
     tbb::parallel_for(size_t(0), meshes, [&](size_t i) {
       if (!est.space.views[i].texel_area) return;
       EstimateBuffers& b = buffers.local();
       Sums& s = sums[i];
-      est.texels(i, photons, b, &s.var_gather, est.lookups);
+      est.texels(i, photons, b, &s.var_gather, est.lookups, part);
       const std::vector<double>& value3 = b.value3;
       const std::vector<double>& variance = b.variance;
       std::vector<float>& img = out.values[i];
@@ -290,6 +322,7 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
       }
     });
   });
+  if (part) part->photons = photons;
   double var_sum = 0.0, value_sum = 0.0, var_direct = 0.0, var_gather = 0.0, count = 0.0;
   std::vector<double> per_texel;
   for (const Sums& s : sums) {

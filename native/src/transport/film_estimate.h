@@ -31,6 +31,14 @@ struct EstimateBuffers {
   std::vector<uint8_t> usable, radius;
 };
 
+// The photons' reconstruction of every lightmap at one photon count, per
+// covered texel in covered order (reconstruct_indirect's value, error and
+// lookup errors): the estimate after a final gather reuses it.
+struct PhotonPart {
+  uint64_t photons = ~uint64_t(0);  // ~0: none
+  std::vector<double> value3, mse, local, wide;
+};
+
 // Everything the estimate of a texel needs.
 struct Estimator {
   const TexelSpace& space;
@@ -51,9 +59,11 @@ struct Estimator {
   // squared error; the final gather's part of the variances is added to
   // *gather_part. With `lookup`, also the mean squared error that the final
   // gather's lookups see (reconstruct.h: LookupError).
-  // In `b`: value3 and variance; with `lookups`, b.lookup too.
-  void texels(size_t i, uint64_t photons, EstimateBuffers& b, double* gather_part = nullptr,
-              bool lookups = false) const;
+  // In `b`: value3 and variance; with `lookups`, b.lookup too. With `part`,
+  // the photons' reconstruction is read from it if it holds `photons`, else
+  // written to it (the caller then sets part->photons).
+  void texels(size_t i, uint64_t photons, EstimateBuffers& b, double* gather_part = nullptr, bool lookups = false,
+              PhotonPart* part = nullptr) const;
 
  private:
   void combine_gather(size_t i, EstimateBuffers& b, double* gather_part, LookupError* lookup) const;
@@ -83,6 +93,7 @@ struct Estimate {
   // Per mesh and texel, where the estimator has lookups: the error the final
   // gather's lookups see, local and wide (Estimator::texels).
   std::vector<std::vector<float>> lookup_local, lookup_wide;
+  PhotonPart photon_part;  // where the estimator has lookups
 
   bool current(uint64_t p, const GatherResult& gather) const {
     return photons == p && gather_size == gather.sums.size();
