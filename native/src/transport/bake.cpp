@@ -7,8 +7,6 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <memory>
 #include <thread>
@@ -204,7 +202,6 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
     // photons and gather by variance, so scenes where photons do better lose
     // only the gather's rays.
     auto run_gather = [&](const Estimate& now) {
-      struct T { std::chrono::steady_clock::time_point t = Clock::now(); ~T() { if (getenv("TIMING")) fprintf(stderr, "gather %.4f\n", seconds_since(t)); } } timer;
       gathered = true;
       ++gathers;
       if (budget.spent(kGatherBudgetShare)) return;
@@ -267,14 +264,14 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
               run_gather(last);
             }
             if (targeted && checks.due(end)) {
-              { auto t0 = Clock::now(); estimate(arena, estimator, photons, last); if (getenv("TIMING")) fprintf(stderr, "estimate %.4f (photons %.4f)\n", seconds_since(t0), seconds_since(t_trace)); }
+              estimate(arena, estimator, photons, last);
               done = target_reached(last.error, settings.target_error);
               if (!done && gather_wanted && !gathered) {
                 // Again while the gather's own part is large: each gather looks up the estimate the one
                 // before it improved (scheduler.h, regather).
                 do {
                   run_gather(last);
-                  { auto t0 = Clock::now(); estimate(arena, estimator, photons, last); if (getenv("TIMING")) fprintf(stderr, "estimate2 %.4f\n", seconds_since(t0)); }
+                  estimate(arena, estimator, photons, last);
                 } while (regather(gathers, last.error, settings.target_error));
                 done = target_reached(last.error, settings.target_error);
               }
@@ -337,8 +334,8 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
   finish_ol_groups(scene, photons, ol_groups, out.ols);
   finish_lsystems(photons, out.lsystems);
   report(kProgressPhotons, "writing lightmaps");
-  { auto t0 = Clock::now(); write_lightmaps(arena, scene, estimator, photons, ol_groups.maps, last, settings.dilation, out.lightmaps,
-                  out.warnings); if (getenv("TIMING")) fprintf(stderr, "write %.4f\n", seconds_since(t0)); }
+  write_lightmaps(arena, scene, estimator, photons, ol_groups.maps, last, settings.dilation, out.lightmaps,
+                  out.warnings);
 
   out.stats.seconds_total = seconds_since(t_start);
   report(1.0, "done");
