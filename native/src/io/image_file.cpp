@@ -212,7 +212,11 @@ void write_exr_atomic(const std::string& path, uint32_t width, uint32_t height,
   const size_t nc = channel_names.size();
   try {
     Imf::Header header(static_cast<int>(width), static_cast<int>(height));
+    // zlib's fastest level: lightmaps' noisy floats compress about as well
+    // (a 256 x 256 ground: 0.99 MB at level 1 and 4 alike, 1.6 MB raw) in
+    // 5-30 % less time.
     header.compression() = Imf::ZIP_COMPRESSION;
+    header.zipCompressionLevel() = 1;
     header.insert("Software", Imf::StringAttribute("photonlm"));
     // Rows bottom first in memory, top first in the file.
     const size_t row = size_t(width) * nc;
