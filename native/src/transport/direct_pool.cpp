@@ -1,7 +1,6 @@
 #include "transport/direct_pool.h"
 
 #include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -52,10 +51,10 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
   for (const DirectSums& d : sums)
     if (split(d)) sky_sq += d.sky_mean() * d.sky_mean(), sky_texels += 1.0;
   const double typical_sky = sky_texels > 0.0 ? std::sqrt(sky_sq / sky_texels) : 0.0;
-  // Lightmaps in parallel (each writes its own texels; its fits run in
-  // parallel too), so that many small ones keep every core busy.
+  // Lightmaps in parallel (for_lightmaps; each writes its own texels, its
+  // fits run in parallel too), so that many small ones keep every core busy.
   tbb::enumerable_thread_specific<SkyMap> maps;
-  tbb::parallel_for(size_t(0), space.views.size(), [&](size_t i) {
+  for_lightmaps(space.views.size(), [&](size_t i) { return space.areas[i].area.size(); }, [&](size_t i) {
     if (!space.views[i].texel_area) return;
     SkyMap& m = maps.local();
     std::vector<double> &fit1 = m.fit1, &var1 = m.var1, &phantom1 = m.phantom1;

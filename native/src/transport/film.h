@@ -5,6 +5,8 @@
 // addition so that they never depend on the thread count.
 #pragma once
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
@@ -44,6 +46,22 @@ struct TexelSpace {
   std::vector<size_t> covered_begin;  // per mesh, then per CSG solid: index of its first covered texel
   uint64_t texel_count = 0;
 };
+
+// Runs each(i) for i < count (the meshes), where texels(i) is mesh i's
+// lightmap size: lightmaps of up to kParallelTexels texels in parallel, the
+// larger ones after them, one at a time (their own work runs in parallel).
+// Each call holds working buffers the size of its lightmap: more large ones
+// at once would multiply a bake's peak memory by the thread count. Call it
+// inside the bake's arena.
+constexpr size_t kParallelTexels = size_t(1) << 16;
+template <typename Texels, typename Each>
+void for_lightmaps(size_t count, Texels&& texels, Each&& each) {
+  tbb::parallel_for(size_t(0), count, [&](size_t i) {
+    if (texels(i) <= kParallelTexels) each(i);
+  });
+  for (size_t i = 0; i < count; ++i)
+    if (texels(i) > kParallelTexels) each(i);
+}
 
 // Texel areas of every lightmap (OL meshes' lightmaps are resolved from
 // their OL, CSG carriers' from their solid: they have no texels here) and

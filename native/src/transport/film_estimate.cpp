@@ -1,7 +1,6 @@
 #include "transport/film_estimate.h"
 
 #include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -273,8 +272,9 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
   out.lookup_wide.resize(out.lookup_local.size());
   ErrorEstimate& e = out.error;
   e = ErrorEstimate{};
-  // Lightmaps in parallel (their reconstructions run in parallel too), each
-  // with its own sums, added in order: the same for any thread count.
+  // Lightmaps in parallel (for_lightmaps; their reconstructions run in
+  // parallel too), each with its own sums, added in order: the same for any
+  // thread count.
   struct Sums {
     double value = 0.0, var = 0.0, var_gather = 0.0, count = 0.0;
     size_t dark = 0;
@@ -293,7 +293,7 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
     part->wide.resize(covered);
   }
   arena.execute([&] {
-    tbb::parallel_for(size_t(0), meshes, [&](size_t i) {
+    for_lightmaps(meshes, [&](size_t i) { return est.space.areas[i].area.size(); }, [&](size_t i) {
       if (!est.space.views[i].texel_area) return;
       EstimateBuffers& b = buffers.local();
       Sums& s = sums[i];

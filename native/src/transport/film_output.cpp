@@ -1,7 +1,6 @@
 #include "transport/film_output.h"
 
 #include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -143,11 +142,12 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
   images.resize(scene.meshes.size());
   const std::vector<TexelAreas>& areas = est.space.areas;
   const SceneSeams seams = find_scene_seams(scene);
-  // Meshes in parallel, each with its own warnings, joined in order.
+  // Meshes in parallel (for_lightmaps), each with its own warnings, joined in order.
   std::vector<std::vector<std::string>> mesh_warnings(scene.meshes.size());
   tbb::enumerable_thread_specific<EstimateBuffers> buffers;
+  auto texels = [&](size_t i) { return size_t(scene.meshes[i].lightmap_width) * scene.meshes[i].lightmap_height; };
   arena.execute([&] {
-    tbb::parallel_for(size_t(0), scene.meshes.size(), [&](size_t i) {
+    for_lightmaps(scene.meshes.size(), texels, [&](size_t i) {
       const Mesh& mesh = scene.meshes[i];
       if (!mesh.has_lightmap()) return;
       LightmapImage& img = images[i];
