@@ -282,16 +282,20 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
   };
   std::vector<Sums> sums(meshes);
   tbb::enumerable_thread_specific<EstimateBuffers> buffers;
-  // Where a final gather will combine with them, the photons' part is kept
-  // for the estimate after it (the same photons).
-  PhotonPart* part = est.lookups && photons > 0 ? &out.photon_part : nullptr;
-  if (part && part->photons != photons) {
+  // Before the first final gather, the photons' part is kept for the
+  // estimates after the gathers (the same photons); later ones free it.
+  PhotonPart& kept = out.photon_part;
+  const bool reuse = est.lookups && photons > 0 && kept.photons == photons;
+  const bool keep = !reuse && est.lookups && photons > 0 && est.gather && est.gather->sums.empty();
+  if (!reuse) kept = PhotonPart();
+  if (keep) {
     const size_t covered = est.space.covered.size();
-    part->value3.resize(3 * covered);
-    part->mse.resize(covered);
-    part->local.resize(covered);
-    part->wide.resize(covered);
+    kept.value3.resize(3 * covered);
+    kept.mse.resize(covered);
+    kept.local.resize(covered);
+    kept.wide.resize(covered);
   }
+  PhotonPart* part = reuse || keep ? &kept : nullptr;
   arena.execute([&] {
     for_lightmaps(meshes, [&](size_t i) { return est.space.areas[i].area.size(); }, [&](size_t i) {
       if (!est.space.views[i].texel_area) return;

@@ -93,7 +93,7 @@ struct Estimate {
   // Per mesh and texel, where the estimator has lookups: the error the final
   // gather's lookups see, local and wide (Estimator::texels).
   std::vector<std::vector<float>> lookup_local, lookup_wide;
-  PhotonPart photon_part;  // where the estimator has lookups
+  PhotonPart photon_part;  // from before the first gather to the next photons (estimate)
 
   bool current(uint64_t p, const GatherResult& gather) const {
     return photons == p && gather_size == gather.sums.size();
