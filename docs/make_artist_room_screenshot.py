@@ -25,7 +25,7 @@ from window_shots import biggest_area, fail  # noqa: E402
 
 ws.NAME = "make_artist_room_screenshot"
 PHOTONS = int(os.environ.get("PHOTONLM_DOC_PHOTONS", 30_000_000))
-TARGET = float(os.environ.get("PHOTONLM_DOC_TARGET", 0.03))
+TARGET = float(os.environ.get("PHOTONLM_DOC_TARGET", 0.01))
 SHADER_WAIT = float(os.environ.get("PHOTONLM_DOC_WAIT", 15.0))
 SRC = ws.SRC
 argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
