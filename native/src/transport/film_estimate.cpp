@@ -183,47 +183,45 @@ void Estimator::texels(size_t i, uint64_t photons, EstimateBuffers& b, double* g
   std::vector<double>& variance = b.variance;
   LookupError* lookup = lookups ? &b.lookup : nullptr;
   const Mesh& mesh = *space.views[i].mesh;
-  const size_t g0 = space.views[i].texel_offset;
-  ReconstructParams params;
-  params.max_radius = filter_radius;
-  params.photons = double(std::max<uint64_t>(photons, 1));
-  params.phantom_sq = acc.phantom_sq();
-  std::vector<double>& guide = b.guide;
-  if (!direct.empty()) {  // the direct light guides the reconstruction
-    guide.assign(space.areas[i].area.size(), 0.0);
-    size_t k = space.covered_begin[i];
-    for (size_t t = 0; t < guide.size(); ++t)
-      if (space.areas[i].area[t] > 0.0) guide[t] = direct.mean(k++);
-    params.guide = guide.data();
-  }
-  if (photons > 0 && part && part->photons == photons) {  // the photons' part as the estimate before made it
-    const size_t n = size_t(mesh.lightmap_width) * mesh.lightmap_height;
+  const size_t n = size_t(mesh.lightmap_width) * mesh.lightmap_height;
+  // The photons' part: as the estimate before made it where `part` holds
+  // these photons, else reconstructed (and kept in `part`).
+  const bool kept = photons > 0 && part && part->photons == photons;
+  if (photons > 0 && !kept) {
+    ReconstructParams params;
+    params.max_radius = filter_radius;
+    params.photons = double(photons);
+    params.phantom_sq = acc.phantom_sq();
+    std::vector<double>& guide = b.guide;
+    if (!direct.empty()) {  // the direct light guides the reconstruction
+      guide.assign(n, 0.0);
+      size_t k = space.covered_begin[i];
+      for (size_t t = 0; t < n; ++t)
+        if (space.areas[i].area[t] > 0.0) guide[t] = direct.mean(k++);
+      params.guide = guide.data();
+    }
+    const size_t g0 = space.views[i].texel_offset;
+    reconstruct_indirect(space.areas[i], mesh.lightmap_width, mesh.lightmap_height,
+                         {&acc.sum[3 * g0], &acc.sum_sq[g0], &acc.hits[g0]}, params, value3, variance, lookup);
+  } else {
     value3.assign(3 * n, 0.0);
     variance.assign(n, 0.0);
     if (lookup) lookup->local.assign(n, 0.0), lookup->wide.assign(n, 0.0);
+  }
+  if (photons > 0 && part) {  // from the kept part, or into it
     for (size_t t = 0, k = space.covered_begin[i]; t < n; ++t) {
       if (!(space.areas[i].area[t] > 0.0)) continue;
-      for (int c = 0; c < 3; ++c) value3[3 * t + c] = part->value3[3 * k + c];
-      variance[t] = part->mse[k];
-      if (lookup) lookup->local[t] = part->local[k], lookup->wide[t] = part->wide[k];
-      ++k;
-    }
-  } else if (photons > 0) {
-    reconstruct_indirect(space.areas[i], mesh.lightmap_width, mesh.lightmap_height,
-                         {&acc.sum[3 * g0], &acc.sum_sq[g0], &acc.hits[g0]}, params, value3, variance, lookup);
-    if (part) {
-      for (size_t t = 0, k = space.covered_begin[i]; t < variance.size(); ++t) {
-        if (!(space.areas[i].area[t] > 0.0)) continue;
+      if (kept) {
+        for (int c = 0; c < 3; ++c) value3[3 * t + c] = part->value3[3 * k + c];
+        variance[t] = part->mse[k];
+        if (lookup) lookup->local[t] = part->local[k], lookup->wide[t] = part->wide[k];
+      } else {
         for (int c = 0; c < 3; ++c) part->value3[3 * k + c] = value3[3 * t + c];
         part->mse[k] = variance[t];
         if (lookup) part->local[k] = lookup->local[t], part->wide[k] = lookup->wide[t];
-        ++k;
       }
+      ++k;
     }
-  } else {
-    value3.assign(3 * size_t(mesh.lightmap_width) * mesh.lightmap_height, 0.0);
-    variance.assign(size_t(mesh.lightmap_width) * mesh.lightmap_height, 0.0);
-    if (lookup) lookup->local.assign(variance.size(), 0.0), lookup->wide.assign(variance.size(), 0.0);
   }
   if (photons > 0 && gather && !gather->sums.empty()) combine_gather(i, b, gather_part, lookup);
   if (photons > 0 && !acc.caustic.empty()) add_caustics(i, photons, value3, variance, lookup);
