@@ -20,6 +20,18 @@ class LibraryNotFoundError(OSError):
 _LIB_NAME = {"win32": "photonlm.dll", "darwin": "libphotonlm.dylib"}.get(sys.platform, "libphotonlm.so")
 
 
+# The engine's own Embree 3, TBB, OpenEXR and OpenSubdiv (bundled beside it in the add-on) must
+# serve its calls even where the host process loaded other versions first: Debian's Blender 4.3 and
+# 5.2 link Embree 4, whose rtcNewDevice / rtcIntersect1 carry the same names, and without this the
+# engine's calls bind to Blender's copies (photons hit nothing, some bakes crash). RTLD_DEEPBIND puts
+# the library's own dependencies ahead of the process's global symbols for its lookups; RTLD_LOCAL
+# keeps its symbols out of the host's. Sanitizer runtimes refuse DEEPBIND: PHOTONLM_DEEPBIND=0 loads
+# the library plainly. docs/design.md "The engine inside a host".
+_LOAD_MODE = ctypes.RTLD_LOCAL
+if hasattr(os, "RTLD_DEEPBIND") and os.environ.get("PHOTONLM_DEEPBIND", "1") != "0":
+    _LOAD_MODE |= os.RTLD_DEEPBIND
+
+
 def _find_library():
     env = os.environ.get("PHOTONLM_LIBRARY")
     here = os.path.dirname(os.path.abspath(__file__))
@@ -31,7 +43,7 @@ def _find_library():
         if not os.path.isfile(path):
             continue
         try:
-            return path, ctypes.CDLL(path)
+            return path, ctypes.CDLL(path, mode=_LOAD_MODE)
         except OSError as e:
             errors.append("%s: %s" % (path, e))
     raise LibraryNotFoundError(
