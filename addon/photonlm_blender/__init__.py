@@ -7,6 +7,8 @@ into the objects' materials behind a preview toggle. No transport math lives
 in Python.
 
 Modules
+    compat      every difference of Blender's Python API between 3.4, 4.x and 5.x (the rest imports it)
+    dependencies  NumPy: without it only a panel saying how to get it is registered
     bridge      finds and imports the `photonlm` package (beside the add-on when installed)
     properties  scene / object settings and the last bake's statistics
     uvcheck     measures a lightmap UV layout as the engine uses it (overlaps, margins, map use)
@@ -34,17 +36,21 @@ bl_info = {
 
 if "bpy" in locals():  # re-running register() after a reload in the same session
     import importlib
-    for _name in ("bridge", "properties", "uvcheck", "uvmaps", "csg_export", "lsystem", "export", "materials", "bake",
+    for _name in ("compat", "dependencies", "bridge", "properties", "uvcheck", "uvmaps", "csg_export", "lsystem", "export", "materials", "bake",
                   "operators", "scene_file_export", "bake_import", "panel"):
         if _name in locals():
             importlib.reload(locals()[_name])
 
 import bpy  # noqa: E402  (after the reload block)
 
-from . import bridge, properties, uvmaps, csg_export, lsystem, export, materials, bake, operators, panel  # noqa: E402,F401
-from . import scene_file_export, bake_import  # noqa: E402
+from . import compat, dependencies  # noqa: E402,F401
 
-_MODULES = (properties, lsystem, operators, scene_file_export, bake_import, panel)
+if dependencies.missing() is None:
+    from . import bridge, properties, uvmaps, csg_export, lsystem, export, materials, bake, operators, panel  # noqa: E402,F401,E501
+    from . import scene_file_export, bake_import  # noqa: E402
+    _MODULES = (properties, lsystem, operators, scene_file_export, bake_import, panel)
+else:  # the add-on enables and its panel says what is missing
+    _MODULES = (dependencies,)
 
 
 def register():

@@ -11,7 +11,9 @@ What is exported
   only: they block and reflect light but get no lightmap.
 - Lights: point, spot, sun, area (square/rectangle -> AREA_RECT, disk/ellipse -> AREA_DISK);
   Cycles portal lights (square/rectangle) -> PORTAL
-  with colour, power, world matrix, soft size, sun angle, area size, spot size/blend.
+  with colour, power, world matrix, soft size, sun angle, area size, spot size/blend. Colour and
+  power are what Cycles emits (compat.light_emission: temperature, exposure, normalize); a light
+  whose node tree is more than the default Emission is reported (its nodes are not baked).
 - World: Background colour x strength (a uniform radiance), or world.color without nodes.
 """
 import contextlib
@@ -19,7 +21,7 @@ import re
 
 import numpy as np
 
-from . import csg_export, lsystem, materials, properties, stages, subdiv_export, uvmaps, world_export
+from . import compat, csg_export, lsystem, materials, properties, stages, subdiv_export, uvmaps, world_export
 
 GEOMETRY_TYPES = {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT'}
 
@@ -104,10 +106,7 @@ def shading_normals(mesh, matrix_world):
         mesh.polygons.foreach_get("use_smooth", smooth)
     if not smooth.any():
         return None
-    mesh.calc_normals_split()
-    n = np.empty(nt * 9, np.float32)
-    mesh.loop_triangles.foreach_get("split_normals", n)
-    n = n.reshape(nt, 3, 3).astype(np.float64)
+    n = compat.corner_normals(mesh).reshape(nt, 3, 3).astype(np.float64)
     poly = np.empty(nt, np.int32)
     mesh.loop_triangles.foreach_get("polygon_index", poly)
     # Normals transform with the inverse transpose of the object's linear part.
@@ -468,11 +467,10 @@ def _add_light(plm, obj_eval, matrix, reports):
             return False
         reports.info("portal '%s': sun and sky light are sampled through it" % obj_eval.name)
         return True
-    color = tuple(light.color)
-    power = float(light.energy)
+    color, power = compat.light_emission(light, lambda: _area_light_area(light, matrix))
     if power <= 0.0 or max(color) <= 0.0:
         return False
-    if light.use_nodes:
+    if compat.light_nodes_differ(light):
         reports.warning("light '%s': light nodes are ignored (colour and power come from the light's "
                         "settings)" % obj_eval.name)
     kw = dict(name=obj_eval.name, color=color, power=power, matrix=m)
@@ -497,3 +495,12 @@ def _add_light(plm, obj_eval, matrix, reports):
         reports.warning("light '%s' skipped: %s" % (obj_eval.name, getattr(e, "message", e)))
         return False
     return True
+
+
+def _area_light_area(light, matrix):
+    """World-space area of an area light as Cycles measures it: its size along the object's scaled
+    X and Y axes, x pi/4 for disks and ellipses."""
+    m = np.array(matrix, dtype=np.float64)
+    sy = light.size_y if light.shape in ('RECTANGLE', 'ELLIPSE') else light.size
+    area = float(light.size) * np.linalg.norm(m[:3, 0]) * float(sy) * np.linalg.norm(m[:3, 1])
+    return area * (np.pi / 4.0 if light.shape in ('DISK', 'ELLIPSE') else 1.0)

@@ -26,7 +26,7 @@ import threading
 import bpy
 import numpy as np
 
-from . import materials
+from . import compat, materials
 
 LIVE_TAG = "live"
 IMAGE_PREFIX = "PhotonLM live "
@@ -122,7 +122,7 @@ class LivePreview:
         for mat_name, object_name in self._owners.items():
             mat = bpy.data.materials.get(mat_name)
             image = bpy.data.images.get(self._images.get(object_name, ""))
-            if mat is None or image is None or not mat.use_nodes or mat.node_tree is None:
+            if mat is None or image is None or not compat.uses_nodes(mat):
                 continue
             node = _image_node(mat)
             uv = next((n for n in mat.node_tree.nodes if n.get(materials.TAG) == "uv"), None)

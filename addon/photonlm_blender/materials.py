@@ -16,7 +16,7 @@ has no exact counterpart for is reported once per material (flatten.py lists it)
 Wiring (for the preview). Baking adds, to every material of a baked object, nodes
 tagged node["photonlm"] = role inside a frame labelled "PhotonLM Lightmap":
     UV Map ('lightmap', or 'PhotonLM Atlas' for an atlas page) -> Image Texture (<object>_lightmap,
-    or the page <scene>_atlas_<k>_lightmap) -> MixRGB Multiply (Fac 1,
+    or the page <scene>_atlas_<k>_lightmap) -> colour Mix Multiply (compat.MIX_COLOR; factor 1,
     with the diffuse colour: its value, or a link from the socket that feeds the diffuse
     BSDF's colour, times the diffuse weight) -> Emission (Strength 1) -> Add Shader
     (+ Emission of the original emission colour x strength) -> a NEW Material Output.
@@ -44,7 +44,7 @@ engine only (reported).
 """
 import bpy
 
-from . import flatten, preview_closures
+from . import compat, flatten, preview_closures
 
 TAG = "photonlm"
 ORIGINAL_OUTPUT_KEY = "photonlm_original_output"
@@ -176,7 +176,7 @@ def read_material(mat, image_means=None):
     info = MaterialInfo(mat.name if mat else "PhotonLM default")
     if mat is None:
         return info
-    if not mat.use_nodes or mat.node_tree is None:
+    if not compat.uses_nodes(mat):
         info.albedo = tuple(float(c) for c in mat.diffuse_color[:3])
         info.notes.append("material '%s' does not use nodes: baked with its viewport colour" % mat.name)
         return _clamp(info)
@@ -314,9 +314,7 @@ def ol_lookup_group():
     if g is None:
         g = bpy.data.node_groups.new(OL_GROUP, 'ShaderNodeTree')
     g.nodes.clear()
-    for sock in list(g.outputs):
-        g.outputs.remove(sock)
-    g.outputs.new('NodeSocketVector', "Vector")
+    compat.set_group_outputs(g, [("Vector", 'NodeSocketVector')])
     g[TAG] = 1
     nodes, links = g.nodes, g.links
     out = nodes.new('NodeGroupOutput')
@@ -378,7 +376,7 @@ def wire_material(mat, image, render_engine, orientation=False, error_image=None
     notes = []
     if mat is None:
         return notes
-    if not mat.use_nodes or mat.node_tree is None:
+    if not compat.uses_nodes(mat):
         return ["material '%s' does not use nodes: no lightmap preview" % mat.name]
     tree = mat.node_tree
     info = read_material(mat)
@@ -395,7 +393,7 @@ def wire_material(mat, image, render_engine, orientation=False, error_image=None
     else:
         uv = _node(tree, "uv", 'ShaderNodeUVMap', frame)
     tex = _node(tree, "image", 'ShaderNodeTexImage', frame)
-    mul = _node(tree, "multiply", 'ShaderNodeMixRGB', frame)
+    mul = _node(tree, "multiply", compat.MIX_COLOR, frame)
     emit = _node(tree, "emission", 'ShaderNodeEmission', frame)
     emit0 = _node(tree, "emission_original", 'ShaderNodeEmission', frame)
     add = _node(tree, "add", 'ShaderNodeAddShader', frame)
@@ -409,19 +407,17 @@ def wire_material(mat, image, render_engine, orientation=False, error_image=None
     _set(tex, "image", image)
     _set(tex, "interpolation", 'Linear')
     _set(tex, "extension", 'EXTEND')
-    _set(mul, "blend_type", 'MULTIPLY')
-    _set(mul, "use_clamp", False)
-    _set(mul.inputs['Fac'], "default_value", 1.0)
+    mul_a, mul_b, mul_out = compat.setup_mix_color(mul, 'MULTIPLY')
     links = tree.links
     _link(tree, uv.outputs['Vector' if orientation else 'UV'], tex.inputs['Vector'])
     if info.color_socket is not None and info.color_socket.is_linked:
-        _feed(tree, mul.inputs['Color1'], info.color_socket, (0.8, 0.8, 0.8, 1.0))
+        _feed(tree, mul_a, info.color_socket, (0.8, 0.8, 0.8, 1.0))
         _set(emit.inputs['Strength'], "default_value", info.preview_factor)  # the diffuse weight of that colour
     else:
         _set(emit.inputs['Strength'], "default_value", 1.0)
-        _feed(tree, mul.inputs['Color1'], None, tuple(info.albedo) + (1.0,))
-    _link(tree, tex.outputs['Color'], mul.inputs['Color2'])
-    _link(tree, mul.outputs['Color'], emit.inputs['Color'])
+        _feed(tree, mul_a, None, tuple(info.albedo) + (1.0,))
+    _link(tree, tex.outputs['Color'], mul_b)
+    _link(tree, mul_out, emit.inputs['Color'])
 
     # The specular part keeps the material's own shading (a copy of its closures without the
     # diffuse part, which carries the emission too).
@@ -517,7 +513,7 @@ def _wire_heat_map(tree, frame, uv, error_image, target_error, x0, y0):
     # Faces seen at a grazing angle a little darker, so that the shapes read under flat colours.
     facing = _node(tree, "error_facing", 'ShaderNodeLayerWeight', frame)
     shade = _node(tree, "error_shade", 'ShaderNodeMath', frame)
-    mix = _node(tree, "error_shading", 'ShaderNodeMixRGB', frame)
+    mix = _node(tree, "error_shading", compat.MIX_COLOR, frame)
     _set(facing, "location", (x0 + 260.0 * 2, y0 - 220.0))
     _set(shade, "location", (x0 + 260.0 * 3, y0 - 220.0))
     _set(mix, "location", (x0 + 260.0 * 3.5, y0 - 110.0))
@@ -526,13 +522,11 @@ def _wire_heat_map(tree, frame, uv, error_image, target_error, x0, y0):
     _set(shade, "use_clamp", True)
     _set(shade.inputs[1], "default_value", -HEAT_GRAZING_DARKEN)
     _set(shade.inputs[2], "default_value", 1.0)
-    _set(mix, "blend_type", 'MULTIPLY')
-    _set(mix, "use_clamp", False)
-    _set(mix.inputs['Fac'], "default_value", 1.0)
+    mix_a, mix_b, mix_out = compat.setup_mix_color(mix, 'MULTIPLY')
     _link(tree, facing.outputs['Facing'], shade.inputs[0])
-    _link(tree, ramp.outputs['Color'], mix.inputs['Color1'])
-    _link(tree, shade.outputs['Value'], mix.inputs['Color2'])
-    _link(tree, mix.outputs['Color'], emit.inputs['Color'])
+    _link(tree, ramp.outputs['Color'], mix_a)
+    _link(tree, shade.outputs['Value'], mix_b)
+    _link(tree, mix_out, emit.inputs['Color'])
     _set(emit.inputs['Strength'], "default_value", 1.0)
     _link(tree, emit.outputs['Emission'], out.inputs['Surface'])
     for link in list(out.inputs['Volume'].links) + list(out.inputs['Displacement'].links):
@@ -561,7 +555,7 @@ def _remember_active(tree):
 
 
 def is_wired(mat):
-    return (mat is not None and mat.use_nodes and mat.node_tree is not None
+    return (mat is not None and compat.uses_nodes(mat)
             and any(n.get(TAG) == "output" for n in mat.node_tree.nodes))
 
 

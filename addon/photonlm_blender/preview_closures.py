@@ -7,16 +7,23 @@ their leaves, each fed by the same links or values as the original) and leaves t
 out, so that the preview is lightmap x diffuse albedo (an Emission) + these closures:
     Diffuse BSDF and the leaves flatten.py bakes as diffuse (unknown nodes too): left out
         (a Mix / Add Shader with nothing left on one side passes the other on)
-    Principled BSDF: copied with Subsurface 1, Subsurface Color black and Subsurface Radius 0:
-        Cycles and EEVEE then take its diffuse colour from the black subsurface colour (no
-        diffuse closure), while its specular layer, metal, glass, clearcoat, sheen, alpha and
-        emission stay as they are (svm_node_closure_bsdf, Cycles 3.4; EEVEE's principled GLSL)
+    Principled BSDF (v1, Blender 3.x): copied with Subsurface 1, Subsurface Color black and
+        Subsurface Radius 0: Cycles and EEVEE then take its diffuse colour from the black
+        subsurface colour (no diffuse closure), while its specular layer, metal, glass,
+        clearcoat, sheen, alpha and emission stay as they are (svm_node_closure_bsdf, Cycles
+        3.4; EEVEE's principled GLSL)
+    Principled BSDF (v2, 4.0+: its subsurface takes the Base Color and turns diffuse at radius
+        0, so the v1 way keeps the diffuse part): with Metallic and Transmission 0 copied with a
+        black Base Color (no diffuse or subsurface part; specular, coat, sheen, alpha and
+        emission as they are); where Metallic or Transmission is 1 copied as it is (it has no
+        diffuse part); otherwise copied as it is, its diffuse part then shown lit by the scene
+        too (reported)
     Glossy, Anisotropic, Glass, Refraction, Transparent, Translucent, Emission, Holdout: copied
     a node group with a specular part or emission: copied as it is (its diffuse part is then
         shown lit by the scene too; reported)
 The copies are new nodes tagged closure_<n>; the original nodes are never changed.
 """
-from . import flatten
+from . import compat, flatten
 
 COPIED = {'ShaderNodeBsdfGlossy', 'ShaderNodeBsdfAnisotropic', 'ShaderNodeBsdfGlass', 'ShaderNodeBsdfRefraction',
           'ShaderNodeBsdfTransparent', 'ShaderNodeBsdfTranslucent', 'ShaderNodeEmission', 'ShaderNodeHoldout'}
@@ -63,12 +70,12 @@ class _Copier:
             return copy.outputs[0]
         if kind == 'ShaderNodeBsdfPrincipled':
             copy = self.copy(node, depth)
-            for name, value in (('Subsurface', 1.0), ('Subsurface Color', (0.0, 0.0, 0.0, 1.0)),
-                                ('Subsurface Radius', (0.0, 0.0, 0.0))):
-                socket = copy.inputs[name]
-                for l in list(socket.links):
-                    self.tree.links.remove(l)
-                socket.default_value = value
+            if compat.principled_v2(node):
+                self._principled_v2(node, copy)
+            else:
+                for name, value in (('Subsurface', 1.0), ('Subsurface Color', (0.0, 0.0, 0.0, 1.0)),
+                                    ('Subsurface Radius', (0.0, 0.0, 0.0))):
+                    self._set_input(copy.inputs[name], value)
             return copy.outputs[0]
         if kind in COPIED:
             return self.copy(node, depth).outputs[list(node.outputs).index(out)]
@@ -80,6 +87,25 @@ class _Copier:
                               "part lit by the scene, not by the lightmap)" % (node.name, self.tree.name))
             return self.copy(node, depth).outputs[list(node.outputs).index(out)]
         return None  # diffuse: the lightmap shows it
+
+    def _set_input(self, socket, value):
+        for l in list(socket.links):
+            self.tree.links.remove(l)
+        socket.default_value = value
+
+    def _principled_v2(self, node, copy):
+        """Leave a v2 Principled BSDF's copy without its diffuse part where that is exact."""
+        weights = [compat.principled_input(node, name) for name in ("Metallic", "Transmission")]
+        if all(s is not None and not s.is_linked for s in weights):
+            metallic, transmission = (float(s.default_value) for s in weights)
+            if metallic <= 0.0 and transmission <= 0.0:
+                self._set_input(copy.inputs['Base Color'], (0.0, 0.0, 0.0, 1.0))
+                return
+            if metallic >= 1.0 or transmission >= 1.0:
+                return
+        self.notes.append("material '%s': Principled BSDF '%s' has a linked or partial Metallic or "
+                          "Transmission: previewed with its own shading (its diffuse part lit by the "
+                          "scene, not by the lightmap)" % (self.tree.name, node.name))
 
     def copy(self, node, depth):
         """A tagged node of node's type with its settings and the same input links and values

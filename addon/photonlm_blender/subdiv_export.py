@@ -14,7 +14,7 @@ Blender's subdivided UV (uv_smooth PRESERVE_BOUNDARIES) is what the engine compu
 """
 import numpy as np
 
-from . import uvmaps
+from . import compat, uvmaps
 
 
 class Cage:
@@ -90,11 +90,9 @@ def _read_cage(mesh, matrix_world, level, use_creases):
     nv, nf, nl = len(mesh.vertices), len(mesh.polygons), len(mesh.loops)
     if nf == 0:
         return None
-    if getattr(mesh, "vertex_creases", None) is not None and len(mesh.vertex_creases):
-        vc = np.empty(nv, np.float32)
-        mesh.vertex_creases[0].data.foreach_get("value", vc)
-        if np.any(vc > 0):
-            raise NotImplementedError("vertex creases are not supported")
+    vc = compat.vertex_creases(mesh) if use_creases else None
+    if vc is not None and np.any(vc > 0):
+        raise NotImplementedError("vertex creases are not supported")
     smooth = np.zeros(nf, dtype=bool)
     mesh.polygons.foreach_get("use_smooth", smooth)
     if smooth.any() and not smooth.all():
@@ -129,9 +127,8 @@ def _read_cage(mesh, matrix_world, level, use_creases):
         if order is not None:
             uv = uv[order]
     edges = weights = None
-    if use_creases and len(mesh.edges):
-        crease = np.empty(len(mesh.edges), np.float32)
-        mesh.edges.foreach_get("crease", crease)
+    crease = compat.edge_creases(mesh) if use_creases else None
+    if crease is not None:
         sel = np.flatnonzero(crease > 0)
         if sel.size:
             ev = np.empty(len(mesh.edges) * 2, np.uint32)

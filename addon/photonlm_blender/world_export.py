@@ -23,11 +23,12 @@ import bpy
 import numpy as np
 from mathutils import Euler
 
+from . import compat
+
 RENDER_SIZE = (1024, 512)  # pixels of a rendered world: 0.35 degrees each
 # Box-filtered samples per pixel: 16 to 1024, adaptive (noise threshold 0.01), so the smooth sky
 # stops at 16 and the pixels a sun disc crosses go on until its share of each is found.
 RENDER_SAMPLES = 1024
-_LINEAR_SPACES = {"Linear", "Non-Color", "Raw"}
 
 
 def _source(socket):
@@ -104,7 +105,7 @@ def describe(world):
     """The WorldSource of a Blender world (reads the node tree only; renders nothing)."""
     if world is None:
         return WorldSource('NONE')
-    if not world.use_nodes or world.node_tree is None:
+    if not compat.uses_nodes(world):
         return WorldSource('UNIFORM', radiance=tuple(max(float(c), 0.0) for c in world.color))
     out = world.node_tree.get_output_node('CYCLES')
     node, _ = _source(out.inputs['Surface']) if out is not None else (None, None)
@@ -139,7 +140,7 @@ def describe(world):
     if lookup is None:
         return WorldSource('RENDER', why=why)
     space = src.image.colorspace_settings.name
-    if _image_file(src.image) is None and not src.image.is_float and space not in _LINEAR_SPACES | {"sRGB"}:
+    if _image_file(src.image) is None and not src.image.is_float and not (compat.is_linear_colorspace(space) or space == "sRGB"):
         return WorldSource('RENDER', why="its image's colour space is %s" % space)
     notes = []
     if src.interpolation != 'Linear':
@@ -171,7 +172,7 @@ def _image_file(image):
     ext = os.path.splitext(path)[1].lower()
     is_float = ext in (".exr", ".hdr", ".pfm") or (image.has_data and image.is_float)
     if is_float:
-        return path if space in _LINEAR_SPACES else None
+        return path if compat.is_linear_colorspace(space) else None
     depth = image.depth if image.has_data else 0
     return path if space == "sRGB" and ext in (".png", ".jpg", ".jpeg", ".tga", ".bmp") and \
         depth in (0, 24, 32) else None
@@ -302,8 +303,8 @@ def _tree_key(tree, depth=0):
 
 def fingerprint(world, size=RENDER_SIZE, samples=RENDER_SAMPLES):
     """A value that changes when anything the world's render depends on changes."""
-    tree = _tree_key(world.node_tree) if world.use_nodes and world.node_tree is not None else None
-    return (world.name, world.use_nodes, tuple(world.color), tree, tuple(size), samples)
+    tree = _tree_key(world.node_tree) if compat.uses_nodes(world) else None
+    return (world.name, compat.use_nodes_value(world), tuple(world.color), tree, tuple(size), samples)
 
 
 class PendingWorld:

@@ -13,6 +13,9 @@ import sys
 import bpy
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import compat  # noqa: E402  (the add-on's compat.py, beside this script: run as a script, not as a package)
+
 # Cycles' Light Path outputs for a diffuse bounce that escapes to the world: a world that shows the
 # camera something else (Is Camera Ray) is rendered as the lighting sees it.
 DIFFUSE_RAY = {"Is Camera Ray": 0.0, "Is Shadow Ray": 0.0, "Is Diffuse Ray": 1.0, "Is Glossy Ray": 0.0,
@@ -43,7 +46,7 @@ def main():
     with bpy.data.libraries.load(lib, link=False) as (src, dst):
         dst.worlds = [name]
     world = dst.worlds[0]
-    if world.use_nodes and world.node_tree is not None:
+    if compat.uses_nodes(world):
         as_diffuse_ray(world.node_tree)
     scene = bpy.context.scene
     for obj in list(scene.collection.all_objects):
@@ -81,9 +84,7 @@ def main():
     c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
     cam = bpy.data.cameras.new("photonlm world camera")
     cam.type = 'PANO'
-    cam.cycles.panorama_type = 'EQUIRECTANGULAR'
-    cam.cycles.latitude_min, cam.cycles.latitude_max = -math.pi / 2, math.pi / 2
-    cam.cycles.longitude_min, cam.cycles.longitude_max = -math.pi, math.pi
+    compat.set_equirectangular(cam)
     obj = bpy.data.objects.new("photonlm world camera", cam)
     # This orientation puts the image's centre along +X and its top row at +Z (measured: a render
     # of an Environment Texture gives back its image pixel for pixel).
@@ -92,7 +93,7 @@ def main():
     scene.camera = obj
     bpy.ops.render.render(write_still=True)
     image = bpy.data.images.load(r.filepath)
-    image.colorspace_settings.name = 'Linear'
+    image.colorspace_settings.name = compat.linear_colorspace(image)
     w, h = image.size
     px = np.empty(w * h * 4, np.float32)
     image.pixels.foreach_get(px)
