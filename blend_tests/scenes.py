@@ -17,6 +17,79 @@ import numpy as np
 from mathutils import Vector
 
 
+# ---- Blender versions: every difference between 3.4, 4.x and 5.x the tests meet lives here --------------
+
+BLENDER = tuple(bpy.app.version[:2])
+
+# Principled BSDF v2 (Blender 4.0+) renamed the inputs the tests set; the keys are 3.4's names.
+_PRINCIPLED_V2_NAMES = {
+    "Specular": "Specular IOR Level",      # 0.5 = F0 0.04 in both; 0 = no specular layer in both
+    "Transmission": "Transmission Weight",
+    "Clearcoat": "Coat Weight",
+    "Clearcoat Roughness": "Coat Roughness",
+    "Sheen": "Sheen Weight",
+    "Subsurface": "Subsurface Weight",
+    "Emission": "Emission Color",
+}
+PRINCIPLED_V2 = BLENDER >= (4, 0)
+
+
+def principled_input(bsdf, name):
+    """The Principled BSDF input that 3.4 calls `name`, in this Blender (v2 names from 4.0)."""
+    if PRINCIPLED_V2 and name in _PRINCIPLED_V2_NAMES:
+        name = _PRINCIPLED_V2_NAMES[name]
+    return bsdf.inputs[name]
+
+
+def node_material(name):
+    """A new material with a node tree (Principled BSDF into Material Output). 5.0 made node
+    trees the only kind of material and deprecated Material.use_nodes."""
+    mat = bpy.data.materials.new(name)
+    if BLENDER < (5, 0):
+        mat.use_nodes = True
+    return mat
+
+
+def node_world(name):
+    """A new world with a node tree (Background into World Output); see node_material."""
+    world = bpy.data.worlds.new(name)
+    if BLENDER < (5, 0):
+        world.use_nodes = True
+    return world
+
+
+def eevee_engine():
+    """EEVEE's render engine id: 'BLENDER_EEVEE_NEXT' in 4.2 to 4.4, 'BLENDER_EEVEE' before and after."""
+    return 'BLENDER_EEVEE_NEXT' if (4, 2) <= BLENDER < (5, 0) else 'BLENDER_EEVEE'
+
+
+def see_through_in_eevee(mat):
+    """EEVEE draws `mat` (glass) blended, refracting the scene behind it, without back faces."""
+    if hasattr(mat, "surface_render_method"):   # EEVEE Next (4.2+)
+        mat.surface_render_method = 'BLENDED'
+        mat.use_raytrace_refraction = True
+        mat.use_transparency_overlap = False
+    else:
+        mat.blend_method = 'BLEND'
+        mat.use_screen_refraction = True
+        mat.show_transparent_back = False
+
+
+def group_socket(group, in_out, socket_type, name):
+    """Add an input ('INPUT') or output ('OUTPUT') socket to a node group (4.0: group.interface)."""
+    if hasattr(group, "interface"):
+        return group.interface.new_socket(name, in_out=in_out, socket_type=socket_type)
+    return (group.inputs if in_out == 'INPUT' else group.outputs).new(socket_type, name)
+
+
+def mix_color_node(nt):
+    """A colour Mix node (Mix, RGBA) and its sockets: (node, fac, a, b, result). Blender 3.4 has
+    it beside the legacy MixRGB; sockets are taken by index (its A and B exist once per type)."""
+    mix = nt.nodes.new('ShaderNodeMix')
+    mix.data_type = 'RGBA'
+    return mix, mix.inputs[0], mix.inputs[6], mix.inputs[7], mix.outputs[2]
+
+
 def setup_paths():
     """Put $PHOTONLM_SOURCE_DIR/addon and /python_bridge on sys.path, register the add-on."""
     src = os.environ.get("PHOTONLM_SOURCE_DIR") or os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -38,7 +111,10 @@ def out_dir(name):
 
 
 def cli_path():
-    """The photonlm CLI built beside PHOTONLM_LIBRARY (build/bin beside build/lib)."""
+    """The photonlm CLI: $PHOTONLM_CLI if set (a self-contained copy, for Blenders in other Debian
+    roots), else the one built beside PHOTONLM_LIBRARY (build/bin beside build/lib)."""
+    if os.environ.get("PHOTONLM_CLI"):
+        return os.environ["PHOTONLM_CLI"]
     lib = os.environ.get("PHOTONLM_LIBRARY", "")
     return os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(lib)), "..", "bin", "photonlm"))
 
@@ -50,8 +126,7 @@ def clear_scene():
         for item in list(coll):
             coll.remove(item)
     scene = bpy.context.scene
-    world = bpy.data.worlds.new("World")
-    world.use_nodes = True
+    world = node_world("World")
     world.node_tree.nodes["Background"].inputs["Color"].default_value = (0, 0, 0, 1)
     scene.world = world
     return scene
@@ -60,15 +135,14 @@ def clear_scene():
 # ---- materials --------------------------------------------------------------------------------
 
 def diffuse_material(name, color, principled=False):
-    mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
+    mat = node_material(name)
     nt = mat.node_tree
     nodes = nt.nodes
     out = nodes["Material Output"]
     if principled:
         bsdf = nodes["Principled BSDF"]
         bsdf.inputs["Base Color"].default_value = tuple(color) + (1.0,)
-        bsdf.inputs["Specular"].default_value = 0.0
+        principled_input(bsdf, "Specular").default_value = 0.0
         bsdf.inputs["Roughness"].default_value = 1.0
     else:
         nodes.remove(nodes["Principled BSDF"])
@@ -81,8 +155,7 @@ def diffuse_material(name, color, principled=False):
 
 
 def emission_material(name, color, strength):
-    mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
+    mat = node_material(name)
     nt = mat.node_tree
     nt.nodes.remove(nt.nodes["Principled BSDF"])
     em = nt.nodes.new("ShaderNodeEmission")
@@ -433,11 +506,10 @@ def write_texture_png(path, size=64):
 
 def textured_material(name, image_path):
     """Principled BSDF whose Base Color is an Image Texture on the mesh's 'UVMap'."""
-    mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
+    mat = node_material(name)
     nt = mat.node_tree
     bsdf = nt.nodes["Principled BSDF"]
-    bsdf.inputs["Specular"].default_value = 0.2
+    principled_input(bsdf, "Specular").default_value = 0.2
     bsdf.inputs["Roughness"].default_value = 0.8
     tex = nt.nodes.new("ShaderNodeTexImage")
     tex.image = bpy.data.images.load(image_path, check_existing=True)

@@ -14,8 +14,7 @@ import scenes
 
 def glass_material(name, ior=1.5, color=(1.0, 1.0, 1.0), roughness=0.0):
     """A Glass BSDF (GGX: the engine's distribution, exact at any roughness)."""
-    mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
+    mat = scenes.node_material(name)
     nt = mat.node_tree
     nt.nodes.remove(nt.nodes["Principled BSDF"])
     glass = nt.nodes.new("ShaderNodeBsdfGlass")
@@ -25,16 +24,13 @@ def glass_material(name, ior=1.5, color=(1.0, 1.0, 1.0), roughness=0.0):
     glass.inputs["IOR"].default_value = ior
     glass.location = (-300, 0)
     nt.links.new(glass.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
-    mat.blend_method = 'BLEND'      # EEVEE: see through it
-    mat.use_screen_refraction = True
-    mat.show_transparent_back = False
+    scenes.see_through_in_eevee(mat)
     return mat
 
 
 def metal_material(name, color, roughness=0.2):
     """A Principled BSDF with Metallic 1: all its light is the specular layer of F0 = color."""
-    mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
+    mat = scenes.node_material(name)
     bsdf = mat.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Base Color"].default_value = tuple(color) + (1.0,)
     bsdf.inputs["Metallic"].default_value = 1.0

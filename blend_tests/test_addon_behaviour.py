@@ -99,13 +99,12 @@ def build_scene():
     second.data.foreach_set("uv", a)
     me.uv_layers.active = me.uv_layers["Texture2"]      # edited map: Texture2
     me.uv_layers["UVMap"].active_render = True          # rendered map: UVMap
-    mat = bpy.data.materials.new("cube_mat")
-    mat.use_nodes = True
+    mat = scenes.node_material("cube_mat")
     nt = mat.node_tree
     bsdf = nt.nodes["Principled BSDF"]
     tex = nt.nodes.new("ShaderNodeTexChecker")
     nt.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
-    bsdf.inputs["Emission"].default_value = (0.2, 0.1, 0.0, 1.0)
+    scenes.principled_input(bsdf, "Emission").default_value = (0.2, 0.1, 0.0, 1.0)
     bsdf.inputs["Emission Strength"].default_value = 2.0
     me.materials.append(mat)
     # A floor with a fixed lightmap layout and its own material.

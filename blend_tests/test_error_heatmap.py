@@ -173,7 +173,7 @@ def main():
                  and np.all(np.abs(got[alike(rel >= 4.5 * TARGET)] - red).max(axis=-1) < 0.05),
                  "texels at or below the target are green (%.0f %%), 4x and above red (%.0f %%)"
                  % (100 * share["green"], 100 * share["red"]))
-    scene.render.engine = 'BLENDER_EEVEE'
+    scene.render.engine = scenes.eevee_engine()
 
     # -- the other modes ---------------------------------------------------------------------------------------------
     s.preview_mode = 'LIGHTMAP'

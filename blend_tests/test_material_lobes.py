@@ -1,5 +1,9 @@
 """Material flattening: node set-ups -> the engine's diffuse albedo and specular lobes, with the
-values worked out by hand from Cycles 3.4's closure weights (svm_node_closure_bsdf, mix closure):
+values worked out by hand from Cycles 3.4's closure weights (svm_node_closure_bsdf, mix closure).
+Glossy and Glass nodes name their distribution (the default is GGX / Beckmann in 3.4,
+Multiscatter GGX from 4.0). The Principled BSDF values hold in Blender 3.4 (Principled v1); from 4.0 the Principled BSDF is v2
+(Lambert diffuse under an energy-conserving specular layer, other inputs), so there these cases
+print SKIP and the Principled materials are only built, wired for the preview and exported:
 
 Principled BSDF, m = Metallic, t = Transmission, w = the weight reaching it:
     diffuse albedo  w (1 - m)(1 - t) Base Color
@@ -31,11 +35,11 @@ from photonlm_blender import flatten, materials  # noqa: E402
 
 checks = scenes.Checks("material_lobes")
 TOL = 1e-5
+V1 = not scenes.PRINCIPLED_V2  # Principled v1: the closure weights below (Blender 3.4)
 
 
 def new_material(name):
-    mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
+    mat = scenes.node_material(name)
     nt = mat.node_tree
     for n in list(nt.nodes):
         if n.bl_idname != 'ShaderNodeOutputMaterial':
@@ -49,7 +53,8 @@ def node(nt, idname, **inputs):
         if key.startswith("_"):
             setattr(n, key[1:], value)
             continue
-        sock = n.inputs[key.replace("_", " ")]
+        sock = scenes.principled_input(n, key.replace("_", " ")) if idname == 'ShaderNodeBsdfPrincipled' \
+            else n.inputs[key.replace("_", " ")]
         sock.default_value = tuple(value) + (1.0,) if isinstance(value, tuple) and len(value) == 3 \
             and len(sock.default_value) == 4 else value
     return n
@@ -103,6 +108,15 @@ def case(label, mat, albedo, lobes, emission=(0.0, 0.0, 0.0), approx=(), no_appr
     return info
 
 
+def case_v1(label, *args, **kwargs):
+    """case() for a Principled BSDF set-up whose values are Principled v1's (Blender 3.4)."""
+    if V1:
+        return case(label, *args, **kwargs)
+    print("SKIP %s: Principled v1 closure weights (hold in Blender 3.4; this is %d.%d, Principled v2)"
+          % (label, *scenes.BLENDER))
+    return None
+
+
 def spec_ior(specular):
     return 2.0 / (1.0 - math.sqrt(0.08 * specular)) - 1.0
 
@@ -116,94 +130,100 @@ case("Diffuse BSDF", mat, (0.2, 0.4, 0.6), [], no_approx=True)
 mat, nt, out = new_material("principled_default")
 to_output(nt, out, principled(nt))
 # F0 = 0.5 x 0.08 = 0.04, IOR = 2 / (1 - 0.2) - 1 = 1.5
-case("Principled defaults: diffuse 0.8 + specular layer F0 0.04", mat, (0.8, 0.8, 0.8),
+case_v1("Principled defaults: diffuse 0.8 + specular layer F0 0.04", mat, (0.8, 0.8, 0.8),
      [("fresnel", (0.04,) * 3, 0.5, 1.5, 1.0)], no_approx=True)
 
 mat, nt, out = new_material("principled_no_specular")
 to_output(nt, out, principled(nt, Specular=0.0, Base_Color=(0.3, 0.5, 0.7)))
-info = case("Principled, Specular 0: purely diffuse", mat, (0.3, 0.5, 0.7), [], no_approx=True)
-checks.check(info.purely_diffuse(), "Specular 0 and no metal or glass: purely diffuse")
+info = case_v1("Principled, Specular 0: purely diffuse", mat, (0.3, 0.5, 0.7), [], no_approx=True)
+if info is not None:
+    checks.check(info.purely_diffuse(), "Specular 0 and no metal or glass: purely diffuse")
 
 GOLD = (1.0, 0.766, 0.336)
 mat, nt, out = new_material("gold")
 to_output(nt, out, principled(nt, Metallic=1.0, Base_Color=GOLD, Roughness=0.2))
-case("Principled metal: F0 = Base Color, no diffuse", mat, (0.0, 0.0, 0.0),
+case_v1("Principled metal: F0 = Base Color, no diffuse", mat, (0.0, 0.0, 0.0),
      [("fresnel", GOLD, 0.2, 1.5, 1.0)], no_approx=True)
 
 mat, nt, out = new_material("metal_no_specular")
 to_output(nt, out, principled(nt, Metallic=1.0, Specular=0.0, Base_Color=(0.9, 0.9, 0.9), Roughness=0.0))
-case("Principled metal, Specular 0: IOR 1 (constant F0)", mat, (0.0,) * 3, [("fresnel", (0.9,) * 3, 0.0, 1.0, 1.0)])
+case_v1("Principled metal, Specular 0: IOR 1 (constant F0)", mat, (0.0,) * 3, [("fresnel", (0.9,) * 3, 0.0, 1.0, 1.0)])
 
 base = (0.5, 0.2, 0.1)
 lum = 0.3 * 0.5 + 0.6 * 0.2 + 0.1 * 0.1
 tmp = [0.5 + 0.5 * c / lum for c in base]
 f0 = [0.04 * t * 0.5 + c * 0.5 for t, c in zip(tmp, base)]
-mat, nt, out = new_material("half_metal_tinted")
-to_output(nt, out, principled(nt, Metallic=0.5, Base_Color=base, Specular_Tint=0.5))
-case("Principled Metallic 0.5, Specular Tint 0.5", mat, tuple(0.5 * c for c in base),
-     [("fresnel", f0, 0.5, 1.5, 1.0)], no_approx=True)
+if V1:  # Specular Tint is a float in v1, a colour in v2
+    mat, nt, out = new_material("half_metal_tinted")
+    to_output(nt, out, principled(nt, Metallic=0.5, Base_Color=base, Specular_Tint=0.5))
+    case_v1("Principled Metallic 0.5, Specular Tint 0.5", mat, tuple(0.5 * c for c in base),
+            [("fresnel", f0, 0.5, 1.5, 1.0)], no_approx=True)
 
 mat, nt, out = new_material("specular_0.8")
 to_output(nt, out, principled(nt, Specular=0.8, Roughness=0.1))
-case("Principled Specular 0.8: F0 0.064, IOR from Specular", mat, (0.8,) * 3,
+case_v1("Principled Specular 0.8: F0 0.064, IOR from Specular", mat, (0.8,) * 3,
      [("fresnel", (0.064,) * 3, 0.1, spec_ior(0.8), 1.0)], no_approx=True)
 
 mat, nt, out = new_material("glass_principled")
 to_output(nt, out, principled(nt, Transmission=1.0, Base_Color=(1.0, 1.0, 1.0), Roughness=0.0, IOR=1.5))
-case("Principled Transmission 1 (white): one GLASS lobe, no specular layer", mat, (0.0,) * 3,
+case_v1("Principled Transmission 1 (white): one GLASS lobe, no specular layer", mat, (0.0,) * 3,
      [("glass", (1.0,) * 3, 0.0, 1.5, None)], no_approx=True)
 
 # m 0.25, t 0.6: diffuse (0.75)(0.4) = 0.3; glass 0.6 x 0.75 = 0.45; specular 1 - 0.45 = 0.55,
 # F0 = 0.04 x 0.75 + 0.9 x 0.25 = 0.255.
 mat, nt, out = new_material("glass_metal_mix")
 to_output(nt, out, principled(nt, Metallic=0.25, Transmission=0.6, Base_Color=(0.9, 0.9, 0.9), Roughness=0.0))
-case("Principled Metallic 0.25 + Transmission 0.6", mat, (0.27,) * 3,
+case_v1("Principled Metallic 0.25 + Transmission 0.6", mat, (0.27,) * 3,
      [("glass", (0.405,) * 3, 0.0, 1.45, None), ("fresnel", (0.55 * 0.255,) * 3, 0.0, 1.5, 0.55)],
      approx=("reflection is tinted",))
 
-mat, nt, out = new_material("rough_glass_principled")
-to_output(nt, out, principled(nt, Transmission=1.0, Base_Color=(1.0, 1.0, 1.0), Roughness=0.2,
-                              Transmission_Roughness=0.5))
-# Cycles 3.4, GGX: refraction roughness 1 - (1 - 0.2)(1 - 0.5) = 0.6
-case("Principled glass with Transmission Roughness: one roughness 0.6, reported", mat, (0.0,) * 3,
-     [("glass", (1.0,) * 3, 0.6, 1.45, None)], approx=("Transmission Roughness",))
+if V1:  # v2 has no Transmission Roughness
+    mat, nt, out = new_material("rough_glass_principled")
+    to_output(nt, out, principled(nt, Transmission=1.0, Base_Color=(1.0, 1.0, 1.0), Roughness=0.2,
+                                  Transmission_Roughness=0.5))
+    # Cycles 3.4, GGX: refraction roughness 1 - (1 - 0.2)(1 - 0.5) = 0.6
+    case_v1("Principled glass with Transmission Roughness: one roughness 0.6, reported", mat, (0.0,) * 3,
+            [("glass", (1.0,) * 3, 0.6, 1.45, None)], approx=("Transmission Roughness",))
 
 mat, nt, out = new_material("alpha")
 to_output(nt, out, principled(nt, Alpha=0.25, Specular=0.0))
-case("Principled Alpha 0.25: TRANSPARENT 0.75, the rest x 0.25", mat, (0.2,) * 3,
+case_v1("Principled Alpha 0.25: TRANSPARENT 0.75, the rest x 0.25", mat, (0.2,) * 3,
      [("transparent", (0.75,) * 3, 0.0, None, None)], no_approx=True)
 
 mat, nt, out = new_material("clearcoat")
 to_output(nt, out, principled(nt, Clearcoat=1.0, Clearcoat_Roughness=0.1))
-case("Principled Clearcoat 1: FRESNEL 0.25 x (F0 0.04, IOR 1.5), GTR1 reported", mat, (0.8,) * 3,
+case_v1("Principled Clearcoat 1: FRESNEL 0.25 x (F0 0.04, IOR 1.5), GTR1 reported", mat, (0.8,) * 3,
      [("fresnel", (0.04,) * 3, 0.5, 1.5, 1.0), ("fresnel", (0.01,) * 3, 0.1, 1.5, 0.25)],
      approx=("GTR1",))
 
 mat, nt, out = new_material("emissive_principled")
 to_output(nt, out, principled(nt, Emission=(1.0, 0.5, 0.25), Emission_Strength=4.0, Specular=0.0))
-case("Principled emission", mat, (0.8,) * 3, [], emission=(4.0, 2.0, 1.0), no_approx=True)
+case_v1("Principled emission", mat, (0.8,) * 3, [], emission=(4.0, 2.0, 1.0), no_approx=True)
 
-mat, nt, out = new_material("sheen_aniso_sss")
-to_output(nt, out, principled(nt, Sheen=0.5, Anisotropic=0.5, Subsurface=0.5,
-                              Subsurface_Color=(0.2, 0.2, 0.2), Specular=0.0))
-case("Principled sheen, anisotropy, subsurface: reported in one line", mat, (0.5,) * 3, [],
-     approx=("sheen", "anisotropy", "subsurface"))
+if V1:  # v2 has no Subsurface Color (subsurface takes the Base Color)
+    mat, nt, out = new_material("sheen_aniso_sss")
+    to_output(nt, out, principled(nt, Sheen=0.5, Anisotropic=0.5, Subsurface=0.5,
+                                  Subsurface_Color=(0.2, 0.2, 0.2), Specular=0.0))
+    case_v1("Principled sheen, anisotropy, subsurface: reported in one line", mat, (0.5,) * 3, [],
+            approx=("sheen", "anisotropy", "subsurface"))
 
 mat, nt, out = new_material("glossy")
-to_output(nt, out, node(nt, 'ShaderNodeBsdfGlossy', Color=(0.9, 0.8, 0.7), Roughness=0.3))
+to_output(nt, out, node(nt, 'ShaderNodeBsdfGlossy', Color=(0.9, 0.8, 0.7), Roughness=0.3, _distribution='GGX'))
 case("Glossy BSDF (GGX)", mat, (0.0,) * 3, [("glossy", (0.9, 0.8, 0.7), 0.3, None, None)], no_approx=True)
 
-mat, nt, out = new_material("mirror")
-to_output(nt, out, node(nt, 'ShaderNodeBsdfGlossy', Color=(1.0, 1.0, 1.0), Roughness=0.7, _distribution='SHARP'))
-case("Glossy BSDF Sharp: roughness 0", mat, (0.0,) * 3, [("glossy", (1.0,) * 3, 0.0, None, None)], no_approx=True)
+if scenes.BLENDER < (4, 0):  # 4.0 removed the Sharp distribution (GGX at roughness 0 is the mirror)
+    mat, nt, out = new_material("mirror")
+    to_output(nt, out, node(nt, 'ShaderNodeBsdfGlossy', Color=(1.0, 1.0, 1.0), Roughness=0.7, _distribution='SHARP'))
+    case("Glossy BSDF Sharp: roughness 0", mat, (0.0,) * 3, [("glossy", (1.0,) * 3, 0.0, None, None)], no_approx=True)
 
 mat, nt, out = new_material("glass_bsdf")
-to_output(nt, out, node(nt, 'ShaderNodeBsdfGlass', Color=(0.9, 1.0, 0.9), Roughness=0.0, IOR=1.52))
+to_output(nt, out, node(nt, 'ShaderNodeBsdfGlass', Color=(0.9, 1.0, 0.9), Roughness=0.0, IOR=1.52,
+                        _distribution='BECKMANN'))
 case("Glass BSDF (Beckmann, roughness 0: exact)", mat, (0.0,) * 3,
      [("glass", (0.9, 1.0, 0.9), 0.0, 1.52, None)], no_approx=True)
 
 mat, nt, out = new_material("rough_glass_bsdf")
-to_output(nt, out, node(nt, 'ShaderNodeBsdfGlass', Roughness=0.3, IOR=1.5))
+to_output(nt, out, node(nt, 'ShaderNodeBsdfGlass', Roughness=0.3, IOR=1.5, _distribution='BECKMANN'))
 case("Glass BSDF Beckmann rough: GGX, reported", mat, (0.0,) * 3, [("glass", (1.0,) * 3, 0.3, 1.5, None)],
      approx=("Beckmann",))
 
@@ -225,7 +245,8 @@ case("Emission", mat, (0.0,) * 3, [], emission=(10.0, 9.0, 8.0), no_approx=True)
 mat, nt, out = new_material("mix_diffuse_glossy")
 mix = node(nt, 'ShaderNodeMixShader', Fac=0.3)
 nt.links.new(node(nt, 'ShaderNodeBsdfDiffuse', Color=(1.0, 0.0, 0.0)).outputs[0], mix.inputs[1])
-nt.links.new(node(nt, 'ShaderNodeBsdfGlossy', Color=(1.0, 1.0, 1.0), Roughness=0.2).outputs[0], mix.inputs[2])
+nt.links.new(node(nt, 'ShaderNodeBsdfGlossy', Color=(1.0, 1.0, 1.0), Roughness=0.2, _distribution='GGX').outputs[0],
+             mix.inputs[2])
 to_output(nt, out, mix)
 case("Mix 0.3 (Diffuse red, Glossy white)", mat, (0.7, 0.0, 0.0), [("glossy", (0.3,) * 3, 0.2, None, None)],
      no_approx=True)
@@ -285,7 +306,7 @@ mix = node(nt, 'ShaderNodeMixShader', Fac=0.5)
 nt.links.new(principled(nt, Base_Color=(1.0, 0.0, 0.0)).outputs[0], mix.inputs[1])
 nt.links.new(principled(nt, Metallic=1.0, Base_Color=(0.0, 0.0, 1.0)).outputs[0], mix.inputs[2])
 to_output(nt, out, mix)
-case("Mix of dielectric and metal Principled: one merged specular layer", mat, (0.5, 0.0, 0.0),
+case_v1("Mix of dielectric and metal Principled: one merged specular layer", mat, (0.5, 0.0, 0.0),
      [("fresnel", (0.02, 0.02, 0.02 + 0.5), 0.5, 1.5, 1.0)], no_approx=True)
 
 # Mix -> Add -> Mix: weights multiply along the way.
@@ -318,9 +339,9 @@ case("muted Mix Shader: its first input, through a Reroute", mat, (0.6,) * 3, []
 # ---- node groups, textures ----------------------------------------------------------------------
 
 group = bpy.data.node_groups.new("metal_group", 'ShaderNodeTree')
-group.inputs.new('NodeSocketColor', "Tint")
-group.inputs.new('NodeSocketFloat', "Rough")
-group.outputs.new('NodeSocketShader', "Shader")
+scenes.group_socket(group, 'INPUT', 'NodeSocketColor', "Tint")
+scenes.group_socket(group, 'INPUT', 'NodeSocketFloat', "Rough")
+scenes.group_socket(group, 'OUTPUT', 'NodeSocketShader', "Shader")
 gin, gout = group.nodes.new('NodeGroupInput'), group.nodes.new('NodeGroupOutput')
 gp = principled(group, Metallic=1.0)
 group.links.new(gin.outputs["Tint"], gp.inputs["Base Color"])
@@ -334,7 +355,7 @@ rgb.outputs[0].default_value = (0.95, 0.64, 0.54, 1.0)
 nt.links.new(rgb.outputs[0], gnode.inputs["Tint"])
 gnode.inputs["Rough"].default_value = 0.35
 to_output(nt, out, gnode)
-case("node group: a metal whose colour comes from an RGB node outside", mat, (0.0,) * 3,
+case_v1("node group: a metal whose colour comes from an RGB node outside", mat, (0.0,) * 3,
      [("fresnel", (0.95, 0.64, 0.54), 0.35, 1.5, 1.0)], no_approx=True)
 
 
@@ -354,7 +375,7 @@ tex.image = flat_image("metal_mask", (0.5, 0.5, 0.5, 1.0), float_buffer=True)
 nt.links.new(tex.outputs["Color"], p.inputs["Metallic"])
 to_output(nt, out, p)
 # Metallic = mean 0.5: diffuse 0.25; F0 = 0.04 x 0.5 + 0.5 x 0.5 = 0.27
-case("Metallic from an image: its mean, reported", mat, (0.25,) * 3, [("fresnel", (0.27,) * 3, 0.5, 1.5, 1.0)],
+case_v1("Metallic from an image: its mean, reported", mat, (0.25,) * 3, [("fresnel", (0.27,) * 3, 0.5, 1.5, 1.0)],
      approx=("metal_mask",))
 
 checker = bpy.data.images.new("base_checker", 4, 4, alpha=True)
@@ -365,11 +386,12 @@ tex.image = flat_image("base_srgb", (0.5, 0.5, 0.5, 1.0), colorspace='sRGB')
 nt.links.new(tex.outputs["Color"], p.inputs["Base Color"])
 to_output(nt, out, p)
 lin = ((128 / 255 + 0.055) / 1.055) ** 2.4  # the byte image's sRGB 128 / 255 decoded
-info = case("Image into Base Color, Metallic 0.5: texture x 0.5 for the diffuse part, the mean (linear) "
+info = case_v1("Image into Base Color, Metallic 0.5: texture x 0.5 for the diffuse part, the mean (linear) "
             "for the metal's F0", mat, (0.5,) * 3, [("fresnel", (0.02 + 0.5 * lin,) * 3, 0.5, 1.5, 1.0)],
             approx=("base_srgb",))
-checks.check(info.albedo_texture is not None and info.albedo_texture.image.name == "base_srgb",
-             "the image stays the albedo texture")
+if info is not None:
+    checks.check(info.albedo_texture is not None and info.albedo_texture.image.name == "base_srgb",
+                 "the image stays the albedo texture")
 
 # ---- reports ----------------------------------------------------------------------------------
 
@@ -422,7 +444,7 @@ for name in ("gold", "glass_bsdf", "mix_diffuse_glossy", "principled_default", "
         checks.check(not emit0.inputs['Strength'].is_linked and emit0.inputs['Strength'].default_value == 0.0,
                      "%s: the original Emission is off (the copies carry the emission)" % name)
         for c in copies:
-            if c.bl_idname == 'ShaderNodeBsdfPrincipled':
+            if c.bl_idname == 'ShaderNodeBsdfPrincipled' and V1:  # v1's inputs
                 checks.check(c.inputs['Subsurface'].default_value == 1.0
                              and tuple(c.inputs['Subsurface Color'].default_value)[:3] == (0.0, 0.0, 0.0)
                              and tuple(c.inputs['Subsurface Radius'].default_value) == (0.0, 0.0, 0.0),
@@ -460,18 +482,22 @@ writer = SceneFileWriter()
 reports = export.Reports()
 result = export.export_scene(bpy.context, types.SimpleNamespace(Scene=lambda: writer), reports)
 by_name = {m.get("name"): m for m in writer.materials}
-gold = by_name.get("gold", {}).get("lobes", [])
-checks.check(len(gold) == 1 and gold[0]["type"] == "fresnel" and close(gold[0]["color"], GOLD)
-             and close(gold[0]["weight"], 1.0) and close(gold[0]["roughness"], 0.2) and close(gold[0]["ior"], 1.5),
-             "scene file: the gold metal is one FRESNEL lobe, F0 = its Base Color: %s" % gold)
-gm = by_name.get("glass_metal_mix", {})
-fres = [l for l in gm.get("lobes", []) if l["type"] == "fresnel"]
-checks.check(len(fres) == 1 and close(fres[0]["color"], (0.255,) * 3) and close(fres[0]["weight"], 0.55)
-             and close(gm["albedo"], (0.27,) * 3),
-             "scene file: a FRESNEL lobe goes as F0 = colour / weight (0.255) and weight 0.55: %s" % fres)
-cc = [l for l in by_name.get("clearcoat", {}).get("lobes", []) if close(l["roughness"], 0.1)]
-checks.check(len(cc) == 1 and close(cc[0]["color"], (0.04,) * 3) and close(cc[0]["weight"], 0.25),
-             "scene file: clearcoat F0 0.04, weight 0.25: %s" % cc)
+if not V1:
+    print("SKIP scene-file lobes of the gold, glass_metal_mix and clearcoat materials: Principled v1 values "
+          "(hold in Blender 3.4)")
+else:
+    gold = by_name.get("gold", {}).get("lobes", [])
+    checks.check(len(gold) == 1 and gold[0]["type"] == "fresnel" and close(gold[0]["color"], GOLD)
+                 and close(gold[0]["weight"], 1.0) and close(gold[0]["roughness"], 0.2) and close(gold[0]["ior"], 1.5),
+                 "scene file: the gold metal is one FRESNEL lobe, F0 = its Base Color: %s" % gold)
+    gm = by_name.get("glass_metal_mix", {})
+    fres = [l for l in gm.get("lobes", []) if l["type"] == "fresnel"]
+    checks.check(len(fres) == 1 and close(fres[0]["color"], (0.255,) * 3) and close(fres[0]["weight"], 0.55)
+                 and close(gm["albedo"], (0.27,) * 3),
+                 "scene file: a FRESNEL lobe goes as F0 = colour / weight (0.255) and weight 0.55: %s" % fres)
+    cc = [l for l in by_name.get("clearcoat", {}).get("lobes", []) if close(l["roughness"], 0.1)]
+    checks.check(len(cc) == 1 and close(cc[0]["color"], (0.04,) * 3) and close(cc[0]["weight"], 0.25),
+                 "scene file: clearcoat F0 0.04, weight 0.25: %s" % cc)
 checks.check(not by_name.get("diffuse", {}).get("lobes"), "scene file: a Diffuse BSDF has no lobes")
 engine_scene = photonlm.Scene()
 reports2 = export.Reports()

@@ -88,7 +88,7 @@ def export_checks(checks, image):
     tex = nt.nodes.new("ShaderNodeTexImage")
     tex.image = image
     nt.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
-    nt.links.new(tex.outputs["Color"], bsdf.inputs["Emission"])
+    nt.links.new(tex.outputs["Color"], scenes.principled_input(bsdf, "Emission"))
     bsdf.inputs["Emission Strength"].default_value = 3.0
     info = materials.read_material(mat)
     checks.check(info.albedo_texture is not None and info.albedo_texture.uv_map is None

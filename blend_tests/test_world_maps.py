@@ -249,12 +249,12 @@ def check_export_paths(checks, objs):
     env.image = f
     bpy.data.images.remove(gen)
     bg = nt.nodes['Background']
-    mix = nt.nodes.new('ShaderNodeMixRGB')
+    mix, fac, color1, color2, mixed = scenes.mix_color_node(nt)
     path = nt.nodes.new('ShaderNodeLightPath')
-    mix.inputs['Color2'].default_value = (0.0, 0.0, 1.0, 1.0)
-    nt.links.new(path.outputs['Is Camera Ray'], mix.inputs['Fac'])
-    nt.links.new(env.outputs['Color'], mix.inputs['Color1'])
-    nt.links.new(mix.outputs['Color'], bg.inputs['Color'])
+    color2.default_value = (0.0, 0.0, 1.0, 1.0)
+    nt.links.new(path.outputs['Is Camera Ray'], fac)
+    nt.links.new(env.outputs['Color'], color1)
+    nt.links.new(mixed, bg.inputs['Color'])
     last = scenes.photonlm_bake(400_000, 1024, seed=5, **settings)
     c = lightmaps(last, objs)
     rendered = [t for (lvl, t) in last["reports"] if "rendered into a" in t]
