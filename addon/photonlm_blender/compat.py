@@ -12,7 +12,7 @@ between or after behaves as the nearest one with the same API.
     node trees  uses_nodes (Material / World .use_nodes: deprecated in 5.0, always on there)
     shader nodes MIX_COLOR, mix_color_sockets (the legacy MixRGB where it exists, else Mix in RGBA
                 mode), principled_input (Principled BSDF v2 socket names, 4.0+)
-    lights      light_emission (colour and power with exposure, normalize and temperature),
+    lights      light_emission (colour and power with exposure and normalize (4.5+), temperature (5.x)),
                 light_nodes_differ (5.x gives every light a default node tree)
     engines     eevee_engine_id (BLENDER_EEVEE in 3.x and 5.x, BLENDER_EEVEE_NEXT in 4.2-4.4),
                 is_eevee
@@ -192,38 +192,28 @@ def principled_input(node, name):
 # ---- lights -------------------------------------------------------------------------------------------------
 
 def light_emission(light, world_area=None):
-    """(colour, power) of a light as Cycles emits it, in the units of 3.4's Light.energy with
-    normalize on: colour x the blackbody colour of its temperature where use_temperature is on
-    (5.x); power x 2^exposure (4.0+); where normalize is off (4.0+) Cycles does not divide the
-    power by the light's area, so the same look takes power x that area: the world-space area
-    for area lights (world_area(), as Cycles measures it, disk and ellipse x pi/4), pi r^2 for
-    point and spot lights with a radius, pi tan^2(angle / 2) for a sun with an angle (no area:
-    no factor)."""
+    """(colour, power) of a light as Cycles emits it, in the units of Light.energy with normalize
+    on (all 3.4 and 4.4 have). As Cycles' sync: colour x Light.temperature_color where
+    use_temperature is on (5.x), power x 2^exposure (4.5+). Where normalize is off (4.5+) Cycles
+    does not divide the strength by the light's area (scene/light.cpp, area()), so the same light
+    with normalize on takes power x that area: 4 pi r^2 for point and spot lights (4 at radius
+    0), the world-space area for area lights (world_area(): sizes along the object's scaled axes,
+    disk and ellipse x pi/4; 1 when 0), pi sin^2(angle / 2) for a sun (1 at angle 0)."""
     color = tuple(float(c) for c in light.color)
     power = float(light.energy)
     if getattr(light, "use_temperature", False):
-        color = tuple(c * t for c, t in zip(color, light_temperature_color(light)))
+        color = tuple(c * float(t) for c, t in zip(color, light.temperature_color[:3]))
     power *= 2.0 ** float(getattr(light, "exposure", 0.0))
     if not getattr(light, "normalize", True):
-        area = 0.0
-        if light.type == 'AREA':
-            area = world_area() if world_area is not None else 0.0
-        elif light.type in ('POINT', 'SPOT'):
-            area = math.pi * float(light.shadow_soft_size) ** 2
-        elif light.type == 'SUN':
-            area = math.pi * math.tan(0.5 * float(light.angle)) ** 2
-        if area > 0.0:
-            power *= area
+        area = 1.0
+        if light.type in ('POINT', 'SPOT'):
+            area = 4.0 * math.pi * float(light.shadow_soft_size) ** 2 or 4.0
+        elif light.type == 'AREA':
+            area = (world_area() if world_area is not None else 0.0) or 1.0
+        elif light.type == 'SUN' and light.angle > 0.0:
+            area = math.pi * math.sin(0.5 * float(light.angle)) ** 2
+        power *= area
     return color, power
-
-
-def light_temperature_color(light):
-    """The linear RGB colour a light's temperature multiplies its colour by: Blender's own where it
-    tells it (Light.temperature_color), else the blackbody colour of the Blackbody node."""
-    c = getattr(light, "temperature_color", None)
-    if c is not None:
-        return tuple(float(x) for x in c[:3])
-    return blackbody_rgb(float(light.temperature))
 
 
 def light_nodes_differ(light):

@@ -17,10 +17,10 @@ def missing():
     try:
         import numpy  # noqa: F401
     except ImportError as e:
-        return ("PhotonLM needs NumPy, which this Blender's Python %d.%d (%s) cannot import (%s). "
+        return ("PhotonLM needs NumPy, which this Blender's Python %d.%d cannot import (%s). "
                 "On Debian or Ubuntu install it with 'sudo apt install python3-numpy' and restart "
                 "Blender. Blender from blender.org includes NumPy."
-                % (sys.version_info[0], sys.version_info[1], sys.executable or "built in", e))
+                % (sys.version_info[0], sys.version_info[1], e))
     return None
 
 
