@@ -6,7 +6,7 @@ feature (an attribute, a node type, an enum item), not by version numbers, so th
 between or after behaves as the nearest one with the same API.
 
     meshes      corner_normals (calc_normals_split before 4.1, Mesh.corner_normals after),
-                edge_creases / vertex_creases (MeshEdge.crease and Mesh.vertex_creases before 4.0,
+                edge_creases / set_edge_creases / vertex_creases (MeshEdge.crease and Mesh.vertex_creases before 4.0,
                 the attributes crease_edge / crease_vert after, absent when nothing is creased)
     node groups set_group_outputs (NodeTree.outputs before 4.0, NodeTree.interface after)
     node trees  uses_nodes (Material / World .use_nodes: deprecated in 5.0, always on there)
@@ -68,6 +68,18 @@ def edge_creases(mesh):
         mesh.edges.foreach_get("crease", values)
         return values
     return None
+
+
+def set_edge_creases(mesh, values):
+    """Set every edge's crease from (E,) values (for scripts and tests that build creased meshes):
+    MeshEdge.crease before 4.0, the attribute 'crease_edge' (made when missing) after."""
+    import numpy as np
+    values = np.ascontiguousarray(values, np.float32)
+    if len(mesh.edges) and hasattr(mesh.edges[0], "crease"):
+        mesh.edges.foreach_set("crease", values)
+        return
+    attr = mesh.attributes.get("crease_edge") or mesh.attributes.new("crease_edge", 'FLOAT', 'EDGE')
+    attr.data.foreach_set("value", values)
 
 
 def vertex_creases(mesh):
