@@ -6,6 +6,9 @@ or OpenSubdiv packages.
 
     scripts/bundle_libs.py DIR/libphotonlm.so      (the copy in the add-on's staging folder)
 
+    scripts/bundle_libs.py --program EXE DIR LIBDIR
+                           (a copy of EXE in DIR that finds its libraries in LIBDIR, a bundled folder)
+
 Also used by the tests: `scripts/bundle_libs.py --check DIR/libphotonlm.so` lists how each
 dependency resolves (ldd, with LD_LIBRARY_PATH unset) and exits 1 if one is missing or resolves
 outside DIR and the base system.
@@ -61,6 +64,14 @@ def bundle(library):
           % (len(copied), size / 1e6, os.path.basename(library), " ".join(sorted(copied))))
 
 
+def program(exe, folder, libdir):
+    os.makedirs(folder, exist_ok=True)
+    target = os.path.join(folder, os.path.basename(exe))
+    shutil.copy2(exe, target)
+    rpath = os.path.join("$ORIGIN", os.path.relpath(os.path.abspath(libdir), os.path.abspath(folder)))
+    subprocess.run(["patchelf", "--set-rpath", rpath, target], check=True)
+
+
 def check(library):
     folder = os.path.dirname(os.path.realpath(library))
     bad = []
@@ -78,6 +89,8 @@ def check(library):
 if __name__ == "__main__":
     if len(sys.argv) == 3 and sys.argv[1] == "--check":
         sys.exit(check(sys.argv[2]))
+    if len(sys.argv) == 5 and sys.argv[1] == "--program":
+        sys.exit(program(*sys.argv[2:]))
     if len(sys.argv) != 2:
         sys.exit(__doc__)
     bundle(sys.argv[1])

@@ -16,7 +16,7 @@ sudo=""
 [ "$(id -u)" -eq 0 ] || sudo="sudo"
 # The bind targets are made in the root once (they stay empty directories outside the namespace).
 for d in proc dev sys tmp "${checkout#/}"; do [ -d "$root/$d" ] || $sudo mkdir -p "$root/$d"; done
-[ -z "${PHOTONLM_TEST_OUT:-}" ] || { $sudo mkdir -p "$root${PHOTONLM_TEST_OUT}" "$PHOTONLM_TEST_OUT"; }
+[ -z "${PHOTONLM_TEST_OUT:-}" ] || mkdir -p "$PHOTONLM_TEST_OUT"
 here=$PWD
 case "$here" in "$checkout"*|"${PHOTONLM_TEST_OUT:-/nonexistent}"*) ;; *) here=$checkout;; esac
 exec $sudo env -u LD_LIBRARY_PATH -u LD_PRELOAD -u PYTHONHOME -u PYTHONPATH \
@@ -30,6 +30,7 @@ exec $sudo env -u LD_LIBRARY_PATH -u LD_PRELOAD -u PYTHONHOME -u PYTHONPATH \
     mount -t tmpfs tmpfs "$r/tmp"
     mount --bind "$c" "$r$c"
     if [ -n "${PHOTONLM_TEST_OUT:-}" ] && [ "${PHOTONLM_TEST_OUT#$c}" = "$PHOTONLM_TEST_OUT" ]; then
+      mkdir -p "$r$PHOTONLM_TEST_OUT"
       mount --bind "$PHOTONLM_TEST_OUT" "$r$PHOTONLM_TEST_OUT"
     fi
     w=$PHOTONLM_IN_ROOT_CWD
