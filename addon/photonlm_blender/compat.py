@@ -14,6 +14,7 @@ between or after behaves as the nearest one with the same API.
                 mode), principled_input (Principled BSDF v2 socket names, 4.0+)
     lights      light_emission (colour and power with exposure and normalize (4.5+), temperature (5.x)),
                 light_nodes_differ (5.x gives every light a default node tree)
+    Cycles      cycles_conventions, set_cycles_conventions (the engine's light conventions: 3.4 or 4+)
     engines     eevee_engine_id (BLENDER_EEVEE in 3.x and 5.x, BLENDER_EEVEE_NEXT in 4.2-4.4),
                 is_eevee
     cameras     set_equirectangular (panorama settings on Camera.cycles before 4.0, on Camera after)
@@ -232,7 +233,7 @@ def light_nodes_differ(light):
     """Whether a light's node tree changes its light: 3.x and 4.x lights have nodes only when
     use_nodes is on; 5.x gives every light a tree. A tree that is only an Emission (colour
     white, strength 1, nothing linked into it) into the Light Output changes nothing."""
-    if hasattr(light, "use_nodes") and not _use_nodes_deprecated(light) and not light.use_nodes:
+    if not _use_nodes_deprecated(light) and not light.use_nodes:
         return False
     tree = light.node_tree
     if tree is None:
@@ -252,6 +253,22 @@ def light_nodes_differ(light):
     color, strength = emit.inputs.get('Color'), emit.inputs.get('Strength')
     return (color is None or any(abs(c - 1.0) > 1e-6 for c in color.default_value[:3])
             or strength is None or abs(strength.default_value - 1.0) > 1e-6)
+
+
+# ---- Cycles ---------------------------------------------------------------------------------------------
+
+def cycles_conventions():
+    """The engine's light conventions for this Blender's Cycles (photonlm.Scene.set_conventions):
+    "cycles-4" from Blender 4.0 (area light radiance P / (pi A), spot lights without the cosine
+    factor), "cycles-3.4" before. This is Cycles' behaviour, not an API that can be looked for, so
+    it is read from the version."""
+    return "cycles-4" if tuple(bpy.app.version[:2]) >= (4, 0) else "cycles-3.4"
+
+
+def set_cycles_conventions(plm_scene):
+    """Give a photonlm.Scene this Blender's Cycles conventions (where the bridge has them)."""
+    if hasattr(plm_scene, "set_conventions"):
+        plm_scene.set_conventions(cycles_conventions())
 
 
 # ---- render engines -----------------------------------------------------------------------------------------

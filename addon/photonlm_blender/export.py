@@ -216,6 +216,7 @@ def export_scene(context, photonlm, reports, selected_only=False, times=None):
         depsgraph = context.evaluated_depsgraph_get()
     density = properties.ResolutionRule(scene.photonlm)
     plm = photonlm.Scene()
+    compat.set_cycles_conventions(plm)  # lights as this Blender's Cycles has them
     export = SceneExport(plm, times)
     with times("export_world"):
         world = world_export.start(scene.world)  # a sky to render renders beside the mesh export
