@@ -10,7 +10,8 @@ into what the engine has (C API "Specular lobes"):
     Refraction BSDF     REFRACTION lobe w x Color, IOR
     Transparent BSDF    TRANSPARENT lobe w x Color
     Emission            emission += w x Color x Strength
-    Principled BSDF     (svm_node_closure_bsdf, Cycles 3.4) Alpha < 1 first: TRANSPARENT
+    Principled BSDF     Blender 4.0+ (its sockets have 'Specular IOR Level'): _principled_v2.
+                        Blender 3.x (svm_node_closure_bsdf, Cycles 3.4) Alpha < 1 first: TRANSPARENT
                         w (1 - Alpha), then w *= Alpha; emission w x Emission x Strength;
                         m = Metallic, t = Transmission (clamped):
                         diffuse albedo += w (1 - m)(1 - t) Base Color;
@@ -44,7 +45,17 @@ MAX_LOBES = 8          # the engine's limit per material
 MEAN_MAX_PIXELS = 4 * 1024 * 1024  # larger images on float sockets count as the socket's value
 GRAY = (0.2126729, 0.7151522, 0.0721750)  # Cycles' colour -> float (scene linear Rec.709 luminance)
 
-LOBE_KINDS = ("glossy", "fresnel", "glass", "refraction", "transparent")
+LOBE_KINDS = ("glossy", "fresnel", "glass", "refraction", "transparent", "specular")
+LAYER_KINDS = ("fresnel", "specular")  # layers on top of the diffuse part: color = F0 x weight
+
+
+def conventions_for(bpy_version):
+    """The engine's conventions (photonlm.Scene.set_conventions) for a Blender version tuple
+    (bpy.app.version): "cycles-4" from Blender 4.0 (area light radiance P / (pi A), spots without
+    the cosine factor), "cycles-3.4" before. The Principled BSDF needs no setting: _principled
+    reads the node's own sockets."""
+    return "cycles-4" if tuple(bpy_version)[:1] >= (4,) else "cycles-3.4"
+
 DIFFUSE_LEAVES = {'ShaderNodeBsdfDiffuse', 'ShaderNodeSubsurfaceScattering', 'ShaderNodeBsdfVelvet',
                   'ShaderNodeBsdfToon', 'ShaderNodeBsdfHair', 'ShaderNodeBsdfHairPrincipled'}
 
@@ -52,7 +63,8 @@ DIFFUSE_LEAVES = {'ShaderNodeBsdfDiffuse', 'ShaderNodeSubsurfaceScattering', 'Sh
 class Lobe:
     """One specular lobe: kind (LOBE_KINDS), color (linear RGB, the mix weights applied), Blender
     roughness, ior (None where the kind has none), abbe (0 = no dispersion) and, for FRESNEL,
-    weight: the reflectance it rises to at grazing angles (color is F0 x weight)."""
+    weight: the reflectance it rises to at grazing angles (color is F0 x weight); SPECULAR (Blender 4's
+    Principled specular layer, which also dims the diffuse part below it) as FRESNEL."""
     __slots__ = ("kind", "color", "roughness", "ior", "abbe", "weight")
 
     def __init__(self, kind, color, roughness=0.0, ior=None, abbe=0.0, weight=None):
@@ -534,6 +546,129 @@ def _emission(reader, color, strength, path, w, node):
 
 
 def _principled(reader, node, path, w):
+    if 'Specular IOR Level' in node.inputs:
+        _principled_v2(reader, node, path, w)
+    else:
+        _principled_v1(reader, node, path, w)
+
+
+def _f0_from_ior(ior):
+    return ((ior - 1.0) / (ior + 1.0)) ** 2
+
+
+def _ior_from_f0(f0):
+    r = math.sqrt(min(max(f0, 0.0), 0.99))
+    return (1.0 + r) / (1.0 - r)
+
+
+def _principled_v2(reader, node, path, w):
+    """Blender 4.0+'s Principled BSDF (Cycles 4 svm_node_closure_bsdf, docs/design.md "Cycles
+    versions"): Alpha < 1 first (TRANSPARENT w (1 - Alpha), w *= Alpha); emission w x Emission Color
+    x Strength; m = Metallic, t = Transmission Weight:
+        metal     FRESNEL lobe of weight w m, F0 Base Color (Cycles' F82-tint curve as a
+                  dielectric's of IOR 1.5), its Specular Tint left out
+        glass     GLASS lobe w (1 - m) t x sqrt(Base Color) (Cycles tints the refraction by
+                  sqrt(Base Color) each way), IOR
+        specular  SPECULAR lobe of weight ws = w (1 - m)(1 - t): F0 = F0(IOR) x 2 Specular IOR
+                  Level x Specular Tint, its curve a dielectric's of the IOR that has that F0
+        diffuse   albedo += ws x Base Color (the engine dims it by the SPECULAR layer's albedo)
+        coat      FRESNEL lobe of weight w x Coat Weight, F0 from Coat IOR, Coat Roughness, on top
+    Sheen, subsurface (baked as diffuse of the Base Color), Diffuse Roughness (Lambert), anisotropy
+    and thin film are approximations the report names."""
+    flat = reader.flat
+    inp = node.inputs
+    name = "Principled BSDF '%s'" % node.name
+
+    def has(key):
+        return key in inp
+
+    def val(key, default=0.0):
+        return reader.value(inp[key], path, "%s %s" % (name, key)) if has(key) else default
+
+    alpha = min(max(val('Alpha', 1.0), 0.0), 1.0)
+    if alpha < 1.0:
+        flat.add_lobe(Lobe("transparent", (w * (1.0 - alpha),) * 3))
+        w *= alpha
+        if w <= CUTOFF:
+            return
+    coat = max(val('Coat Weight'), 0.0)
+    sheen = max(val('Sheen Weight'), 0.0)
+    _emission(reader, inp['Emission Color'], inp['Emission Strength'], path, w, node)
+    if coat > CUTOFF or sheen > CUTOFF:
+        flat.approx("%s: emission not dimmed by its coat and sheen" % name)
+    metallic = min(max(val('Metallic'), 0.0), 1.0)
+    transmission = min(max(val('Transmission Weight'), 0.0), 1.0)
+    rough = min(max(val('Roughness', 0.5), 0.0), 1.0)
+    ior = max(val('IOR', 1.5), 1e-5)
+    level = max(val('Specular IOR Level', 0.5), 0.0)
+    tint = reader.color(inp['Specular Tint'], path, "%s Specular Tint" % name) if has('Specular Tint') \
+        else (1.0, 1.0, 1.0)
+    if not isinstance(tint, (tuple, list)):
+        tint = (float(tint),) * 3
+    metal_w = w * metallic
+    glass_w = w * (1.0 - metallic) * transmission
+    spec_w = w * (1.0 - metallic) * (1.0 - transmission)
+    distribution = getattr(node, "distribution", 'MULTI_GGX')
+    base = None
+
+    def base_constant(why):
+        nonlocal base
+        if base is None:
+            base = reader.color(inp['Base Color'], path, "%s Base Color (%s)" % (name, why), FALLBACK_ALBEDO)
+        return base
+
+    if abs(val('Anisotropic')) > CUTOFF and rough > 0.0:
+        flat.approx("%s: anisotropy traced as isotropic roughness %.3g" % (name, rough))
+    if val('Thin Film Thickness') > 0.1:
+        flat.approx("%s: thin film left out" % name)
+    if sheen > CUTOFF:
+        flat.approx("%s: sheen left out" % name)
+
+    if metal_w > CUTOFF:
+        b = tuple(min(max(c, 0.0), 1.0) for c in base_constant("metal F0"))
+        flat.add_lobe(Lobe("fresnel", tuple(metal_w * c for c in b), rough, 1.5, weight=metal_w))
+        if rough > 0.075:
+            flat.approx("%s: metal's multiscatter GGX traced as single-scattering GGX" % name)
+        if max(abs(t - 1.0) for t in tint) > 1e-6:
+            flat.approx("%s: Specular Tint of the metal (F82) left out" % name)
+    if glass_w > CUTOFF:
+        b = base_constant("glass tint")
+        flat.add_lobe(Lobe("glass", tuple(glass_w * math.sqrt(max(c, 0.0)) for c in b), rough, ior))
+        if max(b) - min(b) > 1e-6 or abs(b[0] - 1.0) > 1e-6:
+            flat.approx("%s: its glass's reflection is tinted by the Base Color too (Cycles tints only "
+                        "the refraction)" % name)
+        if distribution == 'MULTI_GGX' and rough > 0.05:
+            flat.approx("%s: Multiscatter GGX glass traced as GGX" % name)
+        if has('Thin Wall') and getattr(inp['Thin Wall'], "default_value", False):
+            flat.approx("%s: Thin Wall glass traced as a solid's surface" % name)
+    if spec_w > CUTOFF:
+        # Cycles 4: f0 = F0(ior), scaled by 2 x Specular IOR Level, and the curve of the ior with that f0.
+        f0 = _f0_from_ior(ior)
+        eta = ior
+        if level != 0.5:
+            f0 *= 2.0 * level
+            eta = _ior_from_f0(f0)
+            if ior < 1.0:
+                eta = 1.0 / eta
+        f0c = tuple(min(max(f0 * max(t, 0.0), 0.0), 1.0) for t in tint)
+        if abs(eta - 1.0) > 1e-6 and max(f0c) > 0.0:
+            flat.add_lobe(Lobe("specular", tuple(spec_w * c for c in f0c), rough, eta, weight=spec_w))
+        if distribution == 'GGX' and rough > 0.075:
+            flat.approx("%s: single-scattering GGX traced as Multiscatter GGX" % name)
+        _diffuse(reader, inp['Base Color'], path, spec_w, node)
+        if val('Subsurface Weight') > CUTOFF:
+            flat.approx("%s: subsurface scattering baked as diffuse of the Base Color" % name)
+        if val('Diffuse Roughness') > CUTOFF:
+            flat.approx("%s: Oren-Nayar Diffuse Roughness baked as Lambert" % name)
+    if coat > CUTOFF:
+        cw = w * min(coat, 1.0)
+        cr = min(max(val('Coat Roughness', 0.03), 0.0), 1.0)
+        cior = max(val('Coat IOR', 1.5), 1.0)
+        flat.add_lobe(Lobe("fresnel", (cw * _f0_from_ior(cior),) * 3, cr, cior, weight=cw))
+        flat.approx("%s: coat added on top (the layers below it are not dimmed by it)" % name)
+
+
+def _principled_v1(reader, node, path, w):
     flat = reader.flat
     inp = node.inputs
     name = "Principled BSDF '%s'" % node.name
@@ -626,7 +761,7 @@ def _finish(flat):
     """Clamp to what the engine takes: colours in [0, 1], albedo + non-FRESNEL lobes <= 1 per
     channel (scaled down together), FRESNEL weights <= 1, at most MAX_LOBES lobes."""
     for lobe in flat.lobes:
-        if lobe.kind == "fresnel":
+        if lobe.kind in LAYER_KINDS:
             if lobe.weight > 1.0:
                 flat.approx("specular layers adding up to %.3g: scaled to 1" % lobe.weight)
                 lobe.color = tuple(c / lobe.weight for c in lobe.color)
@@ -637,7 +772,7 @@ def _finish(flat):
             lobe.color = tuple(min(c, 1.0) for c in lobe.color)
     total = [a + flat.texture_factor for a in flat.albedo]
     for lobe in flat.lobes:
-        if lobe.kind != "fresnel":
+        if lobe.kind not in LAYER_KINDS:
             total = [t + c for t, c in zip(total, lobe.color)]
     peak = max(total)
     if peak > 1.0 + 1e-6:
@@ -646,7 +781,7 @@ def _finish(flat):
         flat.texture_factor /= peak
         flat.linked_factor /= peak
         for lobe in flat.lobes:
-            if lobe.kind != "fresnel":
+            if lobe.kind not in LAYER_KINDS:
                 lobe.color = tuple(c / peak for c in lobe.color)
     flat.lobes = [l for l in flat.lobes if max(l.color) > 0.0 or (l.weight or 0.0) > 0.0]
     if len(flat.lobes) > MAX_LOBES:

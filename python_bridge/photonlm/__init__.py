@@ -280,10 +280,32 @@ class Scene(_Handle):
     """A scene to bake: materials, world-space triangle meshes, lights and a world colour."""
     _release = "plm_scene_release"
 
-    def __init__(self):
+    CONVENTIONS = {"cycles-3.4": 0, "cycles-4": 1}
+
+    def __init__(self, conventions="cycles-3.4"):
+        """conventions: whose Cycles the lights follow (set_conventions)."""
         handle = _lib.ScenePtr()
         _check(_C.plm_scene_create(ctypes.byref(handle)))
         super().__init__(handle)
+        if conventions != "cycles-3.4":
+            self.set_conventions(conventions)
+
+    def set_conventions(self, conventions):
+        """Whose Cycles the scene's lights follow (docs/design.md "Cycles versions"): "cycles-3.4"
+        (Blender 3.x, the default: area light radiance P / (4 A), spot intensity with a cos factor
+        in the cone) or "cycles-4" (Blender 4.0 to 5.2: area radiance P / (pi A), spot intensity
+        the smoothstep alone). Point and sun lights, emission and the world do not change.
+        photonlm_blender.flatten.conventions_for(bpy.app.version) gives the name for a Blender."""
+        if conventions not in self.CONVENTIONS:
+            raise ValueError("conventions must be one of %s, got %r" % (sorted(self.CONVENTIONS), conventions))
+        _check(_C.plm_scene_set_conventions(self._h, self.CONVENTIONS[conventions]))
+
+    @property
+    def conventions(self):
+        """The conventions' name ("cycles-3.4" or "cycles-4")."""
+        out = ctypes.c_int32()
+        _check(_C.plm_scene_get_conventions(self._h, ctypes.byref(out)))
+        return {v: k for k, v in self.CONVENTIONS.items()}[out.value]
 
     def add_material(self, albedo, emission=(0.0, 0.0, 0.0), name=None):
         """Add a Lambertian material; albedo in [0, 1] RGB, emission is radiance (both sides).
@@ -369,18 +391,20 @@ class Scene(_Handle):
         name the mesh); this fails only for want of memory, naming the mesh."""
         _check(_C.plm_scene_refine_subdiv_meshes(self._h, _uint(threads, "threads")))
 
-    LOBE_KINDS = {"glossy": 0, "fresnel": 1, "glass": 2, "refraction": 3, "transparent": 4}
+    LOBE_KINDS = {"glossy": 0, "fresnel": 1, "glass": 2, "refraction": 3, "transparent": 4, "specular": 5}
 
     def add_material_lobe(self, material, kind, color, roughness=0.0, ior=None, abbe=0.0, weight=1.0):
         """Add a specular lobe to a material (at most 8; docs/design.md "Materials"). kind:
         "glossy" (GGX reflection of `color` at every angle), "fresnel" (GGX reflection rising from
         `color` = F0 at normal incidence to `weight` at grazing, as a dielectric of `ior`),
         "glass" (Fresnel reflection and refraction, tinted), "refraction" (refraction only),
-        "transparent" (straight through). color RGB in [0, 1]; weight in [0, 1] multiplies the
+        "transparent" (straight through), "specular" (Blender 4's Principled BSDF specular layer:
+        as "fresnel" with Cycles 4's multiple-scattering GGX, and the diffuse albedo under it scaled
+        by one minus its directional albedo). color RGB in [0, 1]; weight in [0, 1] multiplies the
         lobe (mix factors); roughness is Blender's (GGX alpha = roughness^2); ior None takes the
         kind's default (1.45 for glass and refraction, else 1.5); abbe > 0 gives glass and
         refraction dispersion (Abbe number). Per channel albedo + weight x color over the lobes
-        other than "fresnel" must not exceed 1."""
+        other than "fresnel" and "specular" must not exceed 1."""
         if kind not in self.LOBE_KINDS:
             raise ValueError("lobe kind must be one of %s, got %r" % (sorted(self.LOBE_KINDS), kind))
         lobe = _lobe(self.LOBE_KINDS[kind], color, roughness, ior, abbe, weight)

@@ -218,6 +218,8 @@ _SIGNATURES = {
     "plm_light_default": (None, [POINTER(plm_light), c_int]),
     "plm_scene_add_light": (status_t, [ScenePtr, c_char_p, POINTER(plm_light), UInt32Ptr]),
     "plm_scene_set_world": (status_t, [ScenePtr, FloatPtr]),
+    "plm_scene_set_conventions": (status_t, [ScenePtr, c_int32]),
+    "plm_scene_get_conventions": (status_t, [ScenePtr, POINTER(c_int32)]),
     "plm_scene_set_world_map": (status_t, [ScenePtr, FloatPtr, c_uint32, c_uint32, FloatPtr, c_float]),
     "plm_scene_set_world_map_file": (status_t, [ScenePtr, c_char_p, FloatPtr, c_float]),
     "plm_bake_settings_default": (None, [POINTER(plm_bake_settings)]),

@@ -3,7 +3,7 @@
 SceneFileWriter has the scene-building methods of photonlm.Scene (add_material, add_mesh,
 add_subdiv_mesh, add_light, set_world, set_world_map, set_world_map_file, add_csg, set_csg_carrier,
 add_ol_group, set_ol_group_backup, set_mesh_ol_group, add_material_lobe, set_material_texture,
-set_mesh_texture_uv, set_mesh_normals, set_mesh_smooth) with the
+set_mesh_texture_uv, set_mesh_normals, set_mesh_smooth, set_conventions) with the
 same arguments and the
 same returned ids, so code that builds a
 photonlm.Scene can build a file instead:
@@ -46,7 +46,8 @@ __all__ = ["SceneFileWriter", "SceneFileUnsupported", "file_name"]
 
 _LIGHT_TYPES = ("POINT", "SPOT", "SUN", "AREA_RECT", "AREA_DISK", "PORTAL")
 _TEXTURE_SLOTS = ("albedo", "emission")
-_LOBE_KINDS = ("glossy", "fresnel", "glass", "refraction", "transparent")
+_LOBE_KINDS = ("glossy", "fresnel", "glass", "refraction", "transparent", "specular")
+_CONVENTIONS = ("cycles-3.4", "cycles-4")
 _COLORSPACES = ("auto", "linear", "srgb")
 _CSG_SHAPES = ("SPHERE", "BOX", "CYLINDER", "CONE", "TORUS", "PARABOLOID", "HALF_SPACE")
 _CSG_OPS = ("UNION", "INTERSECTION", "DIFFERENCE")
@@ -109,6 +110,12 @@ class SceneFileWriter:
         self.world_pixels = None  # set_world_map's (H, W, 3) float32 pixels, written on write()
         self.settings = {}
         self.metadata = None
+        self.conventions = "cycles-3.4"
+
+    def set_conventions(self, conventions):
+        if conventions not in _CONVENTIONS:
+            raise ValueError("conventions must be one of %s, got %r" % (list(_CONVENTIONS), conventions))
+        self.conventions = conventions
 
     # -- photonlm.Scene's methods ---------------------------------------------------------------
     def add_material(self, albedo, emission=(0.0, 0.0, 0.0), name=None):
@@ -579,6 +586,8 @@ class SceneFileWriter:
                 e["ol_group"] = m["ol_group"]
             meshes.append(e)
         scene = {"version": 1}
+        if self.conventions != "cycles-3.4":
+            scene["conventions"] = self.conventions
         if self.metadata is not None:
             scene["metadata"] = self.metadata
         for key, value in (("materials", materials), ("ol_groups", self.ol_groups), ("meshes", meshes),

@@ -93,6 +93,17 @@ PLM_API plm_status plm_scene_add_material(plm_scene* scene, const char* name,
  *   PLM_LOBE_REFRACTION   `color`, refracted only, no Fresnel term (Refraction
  *                         BSDF; under total internal reflection nothing)
  *   PLM_LOBE_TRANSPARENT  `color`, straight through (Transparent BSDF, alpha)
+ *   PLM_LOBE_SPECULAR     the dielectric specular layer of Blender 4's
+ *                         Principled BSDF: `color` (its F0 x Specular Tint)
+ *                         rising to 1 at grazing along the curve of a
+ *                         dielectric of `ior` as FRESNEL, GGX with
+ *                         height-correlated masking and multiple-scattering
+ *                         energy compensation (Cycles 4's Multiscatter GGX);
+ *                         the material's diffuse part lies below it and is
+ *                         scaled by 1 - A(cos), A the layer's directional
+ *                         albedo (largest channel) towards where the light
+ *                         leaves. With several SPECULAR lobes the diffuse part
+ *                         is scaled by one minus their weight-averaged A.
  * Mix factors go into `weight` or `color` alike, except for FRESNEL, whose
  * curve rises to `weight` at grazing (`color` is its F0). roughness is
  * Blender's in [0, 1] (GGX alpha = roughness^2; 0 is a perfect mirror or
@@ -101,8 +112,8 @@ PLM_API plm_status plm_scene_add_material(plm_scene* scene, const char* name,
  * lobes dispersion (Abbe number V_d, ior is then the index at 587.6 nm;
  * other types must leave it 0). color and weight are in [0, 1], and per
  * channel the diffuse albedo plus weight x color of every lobe but the
- * FRESNEL ones must not exceed 1 (Cycles adds FRESNEL layers on top of the
- * diffuse part). At most 8 lobes a material. Photons follow the lobes; the
+ * FRESNEL and SPECULAR ones must not exceed 1 (Cycles adds those layers on top
+ * of the diffuse part). At most 8 lobes a material. Photons follow the lobes; the
  * lightmap still holds irradiance / pi of the surface (what its diffuse part
  * reflects, over its albedo). Errors name the material, the lobe and the bad
  * field. */
@@ -111,7 +122,8 @@ typedef enum plm_lobe_type {
   PLM_LOBE_FRESNEL = 1,
   PLM_LOBE_GLASS = 2,
   PLM_LOBE_REFRACTION = 3,
-  PLM_LOBE_TRANSPARENT = 4
+  PLM_LOBE_TRANSPARENT = 4,
+  PLM_LOBE_SPECULAR = 5
 } plm_lobe_type;
 
 typedef struct plm_lobe {
@@ -271,6 +283,28 @@ typedef enum plm_light_type {
   PLM_LIGHT_PORTAL = 5
 } plm_light_type;
 
+/* Whose conventions the scene's lights follow (docs/design.md "Cycles
+ * versions"): the Cycles of the Blender that made the scene.
+ *   PLM_CONVENTIONS_CYCLES_3_4  (default) Blender 3.x: an area light of power P
+ *                               and area A has radiance P / (4 A); a spot's
+ *                               intensity in its cone is P / (4 pi) x
+ *                               cos(angle from the axis), smoothstepped over
+ *                               the blend
+ *   PLM_CONVENTIONS_CYCLES_4    Blender 4.0 to 5.2: area radiance P / (pi A)
+ *                               (all of P leaves the light); a spot's
+ *                               intensity is P / (4 pi) x the smoothstep alone
+ * Point and sun lights, emissive surfaces and the world are the same in both.
+ * Materials say what they are by their lobes (a Blender 4 Principled BSDF's
+ * layer is PLM_LOBE_SPECULAR whatever the conventions). Set it before the
+ * bake; it may be set again, the last value counts. */
+typedef enum plm_conventions {
+  PLM_CONVENTIONS_CYCLES_3_4 = 0,
+  PLM_CONVENTIONS_CYCLES_4 = 1
+} plm_conventions;
+
+PLM_API plm_status plm_scene_set_conventions(plm_scene* scene, int32_t conventions);
+PLM_API plm_status plm_scene_get_conventions(const plm_scene* scene, int32_t* out_conventions);
+
 /* A light, described as Blender describes it. The light's frame is the
  * object-to-world matrix (row-major, translation in the last column); lights
  * shine along their local -Z axis. Scale in the matrix scales area lights. */
@@ -282,9 +316,8 @@ typedef struct plm_light {
   float radius;          /* point/spot: Blender shadow_soft_size (m) */
   float angle;           /* sun: angular diameter (radians) */
   float size_x, size_y;  /* area: Blender size and size_y (m); disk: diameters */
-  float spot_size;       /* spot: full cone angle (radians); as in Cycles 3.4 the
-                            intensity inside the cone is P/(4 pi) * cos(angle
-                            from the axis), smoothstepped over the blend zone */
+  float spot_size;       /* spot: full cone angle (radians); the intensity
+                            inside the cone: plm_conventions */
   float spot_blend;      /* spot: 0..1 */
 } plm_light;
 

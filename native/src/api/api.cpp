@@ -363,6 +363,21 @@ plm_status plm_scene_set_csg_carrier(plm_scene* scene, uint32_t csg, uint32_t me
   });
 }
 
+plm_status plm_scene_set_conventions(plm_scene* scene, int32_t conventions) {
+  return guarded("plm_scene_set_conventions", [&] {
+    require(scene, "plm_scene_set_conventions", "scene");
+    scene->scene.set_conventions(conventions);
+  });
+}
+
+plm_status plm_scene_get_conventions(const plm_scene* scene, int32_t* out_conventions) {
+  return guarded("plm_scene_get_conventions", [&] {
+    require(scene, "plm_scene_get_conventions", "scene");
+    require(out_conventions, "plm_scene_get_conventions", "out_conventions");
+    *out_conventions = scene->scene.conventions;
+  });
+}
+
 plm_status plm_scene_set_world(plm_scene* scene, const float radiance[3]) {
   return guarded("plm_scene_set_world", [&] {
     require(scene, "plm_scene_set_world", "scene");

@@ -56,7 +56,7 @@ struct Reader {
       const json& l = object(v[i], p);
       check_keys(l, p, {"type", "color", "weight", "roughness", "ior", "abbe"});
       const uint32_t type =
-          enum_value(required(l, p, "type"), p + ".type", {"glossy", "fresnel", "glass", "refraction", "transparent"});
+          enum_value(required(l, p, "type"), p + ".type", {"glossy", "fresnel", "glass", "refraction", "transparent", "specular"});
       plm_lobe lobe;
       plm_lobe_default(&lobe, plm_lobe_type(type));
       if (const json* c = optional(l, "color")) rgb(*c, p + ".color", lobe.color);
@@ -564,10 +564,16 @@ struct Reader {
     object(root, p);
     // "metadata": free-form, for the tools that write the file (the Blender export); not read.
     check_keys(root, p,
-               {"version", "settings", "world", "materials", "ol_groups", "meshes", "lights", "csg", "metadata"});
+               {"version", "conventions", "settings", "world", "materials", "ol_groups", "meshes", "lights", "csg",
+                "metadata"});
     if (const json* ver = optional(root, "version")) {
       if (u32(*ver, p + ".version") != 1) fail(p + ".version", "this reader knows version 1, got " + shown(*ver));
     }
+    // "conventions": whose Cycles the lights follow (plm_conventions), "cycles-3.4" by default.
+    if (const json* x = optional(root, "conventions"))
+      engine(plm_scene_set_conventions(
+                 out.scene, int32_t(enum_value(*x, p + ".conventions", {"cycles-3.4", "cycles-4"}))),
+             p + ".conventions");
     if (const json* x = optional(root, "materials")) materials(*x, p + ".materials");
     if (const json* x = optional(root, "ol_groups")) ol_groups(*x, p + ".ol_groups");
     if (const json* x = optional(root, "meshes")) meshes(*x, p + ".meshes");

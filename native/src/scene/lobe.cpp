@@ -14,6 +14,7 @@ const char* lobe_type_name(int32_t type) {
     case PLM_LOBE_GLASS: return "glass";
     case PLM_LOBE_REFRACTION: return "refraction";
     case PLM_LOBE_TRANSPARENT: return "transparent";
+    case PLM_LOBE_SPECULAR: return "specular";
   }
   return "unknown";
 }
@@ -37,9 +38,9 @@ void Scene::add_material_lobe(uint32_t material, const plm_lobe& in) {
   const std::string owner = "material '" + (m.name.empty() ? "#" + std::to_string(material) : m.name) + "'";
   const std::string lobe_name =
       owner + ": lobe " + std::to_string(m.lobes.size()) + " (" + lobe_type_name(in.type) + ")";
-  if (in.type < PLM_LOBE_GLOSSY || in.type > PLM_LOBE_TRANSPARENT)
+  if (in.type < PLM_LOBE_GLOSSY || in.type > PLM_LOBE_SPECULAR)
     fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": lobe ", m.lobes.size(), " has the unknown type ", in.type,
-         " (PLM_LOBE_GLOSSY .. PLM_LOBE_TRANSPARENT)");
+         " (PLM_LOBE_GLOSSY .. PLM_LOBE_SPECULAR)");
   if (m.lobes.size() >= kMaxLobes)
     fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": has ", kMaxLobes, " lobes already, the most a material may have");
   for (int c = 0; c < 3; ++c)
@@ -74,7 +75,7 @@ void Scene::add_material_lobe(uint32_t material, const plm_lobe& in) {
     for (int c = 0; c < 3; ++c)
       if (total[c] > 1.0f + 1e-4f)
         fail(PLM_ERROR_INVALID_ARGUMENT, lobe_name, ": the diffuse albedo plus weight x color of the lobes is ",
-             total[c], " in channel ", c, ", above 1 (the surface would create light; FRESNEL lobes do not count)");
+             total[c], " in channel ", c, ", above 1 (the surface would create light; FRESNEL and SPECULAR lobes do not count)");
   }
   m.lobes.push_back(lobe);
 }

@@ -203,6 +203,13 @@ uint32_t Scene::add_light(const char* name, const plm_light& l) {
   return static_cast<uint32_t>(lights.size() - 1);
 }
 
+void Scene::set_conventions(int32_t value) {
+  if (value != PLM_CONVENTIONS_CYCLES_3_4 && value != PLM_CONVENTIONS_CYCLES_4)
+    fail(PLM_ERROR_INVALID_ARGUMENT, "conventions ", value,
+         " are unknown (PLM_CONVENTIONS_CYCLES_3_4 = 0, PLM_CONVENTIONS_CYCLES_4 = 1)");
+  conventions = value;
+}
+
 void Scene::set_world(const float radiance[3]) {
   if (!radiance) fail(PLM_ERROR_INVALID_ARGUMENT, "world: radiance must not be NULL");
   check_rgb(radiance, "radiance", "world", 1e30f);

@@ -109,7 +109,10 @@ struct Scene {
   // An environment map as the world (transport/environment.h), null for the
   // uniform world; setting one clears the other.
   std::shared_ptr<const EnvironmentMap> world_map;
+  // Whose Cycles the lights follow (plm_conventions; docs/design.md "Cycles versions").
+  int32_t conventions = PLM_CONVENTIONS_CYCLES_3_4;
 
+  void set_conventions(int32_t value);
   uint32_t add_material(const char* name, const float albedo[3], const float emission[3]);
   // Appends a lobe (scene/lobe.cpp). Throws naming the material, the lobe and the bad field.
   void add_material_lobe(uint32_t material, const plm_lobe& lobe);

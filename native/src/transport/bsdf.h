@@ -13,6 +13,7 @@
 // conserved through a refraction, no eta^2 factor (that belongs to radiance).
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 
 #include "scene/lobe.h"
@@ -71,6 +72,20 @@ inline float ggx_g1(float cos_v, float alpha) {
   return 2.0f / (1.0f + std::sqrt(1.0f + alpha * alpha * tan2));
 }
 
+// Smith's Lambda for GGX (G1 = 1 / (1 + Lambda)).
+inline float ggx_lambda(float cos_v, float alpha) {
+  const float c2 = cos_v * cos_v;
+  if (!(c2 > 0.0f)) return 1e30f;
+  return 0.5f * (std::sqrt(1.0f + alpha * alpha * (1.0f - c2) / c2) - 1.0f);
+}
+
+// Height-correlated masking-shadowing over the masking of wi alone
+// (G2 / G1(wi), a visible-normal sample's weight): Cycles 4's GGX.
+inline float ggx_g2_over_g1(float cos_i, float cos_o, float alpha) {
+  const float li = ggx_lambda(cos_i, alpha), lo = ggx_lambda(cos_o, alpha);
+  return (1.0f + li) / (1.0f + li + lo);
+}
+
 // A microfacet normal drawn from the normals visible from wi (wi.z > 0),
 // density G1(wi) max(0, wi.m) D(m) / wi.z [Heitz18].
 inline Vec3 ggx_sample_visible(Vec3 wi, float alpha, float u1, float u2) {
@@ -119,8 +134,8 @@ struct LobeSample {
 // A lobe as scattering needs it (transport/material_table.h flattens Lobes into these).
 struct LobeParams {
   plm_lobe_type type;
-  Vec3 tint;     // weight x colour; FRESNEL: weight alone (its colour is f0)
-  Vec3 f0;       // FRESNEL: colour
+  Vec3 tint;     // weight x colour; FRESNEL, SPECULAR: weight alone (their colour is f0)
+  Vec3 f0;       // FRESNEL, SPECULAR: colour
   float alpha;   // GGX alpha = roughness^2
   float ior;     // front side outside
   bool smooth;   // alpha^2 <= kSmoothAlpha2
@@ -131,7 +146,7 @@ LobeParams lobe_params(const Lobe& lobe);
 // The lobe's reflectance seen from wi (an estimate for choosing it: exact for
 // smooth lobes without total internal reflection), max over channels.
 inline float lobe_albedo_estimate(const LobeParams& p, float cos_i) {
-  if (p.type != PLM_LOBE_FRESNEL) return max_component(p.tint);
+  if (p.type != PLM_LOBE_FRESNEL && p.type != PLM_LOBE_SPECULAR) return max_component(p.tint);
   return max_component(p.tint * fresnel_blend(cos_i, p.ior, p.f0));
 }
 
@@ -167,7 +182,7 @@ inline LobeSample sample_lobe(const LobeParams& p, Vec3 wi, bool front, float io
       if (!(s.wo.z < 0.0f)) return s;  // a facet's refraction back into the near side: lost (single scattering)
       s.event = Event::Refracted;
     }
-  } else if (p.type == PLM_LOBE_FRESNEL) {
+  } else if (p.type == PLM_LOBE_FRESNEL || p.type == PLM_LOBE_SPECULAR) {
     weight = weight * fresnel_blend(cos_im, p.ior, p.f0);
   }
   if (reflect_here) {
@@ -175,9 +190,46 @@ inline LobeSample sample_lobe(const LobeParams& p, Vec3 wi, bool front, float io
     if (!(s.wo.z > 0.0f)) return s;
     s.event = Event::Reflected;
   }
-  s.weight = p.smooth ? weight : weight * ggx_g1(s.wo.z, p.alpha);
+  if (p.smooth) s.weight = weight;
+  else if (p.type == PLM_LOBE_SPECULAR) s.weight = weight * ggx_g2_over_g1(wi.z, s.wo.z, p.alpha);
+  else s.weight = weight * ggx_g1(s.wo.z, p.alpha);
   return s;
 }
+
+// A SPECULAR lobe's energy (Cycles 4's Multiscatter GGX under a dielectric
+// Fresnel, docs/design.md "Cycles versions"), tabulated over the cosine of the
+// direction the light leaves at kLayerNodes evenly spaced nodes 0..1:
+//   E      the single-scattering GGX albedo with Fresnel 1
+//   A      the layer's directional albedo per unit weight, largest channel:
+//          (E + Fms (1 - E)) (f0 + (1 - f0) s), s the mean over visible
+//          normals of the Fresnel curve's rise (F - F0) / (1 - F0)
+//   fms    Kulla and Conty's multiple-scattering Fresnel per channel
+// The lobe's single-scattering weight times compensation(cos out) is the
+// compensated lobe: 1 / E of the energy lost to single scattering returned,
+// darkened by fms.
+constexpr int kLayerNodes = 33;
+
+inline float layer_lookup(const float* t, float c) {
+  const float x = std::fmin(std::fmax(c, 0.0f), 1.0f) * float(kLayerNodes - 1);
+  const int i = std::min(int(x), kLayerNodes - 2);
+  const float f = x - float(i);
+  return t[i] + (t[i + 1] - t[i]) * f;
+}
+
+struct LayerTable {
+  float E[kLayerNodes];
+  float A[kLayerNodes];
+  Vec3 fms;
+  float albedo(float cos_o) const { return layer_lookup(A, cos_o); }
+  Vec3 compensation(float cos_o) const {
+    const float e = layer_lookup(E, cos_o);
+    return (Vec3{e, e, e} + fms * (1.0f - e)) * (1.0f / e);
+  }
+};
+
+// The table of a SPECULAR lobe of GGX alpha, index ior and F0 f0 (tint
+// excluded), by deterministic stratified integration over visible normals.
+LayerTable make_layer_table(const LobeParams& p);
 
 // Evaluation for tests: the lobe's f(wi, wo) |cos wo| and the density of
 // sample_lobe's wo (rough lobes only; smooth ones are Dirac deltas). Both

@@ -10,30 +10,33 @@
 
 namespace plm {
 
-float spot_attenuation(float c, float cos_half, float spot_smooth) {
+float spot_attenuation(float c, float cos_half, float spot_smooth, bool cosine) {
   if (c <= cos_half) return 0.0f;
   const float t = c - cos_half;
+  const float k = cosine ? c : 1.0f;
   if (spot_smooth > 0.0f && t < spot_smooth) {
     const float x = t / spot_smooth;
-    return c * x * x * (3.0f - 2.0f * x);
+    return k * x * x * (3.0f - 2.0f * x);
   }
-  return c;
+  return k;
 }
 
 namespace {
 
 // Integral of spot_attenuation over the sphere of directions (midpoint rule in cos).
-double spot_solid_angle_integral(float cos_half, float spot_smooth) {
+double spot_solid_angle_integral(float cos_half, float spot_smooth, bool cosine) {
   const int n = 4096;
   double sum = 0.0;
   for (int i = 0; i < n; ++i) {
     const double c = cos_half + (1.0 - cos_half) * (i + 0.5) / n;
-    sum += spot_attenuation(float(c), cos_half, spot_smooth);
+    sum += spot_attenuation(float(c), cos_half, spot_smooth, cosine);
   }
   return 2.0 * kPiD * sum * (1.0 - cos_half) / n;
 }
 
-Emitter light_emitter(const Light& light) {
+// conventions: plm_conventions (docs/design.md "Cycles versions").
+Emitter light_emitter(const Light& light, int32_t conventions) {
+  const bool cycles4 = conventions == PLM_CONVENTIONS_CYCLES_4;
   const plm_light& l = light.desc;
   const Affine3f m = Affine3f::from_array(l.matrix);
   const Vec3 color{l.color[0], l.color[1], l.color[2]};
@@ -54,11 +57,12 @@ Emitter light_emitter(const Light& light) {
       e.normal = normalize(m.vector({0, 0, -1}));
       e.cos_half = std::cos(0.5f * l.spot_size);
       e.spot_smooth = (1.0f - e.cos_half) * l.spot_blend;
+      e.spot_cosine = !cycles4;
       const Vec3 intensity = color * (l.power / (4.0f * kPi));
       e.radiance = intensity;
       // Directions are drawn uniformly inside the cone and weighted by the falloff.
       e.scale = intensity * (2.0f * kPi * (1.0f - e.cos_half));
-      e.flux = intensity * float(spot_solid_angle_integral(e.cos_half, e.spot_smooth));
+      e.flux = intensity * float(spot_solid_angle_integral(e.cos_half, e.spot_smooth, e.spot_cosine));
       break;
     }
     case PLM_LIGHT_AREA_RECT:
@@ -67,8 +71,9 @@ Emitter light_emitter(const Light& light) {
       e.axis_u = m.vector({0.5f * l.size_x, 0, 0});
       e.axis_v = m.vector({0, 0.5f * l.size_y, 0});
       e.normal = -normalize(cross(e.axis_u, e.axis_v));
-      // Cycles: radiance P / (4 A), one-sided, so the flux pi L A = pi P / 4 whatever the size.
-      e.flux = color * (kPi * l.power / 4.0f);
+      // Cycles 3.4: radiance P / (4 A), one-sided, so the flux pi L A = pi P / 4
+      // whatever the size; Cycles 4: radiance P / (pi A), the flux P.
+      e.flux = cycles4 ? color * l.power : color * (kPi * l.power / 4.0f);
       e.scale = e.flux;
       e.area = length(cross(e.axis_u, e.axis_v)) * (e.kind == EmitterKind::AreaRect ? 4.0f : kPi);
       e.radiance = e.flux / (kPi * e.area);
@@ -265,7 +270,7 @@ std::vector<Emitter> build_emitters(const Scene& scene, Footprint fp, const Text
   fp.reach = 1.01f * length(fp.scene_hi - fp.scene_lo);
   const auto shared = std::make_shared<const Footprint>(fp);
   for (const Light& light : scene.lights) {
-    Emitter e = light_emitter(light);
+    Emitter e = light_emitter(light, scene.conventions);
     if (e.kind == EmitterKind::Sun) {
       // Irradiance S on a surface facing the sun: flux S through the disk.
       e.footprint = shared;
@@ -490,7 +495,7 @@ EmitterSample sample_emitter(const Emitter& e, const float u[4]) {
         s.direction = uniform_sphere(u[0], u[1]);
       } else {
         s.direction = cone_direction(e.normal, e.frame_t, e.frame_b, e.cos_half, u[0], u[1]);
-        s.weight = e.scale * spot_attenuation(1.0f - u[0] * (1.0f - e.cos_half), e.cos_half, e.spot_smooth);
+        s.weight = e.scale * spot_attenuation(1.0f - u[0] * (1.0f - e.cos_half), e.cos_half, e.spot_smooth, e.spot_cosine);
       }
       // Start on the disk of the light's radius across the direction (soft
       // shadows); the distance falloff of the disk is applied at the first hit.
@@ -678,7 +683,7 @@ DirectSample sample_direct(const Emitter& e, Vec3 p, Vec3 n, const float u[3]) {
       s.dir = to / s.distance;
       // As Cycles, the spot cone is taken from the sampled point of the disk.
       float att = 1.0f;
-      if (e.kind == EmitterKind::Spot) att = spot_attenuation(-dot(s.dir, e.normal), e.cos_half, e.spot_smooth);
+      if (e.kind == EmitterKind::Spot) att = spot_attenuation(-dot(s.dir, e.normal), e.cos_half, e.spot_smooth, e.spot_cosine);
       if (att <= 0.0f) return s;
       s.irradiance = e.radiance * (att * cos_s / (d2 + e.radius * e.radius));
       return s;
@@ -732,7 +737,7 @@ float unoccluded_irradiance(const Emitter& e, Vec3 p, Vec3 n) {
       const float d2 = dot(v, v);
       if (!(d2 > 0.0f)) return 0.0f;
       const Vec3 w = v / std::sqrt(d2);
-      const float att = e.kind == EmitterKind::Spot ? spot_attenuation(-dot(w, e.normal), e.cos_half, e.spot_smooth) : 1.0f;
+      const float att = e.kind == EmitterKind::Spot ? spot_attenuation(-dot(w, e.normal), e.cos_half, e.spot_smooth, e.spot_cosine) : 1.0f;
       return L * att * std::max(dot(n, w), 0.0f) / (d2 + e.radius * e.radius);
     }
     case EmitterKind::Sun:

@@ -36,6 +36,7 @@ struct Emitter {
   float radius = 0;     // point/spot: light radius
   float cos_half = 1;   // spot: cos(spot_size / 2); sun: cos(angle / 2)
   float spot_smooth = 0;
+  bool spot_cosine = true;  // spot: the falloff carries cos(angle from the axis) (Cycles 3.4)
   // For direct lighting: intensity (point/spot, W/sr), irradiance (sun),
   // radiance (area, triangle, world); and the emitting area (area, triangle).
   Vec3 radiance;
@@ -76,8 +77,10 @@ struct EmitterSample {
   float bu = 0.0f, bv = 0.0f;  // Triangle: barycentrics of origin (Embree's u, v)
 };
 
-// Cycles' spot falloff for a unit direction at cosine c from the axis.
-float spot_attenuation(float c, float cos_half, float spot_smooth);
+// Cycles' spot falloff for a unit direction at cosine c from the axis:
+// smoothstep((c - cos_half) / spot_smooth), times c where `cosine` (Cycles
+// 3.4; Cycles 4 has the smoothstep alone).
+float spot_attenuation(float c, float cos_half, float spot_smooth, bool cosine = true);
 
 // Where sun and world photons start in `scene`, whose geometry lies in
 // [lo, hi]: aimed at the box around what records photons (meshes with a

@@ -1,5 +1,7 @@
 #include "transport/material_table.h"
 
+#include <cmath>
+
 namespace plm {
 
 Cauchy cauchy_fit(float ior_d, float abbe) {
@@ -21,7 +23,13 @@ MaterialTable::MaterialTable(const Scene& scene) {
     e.first = uint32_t(lobes_.size());
     e.count = uint32_t(mat.lobes.size());
     bool all_transparent = !mat.lobes.empty();
+    std::vector<uint32_t> layered;  // the material's SPECULAR lobes, by index into lobes_
     for (const Lobe& l : mat.lobes) {
+      layer_of_.push_back(l.type == PLM_LOBE_SPECULAR ? uint32_t(layers_.size()) : 0u);
+      if (l.type == PLM_LOBE_SPECULAR) {
+        layered.push_back(uint32_t(lobes_.size()));
+        layers_.push_back(bsdf::make_layer_table(bsdf::lobe_params(l)));
+      }
       lobes_.push_back(bsdf::lobe_params(l));
       cauchy_.push_back(cauchy_fit(l.ior, l.abbe));
       if (l.abbe > 0.0f) e.dispersive = true;
@@ -37,6 +45,24 @@ MaterialTable::MaterialTable(const Scene& scene) {
       e.pane_fresnel = mat.lobes[0].type == PLM_LOBE_GLASS;
     } else {
       e.pass_tint = {0, 0, 0};
+    }
+    if (!layered.empty()) {
+      // 1 - the layers' weight-averaged albedo (one layer: 1 - A exactly).
+      double weights = 0.0;
+      for (uint32_t li : layered) weights += lobes_[li].tint.x;
+      e.layer_scale = uint32_t(diffuse_scales_.size() / bsdf::kLayerNodes);
+      double mean = 0.0;
+      for (int j = 0; j < bsdf::kLayerNodes; ++j) {
+        double a = 0.0;
+        for (uint32_t li : layered) a += weights > 0.0 ? lobes_[li].tint.x / weights * layers_[layer_of_[li]].A[j] : 0.0;
+        const float scale = float(std::fmin(std::fmax(1.0 - a, 0.0), 1.0));
+        diffuse_scales_.push_back(scale);
+        // Cosine-weighted mean, 2 integral scale(mu) mu dmu, by the midpoint of each node's share.
+        const double mu = double(j) / (bsdf::kLayerNodes - 1);
+        const double w = (j == 0 || j == bsdf::kLayerNodes - 1) ? 0.5 : 1.0;
+        mean += 2.0 * w * scale * mu / (bsdf::kLayerNodes - 1);
+      }
+      e.layer_mean = float(std::fmax(mean, 1e-6));
     }
     any_passage_ = any_passage_ || e.passage != Passage::Opaque;
     any_dispersion_ = any_dispersion_ || e.dispersive;

@@ -8,7 +8,8 @@
 //                a parallel face turned the other way, passes with the
 //                weight of the refraction in and out (transport/passage.h).
 // A diffuse albedo beside these lobes does not change the passage (its light
-// is reflected, not passed).
+// is reflected, not passed). SPECULAR lobes (Cycles 4's Principled layer) get
+// their energy tables here, and their materials the diffuse part's scale.
 #pragma once
 
 #include <cstdint>
@@ -28,6 +29,12 @@ struct MaterialLobes {
   float pane_ior = 1.0f;
   bool pane_fresnel = false;  // Pane: a GLASS lobe (Fresnel transmission); REFRACTION passes its tint
   bool dispersive = false;    // a lobe has abbe > 0
+  // SPECULAR layers: the diffuse part is scaled by diffuse_scale(layer_scale,
+  // cos out); layer_mean is that scale's cosine-weighted mean (for choosing
+  // the diffuse part). No layer: no table, mean 1.
+  uint32_t layer_scale = kNoLayer;
+  float layer_mean = 1.0f;
+  static constexpr uint32_t kNoLayer = ~0u;
 };
 
 // Dispersion of a lobe with abbe > 0 (thesis appendix A.1): Cauchy's
@@ -51,6 +58,12 @@ class MaterialTable {
   const MaterialLobes& material(uint32_t id) const { return id < materials_.size() ? materials_[id] : none_; }
   const bsdf::LobeParams& lobe(uint32_t i) const { return lobes_[i]; }
   const Cauchy& cauchy(uint32_t i) const { return cauchy_[i]; }
+  // A SPECULAR lobe's energy table (bsdf::LayerTable).
+  const bsdf::LayerTable& layer(uint32_t lobe) const { return layers_[layer_of_[lobe]]; }
+  // The factor on a layered material's diffuse part for light leaving at cos_o (MaterialLobes::layer_scale).
+  float diffuse_scale(uint32_t table, float cos_o) const {
+    return bsdf::layer_lookup(diffuse_scales_.data() + size_t(table) * bsdf::kLayerNodes, cos_o);
+  }
   // A lobe's index at wavelength lambda (micrometres), its ior when it does not disperse.
   float ior(uint32_t i, float lambda_um) const {
     return cauchy_[i].b != 0.0f && lambda_um > 0.0f ? cauchy_[i].at(lambda_um) : lobes_[i].ior;
@@ -60,6 +73,9 @@ class MaterialTable {
   std::vector<bsdf::LobeParams> lobes_;
   std::vector<Cauchy> cauchy_;
   std::vector<MaterialLobes> materials_;
+  std::vector<uint32_t> layer_of_;  // per lobe: its LayerTable (SPECULAR lobes only)
+  std::vector<bsdf::LayerTable> layers_;
+  std::vector<float> diffuse_scales_;  // kLayerNodes a layered material
   MaterialLobes none_;
   bool any_passage_ = false, any_dispersion_ = false;
 };

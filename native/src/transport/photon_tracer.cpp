@@ -303,9 +303,15 @@ inline bool PhotonTracer::lobe_hit(uint64_t index, const SurfaceHit& h, const Hi
   }
   const float cos_i = dot(wi, n);
   float e[1 + kMaxLobes];
-  e[0] = max_component(albedo);
+  // Under SPECULAR layers the diffuse part is estimated by its scale's mean,
+  // the layers by their tabulated albedo.
+  e[0] = max_component(albedo) * ml.layer_mean;
   float total = e[0];
-  for (uint32_t k = 0; k < ml.count; ++k) total += e[1 + k] = bsdf::lobe_albedo_estimate(lobes_->lobe(ml.first + k), cos_i);
+  for (uint32_t k = 0; k < ml.count; ++k) {
+    const bsdf::LobeParams& lp = lobes_->lobe(ml.first + k);
+    total += e[1 + k] = lp.type == PLM_LOBE_SPECULAR ? lp.tint.x * lobes_->layer(ml.first + k).albedo(cos_i)
+                                                     : bsdf::lobe_albedo_estimate(lp, cos_i);
+  }
   if (!(total > 0.0f)) return false;
   if (depth >= settings_.max_bounces) {
     ++out.truncated;
@@ -330,6 +336,8 @@ inline bool PhotonTracer::lobe_hit(uint64_t index, const SurfaceHit& h, const Hi
     make_frame(normal, t, b);
     const Vec3 local = cosine_hemisphere(v[0], v[1]);
     dir = t * local.x + b * local.y + normal * local.z;
+    if (ml.layer_scale != MaterialLobes::kNoLayer)  // the layer's albedo towards where the photon leaves
+      flux *= lobes_->diffuse_scale(ml.layer_scale, dot(dir, n));
     path.pane = false;
     path.cls = kIndirect;
   } else {
@@ -356,6 +364,7 @@ inline bool PhotonTracer::lobe_hit(uint64_t index, const SurfaceHit& h, const Hi
     // Leaving on the wrong side of the geometric surface (shading normals): lost, as in Cycles.
     if (through ? !(dot(wo, normal) < 0.0f) : !(dot(wo, normal) > 0.0f)) return false;
     flux *= ls.weight * scale;
+    if (lobe.type == PLM_LOBE_SPECULAR) flux *= lobes_->layer(li).compensation(ls.wo.z);
     dir = wo;
     // The path's class: passages keep it, every other lobe event makes it a caustic.
     if (ls.event == bsdf::Event::Transparent && ml.passage == Passage::Transparent) {

@@ -169,6 +169,7 @@ uint64_t scene_hash(const Scene& scene) {
   }
   h.value(uint64_t(scene.lights.size()));
   for (const Light& l : scene.lights) h.value(l.desc);  // plm_light: 4-byte fields, no padding
+  if (scene.conventions != PLM_CONVENTIONS_CYCLES_3_4) h.value(scene.conventions);  // the default hashes as before
   h.value(uint64_t(scene.csgs.size()));
   for (const CsgSolid& c : scene.csgs) h.value(c.carrier);
   h.value(uint64_t(scene.ol_groups.size()));
