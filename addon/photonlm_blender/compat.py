@@ -6,17 +6,17 @@ feature (an attribute, a node type, an enum item), not by version numbers, so th
 between or after behaves as the nearest one with the same API.
 
     meshes      corner_normals (calc_normals_split before 4.1, Mesh.corner_normals after),
-                edge_creases / set_edge_creases / vertex_creases (MeshEdge.crease and Mesh.vertex_creases before 4.0,
-                the attributes crease_edge / crease_vert after, absent when nothing is creased)
+                edge_creases / set_edge_creases / vertex_creases (MeshEdge.crease and
+                Mesh.vertex_creases before 4.0, the attributes crease_edge / crease_vert after,
+                absent when nothing is creased)
     node groups set_group_outputs (NodeTree.outputs before 4.0, NodeTree.interface after)
     node trees  uses_nodes (Material / World .use_nodes: deprecated in 5.0, always on there)
-    shader nodes MIX_COLOR, mix_color_sockets (the legacy MixRGB where it exists, else Mix in RGBA
-                mode), principled_input (Principled BSDF v2 socket names, 4.0+)
+    shader nodes MIX_COLOR, setup_mix_color, mix_color_sockets (the legacy MixRGB where it exists,
+                else Mix in RGBA mode), principled_v2, principled_input (v2 socket names, 4.0+)
     lights      light_emission (colour and power with exposure and normalize (4.5+), temperature (5.x)),
                 light_nodes_differ (5.x gives every light a default node tree)
     Cycles      cycles_conventions, set_cycles_conventions (the engine's light conventions: 3.4 or 4+)
-    engines     eevee_engine_id (BLENDER_EEVEE in 3.x and 5.x, BLENDER_EEVEE_NEXT in 4.2-4.4),
-                is_eevee
+    engines     eevee_engine_id (BLENDER_EEVEE in 3.x and 5.x, BLENDER_EEVEE_NEXT in 4.2-4.4)
     cameras     set_equirectangular (panorama settings on Camera.cycles before 4.0, on Camera after)
     colours     linear_colorspace, is_linear_colorspace ('Linear' before 4.0, 'Linear Rec.709' after)
 """
@@ -120,8 +120,9 @@ def set_group_outputs(tree, sockets):
 # ---- materials and worlds -----------------------------------------------------------------------------------
 
 def _use_nodes_deprecated(idblock):
+    """use_nodes is gone or deprecated (5.0: getting it always returns True, and warns)."""
     prop = idblock.bl_rna.properties.get("use_nodes")
-    return prop is None or "deprecated" in (prop.description or "").lower()
+    return prop is None or bool(getattr(prop, "is_deprecated", False))
 
 
 def uses_nodes(idblock):
@@ -206,7 +207,7 @@ def principled_input(node, name):
 
 def light_emission(light, world_area=None):
     """(colour, power) of a light as Cycles emits it, in the units of Light.energy with normalize
-    on (all 3.4 and 4.4 have). As Cycles' sync: colour x Light.temperature_color where
+    on (the only kind 3.4 to 4.4 have). As Cycles' sync: colour x Light.temperature_color where
     use_temperature is on (5.x), power x 2^exposure (4.5+). Where normalize is off (4.5+) Cycles
     does not divide the strength by the light's area (scene/light.cpp, area()), so the same light
     with normalize on takes power x that area: 4 pi r^2 for point and spot lights (4 at radius
@@ -281,10 +282,6 @@ def _engine_ids():
 def eevee_engine_id():
     """The render engine id of EEVEE: BLENDER_EEVEE_NEXT in 4.2 to 4.4, BLENDER_EEVEE otherwise."""
     return 'BLENDER_EEVEE_NEXT' if 'BLENDER_EEVEE_NEXT' in _engine_ids() else 'BLENDER_EEVEE'
-
-
-def is_eevee(engine):
-    return engine in ('BLENDER_EEVEE', 'BLENDER_EEVEE_NEXT')
 
 
 # ---- cameras ------------------------------------------------------------------------------------------------

@@ -140,7 +140,8 @@ def describe(world):
     if lookup is None:
         return WorldSource('RENDER', why=why)
     space = src.image.colorspace_settings.name
-    if _image_file(src.image) is None and not src.image.is_float and not (compat.is_linear_colorspace(space) or space == "sRGB"):
+    if _image_file(src.image) is None and not src.image.is_float and \
+            not (compat.is_linear_colorspace(space) or space == "sRGB"):
         return WorldSource('RENDER', why="its image's colour space is %s" % space)
     notes = []
     if src.interpolation != 'Linear':
