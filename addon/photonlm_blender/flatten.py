@@ -594,7 +594,7 @@ def _principled_v2(reader, node, path, w):
     coat = max(val('Coat Weight'), 0.0)
     sheen = max(val('Sheen Weight'), 0.0)
     _emission(reader, inp['Emission Color'], inp['Emission Strength'], path, w, node)
-    if coat > CUTOFF or sheen > CUTOFF:
+    if (coat > CUTOFF or sheen > CUTOFF) and val('Emission Strength') > 0.0:
         flat.approx("%s: emission not dimmed by its coat and sheen" % name)
     metallic = min(max(val('Metallic'), 0.0), 1.0)
     transmission = min(max(val('Transmission Weight'), 0.0), 1.0)

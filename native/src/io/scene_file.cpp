@@ -564,8 +564,8 @@ struct Reader {
     object(root, p);
     // "metadata": free-form, for the tools that write the file (the Blender export); not read.
     check_keys(root, p,
-               {"version", "conventions", "settings", "world", "materials", "ol_groups", "meshes", "lights", "csg",
-                "metadata"});
+               {"version", "settings", "world", "materials", "ol_groups", "meshes", "lights", "csg", "metadata",
+                "conventions"});
     if (const json* ver = optional(root, "version")) {
       if (u32(*ver, p + ".version") != 1) fail(p + ".version", "this reader knows version 1, got " + shown(*ver));
     }
