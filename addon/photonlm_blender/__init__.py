@@ -8,7 +8,7 @@ in Python.
 
 Modules
     compat      every difference of Blender's Python API between 3.4, 4.x and 5.x (the rest imports it)
-    dependencies  NumPy: without it only a panel saying how to get it is registered
+    dependencies  NumPy: without it only a panel saying what is missing and how to get it is registered
     bridge      finds and imports the `photonlm` package (beside the add-on when installed)
     properties  scene / object settings and the last bake's statistics
     uvcheck     measures a lightmap UV layout as the engine uses it (overlaps, margins, map use)
@@ -36,8 +36,8 @@ bl_info = {
 
 if "bpy" in locals():  # re-running register() after a reload in the same session
     import importlib
-    for _name in ("compat", "dependencies", "bridge", "properties", "uvcheck", "uvmaps", "csg_export", "lsystem", "export", "materials", "bake",
-                  "operators", "scene_file_export", "bake_import", "panel"):
+    for _name in ("compat", "dependencies", "bridge", "properties", "uvcheck", "uvmaps", "csg_export", "lsystem",
+                  "export", "materials", "bake", "operators", "scene_file_export", "bake_import", "panel"):
         if _name in locals():
             importlib.reload(locals()[_name])
 
