@@ -13,7 +13,8 @@ between or after behaves as the nearest one with the same API.
     node trees  uses_nodes (Material / World .use_nodes: deprecated in 5.0, always on there)
     shader nodes MIX_COLOR, setup_mix_color, mix_color_sockets (the legacy MixRGB where it exists,
                 else Mix in RGBA mode), principled_v2, principled_input (v2 socket names, 4.0+)
-    lights      light_emission (colour and power with exposure and normalize (4.5+), temperature (5.x)),
+    lights      light_emission (colour and power with temperature, exposure and normalize: 5.x has
+                them, 4.3 not),
                 light_nodes_differ (5.x gives every light a default node tree)
     Cycles      cycles_conventions, set_cycles_conventions (the engine's light conventions: 3.4 or 4+)
     engines     eevee_engine_id (BLENDER_EEVEE in 3.x and 5.x, BLENDER_EEVEE_NEXT in 4.2-4.4)
@@ -207,8 +208,8 @@ def principled_input(node, name):
 
 def light_emission(light, world_area=None):
     """(colour, power) of a light as Cycles emits it, in the units of Light.energy with normalize
-    on (the only kind 3.4 to 4.4 have). As Cycles' sync: colour x Light.temperature_color where
-    use_temperature is on (5.x), power x 2^exposure (4.5+). Where normalize is off (4.5+) Cycles
+    on (the only kind 3.4 and 4.3 have). As Cycles' sync: colour x Light.temperature_color where
+    use_temperature is on, power x 2^exposure. Where normalize is off Cycles
     does not divide the strength by the light's area (scene/light.cpp, area()), so the same light
     with normalize on takes power x that area: 4 pi r^2 for point and spot lights (4 at radius
     0), the world-space area for area lights (world_area(): sizes along the object's scaled axes,
