@@ -18,15 +18,19 @@ out, so that the preview is lightmap x diffuse albedo (an Emission) + these clos
         emission as they are); where Metallic or Transmission is 1 copied as it is (it has no
         diffuse part); otherwise copied as it is, its diffuse part then shown lit by the scene
         too (reported)
-    Glossy, Anisotropic, Glass, Refraction, Transparent, Translucent, Emission, Holdout: copied
+    Glossy, Anisotropic, Metallic, Glass, Refraction, Transparent, Translucent, Ray Portal,
+    Emission, Holdout: copied
     a node group with a specular part or emission: copied as it is (its diffuse part is then
         shown lit by the scene too; reported)
 The copies are new nodes tagged closure_<n>; the original nodes are never changed.
 """
 from . import compat, flatten
 
+# Glossy is ShaderNodeBsdfAnisotropic from 4.0 (the two merged); Metallic BSDF and Ray Portal BSDF
+# exist from 4.2 / 4.3.
 COPIED = {'ShaderNodeBsdfGlossy', 'ShaderNodeBsdfAnisotropic', 'ShaderNodeBsdfGlass', 'ShaderNodeBsdfRefraction',
-          'ShaderNodeBsdfTransparent', 'ShaderNodeBsdfTranslucent', 'ShaderNodeEmission', 'ShaderNodeHoldout'}
+          'ShaderNodeBsdfTransparent', 'ShaderNodeBsdfTranslucent', 'ShaderNodeEmission', 'ShaderNodeHoldout',
+          'ShaderNodeBsdfMetallic', 'ShaderNodeBsdfRayPortal'}
 ROLE_PREFIX = "closure_"
 
 
