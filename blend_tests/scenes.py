@@ -90,6 +90,21 @@ def mix_color_node(nt):
     return mix, mix.inputs[0], mix.inputs[6], mix.inputs[7], mix.outputs[2]
 
 
+def set_edge_crease(mesh, edge_index, value):
+    """Subdivision crease of one edge (MeshEdge.crease before 4.0, the 'crease_edge' attribute after)."""
+    if BLENDER < (4, 0):
+        mesh.edges[edge_index].crease = value
+        return
+    attr = mesh.attributes.get("crease_edge") or mesh.attributes.new("crease_edge", 'FLOAT', 'EDGE')
+    attr.data[edge_index].value = value
+
+
+def physical_sky_type():
+    """The Sky Texture's single-scattering physical model: 'NISHITA' until 4.x, 'SINGLE_SCATTERING'
+    from 5.0 (which added a multiple-scattering model as the default)."""
+    return 'NISHITA' if BLENDER < (5, 0) else 'SINGLE_SCATTERING'
+
+
 def setup_paths():
     """Put $PHOTONLM_SOURCE_DIR/addon and /python_bridge on sys.path, register the add-on."""
     src = os.environ.get("PHOTONLM_SOURCE_DIR") or os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

@@ -72,7 +72,7 @@ def build_scene():
     blob = bpy.context.active_object
     blob.name = "blob"
     blob.data.uv_layers[0].name = "lightmap"  # Blender's fixed cube layout: the same in every process
-    blob.data.edges[0].crease = 1.0
+    scenes.set_edge_crease(blob.data, 0, 1.0)
     blob.data.materials.append(yellow)
     mod = blob.modifiers.new("Subdivision", 'SUBSURF')
     mod.levels = mod.render_levels = 2

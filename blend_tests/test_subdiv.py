@@ -115,9 +115,9 @@ def geometry(checks):
     me = obj.data
     top = [e for e in me.edges if all(me.vertices[v].co.z > 0 for v in e.vertices)]
     for e in top:
-        e.crease = 1.0
+        scenes.set_edge_crease(me, e.index, 1.0)
     vertical = [e for e in me.edges if me.vertices[e.vertices[0]].co.z != me.vertices[e.vertices[1]].co.z]
-    vertical[0].crease = 0.5
+    scenes.set_edge_crease(me, vertical[0].index, 0.5)
     cage = subdiv_export._read_cage(me, obj.matrix_world, 2, True)
     checks.check(cage.crease_edges is not None and len(cage.crease_edges) == 5, "creased cube: 5 crease edges read")
     compare(checks, "creased cube level 2", obj, cage)

@@ -96,7 +96,7 @@ def nishita_world():
         if n.bl_idname not in ('ShaderNodeBackground', 'ShaderNodeOutputWorld'):
             nt.nodes.remove(n)
     sky = nt.nodes.new('ShaderNodeTexSky')
-    sky.sky_type = 'NISHITA'
+    sky.sky_type = scenes.physical_sky_type()
     sky.sun_elevation = math.radians(35.0)
     sky.sun_rotation = math.radians(60.0)
     bg = nt.nodes['Background']
