@@ -64,6 +64,7 @@ try:
     pkg = sys.modules[[n for n in sys.modules if n.endswith("photonlm_blender.bake")][0]]
     bridge = sys.modules[[n for n in sys.modules if n.endswith("photonlm_blender.bridge")][0]]
     report["result"] = sorted(res)
+    report["version"] = list(sys.modules[report["enabled"][0]].VERSION)
     report["engine"] = bridge.get().__file__
     report["stats"] = {k: v for k, v in pkg.LAST.get("stats", {}).items() if isinstance(v, (int, float))}
     report["objects"] = sorted(pkg.LAST.get("objects", {}))
@@ -131,16 +132,27 @@ def main():
     ext_dir = os.path.dirname(rep.get("engine", ""))
     checks.check(rep.get("enabled") and rep["enabled"][0].startswith("bl_ext."),
                  "the extension is enabled as %s" % rep.get("enabled"))
+    import tomllib
+    import zipfile
+    with zipfile.ZipFile(archive) as z:
+        manifest = tomllib.loads(z.read("blender_manifest.toml").decode())
+    checks.check(manifest.get("version") == ".".join(map(str, rep.get("version", []))),
+                 "the manifest's version %s is the add-on's VERSION %s" % (manifest.get("version"), rep.get("version")))
     checks.check(rep.get("default_material") is not None, "the default cube has Blender's default material (%s)"
                  % rep.get("default_material"))
     checks.check(rep.get("result") == ["FINISHED"] and home in ext_dir,
                  "the operator finished with the extension's engine %s" % rep.get("engine"))
-    for name in ("libembree3", "libOpenEXR", "libosdCPU", "libphotonlm"):
+    for name in ("libembree3.so", "libosdCPU.so.3.5", "libphotonlm.so"):
         paths = [m for m in rep["maps"] if os.path.basename(m).startswith(name)]
         checks.check(paths and all(os.path.dirname(p) == ext_dir for p in paths),
                      "%s is mapped from the extension's folder: %s" % (name, paths))
-    embree4 = [m for m in rep["maps"] if "embree4" in m]
-    print("this Blender's own Embree 4 in the process: %s" % embree4)
+    # Every bundled soname is in the process once: the extension's copy, or the host's where the
+    # host loaded that soname first (Debian 13's Blender: libOpenEXR-3_1.so.30, libtbb.so.12).
+    for soname in sorted(n for n in os.listdir(ext_dir) if ".so." in n):
+        paths = [m for m in rep["maps"] if os.path.basename(m).startswith(soname)]
+        checks.check(len(paths) == 1, "one copy of %s in the process: %s" % (soname, paths))
+    print("this Blender's own Embree, OpenEXR and OpenSubdiv in the process: %s"
+          % [m for m in rep["maps"] if os.path.dirname(m) != ext_dir and ("embree" in m or "OpenEXR" in m or "osd" in m)])
     stats = rep.get("stats", {})
     checks.check(stats.get("photon_hits", 0) > 0, "photons hit the scene: %s hits" % stats.get("photon_hits"))
 

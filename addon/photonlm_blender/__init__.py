@@ -24,10 +24,14 @@ Modules
     panel       Render Properties > PhotonLM Lightmaps
 """
 
+# The add-on's version; blender_manifest.toml's `version` says the same. Blender's extension loader
+# leaves bl_info out of an extension's module, so the code reads VERSION.
+VERSION = (0, 1, 0)
+
 bl_info = {
     "name": "PhotonLM Lightmaps",
     "author": "photonlm contributors",
-    "version": (0, 1, 0),
+    "version": VERSION,
     "blender": (3, 4, 0),
     "location": "Properties > Render > PhotonLM Lightmaps",
     "description": "Bakes global illumination lightmaps with photon tracing",

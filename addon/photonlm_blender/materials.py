@@ -723,8 +723,8 @@ def export_textures(plm, material_id, info, files, reports):
 
 
 def export_lobes(plm, material_id, info, reports):
-    """Give engine material material_id the specular lobes of info. A FRESNEL lobe goes as its F0
-    (color / weight) and weight; the others with weight 1 (their colour carries the mix factors).
+    """Give engine material material_id the specular lobes of info. A FRESNEL or SPECULAR lobe goes
+    as its F0 (color / weight) and weight; the others with weight 1 (their colour carries the mix factors).
     A lobe the engine refuses is reported and left out."""
     if not info.lobes:
         return
@@ -734,7 +734,7 @@ def export_lobes(plm, material_id, info, reports):
         return
     for lobe in info.lobes:
         color, weight = lobe.color, 1.0
-        if lobe.kind == "fresnel":
+        if lobe.kind in flatten.LAYER_KINDS:
             weight = min(max(lobe.weight, 0.0), 1.0)
             color = tuple(min(max(c / lobe.weight, 0.0), 1.0) for c in lobe.color) if lobe.weight > 0.0 \
                 else (0.0, 0.0, 0.0)

@@ -76,8 +76,8 @@ def export_scene_file(context, path, reports=None, obj_threshold=200_000):
 
 
 def _addon_version():
-    from . import bl_info
-    return bl_info["version"]
+    from . import VERSION
+    return VERSION
 
 
 class PHOTONLM_OT_export_scene_file(bpy.types.Operator, ExportHelper):
