@@ -22,6 +22,12 @@ run with them in reach.
 and inside Blender the loader may reuse those already loaded copies of the same sonames; the
 first two checks show the zip does not need them.)
 $PHOTONLM_ADDON_ZIP names another zip to test (default: the build's photonlm_blender.zip).
+
+This test holds in Debian 12's Blender 3.4 only: what it hides are Debian 12's copies of the bundled
+libraries and their -dev packages (found with dpkg), and its bakes run in mount namespaces of this
+machine. The Blenders of the Debian 13 / sid roots (4.3, 5.2) have none of those packages and run
+inside a namespace already; there the add-on is tested as an extension (test_extension.py). In
+Blender 4.0 and later this test prints SKIP and passes.
 """
 import os
 import shlex
@@ -125,6 +131,11 @@ def hiding(dirs, files):
 
 def main():
     checks = scenes.Checks("addon_zip")
+    if scenes.BLENDER >= (4, 0):
+        print("[SKIP] addon_zip: holds in Debian 12's Blender 3.4 only (this is %d.%d; see the docstring)"
+              % scenes.BLENDER, flush=True)
+        checks.finish()
+        return
     lib = os.path.abspath(os.environ.get("PHOTONLM_LIBRARY", ""))
     build = os.path.dirname(os.path.dirname(lib))
     archive = os.environ.get("PHOTONLM_ADDON_ZIP") or os.path.join(build, "photonlm_blender.zip")
