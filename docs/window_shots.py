@@ -105,8 +105,38 @@ def shot(win, screen, area, path):
             bpy.ops.screen.screenshot_area(filepath=path, check_existing=False)
     if not os.path.isfile(path):
         fail("screenshot %s was not written" % path)
+    if _black(path):
+        _screen_grab(win, area, path)
     log("wrote %s" % path)
     return path
+
+
+def _black(path):
+    """Whether the PNG at path is black all over (Blender 4.x/5.x under Xvfb with Mesa's llvmpipe
+    read the window's front buffer as black)."""
+    import numpy as np
+    image = bpy.data.images.load(path, check_existing=False)
+    try:
+        px = np.empty(image.size[0] * image.size[1] * image.channels, np.float32)
+        image.pixels.foreach_get(px)
+        return float(px.reshape(-1, image.channels)[:, :3].max(initial=0.0)) == 0.0
+    finally:
+        bpy.data.images.remove(image)
+
+
+def _screen_grab(win, area, path):
+    """The X server's picture of the window (xwd, x11-apps) cropped to area, as PNG (netpbm)."""
+    import shutil
+    import subprocess
+    if not (shutil.which("xwd") and shutil.which("xwdtopnm") and shutil.which("pnmtopng")):
+        fail("Blender's screenshot %s is black and xwd/netpbm are not there to grab the screen "
+             "(Debian: apt install x11-apps netpbm)" % path)
+    crop = ""
+    if area is not None:  # X's rows count from the top, Blender's from the bottom
+        top = win.height - (area.y + area.height)
+        crop = " | pnmcut -left %d -top %d -width %d -height %d" % (area.x, top, area.width, area.height)
+    cmd = "xwd -root -silent | xwdtopnm 2>/dev/null%s | pnmtopng > '%s'" % (crop, path)
+    subprocess.run(["sh", "-c", cmd], check=True)
 
 
 def run(steps):
