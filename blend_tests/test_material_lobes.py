@@ -240,6 +240,43 @@ mat, nt, out = new_material("emission")
 to_output(nt, out, node(nt, 'ShaderNodeEmission', Color=(1.0, 0.9, 0.8), Strength=10.0))
 case("Emission", mat, (0.0,) * 3, [], emission=(10.0, 9.0, 8.0), no_approx=True)
 
+# ---- Principled BSDF v2 (Blender 4.0+; Cycles 4's closures as docs/design.md "Cycles versions" takes them):
+# m = Metallic, t = Transmission Weight, ws = w (1 - m)(1 - t): diffuse albedo ws x Base Color under a
+# SPECULAR layer of weight ws, F0 = ((IOR - 1) / (IOR + 1))^2 x 2 Specular IOR Level (its curve a
+# dielectric's of the IOR with that F0); metal FRESNEL w m, F0 = Base Color (IOR 1.5 curve); glass
+# GLASS w (1 - m) t x sqrt(Base Color); emission Emission Color x Strength.
+
+if not V1:
+    def f0_of(ior):
+        return ((ior - 1.0) / (ior + 1.0)) ** 2
+
+    mat, nt, out = new_material("v2_principled_default")
+    p = principled(nt)
+    to_output(nt, out, p)
+    ior0 = p.inputs['IOR'].default_value
+    case("Principled v2 defaults: diffuse 0.8 under a SPECULAR layer of F0(IOR %.2f)" % ior0, mat, (0.8,) * 3,
+         [("specular", (f0_of(ior0),) * 3, 0.5, ior0, 1.0)], no_approx=True)
+
+    mat, nt, out = new_material("v2_no_specular")
+    to_output(nt, out, principled(nt, Specular=0.0, Base_Color=(0.3, 0.5, 0.7)))
+    info = case("Principled v2, Specular IOR Level 0: purely diffuse", mat, (0.3, 0.5, 0.7), [], no_approx=True)
+    checks.check(info.purely_diffuse(), "Principled v2, Specular IOR Level 0 and no metal or glass: purely diffuse")
+
+    mat, nt, out = new_material("v2_gold")
+    to_output(nt, out, principled(nt, Metallic=1.0, Base_Color=GOLD, Roughness=0.2))
+    case("Principled v2 metal: FRESNEL, F0 = Base Color, no diffuse; multiscatter reported", mat, (0.0,) * 3,
+         [("fresnel", GOLD, 0.2, 1.5, 1.0)], approx=("multiscatter",))
+
+    mat, nt, out = new_material("v2_glass")
+    to_output(nt, out, principled(nt, Transmission=1.0, Base_Color=(0.81, 1.0, 0.64), Roughness=0.0, IOR=1.5))
+    case("Principled v2 Transmission 1: one GLASS lobe tinted sqrt(Base Color), reflection tint reported", mat,
+         (0.0,) * 3, [("glass", (0.9, 1.0, 0.8), 0.0, 1.5, None)], approx=("tinted",))
+
+    mat, nt, out = new_material("v2_alpha_emission")
+    to_output(nt, out, principled(nt, Alpha=0.25, Specular=0.0, Emission=(1.0, 0.5, 0.25), Emission_Strength=4.0))
+    case("Principled v2 Alpha 0.25 with emission: TRANSPARENT 0.75, the rest (emission too) x 0.25", mat,
+         (0.2,) * 3, [("transparent", (0.75,) * 3, 0.0, None, None)], emission=(1.0, 0.5, 0.25), no_approx=True)
+
 # ---- mixes -----------------------------------------------------------------------------------
 
 mat, nt, out = new_material("mix_diffuse_glossy")
