@@ -28,7 +28,7 @@ import time
 import bpy
 import numpy as np
 
-from . import atlas, bridge, export, lsystem, materials, properties, stages, uvmaps, world_export
+from . import atlas, bridge, compat, export, lsystem, materials, properties, stages, uvmaps, world_export
 
 # Heat-map images larger than this per side hold the RMS of blocks of texels.
 ERROR_IMAGE_MAX = 2048
@@ -82,10 +82,13 @@ def bake_settings(scene):
     """The scene's PhotonLM settings as arguments of photonlm.Scene.bake (also written into
     exported scene files, so that `photonlm bake` bakes what the add-on would)."""
     settings = scene.photonlm
+    texel_value = settings.texel_value  # 'CYCLES': what this Blender's Cycles bake holds
+    if texel_value == 'CYCLES':
+        texel_value = compat.cycles_texel_value()
     return dict(photons=int(settings.photons), max_bounces=int(settings.max_bounces),
                 seed=int(settings.seed), target_error=float(settings.target_error),
                 time_budget=float(settings.time_budget), direct_samples=int(settings.direct_samples),
-                texel_value=settings.texel_value, dilation=int(settings.lightmap_margin))
+                texel_value=texel_value, dilation=int(settings.lightmap_margin))
 
 
 class _Quiet:

@@ -16,7 +16,8 @@ between or after behaves as the nearest one with the same API.
     lights      light_emission (colour and power with temperature, exposure and normalize: 5.x has
                 them, 4.3 not),
                 light_nodes_differ (5.x gives every light a default node tree)
-    Cycles      cycles_conventions, set_cycles_conventions (the engine's light conventions: 3.4 or 4+)
+    Cycles      cycles_conventions, set_cycles_conventions (the engine's light conventions: 3.4 or 4+),
+                cycles_texel_value (what a Cycles bake's texel holds: its central half before 5.0)
     engines     eevee_engine_id (BLENDER_EEVEE in 3.x and 5.x, BLENDER_EEVEE_NEXT in 4.2-4.4)
     cameras     set_equirectangular (panorama settings on Camera.cycles before 4.0, on Camera after)
     colours     linear_colorspace, is_linear_colorspace ('Linear' before 4.0, 'Linear Rec.709' after)
@@ -265,6 +266,16 @@ def cycles_conventions():
     factor), "cycles-3.4" before. This is Cycles' behaviour, not an API that can be looked for, so
     it is read from the version."""
     return "cycles-4" if tuple(bpy.app.version[:2]) >= (4, 0) else "cycles-3.4"
+
+
+def cycles_texel_value():
+    """The engine's texel_value for what this Blender's converged Cycles DIFFUSE bake (box filter
+    one texel wide) holds in a texel: "CYCLES" (direct light averaged over the texel's central
+    0.5 x 0.5 square) up to 4.x, "AREA" (the whole texel) from 5.0. Measured on a sun shadow edge
+    of a rotated blocker across a 32 x 32 floor, relative RMS error against Cycles (its noise
+    0.1 %) for central half / whole texel: 3.4.1 0.42 % / 3.77 %, 4.3.2 1.24 % / 3.77 %, 5.2.2
+    3.76 % / 0.92 %. 4.4 and 4.5 are not measured; the change is taken to come with 5.0."""
+    return "AREA" if tuple(bpy.app.version[:2]) >= (5, 0) else "CYCLES"
 
 
 def set_cycles_conventions(plm_scene):

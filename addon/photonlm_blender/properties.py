@@ -174,8 +174,9 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
         default=ENGINE.get("direct_samples", 0), min=0, max=65536, soft_max=1024)
     texel_value: EnumProperty(
         name="Texel Value", description="What a lightmap texel holds",
-        items=[('CYCLES', "Like Cycles", "Direct light averaged over the texel's central half, as a "
-                "Cycles bake converges to (sharper shadow edges)"),
+        items=[('CYCLES', "Like Cycles", "Direct light averaged over the texel as this Blender's Cycles "
+                "bake converges to: over its central half up to Blender 4.x (sharper shadow edges), over "
+                "the whole texel from 5.0"),
                ('AREA', "Texel Average", "Direct light averaged over the whole texel (smoother shadow edges)")],
         default=ENGINE.get("texel_value", 'CYCLES'))
     texel_density: IntProperty(
