@@ -14,7 +14,9 @@ into what the engine has (C API "Specular lobes"):
                         Blender 3.x (svm_node_closure_bsdf, Cycles 3.4) Alpha < 1 first: TRANSPARENT
                         w (1 - Alpha), then w *= Alpha; emission w x Emission x Strength;
                         m = Metallic, t = Transmission (clamped):
-                        diffuse albedo += w (1 - m)(1 - t) Base Color;
+                        diffuse albedo += w (1 - m)(1 - t) Base Color, Burley's diffuse of the
+                        node's Roughness (Flat.burley; with Lambert parts beside it, one
+                        Burley of their weighted roughness);
                         specular layer (when Specular or Metallic > 0) = FRESNEL lobe of weight
                         w (1 - t (1 - m)), F0 = mix(Specular x 0.08 x mix(1, tint, Specular
                         Tint), Base Color, m) clamped to [0, 1] (tint = Base Color / its
@@ -100,6 +102,12 @@ class Flat:
         self.emission_sockets = None    # (color, strength) of the emission when its weight is 1
         self.emission_leaves = 0
         self.lobes = []
+        # Burley diffuse (Blender 3.x's Principled BSDF): its roughness, None for Lambert; the
+        # weights of the Burley and of all diffuse parts (_finish sets burley from them).
+        self.burley = None
+        self.burley_weight = 0.0
+        self.burley_roughness_sum = 0.0
+        self.diffuse_weight = 0.0
         self.approximations = []        # what was approximated (joined into one report)
         self.notes = []                 # other reports (textures, unsupported nodes)
 
@@ -491,6 +499,7 @@ def _roughness(reader, node, path):
 def _diffuse(reader, color_socket, path, w, node):
     """Add w x colour to the diffuse albedo; an Image Texture stays a texture."""
     flat = reader.flat
+    flat.diffuse_weight += w
     src = source(color_socket, path)
     if src is not None and src[0].node.bl_idname == 'ShaderNodeTexImage' and src[0].name == 'Color':
         if flat.texture_socket is None:
@@ -704,9 +713,13 @@ def _principled_v1(reader, node, path, w):
         return base
 
     if diffuse_w > CUTOFF:
+        # Cycles 3.4's Principled diffuse is Burley's, of the node's Roughness.
+        flat.burley_weight += w * diffuse_w
+        flat.burley_roughness_sum += w * diffuse_w * min(max(rough, 0.0), 1.0)
         if subsurface > CUTOFF:
             ss = reader.color(inp['Subsurface Color'], path, "%s Subsurface Color" % name)
             mixed = tuple((1.0 - subsurface) * b + subsurface * s for b, s in zip(base_constant("subsurface"), ss))
+            flat.diffuse_weight += w * diffuse_w
             flat.albedo = [a + w * diffuse_w * max(c, 0.0) for a, c in zip(flat.albedo, mixed)]
             flat.approx("%s: subsurface scattering baked as diffuse of the mixed colour" % name)
         else:
@@ -759,7 +772,13 @@ def _principled_v1(reader, node, path, w):
 
 def _finish(flat):
     """Clamp to what the engine takes: colours in [0, 1], albedo + non-FRESNEL lobes <= 1 per
-    channel (scaled down together), FRESNEL weights <= 1, at most MAX_LOBES lobes."""
+    channel (scaled down together), FRESNEL weights <= 1, at most MAX_LOBES lobes; one diffuse
+    model (Burley of the weight-averaged roughness where a Principled v1 diffuse part is)."""
+    if flat.burley_weight > CUTOFF:
+        flat.burley = flat.burley_roughness_sum / flat.burley_weight
+        if flat.diffuse_weight - flat.burley_weight > CUTOFF:
+            flat.approx("Lambert and Principled (Burley) diffuse parts baked as one Burley diffuse of roughness %.3g"
+                        % flat.burley)
     for lobe in flat.lobes:
         if lobe.kind in LAYER_KINDS:
             if lobe.weight > 1.0:

@@ -65,6 +65,7 @@ class MaterialInfo:
         self.albedo = FALLBACK_ALBEDO
         self.emission = (0.0, 0.0, 0.0)
         self.lobes = []            # flatten.Lobe: the specular part, in the order the engine sums them
+        self.burley = None         # Burley diffuse roughness (Blender 3.x's Principled BSDF), None: Lambert
         self.notes = []            # reports about approximations
         self.color_socket = None   # the input giving the diffuse colour by a link (NodeSocket) or None
         self.preview_factor = 1.0  # the diffuse weight multiplying that colour
@@ -188,6 +189,7 @@ def read_material(mat, image_means=None):
     image_means = image_means if image_means is not None else {}
     flat = flatten.flatten(info.surface, image_means)
     info.lobes = flat.lobes
+    info.burley = flat.burley
     albedo = tuple(flat.albedo)
     if flat.texture_socket is not None:
         socket, path = flat.texture_socket
@@ -725,7 +727,13 @@ def export_textures(plm, material_id, info, files, reports):
 def export_lobes(plm, material_id, info, reports):
     """Give engine material material_id the specular lobes of info. A FRESNEL or SPECULAR lobe goes
     as its F0 (color / weight) and weight; the others with weight 1 (their colour carries the mix factors).
-    A lobe the engine refuses is reported and left out."""
+    A lobe the engine refuses is reported and left out. A Burley diffuse part (info.burley) goes as
+    the material's diffuse model."""
+    if info.burley is not None and hasattr(plm, "set_material_diffuse"):
+        try:
+            plm.set_material_diffuse(material_id, "burley", info.burley)
+        except Exception as e:  # noqa: BLE001 -- reported; the bake goes on with Lambert's diffuse
+            reports.warning("material '%s': Burley diffuse baked as Lambert: %s" % (info.name, getattr(e, "message", e)))
     if not info.lobes:
         return
     if not hasattr(plm, "add_material_lobe"):

@@ -410,6 +410,19 @@ class Scene(_Handle):
         lobe = _lobe(self.LOBE_KINDS[kind], color, roughness, ior, abbe, weight)
         _check(_C.plm_scene_add_material_lobe(self._h, _uint(material, "material"), ctypes.byref(lobe)))
 
+    DIFFUSE_MODELS = {"lambert": 0, "burley": 1}
+
+    def set_material_diffuse(self, material, model, roughness=0.0):
+        """Set a material's diffuse model: "lambert" (the default) or "burley" (Blender 3.x's
+        Principled BSDF diffuse, Cycles 3.4's Burley law with `roughness` in [0, 1], the node's
+        Roughness): its surface scatters light by that law and its lightmap holds what Cycles 3.4
+        bakes for it (light arriving at grazing angles weighted as Burley weighs it toward the
+        normal). docs/design.md "Cycles versions"."""
+        if model not in self.DIFFUSE_MODELS:
+            raise ValueError("diffuse model must be one of %s, got %r" % (sorted(self.DIFFUSE_MODELS), model))
+        _check(_C.plm_scene_set_material_diffuse(self._h, _uint(material, "material"), self.DIFFUSE_MODELS[model],
+                                                 float(roughness)))
+
     TEXTURE_SLOTS = {"albedo": 0, "emission": 1}
     TEXTURE_COLORSPACES = {"auto": 0, "linear": 1, "srgb": 2}
 

@@ -250,6 +250,7 @@ _SIGNATURES = {
     "plm_scene_set_mesh_ol_group": (status_t, [ScenePtr, c_uint32, c_uint32]),
     "plm_lobe_default": (None, [POINTER(plm_lobe), c_int]),
     "plm_scene_add_material_lobe": (status_t, [ScenePtr, c_uint32, POINTER(plm_lobe)]),
+    "plm_scene_set_material_diffuse": (status_t, [ScenePtr, c_uint32, c_int32, c_float]),
     "plm_scene_set_material_texture": (status_t, [ScenePtr, c_uint32, c_int, c_char_p, c_uint32]),
     "plm_scene_set_mesh_texture_uv": (status_t, [ScenePtr, c_uint32, FloatPtr]),
     "plm_scene_set_mesh_normals": (status_t, [ScenePtr, c_uint32, FloatPtr]),

@@ -361,6 +361,18 @@ class SceneFileWriter:
             raise ValueError("%s: abbe %r must be >= 0 and finite" % (label, lobe["abbe"]))
         lobes.append(lobe)
 
+    def set_material_diffuse(self, material, model, roughness=0.0):
+        material = self._index(material, self.materials, "material")
+        if model not in ("lambert", "burley"):
+            raise ValueError("diffuse model must be one of ['burley', 'lambert'], got %r" % (model,))
+        m = self.materials[material]
+        m.pop("burley_roughness", None)
+        if model == "burley":
+            r = _real(roughness)
+            if not 0.0 <= r <= 1.0:
+                raise ValueError("material %d: diffuse roughness %r is not in [0, 1]" % (material, r))
+            m["burley_roughness"] = r
+
     def set_material_texture(self, material, slot, path, colorspace="auto"):
         material = self._index(material, self.materials, "material")
         if slot not in _TEXTURE_SLOTS:

@@ -141,6 +141,24 @@ PLM_API void plm_lobe_default(plm_lobe* lobe, plm_lobe_type type);
 /* Appends a lobe to a material (at most 8 a material). */
 PLM_API plm_status plm_scene_add_material_lobe(plm_scene* scene, uint32_t material_id, const plm_lobe* lobe);
 
+/* The diffuse part's scattering model (docs/design.md "Cycles versions").
+ *   PLM_DIFFUSE_LAMBERT  (default) Lambert: the Diffuse BSDF, Blender 4's
+ *                        Principled BSDF
+ *   PLM_DIFFUSE_BURLEY   Blender 3.x's Principled BSDF diffuse (Cycles 3.4
+ *                        bsdf_principled_diffuse.h, Burley 2015): albedo / pi x
+ *                        (1 - FL / 2)(1 - FV / 2) + R (FL + FV + FL FV (R - 1)),
+ *                        F = (1 - cos)^5 at the light's (L) and the viewer's
+ *                        (V) side, R = roughness (1 + L.V); roughness in [0, 1]
+ *                        (the Principled BSDF's Roughness)
+ * A Burley surface reflects light by that law, and its lightmap holds what
+ * Cycles 3.4 bakes for it (DIFFUSE, no COLOR: the viewer along the normal),
+ * each arriving direction weighted by 1 - FL / 2 + R FL, which is
+ * irradiance / pi only where light arrives steeply. Errors: a bad model, a
+ * roughness outside [0, 1], named with the material. */
+typedef enum plm_diffuse_model { PLM_DIFFUSE_LAMBERT = 0, PLM_DIFFUSE_BURLEY = 1 } plm_diffuse_model;
+PLM_API plm_status plm_scene_set_material_diffuse(plm_scene* scene, uint32_t material_id, int32_t model,
+                                                  float roughness);
+
 /* Image textures on materials (docs/design.md "Textures").
  *   PLM_TEXTURE_ALBEDO    albedo = image x the material's albedo
  *   PLM_TEXTURE_EMISSION  emitted radiance = image x the material's emission

@@ -236,6 +236,13 @@ plm_status plm_scene_add_material_lobe(plm_scene* scene, uint32_t material_id, c
   });
 }
 
+plm_status plm_scene_set_material_diffuse(plm_scene* scene, uint32_t material_id, int32_t model, float roughness) {
+  return guarded("plm_scene_set_material_diffuse", [&] {
+    require(scene, "plm_scene_set_material_diffuse", "scene");
+    scene->scene.set_material_diffuse(material_id, model, roughness);
+  });
+}
+
 plm_status plm_scene_set_material_texture(plm_scene* scene, uint32_t material_id, int32_t slot,
                                           const char* path, uint32_t flags) {
   return guarded("plm_scene_set_material_texture", [&] {

@@ -32,7 +32,7 @@ struct Reader {
     for (size_t i = 0; i < v.size(); ++i) {
       const std::string p = index_path(path, i);
       const json& m = object(v[i], p);
-      check_keys(m, p, {"name", "albedo", "emission", "albedo_texture", "emission_texture", "lobes"});
+      check_keys(m, p, {"name", "albedo", "emission", "albedo_texture", "emission_texture", "lobes", "burley_roughness"});
       const std::string name = name_or(m, p, "");
       float albedo[3] = {0.8f, 0.8f, 0.8f}, emission[3] = {0, 0, 0};
       if (const json* a = optional(m, "albedo")) rgb(*a, p + ".albedo", albedo);
@@ -43,6 +43,11 @@ struct Reader {
       if (const json* t = optional(m, "emission_texture"))
         texture(*t, p + ".emission_texture", id, PLM_TEXTURE_EMISSION);
       if (const json* l = optional(m, "lobes")) lobes(*l, p + ".lobes", id);
+      // "burley_roughness": the diffuse part is Burley's (Blender 3.x's Principled BSDF) of that roughness.
+      if (const json* r = optional(m, "burley_roughness"))
+        engine(plm_scene_set_material_diffuse(out.scene, id, PLM_DIFFUSE_BURLEY,
+                                              float(number(*r, p + ".burley_roughness"))),
+               p + ".burley_roughness");
       out.material_names.push_back(name);
     }
   }

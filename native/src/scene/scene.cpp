@@ -254,6 +254,18 @@ void Scene::set_material_texture(uint32_t material, int slot, const char* path, 
   (slot == PLM_TEXTURE_ALBEDO ? m.albedo_texture_flags : m.emission_texture_flags) = flags;
 }
 
+void Scene::set_material_diffuse(uint32_t material, int32_t model, float roughness) {
+  Material& m = existing(materials, material, "set material diffuse", "material", "materials");
+  const std::string owner = "material " + quoted_or(m.name.c_str(), material) + " (" + std::to_string(material) + ")";
+  if (model != PLM_DIFFUSE_LAMBERT && model != PLM_DIFFUSE_BURLEY)
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": diffuse model ", model,
+         " is not PLM_DIFFUSE_LAMBERT (0) or PLM_DIFFUSE_BURLEY (1)");
+  if (!(roughness >= 0.0f && roughness <= 1.0f))
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": diffuse roughness ", roughness, " is not in [0, 1]");
+  m.diffuse_model = model;
+  m.diffuse_roughness = roughness;
+}
+
 void Scene::set_mesh_texture_uv(uint32_t mesh, const float* uv) {
   if (existing(meshes, mesh, "set mesh texture UV", "mesh", "meshes").pending) refine_cages();
   Mesh& m = meshes[mesh];

@@ -38,6 +38,9 @@ struct Material {
   uint32_t albedo_texture_flags = 0, emission_texture_flags = 0;  // PLM_TEXTURE_COLOR_*
   uint64_t albedo_texture_pixels = 0, emission_texture_pixels = 0;  // their sizes (the memory estimate)
   std::vector<Lobe> lobes;  // specular lobes (scene/lobe.h); empty: Lambertian
+  // The diffuse part's model (plm_diffuse_model) and its roughness (Burley's).
+  int32_t diffuse_model = PLM_DIFFUSE_LAMBERT;
+  float diffuse_roughness = 0.0f;
 };
 
 struct Mesh {
@@ -119,6 +122,13 @@ struct Scene {
   bool has_lobes() const {
     for (const Material& m : materials)
       if (!m.lobes.empty()) return true;
+    return false;
+  }
+  // Sets a material's diffuse model (plm_scene_set_material_diffuse). Throws naming the material.
+  void set_material_diffuse(uint32_t material, int32_t model, float roughness);
+  bool has_burley() const {
+    for (const Material& m : materials)
+      if (m.diffuse_model == PLM_DIFFUSE_BURLEY) return true;
     return false;
   }
   uint32_t add_mesh(const char* name, const float* positions, uint32_t vertex_count,

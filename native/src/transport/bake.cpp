@@ -126,7 +126,22 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
   // Specular lobes (docs/design.md "Materials"): flattened, and the passage
   // of straight rays through panes and transparent surfaces; nothing in
   // scenes without lobes.
-  const MaterialTable lobes = scene.has_lobes() ? MaterialTable(scene) : MaterialTable();
+  const MaterialTable lobes = scene.has_lobes() || scene.has_burley() ? MaterialTable(scene) : MaterialTable();
+  // Burley surfaces (Cycles 3.4's Principled diffuse): each triangle's roughness, for what their texels record.
+  std::vector<std::vector<float>> burley(scene.has_burley() ? space.views.size() : 0);
+  for (size_t i = 0; i < burley.size(); ++i) {
+    const Mesh& mesh = *space.views[i].mesh;
+    bool any = false;
+    burley[i].resize(mesh.triangle_count(), -1.0f);
+    for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
+      const uint32_t id = mesh.material_ids[t];
+      if (id < scene.materials.size() && scene.materials[id].diffuse_model == PLM_DIFFUSE_BURLEY) {
+        burley[i][t] = scene.materials[id].diffuse_roughness;
+        any = true;
+      }
+    }
+    if (any) space.views[i].burley = burley[i].data();
+  }
   std::unique_ptr<PassageTracer> passage;
   if (lobes.any_passage()) passage = std::make_unique<PassageTracer>(scene, lobes, space.views, surfaces, extent);
   out.stats.seconds_setup = seconds_since(t_start);
@@ -210,7 +225,7 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
         return;
       }
       const FinalGather final_gather(accel.handle(), surfaces, space.views, space.areas, settings, extent,
-                                     passage.get(), lobes.any_lobes());
+                                     passage.get(), lobes.any_lobes(), &lobes);
       gather = run_final_gather(arena, final_gather, space, now.values, now.lookup_local, now.lookup_wide,
                                 tracer.triangle_albedos(),
                                 acc.back_lit.data(), gather_samples(settings.target_error, gathers - 1), [&] {

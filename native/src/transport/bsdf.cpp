@@ -154,5 +154,24 @@ LayerTable make_layer_table(const LobeParams& p) {
   return t;
 }
 
+void make_burley_albedo(float roughness, float out[kLayerNodes]) {
+  constexpr int n = 64;
+  for (int j = 0; j < kLayerNodes; ++j) {
+    const double mu = double(j) / (kLayerNodes - 1);
+    const double sv = std::sqrt(std::fmax(0.0, 1.0 - mu * mu));
+    double sum = 0.0;
+    for (int a = 0; a < n; ++a) {
+      // Cosine-distributed L by the concentric-free polar map: cos^2 uniform, azimuth uniform.
+      const double cl = std::sqrt((a + 0.5) / n), sl = std::sqrt(std::fmax(0.0, 1.0 - cl * cl));
+      for (int b = 0; b < n; ++b) {
+        const double phi = 2.0 * 3.14159265358979323846 * (b + 0.5) / n;
+        const double ldv = sl * std::cos(phi) * sv + cl * mu;
+        sum += burley_factor(float(cl), float(mu), float(ldv), roughness);
+      }
+    }
+    out[j] = float(sum / (n * n));
+  }
+}
+
 }  // namespace bsdf
 }  // namespace plm

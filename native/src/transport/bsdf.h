@@ -231,6 +231,36 @@ struct LayerTable {
 // excluded), by deterministic stratified integration over visible normals.
 LayerTable make_layer_table(const LobeParams& p);
 
+// Cycles 3.4's Principled BSDF diffuse (kernel/closure/bsdf_principled_diffuse.h,
+// PRINCIPLED_DIFFUSE_FULL; Burley 2015): f = albedo / pi x burley_factor,
+//   (1 - FL / 2)(1 - FV / 2) + R (FL + FV + FL FV (R - 1)),
+// F = schlick_weight(cos) at the light's (L) and the viewer's (V) side and
+// R = roughness (1 + L.V) (2 cos^2 of the half angle). Symmetric in L and V.
+inline float schlick_weight(float c) {
+  const float m = std::fmin(std::fmax(1.0f - c, 0.0f), 1.0f);
+  const float m2 = m * m;
+  return m2 * m2 * m;
+}
+
+inline float burley_factor(float cos_l, float cos_v, float l_dot_v, float roughness) {
+  const float fl = schlick_weight(cos_l), fv = schlick_weight(cos_v);
+  const float rr = roughness * (l_dot_v + 1.0f);
+  return (1.0f - 0.5f * fl) * (1.0f - 0.5f * fv) + rr * (fl + fv + fl * fv * (rr - 1.0f));
+}
+
+// What Cycles 3.4 bakes (DIFFUSE, no COLOR) for a Burley surface weighs light
+// arriving at cos_l by: the factor with the viewer along the normal.
+inline float burley_receive(float cos_l, float roughness) {
+  const float fl = schlick_weight(cos_l);
+  return 1.0f - 0.5f * fl + roughness * (1.0f + cos_l) * fl;
+}
+
+// Burley's directional albedo over Lambert's, R(cos v) = the mean of
+// burley_factor over cosine-distributed L (equal, by symmetry, to its albedo
+// for light arriving at cos v), at kLayerNodes evenly spaced cosines 0..1, by
+// a deterministic 64 x 64 midpoint quadrature. R(1) = 1 - 1/42 + 5/84 roughness.
+void make_burley_albedo(float roughness, float out[kLayerNodes]);
+
 // Evaluation for tests: the lobe's f(wi, wo) |cos wo| and the density of
 // sample_lobe's wo (rough lobes only; smooth ones are Dirac deltas). Both
 // zero where sample_lobe cannot go.

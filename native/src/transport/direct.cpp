@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 
+#include "transport/bsdf.h"
 #include "util/rng.h"
 #include "util/sobol.h"
 
@@ -151,6 +152,7 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
   const uint32_t sobol_key = rng.next_u32();
   const Mesh* smooth = !csg && views_[mesh_id].mesh->smooth() ? views_[mesh_id].mesh : nullptr;
   const uint8_t* contact = csg ? nullptr : views_[mesh_id].contact;
+  const float* burley = csg ? nullptr : views_[mesh_id].burley;
   const SobolGroup light_dims(sobol_key, 0), mis_dims(sobol_key, 1), piece_dims(sobol_key, 2), surface_dims(sobol_key, 3);
   StratumPairs pairs, split_pairs;  // split_pairs: of the world part and the rest (split_sky_)
   double previous_sky = 0.0, previous_other = 0.0;
@@ -197,6 +199,7 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
     Vec3 origin, normal, shading, e;  // normal: geometric; shading: the interpolated one (smooth meshes)
     Vec3 sky;                         // the world's part of e (split_sky_)
     float v[2];
+    float burley;  // the point's Burley roughness, < 0 for Lambert
     size_t k;
     uint32_t tri;
     bool inside, contact;
@@ -259,6 +262,7 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
       Pending& ps = chunk[c];
       ps.inside = ps.contact = false;
       ps.e = ps.sky = {0, 0, 0};
+      ps.burley = -1.0f;
       float x = origin_x + (float(j % m) + rng.next_float()) * side;
       float y = origin_y + (float(j / m) + rng.next_float()) * side;
       Vec3 p, normal;
@@ -303,6 +307,7 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
       ps.normal = normal;
       ps.shading = smooth ? shading_normal_at(*smooth, tri, p, normal) : normal;
       ps.tri = tri;
+      ps.burley = burley ? burley[tri] : -1.0f;
       ps.k = 0;
       // A point pressed against another surface gets no light (in_contact).
       if (contact && contact[texel] && in_contact(rtc_, surfaces_, p, normal, mesh_id, tri, offset_scale_)) {
@@ -357,6 +362,7 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
           const float cos_l = std::fabs(dot(em.normal, ds.dir)), cos_s = dot(shading, ds.dir);
           weight = 1.0f / (1.0f + cos_weight_ratio(cos_s, cos_l * em.area, probability(kk), ds.distance));
         }
+        if (ps.burley >= 0.0f) weight *= bsdf::burley_receive(dot(shading, ds.dir), ps.burley);
         lane_value[packet.size] = ds.irradiance * (weight / (kPi * probability(kk)));
         lane_sample[packet.size] = c;
         if (split_sky && is_sky_[kk]) sky_lanes |= 1u << packet.size;
@@ -407,7 +413,9 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
             const Vec3 L = he.textured
                                ? textures_->emission(*views_[h.index].mesh, he.material, he.triangle, h.u, h.v)
                                : he.radiance;
-            e += kPassage ? L * through * (r / (1.0f + r)) : L * (r / (1.0f + r));
+            float weight = r / (1.0f + r);
+            if (ps.burley >= 0.0f) weight *= bsdf::burley_receive(cos_s, ps.burley);
+            e += kPassage ? L * through * weight : L * weight;
           }
         }
       }

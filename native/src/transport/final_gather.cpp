@@ -26,12 +26,13 @@ struct CellShare {
 
 FinalGather::FinalGather(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
                          const std::vector<TexelAreas>& areas, const plm_bake_settings& settings, float scene_extent,
-                         const PassageTracer* passage, bool black_known)
+                         const PassageTracer* passage, bool black_known, const MaterialTable* materials)
     : rtc_(rtc), surfaces_(surfaces), views_(views), areas_(areas), points_(views, areas, settings),
       seed_(settings.seed), offset_scale_(1e-6f * scene_extent),
       // A texel's photon pool reaches filter_radius texels (at least 1 where
       // barely covered): texels within a pool's width of each other share hits.
-      cell_side_(2 * std::max(settings.filter_radius, 1u) + 1), passage_(passage), black_known_(black_known) {}
+      cell_side_(2 * std::max(settings.filter_radius, 1u) + 1), passage_(passage), black_known_(black_known),
+      materials_(materials && materials->any_view_scale() ? materials : nullptr) {}
 
 void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
                                const GatherSource& source, GatherSums& sums, GatherInfo& info) const {
@@ -57,6 +58,7 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
   StratumPairs pairs;
   const Mesh* smooth = views_[mesh_id].mesh->smooth() ? views_[mesh_id].mesh : nullptr;
   const uint8_t* contact = views_[mesh_id].contact;
+  const float* burley = views_[mesh_id].burley;  // the texel's surface weighs light by direction (bsdf::burley_receive)
   // Rays go in packets of eight points; then each is looked up in turn.
   // Points pressed against another surface (in_contact) and, on smooth
   // meshes, directions below the triangle's plane are known zeros: their
@@ -64,6 +66,7 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
   RayPacket packet;
   uint32_t lane_sample[RayPacket::kLanes];
   Vec3 lane_dir[RayPacket::kLanes];
+  float lane_weight[RayPacket::kLanes];
   for (uint32_t j0 = 0; j0 < n; j0 += RayPacket::kLanes) {
     uint32_t zero_lanes = 0, contact_lanes = 0;  // bit l: lane l is a known zero; ... a point in contact
     for (uint32_t j = j0; j < std::min(n, j0 + RayPacket::kLanes); ++j) {
@@ -81,6 +84,7 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
       make_frame(shading, t, b);
       lane_sample[packet.size] = j;
       lane_dir[packet.size] = t * local.x + b * local.y + shading * local.z;
+      lane_weight[packet.size] = burley && burley[tri] >= 0.0f ? bsdf::burley_receive(local.z, burley[tri]) : 1.0f;
       if (contact && contact[texel] && in_contact(rtc_, surfaces_, p, normal, mesh_id, tri, offset_scale_))
         contact_lanes |= 1u << packet.size;
       if (smooth && !(dot(normal, lane_dir[packet.size]) > 0.0f)) zero_lanes |= 1u << packet.size;
@@ -130,7 +134,13 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
           if (ht >= 0 && !unreliable) {
             if (hv.texel_area[ht] > 0.0) {
               const float* d = source.radiosity + 3 * (hv.texel_offset + ht);
-              const Vec3 a = kPassage ? (*source.albedo)[mesh][prim] * through : (*source.albedo)[mesh][prim];
+              Vec3 a = kPassage ? (*source.albedo)[mesh][prim] * through : (*source.albedo)[mesh][prim];
+              if (materials_) {  // the diffuse radiance toward the texel (layers, Burley)
+                const MaterialLobes& ml = materials_->material(hm.material_ids[prim]);
+                if (ml.view_scale != MaterialLobes::kNoLayer)
+                  a *= materials_->view_scale(ml.view_scale, -dot(lane_dir[l], h.normal));
+              }
+              a *= lane_weight[l];
               e = {a.x * d[0], a.y * d[1], a.z * d[2]};
               const double albedo = average(a), local = albedo * source.local[hv.texel_offset + ht];
               const uint32_t row = uint32_t(ht) / hm.lightmap_width, column = uint32_t(ht) % hm.lightmap_width;

@@ -17,6 +17,7 @@
 #include "lightmap/texel_area.h"
 #include "photonlm/photonlm.h"
 #include "transport/film.h"
+#include "transport/material_table.h"
 #include "transport/passage.h"
 #include "transport/stratified_sums.h"
 #include "transport/texel_points.h"
@@ -67,9 +68,12 @@ class FinalGather {
   // passage: scenes with passable materials, whose rays go on through them (transport/passage.h); else null.
   // black_known: scenes with lobes, where a ray meeting the front of a surface without a diffuse
   // part (glass, metal) counts a known 0 even where that surface has no lightmap.
+  // materials: where some material's diffuse radiance depends on where it
+  // leaves (MaterialLobes::view_scale: layers, Burley), the table; else null.
   FinalGather(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
               const std::vector<TexelAreas>& areas, const plm_bake_settings& settings, float scene_extent,
-              const PassageTracer* passage = nullptr, bool black_known = false);
+              const PassageTracer* passage = nullptr, bool black_known = false,
+              const MaterialTable* materials = nullptr);
 
   // Adds `samples` (rounded up to a square) cosine-distributed rays from the
   // direct pass's points of texel `texel` of mesh `mesh` (meshes only). Each
@@ -103,6 +107,7 @@ class FinalGather {
   uint32_t cell_side_;  // texels: the side of the cells whose texels share photon errors
   const PassageTracer* passage_;
   bool black_known_;
+  const MaterialTable* materials_;
 };
 
 // The gather of every covered texel, in the film's covered order.

@@ -64,6 +64,23 @@ MaterialTable::MaterialTable(const Scene& scene) {
       }
       e.layer_mean = float(std::fmax(mean, 1e-6));
     }
+    float burley[bsdf::kLayerNodes];
+    if (mat.diffuse_model == PLM_DIFFUSE_BURLEY) {
+      e.burley = mat.diffuse_roughness;
+      bsdf::make_burley_albedo(mat.diffuse_roughness, burley);
+      e.burley_albedo = uint32_t(burley_albedos_.size() / bsdf::kLayerNodes);
+      burley_albedos_.insert(burley_albedos_.end(), burley, burley + bsdf::kLayerNodes);
+      any_burley_ = true;
+    }
+    if (e.burley >= 0.0f || e.layer_scale != MaterialLobes::kNoLayer) {
+      e.view_scale = uint32_t(view_scales_.size() / bsdf::kLayerNodes);
+      for (int j = 0; j < bsdf::kLayerNodes; ++j) {
+        float v = e.layer_scale != MaterialLobes::kNoLayer ? diffuse_scales_[size_t(e.layer_scale) * bsdf::kLayerNodes + j]
+                                                           : 1.0f;
+        if (e.burley >= 0.0f) v *= burley[j] / burley[bsdf::kLayerNodes - 1];
+        view_scales_.push_back(v);
+      }
+    }
     any_passage_ = any_passage_ || e.passage != Passage::Opaque;
     any_dispersion_ = any_dispersion_ || e.dispersive;
   }

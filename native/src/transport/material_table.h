@@ -34,6 +34,14 @@ struct MaterialLobes {
   // the diffuse part). No layer: no table, mean 1.
   uint32_t layer_scale = kNoLayer;
   float layer_mean = 1.0f;
+  // The diffuse part's model: Burley's roughness (plm_scene_set_material_diffuse),
+  // < 0 for Lambert, and the table of its directional albedo
+  // (bsdf::make_burley_albedo). view_scale: the table of the diffuse part's
+  // radiance leaving at cos v over albedo x the texel's value (the final
+  // gather's lookups): the layers' 1 - A times Burley's R(v) / R(1) (light
+  // taken as arriving evenly); kNoLayer where that is 1 (Lambert, no layers).
+  float burley = -1.0f;
+  uint32_t burley_albedo = kNoLayer, view_scale = kNoLayer;
   static constexpr uint32_t kNoLayer = ~0u;
 };
 
@@ -51,7 +59,9 @@ class MaterialTable {
   MaterialTable() = default;
   explicit MaterialTable(const Scene& scene);
 
-  bool any_lobes() const { return !lobes_.empty(); }
+  // Lobes or a diffuse part that is not Lambert's: photons take the lobe loop.
+  bool any_lobes() const { return !lobes_.empty() || any_burley_; }
+  bool any_view_scale() const { return !view_scales_.empty(); }
   bool any_passage() const { return any_passage_; }
   bool any_dispersion() const { return any_dispersion_; }
   // Material id -> its entry (the engine's grey default when the scene has no materials).
@@ -63,6 +73,14 @@ class MaterialTable {
   // The factor on a layered material's diffuse part for light leaving at cos_o (MaterialLobes::layer_scale).
   float diffuse_scale(uint32_t table, float cos_o) const {
     return bsdf::layer_lookup(diffuse_scales_.data() + size_t(table) * bsdf::kLayerNodes, cos_o);
+  }
+  // Burley's directional albedo over Lambert's at cos (MaterialLobes::burley_albedo).
+  float burley_albedo(uint32_t table, float cos) const {
+    return bsdf::layer_lookup(burley_albedos_.data() + size_t(table) * bsdf::kLayerNodes, cos);
+  }
+  // The diffuse radiance's factor toward cos v (MaterialLobes::view_scale).
+  float view_scale(uint32_t table, float cos_v) const {
+    return bsdf::layer_lookup(view_scales_.data() + size_t(table) * bsdf::kLayerNodes, cos_v);
   }
   // A lobe's index at wavelength lambda (micrometres), its ior when it does not disperse.
   float ior(uint32_t i, float lambda_um) const {
@@ -76,8 +94,10 @@ class MaterialTable {
   std::vector<uint32_t> layer_of_;  // per lobe: its LayerTable (SPECULAR lobes only)
   std::vector<bsdf::LayerTable> layers_;
   std::vector<float> diffuse_scales_;  // kLayerNodes a layered material
+  std::vector<float> burley_albedos_;  // kLayerNodes a Burley material
+  std::vector<float> view_scales_;     // kLayerNodes a layered or Burley material
   MaterialLobes none_;
-  bool any_passage_ = false, any_dispersion_ = false;
+  bool any_passage_ = false, any_dispersion_ = false, any_burley_ = false;
 };
 
 }  // namespace plm

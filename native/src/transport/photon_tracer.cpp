@@ -268,15 +268,20 @@ inline bool PhotonTracer::lobe_hit(uint64_t index, const SurfaceHit& h, const Hi
                                    PathState& path, TraceContext& tc, BatchOutput& out) const {
   Vec3 seen = flux;  // what the surface's irradiance records (about its shading normal)
   if (special && special->shading) seen *= shading_ratio(*special, h, dir, front, normal);
+  Vec3 record = seen;  // what the texel gets: a Burley surface weighs light by its direction (bsdf::burley_receive)
+  if (h.kind == SurfaceKind::Triangle && views_[h.index].burley) {
+    const float r = views_[h.index].burley[h.prim];
+    if (r >= 0.0f) record *= bsdf::burley_receive(-dot(dir, normal), r);
+  }
   const PathClass cls = path.recorded();
   const bool wanted = cls != kDirect || first_recorded_ == 0;
   if (h.kind == SurfaceKind::LSystem) {
     if (front) out.ls_hits.push_back({h.index, ls_grids_[h.index].bin(h.ol_normal), h.stub_key, seen.x, seen.y, seen.z});
   } else {
-    if (front && wanted) record_into(h, seen, cls == kCaustic ? out.caustic_hits : out.hits);
+    if (front && wanted) record_into(h, record, cls == kCaustic ? out.caustic_hits : out.hits);
     if (keep_points_ && front && wanted && cls == kCaustic && h.kind == SurfaceKind::Triangle &&
         hit_meshes_[h.index].covered)
-      out.caustic_points.push_back({h.point, seen.x, seen.y, seen.z, h.index});
+      out.caustic_points.push_back({h.point, record.x, record.y, record.z, h.index});
     if (h.kind == SurfaceKind::Triangle) {
       const uint32_t mesh = h.index;
       if (!front && (out.back_meshes.empty() || out.back_meshes.back() != mesh)) out.back_meshes.push_back(mesh);
@@ -305,7 +310,9 @@ inline bool PhotonTracer::lobe_hit(uint64_t index, const SurfaceHit& h, const Hi
   float e[1 + kMaxLobes];
   // Under SPECULAR layers the diffuse part is estimated by its scale's mean,
   // the layers by their tabulated albedo.
+  // A Burley diffuse part by its directional albedo at the photon's incidence.
   e[0] = max_component(albedo) * ml.layer_mean;
+  if (ml.burley >= 0.0f) e[0] *= lobes_->burley_albedo(ml.burley_albedo, dot(wi, normal));
   float total = e[0];
   for (uint32_t k = 0; k < ml.count; ++k) {
     const bsdf::LobeParams& lp = lobes_->lobe(ml.first + k);
@@ -338,6 +345,8 @@ inline bool PhotonTracer::lobe_hit(uint64_t index, const SurfaceHit& h, const Hi
     dir = t * local.x + b * local.y + normal * local.z;
     if (ml.layer_scale != MaterialLobes::kNoLayer)  // the layer's albedo towards where the photon leaves
       flux *= lobes_->diffuse_scale(ml.layer_scale, dot(dir, n));
+    if (ml.burley >= 0.0f)  // Burley's law over Lambert's for this pair of directions
+      flux *= bsdf::burley_factor(dot(wi, normal), local.z, dot(wi, dir), ml.burley);
     path.pane = false;
     path.cls = kIndirect;
   } else {

@@ -27,6 +27,9 @@ struct MeshView {
   // Per texel: 1 where another surface may lie pressed against the mesh's
   // front there (contact_candidates); null where none does.
   const uint8_t* contact = nullptr;
+  // Per triangle: its material's Burley roughness (the bake weighs arriving
+  // light by bsdf::burley_receive), < 0 for Lambert; null where all are Lambert's.
+  const float* burley = nullptr;
 };
 
 // A CSG solid as the passes see it (Embree geometry id = mesh count + index).
