@@ -16,9 +16,9 @@ case "$suite" in trixie|sid) ;; *) echo "blender_root: unknown suite '$suite' (t
 roots=${PHOTONLM_ROOTS:-/var/cache/photonlm/roots}
 root="$roots/$suite"
 stamp="$root/.photonlm-root"
-# xvfb, xauth: windowed tests; x11-apps, netpbm: screen grabs for the docs' screenshots where
+# xvfb, xauth: windowed tests; libegl1, libegl-mesa0: EEVEE renders headless (-b); x11-apps, netpbm: screen grabs for the docs' screenshots where
 # Blender's own read back black (llvmpipe); python3-cattr, python3-requests: sid's extension system.
-packages="blender xvfb xauth x11-apps netpbm python3-numpy python3-cattr python3-requests ca-certificates"
+packages="blender xvfb xauth libegl1 libegl-mesa0 x11-apps netpbm python3-numpy python3-cattr python3-requests ca-certificates"
 if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$packages" ]; then
   echo "$root"; exit 0
 fi
