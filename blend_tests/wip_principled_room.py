@@ -5,7 +5,8 @@ boxes standing on the floor; every object has its own Principled BSDF as Blender
 default material's values: Specular / Specular IOR Level 0.5, IOR 1.45 or 1.5, Metallic 0, no
 textures) with its own Base Color and Roughness 0.2, 0.5 (the default) or 0.9. Lights: a sun and a
 uniform sky colour through the opening, an area light, a spot and a point light. Lightmaps are
-16 x 16 (the room, 0.25 m texels) and 32 x 32 (the boxes, 0.1 m texels), fixed texel-aligned layouts.
+16 x 16 (walls and ceiling, 0.25 m texels), 32 x 32 (the floor, 0.125 m; the boxes, 0.1 m), fixed
+texel-aligned layouts.
 
 photonlm: bpy.ops.photonlm.bake() to a 1 % target, all bounces; the scene gets this Blender's Cycles
           conventions (Principled v1 with Burley diffuse in 3.4, v2's layered Lambert from 4.0).
