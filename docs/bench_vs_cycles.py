@@ -566,6 +566,12 @@ def snapshot_library(out):
     info = {}
     if src and os.path.exists(src):
         dst = os.path.join(out, "libphotonlm.so")
+        # The add-on's self-contained copy (what Blender 4.3 and 5.2 load) finds its libraries
+        # beside it: they are copied along.
+        folder = os.path.dirname(os.path.abspath(src))
+        for name in os.listdir(folder):
+            if ".so" in name and name != os.path.basename(src):
+                shutil.copy2(os.path.join(folder, name), os.path.join(out, name))
         shutil.copy2(src, dst + ".tmp")
         os.replace(dst + ".tmp", dst)
         os.environ["PHOTONLM_LIBRARY"] = dst

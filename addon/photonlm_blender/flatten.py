@@ -51,15 +51,9 @@ LOBE_KINDS = ("glossy", "fresnel", "glass", "refraction", "transparent", "specul
 LAYER_KINDS = ("fresnel", "specular")  # layers on top of the diffuse part: color = F0 x weight
 
 
-def conventions_for(bpy_version):
-    """The engine's conventions (photonlm.Scene.set_conventions) for a Blender version tuple
-    (bpy.app.version): "cycles-4" from Blender 4.0 (area light radiance P / (pi A), spots without
-    the cosine factor), "cycles-3.4" before. The Principled BSDF needs no setting: _principled
-    reads the node's own sockets."""
-    return "cycles-4" if tuple(bpy_version)[:1] >= (4,) else "cycles-3.4"
-
+# Closures baked as diffuse of their Color (Sheen BSDF is Velvet's successor from Blender 4.0).
 DIFFUSE_LEAVES = {'ShaderNodeBsdfDiffuse', 'ShaderNodeSubsurfaceScattering', 'ShaderNodeBsdfVelvet',
-                  'ShaderNodeBsdfToon', 'ShaderNodeBsdfHair', 'ShaderNodeBsdfHairPrincipled'}
+                  'ShaderNodeBsdfSheen', 'ShaderNodeBsdfToon', 'ShaderNodeBsdfHair', 'ShaderNodeBsdfHairPrincipled'}
 
 
 class Lobe:

@@ -295,7 +295,7 @@ class Scene(_Handle):
         (Blender 3.x, the default: area light radiance P / (4 A), spot intensity with a cos factor
         in the cone) or "cycles-4" (Blender 4.0 to 5.2: area radiance P / (pi A), spot intensity
         the smoothstep alone). Point and sun lights, emission and the world do not change.
-        photonlm_blender.flatten.conventions_for(bpy.app.version) gives the name for a Blender."""
+        photonlm_blender.compat.cycles_conventions() gives the name for the running Blender."""
         if conventions not in self.CONVENTIONS:
             raise ValueError("conventions must be one of %s, got %r" % (sorted(self.CONVENTIONS), conventions))
         _check(_C.plm_scene_set_conventions(self._h, self.CONVENTIONS[conventions]))
