@@ -351,8 +351,10 @@ def cycles_bake(objects, resolution, pass_filter, samples, bounces=32, seed=0, s
     """Cycles DIFFUSE bake (no COLOR: irradiance / pi) of each object's single material into a
     float image through the 'lightmap' UV map. resolution: texels per side, or None for each
     object's photonlm.resolution. supersample = k bakes k x k texels per lightmap texel and
-    box-averages them (a texel-average reference: a Cycles bake texel is the value at the texel
-    centre, not the average over it, at hard edges). Returns ({name: (h, w, 3)}, seconds)."""
+    box-averages them (a texel-average reference: a Cycles 3.4 bake texel is the average over the
+    texel's central 0.5 x 0.5 square, not over the whole texel, which shows at hard edges; the bakes
+    of Cycles 4.3 and 5.2 come closer to the whole-texel average: test_world_maps' sun-shadow edges
+    match photonlm's Texel Average there). Returns ({name: (h, w, 3)}, seconds)."""
     scene = bpy.context.scene
     scene.render.engine = 'CYCLES'
     c = scene.cycles
