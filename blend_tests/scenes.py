@@ -352,9 +352,9 @@ def cycles_bake(objects, resolution, pass_filter, samples, bounces=32, seed=0, s
     float image through the 'lightmap' UV map. resolution: texels per side, or None for each
     object's photonlm.resolution. supersample = k bakes k x k texels per lightmap texel and
     box-averages them (a texel-average reference: a Cycles 3.4 bake texel is the average over the
-    texel's central 0.5 x 0.5 square, not over the whole texel, which shows at hard edges; the bakes
-    of Cycles 4.3 and 5.2 come closer to the whole-texel average: test_world_maps' sun-shadow edges
-    match photonlm's Texel Average there). Returns ({name: (h, w, 3)}, seconds)."""
+    texel's central 0.5 x 0.5 square, not over the whole texel, which shows at hard edges; 4.3's is
+    too, 5.2's is the whole-texel average: test_world_maps' sun-shadow edges match photonlm's Texel
+    Average there). Returns ({name: (h, w, 3)}, seconds)."""
     scene = bpy.context.scene
     scene.render.engine = 'CYCLES'
     c = scene.cycles
