@@ -14,8 +14,9 @@ checkout=$(cd "$(dirname "$0")/.." && pwd)
 [ -x "$root/usr/bin/env" ] || { echo "in_root: $root is not a root made by scripts/blender_root.sh" >&2; exit 2; }
 sudo=""
 [ "$(id -u)" -eq 0 ] || sudo="sudo"
-# The bind targets are made in the root once (they stay empty directories outside the namespace).
-for d in proc dev sys tmp "${checkout#/}"; do [ -d "$root/$d" ] || $sudo mkdir -p "$root/$d"; done
+# The bind targets are made in the root once (they stay empty directories outside the namespace);
+# those under /tmp are made inside the namespace, on its fresh /tmp.
+for d in proc dev sys tmp; do [ -d "$root/$d" ] || $sudo mkdir -p "$root/$d"; done
 [ -z "${PHOTONLM_TEST_OUT:-}" ] || mkdir -p "$PHOTONLM_TEST_OUT"
 here=$PWD
 case "$here" in "$checkout"*|"${PHOTONLM_TEST_OUT:-/nonexistent}"*) ;; *) here=$checkout;; esac
@@ -28,6 +29,7 @@ exec $sudo env -u LD_LIBRARY_PATH -u LD_PRELOAD -u PYTHONHOME -u PYTHONPATH \
     mount --rbind /dev "$r/dev"
     mount --rbind /sys "$r/sys"
     mount -t tmpfs tmpfs "$r/tmp"
+    mkdir -p "$r$c"
     mount --bind "$c" "$r$c"
     if [ -n "${PHOTONLM_TEST_OUT:-}" ] && [ "${PHOTONLM_TEST_OUT#$c}" = "$PHOTONLM_TEST_OUT" ]; then
       mkdir -p "$r$PHOTONLM_TEST_OUT"
