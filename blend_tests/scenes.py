@@ -125,6 +125,19 @@ def out_dir(name):
     return d
 
 
+def exr_rgb(path):
+    """An EXR's RGB as Blender reads it: (h, w, 3) float32, row 0 = bottom (as the engine's
+    lightmap arrays)."""
+    image = bpy.data.images.load(path, check_existing=False)
+    try:
+        w, h = image.size
+        px = np.empty(w * h * 4, np.float32)
+        image.pixels.foreach_get(px)
+        return px.reshape(h, w, 4)[..., :3].copy()
+    finally:
+        bpy.data.images.remove(image)
+
+
 def cli_path():
     """The photonlm CLI: $PHOTONLM_CLI if set (a self-contained copy, for Blenders in other Debian
     roots), else the one built beside PHOTONLM_LIBRARY (build/bin beside build/lib)."""

@@ -78,18 +78,6 @@ with open(args["report"], "w") as f:
 """
 
 
-def exr_rgb(path):
-    import numpy as np
-    image = bpy.data.images.load(path, check_existing=False)
-    try:
-        w, h = image.size
-        px = np.empty(w * h * 4, np.float32)
-        image.pixels.foreach_get(px)
-        return px.reshape(h, w, 4)[..., :3].copy()
-    finally:
-        bpy.data.images.remove(image)
-
-
 def run(cmd, env=None, timeout=600):
     print("$ " + " ".join(cmd), flush=True)
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
@@ -156,7 +144,7 @@ def main():
     stats = rep.get("stats", {})
     checks.check(stats.get("photon_hits", 0) > 0, "photons hit the scene: %s hits" % stats.get("photon_hits"))
 
-    floor = exr_rgb(os.path.join(args["out"], "Floor_lightmap.exr"))
+    floor = scenes.exr_rgb(os.path.join(args["out"], "Floor_lightmap.exr"))
     h, w, _ = floor.shape
     centre = floor[h * 3 // 8:h * 5 // 8, w * 3 // 8:w * 5 // 8].mean()
     checks.check(floor.mean() > 0.0 and centre < 0.8 * floor.mean(),
@@ -172,9 +160,9 @@ def main():
         files = {o["object"]: o["lightmap_file"] for o in json.load(f).get("metadata", {}).get("objects", [])}
     checks.check(sorted(files) == rep.get("objects"), "the file names each baked object's lightmap: %s" % files)
     for name in rep.get("objects", []):
-        ours = exr_rgb(os.path.join(args["out"], name + "_lightmap.exr"))
+        ours = scenes.exr_rgb(os.path.join(args["out"], name + "_lightmap.exr"))
         theirs_path = os.path.join(cli_out, files.get(name, "?"))
-        theirs = exr_rgb(theirs_path) if os.path.isfile(theirs_path) else None
+        theirs = scenes.exr_rgb(theirs_path) if os.path.isfile(theirs_path) else None
         same = theirs is not None and theirs.shape == ours.shape and np.array_equal(theirs, ours)
         diff = float(np.max(np.abs(theirs - ours))) if theirs is not None and theirs.shape == ours.shape else -1
         checks.check(same, "%s: the add-on's lightmap equals the CLI's bit for bit (max |diff| %.3g)" % (name, diff))

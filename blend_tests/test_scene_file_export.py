@@ -39,18 +39,6 @@ SEED = 7
 TOL = 1e-5
 
 
-def exr_rgb(path):
-    """(h, w, 3) float32, row 0 = bottom (as the engine's lightmap arrays)."""
-    image = bpy.data.images.load(path, check_existing=False)
-    try:
-        w, h = image.size
-        px = np.empty(w * h * 4, np.float32)
-        image.pixels.foreach_get(px)
-        return px.reshape(h, w, 4)[..., :3].copy()
-    finally:
-        bpy.data.images.remove(image)
-
-
 def build_scene():
     scenes.clear_scene()
     objs = scenes.cornell_box(resolution=16)
@@ -94,7 +82,7 @@ def compare(checks, what, ours, files):
         if name not in files or not os.path.isfile(files[name]):
             missing.append(name)
             continue
-        other = exr_rgb(files[name])
+        other = scenes.exr_rgb(files[name])
         if other.shape != rgb.shape:
             missing.append("%s (shape %s, want %s)" % (name, other.shape, rgb.shape))
             continue
@@ -119,7 +107,7 @@ def main():
     bpy.context.scene.photonlm.output_dir = os.path.join(out, "addon")
     last = scenes.photonlm_bake(PHOTONS, 64, seed=SEED, target_error=0.0, direct_samples=16)
     ours = {name: np.array(o["rgb"], np.float32) for name, o in last["objects"].items()}
-    ol_ours = {g: exr_rgb(o["path"]) for g, o in last["ols"].items()}
+    ol_ours = {g: scenes.exr_rgb(o["path"]) for g, o in last["ols"].items()}
     checks.check(len(ours) == 8 and len(ol_ours) == 1,
                  "the add-on baked 8 lightmaps and 1 OL (%d, %d)" % (len(ours), len(ol_ours)))
 

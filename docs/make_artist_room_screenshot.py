@@ -17,7 +17,6 @@ import sys
 import time
 
 import bpy
-from mathutils import Vector
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import window_shots as ws  # noqa: E402
@@ -76,17 +75,6 @@ def setup():
         print("make_artist_room_screenshot: report %s: %s" % (level, text), flush=True)
 
 
-def look(space, eye, target, lens):
-    eye, target = Vector(eye), Vector(target)
-    r3d = space.region_3d
-    r3d.view_perspective = 'PERSP'
-    r3d.view_location = target
-    r3d.view_rotation = (target - eye).to_track_quat('-Z', 'Y')
-    r3d.view_distance = (target - eye).length
-    space.lens = lens
-    space.clip_start = 0.01
-
-
 def shot(win, screen, area, name):
     return ws.shot(win, screen, area, os.path.join(OUT, name + ".png"))
 
@@ -115,7 +103,7 @@ def steps():
     bpy.context.scene.photonlm.preview = True
     yield SHADER_WAIT
     for name, (eye, target, lens) in VIEWS.items():
-        look(space, eye, target, lens)
+        ws.look(space, eye, target, lens)
         area.tag_redraw()
         yield 2.0
         path = shot(win, screen, area, name)
@@ -124,7 +112,7 @@ def steps():
             shutil.copyfile(path, dst)
             print("make_artist_room_screenshot: wrote %s" % dst, flush=True)
     bpy.context.scene.photonlm.preview = False
-    look(space, *VIEWS["room_inside"])
+    ws.look(space, *VIEWS["room_inside"])
     yield SHADER_WAIT
     shot(win, screen, area, "room_inside_preview_off")
     yield 0.5

@@ -17,7 +17,6 @@ import sys
 import time
 
 import bpy
-from mathutils import Vector
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import window_shots as ws  # noqa: E402
@@ -72,17 +71,6 @@ def save_scaled(src, dst, width):
     bpy.data.images.remove(img)
 
 
-def look(space, eye, target, lens):
-    eye, target = Vector(eye), Vector(target)
-    r3d = space.region_3d
-    r3d.view_perspective = 'PERSP'
-    r3d.view_location = target
-    r3d.view_rotation = (target - eye).to_track_quat('-Z', 'Y')
-    r3d.view_distance = (target - eye).length
-    space.lens = lens
-    space.clip_start = 0.01
-
-
 def steps():
     sys.path.insert(0, os.path.join(SRC, "blend_tests"))
     os.environ.setdefault("PHOTONLM_SOURCE_DIR", SRC)
@@ -118,7 +106,7 @@ def steps():
         space.shading.type = 'MATERIAL'
         space.shading.use_scene_lights = True
         space.shading.use_scene_world = True
-        look(space, *view)
+        ws.look(space, *view)
         for o in bpy.context.view_layer.objects:
             o.select_set(False)
         for mode, suffix in (('LIGHTMAP', ""), ('OFF', "_preview_off")):

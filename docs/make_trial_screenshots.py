@@ -137,17 +137,6 @@ def setup():
         ws.log("report %s: %s" % (level, text))
 
 
-def look(space, eye, target, lens):
-    eye, target = Vector(eye), Vector(target)
-    r3d = space.region_3d
-    r3d.view_perspective = 'PERSP'
-    r3d.view_location = target
-    r3d.view_rotation = (target - eye).to_track_quat('-Z', 'Y')
-    r3d.view_distance = (target - eye).length
-    space.lens = lens
-    space.clip_start = 0.01
-
-
 def camera():
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     bpy.context.scene.collection.objects.link(cam)
@@ -197,7 +186,7 @@ def steps():
     space.show_gizmo = False
     for o in bpy.context.view_layer.objects:
         o.select_set(False)
-    look(space, EYE, TARGET_POINT, LENS)
+    ws.look(space, EYE, TARGET_POINT, LENS)
     props = next((a for a in screen.areas if a.type == 'PROPERTIES'), None)
     if props is not None:
         props.spaces.active.context = 'RENDER'

@@ -70,6 +70,19 @@ def cornell_view(view3d):
     r3d.view_distance = 3.5
 
 
+def look(space, eye, target, lens):
+    """Point a 3D viewport's view from eye at target with a lens of `lens` mm."""
+    from mathutils import Vector
+    eye, target = Vector(eye), Vector(target)
+    r3d = space.region_3d
+    r3d.view_perspective = 'PERSP'
+    r3d.view_location = target
+    r3d.view_rotation = (target - eye).to_track_quat('-Z', 'Y')
+    r3d.view_distance = (target - eye).length
+    space.lens = lens
+    space.clip_start = 0.01
+
+
 def window_region(area):
     return next(r for r in area.regions if r.type == 'WINDOW')
 
