@@ -35,7 +35,7 @@ SRC = ws.SRC
 argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 OUT = os.path.abspath(argv[0]) if argv else "/tmp/trial_shots"
 EYE, TARGET_POINT, LENS = (-2.85, -1.5, 1.65), (1.8, 0.5, 0.8), 18.0
-RENDER_SIZE = (960, 600)
+RENDER_SIZE = (800, 500)
 
 
 def version_tag():
@@ -208,7 +208,7 @@ def steps():
     render("EEVEE", os.path.join(OUT, "trial_eevee.png"), 0)
     save("trial_eevee")
     bpy.context.scene.photonlm.preview = False
-    render("CYCLES", os.path.join(OUT, "trial_cycles.png"), int(os.environ.get("PHOTONLM_DOC_SAMPLES", 64)))
+    render("CYCLES", os.path.join(OUT, "trial_cycles.png"), int(os.environ.get("PHOTONLM_DOC_SAMPLES", 32)))
     save("trial_cycles")
     yield 0.5
     bpy.ops.wm.quit_blender()
