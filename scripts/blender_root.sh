@@ -16,8 +16,9 @@ case "$suite" in trixie|sid) ;; *) echo "blender_root: unknown suite '$suite' (t
 roots=${PHOTONLM_ROOTS:-/var/cache/photonlm/roots}
 root="$roots/$suite"
 stamp="$root/.photonlm-root"
-# xvfb, xauth: windowed tests; libegl1, libegl-mesa0: EEVEE renders headless (-b); x11-apps, netpbm: screen grabs for the docs' screenshots where
-# Blender's own read back black (llvmpipe); python3-cattr, python3-requests: sid's extension system.
+# xvfb, xauth: windowed tests; libegl1, libegl-mesa0: EEVEE renders headless (-b); x11-apps, netpbm:
+# screen grabs for the docs' screenshots where Blender's own read back black (llvmpipe);
+# python3-cattr, python3-requests: sid's extension system.
 packages="blender xvfb xauth libegl1 libegl-mesa0 x11-apps netpbm python3-numpy python3-cattr python3-requests ca-certificates"
 if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$packages" ]; then
   echo "$root"; exit 0
@@ -42,7 +43,8 @@ fi
 if [ -f "$stamp" ]; then  # a finished root made for another package list: install what it lacks
   echo "blender_root: installing $packages into the $suite root" >&2
   if env -i PATH=/usr/sbin:/usr/bin:/sbin:/bin DEBIAN_FRONTEND=noninteractive "$(dirname "$0")/in_root.sh" "$root" \
-       sh -c "apt-get install -y -qq --no-install-recommends $packages && apt-get clean" > "$roots/$suite.packages.log" 2>&1; then
+       sh -c "apt-get update -qq && apt-get install -y -qq --no-install-recommends $packages && apt-get clean" \
+       > "$roots/$suite.packages.log" 2>&1; then
     echo "$packages" | $sudo tee "$stamp" >/dev/null
     echo "$root"; exit 0
   fi
