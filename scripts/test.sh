@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # README command 2: install what is missing, build, run every test: C++ unit
 # tests (CTest), the Python bridge tests (pytest) and the headless Blender
-# tests in Blender 3.4, 4.3 and 5.2 (blend_tests/blenders.txt says which where), then the C++ unit tests again under AddressSanitizer + UBSan, then
+# tests in Blender 3.4, 4.3 and 5.2 (blend_tests/blenders.txt says which where),
+# then the C++ unit tests again under AddressSanitizer + UBSan, then
 # 150,000 libFuzzer inputs from a fixed seed on the C API (scripts/fuzz.sh, clang, build-fuzz/),
 # tame floats (within +-1e8, no denormals): a regression run over the committed corpus (which
 # holds every crash found so far) that does not fail on luck. Exploration with the full float
