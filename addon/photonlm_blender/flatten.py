@@ -548,6 +548,19 @@ def _emission(reader, color, strength, path, w, node):
     flat.emission = [a + w * s * max(c, 0.0) for a, c in zip(flat.emission, rgb)]
 
 
+def _base_constant(reader, node, path, name):
+    """base_constant(why): a Principled BSDF's Base Color as one constant (a texture's mean), read on
+    first use (why says what needs it, for the report) and kept."""
+    cache = []
+
+    def base_constant(why):
+        if not cache:
+            cache.append(reader.color(node.inputs['Base Color'], path, "%s Base Color (%s)" % (name, why),
+                                      FALLBACK_ALBEDO))
+        return cache[0]
+    return base_constant
+
+
 def _principled(reader, node, path, w):
     if 'Specular IOR Level' in node.inputs:
         _principled_v2(reader, node, path, w)
@@ -612,13 +625,7 @@ def _principled_v2(reader, node, path, w):
     glass_w = w * (1.0 - metallic) * transmission
     spec_w = w * (1.0 - metallic) * (1.0 - transmission)
     distribution = getattr(node, "distribution", 'MULTI_GGX')
-    base = None
-
-    def base_constant(why):
-        nonlocal base
-        if base is None:
-            base = reader.color(inp['Base Color'], path, "%s Base Color (%s)" % (name, why), FALLBACK_ALBEDO)
-        return base
+    base_constant = _base_constant(reader, node, path, name)
 
     if abs(val('Anisotropic')) > CUTOFF and rough > 0.0:
         flat.approx("%s: anisotropy traced as isotropic roughness %.3g" % (name, rough))
@@ -698,13 +705,7 @@ def _principled_v1(reader, node, path, w):
     subsurface = min(max(val('Subsurface'), 0.0), 1.0)
 
     # The base colour: a texture for the diffuse part, its mean wherever a constant is needed.
-    base = None
-
-    def base_constant(why):
-        nonlocal base
-        if base is None:
-            base = reader.color(inp['Base Color'], path, "%s Base Color (%s)" % (name, why), FALLBACK_ALBEDO)
-        return base
+    base_constant = _base_constant(reader, node, path, name)
 
     if diffuse_w > CUTOFF:
         # Cycles 3.4's Principled diffuse is Burley's, of the node's Roughness.
