@@ -164,13 +164,14 @@ Lightmap lit_plane(const plm_light& light, uint32_t res, uint64_t photons, const
   return r.map(0);
 }
 
-// Where Cycles 3.4 bakes the point (x, y) of a texel whose centre is
-// (cx, cy), on the square [lo, lo + size]^2 that SceneBuilder::quad splits
-// into triangles (a, b, d) and (a, d, c) (a = lo corner, d = opposite): in the
-// triangle that owns the centre (the later one on the diagonal), folded back
-// into it by mirror repeat of the barycentric coordinates u (of its corner 0),
-// then v (of corner 1) within [0, 1 - u]. Measured against Cycles in headless
-// Blender: docs/design.md.
+// Where Cycles 3.4 bakes the point (x, y) of a texel whose centre is (cx, cy),
+// on the square [lo, lo + size]^2 that SceneBuilder::quad splits into triangles
+// (a, b, d) and (a, d, c) (a = lo corner, d = opposite): in the triangle that
+// owns the centre (the later one on the diagonal), folded back into it by
+// mirror repeat of the barycentric coordinates u (of its corner 0), then v (of
+// corner 1) within [0, 1 - u]. Measured against Cycles in headless Blender:
+// docs/design/texels.md, "Where the central square crosses a triangle edge, it
+// is folded back into one triangle".
 void cycles_fold(double lo, double size, double cx, double cy, double& x, double& y) {
   auto mirror = [](double t, double range) {
     const double q = t / range, f = std::floor(q), r = q - f;

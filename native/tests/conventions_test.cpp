@@ -1,4 +1,4 @@
-// Cycles versions' conventions (docs/design.md "Cycles versions") against
+// Cycles versions' conventions (docs/design/cycles-versions.md) against
 // closed forms: an area light's irradiance on its axis and a spot's intensity
 // in and around its cone under Cycles 3.4's and Cycles 4's conventions, and
 // Cycles 4's Principled specular layer (SPECULAR lobe): its tabulated albedo

@@ -1,9 +1,10 @@
 // The texel a final-gather ray looks up: a hit on a triangle's edge that lies
 // on a texel boundary rounds into the texel beyond it, which the triangle does
 // not cover (no area, nothing to look up). The gather then counted the ray as
-// unknown and dropped the texel's whole gather; on a subdivided monkey's
-// island borders one such ray in 256 left a barely covered texel with the
-// photon estimate of a sliver (docs/design.md, "Final gather").
+// unknown and dropped the texel's whole gather; on a subdivided monkey's island
+// borders one such ray in 256 left a barely covered texel with the photon
+// estimate of a sliver (docs/design/error-and-gather.md, "Where the gather is
+// not used").
 #include <gtest/gtest.h>
 
 #include <cmath>

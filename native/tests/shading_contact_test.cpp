@@ -1,7 +1,8 @@
 // Smooth shading (shading normals) and faces in contact, checked against
-// analytic answers and Cycles' conventions (DESIGN.md): a smooth-shaded face
-// is lit with its interpolated normal, light from below the triangle's own
-// plane does not count, and a face pressed flat against another gets no light.
+// analytic answers and Cycles' conventions (docs/design/texels.md, "Shading
+// normals", "Faces in contact"): a smooth-shaded face is lit with its
+// interpolated normal, light from below the triangle's own plane does not
+// count, and a face pressed flat against another gets no light.
 #include <gtest/gtest.h>
 
 #include <cmath>

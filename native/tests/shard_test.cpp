@@ -555,14 +555,14 @@ TEST(TexelRanges, MergeRefusesRangesThatDoNotBelong) {
   }
 }
 
-// Direct ranges under a target (the rule in docs/design.md "Sharded bakes"):
-// each range's rounds aim at the target relative to the whole's mean with
-// the whole's phantom sample, so the merged direct light meets the direct
-// pass's share of the target, measured against a bake with 1024 direct
-// samples a texel (the same photons: the images then differ by the direct
-// light's error), and the error the merge reports is honest. A room whose
-// last range (a box on the floor, mostly in shadow) is far darker than the
-// rest: with its own mean and phantom sample that range would stop early.
+// Direct ranges under a target (the rule in docs/design/sharding.md, "A target
+// across texel ranges"): each range's rounds aim at the target relative to the
+// whole's mean with the whole's phantom sample, so the merged direct light
+// meets the direct pass's share of the target, measured against a bake with
+// 1024 direct samples a texel (the same photons: the images then differ by the
+// direct light's error), and the error the merge reports is honest. A room
+// whose last range (a box on the floor, mostly in shadow) is far darker than
+// the rest: with its own mean and phantom sample that range would stop early.
 TEST(TexelRanges, DirectRangesMeetTheTargetTogether) {
   plm_demo::SceneBuilder b;
   const uint32_t white = b.material("white", {0.75f, 0.75f, 0.75f});

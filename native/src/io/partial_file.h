@@ -1,8 +1,8 @@
-// A part file of a sharded bake (docs/design.md "Sharded bakes"): the photon
-// sums of one shard, or the direct pass or final gather of one texel range
-// (transport/texel_ranges.h), with what they belong to (scene hash, settings,
-// seed, engine version, shard or range index and count, sizes), in a small
-// binary format:
+// A part file of a sharded bake (docs/design/sharding.md, "The part file"): the
+// photon sums of one shard, or the direct pass or final gather of one texel
+// range (transport/texel_ranges.h), with what they belong to (scene hash,
+// settings, seed, engine version, shard or range index and count, sizes), in a
+// small binary format:
 //
 //   header  (kPartHeaderBytes, little-endian)
 //     magic "PLMPART\0", format version, header size, engine version (16 chars),

@@ -1,7 +1,7 @@
 // An L-system as a cyclic scene graph of node classes, traced without
-// flattening (docs/design.md, "L-system objects"): Graph builds the classes
-// with their bounds from a parsed system and answers closest-hit and
-// occlusion queries (or Embree's, through attach_graph) with per-thread
+// flattening (docs/design/geometry-kinds.md, "L-system objects"): Graph builds
+// the classes with their bounds from a parsed system and answers closest-hit
+// and occlusion queries (or Embree's, through attach_graph) with per-thread
 // caches of expanded nodes; it also flattens the plant for areas and tests.
 #pragma once
 

@@ -7,7 +7,8 @@
 // the same normal then shows the same lighting. Energy is neither lost nor
 // made: sum over bins of radiosity * pi * area = flux / photon count.
 //
-// Values are irradiance / pi, like every texel of the engine (DESIGN.md 4).
+// Values are irradiance / pi, like every texel of the engine
+// (docs/design/texels.md, "Irradiance / pi, as a Cycles DIFFUSE bake").
 #pragma once
 
 #include <cstdint>

@@ -112,7 +112,8 @@ struct Scene {
   // An environment map as the world (transport/environment.h), null for the
   // uniform world; setting one clears the other.
   std::shared_ptr<const EnvironmentMap> world_map;
-  // Whose Cycles the lights follow (plm_conventions; docs/design.md "Cycles versions").
+  // Whose Cycles the lights follow (plm_conventions;
+  // docs/design/cycles-versions.md).
   int32_t conventions = PLM_CONVENTIONS_CYCLES_3_4;
 
   void set_conventions(int32_t value);

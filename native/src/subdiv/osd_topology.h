@@ -62,9 +62,11 @@ struct Topology {
 
 using RefinerFactory = OpenSubdiv::Far::TopologyRefinerFactory<OpenSubdiv::Far::TopologyDescriptor>;
 
-// Blender's defaults, measured against Blender 3.4 (docs/design.md): Catmull-Clark
-// also on triangles, boundary smooth "All" = edges only, UV smooth "Keep
-// Boundaries", uniform creasing.
+// Blender's defaults, measured against Blender 3.4
+// (docs/design/geometry-kinds.md, "Subdivision surfaces are refined in the
+// engine, as Blender evaluates them"): Catmull-Clark also on triangles,
+// boundary smooth "All" = edges only, UV smooth "Keep Boundaries", uniform
+// creasing.
 inline RefinerFactory::Options blender_options() {
   using OpenSubdiv::Sdc::Options;
   Options sdc;

@@ -123,7 +123,7 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
   arena.execute([&] { contact = contact_candidates(accel.handle(), scene, space.views, surfaces, 1e-6f * extent); });
   for (size_t i = 0; i < space.views.size(); ++i)
     if (!contact[i].empty()) space.views[i].contact = contact[i].data();
-  // Specular lobes (docs/design.md "Materials"): flattened, and the passage
+  // Specular lobes (docs/design/materials.md): flattened, and the passage
   // of straight rays through panes and transparent surfaces; nothing in
   // scenes without lobes.
   const MaterialTable lobes = scene.has_lobes() || scene.has_burley() ? MaterialTable(scene) : MaterialTable();

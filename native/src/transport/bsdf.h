@@ -1,4 +1,4 @@
-// The specular lobes' scattering (docs/design.md "Materials"), following
+// The specular lobes' scattering (docs/design/materials.md), following
 // Cycles 3.4's closures: exact unpolarised Fresnel for dielectrics, the
 // Principled BSDF's F0-to-1 Fresnel curve, GGX with separable Smith masking
 // (G = G1(i) G1(o), as Cycles' single-scattering GGX) and visible-normal
@@ -197,8 +197,9 @@ inline LobeSample sample_lobe(const LobeParams& p, Vec3 wi, bool front, float io
 }
 
 // A SPECULAR lobe's energy (Cycles 4's Multiscatter GGX under a dielectric
-// Fresnel, docs/design.md "Cycles versions"), tabulated over the cosine of the
-// direction the light leaves at kLayerNodes evenly spaced nodes 0..1:
+// Fresnel, docs/design/cycles-versions.md, "Principled BSDF v2"), tabulated
+// over the cosine of the direction the light leaves at kLayerNodes evenly
+// spaced nodes 0..1:
 //   E      the single-scattering GGX albedo with Fresnel 1
 //   A      the layer's directional albedo per unit weight, largest channel:
 //          (E + Fms (1 - E)) (f0 + (1 - f0) s), s the mean over visible

@@ -34,7 +34,7 @@ double spot_solid_angle_integral(float cos_half, float spot_smooth, bool cosine)
   return 2.0 * kPiD * sum * (1.0 - cos_half) / n;
 }
 
-// conventions: plm_conventions (docs/design.md "Cycles versions").
+// conventions: plm_conventions (docs/design/cycles-versions.md).
 Emitter light_emitter(const Light& light, int32_t conventions) {
   const bool cycles4 = conventions == PLM_CONVENTIONS_CYCLES_4;
   const plm_light& l = light.desc;

@@ -71,10 +71,11 @@ void for_lightmaps(size_t count, Texels&& texels, Each&& each) {
 TexelSpace build_texel_space(const Scene& scene, std::vector<std::string>& warnings);
 
 // Photon fluxes are added as whole multiples of a power-of-two quantum
-// (docs/design.md "Photon pass"): each hit is rounded to the quantum once,
-// and sums of such multiples are exact in double precision while below 2^53
-// quanta, so the sums do not depend on the order of addition. Shards of a
-// bake (transport/shard.h) then add up to the single-machine sums bit for bit.
+// (docs/design/sharding.md, "Why the merge is exact"): each hit is rounded to
+// the quantum once, and sums of such multiples are exact in double precision
+// while below 2^53 quanta, so the sums do not depend on the order of addition.
+// Shards of a bake (transport/shard.h) then add up to the single-machine sums
+// bit for bit.
 struct FluxQuantum {
   double q = 1.0, inv_q = 1.0;    // of a flux
   double q2 = 1.0, inv_q2 = 1.0;  // of a squared flux

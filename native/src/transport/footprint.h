@@ -1,13 +1,14 @@
-// Where sun and world photons start (docs/design.md "Lights"): on the box
-// around everything that records photons (lightmaps, OLs, CSG solids,
-// L-system objects) as seen along the photon's direction, a share `aim` of
-// them, the rest on the box around all geometry, so that light reaching the
-// recording objects only by way of other geometry still arrives. A line's
-// density per unit area across its direction is aim / A_r(d) where it crosses
-// the recording box plus (1 - aim) / A_s(d) where it crosses the scene's, the
-// A(d) being the boxes' exact projected areas: photons carry radiance over that
-// density, so the sum stays unbiased. Blockers outside the recording box still
-// block: a photon starts `reach` behind the box, outside all geometry.
+// Where sun and world photons start (docs/design/lights.md, "Sun and sky
+// photons are aimed at what records them"): on the box around everything that
+// records photons (lightmaps, OLs, CSG solids, L-system objects) as seen along
+// the photon's direction, a share `aim` of them, the rest on the box around all
+// geometry, so that light reaching the recording objects only by way of other
+// geometry still arrives. A line's density per unit area across its direction
+// is aim / A_r(d) where it crosses the recording box plus (1 - aim) / A_s(d)
+// where it crosses the scene's, the A(d) being the boxes' exact projected
+// areas: photons carry radiance over that density, so the sum stays unbiased.
+// Blockers outside the recording box still block: a photon starts `reach`
+// behind the box, outside all geometry.
 #pragma once
 
 #include <algorithm>

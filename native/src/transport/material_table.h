@@ -1,5 +1,5 @@
-// The materials' lobes flattened for the hot loops (docs/design.md
-// "Materials"), and how each material lets straight rays through:
+// The materials' lobes flattened for the hot loops (docs/design/materials.md),
+// and how each material lets straight rays through:
 //   Opaque       blocks shadow and gather rays
 //   Transparent  every lobe is TRANSPARENT: a straight ray passes, weight
 //                the lobes' summed tint

@@ -1,17 +1,18 @@
 // Straight rays through passable surfaces (transport/material_table.h:
-// TRANSPARENT lobes, smooth panes): the direct pass's shadow rays and the
-// final gather's rays go on through them with a weight, so the direct light
-// through a window is computed per texel instead of carried by photons
-// (docs/design.md "Materials"). A pane passes a ray that enters one of its
-// faces and leaves by the very next surface on the line, a face of a pane
-// material of the same ior whose normal is opposite (a parallel face; a
-// glass slab), crossing it the other way: the refracted ray leaves in its
-// original direction, so the straight ray is exact up to the slab's lateral
-// offset. Its weight is tint_in tint_out T^2, T = 1 - F(cos, eta) the exact
-// Fresnel transmission at the entry angle (the same at the exit by
-// reciprocity). Anything else stops the ray. Photons classify their paths
-// by the same rule (transport/photon_tracer.cpp), so no light is counted
-// twice. CSG solids and L-system objects are opaque to these rays.
+// TRANSPARENT lobes, smooth panes): the direct pass's shadow rays and the final
+// gather's rays go on through them with a weight, so the direct light through a
+// window is computed per texel instead of carried by photons
+// (docs/design/materials.md, "Direct light through glass: straight rays pass
+// panes"). A pane passes a ray that enters one of its faces and leaves by the
+// very next surface on the line, a face of a pane material of the same ior
+// whose normal is opposite (a parallel face; a glass slab), crossing it the
+// other way: the refracted ray leaves in its original direction, so the
+// straight ray is exact up to the slab's lateral offset. Its weight is tint_in
+// tint_out T^2, T = 1 - F(cos, eta) the exact Fresnel transmission at the entry
+// angle (the same at the exit by reciprocity). Anything else stops the ray.
+// Photons classify their paths by the same rule (transport/photon_tracer.cpp),
+// so no light is counted twice. CSG solids and L-system objects are opaque to
+// these rays.
 #pragma once
 
 #include <embree3/rtcore.h>

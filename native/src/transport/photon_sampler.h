@@ -2,8 +2,9 @@
 // group 1 + depth that bounce. By default the light choice follows a rotated
 // van der Corput sequence over the photon index (stratified for any photon
 // count) and the rest is pseudo-random (Sobol paths do not lower texel errors,
-// see docs/design.md); PLM_SAMPLER_SOBOL draws Sobol points keyed per batch,
-// so batches stay independent replicates for the error estimate.
+// see docs/design/direct.md, "Sobol points where they pay"); PLM_SAMPLER_SOBOL
+// draws Sobol points keyed per batch, so batches stay independent replicates
+// for the error estimate.
 #pragma once
 
 #include <cstdint>

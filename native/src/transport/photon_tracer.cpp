@@ -15,7 +15,7 @@ namespace {
 // cos(geometric normal) of its arrival direction (the irradiance a texel holds
 // is taken about the shading normal), at most this much: near grazing
 // incidence the ratio has no bound, and its variance with it (what the cap
-// loses: docs/design.md, "Shading normals").
+// loses: docs/design/texels.md, "Shading normals").
 constexpr float kMaxShadingRatio = 16.0f;
 
 // The base-3 radical inverse of i: the dispersed photons' wavelengths, stratified over the photon index.

@@ -142,10 +142,11 @@ class PhotonTracer {
   void trace_lobe_batch(uint64_t first, uint64_t count, lsystem::GraphHit& graph_hit, BatchOutput& out) const;
   template <bool kMeshOnly, bool kLobes>
   void trace_photon(uint64_t index, lsystem::GraphHit& graph_hit, BatchOutput& out) const;
-  // A photon path's class in a scene with lobes (docs/design.md "Materials"):
-  // by its last event that is not a passage (a TRANSPARENT lobe, or a pane
-  // entered and left by its parallel face): none (the light itself) is
-  // direct light, a diffuse bounce indirect, a specular event a caustic.
+  // A photon path's class in a scene with lobes (docs/design/materials.md,
+  // "Direct light through glass: straight rays pass panes"): by its last event
+  // that is not a passage (a TRANSPARENT lobe, or a pane entered and left by
+  // its parallel face): none (the light itself) is direct light, a diffuse
+  // bounce indirect, a specular event a caustic.
   enum PathClass : uint8_t { kDirect, kIndirect, kCaustic };
   struct PathState {
     PathClass cls = kDirect;

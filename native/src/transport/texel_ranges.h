@@ -1,11 +1,12 @@
-// The texel-range stages of a sharded bake (docs/farm.md, docs/design.md
-// "Sharded bakes"): the direct pass and the final gather split by contiguous
-// ranges of the covered texels. A texel's direct samples and gather rays
-// depend on the texel, the seed and (the gather) the estimate it looks up,
-// never on which other texels run beside it, so range k of n holds exactly
-// the sums one machine computes for those texels; the merge joins the ranges
-// and derives what reads all texels (the phantom samples, the Sobol
-// calibration's scale) as one machine does.
+// The texel-range stages of a sharded bake (docs/farm.md,
+// docs/design/sharding.md, "Texel ranges split the direct pass and the final
+// gather"): the direct pass and the final gather split by contiguous ranges of
+// the covered texels. A texel's direct samples and gather rays depend on the
+// texel, the seed and (the gather) the estimate it looks up, never on which
+// other texels run beside it, so range k of n holds exactly the sums one
+// machine computes for those texels; the merge joins the ranges and derives
+// what reads all texels (the phantom samples, the Sobol calibration's scale) as
+// one machine does.
 #pragma once
 
 #include <cstddef>
