@@ -1,4 +1,4 @@
-// Caustic density estimation compared (docs/benchmarks.md "Caustics"): the
+// Caustic density estimation compared (docs/benchmarks/engine.md "Caustics"): the
 // engine's per-texel deposit with its reconstruction (pooling radius chosen
 // by estimated error, lightmap/reconstruct.h) against a k-nearest-photon
 // estimate on a uniform grid [Purcell03] at each texel's centre, on the same

@@ -1,5 +1,5 @@
 // Ray cost of an L-system traced as a cyclic scene graph against the same
-// plant flattened (docs/benchmarks.md, "L-system objects").
+// plant flattened (docs/benchmarks/geometry.md, "L-system objects").
 //   build/bin/photonlm_bench_lsystem [--depth 15] [--rays 200000] [--repeats 5] [--bounds-budget N]
 //                                    [--cache-bytes N: the graph's per-thread cache, default 64 MiB]
 //                                    [--summary: only the summary | --no-summary] [Google Benchmark flags]

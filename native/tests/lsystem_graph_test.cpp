@@ -695,7 +695,7 @@ TEST(LSystemGraph, ExactBoundsHoldThePlantAndAreTighter) {
     }
     EXPECT_GT(hits, rays.size() / 20);
     std::cout << "[bounds] " << hits << " hits, " << ties << " on coincident primitives of other instances\n";
-    // The tree of docs/benchmarks.md's ray-cost bench against brute force over
+    // The tree of docs/benchmarks/geometry.md's ray-cost bench against brute force over
     // its flattened primitives (its thin twigs: fewer rays hit than elsewhere).
     if (text != sympodial) continue;
     size_t bhits = 0, mismatches = 0;

@@ -239,7 +239,7 @@ TEST(ObjectSeams, NoSharedEdgesNothingToDo) {
 
 namespace {
 
-// docs/benchmarks.md: the cost of finding seams in a scene of many borders
+// docs/benchmarks/geometry.md: the cost of finding seams in a scene of many borders
 // that meet nowhere (run with --gtest_also_run_disabled_tests
 // --gtest_filter=ObjectSeams.DISABLED_CostWithoutSharedBorders).
 TEST(ObjectSeams, DISABLED_CostWithoutSharedBorders) {

@@ -163,7 +163,7 @@ TEST(OlLimitArea, ErrorCoversTheSpreadOverSeeds) {
   EXPECT_LE(spread, 1.5 * err);
 }
 
-// docs/benchmarks.md: set-up time and area error against samples (run with
+// docs/benchmarks/geometry.md: set-up time and area error against samples (run with
 // --gtest_also_run_disabled_tests --gtest_filter=OlLimitArea.DISABLED_TimeAndErrorAgainstSamples).
 TEST(OlLimitArea, DISABLED_TimeAndErrorAgainstSamples) {
   const CubeCage cube;

@@ -456,7 +456,7 @@ typedef enum plm_texel_value {
   PLM_TEXEL_AREA = 1    /* the average over the texel's whole covered area (smoother shadow edges) */
 } plm_texel_value;
 
-/* How sample points are drawn (docs/benchmarks.md compares them). */
+/* How sample points are drawn (docs/benchmarks/engine.md compares them). */
 typedef enum plm_sampler {
   PLM_SAMPLER_DEFAULT = 0, /* Sobol where it lowers the error (direct pass), pseudo-random photons */
   PLM_SAMPLER_RANDOM = 1,  /* pseudo-random numbers everywhere */

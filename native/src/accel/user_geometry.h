@@ -6,7 +6,7 @@
 // callbacks return at once. With one primitive the geometry's BVH is a single
 // leaf, and Embree tests no box before a leaf that is the root of its BVH: the
 // callbacks ran for every ray of the scene (one L-system tree in the bake of
-// docs/benchmarks.md: 2.33 M calls, 1.83 M of them for rays that miss the
+// docs/benchmarks/geometry.md: 2.33 M calls, 1.83 M of them for rays that miss the
 // tree's box). With two, the root is an inner node whose box test culls them.
 // The sentinel lives here alone: the object's callbacks never see it.
 #pragma once
