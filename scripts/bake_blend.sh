@@ -4,7 +4,7 @@
 #                         [--seed N] [--save [--pack]] [--export-scene SCENE.json]
 # Uses this source tree's add-on and build/lib/libphotonlm.so (or $PHOTONLM_LIBRARY; without
 # either, the add-on installed in Blender). Prints progress and the reached error; exits non-zero
-# with a message on failure. See docs/user-guide.md (Batch baking).
+# with a message on failure. See docs/batch-baking.md.
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
 if [ $# -lt 1 ] || [ "${1#-}" != "$1" ]; then
