@@ -53,7 +53,8 @@ void BM_CornellBake(benchmark::State& state) {
       state.SkipWithError(plm_last_error());
       return;
     }
-    plm_bake_stats st;
+    plm_bake_stats st{};
+    st.struct_size = sizeof st;
     plm_result_stats(r, &st);
     rays = st.rays_traced;
     plm_result_release(r);

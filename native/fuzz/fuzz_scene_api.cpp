@@ -1,11 +1,16 @@
 // libFuzzer target for the C API: the input is decoded into a
-// sequence of calls (add material / mesh / subdivision cage / light, set world, bake, copy, write
-// EXR, read warnings, release) with arbitrary floats, sizes and indices. The
+// sequence of calls (add material / material lobe / mesh / subdivision cage / light / CSG solid, set
+// world / world map (from memory or an EXR file), bake, copy, write EXR, read warnings and stats,
+// structs of the wrong size, release) with arbitrary floats, sizes and indices. The
 // library must never crash, hang, leak or trip a sanitizer, and a bake that
 // returns PLM_OK must give finite, non-negative lightmaps and statistics.
 //
 // Build and run: scripts/fuzz.sh [seconds]. Input format (all little endian):
-// a stream of ops, one byte each (op % 13), each followed by its operands;
+// a stream of ops, one byte each, each followed by its operands: the bytes
+// 208, 209 and 210 are ops 13, 14 and 15 (lobe, world map, struct sizes),
+// every other byte is op byte % 13 (material ... start over). No fuzzer find
+// in the corpus has one of the three as an op byte, so each decodes to the
+// calls it was found with;
 // a float operand is a tag byte and then either 4 raw bytes (tag % 8 == 0),
 // one byte indexing kSpecialFloats (tag % 8 == 1), or one signed byte / 16.
 // Reading past the end gives zeros. native/fuzz/make_corpus.py writes seeds.
@@ -15,6 +20,7 @@
 // floats within +-1e8, flushes magnitudes below 1e-6 to 0 and skips meshes
 // with a triangle degenerate in float but not in double: the filter that let
 // fuzzing go on while the bugs it first found (docs/robustness.md) were open.
+#include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -106,8 +112,54 @@ void expect_message(plm_status s) {
   check(plm_status_string(s)[0] != '\0', "status without a name");
 }
 
+// The size of T's older layout (photonlm.h "Struct sizes"), or the current
+// one for a struct that has none: with the current one, the sizes the
+// library must accept.
+template <typename T>
+uint32_t older_size() {
+  return sizeof(T);
+}
+template <>
+uint32_t older_size<plm_bake_settings>() {
+  return offsetof(plm_bake_settings, texel_value);
+}
+template <>
+uint32_t older_size<plm_bake_stats>() {
+  return offsetof(plm_bake_stats, error_above);
+}
+template <>
+uint32_t older_size<plm_lobe>() {
+  return offsetof(plm_lobe, weight);
+}
+template <typename T>
+bool known_size(uint32_t size) {
+  return size == sizeof(T) || size == older_size<T>();
+}
+
+// A struct_size for T: mostly the current one, else the older layout, zero,
+// a few bytes off, or garbage.
+template <typename T>
+uint32_t struct_size_of(Reader& in) {
+  const uint32_t current = sizeof(T);
+  switch (in.u8() % 8) {
+    case 0: return 0;
+    case 1: return older_size<T>();
+    case 2: return current + 8;  // a newer header's
+    case 3: return current - 4;
+    case 4: return in.u32();
+    default: return current;
+  }
+}
+
+// Refused sizes must say so: PLM_ERROR_STRUCT_SIZE with a message naming the struct.
+void expect_size_refused(plm_status s, const char* name) {
+  check(s == PLM_ERROR_STRUCT_SIZE, "a struct_size the library does not know is refused");
+  check(std::strstr(plm_last_error(), name) != nullptr, "a refused struct_size names the struct");
+}
+
 void check_result(const State& st) {
   plm_bake_stats stats;
+  stats.struct_size = sizeof stats;
   check(plm_result_stats(st.result, &stats) == PLM_OK, "stats of a result");
   check(std::isfinite(stats.emitted_power) && stats.emitted_power >= 0, "emitted power finite");
   check(std::isfinite(stats.seconds_total), "seconds finite");
@@ -249,6 +301,138 @@ void add_quad(State& st, Reader& in) {
   if (s == PLM_OK) check(id == st.meshes++, "mesh ids count up");
 }
 
+// A lobe on a material (ids may be out of range), with arbitrary values and
+// sometimes a struct_size the library does not know.
+void add_lobe(State& st, Reader& in) {
+  const uint32_t material = in.u8() % (st.materials + 2);
+  const int type = int(in.u8() % 8) - 1;  // -1 and 6 are invalid
+  plm_lobe l;
+  plm_lobe_default(&l, plm_lobe_type(type < 0 || type > 5 ? 0 : type));
+  l.type = type;
+  const uint8_t fields = in.u8();
+  if (fields & 1)
+    for (float& c : l.color) c = in.f();
+  if (fields & 2) l.roughness = in.f();
+  if (fields & 4) l.ior = in.f();
+  if (fields & 8) l.abbe = in.f();
+  if (fields & 16) l.weight = in.f();
+  if (fields & 32) l.struct_size = struct_size_of<plm_lobe>(in);
+  const bool null_scene = fields & 128, null_lobe = (fields & 64) && (fields & 32);
+  const plm_status s = plm_scene_add_material_lobe(null_scene ? nullptr : st.scene, material, null_lobe ? nullptr : &l);
+  expect_message(s);
+  if (!null_scene && !null_lobe && !known_size<plm_lobe>(l.struct_size)) expect_size_refused(s, "plm_lobe");
+  if (g_trace)
+    fprintf(stderr,
+            "add_lobe material %u type %d color (%g %g %g) roughness %g ior %g abbe %g weight %g size %u -> %d\n",
+            material, l.type, l.color[0], l.color[1], l.color[2], l.roughness, l.ior, l.abbe, l.weight,
+            l.struct_size, int(s));
+}
+
+// An environment map as the world, from memory or from an EXR file written
+// here: 0-8 pixels a side (0 and over 2^28 pixels are errors), arbitrary or
+// small positive pixels, no, an arbitrary or a turning rotation.
+void set_world_map(State& st, Reader& in) {
+  const uint8_t flags = in.u8();
+  uint32_t w = in.u8() % 9, h = in.u8() % 9;
+  std::vector<float> rgb(3 * size_t(w) * h + 1);
+  for (size_t i = 0; i + 1 < rgb.size(); ++i) rgb[i] = flags & 2 ? in.f() : float(in.u8()) / 64.0f;
+  float rotation[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  if (flags & 8) {
+    for (float& r : rotation) r = in.f();
+  } else {  // about z
+    const float a = in.f(), c = std::cos(a), s = std::sin(a);
+    rotation[0] = c, rotation[1] = -s, rotation[3] = s, rotation[4] = c;
+  }
+  const float strength = in.f();
+  const float* rot = flags & 4 ? nullptr : rotation;
+  plm_status s;
+  if (flags & 16) {  // through a file: written when it can be, else a missing or empty name
+    const std::string path = g_dir + "/world.exr";
+    const bool written =
+        w > 0 && h > 0 && plm_write_lightmap_exr(path.c_str(), w, h, rgb.data(), nullptr, nullptr) == PLM_OK;
+    const std::string missing = g_dir + "/missing.exr";
+    const char* name = flags & 32 ? (flags & 64 ? nullptr : "") : written ? path.c_str() : missing.c_str();
+    s = plm_scene_set_world_map_file(st.scene, name, rot, strength);
+    if (written) check(unlink(path.c_str()) == 0, "the world map file exists after writing it");
+  } else {
+    if (flags & 1) w = 1u << 15, h = 1u << 14;  // 2^29 pixels: refused before any is read
+    s = plm_scene_set_world_map(flags & 128 ? nullptr : st.scene, flags & 64 ? nullptr : rgb.data(), w, h, rot,
+                                strength);
+  }
+  expect_message(s);
+  if (g_trace) fprintf(stderr, "set_world_map %u x %u flags %u strength %g -> %d\n", w, h, flags, strength, int(s));
+}
+
+// Structs whose struct_size may be wrong, older or current: the library takes
+// the sizes it knows, refuses the others naming the struct, and writes no
+// byte past the caller's size.
+void struct_sizes(State& st, Reader& in) {
+  switch (in.u8() % 3) {
+    case 0: {  // stats into a guarded buffer
+      unsigned char buf[sizeof(plm_bake_stats) + 64];
+      std::memset(buf, 0xA5, sizeof buf);
+      const uint32_t size = struct_size_of<plm_bake_stats>(in);
+      std::memcpy(buf, &size, sizeof size);
+      const plm_status s = plm_result_stats(st.result, reinterpret_cast<plm_bake_stats*>(buf));
+      expect_message(s);
+      const bool known = known_size<plm_bake_stats>(size);
+      if (st.result && !known) expect_size_refused(s, "plm_bake_stats");
+      if (st.result && known) check(s == PLM_OK, "stats of a known size are written");
+      const size_t untouched = s == PLM_OK ? size : sizeof size;
+      for (size_t i = untouched; i < sizeof buf; ++i) check(buf[i] == 0xA5, "no byte past struct_size is written");
+      uint32_t kept;
+      std::memcpy(&kept, buf, sizeof kept);
+      check(kept == size, "struct_size is left as the caller set it");
+      break;
+    }
+    case 1: {  // settings of any size for a small bake
+      plm_bake_settings s;
+      plm_bake_settings_default(&s);
+      s.photon_count = in.u16() % 501;
+      s.direct_samples = in.u8() % 3;
+      s.max_bounces = in.u8() % 9;
+      s.thread_count = 1;
+      s.struct_size = struct_size_of<plm_bake_settings>(in);
+      plm_result* r = nullptr;
+      const plm_status status = plm_bake(st.scene, &s, nullptr, nullptr, &r);
+      expect_message(status);
+      if (!known_size<plm_bake_settings>(s.struct_size)) expect_size_refused(status, "plm_bake_settings");
+      if (g_trace) fprintf(stderr, "bake with struct_size %u -> %d\n", s.struct_size, int(status));
+      if (status == PLM_OK) {
+        plm_result_release(st.result);
+        st.result = r;
+        check_result(st);
+      }
+      break;
+    }
+    default: {  // a light, or CSG nodes whose elements disagree on their size
+      if (in.u8() & 1) {
+        plm_light l;
+        plm_light_default(&l, PLM_LIGHT_POINT);
+        l.struct_size = struct_size_of<plm_light>(in);
+        const plm_status s = plm_scene_add_light(st.scene, in.name(), &l, nullptr);
+        expect_message(s);
+        if (!known_size<plm_light>(l.struct_size)) expect_size_refused(s, "plm_light");
+      } else {
+        plm_csg_primitive p{};
+        p.struct_size = sizeof p;
+        p.matrix[0] = p.matrix[5] = p.matrix[10] = 1.0;
+        plm_csg_node nodes[2] = {{sizeof(plm_csg_node), PLM_CSG_UNION, 0, 1},
+                                 {sizeof(plm_csg_node), PLM_CSG_LEAF, 0, 0}};
+        nodes[in.u8() % 2].struct_size = struct_size_of<plm_csg_node>(in);
+        const uint32_t child = 1;
+        const plm_status s = plm_scene_add_csg(st.scene, in.name(), &p, 1, nodes, 2, &child, 1, 0, nullptr);
+        expect_message(s);
+        if (nodes[0].struct_size != sizeof(plm_csg_node) || nodes[1].struct_size != sizeof(plm_csg_node))
+          expect_size_refused(s, "plm_csg_node");
+        else if (s == PLM_OK)
+          st.csgs++;
+      }
+      break;
+    }
+  }
+}
+
 void add_light(State& st, Reader& in) {
   plm_light l;
   const int type = int(in.u8() % 8) - 1;  // -1 and 6 are invalid, 5 is a portal
@@ -345,6 +529,7 @@ void add_csg(State& st, Reader& in) {
   const uint32_t np = 1 + in.u8() % 4;
   for (uint32_t i = 0; i < np; ++i) {
     plm_csg_primitive& p = prims[i];
+    p.struct_size = sizeof p;
     p.shape = in.u8() % 8;
     p.material = in.u8() % (st.materials + 2);
     if (in.u8() & 1) {
@@ -359,7 +544,12 @@ void add_csg(State& st, Reader& in) {
   }
   plm_csg_node nodes[6];
   const uint32_t nn = 1 + in.u8() % 6;
-  for (uint32_t i = 0; i < nn; ++i) nodes[i] = {uint32_t(in.u8() % 5), uint32_t(in.u8() % 8), uint32_t(in.u8() % 4)};
+  for (uint32_t i = 0; i < nn; ++i) {
+    nodes[i].struct_size = sizeof nodes[i];
+    nodes[i].op = in.u8() % 5;
+    nodes[i].first = in.u8() % 8;
+    nodes[i].count = in.u8() % 4;
+  }
   uint32_t children[8];
   const uint32_t nc = in.u8() % 8;
   for (uint32_t i = 0; i < nc; ++i) children[i] = in.u8() % 8;
@@ -402,7 +592,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   State st;
   check(plm_scene_create(&st.scene) == PLM_OK, "create a scene");
   for (int ops = 0; ops < 48 && !in.done(); ++ops) {
-    switch (in.u8() % 13) {
+    const uint8_t byte = in.u8();
+    switch (byte >= 208 && byte <= 210 ? 13 + (byte - 208) : byte % 13) {
       case 0: {
         const char* name = in.name();
         float albedo[3], emission[3];
@@ -435,6 +626,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         const uint32_t i = in.u8();
         (void)plm_result_warning(st.result, plm_result_warning_count(st.result) + i);
         plm_bake_stats stats;
+        stats.struct_size = sizeof stats;
         expect_message(plm_result_stats(st.result, i & 1 ? &stats : nullptr));
         break;
       }
@@ -445,7 +637,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         break;
       }
       case 11: add_subdiv(st, in); break;
-      default:  // start over with an empty scene
+      case 13: add_lobe(st, in); break;
+      case 14: set_world_map(st, in); break;
+      case 15: struct_sizes(st, in); break;
+      default:  // 12: start over with an empty scene
         plm_result_release(st.result);
         st.result = nullptr;
         plm_scene_release(st.scene);

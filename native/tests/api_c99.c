@@ -11,8 +11,10 @@ int plm_c99_check(void) {
   plm_lsystem_stats lst;
   plm_lobe lobe;
   plm_lobe_default(&lobe, PLM_LOBE_GLASS);
+  os.struct_size = sizeof os;
   os.resolution = 0;
   plm_lsystem_settings_default(&ls);
+  lst.struct_size = sizeof lst;
   lst.resolution = 0;
   return (int)s.max_bounces + l.type + (int)os.resolution + (int)ls.ol_level + (int)lst.resolution + lobe.type;
 }

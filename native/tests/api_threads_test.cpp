@@ -178,6 +178,7 @@ void check_and_release(plm_result* r, std::mt19937& rng, Counts& counts, int thr
   for (float e : error) ASSERT_TRUE(std::isfinite(e) && e >= 0.0f) << e;
   EXPECT_GT(sum, 0.0) << "the floor is lit";
   plm_bake_stats st{};
+  st.struct_size = sizeof st;
   ASSERT_EQ(plm_result_stats(r, &st), PLM_OK);
   EXPECT_GT(st.photons_emitted, 0u);
   for (uint32_t i = 0; i < plm_result_warning_count(r); ++i) EXPECT_NE(plm_result_warning(r, i), nullptr);

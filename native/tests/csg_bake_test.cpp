@@ -16,8 +16,10 @@ using plm_demo::SceneBuilder;
 using plm_demo::V3;
 using Baked = plm_test::BakeResult;
 
+constexpr uint32_t kNode = sizeof(plm_csg_node);  // every node's struct_size
+
 plm_csg_primitive prim(plm_csg_shape shape, double scale, V3 at, uint32_t material) {
-  plm_csg_primitive p{};
+  plm_csg_primitive p = plm_test::sized<plm_csg_primitive>();
   p.shape = shape;
   p.material = material;
   const double m[12] = {scale, 0, 0, at.x, 0, scale, 0, at.y, 0, 0, scale, at.z};
@@ -30,7 +32,8 @@ plm_csg_primitive prim(plm_csg_shape shape, double scale, V3 at, uint32_t materi
 // Solid = primitive a minus primitive b (nodes: difference, leaf a, leaf b).
 uint32_t add_difference(SceneBuilder& b, const char* name, plm_csg_primitive a, plm_csg_primitive c) {
   const plm_csg_primitive prims[2] = {a, c};
-  const plm_csg_node nodes[3] = {{PLM_CSG_DIFFERENCE, 0, 2}, {PLM_CSG_LEAF, 0, 0}, {PLM_CSG_LEAF, 1, 0}};
+  const plm_csg_node nodes[3] = {
+      {kNode, PLM_CSG_DIFFERENCE, 0, 2}, {kNode, PLM_CSG_LEAF, 0, 0}, {kNode, PLM_CSG_LEAF, 1, 0}};
   const uint32_t children[2] = {1, 2};
   uint32_t id = 99;
   EXPECT_EQ(plm_scene_add_csg(b.scene, name, prims, 2, nodes, 3, children, 2, 0, &id), PLM_OK) << plm_last_error();
@@ -101,8 +104,8 @@ TEST(CsgBake, ThinWallStopsAllPhotons) {
   std::copy(block, block + 12, prims[0].matrix);
   std::copy(a, a + 12, prims[1].matrix);
   std::copy(c, c + 12, prims[2].matrix);
-  const plm_csg_node nodes[4] = {{PLM_CSG_DIFFERENCE, 0, 3}, {PLM_CSG_LEAF, 0, 0}, {PLM_CSG_LEAF, 1, 0},
-                                 {PLM_CSG_LEAF, 2, 0}};
+  const plm_csg_node nodes[4] = {{kNode, PLM_CSG_DIFFERENCE, 0, 3}, {kNode, PLM_CSG_LEAF, 0, 0},
+                                 {kNode, PLM_CSG_LEAF, 1, 0}, {kNode, PLM_CSG_LEAF, 2, 0}};
   const uint32_t kids[3] = {1, 2, 3};
   uint32_t solid = 0;
   ASSERT_EQ(plm_scene_add_csg(b.scene, "block", prims, 3, nodes, 4, kids, 3, 0, &solid), PLM_OK) << plm_last_error();
@@ -140,7 +143,7 @@ TEST(CsgBake, SphereUnderTheSunIsCosineOverPi) {
   SceneBuilder b;
   const uint32_t grey = b.material("grey", {0.5f, 0.5f, 0.5f});
   const plm_csg_primitive ball = prim(PLM_CSG_SPHERE, 1.0, {0, 0, 0}, grey);
-  const plm_csg_node leaf = {PLM_CSG_LEAF, 0, 0};
+  const plm_csg_node leaf = {kNode, PLM_CSG_LEAF, 0, 0};
   uint32_t solid = 0;
   ASSERT_EQ(plm_scene_add_csg(b.scene, "ball", &ball, 1, &leaf, 1, nullptr, 0, 0, &solid), PLM_OK) << plm_last_error();
   // Carrier: a 64 x 32 latitude-longitude sphere, u = longitude, v = latitude.
@@ -185,7 +188,7 @@ TEST(CsgBake, BadInputNamesSolidAndItem) {
   SceneBuilder b;
   const uint32_t grey = b.material("grey", {0.5f, 0.5f, 0.5f});
   plm_csg_primitive p = prim(PLM_CSG_SPHERE, 1.0, {0, 0, 0}, grey);
-  const plm_csg_node leaf = {PLM_CSG_LEAF, 0, 0};
+  const plm_csg_node leaf = {kNode, PLM_CSG_LEAF, 0, 0};
   uint32_t id = 0;
   p.matrix[0] = NAN;
   EXPECT_EQ(plm_scene_add_csg(b.scene, "nan ball", &p, 1, &leaf, 1, nullptr, 0, 0, &id), PLM_ERROR_INVALID_ARGUMENT);
@@ -198,7 +201,7 @@ TEST(CsgBake, BadInputNamesSolidAndItem) {
   EXPECT_EQ(plm_scene_add_csg(b.scene, "ball", &p, 1, &leaf, 1, nullptr, 0, 0, &id), PLM_ERROR_INVALID_ARGUMENT);
   EXPECT_NE(std::string(plm_last_error()).find("primitive 0"), std::string::npos) << plm_last_error();
   p.shape = PLM_CSG_SPHERE;
-  const plm_csg_node bad = {PLM_CSG_UNION, 0, 3};
+  const plm_csg_node bad = {kNode, PLM_CSG_UNION, 0, 3};
   const uint32_t kids[3] = {5, 6, 7};
   EXPECT_NE(plm_scene_add_csg(b.scene, "tree", &p, 1, &bad, 1, kids, 3, 0, &id), PLM_OK);
   EXPECT_NE(std::string(plm_last_error()).find("tree"), std::string::npos) << plm_last_error();

@@ -54,7 +54,7 @@ uint32_t add_lsystem(SceneBuilder& b, const char* name, const char* rules, const
 }
 
 plm_lsystem_stats lsystem_stats(const Baked& r, uint32_t id) {
-  plm_lsystem_stats st{};
+  plm_lsystem_stats st = plm_test::sized<plm_lsystem_stats>();
   EXPECT_EQ(plm_result_lsystem_stats(r.r, id, &st), PLM_OK) << plm_last_error();
   return st;
 }

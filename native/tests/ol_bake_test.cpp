@@ -30,7 +30,7 @@ bool contains(const char* text, const std::string& needle) { return std::string(
 struct Ol {
   uint32_t n = 0;
   std::vector<float> rgb, error, area, hits;
-  plm_ol_stats stats{};
+  plm_ol_stats stats = plm_test::sized<plm_ol_stats>();
   double value(size_t b) const { return (double(rgb[3 * b]) + rgb[3 * b + 1] + rgb[3 * b + 2]) / 3.0; }
 };
 

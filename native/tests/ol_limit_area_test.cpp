@@ -230,7 +230,7 @@ uint32_t add_cage(SceneBuilder& b, const CubeCage& cube, uint32_t mat, uint32_t 
 
 struct OlRead {
   std::vector<float> rgb, error, area;
-  plm_ol_stats stats{};
+  plm_ol_stats stats = plm_test::sized<plm_ol_stats>();
 };
 
 OlRead bake_ol(SceneBuilder& b, uint32_t mesh, uint32_t resolution, uint64_t photons, plm_test::BakeResult& r,

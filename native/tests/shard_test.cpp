@@ -88,7 +88,7 @@ void expect_identical(const BakeResult& one, const BakeResult& merged, uint32_t 
     expect_same_bits(a.hits, b.hits, "hits", m);
     expect_same_bits(a.coverage, b.coverage, "coverage", m);
   }
-  plm_bake_stats x{}, y{};
+  plm_bake_stats x = plm_test::sized<plm_bake_stats>(), y = x;
   ASSERT_EQ(plm_result_stats(one.r, &x), PLM_OK);
   ASSERT_EQ(plm_result_stats(merged.r, &y), PLM_OK);
   EXPECT_EQ(x.photons_emitted, y.photons_emitted);
@@ -448,12 +448,12 @@ TEST(TexelRanges, CsgSubTexelsAndNoGather) {
   plm_demo::SceneBuilder b;
   plm_demo::build_cornell(b, 8);
   const uint32_t grey = b.material("ball grey", {0.5f, 0.5f, 0.5f});
-  plm_csg_primitive ball{};  // radius 0.2 at (0.4, 0.5, 0.25), beside the boxes
+  plm_csg_primitive ball = plm_test::sized<plm_csg_primitive>();  // radius 0.2 at (0.4, 0.5, 0.25), beside the boxes
   ball.shape = PLM_CSG_SPHERE;
   ball.material = grey;
   const double m[12] = {0.2, 0, 0, 0.4, 0, 0.2, 0, 0.5, 0, 0, 0.2, 0.25};
   for (int i = 0; i < 12; ++i) ball.matrix[i] = m[i];
-  const plm_csg_node leaf = {PLM_CSG_LEAF, 0, 0};
+  const plm_csg_node leaf = {sizeof(plm_csg_node), PLM_CSG_LEAF, 0, 0};
   uint32_t solid = 0;
   ASSERT_EQ(plm_scene_add_csg(b.scene, "ball", &ball, 1, &leaf, 1, nullptr, 0, 0, &solid), PLM_OK) << plm_last_error();
   // Carrier: a 16 x 8 latitude-longitude sphere around it.
@@ -616,7 +616,7 @@ TEST(TexelRanges, DirectRangesMeetTheTargetTogether) {
   }
   ASSERT_GT(n, 0u);
   const double measured = std::sqrt(sq / double(n)) / (sum / double(n));
-  plm_bake_stats stats{}, single_stats{};
+  plm_bake_stats stats = plm_test::sized<plm_bake_stats>(), single_stats = stats;
   ASSERT_EQ(plm_result_stats(merged.r, &stats), PLM_OK);
   BakeResult single;
   ASSERT_EQ(plm_bake(b.scene, &targeted, nullptr, nullptr, &single.r), PLM_OK) << plm_last_error();

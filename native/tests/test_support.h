@@ -19,6 +19,14 @@
 
 namespace plm_test {
 
+// A struct for the C API to fill: zeros and its struct_size (photonlm.h "Struct sizes").
+template <typename T>
+T sized() {
+  T t{};
+  t.struct_size = uint32_t(sizeof(T));
+  return t;
+}
+
 struct Map {
   uint32_t w = 0, h = 0;
   std::vector<float> rgb, error, hits, coverage;
@@ -44,7 +52,7 @@ struct BakeResult {
     return m;
   }
   plm_bake_stats stats() const {
-    plm_bake_stats s{};
+    plm_bake_stats s = sized<plm_bake_stats>();
     EXPECT_EQ(plm_result_stats(r, &s), PLM_OK);
     return s;
   }

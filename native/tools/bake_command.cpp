@@ -370,6 +370,7 @@ int write_bake_outputs(plm_result* r, const plm::SceneFile& scene, const plm_bak
                        std::chrono::steady_clock::time_point t0, double check_target) {
   const std::string cmd = "photonlm";
   plm_bake_stats stats{};
+  stats.struct_size = sizeof stats;
   if (plm_result_stats(r, &stats) != PLM_OK) {
     std::fprintf(stderr, "%s: %s\n", cmd.c_str(), plm_last_error());
     return kBakeFailed;
@@ -468,6 +469,7 @@ int write_bake_outputs(plm_result* r, const plm::SceneFile& scene, const plm_bak
     }
     written.push_back(dir + name);
     plm_ol_stats os{};
+    os.struct_size = sizeof os;
     plm_result_ol_stats(r, g.id, &os);
     groups.push_back({{"name", g.name},
                       {"file", name},

@@ -67,7 +67,8 @@ int merge_command(int argc, char** argv) {
   std::string error;
   if (!find_part_files(inputs, parts, error)) return bad_input(error);
 
-  plm_bake_settings s{};
+  plm_bake_settings s;
+  plm_bake_settings_default(&s);
   char named_scene[256] = {0};
   if (plm_part_info(parts[0].c_str(), &s, nullptr, nullptr, named_scene, sizeof named_scene) != PLM_OK)
     return bad_input(plm_last_error());
@@ -89,6 +90,7 @@ int merge_command(int argc, char** argv) {
   s.thread_count = uint32_t(threads);
   const int written = write_bake_outputs(result, scene, s, scene_path, out_dir, t0, target);
   plm_bake_stats stats{};
+  stats.struct_size = sizeof stats;
   plm_result_stats(result, &stats);
   plm_result_release(result);
   if (written == 0) std::printf("merged %zu part file(s)\n", parts.size());

@@ -111,7 +111,8 @@ int run(const Options& o) {
   s.thread_count = o.threads;
   plm_result* r = nullptr;
   if (plm_bake(b.scene, &s, progress, nullptr, &r) != PLM_OK) return fail("bake failed");
-  plm_bake_stats st;
+  plm_bake_stats st{};
+  st.struct_size = sizeof st;
   plm_result_stats(r, &st);
   for (uint32_t i = 0; i < plm_result_warning_count(r); ++i) std::fprintf(stderr, "warning: %s\n", plm_result_warning(r, i));
   std::printf("photons %llu, rays %llu, bake %.3f s (trace %.3f s), %.2f M photons/s\n",

@@ -526,7 +526,7 @@ class Scene(_Handle):
         tree: a primitive index (a leaf) or a tuple (op, child, child, ...) with op in CSG_OPS;
         DIFFERENCE = first child minus the others.
         """
-        prims = (_lib.plm_csg_primitive * max(1, len(primitives)))()
+        prims = _lib.sized_array(_lib.plm_csg_primitive, max(1, len(primitives)))
         for i, p in enumerate(primitives):
             shape = _choice(p.get("shape"), "primitive %d shape" % i, self.CSG_SHAPES)
             m = np.asarray(p.get("matrix", np.eye(4)), np.float64)
@@ -976,7 +976,7 @@ class Result(_Handle):
         """dict: resolution, mesh_count, hits, area (m^2), flux (W recorded), orphan_flux (W)."""
         s = _lib.plm_ol_stats()
         _check(_C.plm_result_ol_stats(self._h, _uint(group, "group"), ctypes.byref(s)))
-        return {k: getattr(s, k) for k, _ in s._fields_}
+        return {k: getattr(s, k) for k, _ in s._fields_ if k != "struct_size"}
 
     def write_ol_exr(self, group, path):
         """Write an OL group's map as OpenEXR (R, G, B, area, error, hits), atomically."""
@@ -1002,7 +1002,7 @@ class Result(_Handle):
         area (m^2), flux (W arriving on the object)."""
         s = _lib.plm_lsystem_stats()
         _check(_C.plm_result_lsystem_stats(self._h, _uint(lsystem, "lsystem"), ctypes.byref(s)))
-        return {k: getattr(s, k) for k, _ in s._fields_}
+        return {k: getattr(s, k) for k, _ in s._fields_ if k != "struct_size"}
 
     def write_exr(self, mesh_id, path):
         """Write a mesh's lightmap as OpenEXR (R, G, B, error, hits), atomically."""

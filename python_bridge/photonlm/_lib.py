@@ -70,8 +70,25 @@ FloatPtr = POINTER(c_float)
 UInt32Ptr = POINTER(c_uint32)
 
 
-class plm_light(ctypes.Structure):
+class _Sized(ctypes.Structure):
+    """A struct that starts with its size (photonlm.h "Struct sizes"): made with struct_size =
+    ctypes.sizeof(the struct); as array elements, which are made without __init__, use sized_array."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(ctypes.sizeof(type(self)), *args, **kwargs)
+
+
+def sized_array(cls, count):
+    """An array of count structs of class cls, each with its struct_size set."""
+    array = (cls * count)()
+    for item in array:
+        item.struct_size = ctypes.sizeof(cls)
+    return array
+
+
+class plm_light(_Sized):
     _fields_ = [
+        ("struct_size", c_uint32),
         ("type", c_int32),
         ("color", c_float * 3),
         ("power", c_float),
@@ -85,8 +102,9 @@ class plm_light(ctypes.Structure):
     ]
 
 
-class plm_lobe(ctypes.Structure):
+class plm_lobe(_Sized):
     _fields_ = [
+        ("struct_size", c_uint32),
         ("type", c_int32),
         ("color", c_float * 3),
         ("roughness", c_float),
@@ -96,8 +114,9 @@ class plm_lobe(ctypes.Structure):
     ]
 
 
-class plm_bake_settings(ctypes.Structure):
+class plm_bake_settings(_Sized):
     _fields_ = [
+        ("struct_size", c_uint32),
         ("photon_count", c_uint64),
         ("max_bounces", c_uint32),
         ("seed", c_uint32),
@@ -112,8 +131,9 @@ class plm_bake_settings(ctypes.Structure):
     ]
 
 
-class plm_bake_stats(ctypes.Structure):
+class plm_bake_stats(_Sized):
     _fields_ = [
+        ("struct_size", c_uint32),
         ("photons_emitted", c_uint64),
         ("photon_hits", c_uint64),
         ("rays_traced", c_uint64),
@@ -133,8 +153,9 @@ class plm_bake_stats(ctypes.Structure):
     ]
 
 
-class plm_csg_primitive(ctypes.Structure):
+class plm_csg_primitive(_Sized):
     _fields_ = [
+        ("struct_size", c_uint32),
         ("shape", c_uint32),
         ("material", c_uint32),
         ("matrix", c_double * 12),
@@ -143,12 +164,13 @@ class plm_csg_primitive(ctypes.Structure):
     ]
 
 
-class plm_csg_node(ctypes.Structure):
-    _fields_ = [("op", c_uint32), ("first", c_uint32), ("count", c_uint32)]
+class plm_csg_node(_Sized):
+    _fields_ = [("struct_size", c_uint32), ("op", c_uint32), ("first", c_uint32), ("count", c_uint32)]
 
 
-class plm_ol_stats(ctypes.Structure):
+class plm_ol_stats(_Sized):
     _fields_ = [
+        ("struct_size", c_uint32),
         ("resolution", c_uint32),
         ("mesh_count", c_uint32),
         ("hits", c_uint64),
@@ -158,8 +180,9 @@ class plm_ol_stats(ctypes.Structure):
     ]
 
 
-class plm_lsystem_settings(ctypes.Structure):
+class plm_lsystem_settings(_Sized):
     _fields_ = [
+        ("struct_size", c_uint32),
         ("depth", c_uint32),
         ("seed", c_uint32),
         ("matrix", c_double * 12),
@@ -174,8 +197,9 @@ class plm_lsystem_settings(ctypes.Structure):
     ]
 
 
-class plm_lsystem_stats(ctypes.Structure):
+class plm_lsystem_stats(_Sized):
     _fields_ = [
+        ("struct_size", c_uint32),
         ("stubs", c_uint64),
         ("stub_instances", c_uint64),
         ("hits", c_uint64),
@@ -190,6 +214,11 @@ class plm_lsystem_stats(ctypes.Structure):
         ("area", c_double),
         ("flux", c_double),
     ]
+
+
+# Every struct that carries its size, by its C name.
+SIZED_STRUCTS = ("plm_light", "plm_lobe", "plm_bake_settings", "plm_bake_stats", "plm_csg_primitive", "plm_csg_node",
+                 "plm_ol_stats", "plm_lsystem_settings", "plm_lsystem_stats")
 
 
 # plm_status is a C enum: int-sized on every ABI we target.

@@ -30,8 +30,7 @@ def test_version_matches_header():
 @pytest.mark.skipif(shutil.which("cc") is None, reason="needs a C compiler")
 def test_struct_layouts_match_header(tmp_path):
     """Compile the header and compare sizeof/offsetof of every struct with the ctypes declarations."""
-    structs = {"plm_light": _lib.plm_light, "plm_bake_settings": _lib.plm_bake_settings,
-               "plm_bake_stats": _lib.plm_bake_stats, "plm_lobe": _lib.plm_lobe}
+    structs = {name: getattr(_lib, name) for name in _lib.SIZED_STRUCTS}
     lines = []
     for name, cls in structs.items():
         lines.append('printf("%s size %%zu\\n", sizeof(%s));' % (name, name))

@@ -16,6 +16,7 @@
  * - Lightmap rows are in UV order: row 0 covers v in [0, 1/height), i.e.
  *   bottom row first (the order of Blender's Image.pixels). EXR files are
  *   written top row first, as image files are.
+ * - Structs the caller allocates start with their size (see "Struct sizes").
  */
 #ifndef PHOTONLM_PHOTONLM_H
 #define PHOTONLM_PHOTONLM_H
@@ -48,7 +49,8 @@ typedef enum plm_status {
   PLM_ERROR_OUT_OF_MEMORY = 3,
   PLM_ERROR_IO = 4,               /* a file could not be written */
   PLM_ERROR_CANCELLED = 5,        /* the progress callback asked to stop */
-  PLM_ERROR_INTERNAL = 6          /* a bug: please report the message */
+  PLM_ERROR_INTERNAL = 6,         /* a bug: please report the message */
+  PLM_ERROR_STRUCT_SIZE = 7       /* a struct's struct_size is not a layout this library knows */
 } plm_status;
 
 typedef struct plm_scene plm_scene;   /* what the user described */
@@ -60,6 +62,32 @@ PLM_API const char* plm_version(void);
 PLM_API const char* plm_status_string(plm_status status);
 /* Message of the last failed call on this thread ("" if none). */
 PLM_API const char* plm_last_error(void);
+
+/* ---- Struct sizes ----------------------------------------------------------
+ *
+ * Every struct the caller allocates and the library reads or writes
+ * (plm_lobe, plm_light, plm_csg_primitive, plm_csg_node, plm_bake_settings,
+ * plm_bake_stats, plm_ol_stats, plm_lsystem_settings, plm_lsystem_stats)
+ * starts with `uint32_t struct_size`: sizeof the struct as the caller's
+ * header declares it. The *_default functions set it with the rest; a caller
+ * that fills a struct itself (the stats structs, plm_csg_primitive and
+ * plm_csg_node, which have no *_default) sets it to sizeof. Fields are only
+ * ever added at the end of a struct, so an older header's struct is a prefix
+ * of the current one: the library reads only the first struct_size bytes
+ * (the fields past them take their defaults) and writes only the first
+ * struct_size bytes (the rest of the caller's memory is left alone), and it
+ * never changes struct_size. A size that is not one of the struct's layouts
+ * (zero, garbage, below the oldest, above the current or between two) is
+ * refused with PLM_ERROR_STRUCT_SIZE and a message naming the function, the
+ * struct, the size given and the current size. The layouts the library
+ * knows are the current one of each struct and these older ones:
+ *   plm_bake_settings  up to filter_radius (no texel_value, sampler: their
+ *                      defaults, PLM_TEXEL_CYCLES and PLM_SAMPLER_DEFAULT)
+ *   plm_bake_stats     up to error_p95 (no error_above, memory_estimate)
+ *   plm_lobe           up to abbe (no weight: 1)
+ * Arrays of structs (the primitives and nodes of plm_scene_add_csg) carry
+ * the size in every element: the first element's struct_size is the array's
+ * stride, and every element must carry the same one. */
 
 /* ---- Scene --------------------------------------------------------------- */
 
@@ -127,6 +155,7 @@ typedef enum plm_lobe_type {
 } plm_lobe_type;
 
 typedef struct plm_lobe {
+  uint32_t struct_size; /* sizeof(plm_lobe): see "Struct sizes" */
   int32_t type;    /* plm_lobe_type */
   float color[3];  /* linear RGB tint (FRESNEL: F0) */
   float roughness; /* 0..1, Blender's */
@@ -135,8 +164,9 @@ typedef struct plm_lobe {
   float weight;    /* 0..1, the lobe's mix factor */
 } plm_lobe;
 
-/* Fills a lobe with defaults for its type: white, weight 1, roughness 0, ior
- * 1.5 (1.45 for GLASS and REFRACTION, Blender's), no dispersion. */
+/* Fills a lobe with defaults for its type: struct_size, white, weight 1,
+ * roughness 0, ior 1.5 (1.45 for GLASS and REFRACTION, Blender's), no
+ * dispersion. */
 PLM_API void plm_lobe_default(plm_lobe* lobe, plm_lobe_type type);
 /* Appends a lobe to a material (at most 8 a material). */
 PLM_API plm_status plm_scene_add_material_lobe(plm_scene* scene, uint32_t material_id, const plm_lobe* lobe);
@@ -327,6 +357,7 @@ PLM_API plm_status plm_scene_get_conventions(const plm_scene* scene, int32_t* ou
  * object-to-world matrix (row-major, translation in the last column); lights
  * shine along their local -Z axis. Scale in the matrix scales area lights. */
 typedef struct plm_light {
+  uint32_t struct_size;  /* sizeof(plm_light): see "Struct sizes" */
   int32_t type;          /* plm_light_type */
   float color[3];        /* linear RGB */
   float power;           /* W for point, spot, area; irradiance W/m^2 for sun */
@@ -339,7 +370,7 @@ typedef struct plm_light {
   float spot_blend;      /* spot: 0..1 */
 } plm_light;
 
-/* Fills a light with Blender's defaults for its type (white, 1000 W or
+/* Fills a light with its struct_size and Blender's defaults for its type (white, 1000 W or
  * 1 W/m^2 for the sun, identity matrix, radius 0.1, angle 0.00918, size 1,
  * spot 45 degrees, blend 0.15). */
 PLM_API void plm_light_default(plm_light* light, plm_light_type type);
@@ -398,6 +429,7 @@ typedef enum plm_csg_shape {
 } plm_csg_shape;
 
 typedef struct plm_csg_primitive {
+  uint32_t struct_size; /* sizeof(plm_csg_primitive), the same in every element: see "Struct sizes" */
   uint32_t shape;     /* plm_csg_shape */
   uint32_t material;  /* material id (materials must be added first) */
   double matrix[12];  /* row-major 3x4, local -> world */
@@ -412,6 +444,7 @@ typedef enum plm_csg_op {
 } plm_csg_op;
 
 typedef struct plm_csg_node {
+  uint32_t struct_size; /* sizeof(plm_csg_node), the same in every element: see "Struct sizes" */
   uint32_t op;    /* plm_csg_op */
   uint32_t first; /* LEAF: primitive index; else index of its first child in children[] */
   uint32_t count; /* number of children (LEAF: ignored) */
@@ -464,6 +497,7 @@ typedef enum plm_sampler {
 } plm_sampler;
 
 typedef struct plm_bake_settings {
+  uint32_t struct_size;     /* sizeof(plm_bake_settings): see "Struct sizes" */
   uint64_t photon_count;    /* photons (the cap when a target or budget is set; 0 = none) */
   uint32_t max_bounces;     /* diffuse bounces after the first hit; 0 = direct only */
   uint32_t seed;            /* results are a function of seed only, not of threads */
@@ -479,7 +513,7 @@ typedef struct plm_bake_settings {
   uint32_t sampler;         /* plm_sampler */
 } plm_bake_settings;
 
-/* photon_count 1,000,000, max_bounces 1024, seed 0, threads 0, dilation 8,
+/* struct_size, photon_count 1,000,000, max_bounces 1024, seed 0, threads 0, dilation 8,
  * no target error, no time budget, direct_samples 64, filter_radius 2,
  * PLM_TEXEL_CYCLES, PLM_SAMPLER_DEFAULT. */
 PLM_API void plm_bake_settings_default(plm_bake_settings* settings);
@@ -562,10 +596,11 @@ PLM_API plm_status plm_bake_texels(plm_scene* scene, const plm_bake_settings* se
                                    uint32_t range, uint32_t range_count, const char* const* part_paths,
                                    uint32_t part_count, const char* scene_path, const char* part_path,
                                    plm_progress_fn progress, void* user_data);
-/* What a part file holds: its bake's settings (thread_count 0), its shard and
- * shard count (a direct or gather part: its texel range and range count), the
- * scene_path it was given (copied, truncated to capacity - 1; scene_path may
- * be NULL). Any of the out pointers may be NULL. */
+/* What a part file holds: its bake's settings (thread_count 0; out_settings
+ * must carry its struct_size, e.g. from plm_bake_settings_default), its shard
+ * and shard count (a direct or gather part: its texel range and range count),
+ * the scene_path it was given (copied, truncated to capacity - 1; scene_path
+ * may be NULL). Any of the out pointers may be NULL. */
 PLM_API plm_status plm_part_info(const char* part_path, plm_bake_settings* out_settings, uint32_t* out_shard,
                                  uint32_t* out_shard_count, char* scene_path, size_t scene_path_capacity);
 /* Merges the parts of one sharded bake of `scene` (all of its shards, each once,
@@ -579,6 +614,7 @@ PLM_API plm_status plm_bake_merge(plm_scene* scene, const char* const* part_path
                                   plm_result** out_result);
 
 typedef struct plm_bake_stats {
+  uint32_t struct_size;      /* sizeof(plm_bake_stats), set by the caller: see "Struct sizes" */
   uint64_t photons_emitted;
   uint64_t photon_hits;      /* hits stored into lightmaps and orientation lightmaps */
   uint64_t rays_traced;      /* photon rays */
@@ -717,6 +753,7 @@ PLM_API plm_status plm_result_ol_bins(const plm_result* result, uint32_t group, 
                                       const float** hits);
 
 typedef struct plm_ol_stats {
+  uint32_t struct_size;  /* sizeof(plm_ol_stats), set by the caller: see "Struct sizes" */
   uint32_t resolution;   /* bins per side */
   uint32_t mesh_count;   /* meshes in the group */
   uint64_t hits;         /* photon hits recorded */
@@ -754,6 +791,7 @@ PLM_API plm_status plm_result_write_ol_exr(const plm_result* result, uint32_t gr
  * Hits on the inside of a primitive (where primitives overlap) are not
  * recorded; the overlapped surface still counts in the areas. */
 typedef struct plm_lsystem_settings {
+  uint32_t struct_size;    /* sizeof(plm_lsystem_settings): see "Struct sizes" */
   uint32_t depth;          /* derivation steps; 0 = the rules' `depth:` */
   uint32_t seed;           /* stochastic productions */
   double matrix[12];       /* row-major 3x4 placement, local -> world: a rotation (or mirror) times a
@@ -771,7 +809,7 @@ typedef struct plm_lsystem_settings {
   uint64_t cache_bytes;    /* expanded-instance cache per tracing thread; 0 = 64 MiB */
 } plm_lsystem_settings;
 
-/* depth 0, seed 0, identity matrix, step/angle/width -1, no materials,
+/* struct_size, depth 0, seed 0, identity matrix, step/angle/width -1, no materials,
  * ol_level 0, ol_resolution 0, cache_bytes 0. */
 PLM_API void plm_lsystem_settings_default(plm_lsystem_settings* settings);
 
@@ -808,6 +846,7 @@ PLM_API plm_status plm_result_lsystem_lookup(const plm_result* result, uint32_t 
                                              const float* points, const float* normals, float* out_rgb);
 
 typedef struct plm_lsystem_stats {
+  uint32_t struct_size;    /* sizeof(plm_lsystem_stats), set by the caller: see "Struct sizes" */
   uint64_t stubs;          /* stub OLs that received hits */
   uint64_t stub_instances; /* instances at ol_level in the flattened object (areas known) */
   uint64_t hits;           /* photon hits recorded on the object */

@@ -6,8 +6,10 @@
 #include <functional>
 #include <new>
 #include <string>
+#include <vector>
 
 #include "api/handles.h"
+#include "api/struct_size.h"
 #include "io/image_file.h"
 #include "io/partial_file.h"
 #include "lsystem/lsystem_object.h"
@@ -78,6 +80,40 @@ const plm::LSystemOutput& lsystem_of(const plm_result* r, uint32_t id, const cha
   return result_item(r->output.lsystems, id, function, "L-system", "L-system objects");
 }
 
+// The caller's bake settings (NULL: the defaults) as a whole current struct.
+plm_bake_settings settings_or_default(const plm_bake_settings* settings, const char* function) {
+  if (!settings) return plm::default_settings();
+  return plm::api::read_sized(settings, plm::default_settings(), function, "settings");
+}
+
+// The caller's L-system settings (NULL: the defaults) as a whole current struct.
+plm_lsystem_settings lsystem_settings_or_default(const plm_lsystem_settings* settings, const char* function) {
+  const plm_lsystem_settings defaults = plm::lsystem::default_lsystem_settings();
+  if (!settings) return defaults;
+  return plm::api::read_sized(settings, defaults, function, "settings");
+}
+
+// A caller's array of `count` structs, each carrying struct_size (the first
+// element's is the stride; every element must carry the same), as current structs.
+template <typename T>
+std::vector<T> read_sized_array(const T* items, uint32_t count, const T& defaults, const char* function,
+                                const char* what) {
+  std::vector<T> out;
+  if (!items || count == 0) return out;
+  const uint32_t stride = plm::api::checked_size<T>(items->struct_size, function, std::string(what) + "[0]");
+  out.reserve(count);
+  const auto* bytes = reinterpret_cast<const unsigned char*>(items);
+  for (uint32_t i = 0; i < count; ++i) {
+    const T* item = reinterpret_cast<const T*>(bytes + size_t(stride) * i);
+    if (item->struct_size != stride)
+      plm::fail(PLM_ERROR_STRUCT_SIZE, function, ": ", what, "[", i, "] (", plm::api::Layouts<T>::name,
+                ") has struct_size ", item->struct_size, ", ", what, "[0] ", stride, " (current ", sizeof(T),
+                "; every element of an array carries the same size)");
+    out.push_back(plm::api::read_sized(item, defaults, function, std::string(what) + "[" + std::to_string(i) + "]"));
+  }
+  return out;
+}
+
 // plm_bake and plm_bake_with_preview, named `function` in errors.
 plm_status run_bake(const char* function, plm_scene* scene, const plm_bake_settings* settings,
                     plm_progress_fn progress, plm_preview_fn preview, double preview_interval, void* user_data,
@@ -89,7 +125,7 @@ plm_status run_bake(const char* function, plm_scene* scene, const plm_bake_setti
     if (!(preview_interval >= 0.0) || !std::isfinite(preview_interval))
       plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": preview_interval must be a finite number of seconds >= 0, "
                 "got ", preview_interval);
-    const plm_bake_settings s = settings ? *settings : plm::default_settings();
+    const plm_bake_settings s = settings_or_default(settings, function);
     plm::ProgressFn fn;
     if (progress) fn = [&](double f, const char* stage) { return progress(user_data, f, stage) != 0; };
     plm::PreviewHook hook;
@@ -199,6 +235,7 @@ const char* plm_status_string(plm_status status) {
     case PLM_ERROR_IO: return "PLM_ERROR_IO";
     case PLM_ERROR_CANCELLED: return "PLM_ERROR_CANCELLED";
     case PLM_ERROR_INTERNAL: return "PLM_ERROR_INTERNAL";
+    case PLM_ERROR_STRUCT_SIZE: return "PLM_ERROR_STRUCT_SIZE";
   }
   return "PLM_ERROR_UNKNOWN";
 }
@@ -232,7 +269,12 @@ plm_status plm_scene_add_material_lobe(plm_scene* scene, uint32_t material_id, c
   return guarded("plm_scene_add_material_lobe", [&] {
     require(scene, "plm_scene_add_material_lobe", "scene");
     require(lobe, "plm_scene_add_material_lobe", "lobe");
-    scene->scene.add_material_lobe(material_id, *lobe);
+    plm::api::checked_size<plm_lobe>(lobe->struct_size, "plm_scene_add_material_lobe", "lobe");
+    // The defaults of its type for the fields an older layout lacks (an unknown type is refused later).
+    const bool known = lobe->type >= PLM_LOBE_GLOSSY && lobe->type <= PLM_LOBE_SPECULAR;
+    const plm_lobe defaults = plm::default_lobe(known ? plm_lobe_type(lobe->type) : PLM_LOBE_GLOSSY);
+    const plm_lobe l = plm::api::read_sized(lobe, defaults, "plm_scene_add_material_lobe", "lobe");
+    scene->scene.add_material_lobe(material_id, l);
   });
 }
 
@@ -347,7 +389,9 @@ plm_status plm_scene_add_light(plm_scene* scene, const char* name, const plm_lig
   return guarded("plm_scene_add_light", [&] {
     require(scene, "plm_scene_add_light", "scene");
     require(light, "plm_scene_add_light", "light");
-    const uint32_t id = scene->scene.add_light(name, *light);
+    const plm_light l =
+        plm::api::read_sized(light, plm::default_light(PLM_LIGHT_POINT), "plm_scene_add_light", "light");
+    const uint32_t id = scene->scene.add_light(name, l);
     if (out_light_id) *out_light_id = id;
   });
 }
@@ -357,8 +401,15 @@ plm_status plm_scene_add_csg(plm_scene* scene, const char* name, const plm_csg_p
                              const uint32_t* children, uint32_t child_count, uint32_t root, uint32_t* out_csg) {
   return guarded("plm_scene_add_csg", [&] {
     require(scene, "plm_scene_add_csg", "scene");
-    const uint32_t id =
-        scene->scene.add_csg(name, primitives, primitive_count, nodes, node_count, children, child_count, root);
+    plm_csg_primitive no_primitive{};
+    plm_csg_node no_node{};
+    no_primitive.struct_size = sizeof no_primitive;
+    no_node.struct_size = sizeof no_node;
+    const std::vector<plm_csg_primitive> p =
+        read_sized_array(primitives, primitive_count, no_primitive, "plm_scene_add_csg", "primitives");
+    const std::vector<plm_csg_node> n = read_sized_array(nodes, node_count, no_node, "plm_scene_add_csg", "nodes");
+    const uint32_t id = scene->scene.add_csg(name, primitives ? p.data() : nullptr, primitive_count,
+                                             nodes ? n.data() : nullptr, node_count, children, child_count, root);
     if (out_csg) *out_csg = id;
   });
 }
@@ -469,7 +520,7 @@ plm_status plm_bake_shard(plm_scene* scene, const plm_bake_settings* settings, u
                 ": expected 0 <= shard < shard_count");
     if (scene_path && std::strlen(scene_path) > 255)
       plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_bake_shard: scene_path is longer than 255 bytes");
-    const plm_bake_settings s = settings ? *settings : plm::default_settings();
+    const plm_bake_settings s = settings_or_default(settings, "plm_bake_shard");
     plm::ShardJob job;
     job.mode = plm::ShardJob::kTrace;
     job.index = shard;
@@ -498,7 +549,7 @@ plm_status plm_bake_texels(plm_scene* scene, const plm_bake_settings* settings, 
     job.mode = stage == PLM_TEXELS_DIRECT ? plm::ShardJob::kDirect : plm::ShardJob::kGather;
     job.index = range;
     job.count = range_count;
-    plm_bake_settings s = settings ? *settings : plm::default_settings();
+    plm_bake_settings s = settings_or_default(settings, "plm_bake_texels");
     double direct_target = s.target_error;
     if (stage == PLM_TEXELS_GATHER) {
       const plm::PartHeader first = plm::load_parts(paths, plm_version(), plm::scene_hash(scene->scene), job);
@@ -531,7 +582,11 @@ plm_status plm_part_info(const char* part_path, plm_bake_settings* out_settings,
   return guarded("plm_part_info", [&] {
     require(part_path, "plm_part_info", "part_path");
     const plm::PartHeader h = plm::read_part_header(part_path);
-    if (out_settings) *out_settings = h.settings;
+    if (out_settings) {
+      plm_bake_settings s = h.settings;
+      s.struct_size = uint32_t(sizeof s);
+      plm::api::write_sized(out_settings, s, "plm_part_info", "out_settings");
+    }
     if (out_shard) *out_shard = h.shard_index;
     if (out_shard_count) *out_shard_count = h.shard_count;
     if (scene_path && scene_path_capacity > 0) {
@@ -572,7 +627,7 @@ plm_status plm_result_stats(const plm_result* result, plm_bake_stats* out_stats)
   return guarded("plm_result_stats", [&] {
     require(result, "plm_result_stats", "result");
     require(out_stats, "plm_result_stats", "out_stats");
-    *out_stats = result->output.stats;
+    plm::api::write_sized(out_stats, result->output.stats, "plm_result_stats", "out_stats");
   });
 }
 
@@ -718,7 +773,7 @@ plm_status plm_result_ol_stats(const plm_result* result, uint32_t group, plm_ol_
   return guarded("plm_result_ol_stats", [&] {
     const plm::OlImage& img = ol_of(result, group, "plm_result_ol_stats");
     require(out_stats, "plm_result_ol_stats", "out_stats");
-    *out_stats = img.stats;
+    plm::api::write_sized(out_stats, img.stats, "plm_result_ol_stats", "out_stats");
   });
 }
 
@@ -739,7 +794,7 @@ plm_status plm_scene_add_lsystem(plm_scene* scene, const char* name, const char*
                                  const plm_lsystem_settings* settings, uint32_t* out_id) {
   return guarded("plm_scene_add_lsystem", [&] {
     require(scene, "plm_scene_add_lsystem", "scene");
-    const plm_lsystem_settings s = settings ? *settings : plm::lsystem::default_lsystem_settings();
+    const plm_lsystem_settings s = lsystem_settings_or_default(settings, "plm_scene_add_lsystem");
     const uint32_t id = scene->scene.add_lsystem(name, rules, s);
     if (out_id) *out_id = id;
   });
@@ -749,7 +804,7 @@ plm_status plm_lsystem_flatten(const char* rules, const plm_lsystem_settings* se
                                uint32_t* shapes, double* matrices, uint32_t* materials, uint64_t* out_count,
                                int* out_truncated) {
   return guarded("plm_lsystem_flatten", [&] {
-    const plm_lsystem_settings s = settings ? *settings : plm::lsystem::default_lsystem_settings();
+    const plm_lsystem_settings s = lsystem_settings_or_default(settings, "plm_lsystem_flatten");
     if (max_primitives > (uint64_t(1) << 32))
       plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_lsystem_flatten: max_primitives ", max_primitives,
                 " exceeds 2^32");
@@ -801,7 +856,7 @@ plm_status plm_result_lsystem_stats(const plm_result* result, uint32_t lsystem, 
   return guarded("plm_result_lsystem_stats", [&] {
     const plm::LSystemOutput& lo = lsystem_of(result, lsystem, "plm_result_lsystem_stats");
     require(out_stats, "plm_result_lsystem_stats", "out_stats");
-    *out_stats = lo.stats;
+    plm::api::write_sized(out_stats, lo.stats, "plm_result_lsystem_stats", "out_stats");
   });
 }
 

@@ -22,7 +22,7 @@
 //   payload of a direct part: per texel of the range its DirectSums (88
 //     bytes), then the calibration records (80 bytes each)
 //   payload of a gather part (where the bake gathers): per texel of the
-//     range its GatherSums and GatherInfo (68 bytes)
+//     range its GatherSums and GatherInfo (100 bytes)
 //
 // Written to a temporary file in the same folder, flushed to disk and renamed,
 // so a reader never sees half a file; read back with every size and checksum

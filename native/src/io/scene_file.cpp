@@ -489,6 +489,7 @@ struct Reader {
         check_keys(e, q, {"shape", "material", "matrix", "major_radius", "minor_radius"});
         plm_csg_primitive& prim = prims[k];
         prim = plm_csg_primitive{};
+        prim.struct_size = sizeof prim;
         prim.shape = enum_value(required(e, q, "shape"), q + ".shape",
                                 {"SPHERE", "BOX", "CYLINDER", "CONE", "TORUS", "PARABOLOID", "HALF_SPACE"});
         if (const json* m = optional(e, "material"))
@@ -512,6 +513,7 @@ struct Reader {
         const std::string q = index_path(pn, k);
         const json& e = object(jn[k], q);
         check_keys(e, q, {"op", "first", "count"});
+        nodes[k].struct_size = sizeof nodes[k];
         nodes[k].op = enum_value(required(e, q, "op"), q + ".op", {"UNION", "INTERSECTION", "DIFFERENCE", "LEAF"});
         nodes[k].first = u32(required(e, q, "first"), q + ".first");
         nodes[k].count = 0;

@@ -68,6 +68,7 @@ std::unique_ptr<Graph> build_graph(const char* rules, const plm_lsystem_settings
 
 plm_lsystem_settings default_lsystem_settings() {
   plm_lsystem_settings s{};
+  s.struct_size = uint32_t(sizeof s);
   s.depth = 0;
   s.seed = 0;
   for (int i = 0; i < 12; ++i) s.matrix[i] = (i % 5 == 0) ? 1.0 : 0.0;

@@ -21,6 +21,7 @@ const char* lobe_type_name(int32_t type) {
 
 plm_lobe default_lobe(plm_lobe_type type) {
   plm_lobe l;
+  l.struct_size = uint32_t(sizeof l);
   l.type = type;
   l.color[0] = l.color[1] = l.color[2] = 1.0f;
   l.roughness = 0.0f;

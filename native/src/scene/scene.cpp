@@ -129,6 +129,7 @@ void Scene::set_mesh_geometry(Mesh& mesh, const std::string& owner, const float*
 plm_light default_light(plm_light_type type) {
   plm_light l;
   std::memset(&l, 0, sizeof(l));
+  l.struct_size = uint32_t(sizeof l);
   l.type = type;
   l.color[0] = l.color[1] = l.color[2] = 1.0f;
   l.power = type == PLM_LIGHT_SUN ? 1.0f : 1000.0f;

@@ -51,6 +51,7 @@ constexpr uint32_t kGatherMinBounces = 64;
 
 plm_bake_settings default_settings() {
   plm_bake_settings s;
+  s.struct_size = uint32_t(sizeof s);
   s.photon_count = 1000000;
   s.max_bounces = 1024;
   s.seed = 0;

@@ -2,6 +2,7 @@
 
 
 #include <algorithm>
+#include <cstddef>
 #include <cstring>
 
 #include "transport/photon_batches.h"
@@ -168,7 +169,11 @@ uint64_t scene_hash(const Scene& scene) {
     h.value(m.ol_group);
   }
   h.value(uint64_t(scene.lights.size()));
-  for (const Light& l : scene.lights) h.value(l.desc);  // plm_light: 4-byte fields, no padding
+  // plm_light from its type on (4-byte fields, no padding): struct_size says how the caller's header laid it out,
+  // not what the light is.
+  constexpr size_t kLightFrom = offsetof(plm_light, type);
+  for (const Light& l : scene.lights)
+    h.bytes(reinterpret_cast<const char*>(&l.desc) + kLightFrom, sizeof l.desc - kLightFrom);
   if (scene.conventions != PLM_CONVENTIONS_CYCLES_3_4) h.value(scene.conventions);  // the default hashes as before
   h.value(uint64_t(scene.csgs.size()));
   for (const CsgSolid& c : scene.csgs) h.value(c.carrier);
