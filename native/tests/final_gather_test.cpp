@@ -163,3 +163,73 @@ TEST(FinalGather, LookupErrorStatisticsBracketTheSpread) {
 
 }  // namespace
 }  // namespace plm
+
+namespace plm {
+namespace {
+
+// The ground's closed area by open_share (sum over its texels of the closed
+// share times the texel's area): under a box standing on it, 1 m^2.
+double closed_ground_area(const SceneBuilder& b, bool with_contact, std::vector<uint8_t> back_lit, double* far_min) {
+  const Scene& scene = b.scene->scene;
+  std::vector<std::string> warnings;
+  TexelSpace space;
+  tbb::task_arena arena(2);
+  arena.execute([&] { space = build_texel_space(scene, warnings); });
+  EmbreeScene accel(scene, 2);
+  const float extent = length(accel.bounds_max() - accel.bounds_min());
+  const SurfaceMap surfaces = surface_map(scene, space.views);
+  std::vector<std::vector<uint8_t>> contact;
+  if (with_contact) {
+    contact = contact_candidates(accel.handle(), scene, space.views, surfaces, 1e-6f * extent);
+    for (size_t i = 0; i < space.views.size(); ++i)
+      if (!contact[i].empty()) space.views[i].contact = contact[i].data();
+  }
+  const FinalGather fg(accel.handle(), surfaces, space.views, space.areas, plm_test::settings_with(0, 16), extent);
+  const MeshView& ground = space.views[0];
+  double closed = 0.0;
+  *far_min = 1.0;
+  for (uint32_t t = 0; t < ground.mesh->lightmap_width * ground.mesh->lightmap_height; ++t) {
+    if (!(space.areas[0].area[t] > 0.0)) continue;
+    const double open = fg.open_share(0, t, back_lit.data());
+    closed += (1.0 - open) * space.areas[0].area[t];
+    const uint32_t x = t % ground.mesh->lightmap_width, y = t / ground.mesh->lightmap_width;
+    const double cx = -4.0 + 8.0 * (x + 0.5) / ground.mesh->lightmap_width;
+    const double cy = -4.0 + 8.0 * (y + 0.5) / ground.mesh->lightmap_height;
+    if (cx * cx + cy * cy > 1.5 * 1.5) *far_min = std::min(*far_min, open);
+  }
+  return closed;
+}
+
+// A texel partly under a box holds the mean over the whole texel, dark part
+// included, while a gather ray lands on its lit part: open_share finds the
+// dark part under a closed box (its bottom pressed on the ground: in
+// contact) and under an open one (five faces: the back of a mesh no photon
+// reached), and nothing elsewhere or where the box's backs are lit.
+TEST(FinalGather, OpenShareFindsTheGroundUnderABox) {
+  SceneBuilder closed_box;
+  plm_test::open_scene(closed_box, true, false, 64);  // the ground (mesh 0) and a 1 x 1 m box, turned
+  double far_min = 0.0;
+  const double closed = closed_ground_area(closed_box, true, {1, 1}, &far_min);
+  EXPECT_NEAR(closed, 1.0, 0.05);
+  EXPECT_EQ(far_min, 1.0);
+
+  SceneBuilder open_box;  // the same box without its bottom: five quads, each a mesh
+  const uint32_t ground = open_box.material("ground", {0.35f, 0.42f, 0.30f});
+  const uint32_t white = open_box.material("box", {0.8f, 0.8f, 0.8f});
+  open_box.quad("ground", {-4, -4, 0}, {8, 0, 0}, {0, 8, 0}, ground, 64);
+  open_box.quad("top", {-0.5f, -0.5f, 1.5f}, {1, 0, 0}, {0, 1, 0}, white, 8);
+  open_box.quad("x+", {0.5f, -0.5f, 0}, {0, 1, 0}, {0, 0, 1.5f}, white, 8);
+  open_box.quad("x-", {-0.5f, 0.5f, 0}, {0, -1, 0}, {0, 0, 1.5f}, white, 8);
+  open_box.quad("y+", {0.5f, 0.5f, 0}, {-1, 0, 0}, {0, 0, 1.5f}, white, 8);
+  open_box.quad("y-", {-0.5f, -0.5f, 0}, {1, 0, 0}, {0, 0, 1.5f}, white, 8);
+  const double inside = closed_ground_area(open_box, true, {1, 0, 0, 0, 0, 0}, &far_min);
+  EXPECT_NEAR(inside, 1.0, 0.05);
+  EXPECT_EQ(far_min, 1.0);
+  std::printf("[ measured ] ground closed under a 1 m^2 box: %.4f m^2 (bottom in contact), %.4f m^2 (no bottom)\n",
+              closed, inside);
+  // Backs that photons reached are a roof, not the inside of a box: open.
+  EXPECT_EQ(closed_ground_area(open_box, true, {1, 1, 1, 1, 1, 1}, &far_min), 0.0);
+}
+
+}  // namespace
+}  // namespace plm

@@ -20,13 +20,15 @@ constexpr double kGatherReach = 1.0;
 constexpr size_t kMinBiasTexels = 16;
 
 // The gather fit's squared bias by radius (linear_fit_bias over the usable
-// texels whose reach allows radius 2; none with fewer than kMinBiasTexels).
-// With the gather's variance calibrated, this bias is what is left of its
-// error where the bounce light curves (a box's foot).
+// texels whose reach allows radius 2; none with fewer than kMinBiasTexels),
+// from the fit of radius 2 in b.g_value and the one of radius 1 it makes
+// (b.fit1, b.var1, b.rays1). With the gather's variance calibrated, this
+// bias is what is left of its error where the bounce light curves (a box's
+// foot, a wall under a lamp).
 static_assert(kGatherRadius == 2, "the bias estimate compares the fits of radius 1 and 2");
 FitBias gather_fit_bias(const TexelAreas& ta, uint32_t width, uint32_t height, EstimateBuffers& b) {
   reconstruct_linear(ta, width, height, b.g_mean.data(), b.g_var.data(), b.g_guide.data(), 1, b.fit1, b.var1,
-                     b.radius.data());
+                     b.radius.data(), 0.9f, b.lookup_rays.data(), &b.rays1);
   const FitBias out = linear_fit_bias(b.fit1, b.var1, b.g_value, b.g_fit_var, b.radius.size(),
                                       [&](size_t t) { return b.usable[t] && b.radius[t] >= 2; });
   return out.texels < kMinBiasTexels ? FitBias() : out;
@@ -73,9 +75,13 @@ double Estimator::csg_texel(size_t c, uint32_t sub, uint64_t photons, double val
 // one side would be biased; the fit reaches no further than the gather's
 // hits are near (kGatherReach). Texels whose gather met something it
 // cannot look up keep A, and pool with no other (a negative guide), as do
-// texels whose rays met dark backs (their G is their own). Where the fit is
-// narrowed, A (a mean over the whole texel, G over its central square) is
-// tested against G for bias.
+// texels whose rays met dark backs (their G is their own). The fit's radius
+// (0, 1 or 2) is the lightmap's of least estimated error, squared bias
+// included, as the sky pool's (direct_pool.cpp): a linear fit reads the
+// middle of a field that peaks inside a surface low and its edges high, and
+// where the gather is precise that bias outweighs what a wider fit saves.
+// Where the fit is narrowed, A (a mean over the whole texel, G over its
+// central square) is tested against G for bias.
 // var G: the fit's variance from the texels' own (their pair estimates,
 // calibrated: gather_scale), the fit's squared bias (gather_fit_bias), and
 // the error of what the rays looked up: its wide part whole; of its local
@@ -134,20 +140,33 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
     shared += info.lookup_cells - info.lookup_rays;
     pairs += info.lookup_all - info.lookup_rays;
   }
-  const std::vector<double>& g_value = b.g_value;
-  const std::vector<double>& g_fit_var = b.g_fit_var;
   reconstruct_linear(space.areas[i], mesh.lightmap_width, mesh.lightmap_height, g_mean.data(), g_var.data(),
                      guide.data(), kGatherRadius, b.g_value, b.g_fit_var, radius.data(), 0.9f, lookup_rays.data(),
                      &b.rays_fit);
   const double rho = pairs > 0.0 ? std::clamp(shared / pairs, 0.0, 1.0) : 1.0;
   const FitBias fit_bias = gather_fit_bias(space.areas[i], mesh.lightmap_width, mesh.lightmap_height, b);
+  // By radius: the fits' values, their variances and their lookup rays' variances.
+  const double* fits[3] = {g_mean.data(), b.fit1.data(), b.g_value.data()};
+  const double* fit_vars[3] = {g_var.data(), b.var1.data(), b.g_fit_var.data()};
+  const double* fit_rays[3] = {lookup_rays.data(), b.rays1.data(), b.rays_fit.data()};
+  uint32_t fit_r = kGatherRadius;
+  if (fit_bias.texels > 0) {  // else the bias is unknown: the widest fit
+    double mse[3] = {0.0, 0.0, 0.0};
+    for (size_t t = 0; t < n; ++t)
+      if (usable[t])
+        for (uint32_t r = 0; r <= kGatherRadius; ++r)
+          mse[r] += fit_vars[r][t] + (1.0 - rho) * fit_rays[r][t] + fit_bias.sq[std::min<uint32_t>(radius[t], r)];
+    fit_r = uint32_t(std::min_element(mse, mse + 3) - mse);
+  }
+  const double* g_value = fits[fit_r];
+  const double* g_fit_var = fit_vars[fit_r];
   for (size_t t = 0, k = space.covered_begin[i]; t < n; ++t) {
     if (!(space.areas[i].area[t] > 0.0)) continue;
     const GatherInfo& info = gather->info[k++];
     if (!usable[t]) continue;
     double v_photons = variance[t], bias_sq = 0.0;
-    const double v_lookups = (1.0 - rho) * b.rays_fit[t] + rho * info.lookup_all + info.lookup_wide;
-    const double fit_bias_sq = fit_bias.sq[radius[t]];
+    const double v_lookups = (1.0 - rho) * fit_rays[fit_r][t] + rho * info.lookup_all + info.lookup_wide;
+    const double fit_bias_sq = fit_bias.sq[std::min<uint32_t>(radius[t], fit_r)];
     const double v_gather = g_fit_var[t] + fit_bias_sq + v_lookups;
     if (radius[t] < kGatherRadius) {
       // Near a wall the photons' mean over the whole texel is biased

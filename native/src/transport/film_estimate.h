@@ -27,7 +27,7 @@ struct EstimateBuffers {
   std::vector<double> value3, variance;
   LookupError lookup;
   std::vector<double> guide;
-  std::vector<double> g_guide, g_mean, g_var, g_value, g_fit_var, lookup_rays, rays_fit, fit1, var1;
+  std::vector<double> g_guide, g_mean, g_var, g_value, g_fit_var, lookup_rays, rays_fit, fit1, var1, rays1;
   std::vector<uint8_t> usable, radius;
 };
 

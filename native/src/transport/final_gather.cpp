@@ -15,6 +15,7 @@ namespace {
 
 constexpr uint32_t kCellCapacity = kMaxGatherSamples;  // rays whose cells a texel keeps apart
 constexpr uint32_t kCalibrationRound = 0xFF;            // the replicates' key (the gather's rounds count from 0)
+constexpr uint32_t kOpenRound = 0xFE;                   // open_share's points
 
 // A ray's share of the local lookup error and the cell it looked up.
 struct CellShare {
@@ -38,6 +39,44 @@ void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round,
                                const GatherSource& source, GatherSums& sums, GatherInfo& info) const {
   if (passage_) sample<true>(mesh_id, texel, round, samples, source, sums, info);
   else sample<false>(mesh_id, texel, round, samples, source, sums, info);
+}
+
+float FinalGather::open_share(uint32_t mesh_id, uint32_t texel, const uint8_t* back_lit) const {
+  constexpr uint32_t kSide = 4;  // points per side: a jittered grid over the texel's window
+  const uint64_t global = views_[mesh_id].texel_offset + texel;
+  Rng rng(seed_ ^ 0x7F4A7C15u, (global << 9) | 0x100u | kOpenRound);
+  const TexelPoints::TexelWindow tw = points_.texel_window(mesh_id, texel, kSide);
+  const SobolGroup piece_dims(rng.next_u32(), 4);
+  const uint8_t* contact = views_[mesh_id].contact;
+  RayPacket packet;
+  Vec3 lane_dir[RayPacket::kLanes];
+  uint32_t points = 0, closed = 0;
+  for (uint32_t j0 = 0; j0 < kSide * kSide; j0 += RayPacket::kLanes) {
+    for (uint32_t j = j0; j < j0 + RayPacket::kLanes; ++j) {
+      const float x = tw.origin_x + (float(j % kSide) + rng.next_float()) * tw.side;
+      const float y = tw.origin_y + (float(j / kSide) + rng.next_float()) * tw.side;
+      Vec3 p, normal;
+      uint32_t tri;
+      float w[3] = {0, 0, 0};
+      if (tw.sparse) piece_dims.point(j, 3, w);
+      if (!points_.texel_point(tw, mesh_id, texel, x, y, w, p, normal, tri)) continue;
+      ++points;
+      if (contact && contact[texel] && in_contact(rtc_, surfaces_, p, normal, mesh_id, tri, offset_scale_)) {
+        ++closed;
+        continue;
+      }
+      lane_dir[packet.size] = normal;
+      packet.add(offset_origin(p, normal, offset_scale_), normal, std::numeric_limits<float>::infinity(),
+                 SurfaceMap::mesh_geometry(mesh_id), tri);
+    }
+    const unsigned lanes = packet.size;
+    if (lanes > 0) packet.intersect(rtc_);
+    for (unsigned l = 0; l < lanes; ++l) {
+      const SurfaceHit h = surfaces_.hit(packet.rh, l);
+      if (h.kind == SurfaceKind::Triangle && !(dot(lane_dir[l], h.normal) < 0.0f) && !back_lit[h.index]) ++closed;
+    }
+  }
+  return points > 0 ? float(points - closed) / float(points) : 1.0f;
 }
 
 template <bool kPassage>
@@ -134,6 +173,8 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
           if (ht >= 0 && !unreliable) {
             if (hv.texel_area[ht] > 0.0) {
               const float* d = source.radiosity + 3 * (hv.texel_offset + ht);
+              // The lit part's light: the texel's mean over its open share.
+              const float open = source.open ? source.open[hv.texel_offset + ht] : 1.0f;
               Vec3 a = kPassage ? (*source.albedo)[mesh][prim] * through : (*source.albedo)[mesh][prim];
               if (materials_) {  // the diffuse radiance toward the texel (layers, Burley)
                 const MaterialLobes& ml = materials_->material(hm.material_ids[prim]);
@@ -141,6 +182,7 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
                   a *= materials_->view_scale(ml.view_scale, -dot(lane_dir[l], h.normal));
               }
               a *= lane_weight[l];
+              if (open > 0.0f && open < 1.0f) a = a * (1.0f / open);
               e = {a.x * d[0], a.y * d[1], a.z * d[2]};
               const double albedo = average(a), local = albedo * source.local[hv.texel_offset + ht];
               const uint32_t row = uint32_t(ht) / hm.lightmap_width, column = uint32_t(ht) % hm.lightmap_width;
@@ -213,7 +255,24 @@ GatherResult run_final_gather(tbb::task_arena& arena, const FinalGather& gather,
       wide_error[g0 + t] = wide[i][t];
     }
   }
-  const GatherSource source{radiosity.data(), local_error.data(), wide_error.data(), &albedo, back_lit};
+  // Open shares where some texels may be partly closed: meshes whose backs
+  // no photon reached (a box standing on the floor) or faces in contact.
+  std::vector<float> open;
+  bool closable = false;
+  for (size_t i = 0; i < space.views.size() && !closable; ++i) closable = !back_lit[i] || space.views[i].contact;
+  if (closable) {
+    open.assign(space.texel_count, 1.0f);
+    arena.execute([&] {
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, space.covered.size(), 64), [&](const auto& r) {
+        for (size_t k = r.begin(); k < r.end(); ++k) {
+          const CoveredTexel& c = space.covered[k];
+          open[space.views[c.mesh].texel_offset + c.texel] = gather.open_share(c.mesh, c.texel, back_lit);
+        }
+      });
+    });
+  }
+  const GatherSource source{radiosity.data(), local_error.data(), wide_error.data(), &albedo, back_lit,
+                            open.empty() ? nullptr : open.data()};
   slice = slice.clamped(space.covered.size());
   const CoveredTexel* const covered = space.covered.data() + slice.begin;
   GatherResult out;

@@ -61,6 +61,7 @@ struct GatherSource {
   const float* wide = nullptr;
   const std::vector<std::vector<Vec3>>* albedo = nullptr;  // per mesh, per triangle
   const uint8_t* back_lit = nullptr;  // per mesh: a photon reached its back (else its backs are dark)
+  const float* open = nullptr;        // per global texel: FinalGather::open_share (null: 1 everywhere)
 };
 
 class FinalGather {
@@ -87,6 +88,14 @@ class FinalGather {
   // not used. Thread-safe for distinct texels.
   void sample_texel(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, const GatherSource& source,
                     GatherSums& sums, GatherInfo& info) const;
+
+  // The share of a texel's points (those its value is the mean over) that
+  // light can reach: neither inside a closed object standing on the surface
+  // (a ray along the normal meets the back of a mesh whose backs no photon
+  // reached: back_lit, per mesh) nor pressed against another face
+  // (in_contact). A floor texel half under a box holds half the light of
+  // its lit part, where a gather ray lands.
+  float open_share(uint32_t mesh, uint32_t texel, const uint8_t* back_lit) const;
 
  private:
   // sample_texel without (kPassage false: the loop as in scenes without
