@@ -291,7 +291,7 @@ class Scene(_Handle):
             self.set_conventions(conventions)
 
     def set_conventions(self, conventions):
-        """Whose Cycles the scene's lights follow (docs/design.md "Cycles versions"): "cycles-3.4"
+        """Whose Cycles the scene's lights follow (docs/design/cycles-versions.md "Cycles versions"): "cycles-3.4"
         (Blender 3.x, the default: area light radiance P / (4 A), spot intensity with a cos factor
         in the cone) or "cycles-4" (Blender 4.0 to 5.2: area radiance P / (pi A), spot intensity
         the smoothstep alone). Point and sun lights, emission and the world do not change.
@@ -394,7 +394,7 @@ class Scene(_Handle):
     LOBE_KINDS = {"glossy": 0, "fresnel": 1, "glass": 2, "refraction": 3, "transparent": 4, "specular": 5}
 
     def add_material_lobe(self, material, kind, color, roughness=0.0, ior=None, abbe=0.0, weight=1.0):
-        """Add a specular lobe to a material (at most 8; docs/design.md "Materials"). kind:
+        """Add a specular lobe to a material (at most 8; docs/design/materials.md "Materials"). kind:
         "glossy" (GGX reflection of `color` at every angle), "fresnel" (GGX reflection rising from
         `color` = F0 at normal incidence to `weight` at grazing, as a dielectric of `ior`),
         "glass" (Fresnel reflection and refraction, tinted), "refraction" (refraction only),
@@ -417,7 +417,7 @@ class Scene(_Handle):
         Principled BSDF diffuse, Cycles 3.4's Burley law with `roughness` in [0, 1], the node's
         Roughness): its surface scatters light by that law and its lightmap holds what Cycles 3.4
         bakes for it (light arriving at grazing angles weighted as Burley weighs it toward the
-        normal). docs/design.md "Cycles versions"."""
+        normal). docs/design/cycles-versions.md "Cycles versions"."""
         if model not in self.DIFFUSE_MODELS:
             raise ValueError("diffuse model must be one of %s, got %r" % (sorted(self.DIFFUSE_MODELS), model))
         _check(_C.plm_scene_set_material_diffuse(self._h, _uint(material, "material"), self.DIFFUSE_MODELS[model],

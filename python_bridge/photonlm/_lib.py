@@ -26,7 +26,7 @@ _LIB_NAME = {"win32": "photonlm.dll", "darwin": "libphotonlm.dylib"}.get(sys.pla
 # engine's calls bind to Blender's copies (photons hit nothing, some bakes crash). RTLD_DEEPBIND puts
 # the library's own dependencies ahead of the process's global symbols for its lookups; RTLD_LOCAL
 # keeps its symbols out of the host's. Sanitizer runtimes refuse DEEPBIND: PHOTONLM_DEEPBIND=0 loads
-# the library plainly. docs/design.md "The engine inside a host".
+# the library plainly. docs/design/blender-side.md "The engine inside a host reaches its own libraries".
 _LOAD_MODE = ctypes.RTLD_LOCAL
 if hasattr(os, "RTLD_DEEPBIND") and os.environ.get("PHOTONLM_DEEPBIND", "1") != "0":
     _LOAD_MODE |= os.RTLD_DEEPBIND

@@ -1,7 +1,7 @@
 """Seams between objects, baked end to end: a sphere as two objects (its northern and southern
 hemispheres, each its own UV island) under a sun and a sky. Along the equator the two lightmaps
 agree, and their mean there matches the analytic irradiance of a lone convex sphere,
-E max(0, n.s) / pi + L (design.md "Seams between objects"). Without stitching between objects the
+E max(0, n.s) / pi + L (docs/design/texels.md "Seams between objects"). Without stitching between objects the
 jump is 4.2 % of the value; 64 x 64 texels, so that the triangles along the equator cover more
 than two texels each (smaller ones are not stitched)."""
 import numpy as np

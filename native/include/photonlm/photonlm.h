@@ -1,7 +1,7 @@
 /*
  * photonlm: photon-lightmap global illumination baker, C API (plain C99).
  * Citations such as [Thesis §3.5.2] here and in the sources refer to the
- * references of docs/design.md ([Thesis]: A. Wilkie, Photon Tracing for
+ * references of docs/design/references.md ([Thesis]: A. Wilkie, Photon Tracing for
  * Complex Environments, PhD thesis, TU Vienna, 2001).
  *
  * Conventions
@@ -101,7 +101,7 @@ PLM_API plm_status plm_scene_add_material(plm_scene* scene, const char* name,
                                           const float albedo[3], const float emission[3],
                                           uint32_t* out_material_id);
 
-/* Specular lobes: glass, mirrors, metal (docs/design.md "Materials"). A
+/* Specular lobes: glass, mirrors, metal (docs/design/materials.md "Materials"). A
  * material is its diffuse part (plm_scene_add_material's albedo) plus the
  * lobes added here, in the order given, as Cycles' shader nodes sum their
  * closures: the add-on flattens Principled BSDF, Glass, Glossy, Refraction and
@@ -171,7 +171,7 @@ PLM_API void plm_lobe_default(plm_lobe* lobe, plm_lobe_type type);
 /* Appends a lobe to a material (at most 8 a material). */
 PLM_API plm_status plm_scene_add_material_lobe(plm_scene* scene, uint32_t material_id, const plm_lobe* lobe);
 
-/* The diffuse part's scattering model (docs/design.md "Cycles versions").
+/* The diffuse part's scattering model (docs/design/cycles-versions.md "Cycles versions").
  *   PLM_DIFFUSE_LAMBERT  (default) Lambert: the Diffuse BSDF, Blender 4's
  *                        Principled BSDF
  *   PLM_DIFFUSE_BURLEY   Blender 3.x's Principled BSDF diffuse (Cycles 3.4
@@ -189,7 +189,7 @@ typedef enum plm_diffuse_model { PLM_DIFFUSE_LAMBERT = 0, PLM_DIFFUSE_BURLEY = 1
 PLM_API plm_status plm_scene_set_material_diffuse(plm_scene* scene, uint32_t material_id, int32_t model,
                                                   float roughness);
 
-/* Image textures on materials (docs/design.md "Textures").
+/* Image textures on materials (docs/design/materials.md "Textures").
  *   PLM_TEXTURE_ALBEDO    albedo = image x the material's albedo
  *   PLM_TEXTURE_EMISSION  emitted radiance = image x the material's emission
  * (multiplied, so pass albedo 1 1 1 for "the image replaces the colour", as
@@ -331,7 +331,7 @@ typedef enum plm_light_type {
   PLM_LIGHT_PORTAL = 5
 } plm_light_type;
 
-/* Whose conventions the scene's lights follow (docs/design.md "Cycles
+/* Whose conventions the scene's lights follow (docs/design/cycles-versions.md "Cycles
  * versions"): the Cycles of the Blender that made the scene.
  *   PLM_CONVENTIONS_CYCLES_3_4  (default) Blender 3.x: an area light of power P
  *                               and area A has radiance P / (4 A); a spot's
@@ -416,7 +416,7 @@ PLM_API plm_status plm_scene_set_world_map_file(plm_scene* scene, const char* pa
  * Tree nodes: a LEAF names a primitive (first = its index); UNION,
  * INTERSECTION and DIFFERENCE (first child minus all others) have `count`
  * children listed from children[first]. Coincident faces follow fixed rules
- * (a face shared inside a union vanishes; see docs/design.md) and overlapping
+ * (a face shared inside a union vanishes; see docs/design/geometry-kinds.md, "CSG solids") and overlapping
  * coplanar faces are reported as warnings. */
 typedef enum plm_csg_shape {
   PLM_CSG_SPHERE = 0,

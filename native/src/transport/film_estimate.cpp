@@ -14,7 +14,7 @@ namespace {
 // Radius (texels) of the local linear fit that smooths the gather (reconstruct_linear).
 constexpr uint32_t kGatherRadius = 2;
 // A texel's fit reaches at most kGatherReach x the harmonic mean distance of
-// its gather rays' hits (docs/design.md, "Final gather").
+// its gather rays' hits (docs/design/error-and-gather.md, "Final gather").
 constexpr double kGatherReach = 1.0;
 // Texels (of radius 2) a lightmap needs for an estimate of its gather fit's bias.
 constexpr size_t kMinBiasTexels = 16;
