@@ -529,25 +529,36 @@ const char* unit_name(PartKind kind) {
 
 // Checks that the parts `members` (indices into paths, all of one kind and
 // count) hold every shard or range exactly once; returns them in that order.
+// Works on the parts given, not on the count, which a damaged header may make
+// huge: the missing ones are listed up to kMissingListed.
 std::vector<size_t> in_order(const std::vector<std::string>& paths, const std::vector<PartHeader>& headers,
                              const std::vector<size_t>& members) {
+  constexpr size_t kMissingListed = 32;
   const PartHeader& lead = headers[members[0]];
   const char* unit = unit_name(lead.kind);
-  std::vector<int64_t> owner(lead.shard_count, -1);
-  for (size_t i : members) {
-    int64_t& o = owner[headers[i].shard_index];
-    if (o >= 0)
-      fail(PLM_ERROR_INVALID_ARGUMENT, paths[i], ": ", unit, " ", headers[i].shard_index + 1, " of ", lead.shard_count,
-           " is also ", paths[size_t(o)]);
-    o = int64_t(i);
-  }
+  std::vector<size_t> sorted = members;
+  std::stable_sort(sorted.begin(), sorted.end(),
+                   [&](size_t a, size_t b) { return headers[a].shard_index < headers[b].shard_index; });
+  for (size_t j = 1; j < sorted.size(); ++j)
+    if (headers[sorted[j]].shard_index == headers[sorted[j - 1]].shard_index)
+      fail(PLM_ERROR_INVALID_ARGUMENT, paths[sorted[j]], ": ", unit, " ", headers[sorted[j]].shard_index + 1, " of ",
+           lead.shard_count, " is also ", paths[sorted[j - 1]]);
   std::string missing;
-  for (uint32_t k = 0; k < lead.shard_count; ++k)
-    if (owner[k] < 0) missing += (missing.empty() ? "" : ", ") + std::to_string(k + 1);
+  size_t listed = 0;
+  uint32_t next = 0;  // the first index not yet accounted for
+  auto gap = [&](uint32_t end) {  // indices [next, end) are missing
+    for (uint32_t k = next; k < end && listed <= kMissingListed; ++k, ++listed)
+      missing += listed == kMissingListed ? ", ..." : (missing.empty() ? "" : ", ") + std::to_string(k + 1);
+  };
+  for (size_t i : sorted) {
+    gap(headers[i].shard_index);
+    next = headers[i].shard_index + 1;
+  }
+  gap(lead.shard_count);
   if (!missing.empty())
     fail(PLM_ERROR_INVALID_ARGUMENT, unit, "(s) ", missing, " of ", lead.shard_count, " missing: ", members.size(),
          " ", part_kind_name(lead.kind), " file(s) given");
-  return std::vector<size_t>(owner.begin(), owner.end());
+  return sorted;
 }
 
 }  // namespace
