@@ -1,15 +1,18 @@
 #!/usr/bin/env python3
-"""Writes the seed corpus of fuzz_scene_api (native/fuzz/corpus/scene_api/).
+"""Writes the seed corpora of fuzz_scene_api (native/fuzz/corpus/scene_api/) and
+fuzz_part_file (native/fuzz/corpus/part_file/).
 
-The format is described at the top of fuzz_scene_api.cpp: one op byte, then
-its operands; a float is tag 0 + 4 raw bytes, tag 1 + an index into
-kSpecialFloats, or tag 2 + a signed byte / 16.
+The formats are described at the top of fuzz_scene_api.cpp and
+fuzz_part_file.cpp. fuzz_scene_api: one op byte, then its operands; a float is
+tag 0 + 4 raw bytes, tag 1 + an index into kSpecialFloats, or tag 2 + a signed
+byte / 16. fuzz_part_file: the valid part to start from, a flags byte, then
+(offset, byte) edits.
 Run: python3 native/fuzz/make_corpus.py
 """
 import os
 import struct
 
-OUT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "corpus", "scene_api")
+CORPUS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "corpus")
 SPECIAL = {"nan": 20, "inf": 22, "-inf": 23, "1e30": 14, "3.4e38": 16, "1e-45": 9}
 
 
@@ -90,6 +93,42 @@ def warnings():
     return bytes([8, 1])
 
 
+# Ops 13-15 are op bytes 208-210.
+SIZE = {"zero": 0, "older": 1, "newer": 2, "short": 3, "current": 5}
+
+
+def lobe(material, type_, color=None, roughness=None, ior=None, abbe=None, weight=None, size=None):
+    fields, body = 0, b""
+    for bit, value in ((1, color), (2, roughness), (4, ior), (8, abbe), (16, weight)):
+        if value is not None:
+            fields |= bit
+            body += b"".join(f(c) for c in value) if bit == 1 else f(value)
+    if size is not None:
+        fields |= 32
+        body += bytes([SIZE[size]])
+    return bytes([208, material, type_ + 1, fields]) + body
+
+
+def world_map(w, h, pixels, angle=0.0, strength=1.0, flags=0):
+    return bytes([209, flags, w, h]) + bytes(pixels) + f(angle) + f(strength)
+
+
+def stats_of_size(size):
+    return bytes([210, 0, SIZE[size]])
+
+
+def bake_of_size(size, photons=400, direct=2, bounces=4):
+    return bytes([210, 1]) + struct.pack("<H", photons) + bytes([direct, bounces, SIZE[size]])
+
+
+def light_of_size(size, name=2):
+    return bytes([210, 2, 1, SIZE[size], name])
+
+
+def csg_node_of_size(node, size, name=2):
+    return bytes([210, 2, 0, node, SIZE[size], name])
+
+
 SEEDS = {
     "point_over_quad": material((0.8, 0.8, 0.8), (0, 0, 0)) + quad((-1, -1, 0), (2, 0, 0), (0, 2, 0), 0, 8) +
     light(0, 100.0, matrix=[(11, 1.0)]) + bake() + copy(0) + exr(0) + warnings(),
@@ -108,10 +147,48 @@ SEEDS = {
     "subdiv_cube_under_sky": material((0.8, 0.8, 0.8), (0, 0, 0)) +
     subdiv(*cube_cage(), creases=[(0, 4, 1.0), (4, 6, 0.5)]) + world((0.5, 0.5, 0.5)) +
     light(5, size=(1.0, 1.0), matrix=[(11, 3.0)]) + bake(1000, 4) + copy(0) + warnings(),
+    "lobes_under_world_map": material((0.3, 0.3, 0.3), (0, 0, 0)) + quad((-1, -1, 0), (2, 0, 0), (0, 2, 0), 0, 4) +
+    lobe(0, 5, color=(0.04, 0.04, 0.04), roughness=0.25) + lobe(0, 1, color=(0.9, 0.6, 0.2), weight=0.5) +
+    lobe(0, 2, ior=1.5, abbe=40.0, size="older") + lobe(0, 0, roughness="nan") + lobe(0, 3, size="zero") +
+    world_map(4, 2, [40, 60, 90] * 8, angle=0.5, strength=2.0) + bake(1000, 4) + copy(0) + warnings(),
+    "world_map_file": quad((-1, -1, 0), (2, 0, 0), (0, 2, 0), 0, 4) +
+    world_map(3, 2, [64, 64, 64, 200, 100, 50] * 3, strength=1.5, flags=16) + bake(800, 2) + copy(0) +
+    world_map(2, 1, [1, 2, 3, 4, 5, 6], flags=16 | 32) + world_map(0, 0, [], flags=1),
+    "struct_sizes": quad((-1, -1, 0), (2, 0, 0), (0, 2, 0), 0, 4) + light(0, 100.0, matrix=[(11, 1.0)]) +
+    bake_of_size("older") + stats_of_size("older") + stats_of_size("zero") + stats_of_size("newer") +
+    bake_of_size("short") + light_of_size("zero") + light_of_size("current") + csg_node_of_size(1, "short") +
+    csg_node_of_size(0, "current") + bake_of_size("current") + stats_of_size("current"),
 }
 
-os.makedirs(OUT, exist_ok=True)
-for name, data in SEEDS.items():
-    with open(os.path.join(OUT, name), "wb") as fh:
-        fh.write(data)
-    print(f"{name}: {len(data)} bytes")
+
+def part(start, flags=0, edits=(), resize=None):
+    body = bytes([start, flags | (4 if resize is not None else 0)])
+    if resize is not None:
+        body += struct.pack("<H", resize)
+    return body + b"".join(struct.pack("<HB", at, value) for at, value in edits)
+
+
+# Header offsets (io/partial_file.cpp): 80 shard count, 92 texel count, 124 segment count, 404 kind,
+# 428 range end.
+PART_SEEDS = {
+    "photons": part(0),
+    "direct": part(1),
+    "gather": part(2),
+    "photons_as_direct_resealed": part(0, 3, [(404, 1)]),
+    # a find: 2^31 shards claimed, one given (the merge sized a table by the count)
+    "shard_count_huge_resealed": part(0, 2, [(83, 0x7F)]),
+    "texel_count_resealed": part(0, 3, [(92, 0xFF)]),
+    "segments_resealed": part(0, 3, [(124, 3)]),
+    "direct_range_resealed": part(1, 3, [(428, 0x10)]),
+    "direct_sums_resealed": part(1, 1, [(520, 0xFF), (521, 0xFF), (527, 0x7F)]),
+    "gather_damaged": part(2, 0, [(600, 1)]),
+    "photons_truncated": part(0, 0, resize=300),
+    "raw_magic": bytes([3, 0]) + b"PLMPART\0" + bytes([4, 0, 0, 0, 0, 2, 0, 0]) + bytes(40),
+}
+
+for folder, seeds in (("scene_api", SEEDS), ("part_file", PART_SEEDS)):
+    os.makedirs(os.path.join(CORPUS, folder), exist_ok=True)
+    for name, data in seeds.items():
+        with open(os.path.join(CORPUS, folder, name), "wb") as fh:
+            fh.write(data)
+        print(f"{folder}/{name}: {len(data)} bytes")
