@@ -339,10 +339,10 @@ def set_world_color(color, strength=1.0):
 # ---- baking -------------------------------------------------------------------------------------------------
 
 def photonlm_bake(photons, max_bounces, seed=1, target_error=0.02, **settings):
-    """Bake with the add-on's operator (the path an artist uses). Returns photonlm_blender.bake.LAST
+    """Bake with the add-on's operator (the path an artist uses). Returns photonlm_blender.record.last()
     with the operator's wall time added. photons is the cap when target_error > 0 (the add-on's
     default 0.02), the exact count at 0; settings: other scene.photonlm settings to set first."""
-    from photonlm_blender import bake
+    from photonlm_blender.writeback import record
     s = bpy.context.scene.photonlm
     s.photons = photons
     s.target_error = target_error
@@ -355,7 +355,7 @@ def photonlm_bake(photons, max_bounces, seed=1, target_error=0.02, **settings):
     wall = time.perf_counter() - t0
     if res != {'FINISHED'}:
         raise RuntimeError("photonlm bake returned %s" % res)
-    last = bake.LAST
+    last = record.last()
     last["wall_seconds"] = wall
     return last
 

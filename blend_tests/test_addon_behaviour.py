@@ -136,7 +136,9 @@ def build_scene():
 def main():
     plm = scenes.setup_paths()
     checks = scenes.Checks("addon_behaviour")
-    from photonlm_blender import bake, materials
+    from photonlm_blender.bake import job as bake
+    from photonlm_blender.writeback import wiring
+    from photonlm_blender.export import meshes
 
     # -- register / unregister twice --------------------------------------------------------------
     ok = True
@@ -268,7 +270,7 @@ def main():
     scene = bpy.context.scene
     scene.photonlm.preview = True
     on = all(m.node_tree.get_output_node(t).get("photonlm") == "output"
-             for m in bpy.data.materials if materials.is_wired(m) for t in ('CYCLES', 'EEVEE'))
+             for m in bpy.data.materials if wiring.is_wired(m) for t in ('CYCLES', 'EEVEE'))
     checks.check(on, "preview on: every wired material renders through the PhotonLM output")
     checks.check(links_intact(), "original links intact with the preview on")
     scene.photonlm.preview = False
@@ -326,15 +328,16 @@ def main():
                  "invoke without a window bakes synchronously (%s)" % r)
 
     # -- export: modifiers applied, world-space positions --------------------------------------------------------------
-    from photonlm_blender import export
+    from photonlm_blender.writeback import wiring
+    from photonlm_blender.export import meshes
     cube.location = (0.3, -0.2, 0.7)
     cube.rotation_euler = (0.3, 0.2, 0.1)
     cube.scale = (1.0, 2.0, 0.5)
     cube.modifiers.new("subsurf", 'SUBSURF').levels = 1
     bpy.context.view_layer.update()
     dg = bpy.context.evaluated_depsgraph_get()
-    with export.evaluated_mesh(cube, dg) as (cube_eval, mesh):
-        pos, tris, _, uv = export.mesh_arrays(mesh, cube_eval.matrix_world, True)
+    with meshes.evaluated_mesh(cube, dg) as (cube_eval, mesh):
+        pos, tris, _, uv = meshes.mesh_arrays(mesh, cube_eval.matrix_world, True)
         mw = np.array(cube_eval.matrix_world)
         local = np.array([v.co[:] for v in mesh.vertices])
     want = local @ mw[:3, :3].T + mw[:3, 3]

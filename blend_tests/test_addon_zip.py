@@ -65,7 +65,8 @@ print("MAPS", " ".join(sorted({l.split()[-1] for l in open("/proc/self/maps") if
 BLENDER_BAKE = r"""
 import addon_utils, bpy, os, sys
 addon_utils.enable("photonlm_blender", default_set=True, handle_error=lambda e: print("ENABLE ERROR", e))
-from photonlm_blender import bake, bridge
+from photonlm_blender import bridge
+from photonlm_blender.writeback import record
 for coll in (bpy.data.objects, bpy.data.meshes, bpy.data.lights):
     for item in list(coll):
         coll.remove(item)
@@ -78,7 +79,7 @@ print("HIDDEN", " ".join(str(not os.path.exists(p) or os.path.getsize(p) == 0) f
 bpy.context.scene.photonlm.output_dir = args[0]
 bpy.context.scene.photonlm.photons = 20000
 result = bpy.ops.photonlm.bake()
-print("ZIPBAKE", result, sorted(bake.LAST.get("objects", {})), bridge.get().__file__)
+print("ZIPBAKE", result, sorted(record.last().get("objects", {})), bridge.get().__file__)
 """
 
 

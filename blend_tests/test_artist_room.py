@@ -92,7 +92,7 @@ def side_means(walls, rgb):
 
 
 def check_maps(checks, objs, last, what):
-    from photonlm_blender import uvcheck
+    from photonlm_blender.uv import uvcheck
     for name in scenes.ARTIST_ROOM_OBJECTS:
         obj = objs[name]
         pos, uv = scenes.evaluated_lightmap_triangles(obj)
@@ -115,7 +115,7 @@ def evaluated_uvs(objs):
 def main():
     checks = scenes.Checks("artist_room")
     scenes.setup_paths()
-    from photonlm_blender import uvmaps
+    from photonlm_blender.uv import uvmaps
     scenes.clear_scene()
     out = scenes.out_dir("artist_room")
     objs = scenes.artist_room(out)

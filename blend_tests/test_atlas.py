@@ -209,7 +209,11 @@ def main():
     checks = scenes.Checks("atlas")
     scenes.setup_paths()
     import photonlm
-    from photonlm_blender import atlas, atlas_pack, materials
+    from photonlm_blender.writeback import atlas
+    from photonlm_blender.uv import atlas_pack
+    from photonlm_blender.export import materials
+    from photonlm_blender.writeback import wiring
+    from photonlm_blender.uv import uvmaps
     build()
     out = scenes.out_dir("atlas")
     bpy.context.scene.photonlm.output_dir = out
@@ -220,7 +224,8 @@ def main():
     names = sorted(last["objects"])
     pad = layout["pad"]
     places = {n: atlas_pack.Placement(*layout["blocks"][n]) for n in names}
-    from photonlm_blender import uvmaps
+    from photonlm_blender.uv import uvmaps
+    from photonlm_blender.writeback import wiring
     mods6 = [m.type for m in bpy.data.objects["obj_06"].modifiers]
     checks.check(mods6 == ['UV_WARP', 'SUBSURF'], "obj_06's atlas warp comes before its subdivision: %s" % mods6)
     twins = [bpy.data.objects[n] for n in ("obj_05", "obj_05_twin")]
@@ -394,7 +399,7 @@ def main():
 
     # -- Remove Preview --------------------------------------------------------------------------------
     bpy.ops.photonlm.remove_preview()
-    checks.check(not any(materials.is_wired(m) for m in bpy.data.materials),
+    checks.check(not any(wiring.is_wired(m) for m in bpy.data.materials),
                  "Remove Preview removes the atlas preview from every material")
     checks.finish()
 

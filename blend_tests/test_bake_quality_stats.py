@@ -1,4 +1,4 @@
-"""The quality figures of a bake: stored on the scene, in bake.LAST and shown in the panel.
+"""The quality figures of a bake: stored on the scene, in record.last() and shown in the panel.
 
 A noisy bake (a 256 x 256 floor and a 128 x 128 box under a sun and a sky, stopped after
 200,000 photons with 4 direct samples, target 2 %) and a quiet one (the floor alone at 32 x 32,
@@ -58,7 +58,7 @@ class Layout:
 
 def last_bake_box(context):
     """The Last Bake box as (label, value) rows and the other labels after its title."""
-    from photonlm_blender import panel
+    from photonlm_blender.ui import panel
     lines = []
 
     class Panel:
@@ -92,7 +92,7 @@ def build(resolution_floor, resolution_box=None):
 def main():
     t_start = time.perf_counter()
     scenes.setup_paths()
-    from photonlm_blender import bake, properties
+    from photonlm_blender.writeback import record
     checks = scenes.Checks("bake_quality_stats")
     context = bpy.context
 
@@ -100,7 +100,7 @@ def main():
     build(256, 128)
     last = scenes.photonlm_bake(200_000, 8, seed=2, target_error=0.02, direct_samples=4)
     s = last["stats"]
-    stored = dict(context.scene[properties.STATS_KEY])
+    stored = dict(context.scene[record.STATS_KEY])
     print("bake_quality_stats: noisy bake %.1f s: error %.2f %%, median %.1f %%, p95 %.1f %%, above %.1f %%"
           % (last["wall_seconds"], 100 * s["error_estimate"], 100 * s["error_median"], 100 * s["error_p95"],
              100 * s["error_above"]))
@@ -115,10 +115,10 @@ def main():
     checks.check(abs(above / texels - s["error_above"]) < 2e-3,
                  "the lightmaps' texels above twice the target add up to the engine's share (%.4f vs %.4f)"
                  % (above / texels, s["error_above"]))
-    checks.check(s["error_above"] > properties.NOISY_SHARE, "the bake is noisy (%.1f %% above)"
+    checks.check(s["error_above"] > record.NOISY_SHARE, "the bake is noisy (%.1f %% above)"
                  % (100 * s["error_above"]))
     # The add-on's rule (bake.noisiest_objects): among the noisy objects, the one holding most noisy texels.
-    worst = max((n for n in last["objects"] if last["objects"][n]["error_above"] > properties.NOISY_SHARE),
+    worst = max((n for n in last["objects"] if last["objects"][n]["error_above"] > record.NOISY_SHARE),
                 key=lambda n: last["objects"][n]["texels_above"])
     checks.check(stored["noisiest"] == worst == last["noisiest"][0],
                  "the noisy object holding the most noisy texels is stored: %s (%s)" % (stored["noisiest"],
@@ -133,7 +133,8 @@ def main():
                  "Last Bake shows the 95th percentile (%s)" % rows.get("Percentile 95"))
     checks.check(rows.get("Noisiest", "").startswith(worst + " ("), "and the noisiest object (%s)" % rows.get("Noisiest"))
     checks.check(rest == ["Lower Resolution or add time"], "and a one-line hint (%s)" % rest)
-    from photonlm_blender import panel
+    from photonlm_blender.ui import panel
+    from photonlm_blender.writeback import record
     lines = []
 
     class WarningsPanel:
@@ -178,7 +179,7 @@ def main():
     rows, rest = last_bake_box(context)
     print("bake_quality_stats: quiet bake %.1f s: error %.2f %%, above %.1f %%; box %s %s"
           % (last["wall_seconds"], 100 * s["error_estimate"], 100 * s["error_above"], rows, rest))
-    checks.check(s["error_above"] <= properties.NOISY_SHARE, "the quiet bake is quiet (%.1f %% above)"
+    checks.check(s["error_above"] <= record.NOISY_SHARE, "the quiet bake is quiet (%.1f %% above)"
                  % (100 * s["error_above"]))
     checks.check("Above 4 %" in rows and "Percentile 95" in rows, "Last Bake still shows the share and p95")
     checks.check("Noisiest" not in rows and rest == [], "no hint and no noisiest object (%s)" % rest)

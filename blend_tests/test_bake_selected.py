@@ -61,8 +61,8 @@ def main():
     s = bpy.context.scene.photonlm
     s.seed = 2
     res = bpy.ops.photonlm.bake(selected_only=True)
-    from photonlm_blender import bake
-    last = bake.LAST
+    from photonlm_blender.writeback import record
+    last = record.last()
     checks.check(res == {'FINISHED'} and sorted(last["objects"]) == sorted(SELECTED),
                  "Bake Selected bakes only %s (got %s)" % (SELECTED, sorted(last["objects"])))
     for name, o in objects.items():

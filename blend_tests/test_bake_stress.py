@@ -159,8 +159,8 @@ class Stress:
             self.bad.append(text)
 
     def check_last(self, what):
-        from photonlm_blender import bake
-        last = bake.LAST
+        from photonlm_blender.writeback import record
+        last = record.last()
         missing = [n for n in BAKED if n not in last.get("objects", {})]
         if missing:
             self.problem("%s: objects without a lightmap: %s" % (what, missing))
@@ -190,8 +190,9 @@ class Stress:
 
     def cancel_then_bake(self):
         """The modal operator's worker path, cancelled at a random moment, then a bake at once."""
-        from photonlm_blender import bake
-        before = bake.LAST.get("stats")
+        from photonlm_blender.bake import job as bake
+        from photonlm_blender.writeback import record
+        before = record.last()
         ctx = bpy.context
         job = bake.BakeJob(ctx)
         cancel = threading.Event()
@@ -216,7 +217,8 @@ class Stress:
         elif job.cancelled:
             job.abort(ctx)
             self.cancelled += 1
-            if bake.LAST.get("stats") is not before:
+            now = record.last()
+            if now.get("objects") is not before.get("objects") or now.get("stats") != before.get("stats"):
                 self.problem("a cancelled bake changed the last bake's record")
         else:
             job.finish(ctx)
@@ -278,7 +280,7 @@ class Stress:
 
 
 def floor_textured(checks, when):
-    from photonlm_blender import materials
+    from photonlm_blender.export import materials
     info = materials.read_material(bpy.data.materials["floor_mat"])
     checks.check(info.albedo_texture is not None, "%s: the floor's Base Color goes to the engine as an image "
                  "texture" % when)

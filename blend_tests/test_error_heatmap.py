@@ -35,9 +35,9 @@ def pixels(image):
 
 def ramp_colour(x):
     """The heat map's colour for relative error / (4 x target), as the Color Ramp computes it."""
-    from photonlm_blender import materials
-    pos = np.array([p for p, _ in materials.HEAT_RAMP])
-    col = np.array([c for _, c in materials.HEAT_RAMP])
+    from photonlm_blender.writeback import wiring
+    pos = np.array([p for p, _ in wiring.HEAT_RAMP])
+    col = np.array([c for _, c in wiring.HEAT_RAMP])
     x = np.clip(x, 0.0, 1.0)
     return np.stack([np.interp(x, pos, col[:, c]) for c in range(3)], axis=-1)
 
@@ -82,7 +82,8 @@ def emit_bake(obj, resolution):
 def main():
     t_start = time.perf_counter()
     scenes.setup_paths()
-    from photonlm_blender import bake, materials
+    from photonlm_blender.writeback import images
+    from photonlm_blender.writeback import wiring
     checks = scenes.Checks("error_heatmap")
     scene = scenes.clear_scene()
     scene.photonlm.output_dir = scenes.out_dir("heatmap") + "/"
@@ -121,7 +122,7 @@ def main():
     s = scene.photonlm
     checks.check(s.preview_mode == 'OFF' and not s.preview, "the preview starts off")
     s.preview_mode = 'ERROR'
-    wired = [m for m in bpy.data.materials if materials.is_wired(m)]
+    wired = [m for m in bpy.data.materials if wiring.is_wired(m)]
     checks.check(sorted(m.name for m in wired) == ["box_mat", "floor_mat"], "both materials wired")
     checks.check(all(m.node_tree.get_output_node(t).get("photonlm") == "output_error"
                      for m in wired for t in ('CYCLES', 'EEVEE')), "Error: every wired material renders the heat map")
@@ -142,7 +143,7 @@ def main():
                      "%s: lightmap UVs -> %s -> / %.2f -> ramp -> Emission -> heat-map output (%s)"
                      % (mat, tex.image.name if tex else None, scale.inputs[1].default_value if scale else 0, chain))
         elements = [(round(e.position, 4), tuple(round(c, 4) for c in e.color[:3])) for e in ramp.color_ramp.elements]
-        checks.check(elements == [(p, tuple(round(c, 4) for c in col)) for p, col in materials.HEAT_RAMP],
+        checks.check(elements == [(p, tuple(round(c, 4) for c in col)) for p, col in wiring.HEAT_RAMP],
                      "%s: ramp green to 1x, yellow at 2x, red from 4x %s" % (mat, elements))
 
     # What Cycles renders through the heat-map output, texel by texel (an Emit bake: seen head-on).
@@ -158,8 +159,8 @@ def main():
           % (time.perf_counter() - t0, np.median(diff), np.percentile(diff, 99), diff.max()))
     checks.check(np.percentile(diff, 99) < 0.02, "the floor renders the ramp's colour of each texel's error")
     share = {k: float(np.mean(v[covered])) for k, v in (("green", rel <= TARGET), ("red", rel >= 4 * TARGET))}
-    green = np.array(materials.HEAT_RAMP[0][1])
-    red = np.array(materials.HEAT_RAMP[-1][1])
+    green = np.array(wiring.HEAT_RAMP[0][1])
+    red = np.array(wiring.HEAT_RAMP[-1][1])
     # Cycles' bake point moves up to half a texel (design.md), so the image is read between a texel
     # and its neighbours: only texels whose neighbours are of the same class keep its colour exactly
     # (one texel far above 4x beside green ones tints them).
@@ -210,13 +211,13 @@ def main():
     # -- large lightmaps: RMS over blocks -----------------------------------------------------------------------------
     rng = np.random.default_rng(1)
     big = rng.random((4096, 4096), dtype=np.float32)
-    small = bake.error_image_pixels(big)
+    small = images.error_image_pixels(big)
     want = np.sqrt((big.astype(np.float64) ** 2).reshape(2048, 2, 2048, 2).mean(axis=(1, 3)))
     checks.check(small.shape == (2048, 2048) and np.abs(small - want).max() < 1e-6,
                  "a 4096 x 4096 lightmap's heat map is 2048 x 2048, the RMS of 2 x 2 texels")
-    checks.check(bake.error_image_pixels(big[:2048, :2048]) is not None
-                 and bake.error_image_pixels(big[:2048, :2048]).shape == (2048, 2048), "2048 x 2048 is kept as it is")
-    dark = bake.relative_error(np.zeros((2, 2, 3), np.float32), np.ones((2, 2), np.float32))
+    checks.check(images.error_image_pixels(big[:2048, :2048]) is not None
+                 and images.error_image_pixels(big[:2048, :2048]).shape == (2048, 2048), "2048 x 2048 is kept as it is")
+    dark = images.relative_error(np.zeros((2, 2, 3), np.float32), np.ones((2, 2), np.float32))
     checks.check(not dark.any(), "a texel without light has relative error 0 (counted below the target)")
     print("error_heatmap: %.1f s" % (time.perf_counter() - t_start))
     checks.finish()

@@ -61,13 +61,14 @@ try:
     props.target_error = 0.0
     props.direct_samples = 4
     res = bpy.ops.photonlm.bake()
-    pkg = sys.modules[[n for n in sys.modules if n.endswith("photonlm_blender.bake")][0]]
+    record = sys.modules[[n for n in sys.modules if n.endswith("photonlm_blender.writeback.record")][0]]
     bridge = sys.modules[[n for n in sys.modules if n.endswith("photonlm_blender.bridge")][0]]
     report["result"] = sorted(res)
     report["version"] = list(sys.modules[report["enabled"][0]].VERSION)
     report["engine"] = bridge.get().__file__
-    report["stats"] = {k: v for k, v in pkg.LAST.get("stats", {}).items() if isinstance(v, (int, float))}
-    report["objects"] = sorted(pkg.LAST.get("objects", {}))
+    last = record.last()
+    report["stats"] = {k: v for k, v in last.get("stats", {}).items() if isinstance(v, (int, float))}
+    report["objects"] = sorted(last.get("objects", {}))
     report["maps"] = sorted({l.split()[-1] for l in open("/proc/self/maps") if ".so" in l})
     report["export"] = sorted(bpy.ops.photonlm.export_scene_file(filepath=args["scene_file"]))
 except Exception as e:

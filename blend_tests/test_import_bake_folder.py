@@ -90,7 +90,7 @@ def image_rgb(image):
 def wiring(mat):
     """A material's node setup: nodes by their PhotonLM role (else their name), type, image, UV map,
     unlinked input values; links between them; the active output."""
-    from photonlm_blender import materials
+    from photonlm_blender.export import materials
     tree = mat.node_tree
 
     def key(n):
@@ -162,7 +162,9 @@ def main():
     checks = scenes.Checks("import_bake_folder")
     scenes.setup_paths()
     import photonlm
-    from photonlm_blender import bake, properties
+    from photonlm_blender.writeback import record
+    from photonlm_blender.writeback import images
+    from photonlm_blender.writeback import wiring
     out = scenes.out_dir("import_bake_folder")
     shutil.rmtree(out, ignore_errors=True)
     os.makedirs(out)
@@ -193,7 +195,7 @@ def main():
     # ---- 2. the in-Blender bake: the truth for wiring and statistics ---------------------------------
     scene.photonlm.output_dir = os.path.join(out, "lightmaps_blender")
     res = bpy.ops.photonlm.bake()
-    ref = dict(bake.LAST)  # LAST is cleared by the next bake or import
+    ref = dict(record.last())  # LAST is cleared by the next bake or import
     ref_rgb = {n: np.array(o["rgb"], np.float32) for n, o in ref["objects"].items()}
     ref_texels = {n: o["texels"] for n, o in ref["objects"].items()}
     ref_stats = dict(ref["stats"])
@@ -204,16 +206,17 @@ def main():
     bpy.ops.photonlm.remove_preview()
     for n in ref_rgb:
         bpy.data.images.remove(bpy.data.images[n + "_lightmap"])
-    del scene[properties.STATS_KEY]
-    from photonlm_blender import materials
-    checks.check(not any(materials.is_wired(m) for m in bpy.data.materials)
+    del scene[record.STATS_KEY]
+    from photonlm_blender.writeback import record
+    from photonlm_blender.writeback import wiring
+    checks.check(not any(wiring.is_wired(m) for m in bpy.data.materials)
                  and not any(n + "_lightmap" in bpy.data.images for n in ref_rgb),
                  "the preview nodes and lightmap images are gone before the import")
 
     # ---- 3. the import ----------------------------------------------------------------------------
     scene.photonlm.output_dir = os.path.join(out, "lightmaps_import")
     res, msg = import_folder(merged)
-    last = bake.LAST
+    last = record.last()
     checks.check(res == {'FINISHED'} and sorted(last.get("objects", {})) == sorted(ref_rgb),
                  "the import operator brought in the 8 lightmaps (%s %s)" % (res, msg))
     not_equal, unlinked = [], []
@@ -245,7 +248,7 @@ def main():
                  % (worst, TOL, scale))
     heat = max(float(np.max(np.abs(image_rgb(bpy.data.images[n + "_error"]) - ref_error[n]))) for n in ref_error)
     checks.check(heat <= 1e-3, "the heat-map images equal the in-Blender bake's (max |diff| %.3g, half floats)" % heat)
-    st = scene.get(properties.STATS_KEY) or {}
+    st = scene.get(record.STATS_KEY) or {}
     rs = report["stats"]
     checks.check(st.get("photons_emitted") == report["photons"]["emitted"] == ref_stats["photons_emitted"]
                  and st.get("error_estimate") == rs["error_estimate"]
@@ -262,7 +265,10 @@ def main():
                  and "seconds_import" in st,
                  "the Last Bake panel shows photons %s, error %s, time %s, objects %s, imported from %s"
                  % (p.last_photons, p.last_error, p.last_time, p.last_objects, st.get("imported_from")))
-    from photonlm_blender import bake_import, panel
+    from photonlm_blender.operators import import_folder as bake_import
+    from photonlm_blender.ui import panel
+    from photonlm_blender.writeback import record
+    from photonlm_blender.writeback import wiring
     labels = [t for kind, t in drawn(panel.PHOTONLM_PT_last_bake) if kind == "label"]
     times = [t for kind, t in drawn(panel.PHOTONLM_PT_last_times) if kind == "label"]
     checks.check(("operator", "photonlm.import_bake_folder") in drawn(panel.PHOTONLM_PT_output)
@@ -286,7 +292,7 @@ def main():
     with open(os.path.join(plain, "report.json"), "w") as f:
         json.dump(doc, f)
     res, msg = import_folder(plain)
-    last = bake.LAST
+    last = record.last()
     wrong = [n for n in ref_texels if last["objects"][n]["texels"] != int(np.count_nonzero(
         (np.asarray(ref["objects"][n]["coverage"]) > 0) & (photonlm.read_lightmap_exr(farm_files[n]).hits > 0)))]
     checks.check(res == {'FINISHED'} and not wrong,
@@ -325,14 +331,14 @@ def main():
     checks.check(r.returncode == 0, "photonlm bake of the scene with two OLs: exit code %d" % r.returncode)
     scene.photonlm.output_dir = os.path.join(out, "lightmaps_blender_ol")
     bpy.ops.photonlm.bake()
-    ref_ols = {g: (o["objects"], image_rgb(bpy.data.images[g + "_ol"])) for g, o in bake.LAST["ols"].items()}
+    ref_ols = {g: (o["objects"], image_rgb(bpy.data.images[g + "_ol"])) for g, o in record.last()["ols"].items()}
     ref_wiring = snapshot(baked_objs + [pebble])
     bpy.ops.photonlm.remove_preview()
     scene.photonlm.output_dir = os.path.join(out, "lightmaps_import_ol")
     res, msg = import_folder(ol_out)
     with open(os.path.join(ol_out, "report.json")) as f:
         ol_files = {g["name"]: os.path.join(ol_out, g["file"]) for g in json.load(f)["ol_groups"]}
-    got = bake.LAST.get("ols", {})
+    got = record.last().get("ols", {})
     exact = [g for g, name in (("tall_box", "tall_box"), ("collection_props", "collection props"))
              if g in got and name in ol_files
              and np.array_equal(image_rgb(bpy.data.images[g + "_ol"]), photonlm.read_lightmap_exr(ol_files[name]).rgb)]
@@ -357,7 +363,7 @@ def main():
 
     # ---- 5. bad input ---------------------------------------------------------------------------------
     res, msg = import_folder(merged)  # the state every refusal must leave as it is
-    before = dict(scene[properties.STATS_KEY])
+    before = dict(scene[record.STATS_KEY])
     bad = os.path.join(out, "bad")
 
     def broken(name, change):
@@ -368,7 +374,7 @@ def main():
 
     def refused(folder, words, what):
         res, msg = import_folder(folder)
-        same = dict(scene[properties.STATS_KEY]) == before and np.array_equal(
+        same = dict(scene[record.STATS_KEY]) == before and np.array_equal(
             image_rgb(bpy.data.images["floor_lightmap"]), photonlm.read_lightmap_exr(farm_files["floor"]).rgb)
         checks.check(res == {'CANCELLED'} and all(w in msg for w in words) and same,
                      "%s: refused, nothing changed: %s" % (what, msg.strip()))
@@ -412,18 +418,20 @@ def main():
 
     objs["floor"].name = "floor_renamed"
     res, msg = import_folder(merged)
-    warned = [t for level, t in bake.LAST.get("reports", []) if level == 'WARNING' and "'floor'" in t]
-    checks.check(res == {'FINISHED'} and sorted(bake.LAST["objects"]) == sorted(n for n in ref_rgb if n != "floor")
+    warned = [t for level, t in record.last().get("reports", []) if level == 'WARNING' and "'floor'" in t]
+    checks.check(res == {'FINISHED'} and sorted(record.last()["objects"]) == sorted(n for n in ref_rgb if n != "floor")
                  and warned and "not in this .blend" in warned[0],
                  "an object the .blend lacks: warned (%s), the other 7 imported" % (warned[:1],))
     objs["floor"].name = "floor"
 
     # ---- 6. an atlas: the imported lightmaps go into pages as an in-Blender atlas bake puts them ------
-    from photonlm_blender import atlas
+    from photonlm_blender.writeback import atlas
+    from photonlm_blender.writeback import record
+    from photonlm_blender.writeback import wiring
     scene.photonlm.lightmap_layout = 'ATLAS'
     scene.photonlm.output_dir = os.path.join(out, "atlas_blender")
     bpy.ops.photonlm.bake()
-    ref_pages = {os.path.basename(o["path"]) for o in bake.LAST["objects"].values()}
+    ref_pages = {os.path.basename(o["path"]) for o in record.last()["objects"].values()}
     ref_pages = {f: photonlm.read_lightmap_exr(os.path.join(out, "atlas_blender", f)) for f in ref_pages}
     ref_wiring = snapshot(baked_objs)
     ref_layout = scene[atlas.LAYOUT_KEY].to_dict()

@@ -67,7 +67,7 @@ def main():
 
 
 def run(checks, layout):
-    from photonlm_blender import bake
+    from photonlm_blender.writeback import images as image_files
     root = tempfile.mkdtemp(prefix="photonlm-travel-")
     try:
         # -- a saved project, files linked relative to it --------------------------------------
@@ -115,7 +115,7 @@ def run(checks, layout):
         scenes.setup_paths()
         build_scene(layout)
         checks.check(not bpy.data.is_saved, "the file is unsaved")
-        folder = bake.output_directory(bpy.context.scene)
+        folder = image_files.output_directory(bpy.context.scene)
         shared = os.path.join(tempfile.gettempdir(), "photonlm")
         checks.check(not os.path.normpath(folder).startswith(shared + os.sep) and os.path.isdir(folder),
                      "an unsaved file writes into a folder of its own (%s), not %s" % (folder, shared))

@@ -116,7 +116,7 @@ def lightmap_pixels():
 
 def shows_live(live_preview):
     """Every Cornell material's lightmap node shows its live image and its preview output is active."""
-    from photonlm_blender import materials
+    from photonlm_blender.export import materials
     for name in scenes.CORNELL_OBJECTS:
         tree = bpy.data.materials["mat_" + name].node_tree
         tex = next((n for n in tree.nodes if n.get(materials.TAG) == "image"), None)
@@ -131,7 +131,9 @@ def shows_live(live_preview):
 def child():
     try:
         scenes.setup_paths()
-        from photonlm_blender import bake, live_preview, operators  # noqa: F401
+        from photonlm_blender.bake import job as bake  # noqa: F401
+        from photonlm_blender.preview import live as live_preview
+        from photonlm_blender.operators import bake as operators
     except Exception as e:  # noqa: BLE001 -- report to the parent and quit, never hang
         scenes.write_windowed_result({"error": "child set-up failed: %s" % e})
         return

@@ -31,7 +31,9 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import scenes  # noqa: E402
 
 scenes.setup_paths()
-from photonlm_blender import flatten, materials  # noqa: E402
+from photonlm_blender.export import flatten  # noqa: E402
+from photonlm_blender.export import materials  # noqa: E402
+from photonlm_blender.writeback import wiring  # noqa: E402
 
 checks = scenes.Checks("material_lobes")
 TOL = 1e-5
@@ -462,12 +464,12 @@ lm = bpy.data.images.new("lm", 4, 4, float_buffer=True)
 for name in ("gold", "glass_bsdf", "mix_diffuse_glossy", "principled_default", "diffuse", "nested"):
     mat = bpy.data.materials[name]
     before, state_inactive = state(mat), state(mat, False)
-    notes = materials.wire_material(mat, lm, 'CYCLES')
+    notes = wiring.wire_material(mat, lm, 'CYCLES')
     nt = mat.node_tree
     ours = {n.get("photonlm"): n for n in nt.nodes if n.get("photonlm") is not None}
     copies = [n for r, n in ours.items() if str(r).startswith("closure_")]
     info = materials.read_material(mat)
-    materials.set_preview(mat, 'LIGHTMAP')
+    wiring.set_preview(mat, 'LIGHTMAP')
     active = nt.get_output_node('CYCLES')
     if info.purely_diffuse():
         checks.check(not copies and "add_closures" not in ours, "%s: purely diffuse, no closure copies" % name)
@@ -492,18 +494,19 @@ for name in ("gold", "glass_bsdf", "mix_diffuse_glossy", "principled_default", "
     checks.check(state(mat, False) == state_inactive,
                  "%s: original nodes, links and values untouched with the preview on" % name)
     n_nodes = len(nt.nodes)
-    materials.wire_material(mat, lm, 'CYCLES')
+    wiring.wire_material(mat, lm, 'CYCLES')
     checks.check(len(nt.nodes) == n_nodes, "%s: wiring again reuses the nodes (%d)" % (name, n_nodes))
-    materials.set_preview(mat, 'OFF')
+    wiring.set_preview(mat, 'OFF')
     checks.check(state(mat) == before and nt.get_output_node('CYCLES').get("photonlm") is None,
                  "%s: preview off restores the original output" % name)
-    materials.remove_wiring(mat)
+    wiring.remove_wiring(mat)
     checks.check(state(mat) == before and not any(n.get("photonlm") is not None for n in nt.nodes),
                  "%s: removing the wiring leaves the material as it was" % name)
 
 # ---- export: what the engine gets ----------------------------------------------------------------
 
-from photonlm_blender import bridge, export  # noqa: E402
+from photonlm_blender import bridge  # noqa: E402
+from photonlm_blender.export import scene as export  # noqa: E402
 import types  # noqa: E402
 
 case_materials = [m for m in bpy.data.materials if m.users == 0 and m.node_tree is not None]

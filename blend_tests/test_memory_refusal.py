@@ -49,7 +49,7 @@ def free_memory():
 
 def main():
     scenes.setup_paths()
-    from photonlm_blender import bake
+    from photonlm_blender.writeback import images
     import photonlm
     checks = scenes.Checks("memory_refusal")
     scene = scenes.clear_scene()
@@ -89,7 +89,7 @@ def main():
         obj = scenes.plane("Huge Wall %d" % (i + 1), scenes.diffuse_material("wall_mat_%d" % i, (0.6,) * 3),
                            size=2.0, z=1.0 + 0.1 * i, resolution=SIDE)
         names.append(obj.name)
-    folder = bake.output_directory(scene)
+    folder = images.output_directory(scene)
     before = unchanged.snapshot(folder)
     rss_before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     t0 = time.perf_counter()

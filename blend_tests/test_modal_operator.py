@@ -41,14 +41,15 @@ def parent():
 def child():
     try:
         scenes.setup_paths()
-        from photonlm_blender import bake, operators  # noqa: F401
+        from photonlm_blender.operators import bake as operators
+        from photonlm_blender.writeback import record
     except Exception as e:  # noqa: BLE001 -- report to the parent and quit, never hang
         scenes.write_windowed_result({"error": "child set-up failed: %s" % e})
         return
-    _child(bake, operators)
+    _child(record, operators)
 
 
-def _child(bake, operators):
+def _child(record, operators):
     scenes.clear_scene()
     scenes.cornell_box()
     scene = bpy.context.scene
@@ -59,7 +60,7 @@ def _child(bake, operators):
 
     def snapshot():
         imgs = {}
-        for name, o in bake.LAST.get("objects", {}).items():
+        for name, o in record.last().get("objects", {}).items():
             img = bpy.data.images[name + "_lightmap"]
             px = np.empty(img.size[0] * img.size[1] * 4, np.float32)
             img.pixels.foreach_get(px)
@@ -88,9 +89,9 @@ def _child(bake, operators):
             if operators._running is not None:
                 res["ticks"] += 1
                 return 0.1
-            res["objects"] = sorted(bake.LAST.get("objects", {}))
+            res["objects"] = sorted(record.last().get("objects", {}))
             ok = True
-            for name, o in bake.LAST.get("objects", {}).items():
+            for name, o in record.last().get("objects", {}).items():
                 img = bpy.data.images[name + "_lightmap"]
                 px = np.empty(img.size[0] * img.size[1] * 4, np.float32)
                 img.pixels.foreach_get(px)

@@ -34,7 +34,9 @@ def bake_error():
 def main():
     t_start = time.perf_counter()
     scenes.setup_paths()
-    from photonlm_blender import bake
+    from photonlm_blender.export import scene as export
+    from photonlm_blender.uv import uvmaps
+    from photonlm_blender.writeback import images
     checks = scenes.Checks("no_light_refusal")
     scene = scenes.clear_scene()
     scene.photonlm.output_dir = scenes.out_dir("no_light") + "/"
@@ -46,8 +48,8 @@ def main():
     sun = scenes.add_light("sun", 'SUN', (0, 0, 5), rotation=(0.4, 0.2, 0), energy=3.0)
     scenes.photonlm_bake(300_000, 8, seed=1, target_error=0.05)
     checks.check(bpy.data.images.get("cube_lightmap") is not None, "the lit bake made the cube's lightmap")
-    checks.check(bake.light_sources(bpy.context) == ["light 'sun'"], "the sun lights the scene (%s)"
-                 % bake.light_sources(bpy.context))
+    checks.check(export.light_sources(bpy.context) == ["light 'sun'"], "the sun lights the scene (%s)"
+                 % export.light_sources(bpy.context))
 
     late = scenes.quads_object("late", [((3, 3, 0), (3.5, 3, 0), (3.5, 3.5, 0), (3, 3.5, 0), (0, 0, 1, 1))],
                                scenes.diffuse_material("late_mat", (0.5,) * 3), 16)
@@ -56,7 +58,7 @@ def main():
     scenes.add_light("dim", 'POINT', (0, 0, 2), energy=0.0)
     scenes.add_light("black", 'AREA', (0, 0, 2), energy=100.0, color=(0.0, 0.0, 0.0))
     bpy.context.view_layer.update()
-    folder = bake.output_directory(scene)
+    folder = images.output_directory(scene)
     before = unchanged.snapshot(folder)
 
     # -- the add-on refuses before anything changes ---------------------------------------------------------------
@@ -72,20 +74,20 @@ def main():
     checks.check("lightmap" not in late.data.uv_layers, "no UV map made for the unbaked object")
 
     # -- the engine refuses too (the last guard) -------------------------------------------------------------------
-    real, real_undo = bake.light_sources, bake.uvmaps.undo
+    real, real_undo = export.light_sources, uvmaps.undo
     undone = []
 
     def undo(changes):
         undone.append(len(changes))
         return real_undo(changes)
-    bake.light_sources = lambda context, limit=1: ["a light the add-on imagines"]
-    bake.uvmaps.undo = undo
+    export.light_sources = lambda context, limit=1: ["a light the add-on imagines"]
+    uvmaps.undo = undo
     try:
         t0 = time.perf_counter()
         error = bake_error()
         seconds = time.perf_counter() - t0
     finally:
-        bake.light_sources, bake.uvmaps.undo = real, real_undo
+        export.light_sources, uvmaps.undo = real, real_undo
     checks.check(error is not None and "bake refused: nothing lights the scene" in error,
                  "with the add-on's check bypassed the engine refuses (%.2f s): %s" % (seconds, error))
     checks.check(sum(undone) >= 1, "the job had made a UV map before the engine refused (undone: %s)" % undone)
@@ -94,24 +96,24 @@ def main():
 
     # -- what counts as light ----------------------------------------------------------------------------------------------
     scenes.set_world_color((0.2, 0.3, 0.4), 1.0)
-    found = bake.light_sources(bpy.context, limit=0)
+    found = export.light_sources(bpy.context, limit=0)
     checks.check(found == ["the world"], "a world colour lights the scene (%s)" % found)
     scenes.set_world_color((0.2, 0.3, 0.4), 0.0)
-    checks.check(bake.light_sources(bpy.context, limit=0) == [], "a world of strength 0 does not")
+    checks.check(export.light_sources(bpy.context, limit=0) == [], "a world of strength 0 does not")
     portal = scenes.add_light("window", 'AREA', (0, 0, 3), energy=0.0, size=1.0)
     portal.data.cycles.is_portal = True
     bpy.context.view_layer.update()
-    checks.check(bake.light_sources(bpy.context, limit=0) == [], "a portal does not light the scene")
+    checks.check(export.light_sources(bpy.context, limit=0) == [], "a portal does not light the scene")
     lamp = scenes.emission_material("lamp_mat", (1.0, 0.9, 0.8), 5.0)
     late.data.materials[0] = lamp
-    found = bake.light_sources(bpy.context, limit=0)
+    found = export.light_sources(bpy.context, limit=0)
     checks.check(found == ["material 'lamp_mat' on 'late'"], "an emissive material lights the scene (%s)" % found)
     late.hide_render = True
     bpy.context.view_layer.update()
-    checks.check(bake.light_sources(bpy.context, limit=0) == [], "not on an object hidden in renders")
+    checks.check(export.light_sources(bpy.context, limit=0) == [], "not on an object hidden in renders")
     sun.hide_render = False
     bpy.context.view_layer.update()
-    checks.check(bake.light_sources(bpy.context, limit=0) == ["light 'sun'"], "the visible sun again")
+    checks.check(export.light_sources(bpy.context, limit=0) == ["light 'sun'"], "the visible sun again")
     print("no_light_refusal: %.1f s" % (time.perf_counter() - t_start))
     checks.finish()
 

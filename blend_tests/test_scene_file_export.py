@@ -95,7 +95,7 @@ def compare(checks, what, ours, files):
 def main():
     checks = scenes.Checks("scene_file_export")
     scenes.setup_paths()
-    from photonlm_blender import scene_file_export
+    from photonlm_blender.bake import scene_file as scene_file_export
     out = scenes.out_dir("scene_file_export")
     shutil.rmtree(out, ignore_errors=True)
     os.makedirs(out)
@@ -130,7 +130,7 @@ def main():
                                                        for o in meta["objects"]),
                  "metadata names each object's mesh and EXR file: %s" % files)
     obj_json = os.path.join(out, "obj", "cornell.json")
-    from photonlm_blender import export
+    from photonlm_blender.export import scene as export
     reports = export.Reports()
     scene_file_export.export_scene_file(bpy.context, obj_json, reports=reports, obj_threshold=0)
     with open(obj_json) as f:

@@ -104,11 +104,11 @@ def compare(checks, what, obj, cage):
 
 
 def geometry(checks):
-    from photonlm_blender import subdiv_export
+    from photonlm_blender.export import subdiv as subdiv_export
     for level in (1, 2, 3):
         scenes.clear_scene()
         obj = cube("Cube", level)
-        compare(checks, "cube level %d" % level, obj, subdiv_export._read_cage(obj.data, obj.matrix_world, level, True))
+        compare(checks, "cube level %d" % level, obj, subdiv_export.read_cage(obj.data, obj.matrix_world, level, True))
 
     scenes.clear_scene()
     obj = cube("Creased", 2)
@@ -118,7 +118,7 @@ def geometry(checks):
         scenes.set_edge_crease(me, e.index, 1.0)
     vertical = [e for e in me.edges if me.vertices[e.vertices[0]].co.z != me.vertices[e.vertices[1]].co.z]
     scenes.set_edge_crease(me, vertical[0].index, 0.5)
-    cage = subdiv_export._read_cage(me, obj.matrix_world, 2, True)
+    cage = subdiv_export.read_cage(me, obj.matrix_world, 2, True)
     checks.check(cage.crease_edges is not None and len(cage.crease_edges) == 5, "creased cube: 5 crease edges read")
     compare(checks, "creased cube level 2", obj, cage)
 
@@ -127,14 +127,14 @@ def geometry(checks):
     obj = bpy.context.active_object
     obj.data.uv_layers[0].name = "lightmap"
     add_subsurf(obj, 2)
-    compare(checks, "grid level 2", obj, subdiv_export._read_cage(obj.data, obj.matrix_world, 2, True))
+    compare(checks, "grid level 2", obj, subdiv_export.read_cage(obj.data, obj.matrix_world, 2, True))
 
     scenes.clear_scene()
     bpy.ops.mesh.primitive_monkey_add(size=2, location=(0.3, -0.2, 0.1), rotation=(0.3, 0.2, 0.1))
     obj = bpy.context.active_object
     obj.data.uv_layers[0].name = "lightmap"
     add_subsurf(obj, 2)
-    compare(checks, "Suzanne level 2", obj, subdiv_export._read_cage(obj.data, obj.matrix_world, 2, True))
+    compare(checks, "Suzanne level 2", obj, subdiv_export.read_cage(obj.data, obj.matrix_world, 2, True))
 
     # The add-on's toggle path: an Array modifier before the subdivision.
     scenes.clear_scene()
@@ -143,7 +143,7 @@ def geometry(checks):
     arr.count = 2
     arr.relative_offset_displace = (1.5, 0, 0)
     bpy.ops.object.modifier_move_to_index(modifier="Array", index=0)
-    from photonlm_blender.export import Reports
+    from photonlm_blender.export.scene import Reports
     reports = Reports()
     cages = subdiv_export.read_cages(bpy.context, subdiv_export.candidates([obj], reports), reports)
     sub = obj.modifiers["Subdivision"]

@@ -79,7 +79,8 @@ def build():
 
 def export_checks(checks, image):
     """What materials.py makes of other node set-ups (no bake)."""
-    from photonlm_blender import bridge, materials
+    from photonlm_blender import bridge
+    from photonlm_blender.export import materials
     photonlm = bridge.get()
     mat = scenes.diffuse_material("principled_tex", (0.8, 0.8, 0.8), principled=True)
     nt = mat.node_tree
@@ -176,7 +177,7 @@ def main():
     bpy.context.view_layer.update()
 
     # The export reads the Image Texture (not the grey fallback) on the UV Map node's map.
-    from photonlm_blender import materials
+    from photonlm_blender.export import materials
     info = materials.read_material(checker_mat)
     checks.check(info.albedo_texture is not None and info.albedo_texture.uv_map == "UVMap"
                  and info.albedo == (1.0, 1.0, 1.0), "export: Image Texture -> Color becomes an albedo texture "

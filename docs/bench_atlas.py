@@ -52,7 +52,7 @@ def build(count):
 def main():
     count, page = arg("--objects", 200), arg("--page", 2048)
     scenes.setup_paths()
-    from photonlm_blender import atlas
+    from photonlm_blender.writeback import atlas
     times = []
     store = atlas.store
 

@@ -181,7 +181,7 @@ def main():
     for k in range(args.bakes):
         results.append(export_once(args, k) if args.export_only else bake_once(args, k))
     if args.scene_file:
-        from photonlm_blender import scene_file_export
+        from photonlm_blender.bake import scene_file as scene_file_export
         path, _ = scene_file_export.export_scene_file(bpy.context, os.path.join(args.out, "scene", "courtyard.json"))
         print("scene file:", path)
     with open(os.path.join(args.out, "courtyard.json"), "w") as f:
@@ -192,7 +192,8 @@ def main():
 def export_once(args, k):
     """The operator's export alone (bake.BakeJob), its lightmap UV maps kept; the engine's scene is
     released unbaked. Per-stage seconds and CPU seconds as bake_once prints them."""
-    from photonlm_blender import bake, uvmaps
+    from photonlm_blender.bake import job as bake
+    from photonlm_blender.uv import uvmaps
     if args.profile:
         import cProfile
         import pstats
@@ -208,13 +209,13 @@ def export_once(args, k):
             pstats.Stats(prof, stream=f).sort_stats("tottime").print_stats(40)
     uvmaps.commit(job.created_uvs)
     job.created_uvs = []
-    triangles = int(job.export.triangles)
+    triangles = int(job.manifest.triangles)
     job.export.scene.close()
     job.export.texture_files.cleanup()
     stages = {"seconds_" + key: float(v) for key, v in job.times.seconds.items()}
     stages["seconds_export"] = float(job.seconds_export)
     cpu = {"cpu_seconds_" + key: float(v) for key, v in job.times.cpu.items()}
-    result = dict(bake=k + 1, objects=len(job.export.baked), triangles=triangles, wall_seconds=wall,
+    result = dict(bake=k + 1, objects=len(job.manifest.baked), triangles=triangles, wall_seconds=wall,
                   stages=stages, cpu=cpu, cpu_seconds_export=job.cpu_seconds_export,
                   cpu_seconds_export_process=job.cpu_seconds_export_process,
                   export_seconds_per_million_triangles=job.seconds_export / (triangles / 1e6),
@@ -236,7 +237,7 @@ def export_once(args, k):
 
 
 def bake_once(args, k):
-    from photonlm_blender import properties
+    from photonlm_blender.properties import scene as properties
     scene = bpy.context.scene
     s = scene.photonlm
     rss_before, rss_now = maxrss_bytes(), rss_bytes()

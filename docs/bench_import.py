@@ -39,7 +39,7 @@ def main():
     a = args()
     scenes.setup_paths()
     import photonlm
-    from photonlm_blender import bake, properties
+    from photonlm_blender.writeback import record
     shutil.rmtree(a.out, ignore_errors=True)
     os.makedirs(a.out)
     scenes.clear_scene()
@@ -62,17 +62,17 @@ def main():
     s.output_dir = os.path.join(a.out, "blender")
     bpy.ops.photonlm.bake()
     ref = {n: np.array(o["rgb"] if o["rgb"] is not None else photonlm.read_lightmap_exr(o["path"]).rgb)
-           for n, o in bake.LAST["objects"].items()}
-    ref_writeback = float(bpy.context.scene[properties.STATS_KEY]["seconds_writeback"])
+           for n, o in record.last()["objects"].items()}
+    ref_writeback = float(bpy.context.scene[record.STATS_KEY]["seconds_writeback"])
     bpy.ops.photonlm.remove_preview()
     s.output_dir = os.path.join(a.out, "import")
     t = time.perf_counter()
     bpy.ops.photonlm.import_bake_folder(directory=farm)
     wall = time.perf_counter() - t
-    st = bpy.context.scene[properties.STATS_KEY]
+    st = bpy.context.scene[record.STATS_KEY]
     worst = max(float(np.max(np.abs(photonlm.read_lightmap_exr(o["path"]).rgb - ref[n])))
-                for n, o in bake.LAST["objects"].items())
-    texels = sum(o["size"][0] * o["size"][1] for o in bake.LAST["objects"].values())
+                for n, o in record.last()["objects"].items())
+    texels = sum(o["size"][0] * o["size"][1] for o in record.last()["objects"].values())
     print("bench_import: %d objects, %.2f M texels, %s photons; photonlm bake %.1f s" % (
         len(ref), texels / 1e6, "{:,}".format(a.photons), cli_seconds))
     print("bench_import: in-Blender write-back %.2f s | import %.2f s: reading %.2f s, write-back %.2f s | "

@@ -77,7 +77,9 @@ def build(level):
 def child(level, path, out_json, photons):
     scenes.setup_paths()
     import photonlm
-    from photonlm_blender import export, subdiv_export
+    from photonlm_blender.export import scene as export
+    from photonlm_blender.export import subdiv as subdiv_export
+    from photonlm_blender.export import meshes
     native = path == "cage"
     t0 = time.perf_counter()
     suz = build(level)
@@ -87,11 +89,11 @@ def child(level, path, out_json, photons):
     t_eval = time.perf_counter() - t0
     # Data handed to the engine.
     if native:
-        cage = subdiv_export._read_cage(suz.data, suz.matrix_world, level, True)
+        cage = subdiv_export.read_cage(suz.data, suz.matrix_world, level, True)
         nbytes, triangles = cage.nbytes(), cage.triangle_count()
     else:
-        with export.evaluated_mesh(suz, bpy.context.evaluated_depsgraph_get()) as (_, mesh):
-            pos, tris, mat, uv = export.mesh_arrays(mesh, suz.matrix_world, True)
+        with meshes.evaluated_mesh(suz, bpy.context.evaluated_depsgraph_get()) as (_, mesh):
+            pos, tris, mat, uv = meshes.mesh_arrays(mesh, suz.matrix_world, True)
         nbytes, triangles = pos.nbytes + tris.nbytes + mat.nbytes + uv.nbytes, len(tris)
         del pos, tris, mat, uv
     # Export alone, under tracemalloc (numpy reports its buffers to it).

@@ -199,12 +199,12 @@ def _hook_bridge():
 
 def photonlm_bake(out_dir, target_error=0.0, time_budget=0.0, photons=0, seed=1, direct_samples=64,
                   max_bounces=1024):
-    from photonlm_blender import properties
+    from photonlm_blender.writeback import record
     _CAPTURED_ERRORS.clear()
     last = scenes.photonlm_bake(photons, max_bounces, seed=seed, target_error=target_error,
                                 time_budget=time_budget, direct_samples=direct_samples, output_dir=out_dir)
     wall = last["wall_seconds"]
-    stats = dict(last["stats"], **bpy.context.scene[properties.STATS_KEY])
+    stats = dict(last["stats"], **bpy.context.scene[record.STATS_KEY])
     maps, errs = {}, {}
     for name, o in last["objects"].items():
         maps[name] = np.array(o["rgb"], np.float64)

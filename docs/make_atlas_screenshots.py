@@ -66,7 +66,7 @@ def build_scene():
 
 def open_lightmaps_panel():
     """Draw the Lightmaps sub-panel open (it is closed by default)."""
-    from photonlm_blender import panel
+    from photonlm_blender.ui import panel
     cls = panel.PHOTONLM_PT_output
     bpy.utils.unregister_class(cls)
     cls.bl_options = set()

@@ -95,8 +95,8 @@ def bake():
         fail("bake failed: %s" % e)
     if result != {'FINISHED'}:
         fail("bake returned %s" % result)
-    from photonlm_blender import bake as bake_module
-    last = bake_module.LAST
+    from photonlm_blender.writeback import record
+    last = record.last()
     s = last["stats"]
     print("make_heatmap_screenshots: baked %d objects in %.1f s (wall %.1f s): error %.2f %%, median %.1f %%, "
           "p95 %.1f %%, above 2x target %.1f %%" % (len(last["objects"]), s["seconds_total"], time.perf_counter() - t0,

@@ -38,7 +38,7 @@ def setup_view(screen):
 
 
 def steps():
-    from photonlm_blender import operators
+    from photonlm_blender.operators import bake as operators
     win = bpy.context.window_manager.windows[0]
     screen = win.screen
     view3d = setup_view(screen)

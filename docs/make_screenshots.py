@@ -122,8 +122,8 @@ def bake():
         fail("bake failed: %s" % e)
     if result != {'FINISHED'}:
         fail("bake returned %s" % result)
-    from photonlm_blender import bake as bake_module
-    last = bake_module.LAST
+    from photonlm_blender.writeback import record
+    last = record.last()
     print("make_screenshots: baked %d objects, %s photons in %.1f s (wall %.1f s), output %s"
           % (len(last["objects"]), "{:,}".format(int(last["stats"]["photons_emitted"])),
              last["stats"]["seconds_total"], time.perf_counter() - t0, last["output_dir"]), flush=True)

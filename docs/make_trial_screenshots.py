@@ -102,6 +102,7 @@ def setup():
     import scenes
     scenes.setup_paths()
     from photonlm_blender import bridge
+    from photonlm_blender.writeback import record
     try:
         bridge.get()
     except RuntimeError as e:
@@ -128,8 +129,8 @@ def setup():
         fail("bake failed: %s" % e)
     if result != {'FINISHED'}:
         fail("bake returned %s" % result)
-    from photonlm_blender import bake
-    last = bake.LAST
+    from photonlm_blender.writeback import record
+    last = record.last()
     ws.log("baked %d objects, %s photons in %.1f s (wall %.1f s), error %.3f"
            % (len(last["objects"]), "{:,}".format(int(last["stats"]["photons_emitted"])),
               last["stats"]["seconds_total"], time.perf_counter() - t0, last["stats"]["error_estimate"]))

@@ -34,7 +34,7 @@ os.environ["PHOTONLM_SOURCE_DIR"] = args.add_on_source
 sys.path.insert(0, os.path.join(ROOT, "blend_tests"))
 import scenes  # noqa: E402
 
-spec = importlib.util.spec_from_file_location("uvcheck", os.path.join(ROOT, "addon", "photonlm_blender", "uvcheck.py"))
+spec = importlib.util.spec_from_file_location("uvcheck", os.path.join(ROOT, "addon", "photonlm_blender", "uv", "uvcheck.py"))
 uvcheck = importlib.util.module_from_spec(spec)
 spec.loader.exec_module(uvcheck)
 
@@ -71,7 +71,9 @@ class Recorder:
 
 def main():
     plm = scenes.setup_paths()
-    from photonlm_blender import bridge, export
+    from photonlm_blender import bridge
+    from photonlm_blender.export import scene as export
+    from photonlm_blender.uv import uvmaps
     bridge.get()
     scenes.clear_scene()
     out = scenes.out_dir("measure_uvs")
@@ -81,7 +83,7 @@ def main():
     scene.photonlm.output_dir = out
     reports = export.Reports()
     t0 = time.perf_counter()
-    export.ensure_lightmap_uvs(bpy.context, export.lightmap_objects(bpy.context), reports)
+    uvmaps.ensure_for_scene(bpy.context, export.lightmap_objects(bpy.context), reports)
     t_uv = time.perf_counter() - t0
     rec = Recorder()
     result = export.export_scene(bpy.context, type("F", (), {"Scene": lambda self=None: rec})(), reports)

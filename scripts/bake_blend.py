@@ -64,7 +64,9 @@ def main():
     if not bpy.data.is_saved:
         fail("no .blend file given (usage: blender -b FILE.blend --python scripts/bake_blend.py -- [options])")
     enable_addon()
-    from photonlm_blender import bake, export, scene_file_export
+    from photonlm_blender.bake import job as bake
+    from photonlm_blender.export import scene as export
+    from photonlm_blender.bake import scene_file as scene_file_export
     scene = bpy.context.scene
     s = scene.photonlm
     for attr, value in (("target_error", args.target_error), ("time_budget", args.time_budget),

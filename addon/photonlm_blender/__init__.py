@@ -6,27 +6,26 @@ a worker thread, writes one EXR lightmap per object and wires the lightmaps
 into the objects' materials behind a preview toggle. No transport math lives
 in Python.
 
-Modules
-    compat      every difference of Blender's Python API between 3.4, 4.x and 5.x (the rest imports it)
-    dependencies  NumPy: without it only a panel saying what is missing and how to get it is registered
-    bridge      finds and imports the `photonlm` package (beside the add-on when installed)
-    properties  scene / object settings and the last bake's statistics
-    uvcheck     measures a lightmap UV layout as the engine uses it (overlaps, margins, map use)
-    uvmaps      automatic `lightmap` UV maps made for the evaluated mesh (user maps are kept)
-    csg_export  objects marked as primitives + Boolean modifiers -> exact CSG solids
-    lsystem     L-system objects: presets, engine-made previews, light stored on the preview
-    export      Blender scene -> photonlm.Scene (numpy, foreach_get)
-    materials   reads Blender materials; wires lightmaps into node trees, preview toggle
-    bake        one bake job: prepare (main thread) / run (any thread) / finish (main thread)
-    operators   bpy.ops.photonlm.bake (modal with progress bar, or synchronous)
-    scene_file_export  File > Export > PhotonLM scene (.json) for `photonlm bake` on batch machines
-    bake_import  File > Import > PhotonLM bake folder: lightmaps baked from a scene file, brought back
-    panel       Render Properties > PhotonLM Lightmaps
+Packages, from the bottom up (each imports only from those below it and from
+its own package; nothing imports upwards):
+    compat, version, dependencies, bridge, stages   what differs between Blender versions, the version,
+                    the NumPy check, finding the `photonlm` package, stage timing
+    export/         Blender -> photonlm.Scene, one converter per kind of data: meshes (the one mesh
+                    reader), materials + flatten, lights, world, csg, subdiv, lsystem, resolution,
+                    scene (the whole export; it returns a Manifest of what was sent)
+    uv/             lightmap UV maps (uvmaps), their measures (uvcheck), atlas packing (atlas_pack)
+    writeback/      a result -> Blender: apply (the one write-back), images (EXRs, heat maps),
+                    atlas pages, material wiring and its preview closures, L-system light, record
+                    (the last bake's statistics, on the scene)
+    bake/           one bake run here (job), a bake folder from a farm (folder), a scene file
+                    for batch machines (scene_file)
+    preview/        the lightmaps shown while a bake runs (live)
+    properties/     scene and object settings
+    operators/      bake, remove preview, L-system, scene-file export, bake-folder import
+    ui/             Render Properties > PhotonLM Lightmaps
 """
 
-# The add-on's version; blender_manifest.toml's `version` says the same. Blender's extension loader
-# leaves bl_info out of an extension's module, so the code reads VERSION.
-VERSION = (0, 1, 0)
+from .version import VERSION  # noqa: F401  (the add-on's version: blender_manifest.toml says the same)
 
 bl_info = {
     "name": "PhotonLM Lightmaps",
@@ -38,30 +37,61 @@ bl_info = {
     "category": "Render",
 }
 
-if "bpy" in locals():  # re-running register() after a reload in the same session
+# Every module of the add-on in import order (a module after those it imports). register() runs the
+# register() of those that have one, in this order (dependencies' only without NumPy); unregister()
+# the reverse. After a reload (F8, disabling and enabling the add-on) each of them is reloaded
+# first, in this order, and register() then registers the reloaded classes.
+MODULE_NAMES = (
+    "version", "compat", "dependencies", "bridge", "stages",
+    "export.meshes", "export.resolution", "export.flatten", "export.materials", "export.lights",
+    "export.world", "export.csg", "export.subdiv", "export.lsystem", "export.scene",
+    "uv.uvcheck", "uv.atlas_pack", "uv.uvmaps",
+    "writeback.record", "writeback.images", "writeback.closures", "writeback.wiring", "writeback.atlas",
+    "writeback.lsystem", "writeback.apply",
+    "bake.job", "bake.folder", "bake.scene_file",
+    "preview.live",
+    "properties.object", "properties.scene",
+    "operators.bake", "operators.lsystem", "operators.export_scene_file", "operators.import_folder",
+    "ui.panel",
+)
+# What runs without NumPy: a panel saying what is missing and how to get it.
+BASE_MODULE_NAMES = ("version", "compat", "dependencies")
+
+if "_modules" in locals():  # re-running register() after a reload in the same session
     import importlib
-    for _name in ("compat", "dependencies", "bridge", "properties", "uvcheck", "uvmaps", "csg_export", "lsystem",
-                  "export", "materials", "bake", "operators", "scene_file_export", "bake_import", "panel"):
-        if _name in locals():
-            importlib.reload(locals()[_name])
+    for _module in _modules():  # noqa: F821 (defined below, kept from the first run)
+        importlib.reload(_module)
 
-import bpy  # noqa: E402  (after the reload block)
+import importlib  # noqa: E402  (after the reload block)
 
-from . import compat, dependencies  # noqa: E402,F401
+from . import dependencies  # noqa: E402
 
-if dependencies.missing() is None:
-    from . import bridge, properties, uvmaps, csg_export, lsystem, export, materials, bake, operators, panel  # noqa: E402,F401,E501
-    from . import scene_file_export, bake_import  # noqa: E402
-    _MODULES = (properties, lsystem, operators, scene_file_export, bake_import, panel)
-else:  # the add-on enables and its panel says what is missing
-    _MODULES = (dependencies,)
+
+def _names():
+    return MODULE_NAMES if dependencies.missing() is None else BASE_MODULE_NAMES
+
+
+def _modules():
+    """The add-on's modules (imported), in MODULE_NAMES order."""
+    return [importlib.import_module("." + name, __name__) for name in _names()]
+
+
+_modules()
+
+
+def _registered():
+    """The modules whose register() runs: without NumPy only dependencies' (its panel says what is
+    missing), else every module's but that one."""
+    if dependencies.missing() is not None:
+        return [dependencies]
+    return [m for m in _modules() if hasattr(m, "register") and m is not dependencies]
 
 
 def register():
-    for module in _MODULES:
+    for module in _registered():
         module.register()
 
 
 def unregister():
-    for module in reversed(_MODULES):
+    for module in reversed(_registered()):
         module.unregister()

@@ -3,7 +3,7 @@
 A UV map named `lightmap` that the user made (one with some UV area that this module did not
 make) is baked as it is. Every other object that gets a lightmap gets an automatic map, made
 for its *evaluated* mesh -- the mesh after all its modifiers, or, when its last modifier is a
-Subdivision Surface the engine refines itself (subdiv_export.py), the cage before that
+Subdivision Surface the engine refines itself (subdiv.py), the cage before that
 modifier -- so that Solidify shells, Array and Mirror copies, Bevels and the faces a Boolean
 takes from its operands each get their own texels.
 
@@ -39,15 +39,20 @@ no modifier uses any more.
 """
 import hashlib
 import math
+import re
+import time
 
 import bpy
 import numpy as np
 
-from . import subdiv_export, uvcheck
+from .. import bridge
+from ..export import meshes, subdiv
+from ..export.meshes import LIGHTMAP_UV
+from ..export.resolution import ResolutionRule
+from . import uvcheck
 
-LIGHTMAP_UV = "lightmap"
 MODIFIER_NAME = "PhotonLM Lightmap UV"
-ATLAS_MODIFIER_NAME = "PhotonLM Atlas UV"   # atlas.py's UV Warp: not a modifier of the user's
+ATLAS_MODIFIER_NAME = "PhotonLM Atlas UV"   # writeback/atlas.py's UV Warp: not a modifier of the user's
 HELPER_PREFIX = "PhotonLM UV "
 HELPER_TAG = "photonlm_lightmap_uv_helper"   # on helper objects: a dict describing the map
 MESH_TAG = "photonlm_lightmap_uv"            # on meshes holding an automatic map themselves
@@ -74,24 +79,20 @@ def automatic_modifier(obj):
 
 
 def user_modifiers(obj):
-    """The object's modifiers other than the automatic map's and the atlas placement's (atlas.py)."""
+    """The object's modifiers other than the automatic map's and the atlas placement's (writeback/atlas.py)."""
     ours = automatic_modifier(obj)
     return [m for m in obj.modifiers if m != ours and not is_atlas_modifier(m)]
 
 
 def is_atlas_modifier(mod):
-    """The UV Warp modifier that moves an object's atlas UV map into its block (atlas.py)."""
+    """The UV Warp modifier that moves an object's atlas UV map into its block (writeback/atlas.py)."""
     return mod.type == 'UV_WARP' and mod.name.startswith(ATLAS_MODIFIER_NAME)
 
 
 def _layer_uv(mesh):
-    layer = mesh.uv_layers.get(LIGHTMAP_UV)
-    if layer is None:
-        return None
-    a = np.empty(len(mesh.loops) * 2, np.float32)
-    if len(a):
-        layer.data.foreach_get("uv", a)
-    return a
+    """The lightmap map per loop, flat (L * 2,) float32; None where the mesh has none."""
+    uv = meshes.lightmap_uv(mesh)
+    return None if uv is None else uv.reshape(-1)
 
 
 def _digest(*arrays):
@@ -116,9 +117,7 @@ def _topology(mesh):
 
 def _fingerprint(mesh):
     """A digest of a mesh's topology and vertex positions."""
-    co = np.empty(len(mesh.vertices) * 3, np.float32)
-    if len(co):
-        mesh.vertices.foreach_get("co", co)
+    co = meshes.positions(mesh).reshape(-1)
     lv, sizes = _topology(mesh)
     return _digest(np.array([len(mesh.vertices), VERSION]), lv, sizes, co)
 
@@ -219,7 +218,7 @@ def cage_subsurf(obj, native_subdivision):
     if not native_subdivision or not mods or mods[-1].type != 'SUBSURF':
         return None
     mod = mods[-1]
-    if mod.render_levels < 1 or subdiv_export.unsupported_reason(obj, mod) is not None:
+    if mod.render_levels < 1 or subdiv.unsupported_reason(obj, mod) is not None:
         return None
     return mod
 
@@ -276,37 +275,16 @@ def _strip(mesh):
 
 def _triangles(mesh, matrix):
     """World positions (T, 3, 3) and lightmap UVs (T, 3, 2) of a mesh's loop triangles."""
-    mesh.calc_loop_triangles()
-    nt = len(mesh.loop_triangles)
-    co = np.empty(len(mesh.vertices) * 3, np.float32)
-    mesh.vertices.foreach_get("co", co)
-    m = np.array(matrix, np.float64)
-    pos = co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
-    tv = np.empty(nt * 3, np.int32)
-    mesh.loop_triangles.foreach_get("vertices", tv)
-    tl = np.empty(nt * 3, np.int32)
-    mesh.loop_triangles.foreach_get("loops", tl)
-    tp = np.empty(nt, np.int32)
-    mesh.loop_triangles.foreach_get("polygon_index", tp)
+    pos, nt, _ = meshes.world_triangles(mesh, matrix)
+    tl = meshes.triangle_loops(mesh)
+    tp = meshes.triangle_values(mesh, "polygon_index")
     uv = _layer_uv(mesh).reshape(-1, 2)
-    return pos[tv].reshape(nt, 3, 3), uv[tl].reshape(nt, 3, 2), tp
-
-
-def _triangles_positions(mesh, matrix):
-    mesh.calc_loop_triangles()
-    nt = len(mesh.loop_triangles)
-    co = np.empty(len(mesh.vertices) * 3, np.float32)
-    mesh.vertices.foreach_get("co", co)
-    m = np.array(matrix, np.float64)
-    pos = co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
-    tv = np.empty(nt * 3, np.int32)
-    mesh.loop_triangles.foreach_get("vertices", tv)
-    return pos[tv].reshape(nt, 3, 3), nt, tv
+    return pos, uv[tl].reshape(nt, 3, 2), tp
 
 
 def triangle_area(mesh, matrix):
     """World-space surface area of a mesh (the exporter's measure, for the lightmap resolution)."""
-    p, nt, _ = _triangles_positions(mesh, matrix)
+    p, nt, _ = meshes.world_triangles(mesh, matrix)
     if nt == 0:
         return 0.0
     a = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
@@ -342,9 +320,9 @@ def _check_flat(mesh, matrix, res):
 def _check_cage(mesh, matrix, res, levels, use_creases):
     """Measure a cage's map after the engine's refinement at each of levels: the worst stats and
     the cage faces whose refined triangles are bad."""
-    import photonlm
+    photonlm = bridge.get()
     worst, bad_faces = None, set()
-    cage = subdiv_export._read_cage(mesh, matrix, max(levels), use_creases)
+    cage = subdiv.read_cage(mesh, matrix, max(levels), use_creases)
     for level in levels:
         pos, tri, uv = photonlm.subdiv_refine(cage.positions, cage.face_sizes, cage.face_indices, level,
                                               lightmap_uv=cage.uv, crease_edges=cage.crease_edges,
@@ -373,7 +351,6 @@ def _unwrap(context, mesh, matrix, res, subsurf=None, levels=()):
     """Unwrap mesh (a stripped copy) into its `lightmap` map for a res x res lightmap. With a
     Subdivision Surface modifier `subsurf`, mesh is its cage and the map is measured after the
     refinement at each of levels. Returns the best Result."""
-    import time
     t0 = time.perf_counter()
     margin = MARGIN_TEXELS / 2.0 / res  # Blender leaves 2 x margin between islands
     obj = bpy.data.objects.new(mesh.name, mesh)
@@ -489,7 +466,7 @@ def _modifier_index(obj, stage):
     return n - 1 if stage == CAGE else n
 
 
-def _move_modifier(obj, mod, index):
+def move_modifier(obj, mod, index):
     if list(obj.modifiers).index(mod) == index:
         return
     active = obj.modifiers.active
@@ -517,7 +494,7 @@ def _transfer(obj, helper, stage, changes):
             m = obj.modifiers.get(name)
             if m is not None:
                 m.object = old_object
-                _move_modifier(obj, m, old_index)
+                move_modifier(obj, m, old_index)
         changes.append(restore)
     mod.object = helper
     mod.use_object_transform = False
@@ -530,7 +507,7 @@ def _transfer(obj, helper, stage, changes):
     mod.mix_factor = 1.0
     mod.show_in_editmode = False
     mod.show_expanded = False
-    _move_modifier(obj, mod, _modifier_index(obj, stage))
+    move_modifier(obj, mod, _modifier_index(obj, stage))
 
 
 def _new_helper(obj, mesh, changes, tag):
@@ -657,7 +634,7 @@ def _ensure(context, todo, reports, resolution_of, native_subdivision, changes):
 
 def _resolution(obj, copy, stage, resolution_of):
     """The lightmap size the exporter will give obj: from the cage's area for a cage the engine
-    refines (subdiv_export.py), else from the evaluated mesh's triangles."""
+    refines (subdiv.py), else from the evaluated mesh's triangles."""
     m = np.array(obj.matrix_world, np.float64)
     if stage == CAGE:
         pa = np.empty(len(copy.polygons), np.float32)
@@ -727,7 +704,7 @@ def _make_one(context, obj, copy, stage, resolution_of, changes, reports, shared
         if subsurf is not None else ()
     try:
         result = _unwrap(context, copy, obj.matrix_world, res, subsurf, levels)
-    except NotImplementedError as e:  # a cage the engine does not refine (subdiv_export._read_cage)
+    except NotImplementedError as e:  # a cage the engine does not refine (subdiv._read_cage)
         drop_copy()
         return ('retry', str(e))
     except Exception as e:  # noqa: BLE001 -- an add-on must not take Blender down
@@ -792,7 +769,6 @@ def _verify(context, objects, reports):
 def summarise_warnings(warnings, limit=3):
     """Engine warnings with those about individual meshes grouped: one line per mesh and kind of
     problem, and one summary line for a kind that more than `limit` meshes share."""
-    import re
     groups, order, out = {}, [], []
     for w in warnings:
         m = re.match(r"^mesh '(.*?)': (.*)$", w)
@@ -830,3 +806,11 @@ def summarise_warnings(warnings, limit=3):
             text = re.sub(r"\d+", span, text, count=1)
         lines.append("%d meshes (%s and %d more), each: %s" % (len(seen), names, len(seen) - 3, text))
     return lines
+
+
+def ensure_for_scene(context, objects, reports):
+    """ensure_lightmap_uvs at the resolution the export will give each object (the scene's
+    ResolutionRule) and with the scene's native subdivision setting."""
+    density = ResolutionRule(context.scene.photonlm)
+    return ensure_lightmap_uvs(context, objects, reports, density,
+                               native_subdivision=getattr(context.scene.photonlm, "native_subdivision", True))

@@ -23,7 +23,7 @@ import bpy
 import numpy as np
 from mathutils import Euler
 
-from . import compat
+from .. import compat
 
 RENDER_SIZE = (1024, 512)  # pixels of a rendered world: 0.35 degrees each
 # Box-filtered samples per pixel: 16 to 1024, adaptive (noise threshold 0.01), so the smooth sky

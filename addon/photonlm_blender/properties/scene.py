@@ -1,80 +1,22 @@
-"""Settings: scene.photonlm (bake settings, preview mode, last bake's statistics) and
-object.photonlm (per-object lightmap resolution).
-
-Lightmap resolution of an object (object.photonlm.resolution = 0, the default):
-    n = clamp(next_power_of_two(sqrt(A) * density * scale), 16, 4096)
-where A is the object's world-space surface area (modifiers and scale applied) in m^2,
-density is scene.photonlm.texel_density in texels per metre and scale the object's
-density_scale. The lightmap is n x n. In atlases (scene.photonlm.lightmap_layout = 'ATLAS')
-n = clamp(ceil(sqrt(A) * density * scale), 16, page size - margin): one density for all
-objects (ResolutionRule). UV packing leaves some space unused, so the real density on the
-surface is somewhat lower.
-"""
-import math
-
+"""Scene settings: scene.photonlm (bake settings, preview mode, and read-only views of the last
+bake's statistics, which writeback/record.py keeps on the scene). How an object's lightmap size
+follows from them: export/resolution.py."""
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
-from . import bridge
+from .. import bridge
+from ..writeback import record, wiring
 
-STATS_KEY = "photonlm_last_bake"  # ID property on the scene: the last bake's statistics
 # The engine's own defaults (0 where the engine cannot be loaded: nothing bakes then). The add-on
 # differs in two: it bakes to a quality (a target error, photons only a cap), not a photon count.
 ENGINE = bridge.engine_defaults()
 TARGET_ERROR_DEFAULT = 0.02
 PHOTON_CAP_DEFAULT = 50_000_000
 
-# A bake holds about 240 bytes for every lightmap texel and 160 more for each covered one
-# (the engine's memory estimate): an object's Resolution is capped where one lightmap alone
-# would need tens of gigabytes.
-RESOLUTION_MAX = 8192
-RESOLUTION_SOFT_MAX = 4096
-
-# The Last Bake box suggests what to do when more than this share of the texels is above
-# twice the target error.
-NOISY_SHARE = 0.10
-
-
-def resolution_from_area(area, density, power_of_two=True, largest=4096):
-    """Lightmap side length for a surface of `area` m^2 at `density` texels per metre: the next
-    power of two (power_of_two), else the next whole texel, within [16, largest]."""
-    want = math.sqrt(max(area, 0.0)) * max(density, 0.0)
-    if power_of_two:
-        n = 1 << max(0, math.ceil(math.log2(want))) if want > 1.0 else 1
-    else:
-        n = math.ceil(want) if math.isfinite(want) else largest
-    return int(min(max(n, 16), largest))
-
-
-def atlas_pad(settings):
-    """Texels of edge repeated around each block of an atlas: half the margin, at least 1 (so that
-    bilinear filtering at mip 0 never mixes two blocks)."""
-    return max(1, (int(settings.lightmap_margin) + 1) // 2)
-
-
-class ResolutionRule:
-    """How an object's lightmap size follows from its surface area (scene settings `settings`):
-    the object's Resolution where set, else texel density x the object's density scale, rounded up
-    to a power of two for lightmaps of their own, to a whole texel in atlases (every object then gets
-    the same density) and capped there so that the block with its margin fits a page."""
-
-    def __init__(self, settings):
-        self.density = float(settings.texel_density)
-        self.atlas = getattr(settings, "lightmap_layout", 'OBJECT') == 'ATLAS'
-        self.largest = int(settings.atlas_size) - 2 * atlas_pad(settings) if self.atlas else 4096
-
-    def __call__(self, obj, area):
-        if obj.photonlm.resolution > 0:
-            return int(obj.photonlm.resolution)
-        if callable(area):
-            area = area()
-        return resolution_from_area(area, self.density * float(obj.photonlm.density_scale),
-                                    power_of_two=not self.atlas, largest=self.largest)
-
 
 def _stat_getter(key, fmt):
     def get(self):
-        stats = self.id_data.get(STATS_KEY)
+        stats = record.stats(self.id_data)
         if not stats or key not in stats:
             return ""
         try:
@@ -111,8 +53,7 @@ def _fmt_bytes(x):
 
 
 def _preview_update(self, context):
-    from . import materials
-    materials.set_preview_all(self.preview_mode)
+    wiring.set_preview_all(self.preview_mode)
 
 
 def _preview_get(self):
@@ -128,7 +69,7 @@ def _preview_set(self, value):
 
 def _error_above_get(self):
     """'12.3 %': the share of covered texels above twice the target (or twice the RMS error)."""
-    stats = self.id_data.get(STATS_KEY)
+    stats = record.stats(self.id_data)
     if not stats or "error_above" not in stats:
         return ""
     return "%.1f %%" % (100.0 * float(stats["error_above"]))
@@ -136,15 +77,15 @@ def _error_above_get(self):
 
 def _noisy_hint_get(self):
     """A one-line suggestion when much of the lightmap is above twice the target error ('' when not)."""
-    stats = self.id_data.get(STATS_KEY)
-    if not stats or float(stats.get("error_above", 0.0)) <= NOISY_SHARE:
+    stats = record.stats(self.id_data)
+    if not stats or float(stats.get("error_above", 0.0)) <= record.NOISY_SHARE:
         return ""
     return "Lower Resolution or add time"
 
 
 def _noisiest_get(self):
     """'Sphere (72 %)': the noisy object holding the most noisy texels, with its share of them."""
-    stats = self.id_data.get(STATS_KEY)
+    stats = record.stats(self.id_data)
     if not stats or not stats.get("noisiest"):
         return ""
     share = stats.get("noisiest_above")
@@ -240,7 +181,7 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
     preview: BoolProperty(
         name="Preview Lightmaps", description="Preview on (Lightmaps, or the Error heat map when chosen) or off; "
         "the same as Preview other than Off", get=_preview_get, set=_preview_set)
-    # Read-only statistics of the last bake (stored in the scene's ID property STATS_KEY).
+    # Read-only statistics of the last bake (stored on the scene: writeback/record.py).
     last_photons: StringProperty(name="Photons", get=_stat_getter("photons_emitted", _fmt_count))
     last_time: StringProperty(name="Time", get=_stat_getter("seconds_total", _fmt_seconds))
     last_error: StringProperty(name="Error", description="Estimated relative RMS error over all texels",
@@ -266,80 +207,7 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
     last_objects: StringProperty(name="Objects", get=_stat_getter("objects", _fmt_count))
 
 
-class PhotonlmLSystemSettings(bpy.types.PropertyGroup):
-    enabled: BoolProperty(name="L-System", description="This object is an L-system: baked from its rules",
-                          default=False)
-    rules: StringProperty(name="Rules", description="The L-system: axiom, productions, settings (see the "
-                          "user guide)", default="")
-    depth: IntProperty(name="Depth", description="Derivation steps", default=5, min=0, max=60)
-    seed: IntProperty(name="Seed", description="Seed of stochastic productions", default=0, min=0)
-    step: FloatProperty(name="Step", description="Length of F without a parameter (m); 0 = the rules'",
-                        default=0.0, min=0.0, unit='LENGTH')
-    width: FloatProperty(name="Width", description="Initial branch width (m); 0 = the rules'", default=0.0,
-                         min=0.0, unit='LENGTH')
-    ol_level: IntProperty(name="OL Level", description="One orientation lightmap per branch this many levels "
-                          "below the root (0 = one for the whole object)", default=0, min=0, max=60)
-    preview_cap: IntProperty(name="Preview Primitives", description="Most primitives in the viewport preview",
-                             default=20000, min=1, max=2_000_000)
-
-
-class PhotonlmObjectSettings(bpy.types.PropertyGroup):
-    enabled: BoolProperty(
-        name="Bake Lightmap", description="Give this object a lightmap. When off the object still blocks "
-        "and reflects light but gets no lightmap", default=True)
-    resolution: IntProperty(
-        name="Resolution", description="Lightmap width and height in texels; 0 = Auto from the scene's "
-        "texel density and the object's surface area. A bake needs about 400 bytes per texel "
-        "(4096: about 7 GB, 8192: about 27 GB); a bake that does not fit in the memory free is refused",
-        default=0, min=0, max=RESOLUTION_MAX, soft_max=RESOLUTION_SOFT_MAX)
-    density_scale: FloatProperty(
-        name="Density Scale", description="Multiplies the scene's texel density for this object when its "
-        "Resolution is Auto: 2 gives twice the texels along each side (four times the texels, memory and "
-        "time), 0.5 a quarter. For objects seen up close (above 1) or far away (below 1)",
-        default=1.0, min=0.01, soft_min=0.125, soft_max=8.0, max=64.0, precision=3)
-    mode: EnumProperty(
-        name="Lighting", description="How the object's light is stored",
-        items=[('LIGHTMAP', "Lightmap", "An ordinary lightmap: light per texel"),
-               ('ORIENTATION', "Orientation Lightmap", "One orientation lightmap (OL) over the object: "
-                "light averaged over all its surface with the same normal, whatever its complexity; "
-                "resolved into its lightmap image"),
-               ('BACKUP', "Lightmap + OL Backup", "An ordinary lightmap whose noisy texels lean on an "
-                "orientation lightmap of the object (combined by inverse variance, bias included)"),
-               ('AUTO', "Auto", "An OL when the object has more triangles than "
-                "4 x its lightmap texels (too complex for its lightmap), else a "
-                "lightmap")],
-        default='AUTO')
-    ol_resolution: IntProperty(
-        name="OL Resolution", description="Orientation-lightmap bins per side; 0 = automatic (16)",
-        default=0, min=0, max=1024)
-    lsystem: PointerProperty(type=PhotonlmLSystemSettings)
-    primitive: EnumProperty(
-        name="Primitive", description="The analytic shape this object was made as (with Blender's Add > "
-        "Mesh operators): traced exactly, and combined exactly through Boolean modifiers whose operands "
-        "are primitives too. Size from the mesh's bounds, placement from the object's transform",
-        items=[('NONE', "None", "An ordinary mesh"),
-               ('SPHERE', "Sphere", "UV sphere"),
-               ('BOX', "Box", "Cube"),
-               ('CYLINDER', "Cylinder", "Cylinder with caps"),
-               ('CONE', "Cone", "Cone with a pointed top (Radius 2 = 0) and a base cap"),
-               ('TORUS', "Torus", "Torus about the object's z axis")],
-        default='NONE')
-
-
-class PhotonlmCollectionSettings(bpy.types.PropertyGroup):
-    orientation_lightmap: BoolProperty(
-        name="One Orientation Lightmap", description="Light all objects of this collection (instances "
-        "and objects without lightmaps too) through one orientation lightmap shared by the whole "
-        "collection", default=False)
-    ol_resolution: IntProperty(
-        name="OL Resolution", description="Orientation-lightmap bins per side; 0 = automatic (16)",
-        default=0, min=0, max=1024)
-
-
-# AUTO chooses an OL above this many triangles per lightmap texel.
-AUTO_TRIANGLES_PER_TEXEL = 4
-
-_CLASSES = (PhotonlmSceneSettings, PhotonlmLSystemSettings, PhotonlmObjectSettings, PhotonlmCollectionSettings)
+_CLASSES = (PhotonlmSceneSettings,)
 
 
 PREVIEW_MODE_INDEX = {'OFF': 0, 'LIGHTMAP': 1, 'ERROR': 2}  # how preview_mode is stored in a file
@@ -362,8 +230,6 @@ def register():
     for cls in _CLASSES:
         bpy.utils.register_class(cls)
     bpy.types.Scene.photonlm = PointerProperty(type=PhotonlmSceneSettings)
-    bpy.types.Object.photonlm = PointerProperty(type=PhotonlmObjectSettings)
-    bpy.types.Collection.photonlm = PointerProperty(type=PhotonlmCollectionSettings)
     if migrate_preview not in bpy.app.handlers.load_post:
         bpy.app.handlers.load_post.append(migrate_preview)
 
@@ -371,8 +237,6 @@ def register():
 def unregister():
     if migrate_preview in bpy.app.handlers.load_post:
         bpy.app.handlers.load_post.remove(migrate_preview)
-    del bpy.types.Collection.photonlm
-    del bpy.types.Object.photonlm
     del bpy.types.Scene.photonlm
     for cls in reversed(_CLASSES):
         bpy.utils.unregister_class(cls)

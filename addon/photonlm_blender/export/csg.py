@@ -11,6 +11,8 @@ bakes the mesh as usual.
 import mathutils
 import numpy as np
 
+from . import meshes
+
 # Blender Boolean operation -> engine tree operator.
 _OPS = {'UNION': "UNION", 'INTERSECT': "INTERSECTION", 'DIFFERENCE': "DIFFERENCE"}
 # Modifiers that leave the primitive's shape as it is (display helpers, UV and data edits).
@@ -28,9 +30,7 @@ def is_csg_object(obj):
 
 def _bounds(obj):
     """Local-space bounding box of the object's own (unmodified) mesh: (lo, hi)."""
-    co = np.empty(len(obj.data.vertices) * 3, np.float64)
-    obj.data.vertices.foreach_get("co", co)
-    co = co.reshape(-1, 3)
+    co = meshes.positions(obj.data).astype(np.float64)
     if not len(co):
         raise NotExact("object '%s' has an empty mesh" % obj.name)
     return co.min(axis=0), co.max(axis=0)
@@ -56,9 +56,7 @@ def _primitive(obj, material):
             raise NotExact("object '%s': %s mesh is not round in x and y" % (obj.name, kind.lower()))
         scale = half
         if kind == 'CONE':  # the apex must be a point: no vertex off the axis at the top
-            co = np.empty(len(obj.data.vertices) * 3, np.float64)
-            obj.data.vertices.foreach_get("co", co)
-            co = co.reshape(-1, 3)
+            co = meshes.positions(obj.data).astype(np.float64)
             top = co[np.abs(co[:, 2] - hi[2]) < 1e-6 * max(half[2], 1e-12)]
             if len(top) and np.hypot(top[:, 0] - centre[0], top[:, 1] - centre[1]).max() > 1e-4 * half[0]:
                 raise NotExact("object '%s': cone with a flat top (Radius 2 > 0) is not a primitive" % obj.name)

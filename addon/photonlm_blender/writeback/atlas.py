@@ -1,16 +1,16 @@
 """Lightmap atlases (scene.photonlm.lightmap_layout = 'ATLAS'): the baked objects' lightmaps
 packed into a few square pages.
 
-Each object is baked as in one-per-object mode, at its own resolution (properties.ResolutionRule:
+Each object is baked as in one-per-object mode, at its own resolution (export/resolution.py's ResolutionRule:
 one texel density for all, no power-of-two rounding), then its block of texels is copied into a
-page at the place atlas_pack.py finds for it, with a ring of atlas_pad texels around it that
+page at the place uv/atlas_pack.py finds for it, with a ring of atlas_pad texels around it that
 repeats the block's edge texels. Per page the bake writes
     <scene>_atlas_<k>_lightmap.exr   R, G, B, error, hits (as a one-object lightmap file)
     <scene>_atlas_<k>_error.exr      the heat map of its relative errors
 and loads them as images of the same names. Each object gets
     the UV map 'PhotonLM Atlas': its lightmap UVs moved into its block, u' = u su + ou,
         v' = v sv + ov. The mesh holding the lightmap map (the object's own, or the helper mesh of
-        an automatic map that a Data Transfer modifier brings, uvmaps.py) holds a copy of it as
+        an automatic map that a Data Transfer modifier brings, uv/uvmaps.py) holds a copy of it as
         'PhotonLM Atlas' (the object's own mesh then an empty one for Data Transfer to fill), and a
         UV Warp modifier 'PhotonLM Atlas UV' of the object's moves it into the block, so that
         objects sharing a mesh (linked duplicates, or copies sharing one helper) each get their own
@@ -31,7 +31,14 @@ import os
 import bpy
 import numpy as np
 
-from . import atlas_pack, bake, bridge, export, materials, uvmaps
+from .. import bridge
+from ..export import meshes
+from ..export.meshes import LIGHTMAP_UV
+from ..export.resolution import atlas_pad
+from ..export.scene import safe_file_name
+from ..uv import atlas_pack, uvmaps
+from . import wiring
+from .images import error_image_pixels, load_image, relative_error, write_error_exr
 
 ATLAS_UV = "PhotonLM Atlas"
 LAYOUT_KEY = "photonlm_atlas"                        # on the scene: the layout of the last atlas bake
@@ -53,7 +60,7 @@ def page_size(scene):
 
 
 def page_name(scene, k):
-    return "%s_atlas_%d" % (export.safe_file_name(scene.name), k)
+    return "%s_atlas_%d" % (safe_file_name(scene.name), k)
 
 
 def _layout(scene):
@@ -69,7 +76,7 @@ def usable_layout(scene, out_dir=None):
     if layout is None:
         return None, "the scene has no atlas yet"
     if int(layout.get("size", 0)) != page_size(scene) or int(layout.get("pad", -1)) != \
-            bake.properties.atlas_pad(scene.photonlm):
+            atlas_pad(scene.photonlm):
         return None, "the atlas was baked with another page size or margin"
     for path in layout.get("files", ()):
         if not os.path.isfile(bpy.path.abspath(path)):
@@ -80,7 +87,7 @@ def usable_layout(scene, out_dir=None):
 def check(scene, baked, selected_only):
     """Before the bake: refuse blocks too large for a page (naming the objects) and a Bake Selected
     without an atlas to add to. Raises AtlasError."""
-    size, pad = page_size(scene), bake.properties.atlas_pad(scene.photonlm)
+    size, pad = page_size(scene), atlas_pad(scene.photonlm)
     large = ["'%s' (%d x %d)" % (b.object_name, b.width, b.height) for b in baked
              if b.width + 2 * pad > size or b.height + 2 * pad > size]
     if large:
@@ -114,7 +121,7 @@ def paste(page, lm, p, pad):
 def _placements(scene, names, sizes, selected_only, layout):
     """(placements by object name, page count, pages that change) for the blocks `sizes` of objects
     `names`: packed anew, or added to `layout` (Bake Selected)."""
-    size, pad = page_size(scene), bake.properties.atlas_pad(scene.photonlm)
+    size, pad = page_size(scene), atlas_pad(scene.photonlm)
     if not selected_only:
         placed = atlas_pack.pack(sizes, size, pad)
         count = atlas_pack.page_count(placed)
@@ -142,13 +149,11 @@ def _write_uv(obj, scale_offset, reports):
     UV Warp modifier that moves it into the object's block (see the module text)."""
     mod = uvmaps.automatic_modifier(obj)
     holders = [obj.data] if mod is None else [mod.object.data, obj.data]
-    src = holders[0].uv_layers.get(uvmaps.LIGHTMAP_UV)
+    src = holders[0].uv_layers.get(LIGHTMAP_UV)
     if src is None:
-        reports.warning("object '%s': no UV map '%s' to place in its atlas" % (obj.name, uvmaps.LIGHTMAP_UV))
+        reports.warning("object '%s': no UV map '%s' to place in its atlas" % (obj.name, LIGHTMAP_UV))
         return False
-    uv = np.empty(len(holders[0].loops) * 2, np.float32)
-    if len(uv):
-        src.data.foreach_get("uv", uv)
+    uv = meshes.loop_uv(src, len(holders[0].loops)).reshape(-1)
     for i, mesh in enumerate(holders):
         layer = mesh.uv_layers.get(ATLAS_UV)
         if layer is None:
@@ -196,7 +201,7 @@ def _place_warp(obj, scale_offset, transfer):
         index = len(mods) - 1
     else:
         index = len(mods)
-    uvmaps._move_modifier(obj, warp, index)
+    uvmaps.move_modifier(obj, warp, index)
 
 
 def _relative(path):
@@ -208,18 +213,18 @@ def _relative(path):
     return path
 
 
-def store(context, job, lightmaps, out_dir, pack, per_object):
+def store(context, selected_only, reports, lightmaps, out_dir, pack, per_object):
     """Pack the baked lightmaps {object name: photonlm.Lightmap} into atlas pages, write and load the
     pages, give each object its atlas UV map and properties. Returns (images, error_images, uv_maps)
     by object name for the preview wiring, and the stale pages for remove_stale (after the wiring);
     adds each object's "atlas" entry to per_object."""
     scene = context.scene
-    size, pad = page_size(scene), bake.properties.atlas_pad(scene.photonlm)
-    layout = usable_layout(scene)[0] if job.selected_only else None
+    size, pad = page_size(scene), atlas_pad(scene.photonlm)
+    layout = usable_layout(scene)[0] if selected_only else None
     old_layout = _layout(scene)
     names = sorted(lightmaps)
     sizes = [(lightmaps[n].rgb.shape[1], lightmaps[n].rgb.shape[0]) for n in names]
-    placements, count, changed = _placements(scene, names, sizes, job.selected_only, layout)
+    placements, count, changed = _placements(scene, names, sizes, selected_only, layout)
     plm = bridge.get()
     files = [os.path.join(out_dir, page_name(scene, k) + "_lightmap.exr") for k in range(count)]
     if layout is not None:  # pages already there keep their files
@@ -244,15 +249,15 @@ def store(context, job, lightmaps, out_dir, pack, per_object):
                     paste(page, lightmaps[n], p, pad)
             plm.write_lightmap_exr(files[k], *page)
             error_path = files[k][:-len("_lightmap.exr")] + "_error.exr"
-            bake.write_error_exr(error_path, bake.error_image_pixels(bake.relative_error(page[0], page[1])))
-            page_images.append(bake.load_image(name + "_lightmap", files[k], pack))
-            error_image = bake.load_image(name + "_error", error_path, pack)
+            write_error_exr(error_path, error_image_pixels(relative_error(page[0], page[1])))
+            page_images.append(load_image(name + "_lightmap", files[k], pack))
+            error_image = load_image(name + "_error", error_path, pack)
         else:
             error_path = files[k][:-len("_lightmap.exr")] + "_error.exr"
             page_images.append(bpy.data.images.get(name + "_lightmap")
-                               or bake.load_image(name + "_lightmap", files[k], pack))
-            error_image = bpy.data.images.get(name + "_error") or bake.load_image(name + "_error", error_path, pack)
-        error_image[materials.TAG] = materials.ERROR_IMAGE_TAG
+                               or load_image(name + "_lightmap", files[k], pack))
+            error_image = bpy.data.images.get(name + "_error") or load_image(name + "_error", error_path, pack)
+        error_image[wiring.TAG] = wiring.ERROR_IMAGE_TAG
         error_images.append(error_image)
 
     images, errors, uv_maps = {}, {}, {}
@@ -260,7 +265,7 @@ def store(context, job, lightmaps, out_dir, pack, per_object):
         p = placements[n]
         so = p.scale_offset(size)
         obj = bpy.data.objects.get(n)
-        if obj is not None and _write_uv(obj, so, job.reports):
+        if obj is not None and _write_uv(obj, so, reports):
             uv_maps[n] = ATLAS_UV
         if obj is not None:
             obj[PAGE_KEY] = page_images[p.page].name
@@ -277,14 +282,14 @@ def store(context, job, lightmaps, out_dir, pack, per_object):
     for n in names:
         obj = bpy.data.objects.get(n)
         if obj is not None and obj.photonlm.resolution == 0 and max(sizes[names.index(n)]) >= largest:
-            job.reports.warning("object '%s' fills a whole atlas page (its lightmap is capped at %d x %d texels): "
+            reports.warning("object '%s' fills a whole atlas page (its lightmap is capped at %d x %d texels): "
                                 "it gets fewer texels per metre than the Texel Density; choose a larger Page Size"
                                 % (n, largest, largest))
     blocks = {n: list(p) for n, p in placements.items()}
     scene[LAYOUT_KEY] = dict(size=size, pad=pad, pages=[im.name for im in page_images],
                              files=[_relative(f) for f in files], blocks=blocks)
     stale = []
-    if old_layout is not None and not job.selected_only:
+    if old_layout is not None and not selected_only:
         stale = [(name, path) for name, path in zip(old_layout.get("pages", ()), old_layout.get("files", ()))
                  if name not in scene[LAYOUT_KEY]["pages"]]
     return images, errors, uv_maps, stale

@@ -10,9 +10,9 @@ seconds (photonlm.h plm_bake_with_preview); take() copies each baked object's cu
 into numpy arrays and leaves them for the main thread (no bpy there). While no 3D viewport shows
 materials (Material Preview or Rendered; apply() looks on each tick) take() copies nothing. apply() writes the latest
 copy into an in-memory float image per object ("PhotonLM live <object>", tagged
-image[materials.TAG] = LIVE_TAG) and, the first time, points each baked material's preview
+image[wiring.TAG] = LIVE_TAG) and, the first time, points each baked material's preview
 at it: a material wired by an earlier bake gets the live image on its lightmap Image Texture
-node, one without wiring gets the preview nodes (materials.wire_material, no heat map), and
+node, one without wiring gets the preview nodes (wiring.wire_material, no heat map), and
 both show the Lightmaps output. What each material was (its lightmap image, whether it was
 wired, which outputs were active, the remembered original output) is kept first.
 
@@ -26,7 +26,8 @@ import threading
 import bpy
 import numpy as np
 
-from . import compat, materials
+from .. import compat
+from ..writeback import wiring
 
 LIVE_TAG = "live"
 IMAGE_PREFIX = "PhotonLM live "
@@ -36,8 +37,8 @@ class LivePreview:
     def __init__(self, job, interval):
         self.interval = float(interval)
         # mesh id -> object name for every baked object (the worker reads this, never bpy).
-        self._targets = {b.mesh_id: b.object_name for b in job.export.baked}
-        self._owners = _material_owners(job.export.baked)  # material name -> object name
+        self._targets = {b.mesh_id: b.object_name for b in job.manifest.baked}
+        self._owners = _material_owners(job.manifest.baked)  # material name -> object name
         self._lock = threading.Lock()
         self._pending = None   # (photons, {object name: (h, w, 3) float32}) not yet shown
         self._saved = {}       # material name -> what it was (see _save)
@@ -102,7 +103,7 @@ class LivePreview:
         self._saved = {}
         for image_name in live:
             image = bpy.data.images.get(image_name)
-            if image is not None and image.get(materials.TAG) == LIVE_TAG:
+            if image is not None and image.get(wiring.TAG) == LIVE_TAG:
                 bpy.data.images.remove(image)
         self._images = {}
 
@@ -111,7 +112,7 @@ class LivePreview:
         if image is not None and tuple(image.size) == (width, height):
             return image
         image = bpy.data.images.new(IMAGE_PREFIX + object_name, width, height, alpha=False, float_buffer=True)
-        image[materials.TAG] = LIVE_TAG
+        image[wiring.TAG] = LIVE_TAG
         image.colorspace_settings.name = 'Non-Color'  # before the pixels: changing it regenerates them
         image.alpha_mode = 'NONE'
         self._images[object_name] = image.name
@@ -125,15 +126,15 @@ class LivePreview:
             if mat is None or image is None or not compat.uses_nodes(mat):
                 continue
             node = _image_node(mat)
-            uv = next((n for n in mat.node_tree.nodes if n.get(materials.TAG) == "uv"), None)
+            uv = next((n for n in mat.node_tree.nodes if n.get(wiring.TAG) == "uv"), None)
             if node is not None and uv is not None and uv.bl_idname != 'ShaderNodeUVMap':
                 continue  # wired to an orientation lightmap: shown as it was until the bake ends
             self._saved[mat_name] = _save(mat)
             if node is not None:
                 node.image = image
             else:
-                materials.wire_material(mat, image, engine)  # its notes come again with the final wiring
-            materials.set_preview(mat, 'LIGHTMAP')
+                wiring.wire_material(mat, image, engine)  # its notes come again with the final wiring
+            wiring.set_preview(mat, 'LIGHTMAP')
 
 
 def watched(context):
@@ -157,9 +158,9 @@ def _material_owners(baked):
 
 def _image_node(mat):
     """The Image Texture node of a material's lightmap preview, or None if it is not wired."""
-    if not materials.is_wired(mat):
+    if not wiring.is_wired(mat):
         return None
-    return next((n for n in mat.node_tree.nodes if n.get(materials.TAG) == "image"), None)
+    return next((n for n in mat.node_tree.nodes if n.get(wiring.TAG) == "image"), None)
 
 
 def _save(mat):
@@ -168,7 +169,7 @@ def _save(mat):
     return dict(wired=node is not None, image=node.image if node is not None else None,
                 active=[n.name for n in tree.nodes if n.bl_idname == 'ShaderNodeOutputMaterial'
                         and n.is_active_output],
-                remembered=tree.get(materials.ORIGINAL_OUTPUT_KEY))
+                remembered=tree.get(wiring.ORIGINAL_OUTPUT_KEY))
 
 
 def _restore(mat, saved):
@@ -178,7 +179,7 @@ def _restore(mat, saved):
         if node is not None:
             node.image = saved["image"]
     else:
-        materials.remove_wiring(mat)
+        wiring.remove_wiring(mat)
     outputs = [n for n in tree.nodes if n.bl_idname == 'ShaderNodeOutputMaterial']
     for n in outputs:
         if n.name not in saved["active"]:
@@ -187,7 +188,7 @@ def _restore(mat, saved):
         if n.name in saved["active"]:
             n.is_active_output = True
     if saved["remembered"] is None:
-        if materials.ORIGINAL_OUTPUT_KEY in tree:
-            del tree[materials.ORIGINAL_OUTPUT_KEY]
+        if wiring.ORIGINAL_OUTPUT_KEY in tree:
+            del tree[wiring.ORIGINAL_OUTPUT_KEY]
     else:
-        tree[materials.ORIGINAL_OUTPUT_KEY] = saved["remembered"]
+        tree[wiring.ORIGINAL_OUTPUT_KEY] = saved["remembered"]

@@ -1,4 +1,7 @@
-"""Blender scene -> photonlm.Scene.
+"""Blender scene -> photonlm.Scene: the whole export, through the converters of this package
+(meshes.py reads every mesh, materials.py, lights.py, world.py, csg.py, subdiv.py, lsystem.py).
+export_scene returns a SceneExport whose Manifest says what was sent: what the write-back
+(writeback/apply.py) needs to bring the result back.
 
 Runs on the main thread. Meshes come from the evaluated depsgraph (modifiers applied)
 through foreach_get into numpy; nothing loops over vertices in Python.
@@ -12,16 +15,20 @@ What is exported
 - Lights: point, spot, sun, area (square/rectangle -> AREA_RECT, disk/ellipse -> AREA_DISK);
   Cycles portal lights (square/rectangle) -> PORTAL
   with colour, power, world matrix, soft size, sun angle, area size, spot size/blend. Colour and
-  power are what Cycles emits (compat.light_emission: temperature, exposure, normalize); a light
-  whose node tree is more than the default Emission is reported (its nodes are not baked).
+  power are what Cycles emits (lights.py); a light whose node tree is more than the default
+  Emission is reported (its nodes are not baked).
 - World: Background colour x strength (a uniform radiance), or world.color without nodes.
 """
-import contextlib
+import dataclasses
 import re
 
 import numpy as np
 
-from . import compat, csg_export, lsystem, materials, properties, stages, subdiv_export, uvmaps, world_export
+from .. import compat, stages
+from . import csg, lights, lsystem, materials, subdiv
+from . import world as world_export
+from .resolution import AUTO_TRIANGLES_PER_TEXEL, ResolutionRule
+from .meshes import LIGHTMAP_UV, mesh_arrays, shading_normals, surface_area
 
 GEOMETRY_TYPES = {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT'}
 
@@ -60,77 +67,8 @@ class BakedObject:
         self.material_names = material_names  # names of the materials on its slots (may repeat)
 
 
-@contextlib.contextmanager
-def evaluated_mesh(obj, depsgraph):
-    """The evaluated mesh of obj (modifiers applied) with loop triangles; freed on exit."""
-    obj_eval = obj.evaluated_get(depsgraph)
-    mesh = obj_eval.to_mesh()
-    try:
-        if mesh is not None:
-            mesh.calc_loop_triangles()
-        yield obj_eval, mesh
-    finally:
-        obj_eval.to_mesh_clear()
-
-
-def mesh_arrays(mesh, matrix_world, want_uv):
-    """World-space positions (V,3) f32, triangles (T,3) u32, material indices (T,) i32 and the
-    lightmap UV per triangle corner (T,3,2) f32 (None if not wanted or missing)."""
-    nv, nt = len(mesh.vertices), len(mesh.loop_triangles)
-    co = np.empty(nv * 3, np.float32)
-    mesh.vertices.foreach_get("co", co)
-    m = np.array(matrix_world, dtype=np.float64)
-    pos = (co.reshape(nv, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
-    tris = np.empty(nt * 3, np.int32)
-    mesh.loop_triangles.foreach_get("vertices", tris)
-    mat_index = np.empty(nt, np.int32)
-    mesh.loop_triangles.foreach_get("material_index", mat_index)
-    uv = None
-    layer = mesh.uv_layers.get(uvmaps.LIGHTMAP_UV)
-    if want_uv and layer is not None:
-        loops = np.empty(nt * 3, np.int32)
-        mesh.loop_triangles.foreach_get("loops", loops)
-        loop_uv = np.empty(len(mesh.loops) * 2, np.float32)
-        layer.data.foreach_get("uv", loop_uv)
-        uv = loop_uv.reshape(-1, 2)[loops].reshape(nt, 3, 2)
-    return pos, tris.reshape(nt, 3).astype(np.uint32), mat_index, uv
-
-
-def shading_normals(mesh, matrix_world):
-    """World-space shading normals per triangle corner (T, 3, 3) float32 for the smooth faces
-    (their split normals: smooth shading, Auto Smooth, custom normals), (0, 0, 0) on flat faces
-    (the engine then shades with the triangle's own normal); None when every face is flat."""
-    npoly, nt = len(mesh.polygons), len(mesh.loop_triangles)
-    smooth = np.zeros(npoly, dtype=bool)
-    if npoly:
-        mesh.polygons.foreach_get("use_smooth", smooth)
-    if not smooth.any():
-        return None
-    n = compat.corner_normals(mesh).reshape(nt, 3, 3).astype(np.float64)
-    poly = np.empty(nt, np.int32)
-    mesh.loop_triangles.foreach_get("polygon_index", poly)
-    # Normals transform with the inverse transpose of the object's linear part.
-    m = np.array(matrix_world, dtype=np.float64)[:3, :3]
-    try:
-        normal_matrix = np.linalg.inv(m).T
-    except np.linalg.LinAlgError:
-        return None  # a flattened object: no direction to shade with
-    n = n @ normal_matrix.T
-    n[~smooth[poly]] = 0.0
-    return n.astype(np.float32)
-
-
-def surface_area(pos, tris):
-    if len(tris) == 0:
-        return 0.0
-    p = pos.astype(np.float64)
-    a, b, c = p[tris[:, 0]], p[tris[:, 1]], p[tris[:, 2]]
-    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
-    return float(np.nansum(area[np.isfinite(area)]))
-
-
 def object_resolution(obj, area, density):
-    """density: the scene's properties.ResolutionRule; area: m^2, or a function giving it (called
+    """density: the scene's ResolutionRule; area: m^2, or a function giving it (called
     only where the size follows from the area: the area of a large mesh costs time)."""
     return density(obj, area)
 
@@ -152,32 +90,119 @@ def lightmap_objects(context, selected_only=False):
                    and (not selected_only or o.select_get(view_layer=vl))), key=lambda o: o.name)
 
 
-def ensure_lightmap_uvs(context, objects, reports):
-    """Make or refresh the automatic `lightmap` UV maps of the objects that have no map of the user's
-    (uvmaps.py): made for the evaluated mesh, at the resolution the export will give each object.
-    Returns a uvmaps.Changes list (undo() for a cancelled or failed bake, commit() to keep them)."""
-    density = properties.ResolutionRule(context.scene.photonlm)
-    return uvmaps.ensure_lightmap_uvs(
-        context, objects, reports, lambda obj, area: object_resolution(obj, area, density),
-        native_subdivision=getattr(context.scene.photonlm, "native_subdivision", True))
+def bake_settings(scene):
+    """The scene's PhotonLM settings as arguments of photonlm.Scene.bake (also written into
+    exported scene files, so that `photonlm bake` bakes what the add-on would)."""
+    settings = scene.photonlm
+    texel_value = settings.texel_value  # 'CYCLES': what this Blender's Cycles bake holds
+    if texel_value == 'CYCLES':
+        texel_value = compat.cycles_texel_value()
+    return dict(photons=int(settings.photons), max_bounces=int(settings.max_bounces),
+                seed=int(settings.seed), target_error=float(settings.target_error),
+                time_budget=float(settings.time_budget), direct_samples=int(settings.direct_samples),
+                texel_value=texel_value, dilation=int(settings.lightmap_margin))
+
+
+class _Quiet:
+    """A Reports stand-in that keeps nothing (for looking at the scene as the export would)."""
+
+    def info(self, text):
+        pass
+
+    warning = error = add = info
+
+
+class _LightRecorder:
+    """A photonlm.Scene stand-in for lights.add_light: records what would emit."""
+
+    def __init__(self):
+        self.emitting = []
+
+    def add_light(self, kind, name="", **settings):
+        if kind != 'PORTAL':
+            self.emitting.append("light '%s'" % name)
+
+
+def light_sources(context, limit=1):
+    """What would light the scene, as the export sees it: visible lights with power and a colour,
+    visible objects with an emissive material, a world that is not black. Stops after `limit`
+    finds (0 = all). A list of descriptions; empty when nothing lights the scene."""
+    recorder, quiet = _LightRecorder(), _Quiet()
+    if world_export.emits(context.scene.world):  # without rendering a sky
+        recorder.emitting.append("the world")
+    view_layer = context.view_layer
+    emissive = {}
+    depsgraph = context.evaluated_depsgraph_get()
+    for inst in depsgraph.object_instances:
+        if limit and len(recorder.emitting) >= limit:
+            break
+        obj = inst.object
+        parent = inst.parent.original if inst.is_instance and inst.parent else obj.original
+        if not is_renderable(parent, view_layer):
+            continue
+        if obj.type == 'LIGHT':
+            lights.add_light(recorder, obj, inst.matrix_world, quiet)
+        elif obj.type in GEOMETRY_TYPES:
+            for slot in obj.material_slots:
+                mat = slot.material
+                if mat is None:
+                    continue
+                if mat.name_full not in emissive:
+                    emissive[mat.name_full] = max(materials.read_material(mat).emission) > 0.0
+                if emissive[mat.name_full]:
+                    recorder.emitting.append("material '%s' on '%s'" % (mat.name, obj.original.name))
+                    break
+    return recorder.emitting
+
+
+def unlit_scene_message(context):
+    """Why nothing lights the scene, naming lights that do not count (hidden, no power, black)."""
+    view_layer = context.view_layer
+    idle = []
+    for obj in context.scene.objects:
+        if obj.type != 'LIGHT':
+            continue
+        light = obj.data
+        if light.type == 'AREA' and getattr(getattr(light, "cycles", None), "is_portal", False):
+            continue
+        if not is_renderable(obj, view_layer):
+            idle.append("'%s' is hidden" % obj.name)
+        elif light.energy <= 0.0:
+            idle.append("'%s' has no power" % obj.name)
+        elif max(light.color) <= 0.0:
+            idle.append("'%s' is black" % obj.name)
+    text = ("nothing lights the scene: no visible light with power, no emissive material and a black world, "
+            "so every lightmap would be black. Add a light, an emissive material or a world colour")
+    if idle:
+        text += " (light %s%s)" % (", ".join(idle[:3]), ", ..." if len(idle) > 3 else "")
+    return text
+
+
+@dataclasses.dataclass
+class Manifest:
+    """What an export sent to the engine, and what the write-back needs to bring the result back
+    (writeback/apply.py); a bake folder's report gives the same (bake/folder.py)."""
+    baked: list = dataclasses.field(default_factory=list)         # BakedObject: objects with a lightmap
+    ol_groups: dict = dataclasses.field(default_factory=dict)     # key -> OlGroup
+    lsystems: list = dataclasses.field(default_factory=list)      # (object name, engine id) of L-system objects
+    csg_objects: list = dataclasses.field(default_factory=list)   # names of objects traced as exact CSG solids
+    triangles: int = 0          # triangles the engine traces (refined ones for subdivision cages)
+    selected_only: bool = False  # Bake Selected: the other objects' lightmaps and OLs stay as they are
+    target_error: float = 0.0    # the bake's target error (0: none)
 
 
 class SceneExport:
-    """The bridge scene plus what the bake needs to bring results back."""
+    """The bridge scene being built, its textures, and the manifest of what it holds."""
 
     def __init__(self, plm_scene, times=None):
         self.scene = plm_scene
         self.times = times if times is not None else stages.StageTimes()  # seconds per export stage
-        self.triangles = 0          # triangles the engine traces (refined ones for subdivision cages)
-        self.baked = []             # BakedObject
+        self.manifest = Manifest()  # what the bake sends: objects, OLs, L-systems, CSG solids, triangles
         self.material_ids = {}      # material key -> engine id
         self.material_info = {}     # material key -> MaterialInfo
         self.geometry_only = 0
         self.lights = 0
-        self.ol_groups = {}         # key -> OlGroup
         self.cages = 0              # objects added as subdivision cages (refined by the engine)
-        self.csg_objects = []       # names of objects traced as exact CSG solids
-        self.lsystems = []          # (object name, engine id) of L-system objects
         self.texture_files = materials.TextureFiles()  # images for the engine; cleanup() after the bake
 
 
@@ -202,22 +227,23 @@ def export_scene(context, photonlm, reports, selected_only=False, times=None):
     light); every other visible object is exported as geometry that blocks and reflects light.
     A mesh the engine rejects (NaN coordinates, bad indices...) is reported and skipped.
     times (a stages.StageTimes): where the seconds of each stage are added up.
-    Returns a SceneExport; the caller closes .scene.
+    Returns a SceneExport (.manifest: what was sent); the caller closes .scene.
     """
     times = times if times is not None else stages.StageTimes()
     scene = context.scene
     view_layer = context.view_layer
-    cages = {}  # objects whose last modifier is a Subdivision Surface go as their cage (subdiv_export.py)
+    cages = {}  # objects whose last modifier is a Subdivision Surface go as their cage (subdiv.py)
     if getattr(scene.photonlm, "native_subdivision", True):
         with times("export_cages"):
-            cages = subdiv_export.read_cages(context, subdiv_export.candidates(
+            cages = subdiv.read_cages(context, subdiv.candidates(
                 [o for o in view_layer.objects if is_renderable(o, view_layer)], reports), reports)
     with times("export_depsgraph"):
         depsgraph = context.evaluated_depsgraph_get()
-    density = properties.ResolutionRule(scene.photonlm)
+    density = ResolutionRule(scene.photonlm)
     plm = photonlm.Scene()
     compat.set_cycles_conventions(plm)  # lights as this Blender's Cycles has them
     export = SceneExport(plm, times)
+    export.manifest.selected_only = selected_only
     with times("export_world"):
         world = world_export.start(scene.world)  # a sky to render renders beside the mesh export
     try:
@@ -230,7 +256,7 @@ def export_scene(context, photonlm, reports, selected_only=False, times=None):
             if not is_renderable(parent, view_layer):
                 continue
             if obj_eval.type == 'LIGHT':
-                if _add_light(plm, obj_eval, inst.matrix_world, reports):
+                if lights.add_light(plm, obj_eval, inst.matrix_world, reports):
                     export.lights += 1
                 continue
             if obj_eval.type not in GEOMETRY_TYPES:
@@ -312,7 +338,7 @@ def _add_object(export, plm, orig, obj_eval, matrix, is_instance, with_lightmap,
         obj_eval.to_mesh_clear()
     if with_lightmap and uv is None:
         reports.warning("object '%s': its evaluated mesh has no '%s' UV map (a modifier removed it?): "
-                        "baked as geometry only" % (orig.name, uvmaps.LIGHTMAP_UV))
+                        "baked as geometry only" % (orig.name, LIGHTMAP_UV))
         with_lightmap = False
     resolution = 0
     if with_lightmap:
@@ -323,7 +349,7 @@ def _add_object(export, plm, orig, obj_eval, matrix, is_instance, with_lightmap,
     except Exception as e:  # the engine names the mesh and the first bad index
         reports.warning("object '%s' skipped: %s" % (orig.name, getattr(e, "message", e)))
         return
-    export.triangles += len(tris)
+    export.manifest.triangles += len(tris)
     if tex_uv is not None and hasattr(plm, "set_mesh_texture_uv"):
         plm.set_mesh_texture_uv(mesh_id, tex_uv)
     if normals is not None:
@@ -333,10 +359,10 @@ def _add_object(export, plm, orig, obj_eval, matrix, is_instance, with_lightmap,
         plm.set_mesh_ol_group(mesh_id, group.group_id)
         if orig.name not in group.objects:
             group.objects.append(orig.name)
-    elif with_lightmap and not is_instance and csg_export.is_csg_object(orig):
+    elif with_lightmap and not is_instance and csg.is_csg_object(orig):
         _add_csg(export, plm, orig, mesh_id, default_id, reports)
     if with_lightmap:
-        export.baked.append(BakedObject(orig, mesh_id, resolution, resolution,
+        export.manifest.baked.append(BakedObject(orig, mesh_id, resolution, resolution,
                                         [(m.name if m is not None else None) for m in mats]))
     else:
         export.geometry_only += 1
@@ -355,11 +381,11 @@ def _add_subdiv_object(export, plm, orig, obj_eval, cage, with_lightmap, density
         return False
     if with_lightmap and cage.uv is None:
         reports.warning("object '%s': its subdivision cage has no '%s' UV map: baked as geometry only"
-                        % (orig.name, uvmaps.LIGHTMAP_UV))
+                        % (orig.name, LIGHTMAP_UV))
         with_lightmap = False
     resolution = object_resolution(orig, cage.area, density) if with_lightmap else 0
     try:
-        mesh_id = subdiv_export.add_cage(plm, orig.name, cage, with_lightmap, slot_ids, resolution)
+        mesh_id = subdiv.add_cage(plm, orig.name, cage, with_lightmap, slot_ids, resolution)
     except Exception as e:  # the engine names the mesh and the first bad index
         reports.warning("object '%s': exported as Blender's subdivided mesh: the engine refused its cage: %s"
                         % (orig.name, getattr(e, "message", e)))
@@ -367,14 +393,14 @@ def _add_subdiv_object(export, plm, orig, obj_eval, cage, with_lightmap, density
     reports.info("object '%s': subdivision level %d refined by the engine from a cage of %d faces"
                  % (orig.name, cage.level, len(cage.face_sizes)))
     export.cages += 1
-    export.triangles += cage.triangle_count()
+    export.manifest.triangles += cage.triangle_count()
     group = _ol_group(export, plm, orig, cage.triangle_count(), resolution, reports)
     if group is not None:
         plm.set_mesh_ol_group(mesh_id, group.group_id)
         if orig.name not in group.objects:
             group.objects.append(orig.name)
     if with_lightmap:
-        export.baked.append(BakedObject(orig, mesh_id, resolution, resolution,
+        export.manifest.baked.append(BakedObject(orig, mesh_id, resolution, resolution,
                                         [(m.name if m is not None else None) for m in mats]))
     else:
         export.geometry_only += 1
@@ -393,7 +419,7 @@ def _add_lsystem(export, plm, orig, matrix, default_id, reports, baked=True):
         return
     if not baked:
         return
-    export.lsystems.append((orig.name, lid))
+    export.manifest.lsystems.append((orig.name, lid))
     reports.info("L-system '%s': traced from its rules, lit through orientation lightmaps" % orig.name)
 
 
@@ -403,16 +429,16 @@ def _add_csg(export, plm, orig, mesh_id, default_id, reports):
         mat = obj.material_slots[0].material if obj.material_slots else None
         return _add_material(export, plm, mat, reports) if mat is not None else default_id
     try:
-        csg_id, count = csg_export.export_csg(plm, orig, material_of)
+        csg_id, count = csg.export_csg(plm, orig, material_of)
         plm.set_csg_carrier(csg_id, mesh_id)
-    except csg_export.NotExact as e:
+    except csg.NotExact as e:
         reports.info("object '%s': baked as its mesh, not as an exact CSG solid: %s" % (orig.name, e))
         return
     except Exception as e:  # the engine names the bad primitive or node
         reports.warning("object '%s': baked as its mesh, the engine refused its CSG solid: %s"
                         % (orig.name, getattr(e, "message", e)))
         return
-    export.csg_objects.append(orig.name)
+    export.manifest.csg_objects.append(orig.name)
     reports.info("object '%s': traced as an exact CSG solid of %d primitives" % (orig.name, count))
 
 
@@ -425,11 +451,11 @@ def _ol_group(export, plm, orig, triangles, resolution, reports):
         settings = getattr(coll, "photonlm", None)
         if settings is not None and settings.orientation_lightmap:
             key = ("collection", coll.name_full)
-            if key not in export.ol_groups:
+            if key not in export.manifest.ol_groups:
                 gid = plm.add_ol_group("collection " + coll.name, int(settings.ol_resolution))
-                export.ol_groups[key] = OlGroup(gid, "collection_" + coll.name,
+                export.manifest.ol_groups[key] = OlGroup(gid, "collection_" + coll.name,
                                                 "collection '%s' is set to one orientation lightmap" % coll.name)
-            return export.ol_groups[key]
+            return export.manifest.ol_groups[key]
     if resolution == 0:
         return None
     mode = orig.photonlm.mode
@@ -438,70 +464,16 @@ def _ol_group(export, plm, orig, triangles, resolution, reports):
         reason = "its Lighting is set to Orientation Lightmap"
     elif mode == 'BACKUP':
         reason = "its Lighting is set to Lightmap + OL Backup"
-    elif mode == 'AUTO' and triangles > properties.AUTO_TRIANGLES_PER_TEXEL * texels:
+    elif mode == 'AUTO' and triangles > AUTO_TRIANGLES_PER_TEXEL * texels:
         reason = ("Auto: %d triangles on %d lightmap texels (more than %d per texel)"
-                  % (triangles, texels, properties.AUTO_TRIANGLES_PER_TEXEL))
+                  % (triangles, texels, AUTO_TRIANGLES_PER_TEXEL))
     else:
         return None
     key = ("object", orig.name_full)
-    if key not in export.ol_groups:
+    if key not in export.manifest.ol_groups:
         gid = plm.add_ol_group(orig.name, int(orig.photonlm.ol_resolution))
         if mode == 'BACKUP':
             plm.set_ol_group_backup(gid, True)
-        export.ol_groups[key] = OlGroup(gid, orig.name, reason)
+        export.manifest.ol_groups[key] = OlGroup(gid, orig.name, reason)
         reports.info("object '%s': orientation lightmap (%s)" % (orig.name, reason))
-    return export.ol_groups[key]
-
-
-def _add_light(plm, obj_eval, matrix, reports):
-    light = obj_eval.data
-    m = [list(row) for row in matrix]
-    if light.type == 'AREA' and getattr(getattr(light, "cycles", None), "is_portal", False):
-        if light.shape not in ('SQUARE', 'RECTANGLE'):
-            reports.warning("portal '%s': only square and rectangle portals are supported: skipped" % obj_eval.name)
-            return False
-        sy = light.size_y if light.shape == 'RECTANGLE' else light.size
-        try:
-            plm.add_light('PORTAL', name=obj_eval.name, matrix=m, size=light.size, size_y=sy)
-        except Exception as e:
-            reports.warning("portal '%s' skipped: %s" % (obj_eval.name, getattr(e, "message", e)))
-            return False
-        reports.info("portal '%s': sun and sky light are sampled through it" % obj_eval.name)
-        return True
-    color, power = compat.light_emission(light, lambda: _area_light_area(light, matrix))
-    if power <= 0.0 or max(color) <= 0.0:
-        return False
-    if compat.light_nodes_differ(light):
-        reports.warning("light '%s': light nodes are ignored (colour and power come from the light's "
-                        "settings)" % obj_eval.name)
-    kw = dict(name=obj_eval.name, color=color, power=power, matrix=m)
-    t = light.type
-    try:
-        if t == 'POINT':
-            plm.add_light('POINT', radius=light.shadow_soft_size, **kw)
-        elif t == 'SPOT':
-            plm.add_light('SPOT', radius=light.shadow_soft_size, spot_size=light.spot_size,
-                          spot_blend=light.spot_blend, **kw)
-        elif t == 'SUN':
-            plm.add_light('SUN', angle=light.angle, **kw)
-        elif t == 'AREA':
-            shape = light.shape
-            sy = light.size_y if shape in ('RECTANGLE', 'ELLIPSE') else light.size
-            plm.add_light('AREA_RECT' if shape in ('SQUARE', 'RECTANGLE') else 'AREA_DISK',
-                          size=light.size, size_y=sy, **kw)
-        else:
-            reports.warning("light '%s': type %s is not supported: skipped" % (obj_eval.name, t))
-            return False
-    except Exception as e:
-        reports.warning("light '%s' skipped: %s" % (obj_eval.name, getattr(e, "message", e)))
-        return False
-    return True
-
-
-def _area_light_area(light, matrix):
-    """World-space area of an area light as Cycles measures it: its size along the object's scaled
-    X and Y axes, x pi/4 for disks and ellipses."""
-    m = np.array(matrix, dtype=np.float64)
-    sy = light.size_y if light.shape in ('RECTANGLE', 'ELLIPSE') else light.size
-    area = float(light.size) * np.linalg.norm(m[:3, 0]) * float(sy) * np.linalg.norm(m[:3, 1])
-    return area * (np.pi / 4.0 if light.shape in ('DISK', 'ELLIPSE') else 1.0)
+    return export.manifest.ol_groups[key]

@@ -24,7 +24,8 @@ out, so that the preview is lightmap x diffuse albedo (an Emission) + these clos
         shown lit by the scene too; reported)
 The copies are new nodes tagged closure_<n>; the original nodes are never changed.
 """
-from . import compat, flatten
+from .. import compat
+from ..export import flatten
 
 # Glossy is ShaderNodeBsdfAnisotropic from 4.0 (the two merged); Metallic BSDF and Ray Portal BSDF
 # exist from 4.2 / 4.3.

@@ -4,13 +4,11 @@ baked as a cyclic scene graph (never flattened) lit through orientation lightmap
 The preview mesh is only for the viewport (and for showing the bake): the engine traces the
 rules themselves. After a bake the preview mesh gets a point colour attribute `photonlm_light`
 (irradiance / pi at each vertex, from the object's orientation lightmaps) that a material can
-multiply with its colour.
+multiply with its colour (writeback/lsystem.py).
 """
-import bpy
 import numpy as np
-from bpy.props import EnumProperty
 
-from . import bridge
+from .. import bridge
 
 LIGHT_ATTRIBUTE = "photonlm_light"
 
@@ -150,103 +148,3 @@ def export_lsystem(plm, obj, matrix, material_ids):
     m = np.array(matrix, np.float64)
     return plm.add_lsystem(obj.name, ls.rules, matrix=m, materials=material_ids, ol_level=int(ls.ol_level),
                            **_settings(ls))
-
-
-def store_light(result, lsystem_id, obj):
-    """Write the baked light at each preview vertex into the colour attribute LIGHT_ATTRIBUTE."""
-    mesh = obj.data
-    n = len(mesh.vertices)
-    if n == 0:
-        return
-    co = np.empty(n * 3, np.float32)
-    mesh.vertices.foreach_get("co", co)
-    nrm = np.empty(n * 3, np.float32)
-    mesh.vertices.foreach_get("normal", nrm)
-    mw = np.array(obj.matrix_world, np.float64)
-    pts = co.reshape(-1, 3) @ mw[:3, :3].T + mw[:3, 3]
-    nt = np.linalg.inv(mw[:3, :3]).T
-    nw = nrm.reshape(-1, 3) @ nt.T
-    nw /= np.maximum(np.linalg.norm(nw, axis=1, keepdims=True), 1e-30)
-    rgb = result.lsystem_lookup(lsystem_id, pts.astype(np.float32), nw.astype(np.float32))
-    attr = mesh.color_attributes.get(LIGHT_ATTRIBUTE)
-    if attr is None:
-        attr = mesh.color_attributes.new(LIGHT_ATTRIBUTE, 'FLOAT_COLOR', 'POINT')
-    rgba = np.concatenate([rgb, np.ones((n, 1), np.float32)], axis=1)
-    attr.data.foreach_set("color", rgba.astype(np.float32).ravel())
-    mesh.update()
-
-
-# ---- operators -----------------------------------------------------------------------------------
-
-class PHOTONLM_OT_add_lsystem(bpy.types.Operator):
-    """Add an L-system object from a preset (baked from its rules; the mesh is a capped preview)"""
-    bl_idname = "photonlm.add_lsystem"
-    bl_label = "Add L-System"
-    bl_options = {'REGISTER', 'UNDO'}
-
-    preset: EnumProperty(name="Preset", items=[('SIERPINSKI', "Sierpinski", "Sierpinski triangle"),
-                                               ('SYMPODIAL_TREE', "Sympodial Tree", "A sympodial tree"),
-                                               ('BUSH', "Bush", "A bush with round leaves")],
-                         default='SYMPODIAL_TREE')
-
-    def execute(self, context):
-        rules, settings = PRESETS[self.preset]
-        mesh = bpy.data.meshes.new(self.preset.lower())
-        obj = bpy.data.objects.new(self.preset.replace("_", " ").title(), mesh)
-        context.collection.objects.link(obj)
-        obj.location = context.scene.cursor.location
-        ls = obj.photonlm.lsystem
-        ls.enabled = True
-        ls.rules = rules
-        ls.depth = settings["depth"]
-        ls.step = settings["step"]
-        ls.width = settings["width"]
-        obj.photonlm.enabled = False  # no lightmap: lit through its orientation lightmaps
-        try:
-            count = update_preview(obj)
-        except Exception as e:  # noqa: BLE001 -- the engine names the line and column
-            self.report({'ERROR'}, str(getattr(e, "message", None) or e))
-            return {'CANCELLED'}
-        for o in context.view_layer.objects:
-            o.select_set(False)
-        obj.select_set(True)
-        context.view_layer.objects.active = obj
-        self.report({'INFO'}, "Added L-system '%s' (%d preview triangles)" % (obj.name, count))
-        return {'FINISHED'}
-
-
-class PHOTONLM_OT_update_lsystem(bpy.types.Operator):
-    """Rebuild the active L-system object's preview mesh from its rules"""
-    bl_idname = "photonlm.update_lsystem"
-    bl_label = "Update L-System Preview"
-    bl_options = {'REGISTER', 'UNDO'}
-
-    @classmethod
-    def poll(cls, context):
-        obj = context.active_object
-        return obj is not None and obj.type == 'MESH' and obj.photonlm.lsystem.enabled
-
-    def execute(self, context):
-        notes = []
-        try:
-            count = update_preview(context.active_object, notes)
-        except Exception as e:  # noqa: BLE001 -- the engine names the object, line and column
-            self.report({'ERROR'}, str(getattr(e, "message", None) or e))
-            return {'CANCELLED'}
-        for n in notes:
-            self.report({'WARNING'}, n)
-        self.report({'INFO'}, "L-system preview: %d triangles" % count)
-        return {'FINISHED'}
-
-
-_CLASSES = (PHOTONLM_OT_add_lsystem, PHOTONLM_OT_update_lsystem)
-
-
-def register():
-    for cls in _CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister():
-    for cls in reversed(_CLASSES):
-        bpy.utils.unregister_class(cls)

@@ -6,8 +6,9 @@ The folder's report.json lists each lightmapped mesh (`name`, `file`, `size`) an
 scene-file export names each lightmapped mesh after its object (and an OL group after its object,
 or "collection <name>" for a collection's), so a report entry belongs to the object of that name.
 Everything is read and checked first (the report, every EXR: present, readable, of the size the
-report gives); only then does the .blend change, through BakeJob.finish, the in-Blender bake's own
-write-back: the EXRs are copied into the scene's lightmap folder under the add-on's names, the
+report gives) into a manifest (export/scene.py's Manifest, as an export makes it) and a
+FolderResult (what the write-back reads of a result); only then does the .blend change, through
+writeback/apply.py, the in-Blender bake's own write-back: the EXRs are copied into the scene's lightmap folder under the add-on's names, the
 heat-map images made from their error channel, the images loaded (linked, or packed with Pack),
 the materials wired, and the statistics of the report stored for the Last Bake panel.
 
@@ -24,13 +25,15 @@ import time
 
 import bpy
 import numpy as np
-from bpy.props import BoolProperty, StringProperty
 
-from . import atlas, bake, bridge, export, properties, uvmaps
+from .. import bridge
+from ..export import scene as export
+from ..export.meshes import LIGHTMAP_UV
+from ..writeback import apply, atlas
 
 REPORT = "report.json"
 PART_PATTERN = "part-*-of-*.plmpart"
-COLLECTION_PREFIX = "collection "  # export._ol_group names a collection's OL group "collection <name>"
+COLLECTION_PREFIX = "collection "  # export/scene.py's _ol_group names a collection's OL group "collection <name>"
 
 
 class FolderError(Exception):
@@ -101,14 +104,19 @@ def coverage_mask(hits):
 
 
 class FolderResult:
-    """What BakeJob.finish reads from a photonlm.Result, from a bake folder: the statistics and
-    warnings of its report, the lightmaps of its EXRs; "writing" an EXR copies the folder's file."""
+    """What the write-back (writeback/apply.py) reads of a result, from a bake folder: the statistics
+    and warnings of its report, the lightmaps of its EXRs, the texel counts of its report; "writing"
+    an EXR copies the folder's file."""
 
-    def __init__(self, stats, warnings, lightmaps, ols):
+    def __init__(self, stats, warnings, lightmaps, ols, texel_counts):
         self.stats = stats
         self.warnings = warnings
         self._lightmaps = lightmaps  # mesh id -> (EXR path, photonlm.Lightmap)
         self._ols = ols              # group id -> (EXR path, {"resolution", "hits"})
+        # mesh id -> (texels, texels above twice the target) from the report (the engine's counts);
+        # for a report without them the write-back counts the texels with photon hits (a covered
+        # texel no photon reached then counts as outside).
+        self.texel_counts = texel_counts
 
     def lightmap(self, mesh_id):
         return self._lightmaps[mesh_id][1]
@@ -140,17 +148,6 @@ def _copy(source, path):
         raise
 
 
-class FolderExport:
-    """What BakeJob.finish reads from an export.SceneExport, from the report and the .blend."""
-
-    def __init__(self):
-        self.baked = []       # export.BakedObject
-        self.ol_groups = {}   # key -> export.OlGroup
-        self.lsystems = []    # scene files hold none
-        self.csg_objects = []
-        self.triangles = 0    # not in the report
-
-
 def _materials_of(obj):
     """Names of the materials on the object's slots, as the export reads them (may repeat)."""
     mats = [s.material for s in obj.material_slots] or list(obj.data.materials)
@@ -161,9 +158,10 @@ def _string(value):
     return value if isinstance(value, str) else None
 
 
-class FolderJob(bake.BakeJob):
-    """A finished bake read from a folder: BakeJob.finish(context) brings it in. The constructor reads
-    and checks everything and changes nothing; FolderError (or RuntimeError: no bridge) if it cannot."""
+class BakeFolder:
+    """A finished bake read from a folder: finish(context) brings it in through the write-back. The
+    constructor reads and checks everything and changes nothing; FolderError (or RuntimeError: no
+    bridge) if it cannot."""
 
     def __init__(self, context, folder):
         t0 = time.perf_counter()
@@ -173,22 +171,14 @@ class FolderJob(bake.BakeJob):
         report_path = os.path.join(self.folder, REPORT)
         report = read_report(self.folder)
         settings = report.get("settings") if isinstance(report.get("settings"), dict) else {}
-        self.settings = dict(bake.bake_settings(context.scene),
-                             target_error=float(_number(settings, report_path, "target_error")))
-        self.selected_only = False
-        self.scene_name = context.scene.name
-        self.error = None
-        self.cancelled = False
-        self.created_uvs = []
         self.notices = []
-        self.times = None
         self.report = report
-        self.export = FolderExport()
+        self.manifest = export.Manifest(target_error=float(_number(settings, report_path, "target_error")))
         stats = result_stats(report, report_path)
         warnings = report.get("warnings") if isinstance(report.get("warnings"), list) else []
         warnings = [w for w in warnings if isinstance(w, str)]
         lightmaps, ols, missing = {}, {}, []
-        self.counts = {}  # mesh id -> (texels, texels above twice the target) from the report
+        counts = {}  # mesh id -> (texels, texels above twice the target) from the report
         for i, entry in enumerate(report["meshes"]):
             name = _string(entry.get("name")) if isinstance(entry, dict) else None
             file = _string(entry.get("file")) if isinstance(entry, dict) else None
@@ -203,10 +193,10 @@ class FolderJob(bake.BakeJob):
                 self.reports.warning("the bake's object '%s' (%s) is %s in this .blend: skipped"
                                      % (name, file, "not a mesh object" if obj is not None else "not"))
                 continue
-            if obj.data.uv_layers.get(uvmaps.LIGHTMAP_UV) is None:
+            if obj.data.uv_layers.get(LIGHTMAP_UV) is None:
                 self.reports.warning("object '%s' has no '%s' UV map, so its lightmap cannot line up: skipped "
                                      "(save the .blend after exporting the scene file: the export makes the map)"
-                                     % (name, uvmaps.LIGHTMAP_UV))
+                                     % (name, LIGHTMAP_UV))
                 continue
             res = int(obj.photonlm.resolution)
             if res > 0 and tuple(size) != (res, res):
@@ -215,10 +205,10 @@ class FolderJob(bake.BakeJob):
             path = os.path.join(self.folder, file)
             lm = self._read_exr(name, path, tuple(size))
             lightmaps[i] = (path, self.photonlm.Lightmap(lm.rgb, lm.error, lm.hits, coverage_mask(lm.hits)))
-            counts = (entry.get("texels"), entry.get("texels_above_twice_target"))
-            if all(isinstance(c, int) and not isinstance(c, bool) for c in counts):
-                self.counts[i] = counts
-            self.export.baked.append(export.BakedObject(obj, i, size[0], size[1], _materials_of(obj)))
+            pair = (entry.get("texels"), entry.get("texels_above_twice_target"))
+            if all(isinstance(c, int) and not isinstance(c, bool) for c in pair):
+                counts[i] = pair
+            self.manifest.baked.append(export.BakedObject(obj, i, size[0], size[1], _materials_of(obj)))
         for i, entry in enumerate(report.get("ol_groups", []) or []):
             group = self._ol_group(i, entry, report_path, context.view_layer)
             if group is None:
@@ -227,7 +217,7 @@ class FolderJob(bake.BakeJob):
             self._read_exr("OL '%s'" % entry["name"], path, None)
             resolution = int(_number(entry, report_path, "resolution"))
             ols[i] = (path, {"resolution": resolution, "hits": int(_number(entry, report_path, "hits"))})
-        if not self.export.baked and not self.export.ol_groups:
+        if not self.manifest.baked and not self.manifest.ol_groups:
             if missing and len(missing) == len(report["meshes"]):
                 raise FolderError("none of the %d objects of %s is a mesh object in this .blend (%s%s): the bake of "
                                   "another scene (%s)?" % (len(missing), report_path, ", ".join(missing[:3]),
@@ -236,10 +226,10 @@ class FolderJob(bake.BakeJob):
             raise FolderError("%s lists no lightmap this .blend can take (see the warnings)" % report_path)
         if atlas.is_atlas(context.scene):
             try:
-                atlas.check(context.scene, self.export.baked, False)
+                atlas.check(context.scene, self.manifest.baked, False)
             except atlas.AtlasError as e:
                 raise FolderError(str(e)) from None
-        self.result = FolderResult(stats, warnings, lightmaps, ols)
+        self.result = FolderResult(stats, warnings, lightmaps, ols, counts)
         self.seconds_read = time.perf_counter() - t0
 
     def _read_exr(self, what, path, size):
@@ -277,26 +267,8 @@ class FolderJob(bake.BakeJob):
             self.reports.warning("the bake's orientation lightmap '%s' (%s) belongs to no object or collection "
                                  "of this .blend: skipped" % (name, file))
             return None
-        self.export.ol_groups[("report", i)] = group
+        self.manifest.ol_groups[("report", i)] = group
         return group
-
-    def texel_counts(self, baked, lm, relative, target):
-        """The engine's counts from the report (its meshes' `texels`, `texels_above_twice_target`);
-        for a report without them, counted over the texels with photon hits (a covered texel no
-        photon reached then counts as outside)."""
-        if baked.mesh_id in self.counts:
-            return self.counts[baked.mesh_id]
-        return super().texel_counts(baked, lm, relative, target)
-
-    def stage_seconds(self, stats, seconds_writeback):
-        """The engine's stages from the report, reading the folder, and the write-back."""
-        out = {k: float(stats[k]) for k in ("seconds_setup", "seconds_trace", "seconds_direct", "seconds_total")}
-        out["seconds_import"] = float(self.seconds_read)
-        out["seconds_writeback"] = float(seconds_writeback)
-        return out
-
-    def export_cpu_seconds(self):
-        return {}
 
     def abort(self, context):
         """Nothing to undo before finish(): release the lightmaps read."""
@@ -305,98 +277,21 @@ class FolderJob(bake.BakeJob):
             self.result = None
 
     def finish(self, context):
-        last = super().finish(context)
+        """Bring the bake in (writeback/apply.py) with the report's stage times; returns the record."""
         wall = _number(self.report, self.folder, "times", "wall")
-        context.scene[properties.STATS_KEY]["imported_from"] = self.folder
-        context.scene[properties.STATS_KEY]["seconds_wall"] = float(wall)
-        last.update(imported_from=self.folder)
-        last["stats"]["seconds_wall"] = float(wall)
+        result, self.result = self.result, None
+        last = apply.apply(context, self.manifest, result, self.reports, {"seconds_import": float(self.seconds_read)},
+                           figures=dict(imported_from=self.folder, seconds_wall=float(wall)),
+                           outputs=dict(imported_from=self.folder))
+        self.notices = last["notices"]
         return last
 
 
 def import_folder(context, folder):
-    """Import the bake folder; returns (bake.LAST, reports). Raises FolderError or RuntimeError."""
-    job = FolderJob(context, folder)
+    """Import the bake folder; returns (the record, reports). Raises FolderError or RuntimeError."""
+    job = BakeFolder(context, folder)
     try:
         return job.finish(context), job.reports
     except BaseException:
         job.abort(context)
         raise
-
-
-class PHOTONLM_OT_import_bake_folder(bpy.types.Operator):
-    """Bring in the lightmaps of a bake folder (report.json and EXRs from photonlm bake or photonlm merge
-    of this scene's exported scene file) as a bake in Blender does: images, material wiring, statistics"""
-    bl_idname = "photonlm.import_bake_folder"
-    bl_label = "Import PhotonLM Bake Folder"
-    bl_options = {'REGISTER', 'UNDO'}
-
-    directory: StringProperty(name="Folder", subtype='DIR_PATH',
-                              description="Folder holding report.json and the lightmap EXRs")
-    filepath: StringProperty(subtype='FILE_PATH', options={'HIDDEN', 'SKIP_SAVE'})
-    filter_folder: BoolProperty(default=True, options={'HIDDEN'})
-    filter_glob: StringProperty(default="*.json", options={'HIDDEN'})
-
-    @classmethod
-    def poll(cls, context):
-        from . import operators
-        if operators._running is not None:
-            cls.poll_message_set("A lightmap bake is running")
-            return False
-        if context.mode != 'OBJECT':
-            cls.poll_message_set("Switch to Object Mode to import lightmaps")
-            return False
-        return True
-
-    def invoke(self, context, event):
-        context.window_manager.fileselect_add(self)
-        return {'RUNNING_MODAL'}
-
-    def execute(self, context):
-        folder = self.directory or (os.path.dirname(self.filepath) if self.filepath else "")
-        if not folder:
-            self.report({'ERROR'}, "PhotonLM import: no folder given")
-            return {'CANCELLED'}
-        reports = None
-        try:
-            job = FolderJob(context, folder)
-            reports = job.reports
-            try:
-                last = job.finish(context)
-            except BaseException:
-                job.abort(context)
-                raise
-        except (FolderError, RuntimeError) as e:
-            self._report_all(reports)
-            self.report({'ERROR'}, "PhotonLM import: %s" % e)
-            return {'CANCELLED'}
-        except Exception as e:  # noqa: BLE001 -- never take Blender down
-            self._report_all(reports)
-            self.report({'ERROR'}, "PhotonLM import of '%s' failed: %s" % (folder, getattr(e, "message", None) or e))
-            return {'CANCELLED'}
-        self._report_all(reports)
-        s = last["stats"]
-        self.report({'INFO'}, "Imported %d lightmaps%s from %s: %s photons, error %.2f %%, %d warnings"
-                    % (len(last["objects"]), " and %d OLs" % len(last["ols"]) if last["ols"] else "", job.folder,
-                       "{:,}".format(int(s["photons_emitted"])), 100.0 * s["error_estimate"], s["warning_count"]))
-        for text in job.notices:
-            self.report({'WARNING'}, text)
-        return {'FINISHED'}
-
-    def _report_all(self, reports):
-        for level, text in (reports.items if reports is not None else ()):
-            self.report({level if level in ('INFO', 'WARNING', 'ERROR') else 'INFO'}, text)
-
-
-def menu_import(self, context):
-    self.layout.operator(PHOTONLM_OT_import_bake_folder.bl_idname, text="PhotonLM bake folder")
-
-
-def register():
-    bpy.utils.register_class(PHOTONLM_OT_import_bake_folder)
-    bpy.types.TOPBAR_MT_file_import.append(menu_import)
-
-
-def unregister():
-    bpy.types.TOPBAR_MT_file_import.remove(menu_import)
-    bpy.utils.unregister_class(PHOTONLM_OT_import_bake_folder)

@@ -8,13 +8,14 @@ modifier's render level; the engine refines it with OpenSubdiv
 Anything else (SIMPLE type, adaptive subdivision, non-default options, vertex creases,
 image-textured materials, instances) falls back to Blender's refined mesh, with the reason in the bake report.
 
-An automatic lightmap UV is made for the cage (uvmaps.py: a Data Transfer modifier just before
+An automatic lightmap UV is made for the cage (uv/uvmaps.py: a Data Transfer modifier just before
 the last Subdivision Surface, or the mesh's own map) and checked after the engine's refinement;
 Blender's subdivided UV (uv_smooth PRESERVE_BOUNDARIES) is what the engine computes.
 """
 import numpy as np
 
-from . import compat, uvmaps
+from .. import compat
+from . import meshes
 
 
 class Cage:
@@ -85,7 +86,7 @@ def candidates(objects, reports):
     return out
 
 
-def _read_cage(mesh, matrix_world, level, use_creases):
+def read_cage(mesh, matrix_world, level, use_creases):
     """Cage arrays from a mesh (original or evaluated); None when it has no faces."""
     nv, nf, nl = len(mesh.vertices), len(mesh.polygons), len(mesh.loops)
     if nf == 0:
@@ -99,10 +100,8 @@ def _read_cage(mesh, matrix_world, level, use_creases):
         raise NotImplementedError("some of its faces are shaded smooth and some flat")
     if smooth.any() and getattr(mesh, "has_custom_normals", False):
         raise NotImplementedError("it has custom normals")
-    co = np.empty(nv * 3, np.float32)
-    mesh.vertices.foreach_get("co", co)
     m = np.array(matrix_world, dtype=np.float64)
-    pos = (co.reshape(nv, 3).astype(np.float64) @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
+    pos = meshes.world_positions(mesh, m).astype(np.float32)
     sizes = np.empty(nf, np.uint32)
     mesh.polygons.foreach_get("loop_total", sizes)
     starts = np.empty(nf, np.uint32)
@@ -118,12 +117,8 @@ def _read_cage(mesh, matrix_world, level, use_creases):
     face_indices = loop_vert if order is None else loop_vert[order]
     mat = np.empty(nf, np.int32)
     mesh.polygons.foreach_get("material_index", mat)
-    uv = None
-    layer = mesh.uv_layers.get(uvmaps.LIGHTMAP_UV)
-    if layer is not None:
-        uv = np.empty(nl * 2, np.float32)
-        layer.data.foreach_get("uv", uv)
-        uv = uv.reshape(nl, 2)
+    uv = meshes.lightmap_uv(mesh)
+    if uv is not None:
         if order is not None:
             uv = uv[order]
     edges = weights = None
@@ -164,12 +159,12 @@ def read_cages(context, cands, reports):
         for name, (obj, mod) in cands.items():
             try:
                 if name in direct:
-                    cage = _read_cage(obj.data, obj.matrix_world, mod.render_levels, mod.use_creases)
+                    cage = read_cage(obj.data, obj.matrix_world, mod.render_levels, mod.use_creases)
                 else:
                     obj_eval = obj.evaluated_get(depsgraph)
                     mesh = obj_eval.to_mesh()
                     try:
-                        cage = None if mesh is None else _read_cage(mesh, obj.matrix_world, mod.render_levels,
+                        cage = None if mesh is None else read_cage(mesh, obj.matrix_world, mod.render_levels,
                                                                      mod.use_creases)
                     finally:
                         obj_eval.to_mesh_clear()

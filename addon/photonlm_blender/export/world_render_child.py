@@ -1,4 +1,4 @@
-"""Run by world_export.render_world in a separate `blender -b --factory-startup` process: renders
+"""Run by export/world.py's render_world in a separate `blender -b --factory-startup` process: renders
 one world, read from a library .blend, into an equirectangular map with Cycles and saves its
 pixels as a .npy file ((H, W, 3) float32 radiance, top row first). Runs apart from the user's
 session so that nothing there changes: no scene, camera or image is created in it and its
@@ -13,8 +13,8 @@ import sys
 import bpy
 import numpy as np
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import compat  # noqa: E402  (the add-on's compat.py, beside this script: run as a script, not as a package)
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+import compat  # noqa: E402  (the add-on's compat.py, a folder up: run as a script, not as a package)
 
 # Cycles' Light Path outputs for a diffuse bounce that escapes to the world: a world that shows the
 # camera something else (Is Camera Ray) is rendered as the lighting sees it.

@@ -6,7 +6,10 @@ import time
 
 import bpy
 
-from . import bridge, operators, uvmaps
+from .. import bridge
+from ..operators import bake as bake_operator
+from ..uv import uvmaps
+from ..writeback import record
 
 
 class _Sub:
@@ -36,7 +39,7 @@ class PHOTONLM_PT_lightmaps(bpy.types.Panel):
         col.prop(settings, "target_error", text="Target Error")
         col.prop(settings, "time_budget", text="Time Budget")
 
-        running = operators._running is not None
+        running = bake_operator.running() is not None
         col = layout.column(align=True)
         row = col.row(align=True)
         row.scale_y = 1.5
@@ -212,18 +215,18 @@ def wrap(text, context, indent=0):
 
 def draw_progress(layout, context):
     """The running bake's progress bar (a read-only percentage) and its stage and time left."""
-    op = operators._running
+    op = bake_operator.running()
     wm = context.window_manager
     col = layout.column(align=True)
     col.use_property_split = False
     col.prop(wm, "photonlm_progress", text="", slider=True)
     if op is not None:
-        col.label(text=operators.progress_text(op._fraction, op._stage, time.perf_counter() - op._t0))
+        col.label(text=bake_operator.progress_text(op._fraction, op._stage, time.perf_counter() - op._t0))
 
 
 def draw_status_bar(self, context):
     """In the status bar while a bake runs: the same progress bar."""
-    if operators._running is None:
+    if bake_operator.running() is None:
         return
     row = self.layout.row(align=True)
     row.label(text="PhotonLM")
@@ -233,8 +236,7 @@ def draw_status_bar(self, context):
 
 
 def _stats(scene):
-    from .properties import STATS_KEY
-    return scene.get(STATS_KEY) or {}
+    return record.stats(scene)
 
 
 def _suffix(stats, prop):
@@ -321,7 +323,7 @@ _CLASSES = (PHOTONLM_PT_lightmaps, PHOTONLM_PT_last_bake, PHOTONLM_PT_warnings, 
 
 
 def _progress_get(self):
-    op = operators._running
+    op = bake_operator.running()
     return 100.0 * min(max(op._fraction, 0.0), 1.0) if op is not None else 0.0
 
 

@@ -5,9 +5,16 @@ import time
 
 import bpy
 
-from . import bake, live_preview, materials
+from ..bake.job import BakeError, BakeJob
+from ..preview import live as live_preview
+from ..writeback import wiring
 
 _running = None  # the operator instance of the bake in progress (one at a time)
+
+
+def running():
+    """The operator instance of the bake in progress, or None."""
+    return _running
 
 
 def progress_text(fraction, stage, seconds):
@@ -63,8 +70,8 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
 
     def _prepare(self, context):
         try:
-            return bake.BakeJob(context, self.selected_only)
-        except (bake.BakeError, RuntimeError) as e:
+            return BakeJob(context, self.selected_only)
+        except (BakeError, RuntimeError) as e:
             self.report({'ERROR'}, str(e))
         except Exception as e:  # noqa: BLE001 -- never take Blender down
             self.report({'ERROR'}, "PhotonLM: could not export the scene: %s" % e)
@@ -201,8 +208,8 @@ class PHOTONLM_OT_remove_preview(bpy.types.Operator):
     bl_options = {'REGISTER', 'UNDO'}
 
     def execute(self, context):
-        n = sum(1 for mat in bpy.data.materials if materials.remove_wiring(mat))
-        k = materials.remove_error_images()
+        n = sum(1 for mat in bpy.data.materials if wiring.remove_wiring(mat))
+        k = wiring.remove_error_images()
         self.report({'INFO'}, "Removed the lightmap preview from %d materials (and %d heat-map images)" % (n, k))
         return {'FINISHED'}
 

@@ -1,0 +1,1 @@
+"""Render Properties > PhotonLM Lightmaps (panel). Reads state; changes nothing itself."""
