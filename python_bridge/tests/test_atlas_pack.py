@@ -1,4 +1,4 @@
-"""The add-on's atlas packer (addon/photonlm_blender/atlas_pack.py, pure Python): cells never overlap
+"""The add-on's atlas packer (addon/photonlm_blender/uv/atlas_pack.py, pure Python): cells never overlap
 or leave the page, pages are few for the area packed, a block too large is named, and place() keeps
 what is placed where it is."""
 import importlib.util
@@ -8,7 +8,7 @@ import random
 
 import pytest
 
-_PATH = os.path.join(os.path.dirname(__file__), "..", "..", "addon", "photonlm_blender", "atlas_pack.py")
+_PATH = os.path.join(os.path.dirname(__file__), "..", "..", "addon", "photonlm_blender", "uv", "atlas_pack.py")
 _spec = importlib.util.spec_from_file_location("atlas_pack", _PATH)
 atlas_pack = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(atlas_pack)
