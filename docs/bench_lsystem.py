@@ -5,7 +5,7 @@
         [--repeats 3] [--skip-forest] [--out docs/images/lsystem_forest.png]
     ... docs/bench_lsystem.py --forest-pair-only [--repeats 3]   # only part 2's 10 trees, graph vs flattened
 
-The tree is the add-on's SYMPODIAL_TREE preset (addon/photonlm_blender/lsystem.py) with its
+The tree is the add-on's SYMPODIAL_TREE preset (addon/photonlm_blender/export/lsystem.py) with its
 parameters rewritten as integer branch counts (i, j): the preset's A(l, w) / B(l*r1, w*wr) form
 gives bit-different lengths for r1*r2 and r2*r1 and so more than 64 states per (module, depth)
 beyond depth 13, which the graph (and lsystem_flatten) refuse. The surfaces are the same
