@@ -27,10 +27,11 @@ its own package; nothing imports upwards):
 
 from .version import VERSION  # noqa: F401  (the add-on's version: blender_manifest.toml says the same)
 
+# Blender's add-on list reads bl_info from the source as a literal (ast.literal_eval): no names in it.
 bl_info = {
     "name": "PhotonLM Lightmaps",
     "author": "photonlm contributors",
-    "version": VERSION,
+    "version": (0, 1, 0),
     "blender": (3, 4, 0),
     "location": "Properties > Render > PhotonLM Lightmaps",
     "description": "Bakes global illumination lightmaps with photon tracing",

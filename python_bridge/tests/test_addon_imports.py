@@ -119,3 +119,19 @@ def test_registration_names_every_module():
     position = {n: i for i, n in enumerate(names)}
     late = ["%s before %s" % (n, t) for n in names for t, _, _ in GRAPH[n] if t in position and position[t] > position[n]]
     assert late == []
+
+
+def test_bl_info_is_a_literal_with_the_add_on_version():
+    """Blender's add-on list (3.4-4.1: the legacy zip) reads bl_info with ast.literal_eval; a name in
+    it hides the add-on from Edit > Preferences > Add-ons. Its version is version.VERSION's and the
+    extension manifest's."""
+    tree = ast.parse(open(MODULES[""]).read())
+    value = next(node.value for node in tree.body if isinstance(node, ast.Assign)
+                 and any(isinstance(t, ast.Name) and t.id == "bl_info" for t in node.targets))
+    bl_info = ast.literal_eval(value)
+    version_tree = ast.parse(open(MODULES["version"]).read())
+    version = next(ast.literal_eval(node.value) for node in version_tree.body if isinstance(node, ast.Assign)
+                   and any(isinstance(t, ast.Name) and t.id == "VERSION" for t in node.targets))
+    assert bl_info["version"] == version
+    manifest = open(os.path.join(ADDON, "blender_manifest.toml")).read()
+    assert 'version = "%s"' % ".".join(map(str, version)) in manifest
