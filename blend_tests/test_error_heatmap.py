@@ -161,7 +161,7 @@ def main():
     share = {k: float(np.mean(v[covered])) for k, v in (("green", rel <= TARGET), ("red", rel >= 4 * TARGET))}
     green = np.array(wiring.HEAT_RAMP[0][1])
     red = np.array(wiring.HEAT_RAMP[-1][1])
-    # Cycles' bake point moves up to half a texel (design.md), so the image is read between a texel
+    # Cycles' bake point moves up to half a texel (docs/design/texels.md), so the image is read between a texel
     # and its neighbours: only texels whose neighbours are of the same class keep its colour exactly
     # (one texel far above 4x beside green ones tints them).
     def alike(mask):

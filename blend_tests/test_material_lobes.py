@@ -242,7 +242,7 @@ mat, nt, out = new_material("emission")
 to_output(nt, out, node(nt, 'ShaderNodeEmission', Color=(1.0, 0.9, 0.8), Strength=10.0))
 case("Emission", mat, (0.0,) * 3, [], emission=(10.0, 9.0, 8.0), no_approx=True)
 
-# ---- Principled BSDF v2 (Blender 4.0+; Cycles 4's closures as docs/design.md "Cycles versions" takes them):
+# ---- Principled BSDF v2 (Blender 4.0+; Cycles 4's closures as docs/design/cycles-versions.md "Cycles versions" takes them):
 # m = Metallic, t = Transmission Weight, ws = w (1 - m)(1 - t): diffuse albedo ws x Base Color under a
 # SPECULAR layer of weight ws, F0 = ((IOR - 1) / (IOR + 1))^2 x 2 Specular IOR Level (its curve a
 # dielectric's of the IOR with that F0); metal FRESNEL w m, F0 = Base Color (IOR 1.5 curve); glass

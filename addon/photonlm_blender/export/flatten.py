@@ -578,7 +578,7 @@ def _ior_from_f0(f0):
 
 
 def _principled_v2(reader, node, path, w):
-    """Blender 4.0+'s Principled BSDF (Cycles 4 svm_node_closure_bsdf, docs/design.md "Cycles
+    """Blender 4.0+'s Principled BSDF (Cycles 4 svm_node_closure_bsdf, docs/design/cycles-versions.md "Cycles
     versions"): Alpha < 1 first (TRANSPARENT w (1 - Alpha), w *= Alpha); emission w x Emission Color
     x Strength; m = Metallic, t = Transmission Weight:
         metal     FRESNEL lobe of weight w m, F0 Base Color (Cycles' F82-tint curve as a

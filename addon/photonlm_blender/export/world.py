@@ -1,4 +1,4 @@
-"""The world as the engine takes it (docs/design.md, "Lights").
+"""The world as the engine takes it (docs/design/lights.md, "Skies and other worlds from Blender").
 
 - No nodes, or a Background whose Color and Strength are not linked: a uniform radiance.
 - A Background fed by an Environment Texture (equirectangular, optionally through a Mapping node
