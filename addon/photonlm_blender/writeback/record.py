@@ -19,7 +19,7 @@ STATS_KEY = "photonlm_last_bake"  # ID property on the scene: the last bake's st
 NOISY_SHARE = 0.10
 _INT32 = 2 ** 31
 
-_OUTPUTS = {}  # scene key -> the last write-back's outputs in that scene (this session only)
+_OUTPUTS = {}  # scene key -> the last write-back's outputs in that scene (kept in memory, not saved)
 
 
 def _scene_key(scene):
@@ -52,7 +52,7 @@ def store(scene, figures, outputs):
 
 def last(scene=None):
     """The last bake of the scene (default: the context's): its outputs (objects, ols, output_dir,
-    warnings, reports, ...) with its statistics under "stats"; {} where this session made none."""
+    warnings, reports, ...) with its statistics under "stats"; {} where none was made since Blender started."""
     scene = bpy.context.scene if scene is None else scene
     outputs = _OUTPUTS.get(_scene_key(scene))
     if outputs is None:
