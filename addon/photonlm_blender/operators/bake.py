@@ -34,9 +34,10 @@ def _duration(seconds):
     return "%d s" % seconds
 
 
-def _report_all(op, reports):
-    """Send the job's reports to the operator (the info editor / console)."""
-    for level, text in reports.items:
+def report_all(op, reports):
+    """Send a job's reports (export.scene.Reports, or None before there were any) to the operator (the info
+    editor / console)."""
+    for level, text in (reports.items if reports is not None else ()):
         op.report({level if level in ('INFO', 'WARNING', 'ERROR') else 'INFO'}, text)
 
 
@@ -81,7 +82,7 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
         """Finish or abort a job whose run() has returned; returns the operator result."""
         if job.cancelled or job.error:
             job.abort(context)
-            _report_all(self, job.reports)
+            report_all(self, job.reports)
             if job.error:
                 self.report({'ERROR'}, job.error)
             else:
@@ -91,10 +92,10 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
             last = job.finish(context)
         except Exception as e:  # noqa: BLE001
             job.abort(context)
-            _report_all(self, job.reports)
+            report_all(self, job.reports)
             self.report({'ERROR'}, "PhotonLM: could not store the lightmaps: %s" % (getattr(e, "message", None) or e))
             return {'CANCELLED'}
-        _report_all(self, job.reports)
+        report_all(self, job.reports)
         s = last["stats"]
         self.report({'INFO'}, "Baked %d lightmaps: %s photons in %.2f s (%.2f M photons/s), error %.2f %% "
                     "(%.1f %% of the texels above %.3g %%), %d warnings"

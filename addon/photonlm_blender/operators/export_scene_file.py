@@ -7,6 +7,7 @@ from bpy_extras.io_utils import ExportHelper
 
 from ..bake import scene_file
 from ..export.scene import Reports
+from .bake import report_all
 
 
 class PHOTONLM_OT_export_scene_file(bpy.types.Operator, ExportHelper):
@@ -31,22 +32,17 @@ class PHOTONLM_OT_export_scene_file(bpy.types.Operator, ExportHelper):
         try:
             path, meta = scene_file.export_scene_file(context, self.filepath, reports)
         except (scene_file.ExportError, OSError, ValueError) as e:
-            self._report_all(reports)
+            report_all(self, reports)
             self.report({'ERROR'}, "PhotonLM export: %s" % e)
             return {'CANCELLED'}
         except Exception as e:  # noqa: BLE001 -- never take Blender down
-            self._report_all(reports)
+            report_all(self, reports)
             self.report({'ERROR'}, "PhotonLM export failed: %s" % e)
             return {'CANCELLED'}
-        self._report_all(reports)
+        report_all(self, reports)
         self.report({'INFO'}, "Exported %d lightmaps to %s; bake with: photonlm bake \"%s\" -o DIR"
                     % (len(meta["objects"]), path, os.path.basename(path)))
         return {'FINISHED'}
-
-    def _report_all(self, reports):
-        for level, text in reports.items:
-            self.report({level if level in ('INFO', 'WARNING', 'ERROR') else 'INFO'}, text)
-
 
 def menu_export(self, context):
     self.layout.operator(PHOTONLM_OT_export_scene_file.bl_idname, text="PhotonLM scene (.json)")

@@ -5,7 +5,7 @@ import bpy
 from bpy.props import BoolProperty, StringProperty
 
 from ..bake import folder as bake_folder
-from .bake import running
+from .bake import report_all, running
 
 
 class PHOTONLM_OT_import_bake_folder(bpy.types.Operator):
@@ -50,14 +50,14 @@ class PHOTONLM_OT_import_bake_folder(bpy.types.Operator):
                 job.abort(context)
                 raise
         except (bake_folder.FolderError, RuntimeError) as e:
-            self._report_all(reports)
+            report_all(self, reports)
             self.report({'ERROR'}, "PhotonLM import: %s" % e)
             return {'CANCELLED'}
         except Exception as e:  # noqa: BLE001 -- never take Blender down
-            self._report_all(reports)
+            report_all(self, reports)
             self.report({'ERROR'}, "PhotonLM import of '%s' failed: %s" % (folder, getattr(e, "message", None) or e))
             return {'CANCELLED'}
-        self._report_all(reports)
+        report_all(self, reports)
         s = last["stats"]
         self.report({'INFO'}, "Imported %d lightmaps%s from %s: %s photons, error %.2f %%, %d warnings"
                     % (len(last["objects"]), " and %d OLs" % len(last["ols"]) if last["ols"] else "", job.folder,
@@ -65,11 +65,6 @@ class PHOTONLM_OT_import_bake_folder(bpy.types.Operator):
         for text in job.notices:
             self.report({'WARNING'}, text)
         return {'FINISHED'}
-
-    def _report_all(self, reports):
-        for level, text in (reports.items if reports is not None else ()):
-            self.report({level if level in ('INFO', 'WARNING', 'ERROR') else 'INFO'}, text)
-
 
 def menu_import(self, context):
     self.layout.operator(PHOTONLM_OT_import_bake_folder.bl_idname, text="PhotonLM bake folder")

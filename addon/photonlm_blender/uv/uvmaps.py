@@ -185,8 +185,7 @@ class Changes(list):
         for helper in [o for o in bpy.data.objects if o.get(HELPER_TAG) is not None and o.name not in used]:
             mesh = helper.data
             bpy.data.objects.remove(helper)
-            if mesh is not None and mesh.users == 0:
-                bpy.data.meshes.remove(mesh)
+            _remove_if_unused(mesh)
         self.clear()
 
 
@@ -221,6 +220,12 @@ def cage_subsurf(obj, native_subdivision):
     if mod.render_levels < 1 or subdiv.unsupported_reason(obj, mod) is not None:
         return None
     return mod
+
+
+def _remove_if_unused(mesh):
+    """Remove a mesh from bpy.data once nothing uses it (a helper's or an evaluated copy's)."""
+    if mesh is not None and mesh.users == 0:
+        bpy.data.meshes.remove(mesh)
 
 
 def _copies(context, requests):
@@ -523,8 +528,7 @@ def _new_helper(obj, mesh, changes, tag):
         if h is not None:
             m = h.data
             bpy.data.objects.remove(h)
-            if m is not None and m.users == 0:
-                bpy.data.meshes.remove(m)
+            _remove_if_unused(m)
     changes.append(remove)
     return helper
 
@@ -614,8 +618,7 @@ def _ensure(context, todo, reports, resolution_of, native_subdivision, changes):
                 made.append(obj)
     finally:
         for mesh in copies.values():
-            if mesh.users == 0:
-                bpy.data.meshes.remove(mesh)
+            _remove_if_unused(mesh)
     if retry:
         copies = _copies(context, [(o, FULL) for o, _, _ in retry])
         try:
@@ -625,8 +628,7 @@ def _ensure(context, todo, reports, resolution_of, native_subdivision, changes):
                     made.append(obj)
         finally:
             for mesh in copies.values():
-                if mesh.users == 0:
-                    bpy.data.meshes.remove(mesh)
+                _remove_if_unused(mesh)
     if changes:
         context.view_layer.update()
     _verify(context, made, reports)
@@ -657,46 +659,42 @@ def _make_one(context, obj, copy, stage, resolution_of, changes, reports, shared
     now = _stage_now(obj)
     key = (stage, fingerprint, res)
 
-    def drop_copy():
-        if copy.users == 0:
-            bpy.data.meshes.remove(copy)
-
     # Reuse a map made for this mesh, stage and resolution: by an earlier bake, or just now for a copy.
     if now is not None:
         st, fp, r, mod, _tag = now
         if (st, fp, r) == key and list(obj.modifiers).index(mod) == _modifier_index(obj, stage) \
                 and LIGHTMAP_UV in mesh.uv_layers:
-            drop_copy()
+            _remove_if_unused(copy)
             changes.made.append((obj.name, 'reused'))
             return 'reused'
     else:
         tag = mesh.get(MESH_TAG)
         if tag is not None and same_topology and (tag.get("stage"), tag.get("fingerprint"), tag.get("resolution")) \
                 == key and tag.get("uv") == _digest(_layer_uv(mesh)):
-            drop_copy()
+            _remove_if_unused(copy)
             changes.made.append((obj.name, 'reused'))
             return 'reused'
     writable = same_topology and now is None and not any(w == 'mesh' and n == mesh.name for w, n, _ in shared.values())
     if key in shared:
         where, what, uv = shared[key]
         if where == 'mesh' and what == mesh.name and now is None and same_topology:
-            drop_copy()
+            _remove_if_unused(copy)
             changes.made.append((obj.name, 'reused'))
             return 'reused'
         if where == 'mesh' and writable:  # another mesh with the same geometry: the same map
             _write_into_mesh(mesh, uv, changes, dict(stage=stage, fingerprint=fingerprint, resolution=res))
-            drop_copy()
+            _remove_if_unused(copy)
             shared[key] = ('mesh', mesh.name, uv)
             changes.made.append((obj.name, 'reused'))
             return 'reused'
         if where == 'helper':
-            drop_copy()
+            _remove_if_unused(copy)
             _transfer(obj, what, stage, changes)
             changes.made.append((obj.name, 'reused'))
             return 'reused'
     _strip(copy)
     if len(copy.polygons) == 0:
-        drop_copy()
+        _remove_if_unused(copy)
         reports.warning("object '%s': its evaluated mesh has no faces: no lightmap UV map" % obj.name)
         return None
     subsurf = user_modifiers(obj)[-1] if stage == CAGE else None
@@ -705,14 +703,14 @@ def _make_one(context, obj, copy, stage, resolution_of, changes, reports, shared
     try:
         result = _unwrap(context, copy, obj.matrix_world, res, subsurf, levels)
     except NotImplementedError as e:  # a cage the engine does not refine (subdiv._read_cage)
-        drop_copy()
+        _remove_if_unused(copy)
         return ('retry', str(e))
     except Exception as e:  # noqa: BLE001 -- an add-on must not take Blender down
-        drop_copy()
+        _remove_if_unused(copy)
         reports.warning("object '%s': could not make a lightmap UV map (%s): baked as geometry only" % (obj.name, e))
         return None
     if stage == CAGE and not result.clean:
-        drop_copy()
+        _remove_if_unused(copy)
         return ('retry', "its lightmap UV map does not stay valid under subdivision (%s after %d unwraps)"
                 % (uvcheck.describe(result.stats), result.rounds))
     stats = result.stats
@@ -730,7 +728,7 @@ def _make_one(context, obj, copy, stage, resolution_of, changes, reports, shared
     try:
         if writable:
             _write_into_mesh(mesh, result.uv, changes, dict(stage=stage, fingerprint=fingerprint, resolution=res))
-            drop_copy()
+            _remove_if_unused(copy)
             shared[key] = ('mesh', mesh.name, result.uv)
             changes.made.append((obj.name, 'mesh'))
             return 'mesh'
@@ -744,7 +742,7 @@ def _make_one(context, obj, copy, stage, resolution_of, changes, reports, shared
         changes.made.append((obj.name, 'transfer'))
         return 'transfer'
     except Exception as e:  # noqa: BLE001
-        drop_copy()
+        _remove_if_unused(copy)
         reports.warning("object '%s': could not store its lightmap UV map (%s): baked as geometry only"
                         % (obj.name, e))
         return None
