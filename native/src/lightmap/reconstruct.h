@@ -122,4 +122,23 @@ FitBias linear_fit_bias(const std::vector<double>& fit1, const std::vector<doubl
   return out;
 }
 
+// The radius of linear fits (0: the texels' own means, 1 or 2) of least
+// estimated error over the n texels where takes_part(t): the fits' variances
+// (variance(r, t)) summed, plus each texel's squared bias at the radius its
+// reach allows (reach[t] caps the radius; bias from linear_fit_bias).
+template <typename TakesPart, typename Variance>
+uint32_t least_error_radius(size_t n, const uint8_t* reach, const FitBias& bias, TakesPart takes_part,
+                            Variance variance) {
+  double var[3] = {0.0, 0.0, 0.0};
+  size_t reach1 = 0, reach2 = 0;  // texels whose reach allows radius 1, 2
+  for (size_t t = 0; t < n; ++t) {
+    if (!takes_part(t)) continue;
+    for (uint32_t r = 0; r < 3; ++r) var[r] += variance(r, t);
+    reach1 += reach[t] >= 1, reach2 += reach[t] >= 2;
+  }
+  const double mse[3] = {var[0], var[1] + double(reach1) * bias.sq[1],
+                         var[2] + double(reach2) * bias.sq[2] + double(reach1 - reach2) * bias.sq[1]};
+  return uint32_t(std::min_element(mse, mse + 3) - mse);
+}
+
 }  // namespace plm

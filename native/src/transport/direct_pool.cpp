@@ -102,22 +102,14 @@ DirectValues pool_direct(const TexelSpace& space, const std::vector<DirectSums>&
                        m.phantom.data(), &phantom1);
     reconstruct_linear(ta, w, h, sky3, m.var.data(), m.guide.data(), 2, fit2, var2, m.radius.data(), kSkyMinCos,
                        m.phantom.data(), &phantom2);
-    double var0_sum = 0.0, var1_sum = 0.0, var2_sum = 0.0;
-    size_t reach1 = 0;  // texels whose reach allows radius 1
-    for (size_t t = 0; t < n; ++t) {
-      if (m.guide[t] < 0.0) continue;
-      var0_sum += m.var[t], var1_sum += var1[t], var2_sum += var2[t];
-      reach1 += m.radius[t] >= 1;
-    }
     const FitBias fit_bias =
         linear_fit_bias(fit1, var1, fit2, var2, n, [&](size_t t) { return m.guide[t] >= 0.0 && m.radius[t] >= 2; });
-    const size_t reach2 = fit_bias.texels;
-    if (reach2 < kMinPooledTexels / 4) return;  // too few texels to estimate the bias by
-    const double count = double(m.pooled);
+    if (fit_bias.texels < kMinPooledTexels / 4) return;  // too few texels to estimate the bias by
     const double* bias = fit_bias.sq;
-    const double mse[3] = {var0_sum / count, (var1_sum + double(reach1) * bias[1]) / count,
-                           (var2_sum + double(reach2) * bias[2] + double(reach1 - reach2) * bias[1]) / count};
-    const uint32_t best_r = uint32_t(std::min_element(mse, mse + 3) - mse);
+    const std::vector<double>* vars[3] = {&m.var, &var1, &var2};
+    const uint32_t best_r = least_error_radius(
+        n, m.radius.data(), fit_bias, [&](size_t t) { return m.guide[t] >= 0.0; },
+        [&](uint32_t r, size_t t) { return (*vars[r])[t]; });
     if (best_r == 0) return;
     const std::vector<double>& best3 = best_r == 1 ? fit1 : fit2;
     const std::vector<double>& best_var = best_r == 1 ? var1 : var2;

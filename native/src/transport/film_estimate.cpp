@@ -149,15 +149,11 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
   const double* fits[3] = {g_mean.data(), b.fit1.data(), b.g_value.data()};
   const double* fit_vars[3] = {g_var.data(), b.var1.data(), b.g_fit_var.data()};
   const double* fit_rays[3] = {lookup_rays.data(), b.rays1.data(), b.rays_fit.data()};
-  uint32_t fit_r = kGatherRadius;
-  if (fit_bias.texels > 0) {  // else the bias is unknown: the widest fit
-    double mse[3] = {0.0, 0.0, 0.0};
-    for (size_t t = 0; t < n; ++t)
-      if (usable[t])
-        for (uint32_t r = 0; r <= kGatherRadius; ++r)
-          mse[r] += fit_vars[r][t] + (1.0 - rho) * fit_rays[r][t] + fit_bias.sq[std::min<uint32_t>(radius[t], r)];
-    fit_r = uint32_t(std::min_element(mse, mse + 3) - mse);
-  }
+  auto fit_variance = [&](uint32_t r, size_t t) { return fit_vars[r][t] + (1.0 - rho) * fit_rays[r][t]; };
+  auto is_usable = [&](size_t t) { return usable[t] != 0; };
+  const uint32_t fit_r = fit_bias.texels == 0  // the bias unknown: the widest fit
+                             ? kGatherRadius
+                             : least_error_radius(n, radius.data(), fit_bias, is_usable, fit_variance);
   const double* g_value = fits[fit_r];
   const double* g_fit_var = fit_vars[fit_r];
   for (size_t t = 0, k = space.covered_begin[i]; t < n; ++t) {
