@@ -61,7 +61,8 @@ struct GatherScene {
     const SurfaceMap surfaces = surface_map(scene, space.views);
     const FinalGather fg(accel.handle(), surfaces, space.views, space.areas, s, extent);
     tbb::task_arena arena(2);
-    return run_final_gather(arena, fg, space, images, local, wide, albedo, back_lit.data(), samples,
+    OpenShares open;
+    return run_final_gather(arena, fg, space, images, local, wide, albedo, back_lit.data(), open, samples,
                             [] { return true; });
   }
 };

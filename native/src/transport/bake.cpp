@@ -217,6 +217,7 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
     // deterministic), replacing the gather before; each texel then weighs
     // photons and gather by variance, so scenes where photons do better lose
     // only the gather's rays.
+    OpenShares open_shares;  // the gathers' (final_gather.h), kept from one to the next
     auto run_gather = [&](const Estimate& now) {
       gathered = true;
       ++gathers;
@@ -228,8 +229,8 @@ BakeOutput bake(Scene& pending_scene, const plm_bake_settings& requested, const 
       const FinalGather final_gather(accel.handle(), surfaces, space.views, space.areas, settings, extent,
                                      passage.get(), lobes.any_lobes(), &lobes);
       gather = run_final_gather(arena, final_gather, space, now.values, now.lookup_local, now.lookup_wide,
-                                tracer.triangle_albedos(),
-                                acc.back_lit.data(), gather_samples(settings.target_error, gathers - 1), [&] {
+                                tracer.triangle_albedos(), acc.back_lit.data(), open_shares,
+                                gather_samples(settings.target_error, gathers - 1), [&] {
                                   report(direct_end, "final gather");
                                   return !budget.spent(kGatherBudgetShare);
                                 },

@@ -242,7 +242,8 @@ GatherResult run_final_gather(tbb::task_arena& arena, const FinalGather& gather,
                               const std::vector<std::vector<float>>& images,
                               const std::vector<std::vector<float>>& local,
                               const std::vector<std::vector<float>>& wide,
-                              const std::vector<std::vector<Vec3>>& albedo, const uint8_t* back_lit, uint32_t samples,
+                              const std::vector<std::vector<Vec3>>& albedo, const uint8_t* back_lit,
+                              OpenShares& open, uint32_t samples,
                               const std::function<bool()>& after_group, CoveredSlice slice) {
   std::vector<float> radiosity(3 * space.texel_count, 0.0f), local_error(space.texel_count, 0.0f),
       wide_error(space.texel_count, 0.0f);
@@ -257,22 +258,26 @@ GatherResult run_final_gather(tbb::task_arena& arena, const FinalGather& gather,
   }
   // Open shares where some texels may be partly closed: meshes whose backs
   // no photon reached (a box standing on the floor) or faces in contact.
-  std::vector<float> open;
-  bool closable = false;
-  for (size_t i = 0; i < space.views.size() && !closable; ++i) closable = !back_lit[i] || space.views[i].contact;
-  if (closable) {
-    open.assign(space.texel_count, 1.0f);
-    arena.execute([&] {
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, space.covered.size(), 64), [&](const auto& r) {
-        for (size_t k = r.begin(); k < r.end(); ++k) {
-          const CoveredTexel& c = space.covered[k];
-          open[space.views[c.mesh].texel_offset + c.texel] = gather.open_share(c.mesh, c.texel, back_lit);
-        }
+  const size_t meshes = space.views.size();
+  if (!std::equal(back_lit, back_lit + meshes, open.back_lit.begin(), open.back_lit.end())) {
+    open.back_lit.assign(back_lit, back_lit + meshes);
+    open.share.clear();
+    bool closable = false;
+    for (size_t i = 0; i < meshes && !closable; ++i) closable = !back_lit[i] || space.views[i].contact;
+    if (closable) {
+      open.share.assign(space.texel_count, 1.0f);
+      arena.execute([&] {
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, space.covered.size(), 64), [&](const auto& r) {
+          for (size_t k = r.begin(); k < r.end(); ++k) {
+            const CoveredTexel& c = space.covered[k];
+            open.share[space.views[c.mesh].texel_offset + c.texel] = gather.open_share(c.mesh, c.texel, back_lit);
+          }
+        });
       });
-    });
+    }
   }
   const GatherSource source{radiosity.data(), local_error.data(), wide_error.data(), &albedo, back_lit,
-                            open.empty() ? nullptr : open.data()};
+                            open.share.empty() ? nullptr : open.share.data()};
   slice = slice.clamped(space.covered.size());
   const CoveredTexel* const covered = space.covered.data() + slice.begin;
   GatherResult out;

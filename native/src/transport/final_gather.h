@@ -120,6 +120,15 @@ class FinalGather {
 };
 
 // The gather of every covered texel, in the film's covered order.
+// FinalGather::open_share per global texel, kept between the gathers of one
+// bake and made again only when the meshes whose backs photons reached
+// change; empty where no texel can be partly closed (every mesh's backs lit,
+// no faces in contact).
+struct OpenShares {
+  std::vector<uint8_t> back_lit;  // per mesh, as the shares were made for
+  std::vector<float> share;
+};
+
 struct GatherResult {
   std::vector<GatherSums> sums;  // empty: no gather
   std::vector<GatherInfo> info;
@@ -152,7 +161,8 @@ GatherResult run_final_gather(tbb::task_arena& arena, const FinalGather& gather,
                               const std::vector<std::vector<float>>& images,
                               const std::vector<std::vector<float>>& local,
                               const std::vector<std::vector<float>>& wide,
-                              const std::vector<std::vector<Vec3>>& albedo, const uint8_t* back_lit, uint32_t samples,
+                              const std::vector<std::vector<Vec3>>& albedo, const uint8_t* back_lit,
+                              OpenShares& open, uint32_t samples,
                               const std::function<bool()>& after_group, CoveredSlice slice = {});
 
 }  // namespace plm
