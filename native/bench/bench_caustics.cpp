@@ -30,14 +30,14 @@
 #include "api/handles.h"
 #include "demo_scenes.h"
 #include "lightmap/reconstruct.h"
-#include "transport/bake.h"
-#include "transport/bsdf.h"
-#include "transport/emitters.h"
-#include "transport/film.h"
-#include "transport/material_table.h"
-#include "transport/ol_film.h"
-#include "transport/photon_sampler.h"
-#include "transport/photon_tracer.h"
+#include "transport/control/bake.h"
+#include "transport/film/film.h"
+#include "transport/lights/emitters.h"
+#include "transport/materials/bsdf.h"
+#include "transport/materials/material_table.h"
+#include "transport/output/ol_film.h"
+#include "transport/photons/photon_sampler.h"
+#include "transport/photons/photon_tracer.h"
 
 namespace {
 

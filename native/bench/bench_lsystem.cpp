@@ -43,8 +43,8 @@
 #include "accel/surface_hit.h"
 #include "csg/csg.h"
 #include "csg/csg_geometry.h"
-#include "lsystem/graph.h"
-#include "lsystem/lsystem.h"
+#include "lsystem/graph/graph.h"
+#include "lsystem/language/lsystem.h"
 
 namespace {
 

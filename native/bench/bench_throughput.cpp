@@ -23,8 +23,8 @@
 #include "accel/embree_scene.h"
 #include "api/handles.h"
 #include "demo_scenes.h"
-#include "transport/emitters.h"
-#include "transport/tracing.h"
+#include "transport/lights/emitters.h"
+#include "transport/rays/tracing.h"
 #include "util/rng.h"
 
 namespace {

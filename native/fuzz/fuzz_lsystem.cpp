@@ -1,4 +1,4 @@
-// libFuzzer target for the L-system language (lsystem/lsystem.h): the input
+// libFuzzer target for the L-system language (lsystem/language/lsystem.h): the input
 // bytes are the system's text, parsed, derived (depth at most 6, at most
 // 20000 modules and 100000 parameters, a seed from the input's length) and
 // interpreted by the turtle. Any plm::Error is a correct answer; a crash,
@@ -12,8 +12,8 @@
 #include <cstdlib>
 #include <string_view>
 
-#include "lsystem/lsystem.h"
-#include "lsystem/turtle.h"
+#include "lsystem/language/lsystem.h"
+#include "lsystem/language/turtle.h"
 #include "util/error.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {

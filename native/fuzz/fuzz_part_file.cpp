@@ -1,4 +1,4 @@
-// libFuzzer target for the part files of sharded bakes (io/partial_file.h):
+// libFuzzer target for the part files of sharded bakes (transport/farm/partial_file.h):
 // a damaged, truncated, extended or forged part goes through plm_part_info
 // and plm_bake_merge of the scene it claims to belong to. The library must
 // never crash, hang, leak or trip a sanitizer, and every refusal must leave a
@@ -35,11 +35,11 @@
 #include <vector>
 
 #include "photonlm/photonlm.h"
-#include "transport/shard.h"
+#include "transport/farm/shard.h"
 
 namespace {
 
-// Header fields the checksums depend on (byte offsets: io/partial_file.cpp's
+// Header fields the checksums depend on (byte offsets: transport/farm/partial_file.cpp's
 // encode_header; checked against the valid parts at start-up).
 constexpr size_t kHeaderBytes = 512, kTexelCount = 92, kMeshCount = 100, kCaustics = 104, kSegmentCount = 124,
                  kPayloadSum = 140, kKind = 404, kGathered = 408, kRangeBegin = 420, kRangeEnd = 428,

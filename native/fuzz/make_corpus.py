@@ -168,7 +168,7 @@ def part(start, flags=0, edits=(), resize=None):
     return body + b"".join(struct.pack("<HB", at, value) for at, value in edits)
 
 
-# Header offsets (io/partial_file.cpp): 80 shard count, 92 texel count, 124 segment count, 404 kind,
+# Header offsets (transport/farm/partial_file.cpp): 80 shard count, 92 texel count, 124 segment count, 404 kind,
 # 428 range end.
 PART_SEEDS = {
     "photons": part(0),

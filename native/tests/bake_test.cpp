@@ -539,7 +539,7 @@ TEST(Bake, BacksThatPhotonsReachAreNotDark) {
 }
 
 // Threads add their batches' hits into the sums in whatever order they
-// finish (transport/photon_batches.h): the bits must not depend on it, with
+// finish (transport/film/photon_batches.h): the bits must not depend on it, with
 // a fixed photon count and with a target checked at fixed batch counts.
 TEST(Bake, SameSeedSameResultWhateverTheThreads) {
   SceneBuilder b;

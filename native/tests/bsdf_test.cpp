@@ -4,7 +4,7 @@
 // density it claims (histograms), reciprocity, and energy: a smooth
 // dielectric's R + T = 1, a white GGX mirror loses only the known
 // single-scattering energy.
-#include "transport/bsdf.h"
+#include "transport/materials/bsdf.h"
 
 #include <gtest/gtest.h>
 

@@ -10,7 +10,7 @@
 
 #include "demo_scenes.h"
 #include "test_support.h"
-#include "transport/bsdf.h"
+#include "transport/materials/bsdf.h"
 
 namespace {
 

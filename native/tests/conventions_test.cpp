@@ -11,9 +11,9 @@
 
 #include "photonlm/photonlm.h"
 #include "scene/scene.h"
-#include "transport/bsdf.h"
-#include "transport/emitters.h"
-#include "transport/material_table.h"
+#include "transport/lights/emitters.h"
+#include "transport/materials/bsdf.h"
+#include "transport/materials/material_table.h"
 #include "util/math.h"
 
 namespace plm {

@@ -1,5 +1,5 @@
 // The sky light's part of the direct pass pooled over neighbouring texels
-// (transport/direct_pool.h): on the same samples the pooled values are closer
+// (transport/direct/direct_pool.h): on the same samples the pooled values are closer
 // to the truth than the texels' own means, unbiased in the mean, with an
 // honest error; what the pooling leaves alone (sun lamps, worlds behind
 // portals, small lightmaps) keeps its own means exactly.
@@ -15,13 +15,13 @@
 #include "api/handles.h"
 #include "demo_scenes.h"
 #include "test_support.h"
-#include "transport/bake.h"
-#include "transport/direct.h"
-#include "transport/direct_pool.h"
-#include "transport/direct_rounds.h"
-#include "transport/emitters.h"
-#include "transport/film.h"
-#include "transport/tracing.h"
+#include "transport/control/bake.h"
+#include "transport/direct/direct.h"
+#include "transport/direct/direct_pool.h"
+#include "transport/direct/direct_rounds.h"
+#include "transport/film/film.h"
+#include "transport/lights/emitters.h"
+#include "transport/rays/tracing.h"
 
 namespace plm {
 namespace {

@@ -6,7 +6,7 @@
 
 #include "photonlm/photonlm.h"
 #include "scene/scene.h"
-#include "transport/emitters.h"
+#include "transport/lights/emitters.h"
 #include "util/math.h"
 #include "util/rng.h"
 

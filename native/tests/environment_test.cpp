@@ -1,4 +1,4 @@
-// Environment maps as the world (transport/environment.h, plm_scene_set_world_map):
+// Environment maps as the world (scene/environment.h, plm_scene_set_world_map):
 // the lookup's conventions, the sampling distribution against its own density
 // and quadrature, and bakes against closed forms: a two-tone sky (upper
 // hemisphere a, lower b) gives an up-facing plane a, a down-facing one b and a
@@ -20,10 +20,10 @@
 #include <vector>
 
 #include "demo_scenes.h"
-#include "io/image_file.h"
 #include "io/scene_file.h"
+#include "scene/environment.h"
 #include "test_support.h"
-#include "transport/environment.h"
+#include "util/image_file.h"
 #include "util/rng.h"
 
 namespace {
@@ -535,7 +535,7 @@ TEST(WorldMap, PortalKeepsTheSkysAnswerWithLowerError) {
   expect_unbiased(d, "direct");
   expect_unbiased(p, "photons");
   EXPECT_LT(d.rms[1] * 3.0, d.rms[0]);
-  // Without a portal the photons are still aimed at the floor's box (transport/footprint.h).
+  // Without a portal the photons are still aimed at the floor's box (transport/lights/footprint.h).
   EXPECT_LT(p.rms[1] * 2.0, p.rms[0]);
   EXPECT_LT(d.rms[1], 0.05);
   EXPECT_LT(p.rms[1], 0.03);

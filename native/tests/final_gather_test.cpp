@@ -1,4 +1,4 @@
-// The final gather's estimate of its own noise (transport/final_gather.h):
+// The final gather's estimate of its own noise (transport/gather/final_gather.h):
 // the pair differences of its stratified rays, scaled by its calibration
 // texels (gather_scale), against the spread of the gather over independent
 // seeds; and the lookups' error statistics against their definitions.
@@ -14,9 +14,9 @@
 #include "api/handles.h"
 #include "demo_scenes.h"
 #include "test_support.h"
-#include "transport/film.h"
-#include "transport/final_gather.h"
-#include "transport/tracing.h"
+#include "transport/film/film.h"
+#include "transport/gather/final_gather.h"
+#include "transport/rays/tracing.h"
 
 namespace plm {
 namespace {

@@ -1,8 +1,8 @@
-// Sun and world photons aimed at what records them (transport/footprint.h):
+// Sun and world photons aimed at what records them (transport/lights/footprint.h):
 // the boxes' sampling against their projected areas, and bakes against
 // closed-form irradiance, where the lightmapped object is small in a large
 // scene and where its light comes only by way of geometry without a lightmap.
-#include "transport/footprint.h"
+#include "transport/lights/footprint.h"
 
 #include <gtest/gtest.h>
 

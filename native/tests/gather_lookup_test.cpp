@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "lightmap/texel_area.h"
-#include "transport/tracing.h"
+#include "transport/rays/tracing.h"
 
 namespace plm {
 namespace {

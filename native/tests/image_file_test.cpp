@@ -20,9 +20,9 @@
 #define STB_IMAGE_WRITE_IMPLEMENTATION
 #include <stb/stb_image_write.h>
 
-#include "io/image_file.h"
 #include "test_support.h"
 #include "util/error.h"
+#include "util/image_file.h"
 
 namespace {
 

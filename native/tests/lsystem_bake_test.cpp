@@ -11,8 +11,8 @@
 
 #include "csg/primitive.h"
 #include "demo_scenes.h"
-#include "lsystem/graph.h"
-#include "lsystem/lsystem.h"
+#include "lsystem/graph/graph.h"
+#include "lsystem/language/lsystem.h"
 #include "test_support.h"
 #include "util/rng.h"
 

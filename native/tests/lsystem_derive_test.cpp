@@ -7,7 +7,7 @@
 #include <set>
 #include <string>
 
-#include "lsystem/lsystem.h"
+#include "lsystem/language/lsystem.h"
 #include "util/error.h"
 
 namespace {

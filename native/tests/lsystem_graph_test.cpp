@@ -1,4 +1,4 @@
-// The L-system scene graph (lsystem/graph.h) against truth: its flattening
+// The L-system scene graph (lsystem/graph/graph.h) against truth: its flattening
 // against the turtle on the derived string, and its first hits and
 // occlusion against brute force over the flattened primitives.
 #include <gtest/gtest.h>
@@ -14,11 +14,11 @@
 #include <string>
 #include <vector>
 
-#include "lsystem/embree_callbacks.h"
-#include "lsystem/graph.h"
-#include "lsystem/lsystem.h"
+#include "lsystem/graph/embree_callbacks.h"
+#include "lsystem/graph/graph.h"
+#include "lsystem/language/lsystem.h"
+#include "lsystem/language/turtle.h"
 #include "lsystem/lsystem_object.h"
-#include "lsystem/turtle.h"
 #include "util/error.h"
 
 namespace {
@@ -461,7 +461,7 @@ TEST(LSystemGraph, EmbreeUserGeometryMatchesDirectCalls) {
   rtcReleaseDevice(device);
 }
 
-// The L-system user geometry has a sentinel primitive (accel/user_geometry.h)
+// The L-system user geometry has a sentinel primitive (util/user_geometry.h)
 // so that Embree tests the object's box before calling it: a ray that misses
 // the box never reaches the callbacks, a ray through the sentinel's corner
 // gets no hit from it. (With one primitive Embree calls the callback for every
@@ -630,7 +630,7 @@ double volume(Vec3d lo, Vec3d hi) { return (hi.x - lo.x) * (hi.y - lo.y) * (hi.z
 
 }  // namespace
 
-// Bounds (lsystem/graph_bounds.h): child boxes are the exact boxes of their subtrees,
+// Bounds (lsystem/graph/graph_bounds.h): child boxes are the exact boxes of their subtrees,
 // found by unfolding; GraphOptions::bounds_budget = 0 gives the looser boxes
 // of mapped child boxes (8 corners, level by level), a small budget lies in
 // between. The root box holds every flattened primitive (for a deterministic
@@ -894,7 +894,7 @@ TEST(LSystemGraph, SmallByteBudgetDegradesGracefully) {
   const auto rays = make_rays(gb, &f.primitives, 6000, 51);
   // A big cache's views inline descendants (primitives placed in the view's
   // frame, composed transforms) and a small one's do not: the hits agree up
-  // to rounding (lsystem/graph_view.h); the same primitive wins on these rays.
+  // to rounding (lsystem/graph/graph_view.h); the same primitive wins on these rays.
   size_t hits = 0, same_bits = 0;
   double max_dt = 0, max_dn = 0;
   for (const Ray& r : rays) {

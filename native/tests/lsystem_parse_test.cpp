@@ -3,7 +3,7 @@
 
 #include <string>
 
-#include "lsystem/lsystem.h"
+#include "lsystem/language/lsystem.h"
 #include "util/error.h"
 
 namespace {

@@ -4,8 +4,8 @@
 #include <cmath>
 #include <string>
 
-#include "lsystem/lsystem.h"
-#include "lsystem/turtle.h"
+#include "lsystem/language/lsystem.h"
+#include "lsystem/language/turtle.h"
 #include "util/error.h"
 
 namespace {

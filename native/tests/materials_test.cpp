@@ -12,9 +12,9 @@
 
 #include "demo_scenes.h"
 #include "test_support.h"
-#include "transport/bsdf.h"
-#include "transport/material_table.h"
-#include "transport/spectrum.h"
+#include "transport/materials/bsdf.h"
+#include "transport/materials/material_table.h"
+#include "transport/materials/spectrum.h"
 
 namespace {
 

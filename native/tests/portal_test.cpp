@@ -95,7 +95,7 @@ TEST(Portal, SkyPhotonsThroughAPortalMatchTheViewFactorWithLessNoise) {
   const Error half = against(bake_sky(2, more), truth);
   // Unbiased whatever the portal covers; the portal over the whole hole sends
   // ~90 % of the sky photons in; without it they are aimed at the floor's box
-  // (transport/footprint.h), whose roof lets in a smaller share.
+  // (transport/lights/footprint.h), whose roof lets in a smaller share.
   report("sky photons (400 k; half: 4 M)", none, whole, half);
   EXPECT_NEAR(whole.mean_ratio, 1.0, 0.01);
   EXPECT_NEAR(none.mean_ratio, 1.0, within_noise(none));

@@ -1,7 +1,7 @@
-// The bake's scheduling rules (transport/scheduler.h) as functions of their
+// The bake's scheduling rules (transport/plan/scheduler.h) as functions of their
 // inputs: group sizes, the check schedule, the stopping rule, the time-budget
 // shares and the direct pass's allocation of samples.
-#include "transport/scheduler.h"
+#include "transport/plan/scheduler.h"
 
 #include <gtest/gtest.h>
 

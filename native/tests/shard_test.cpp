@@ -1,4 +1,4 @@
-// Sharded bakes (transport/shard.h, io/partial_file.h): the merge of N shards is
+// Sharded bakes (transport/farm/shard.h, transport/farm/partial_file.h): the merge of N shards is
 // the single-machine bake bit for bit, for any N; parts that do not belong
 // together, or are damaged, are refused naming the part.
 #include <gtest/gtest.h>
@@ -16,12 +16,12 @@
 #include "demo_scenes.h"
 #include "photonlm/photonlm.h"
 #include "test_support.h"
-#include "transport/film.h"
-#include "transport/photon_tracer.h"
-#include "transport/shard.h"
-#include "transport/scheduler.h"
-#include "transport/texel_ranges.h"
-#include "io/partial_file.h"
+#include "transport/film/film.h"
+#include "transport/photons/photon_tracer.h"
+#include "transport/farm/shard.h"
+#include "transport/plan/scheduler.h"
+#include "transport/farm/texel_ranges.h"
+#include "transport/farm/partial_file.h"
 
 namespace {
 
@@ -119,7 +119,7 @@ TEST(Shard, QuantizedSumsDoNotDependOnOrder) {
     }
   plm::Accumulators forward(texels, 1, false, q), backward(texels, 1, false, q), split(texels, 1, false, q),
       second(texels, 1, false, q);
-  // A batch's hits added as the photon pass adds them (transport/photon_batches.h).
+  // A batch's hits added as the photon pass adds them (transport/film/photon_batches.h).
   auto merge = [](plm::Accumulators& a, const plm::BatchOutput& b) {
     a.add_totals(b.hits.size(), a.add_hits(b.hits.data(), b.hits.data() + b.hits.size(), false), false);
   };
@@ -336,7 +336,7 @@ TEST(Shard, SumsPastTheExactRangeAreReported) {
       << plm::inexact_sums(acc);
 }
 
-// ---- Texel ranges (transport/texel_ranges.h): the direct pass and the final
+// ---- Texel ranges (transport/farm/texel_ranges.h): the direct pass and the final
 // gather split by ranges of covered texels.
 namespace {
 
@@ -421,7 +421,7 @@ TEST(TexelRanges, MergeEqualsSingleBakeForAnyRangeCount) {
 }
 
 // An open sunlit scene whose ground's sky light is pooled over neighbouring
-// texels (transport/direct_pool.h): the ranges' parts carry the samples'
+// texels (transport/direct/direct_pool.h): the ranges' parts carry the samples'
 // world part, and the merge pools across the ranges' borders as one machine
 // does, bit for bit.
 TEST(TexelRanges, SkyLightPooledAcrossRangesAsOnOneMachine) {

@@ -1,4 +1,4 @@
-// Image textures (texture/texture.h) through the scene file and the C API: a
+// Image textures (scene/texture.h) through the scene file and the C API: a
 // furnace box whose albedo texture is one colour c bakes to E / (1 - c) per
 // channel, and malformed texture fields are refused with their JSON path; the
 // bilinear lookup's conventions (pixel centres, periodic wrap, v = 0 at the
@@ -13,7 +13,7 @@
 #include <string>
 
 #include "io/scene_file.h"
-#include "texture/texture.h"
+#include "scene/texture.h"
 #include "test_support.h"
 
 namespace {

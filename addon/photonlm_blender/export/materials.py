@@ -214,7 +214,7 @@ def _clamp(info):
 
 # ---- image textures for the engine ---------------------------------------------------------
 
-# File types the engine decodes itself (native/src/io/image_file.h); Blender decodes the others
+# File types the engine decodes itself (native/src/util/image_file.h); Blender decodes the others
 # (TIFF, WebP, ...) and the add-on hands over their pixels.
 ENGINE_IMAGE_TYPES = (".exr", ".hdr", ".pfm", ".png", ".jpg", ".jpeg", ".bmp", ".tga", ".psd", ".gif")
 

@@ -775,7 +775,7 @@ PLM_API plm_status plm_result_write_ol_exr(const plm_result* result, uint32_t gr
  *
  * An L-system object is a plant described by rules in the L-system language
  * of docs (axiom, productions, depth, step, angle, width; see
- * native/src/lsystem/lsystem.h). It is traced without flattening ([Thesis
+ * native/src/lsystem/language/lsystem.h). It is traced without flattening ([Thesis
  * §4.3-4.4]): a graph of node classes expanded on demand per thread, with an
  * LRU cache of expanded instances. Turtle primitives are the CSG shapes
  * CYLINDER (F), SPHERE (@O), CONE (@C) and BOX (@L, @B).

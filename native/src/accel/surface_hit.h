@@ -7,8 +7,8 @@
 //
 // L-system hits carry more than Embree's hit holds (the instance hit, for
 // its OL stub): the object's intersect callback writes its GraphHit into the
-// ray's record in the HitContext the ray is traced with, and SurfaceMap::hit
-// reads it from there.
+// ray's record in the HitContext the ray is traced with (util/user_geometry.h),
+// and SurfaceMap::hit reads it from there.
 #pragma once
 
 #include <embree3/rtcore.h>
@@ -19,25 +19,9 @@
 
 #include "scene/scene.h"
 #include "util/math.h"
+#include "util/user_geometry.h"
 
 namespace plm {
-
-namespace lsystem {
-struct GraphHit;
-}
-
-// The intersect context of every closest-hit query on a scene that may hold
-// L-system objects (their callbacks read it); occlusion queries may use a
-// plain RTCIntersectContext. Contexts that carry more (transport/tracing.h)
-// hold it as their first member.
-struct HitContext {
-  RTCIntersectContext context;  // first member: Embree hands back this pointer
-  // Per ray, indexed by the ray's id: the GraphHit of the nearest L-system
-  // hit so far (valid where the ray's final hit is an L-system object's);
-  // null: the caller needs no more of an L-system hit than its kind.
-  lsystem::GraphHit* graph_hits = nullptr;
-  HitContext() { rtcInitIntersectContext(&context); }
-};
 
 enum class SurfaceKind : uint8_t {
   None,      // the ray met nothing
@@ -183,7 +167,7 @@ class SurfaceMap {
       s.point = e.org() + e.dir() * s.t;
       s.normal = normalize(e.ng());
       s.material = csgs_[s.index]->material(s.prim);
-    } else {  // Ng: the OL normal rounded to float (lsystem/embree_callbacks.h)
+    } else {  // Ng: the OL normal rounded to float (lsystem/graph/embree_callbacks.h)
       s.kind = SurfaceKind::LSystem;
       s.index = uint32_t(geom - lsystem_base_);
       s.point = e.org() + e.dir() * s.t;

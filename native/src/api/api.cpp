@@ -10,17 +10,17 @@
 
 #include "api/handles.h"
 #include "api/struct_size.h"
-#include "io/image_file.h"
-#include "io/partial_file.h"
 #include "lsystem/lsystem_object.h"
 #include "photonlm/photonlm.h"
 #include "scene/scene.h"
 #include "subdiv/limit_area.h"
 #include "subdiv/subdiv.h"
-#include "transport/bake.h"
-#include "transport/shard.h"
-#include "transport/texel_ranges.h"
+#include "transport/control/bake.h"
+#include "transport/farm/partial_file.h"
+#include "transport/farm/shard.h"
+#include "transport/farm/texel_ranges.h"
 #include "util/error.h"
+#include "util/image_file.h"
 
 
 namespace {

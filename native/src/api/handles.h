@@ -3,8 +3,8 @@
 #pragma once
 
 #include "scene/scene.h"
-#include "transport/bake.h"
-#include "transport/live_preview.h"
+#include "transport/control/bake.h"
+#include "transport/control/live_preview.h"
 
 struct plm_scene {
   plm::Scene scene;

@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "accel/user_geometry.h"
+#include "util/user_geometry.h"
 
 namespace plm::csg {
 namespace {

@@ -9,8 +9,8 @@
 #include <limits>
 
 #include "csg/primitive.h"
-#include "lsystem/embree_callbacks.h"
-#include "lsystem/geometry.h"
+#include "lsystem/graph/embree_callbacks.h"
+#include "lsystem/graph/geometry.h"
 #include "util/error.h"
 #include "util/rng.h"
 

@@ -1,4 +1,4 @@
-// An L-system placed in a scene ([Thesis ch. 7]): the graph of lsystem/graph.h
+// An L-system placed in a scene ([Thesis ch. 7]): the graph of lsystem/graph/graph.h
 // in its own frame, a placement into the world (a similarity: rotation or
 // mirror times a uniform scale, plus a translation), the mapping of turtle
 // material indices to scene materials, and what its orientation lightmaps
@@ -9,7 +9,7 @@
 // is not renormalised, so t is the world ray's parameter) and map the hit
 // normal back (for a similarity the inverse transpose is the linear part up
 // to scale: n_world = normalize(M n_local)). The full GraphHit of a hit goes
-// into the ray's record in its HitContext (accel/surface_hit.h), where
+// into the ray's record in its HitContext (util/user_geometry.h), where
 // SurfaceMap::hit finds it.
 //
 // Areas (OlAreas). v1 estimates bin areas from the flattened object: at most
@@ -35,7 +35,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "lsystem/graph.h"
+#include "lsystem/graph/graph.h"
 #include "ol/octahedral.h"
 #include "photonlm/photonlm.h"
 #include "util/math.h"

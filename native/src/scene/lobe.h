@@ -1,6 +1,6 @@
 // Specular lobes of a material (photonlm.h "Specular lobes",
 // docs/design/materials.md, "Materials"): what the user gave, validated on the
-// way in. The transport reads them flattened (transport/material_table.h).
+// way in. The transport reads them flattened (transport/materials/material_table.h).
 #pragma once
 
 #include <cstddef>

@@ -10,8 +10,8 @@
 
 #include "lsystem/lsystem_object.h"
 #include "ol/octahedral.h"
-#include "texture/texture.h"
-#include "transport/environment.h"
+#include "scene/environment.h"
+#include "scene/texture.h"
 #include "util/error.h"
 
 namespace plm {

@@ -25,15 +25,11 @@ struct CageCopy;
 }
 struct PendingCage;
 
-// Coordinates beyond this (m) are rejected: photons start up to a few scene
-// radii out, and Embree accepts ray origins only up to ~1.8e18.
-constexpr float kMaxCoordinate = 1e12f;
-
 struct Material {
   std::string name;
   Vec3 albedo;
   Vec3 emission;  // radiance, both sides
-  // Image textures (texture/texture.h), multiplied by albedo / emission; empty = none.
+  // Image textures (scene/texture.h), multiplied by albedo / emission; empty = none.
   std::string albedo_texture, emission_texture;
   uint32_t albedo_texture_flags = 0, emission_texture_flags = 0;  // PLM_TEXTURE_COLOR_*
   uint64_t albedo_texture_pixels = 0, emission_texture_pixels = 0;  // their sizes (the memory estimate)
@@ -109,7 +105,7 @@ struct Scene {
   // whose lookups trace them. Embree ids after the CSG solids.
   std::vector<std::shared_ptr<const lsystem::LSystemObject>> lsystems;
   Vec3 world{0, 0, 0};
-  // An environment map as the world (transport/environment.h), null for the
+  // An environment map as the world (scene/environment.h), null for the
   // uniform world; setting one clears the other.
   std::shared_ptr<const EnvironmentMap> world_map;
   // Whose Cycles the lights follow (plm_conventions;

@@ -33,8 +33,8 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include "scene/scene.h"
 #include "util/error.h"
+#include "util/math.h"
 
 namespace plm::subdiv {
 

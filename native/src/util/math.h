@@ -15,6 +15,10 @@ template <typename T>
 inline constexpr T kPiT = T(kPiD);
 static_assert(kPiT<float> == kPi, "pi rounds to the same float either way");
 
+// Coordinates beyond this (m) are rejected: photons start up to a few scene
+// radii out, and Embree accepts ray origins only up to ~1.8e18.
+constexpr float kMaxCoordinate = 1e12f;
+
 // A scalar parameter that takes no part in deduction: v * 2 or v / n convert
 // the number to v's precision, as a plain float or double overload would.
 template <typename T>

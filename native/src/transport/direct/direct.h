@@ -1,0 +1,141 @@
+// The direct pass ([Thesis §3.5.2], two-pass use of lightmaps): each texel's
+// direct light is estimated from stratified points inside the part of the
+// texel its triangles cover, shadow rays from each point towards every light
+// or a chosen one (see all_lights_). The points come from texel_points.h; the
+// rounds that give noisy texels more samples are in direct_rounds.h.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "lightmap/texel_area.h"
+#include "scene/texture.h"
+#include "transport/direct/stratified_sums.h"
+#include "transport/direct/texel_points.h"
+#include "transport/lights/emitters.h"
+#include "transport/rays/passage.h"
+#include "transport/rays/tracing.h"
+
+namespace plm {
+
+// What the texels' direct variances need beyond their own sums.
+struct DirectNoise {
+  double typical = 0.0;  // RMS of all direct samples of all texels (the phantom sample, see below)
+  double scale = 1.0;    // true / pair-difference variance, measured with independent replicates:
+                         // below 1 for Sobol points, whose pairs differ more than their means vary
+  double sky_scale = 1.0, other_scale = 1.0;  // the same for the world's part and the rest (DirectSums::sky_rgb)
+};
+
+// Per covered texel: sums of (irradiance / pi) samples.
+struct DirectSums : StratifiedSums {
+  double choice_sq = 0; // with one light chosen per sample: the spread of the lights' sample counts
+                        // (n^2 x its variance of the mean), summed over rounds
+  // Where every sample sends a shadow ray to every light (DirectPass::all_lights_)
+  // and the world lights the scene: the world's part of the samples (its sky
+  // light), which the estimate pools over neighbouring texels (direct_pool.h).
+  float sky_rgb[3] = {0, 0, 0};
+  float sky_pair_sq = 0, other_pair_sq = 0;  // pair differences of the world's part and of the rest
+  uint32_t sky_rays = 0;       // the world's shadow rays (0: the samples are not split)
+  // Round 0's world rays that something blocks, and the sum of 1 / distance to it.
+  uint32_t sky_blocked = 0;
+  float sky_inv_distance = 0;
+  // Squared standard error of the mean, noise.typical as the phantom sample
+  // (StratifiedSums::variance_of_mean), with choice_sq and noise.scale.
+  double variance_of_mean(const DirectNoise& noise) const {
+    return StratifiedSums::variance_of_mean(noise.typical, choice_sq, noise.scale);
+  }
+  // The phantom sample's part of it (all of it without pairs).
+  double phantom_variance_of_mean(const DirectNoise& noise) const;
+  // The same from the stratum pairs and choice_sq alone (0 without pairs), unscaled.
+  double pair_variance_of_mean() const;
+  // The same of the world's part and of the rest (with choice_sq) of split samples.
+  double sky_pair_variance_of_mean() const;
+  double other_pair_variance_of_mean() const;
+  // Mean RGB of the world's part.
+  double sky_mean() const { return count ? (double(sky_rgb[0]) + sky_rgb[1] + sky_rgb[2]) / (3.0 * count) : 0.0; }
+  // Adds another set of samples of the same texel.
+  void merge(const DirectSums& o);
+};
+
+class DirectPass {
+ public:
+  DirectPass(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
+             const std::vector<CsgView>& csgs, const std::vector<TexelAreas>& areas,
+             const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent,
+             const TextureSet* textures = nullptr, const PassageTracer* passage = nullptr);
+
+  // Adds `samples` (rounded up to a square) stratified samples of round `round`
+  // to texel `texel` of mesh `mesh`; mesh = mesh count + c means sub-texel
+  // `texel` of CSG solid c. Thread-safe for distinct texels.
+  void sample_texel(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums) const;
+
+ private:
+  // sample_texel without (kPassage false: as in scenes without passable
+  // materials) or with shadow and MIS rays through passages.
+  template <bool kPassage>
+  void sample(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums) const;
+  // Shares of the local choice among `count` candidate lights at point p,
+  // normal n: share[i] = 0.9 x candidate i's unoccluded irradiance / their
+  // sum. Returns the local part, 0.9, or 0 if no candidate lights p.
+  float local_shares(Vec3 p, Vec3 n, const uint32_t* candidates, size_t count, float* share) const;
+  // Per-thread scratch of sample_texel's light choice.
+  struct ChoiceScratch {
+    struct Tally {  // one light's samples in the current texel
+      double sum = 0.0, unpaired = 0.0;
+      uint32_t count = 0;
+    };
+    std::vector<Tally> tallies;
+    std::vector<uint32_t> touched;  // lights with a tally
+    std::vector<int32_t> slot_of;   // light -> candidate slot, -1 if none
+    std::vector<float> guess;
+    std::vector<uint32_t> order;
+    std::vector<uint32_t> others;      // the lights with power that are not candidates,
+    std::vector<double> others_cdf;    // and their cumulative choice probability
+  };
+  // Fills chosen[0 .. kCandidates) with the lights of most unoccluded
+  // irradiance at p (normal n) and scratch's slot_of, others and others_cdf.
+  void select_candidates(Vec3 p, Vec3 n, uint32_t* chosen, ChoiceScratch& scratch) const;
+
+  RTCScene rtc_;
+  const SurfaceMap& surfaces_;
+  const std::vector<MeshView>& views_;
+  const std::vector<CsgView>& csgs_;
+  const std::vector<Emitter>& emitters_;
+  // Emissive triangles are also found by cosine-sampled rays, combined with
+  // light sampling by multiple importance sampling (balance heuristic): near
+  // a large emitter light sampling alone has a heavy-tailed 1/d^2 variance.
+  std::vector<std::vector<int32_t>> triangle_emitter_;  // [mesh][triangle] -> emitter or -1
+  bool has_triangle_emitters_ = false;
+  // Emission textures: a textured emitter's radiance is looked up at the
+  // sampled (or hit) point. Null, and has_textured_emitters_ false, without.
+  const TextureSet* textures_;
+  bool has_textured_emitters_ = false;
+  // Scenes with passable materials (transport/rays/passage.h): shadow rays and
+  // the MIS rays pass through them with a weight. Null otherwise.
+  const PassageTracer* passage_;
+  TexelPoints points_;
+  uint32_t seed_;
+  bool sobol_;
+  float offset_scale_;
+  EmitterTable table_;
+  // Which light a sample's shadow ray goes to. Up to kAllLights emitters:
+  // every sample point sends one to each (a sun and a sky: 2 rays, and no
+  // noise from choosing between them). More: one,
+  // chosen 90 % in proportion to the candidates' unoccluded irradiance at the
+  // texel's first point (local_shares) and 10 % by power (every light keeps a
+  // share: no bias). The candidates are all lights up to kCandidates, else
+  // the kCandidates brightest there (a cost of O(lights) per texel). Beyond
+  // kMaxLocalChoice lights (emissive meshes), one chosen by power.
+  static constexpr size_t kAllLights = 4, kCandidates = 32, kMaxLocalChoice = 256;
+  bool all_lights_;
+  // All lights, a world among them, no passable materials: each sample's
+  // world part is kept apart (DirectSums::sky_rgb), and its shadow rays are
+  // intersected for their distance (the reach of the pooling). is_sky_[k]:
+  // emitter k is the world's smooth part (not a map's sun, which is sharp).
+  bool split_sky_ = false;
+  std::vector<uint8_t> is_sky_;
+  bool local_choice_;
+  std::vector<uint32_t> all_candidates_;  // 0 .. lights - 1 when there are at most kCandidates
+};
+
+}  // namespace plm

@@ -1,0 +1,177 @@
+// The bake's film: every lightmap texel in one global index (meshes with
+// texels of their own, mesh after mesh, then CSG solids' sub-texels), the
+// covered texels in that order (the direct pass and the final gather work
+// through these), and the photon sums per texel, exact in any order of
+// addition so that they never depend on the thread count.
+#pragma once
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "csg/csg_lightmap.h"
+#include "lightmap/texel_area.h"
+#include "scene/scene.h"
+#include "transport/photons/photon_tracer.h"
+#include "transport/rays/tracing.h"
+
+namespace plm {
+
+// A texel that holds a value (area > 0). mesh >= the mesh count means
+// sub-texel `texel` of CSG solid mesh - mesh count.
+struct CoveredTexel {
+  uint32_t mesh, texel;  // local texel of that mesh
+};
+
+// Covered texels [begin, end) in the covered order: all of them by default,
+// one texel range of a sharded bake otherwise (transport/farm/texel_ranges.h).
+struct CoveredSlice {
+  size_t begin = 0, end = SIZE_MAX;
+  CoveredSlice clamped(size_t covered) const { return {std::min(begin, covered), std::min(end, covered)}; }
+  size_t size() const { return end - begin; }
+};
+
+struct TexelSpace {
+  std::vector<TexelAreas> areas;           // per mesh (empty without a lightmap)
+  std::vector<std::vector<Vec3>> normals;  // per mesh, per triangle (views point into them)
+  std::vector<MeshView> views;             // per mesh
+  std::vector<std::unique_ptr<csg::CsgLightmap>> csg_maps;  // per CSG solid (null without a carrier)
+  std::vector<CsgView> csg_views;          // per CSG solid
+  std::vector<CoveredTexel> covered;
+  std::vector<size_t> covered_begin;  // per mesh, then per CSG solid: index of its first covered texel
+  uint64_t texel_count = 0;
+};
+
+// Runs each(i) for i < count (the meshes), where texels(i) is mesh i's
+// lightmap size: lightmaps of up to kParallelTexels texels in parallel, the
+// larger ones after them, one at a time (their own work runs in parallel).
+// Each call holds working buffers the size of its lightmap: more large ones
+// at once would multiply a bake's peak memory by the thread count. Call it
+// inside the bake's arena.
+constexpr size_t kParallelTexels = size_t(1) << 16;
+template <typename Texels, typename Each>
+void for_lightmaps(size_t count, Texels&& texels, Each&& each) {
+  tbb::parallel_for(size_t(0), count, [&](size_t i) {
+    if (texels(i) <= kParallelTexels) each(i);
+  });
+  for (size_t i = 0; i < count; ++i)
+    if (texels(i) > kParallelTexels) each(i);
+}
+
+// Texel areas of every lightmap (OL meshes' lightmaps are resolved from
+// their OL, CSG carriers' from their solid: they have no texels here) and
+// the sub-texels of CSG solids with a carrier, at the carrier's texel size.
+// Adds each mesh's warnings (transport/plan/validate.h) and the CSG solids'.
+// Runs its per-mesh work in parallel: call it inside the bake's arena.
+TexelSpace build_texel_space(const Scene& scene, std::vector<std::string>& warnings);
+
+// Photon fluxes are added as whole multiples of a power-of-two quantum
+// (docs/design/sharding.md, "Why the merge is exact"): each hit is rounded to
+// the quantum once, and sums of such multiples are exact in double precision
+// while below 2^53 quanta, so the sums do not depend on the order of addition.
+// Shards of a bake (transport/farm/shard.h) then add up to the single-machine sums
+// bit for bit.
+struct FluxQuantum {
+  double q = 1.0, inv_q = 1.0;    // of a flux
+  double q2 = 1.0, inv_q2 = 1.0;  // of a squared flux
+  // x rounded to the nearest multiple of quantum (|x| < 2^51 quanta) by the
+  // 1.5 x 2^52 trick; inv and quantum are powers of two, so the products are
+  // exact (an FMA gives the same) and only the addition rounds. IEEE
+  // arithmetic (no -ffast-math) keeps (y + k) - k from being folded.
+  static double round_to(double x, double inv, double quantum) {
+    constexpr double kMagic = 0x1.8p52;
+    return ((x * inv + kMagic) - kMagic) * quantum;
+  }
+  double flux(double x) const { return round_to(x, inv_q, q); }
+  double squared(double x) const { return round_to(x, inv_q2, q2); }
+};
+// The quantum for a bake whose lights emit `emitted` W: with S the power of
+// two at or above it (a photon carries about that flux before the division by
+// the photon count), q = S / 2^26 and q2 = S^2 / 2^26. A float flux of S/4 or
+// more is a whole multiple of q (no rounding at all), a smaller one is off by
+// at most q / 2; a texel's sums stay exact up to 2^27 photons' worth of S, and
+// the squared-flux total (an integer) up to 2^37 hits of S.
+FluxQuantum flux_quantum(double emitted);
+
+// Photon sums per texel over all lightmaps.
+class Accumulators {
+ public:
+  // caustics: the scene has lobes, and caustic photons (BatchOutput::caustic_hits) get sums of their own.
+  Accumulators(uint64_t texels, size_t meshes, bool caustics = false, FluxQuantum quantum_in = {})
+      : sum(3 * texels, 0.0), sum_sq(texels, 0.0), hits(texels, 0), back_lit(meshes, 0), quantum(quantum_in) {
+    if (caustics) caustic.resize(texels);
+  }
+  std::vector<double> sum, sum_sq;  // flux / pick probability (not yet divided by the photon count)
+  std::vector<uint32_t> hits;
+  std::vector<uint8_t> back_lit;  // per mesh: a photon reached its back
+  double total_sq = 0.0;  // total_sq_q quanta of FluxQuantum::q2
+  uint64_t total_sq_q = 0;
+  uint64_t total_hits = 0;
+  FluxQuantum quantum;
+  // Caustic photons' sums (empty without lobes): their own reconstruction
+  // and variance (transport/output/film_estimate.h), added to the texel.
+  struct CausticSums {
+    std::vector<double> sum, sum_sq;
+    std::vector<uint32_t> hits;
+    double total_sq = 0.0;
+    uint64_t total_sq_q = 0;
+    uint64_t total_hits = 0;
+    void resize(uint64_t texels) {
+      sum.assign(3 * texels, 0.0);
+      sum_sq.assign(texels, 0.0);
+      hits.assign(texels, 0);
+    }
+    bool empty() const { return hits.empty(); }
+    double phantom_sq() const { return total_hits ? total_sq / double(total_hits) : 0.0; }
+  } caustic;
+
+  // The squared flux of one average hit: the phantom hit that keeps texels
+  // with few hits from looking exact.
+  double phantom_sq() const { return total_hits ? total_sq / double(total_hits) : 0.0; }
+
+  // Adds the sums of other (the same texels, meshes and quantum): exact, so
+  // the order in which accumulators are added does not matter.
+  void add(const Accumulators& other);
+
+  // Adds hits [h, end) to the texel sums (caustic: the caustic sums), each
+  // flux and squared flux rounded to the quantum; returns the squared fluxes
+  // in quanta of q2, for add_totals (transport/film/photon_batches.h calls both
+  // from several threads, one texel block at a time).
+  uint64_t add_hits(const Hit* h, const Hit* end, bool caustic_hits) {
+    double* s = caustic_hits ? caustic.sum.data() : sum.data();
+    double* s2 = caustic_hits ? caustic.sum_sq.data() : sum_sq.data();
+    uint32_t* n = caustic_hits ? caustic.hits.data() : hits.data();
+    uint64_t total = 0;  // a local: the stores through the arrays could otherwise alias it
+    for (; h != end; ++h) {
+      const size_t t = h->texel;
+      s[3 * t] += quantum.flux(h->r);
+      s[3 * t + 1] += quantum.flux(h->g);
+      s[3 * t + 2] += quantum.flux(h->b);
+      const double a = (double(h->r) + h->g + h->b) / 3.0;
+      const double sq = quantum.squared(a * a);
+      s2[t] += sq;
+      total += uint64_t(sq * quantum.inv_q2);
+      ++n[t];
+    }
+    return total;
+  }
+  // Counts `count` hits whose squared fluxes sum to sq_q quanta.
+  void add_totals(uint64_t count, uint64_t sq_q, bool caustic_hits) {
+    if (caustic_hits) {
+      caustic.total_sq_q += sq_q;
+      caustic.total_sq = double(caustic.total_sq_q) * quantum.q2;
+      caustic.total_hits += count;
+    } else {
+      total_sq_q += sq_q;
+      total_sq = double(total_sq_q) * quantum.q2;
+      total_hits += count;
+    }
+  }
+};
+
+}  // namespace plm

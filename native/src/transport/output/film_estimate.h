@@ -1,0 +1,116 @@
+// The estimate of every texel at one state of the bake: the photons'
+// reconstruction (lightmap/reconstruct.h), blended with the final gather by
+// variance, plus the direct light, with each texel's estimated error. One
+// estimate serves three uses: the error check that steers the photon pass,
+// the final gather's lookups and the final images.
+#pragma once
+
+#include <tbb/task_arena.h>
+
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "lightmap/reconstruct.h"
+#include "transport/direct/direct_pool.h"
+#include "transport/film/film.h"
+#include "transport/gather/final_gather.h"
+#include "transport/plan/scheduler.h"
+
+namespace plm {
+
+// Buffers an estimate reuses from lightmap to lightmap (one set per thread):
+// a lightmap's texels, the photons' guide, and what combining them with the
+// gather works in.
+struct EstimateBuffers {
+  std::vector<double> value3, variance;
+  LookupError lookup;
+  std::vector<double> guide;
+  std::vector<double> g_guide, g_mean, g_var, g_value, g_fit_var, lookup_rays, rays_fit, fit1, var1, rays1;
+  std::vector<uint8_t> usable, radius;
+};
+
+// The photons' reconstruction of every lightmap at one photon count, per
+// covered texel in covered order (reconstruct_indirect's value, error and
+// lookup errors): the estimate after a final gather reuses it.
+struct PhotonPart {
+  uint64_t photons = ~uint64_t(0);  // ~0: none
+  std::vector<double> value3, mse, local, wide;
+};
+
+// Everything the estimate of a texel needs.
+struct Estimator {
+  const TexelSpace& space;
+  const DirectValues& direct;  // per covered texel (transport/direct/direct_pool.h), or empty
+  const Accumulators& acc;
+  uint32_t filter_radius;
+  const GatherResult* gather = nullptr;  // per covered texel (empty sums without a gather)
+  // Whether estimates also give the error the final gather's lookups see (Estimate::lookup_local, lookup_wide).
+  bool lookups = false;
+
+  // Sub-texel `sub` of CSG solid c: irradiance / pi (3 values) and its
+  // estimated mean squared error. No pooling: the photon estimate of the
+  // sub-texel alone (cut sub-texels may be tiny, and their neighbours on
+  // other faces or primitives), plus its direct light.
+  double csg_texel(size_t c, uint32_t sub, uint64_t photons, double value3[3]) const;
+
+  // Per texel of mesh i: irradiance / pi (3 values) and its estimated mean
+  // squared error; the final gather's part of the variances is added to
+  // *gather_part. With `lookup`, also the mean squared error that the final
+  // gather's lookups see (reconstruct.h: LookupError).
+  // In `b`: value3 and variance; with `lookups`, b.lookup too. With `part`,
+  // the photons' reconstruction is read from it if it holds `photons`, else
+  // written to it (the caller then sets part->photons).
+  void texels(size_t i, uint64_t photons, EstimateBuffers& b, double* gather_part = nullptr, bool lookups = false,
+              PhotonPart* part = nullptr) const;
+
+ private:
+  void combine_gather(size_t i, EstimateBuffers& b, double* gather_part, LookupError* lookup) const;
+  void add_caustics(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance,
+                    LookupError* lookup) const;
+};
+
+// Estimated error over all covered texels: sqrt(mean variance) / mean value,
+// texels weighted equally; direct and gather: the same with the direct
+// variance alone and with the final gather's part alone.
+struct ErrorEstimate : ErrorParts {
+  double median = 0.0, p95 = 0.0;  // of the per-texel relative errors
+  std::vector<double> per_texel;    // the per-texel relative errors (of texels with light)
+  size_t dark_texels = 0;           // covered texels with no light (no relative error)
+};
+
+// The ordinary lightmaps' texels at one state of the bake: per mesh with own
+// texels R, G, B and error per texel (the images before dilation, 0 where
+// uncovered), and the error over all texels. Each costs a reconstruction of
+// every lightmap, so the bake keeps the latest and reuses it while nothing
+// changed.
+struct Estimate {
+  uint64_t photons = ~uint64_t(0);  // the state it was made from (~0: none yet)
+  size_t gather_size = 0;
+  ErrorEstimate error;
+  std::vector<std::vector<float>> values;
+  // Per mesh and texel, where the estimator has lookups: the error the final
+  // gather's lookups see, local and wide (Estimator::texels).
+  std::vector<std::vector<float>> lookup_local, lookup_wide;
+  PhotonPart photon_part;  // from before the first gather to the next photons (estimate)
+
+  bool current(uint64_t p, const GatherResult& gather) const {
+    return photons == p && gather_size == gather.sums.size();
+  }
+};
+
+void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Estimate& out);
+
+// The share of texels whose relative error is above `threshold` (dark texels count as below).
+double share_above(const ErrorEstimate& e, double threshold);
+
+// Texel t of a lightmap image (R, G, B, error: 4 floats a texel) from an
+// estimate's value3 / variance.
+inline void store_texel(const std::vector<double>& value3, const std::vector<double>& variance, size_t t,
+                        float* image) {
+  for (int c = 0; c < 3; ++c) image[4 * t + c] = float(value3[3 * t + c]);
+  image[4 * t + 3] = float(std::sqrt(variance[t]));
+}
+
+}  // namespace plm

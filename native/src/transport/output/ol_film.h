@@ -1,0 +1,54 @@
+// The orientation lightmaps a bake fills ([Thesis ch. 6, 7]): one OL per OL group
+// and each L-system object's root and stub OLs. Set up before the photon
+// pass (bin areas, each OL mesh's triangle bins), filled with each photon
+// batch's OL hits in batch order (photon batch b goes to OL replicate
+// b % kOlBatches, whose spread gives the error), finalized at the end.
+#pragma once
+
+#include <tbb/task_arena.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "lsystem/lsystem_object.h"
+#include "ol/orientation_lightmap.h"
+#include "scene/scene.h"
+#include "transport/output/images.h"
+#include "transport/photons/photon_tracer.h"
+
+namespace plm {
+
+struct OlGroups {
+  std::vector<ol::OrientationLightmap> maps;  // per OL group
+  std::vector<uint32_t> mesh_counts;          // per OL group: its meshes
+  std::vector<std::vector<uint32_t>> bins;    // per mesh: each triangle's bin (empty outside a group)
+  std::vector<OlMeshView> views;              // per mesh, for the photon tracer
+};
+
+// Each group's OL with its area per bin from the exact areas of its meshes'
+// triangles (ol/area_estimation.h) or, for subdivision meshes of a group that
+// asks for it (OlGroup::limit_area), from samples of their limit surface
+// (subdiv/limit_area.h). Area and hits use the same double-precision normal,
+// so a hit never lands in a bin its triangle's area missed.
+OlGroups build_ol_groups(const Scene& scene, std::vector<std::string>& warnings);
+
+// L-system objects: each one's OL grid and its root and stub areas from the
+// flattened object; out gets one LSystemOutput per object with its root OL.
+struct LSystemOls {
+  std::vector<ol::OctGrid> grids;          // per L-system object
+  std::vector<lsystem::OlAreas> areas;     // per L-system object
+};
+LSystemOls build_lsystem_ols(const Scene& scene, tbb::task_arena& arena, std::vector<LSystemOutput>& out,
+                             std::vector<std::string>& warnings);
+
+// Adds the OL and L-system hits of batch `batch`; returns how many there were.
+uint64_t merge_ol_hits(uint64_t batch, const BatchOutput& bo, OlGroups& groups, const LSystemOls& ls,
+                       std::vector<LSystemOutput>& lsystems);
+
+// Finalizes the OLs after `photons` photons (none: they stay black) into
+// one image per OL group, and the L-system objects' OLs and statistics.
+void finish_ol_groups(const Scene& scene, uint64_t photons, OlGroups& groups, std::vector<OlImage>& images);
+void finish_lsystems(uint64_t photons, std::vector<LSystemOutput>& lsystems);
+
+}  // namespace plm

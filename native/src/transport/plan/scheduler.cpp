@@ -1,0 +1,112 @@
+#include "transport/plan/scheduler.h"
+
+#include <cmath>
+
+#include "photonlm/photonlm.h"
+#include "util/error.h"
+
+namespace plm {
+
+void Progress::operator()(double fraction, const char* stage) {
+  reported_ = std::max(reported_, std::min(1.0, fraction));
+  if (callback_ && !callback_(reported_, stage)) fail(PLM_ERROR_CANCELLED, "the bake was cancelled");
+}
+
+bool target_reached(const ErrorParts& e, double target) {
+  const double rest = std::sqrt(std::max(0.0, e.relative * e.relative - e.direct * e.direct));
+  return e.relative <= target || e.direct >= target || rest <= kPhotonShareOfTarget * target;
+}
+
+double target_progress(double relative, double target) {
+  return std::min(1.0, std::pow(target / std::max(relative, 1e-12), 2.0));
+}
+
+double loose_share(double target_error) {
+  if (!(target_error > kBaseTarget)) return 1.0;
+  return std::max(kLeastShare, std::pow(kBaseTarget / target_error, 2.0));
+}
+
+uint64_t first_check(double target_error) {
+  return std::max(kLeastCheckBatches, uint64_t(std::lround(double(kCheckBatches) * loose_share(target_error))));
+}
+
+uint32_t gather_samples(double target_error, uint32_t gathers_before) {
+  const double more = std::pow(4.0, double(std::min(gathers_before, 4u)));
+  const double least = std::max(double(kLeastGatherSamples), std::round(kGatherSamples * loose_share(target_error)));
+  const double base = target_error > 0.0
+                          ? std::clamp(kGatherSamples * std::pow(kBaseTarget / target_error, 2.0), least,
+                                       double(kMaxGatherSamples))
+                          : double(kGatherSamples);
+  return uint32_t(std::min(base * more, double(kMaxGatherSamples)));
+}
+
+DirectSchedule::DirectSchedule(double target_error, uint32_t direct_samples)
+    : target_(target_error),
+      direct_samples_(direct_samples),
+      first_(target_error > 0.0 ? std::min(direct_samples, kFirstTargetSamples) : direct_samples),
+      probe_(0) {
+  if (loose_share(target_error) > kLeastShare) return;
+  const double loosest = kBaseTarget / std::sqrt(kLeastShare);  // where the probe starts
+  const double n = double(kProbeSamples) * std::pow(loosest / target_error, 2.0 / kDirectConvergence);
+  // At least 2 x 2: a texel's noise is estimated from pairs of strata.
+  const uint32_t side = std::max(2u, uint32_t(std::ceil(std::sqrt(n) - 1e-9)));
+  probe_ = side * side < first_ ? side * side : 0;
+}
+
+bool DirectSchedule::refines(double mean, const std::vector<DirectTexelNoise>& texels) const {
+  double mean_var = 0.0;
+  for (const DirectTexelNoise& d : texels) mean_var += d.variance;
+  return above_share(mean, mean_var / double(std::max<size_t>(texels.size(), 1)));
+}
+
+std::vector<uint32_t> DirectSchedule::next_round(uint32_t round, double mean,
+                                                 const std::vector<DirectTexelNoise>& texels,
+                                                 std::vector<uint32_t>& want) const {
+  constexpr double a = kDirectConvergence;
+  const double count = double(std::max<size_t>(texels.size(), 1));
+  double mean_var = 0.0, phantom_var = 0.0, sum_weight = 0.0;
+  std::vector<double> weight(texels.size());
+  for (size_t i = 0; i < texels.size(); ++i) {
+    const DirectTexelNoise& d = texels[i];
+    mean_var += d.variance;
+    phantom_var += d.phantom;
+    weight[i] = std::pow(d.variance * std::pow(double(std::max(d.count, 1u)), a), 1.0 / (a + 1.0));
+    sum_weight += weight[i];
+  }
+  mean_var /= count;
+  phantom_var /= count;
+  const double allowed = kDirectShareOfTarget * target_ * mean;
+  const bool refine = above_share(mean, mean_var);
+  // Far from the target a round aims at twice the allowed variance (the rest
+  // is left to the next round's new estimate).
+  const double aim = mean_var > 4.0 * allowed * allowed ? 2.0 : 1.0;
+  const double budget = aim * allowed * allowed * count;
+  const double max_total = double(std::max(first_, direct_samples_)) * kMaxDirectGrowth;
+  // First up to kTopUpGrowth x first (at most direct_samples) everywhere
+  // where the phantom sample is most of the estimate: it is no measure of a
+  // texel's own noise to allocate by (dark texels of an interior), and it
+  // falls as 1 / n^2. All the way to direct_samples at once cost open scenes
+  // 1.6x the time to a 2 % target once the sky light was pooled.
+  const uint32_t top_up_to = std::min(direct_samples_, kTopUpGrowth * first_);
+  const bool top_up = refine && round == 0 && first_ < top_up_to && phantom_var > 0.5 * mean_var;
+  std::vector<uint32_t> next;
+  for (uint32_t i = 0; i < texels.size(); ++i) {
+    const DirectTexelNoise& d = texels[i];
+    double extra = 0.0;
+    if (top_up) {
+      extra = double(top_up_to - first_);
+    } else if (refine) {
+      extra = weight[i] * std::pow(sum_weight / budget, 1.0 / a) - double(d.count);
+      extra = std::min({extra, kMaxRoundGrowth * std::max(d.count, first_), max_total - double(d.count)});
+      if (extra < 1.0) extra = 0.0;
+    }
+    if (d.count < 2) extra = std::max(extra, double(direct_samples_) * double(1u << std::min(round + 1, 8u)));
+    if (extra > 0.0) {
+      want[i] = uint32_t(std::min(std::ceil(extra), 65536.0));
+      next.push_back(i);
+    }
+  }
+  return next;
+}
+
+}  // namespace plm
