@@ -9,6 +9,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -22,6 +23,7 @@
 #include "transport/plan/scheduler.h"
 #include "transport/farm/texel_ranges.h"
 #include "transport/farm/partial_file.h"
+#include "util/error.h"
 
 namespace {
 
@@ -650,4 +652,68 @@ TEST(TexelRanges, GatherReadsOnlyTheFirstBatchesShards) {
   std::string error;
   EXPECT_EQ(merge(b.scene, joined({photons, gather}), r, error), PLM_ERROR_INVALID_ARGUMENT);
   EXPECT_NE(error.find(photons[2] + ": the part file's sums are damaged (checksum)"), std::string::npos) << error;
+}
+
+// Texel parts whose checksums are right but whose values no bake writes (a
+// part made by hand) are refused naming the part and the texel, before a NaN
+// or negative distance reaches the estimate's integer conversions.
+TEST(TexelRanges, PartsWithValuesNoBakeWritesAreRefused) {
+  TempDir dir;
+  plm::PartHeader h;
+  h.engine_version = plm_version();
+  h.shard_index = 1;
+  h.shard_count = 2;
+  h.layout.covered = 8;
+  h.range_begin = 5;
+  h.range_end = 7;
+  h.gathered = true;
+  auto refused = [&](auto write, auto read, const std::string& what) {
+    const std::string path = dir.path + "/forged.plmpart";
+    write(path);
+    try {
+      read(path);
+      ADD_FAILURE() << "accepted a part with " << what;
+    } catch (const plm::Error& e) {
+      const std::string message = e.what();
+      EXPECT_NE(message.find(path + ": " + what + " of covered texel 6 out of range"), std::string::npos) << message;
+    }
+  };
+  plm::GatherResult g;
+  g.sums.resize(2);
+  g.info.resize(2);
+  plm::GatherResult read_g;
+  auto write_g = [&](const std::string& p) { plm::write_gather_part(p, h, g); };
+  auto read_gather = [&](const std::string& p) { plm::read_gather_part(p, read_g); };
+  const std::string ok = dir.path + "/ok.plmpart";
+  write_g(ok);
+  EXPECT_NO_THROW(plm::read_gather_part(ok, read_g));  // infinite hit distances: nothing hit
+  g.info[1].hit_distance = -1.0f;
+  refused(write_g, read_gather, "the gather's hit distance");
+  g.info[1].hit_distance = std::nanf("");
+  refused(write_g, read_gather, "the gather's hit distance");
+  g.info[1].hit_distance = 2.0f;
+  g.info[1].lookup_cells = -1.0;
+  refused(write_g, read_gather, "the gather's error terms");
+  g.info[1].lookup_cells = 0.0;
+  g.sums[1].rgb[2] = std::numeric_limits<double>::infinity();
+  refused(write_g, read_gather, "the gather sums");
+
+  plm::DirectResult d;
+  d.sums.resize(2);
+  plm::DirectResult read_d;
+  auto write_d = [&](const std::string& p) { plm::write_direct_part(p, h, d); };
+  auto read_direct = [&](const std::string& p) { plm::read_direct_part(p, read_d); };
+  d.sums[1].sky_rays = 4;
+  d.sums[1].sky_blocked = 2;
+  d.sums[1].sky_inv_distance = 3.0f;
+  write_d(ok);
+  EXPECT_NO_THROW(plm::read_direct_part(ok, read_d));
+  d.sums[1].sky_inv_distance = -3.0f;
+  refused(write_d, read_direct, "the sky's blocked rays or their distances");
+  d.sums[1].sky_inv_distance = 3.0f;
+  d.sums[1].sky_blocked = 5;
+  refused(write_d, read_direct, "the sky's blocked rays or their distances");
+  d.sums[1].sky_blocked = 2;
+  d.sums[1].pair_sq = -1.0;
+  refused(write_d, read_direct, "the direct sums");
 }

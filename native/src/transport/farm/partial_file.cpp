@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <memory>
@@ -307,6 +308,22 @@ void get_stratified(Cursor& c, StratifiedSums& s) {
   s.count = c.get<uint32_t>();
 }
 
+// A texel record's values must be what a bake writes: checksums catch damage,
+// not a part made by hand, whose NaN or negative distances would reach integer
+// conversions in the estimate.
+void check_record(bool ok, const std::string& path, const char* what, uint64_t texel) {
+  if (!ok)
+    fail(PLM_ERROR_INVALID_ARGUMENT, path, ": ", what, " of covered texel ", texel,
+         " out of range (not a part a bake wrote)");
+}
+
+bool finite_sums(const StratifiedSums& s) {
+  return std::isfinite(s.rgb[0]) && std::isfinite(s.rgb[1]) && std::isfinite(s.rgb[2]) && s.sum_sq >= 0.0 &&
+         s.pair_sq >= 0.0 && std::isfinite(s.sum_sq) && std::isfinite(s.pair_sq) && s.paired <= s.count;
+}
+
+bool non_negative(double v) { return v >= 0.0 && std::isfinite(v); }
+
 }  // namespace
 
 const char* part_kind_name(PartKind kind) {
@@ -411,6 +428,14 @@ PartHeader read_direct_part(const std::string& path, DirectResult& direct) {
         *v = c.get<float>();
       d.sky_rays = c.get<uint32_t>();
       d.sky_blocked = c.get<uint32_t>();
+      const uint64_t texel = h.range_begin + i;
+      check_record(finite_sums(d) && non_negative(d.choice_sq), path, "the direct sums", texel);
+      check_record(non_negative(d.sky_pair_sq) && non_negative(d.other_pair_sq) && std::isfinite(d.sky_rgb[0]) &&
+                       std::isfinite(d.sky_rgb[1]) && std::isfinite(d.sky_rgb[2]),
+                   path, "the sky sums", texel);
+      check_record(d.sky_blocked <= d.sky_rays && non_negative(d.sky_inv_distance) &&
+                       (d.sky_blocked == 0 || d.sky_inv_distance > 0.0f),
+                   path, "the sky's blocked rays or their distances", texel);
     });
     direct.calibration.resize(h.calibration_count);
     read_records(r, direct.calibration.size(), kCalibrationBytes, [&](size_t i, Cursor& c) {
@@ -445,6 +470,13 @@ PartHeader read_gather_part(const std::string& path, GatherResult& gather) {
       g.dark = c.get<uint32_t>();
       for (double* v : {&g.lookup_all, &g.lookup_cells, &g.lookup_rays, &g.lookup_wide}) *v = c.get<double>();
       for (float* v : {&g.hit_distance, &g.calibration_measured, &g.calibration_estimated}) *v = c.get<float>();
+      const uint64_t texel = h.range_begin + i;
+      check_record(finite_sums(gather.sums[i]), path, "the gather sums", texel);
+      check_record(non_negative(g.lookup_all) && non_negative(g.lookup_cells) && non_negative(g.lookup_rays) &&
+                       non_negative(g.lookup_wide) && non_negative(g.calibration_measured) &&
+                       non_negative(g.calibration_estimated),
+                   path, "the gather's error terms", texel);
+      check_record(g.hit_distance >= 0.0f, path, "the gather's hit distance", texel);  // +inf: nothing hit
     });
   });
 }
