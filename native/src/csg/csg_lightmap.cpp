@@ -150,6 +150,18 @@ constexpr double kGaussX[4] = {0.5 - 0.5 * 0.8611363115940526, 0.5 - 0.5 * 0.339
 constexpr double kGaussW[4] = {0.5 * 0.3478548451374538, 0.5 * 0.6521451548625461, 0.5 * 0.6521451548625461,
                                0.5 * 0.3478548451374538};
 
+void check_settings(const CsgObject& obj, const CsgLightmapSettings& settings) {
+  if (!(settings.texel_size > 0) || !std::isfinite(settings.texel_size))
+    fail(PLM_ERROR_INVALID_ARGUMENT, "CSG lightmap of '", obj.name(), "': texel_size must be positive and finite (got ",
+         settings.texel_size, ")");
+  if (settings.grid < 2 || settings.grid > kMaxGrid)
+    fail(PLM_ERROR_INVALID_ARGUMENT, "CSG lightmap of '", obj.name(), "': grid must be in 2..", kMaxGrid, " (got ",
+         settings.grid, ")");
+  if (settings.max_resolution < 1 || settings.max_resolution > 4096)
+    fail(PLM_ERROR_INVALID_ARGUMENT, "CSG lightmap of '", obj.name(), "': max_resolution must be in 1..4096 (got ",
+         settings.max_resolution, ")");
+}
+
 }  // namespace
 
 bool plane_rect(const Primitive& half_space, Vec3d lo, Vec3d hi, PlaneRect& out) {
@@ -204,21 +216,57 @@ FaceCoord face_param(const Primitive& prim, int face, Vec3d p, const PlaneRect& 
   return {clamp01((q.x - rect.x0) / (rect.x1 - rect.x0)), clamp01((q.y - rect.y0) / (rect.y1 - rect.y0))};
 }
 
+namespace {
+
+// A chart's W / H: the mean length of its s lines over that of its t lines.
+double chart_aspect(const Primitive& prim, int f, const PlaneRect& rect) {
+  constexpr int kLines = 5, kSegments = 32;
+  double ls = 0, lt = 0;
+  for (int k = 0; k < kLines; ++k) {
+    const double c = (k + 0.5) / kLines;
+    Vec3d ps = face_point(prim, f, 0, c, rect).p, pt = face_point(prim, f, c, 0, rect).p;
+    for (int j = 1; j <= kSegments; ++j) {
+      const Vec3d qs = face_point(prim, f, double(j) / kSegments, c, rect).p;
+      const Vec3d qt = face_point(prim, f, c, double(j) / kSegments, rect).p;
+      ls += length(qs - ps);
+      lt += length(qt - pt);
+      ps = qs;
+      pt = qt;
+    }
+  }
+  return ls > 0 && lt > 0 ? ls / lt : 1.0;
+}
+
+}  // namespace
+
 // ---- CsgLightmap ----
 
 CsgLightmap::CsgLightmap(const CsgObject& obj, const CsgLightmapSettings& settings) : obj_(&obj), g_(settings.grid) {
   const auto start = std::chrono::steady_clock::now();
-  if (!(settings.texel_size > 0) || !std::isfinite(settings.texel_size))
-    fail(PLM_ERROR_INVALID_ARGUMENT, "CSG lightmap of '", obj.name(), "': texel_size must be positive and finite (got ",
-         settings.texel_size, ")");
-  if (settings.grid < 2 || settings.grid > kMaxGrid)
-    fail(PLM_ERROR_INVALID_ARGUMENT, "CSG lightmap of '", obj.name(), "': grid must be in 2..", kMaxGrid, " (got ",
-         settings.grid, ")");
-  if (settings.max_resolution < 1 || settings.max_resolution > 4096)
-    fail(PLM_ERROR_INVALID_ARGUMENT, "CSG lightmap of '", obj.name(), "': max_resolution must be in 1..4096 (got ",
-         settings.max_resolution, ")");
+  check_settings(obj, settings);
+  const uint64_t total = add_faces(settings);
+  stats_.faces = faces_.size();
+  stats_.texels = total;
+  std::vector<uint16_t> counts(total, 1);
+  std::vector<uint8_t> cut(total, 0);
+  if (settings.split) count_sub_texels(counts, cut);
+  place_sub_texels(counts, cut);
+  // Areas, representative points, label grids (in parallel).
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(total), 16), [&](const tbb::blocked_range<uint32_t>& r) {
+    for (uint32_t i = r.begin(); i != r.end(); ++i) fill_texel(i, settings.split);
+  });
+  stats_.sub_texels = subs_.size();
+  stats_.bytes = sizeof(*this) + faces_.capacity() * sizeof(Face) + prim_first_face_.capacity() * sizeof(uint32_t) +
+                 texels_.capacity() * sizeof(Texel) + subs_.capacity() * sizeof(SubTexel) +
+                 cut_counts_.capacity() * sizeof(uint16_t) + labels_.capacity() * sizeof(uint16_t) +
+                 weights_.capacity() * sizeof(float);
+  stats_.setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
 
-  // Faces and their resolutions: W H ~ area / texel^2 with W / H the chart's aspect.
+// Faces and their resolutions: W H ~ area / texel^2 with W / H the chart's
+// aspect. Returns the number of texels.
+uint64_t CsgLightmap::add_faces(const CsgLightmapSettings& settings) {
+  const CsgObject& obj = *obj_;
   uint64_t total = 0;
   prim_first_face_.resize(obj.primitive_count());
   for (uint32_t i = 0; i < obj.primitive_count(); ++i) {
@@ -235,22 +283,7 @@ CsgLightmap::CsgLightmap(const CsgObject& obj, const CsgLightmapSettings& settin
         }
         area = face_point(prim, f, 0.5, 0.5, face.rect).area;
       }
-      // Mean lengths of the chart's s and t lines.
-      constexpr int kLines = 5, kSegments = 32;
-      double ls = 0, lt = 0;
-      for (int k = 0; k < kLines; ++k) {
-        const double c = (k + 0.5) / kLines;
-        Vec3d ps = face_point(prim, f, 0, c, face.rect).p, pt = face_point(prim, f, c, 0, face.rect).p;
-        for (int j = 1; j <= kSegments; ++j) {
-          const Vec3d qs = face_point(prim, f, double(j) / kSegments, c, face.rect).p;
-          const Vec3d qt = face_point(prim, f, c, double(j) / kSegments, face.rect).p;
-          ls += length(qs - ps);
-          lt += length(qt - pt);
-          ps = qs;
-          pt = qt;
-        }
-      }
-      const double aspect = ls > 0 && lt > 0 ? ls / lt : 1.0;
+      const double aspect = chart_aspect(prim, f, face.rect);
       auto side = [&](double len) {
         const double n = std::round(len / settings.texel_size);
         return uint32_t(std::clamp(std::isfinite(n) ? n : 1.0, 1.0, double(settings.max_resolution)));
@@ -264,27 +297,29 @@ CsgLightmap::CsgLightmap(const CsgObject& obj, const CsgLightmapSettings& settin
       faces_.push_back(face);
     }
   }
-  stats_.faces = faces_.size();
-  stats_.texels = total;
+  return total;
+}
 
-  // Pass 1 (parallel): sub-texel count per texel, and whether it is cut.
-  std::vector<uint16_t> counts(total, 1);
-  std::vector<uint8_t> cut(total, 0);
-  if (settings.split) {
-    tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(total), 16), [&](const tbb::blocked_range<uint32_t>& r) {
-      uint16_t labels[kMaxGrid * kMaxGrid];
-      for (uint32_t i = r.begin(); i != r.end(); ++i) {
-        const Face& f = faces_[face_of_texel(i)];
-        const uint32_t local = i - f.first_texel;
-        const int regions = classify_texel(f, local % f.width, local / f.width, labels);
-        counts[i] = uint16_t(regions);
-        const int cells = g_ * g_;
-        cut[i] = regions > 0 && std::any_of(labels, labels + cells, [](uint16_t l) { return l == kNoLabel; });
-      }
-    });
-  }
+// Per texel: the number of sub-texels, and whether it is cut (in parallel).
+void CsgLightmap::count_sub_texels(std::vector<uint16_t>& counts, std::vector<uint8_t>& cut) const {
+  auto count = [&](const tbb::blocked_range<uint32_t>& r) {
+    uint16_t labels[kMaxGrid * kMaxGrid];
+    for (uint32_t i = r.begin(); i != r.end(); ++i) {
+      const Face& f = faces_[face_of_texel(i)];
+      const uint32_t local = i - f.first_texel;
+      const int regions = classify_texel(f, local % f.width, local / f.width, labels);
+      counts[i] = uint16_t(regions);
+      const int cells = g_ * g_;
+      cut[i] = regions > 0 && std::any_of(labels, labels + cells, [](uint16_t l) { return l == kNoLabel; });
+    }
+  };
+  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(counts.size()), 16), count);
+}
 
-  // Offsets (serial prefix sums).
+// Each texel's first sub-texel and cut-texel index (serial prefix sums); the
+// arrays sized.
+void CsgLightmap::place_sub_texels(const std::vector<uint16_t>& counts, const std::vector<uint8_t>& cut) {
+  const size_t total = counts.size();
   texels_.resize(total);
   uint32_t subs = 0, cuts = 0;
   for (uint32_t i = 0; i < total; ++i) {
@@ -304,64 +339,62 @@ CsgLightmap::CsgLightmap(const CsgObject& obj, const CsgLightmapSettings& settin
   cut_counts_.resize(cuts);
   labels_.resize(size_t(cuts) * g_ * g_);
   weights_.resize(size_t(cuts) * g_ * g_);
+}
 
-  // Pass 2 (parallel): areas, representative points, label grids.
-  tbb::parallel_for(tbb::blocked_range<uint32_t>(0, uint32_t(total), 16), [&](const tbb::blocked_range<uint32_t>& r) {
-    const int cells = g_ * g_;
-    for (uint32_t i = r.begin(); i != r.end(); ++i) {
-      const Texel& tx = texels_[i];
-      if (tx.first_sub == kNone) continue;
-      const Face& f = faces_[face_of_texel(i)];
-      const Primitive& prim = obj_->primitive(f.prim);
-      const uint32_t local = i - f.first_texel, x = local % f.width, y = local / f.width;
-      const double texel_area = this->texel_area(f, x, y);
-      if (tx.cut == kNone) {
-        const FacePoint fp = face_point(prim, int(f.face), (x + 0.5) / f.width, (y + 0.5) / f.height, f.rect);
-        const bool flip = settings.split && flipped_at(fp);
-        subs_[tx.first_sub] = {fp.p, flip ? -fp.n : fp.n, texel_area, i, 0, uint8_t(flip)};
-        continue;
-      }
-      uint16_t* labels = &labels_[size_t(tx.cut) * cells];
-      float* weights = &weights_[size_t(tx.cut) * cells];
-      const int regions = classify_texel(f, x, y, labels);
-      cut_counts_[tx.cut] = uint16_t(regions);
-      double w[kMaxGrid * kMaxGrid], sum = 0;
-      double region_w[kMaxGrid * kMaxGrid] = {}, cx_sum[kMaxGrid * kMaxGrid] = {}, cy_sum[kMaxGrid * kMaxGrid] = {};
-      for (int c = 0; c < cells; ++c) {
-        const FaceCoord st = cell_centre(f, x, y, c % g_, c / g_);
-        w[c] = face_point(prim, int(f.face), st.s, st.t, f.rect).area;
-        sum += w[c];
-        if (labels[c] == kNoLabel) continue;
-        region_w[labels[c]] += w[c];
-        cx_sum[labels[c]] += w[c] * (c % g_);
-        cy_sum[labels[c]] += w[c] * (c / g_);
-      }
-      for (int c = 0; c < cells; ++c) weights[c] = float(w[c] * cells / sum);
-      for (int k = 0; k < regions; ++k) {
-        // The representative: the region's cell nearest to its weighted centroid.
-        const double mx = cx_sum[k] / region_w[k], my = cy_sum[k] / region_w[k];
-        int best = -1;
-        double best_d = 0;
-        for (int c = 0; c < cells; ++c) {
-          if (labels[c] != k) continue;
-          const double dx = c % g_ - mx, dy = c / g_ - my, d = dx * dx + dy * dy;
-          if (best < 0 || d < best_d) best = c, best_d = d;
-        }
-        const FaceCoord st = cell_centre(f, x, y, best % g_, best / g_);
-        const FacePoint fp = face_point(prim, int(f.face), st.s, st.t, f.rect);
-        const bool flip = flipped_at(fp);
-        subs_[tx.first_sub + k] = {fp.p, flip ? -fp.n : fp.n, texel_area * region_w[k] / sum, i, uint16_t(k),
-                                   uint8_t(flip)};
-      }
+// Texel i's sub-texels: areas, representative points and, for a cut texel,
+// its label grid and cell weights.
+void CsgLightmap::fill_texel(uint32_t i, bool split) {
+  const Texel& tx = texels_[i];
+  if (tx.first_sub == kNone) return;
+  const Face& f = faces_[face_of_texel(i)];
+  const uint32_t local = i - f.first_texel, x = local % f.width, y = local / f.width;
+  const double texel_area = this->texel_area(f, x, y);
+  if (tx.cut != kNone) {
+    fill_cut_texel(i, f, x, y, texel_area);
+    return;
+  }
+  const Primitive& prim = obj_->primitive(f.prim);
+  const FacePoint fp = face_point(prim, int(f.face), (x + 0.5) / f.width, (y + 0.5) / f.height, f.rect);
+  const bool flip = split && flipped_at(fp);
+  subs_[tx.first_sub] = {fp.p, flip ? -fp.n : fp.n, texel_area, i, 0, uint8_t(flip)};
+}
+
+void CsgLightmap::fill_cut_texel(uint32_t i, const Face& f, uint32_t x, uint32_t y, double texel_area) {
+  const int cells = g_ * g_;
+  const Texel& tx = texels_[i];
+  const Primitive& prim = obj_->primitive(f.prim);
+  uint16_t* labels = &labels_[size_t(tx.cut) * cells];
+  float* weights = &weights_[size_t(tx.cut) * cells];
+  const int regions = classify_texel(f, x, y, labels);
+  cut_counts_[tx.cut] = uint16_t(regions);
+  double w[kMaxGrid * kMaxGrid], sum = 0;
+  double region_w[kMaxGrid * kMaxGrid] = {}, cx_sum[kMaxGrid * kMaxGrid] = {}, cy_sum[kMaxGrid * kMaxGrid] = {};
+  for (int c = 0; c < cells; ++c) {
+    const FaceCoord st = cell_centre(f, x, y, c % g_, c / g_);
+    w[c] = face_point(prim, int(f.face), st.s, st.t, f.rect).area;
+    sum += w[c];
+    if (labels[c] == kNoLabel) continue;
+    region_w[labels[c]] += w[c];
+    cx_sum[labels[c]] += w[c] * (c % g_);
+    cy_sum[labels[c]] += w[c] * (c / g_);
+  }
+  for (int c = 0; c < cells; ++c) weights[c] = float(w[c] * cells / sum);
+  for (int k = 0; k < regions; ++k) {
+    // The representative: the region's cell nearest to its weighted centroid.
+    const double mx = cx_sum[k] / region_w[k], my = cy_sum[k] / region_w[k];
+    int best = -1;
+    double best_d = 0;
+    for (int c = 0; c < cells; ++c) {
+      if (labels[c] != k) continue;
+      const double dx = c % g_ - mx, dy = c / g_ - my, d = dx * dx + dy * dy;
+      if (best < 0 || d < best_d) best = c, best_d = d;
     }
-  });
-
-  stats_.sub_texels = subs_.size();
-  stats_.bytes = sizeof(*this) + faces_.capacity() * sizeof(Face) + prim_first_face_.capacity() * sizeof(uint32_t) +
-                 texels_.capacity() * sizeof(Texel) + subs_.capacity() * sizeof(SubTexel) +
-                 cut_counts_.capacity() * sizeof(uint16_t) + labels_.capacity() * sizeof(uint16_t) +
-                 weights_.capacity() * sizeof(float);
-  stats_.setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const FaceCoord st = cell_centre(f, x, y, best % g_, best / g_);
+    const FacePoint fp = face_point(prim, int(f.face), st.s, st.t, f.rect);
+    const bool flip = flipped_at(fp);
+    subs_[tx.first_sub + k] = {fp.p, flip ? -fp.n : fp.n, texel_area * region_w[k] / sum, i, uint16_t(k),
+                               uint8_t(flip)};
+  }
 }
 
 uint32_t CsgLightmap::face_index(uint32_t prim, int face) const {

@@ -169,6 +169,13 @@ class CsgLightmap {
     uint8_t flipped;  // the solid's normal is minus the face's
   };
 
+  // Set-up, in the constructor's order.
+  uint64_t add_faces(const CsgLightmapSettings& settings);
+  void count_sub_texels(std::vector<uint16_t>& counts, std::vector<uint8_t>& cut) const;
+  void place_sub_texels(const std::vector<uint16_t>& counts, const std::vector<uint8_t>& cut);
+  void fill_texel(uint32_t i, bool split);
+  void fill_cut_texel(uint32_t i, const Face& f, uint32_t x, uint32_t y, double texel_area);
+
   FaceCoord cell_centre(const Face& f, uint32_t x, uint32_t y, int cx, int cy) const;
   int classify_texel(const Face& f, uint32_t x, uint32_t y, uint16_t* labels) const;
   double texel_area(const Face& f, uint32_t x, uint32_t y) const;

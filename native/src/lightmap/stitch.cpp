@@ -86,6 +86,213 @@ void add_open(const Mesh& mesh, uint32_t t, uint8_t lo, uint8_t hi, double texel
   open.push_back(e);
 }
 
+uint32_t image_of(const Row& r, int k) { return r.image[k >> 2]; }
+uint64_t texel_key(uint32_t image, uint32_t t) { return (uint64_t(image) << 32) | t; }
+bool is_covered(const std::vector<SeamImage>& images, uint32_t image, uint32_t t) {
+  return images[image].covered[t] != 0;
+}
+double value(const std::vector<SeamImage>& images, uint32_t image, uint32_t t, int c) {
+  const SeamImage& im = images[image];
+  return double(im.colour[size_t(t) * im.stride + c]);
+}
+// A texel's squared error (the error channel), 0 without one.
+double sigma2(const std::vector<SeamImage>& images, uint32_t image, uint32_t t) {
+  const SeamImage& im = images[image];
+  const double e = im.error ? double(im.error[size_t(t) * im.error_stride]) : 0.0;
+  return std::isfinite(e) ? e * e : 0.0;
+}
+
+// The points compared along the seams between images with texels: two per
+// texel along the longer side (2 to 4096 per seam); stats.edges counts the seams.
+std::vector<Row> seam_rows(const std::vector<LinkedSeam>& seams, const std::vector<SeamImage>& images,
+                           SeamStats& stats) {
+  std::vector<Row> rows;
+  for (const LinkedSeam& link : seams) {
+    const SeamEdge& s = link.edge;
+    const SeamImage &A = images[link.a], &B = images[link.b];
+    if (A.width == 0 || A.height == 0 || B.width == 0 || B.height == 0) continue;
+    auto texels = [&](const float* p, const float* q, const SeamImage& im) {
+      return std::hypot(double(q[0] - p[0]) * im.width, double(q[1] - p[1]) * im.height);
+    };
+    const double len = std::max(texels(s.a0, s.a1, A), texels(s.b0, s.b1, B));
+    if (!std::isfinite(len)) continue;
+    const int n = int(std::clamp(std::ceil(2.0 * len), 2.0, 4096.0));
+    // Rows weigh sqrt(texels per sample): an edge pulls as hard as it is long,
+    // however finely it is sampled.
+    const double scale = std::sqrt(std::max(len, 0.5) / n);
+    for (int k = 0; k < n; ++k) {
+      const float t = (float(k) + 0.5f) / float(n);
+      const float a[2] = {s.a0[0] + t * (s.a1[0] - s.a0[0]), s.a0[1] + t * (s.a1[1] - s.a0[1])};
+      const float b[2] = {s.b0[0] + t * (s.b1[0] - s.b0[0]), s.b0[1] + t * (s.b1[1] - s.b0[1])};
+      Row r;
+      r.image[0] = link.a;
+      r.image[1] = link.b;
+      bilinear(a, A.width, A.height, scale, r.texel, r.weight);
+      bilinear(b, B.width, B.height, -scale, r.texel + 4, r.weight + 4);
+      rows.push_back(r);
+    }
+    ++stats.edges;
+  }
+  return rows;
+}
+
+// The seams as a least-squares system over the texels the rows read. A
+// covered texel is held to its value in proportion to 1 / its error (the
+// error channel), so it moves by about its own noise at most; one without
+// error (exact) stays fixed and enters the rows as a constant. Texels outside
+// the islands hold only an extrapolation and move freely.
+struct SeamSystem {
+  const std::vector<Row>& rows;
+  const std::vector<SeamImage>& images;
+  std::vector<uint64_t> free_texel;  // the texels that may move, numbered locally: texel_key(image, texel)
+  std::vector<double> hold;          // how strongly each is held to its value
+  std::vector<int32_t> slot;         // local index of each row entry (row * 8 + k), -1 if fixed
+};
+
+// The mean squared error of the covered texels the rows read (each read counted).
+double mean_covered_sigma2(const std::vector<Row>& rows, const std::vector<SeamImage>& images) {
+  double ref = 0.0;
+  size_t ref_count = 0;
+  for (const Row& r : rows)
+    for (int k = 0; k < 8; ++k)
+      if (is_covered(images, image_of(r, k), r.texel[k]))
+        ref += sigma2(images, image_of(r, k), r.texel[k]), ++ref_count;
+  return ref_count ? ref / double(ref_count) : 0.0;
+}
+
+// How hard the rows pull on each texel (sum of squared weights): a texel
+// pulled by many seam points is held harder, so that none moves by more
+// than about its error however many seams pass it.
+std::unordered_map<uint64_t, double> row_pulls(const std::vector<Row>& rows) {
+  std::unordered_map<uint64_t, double> pull;
+  for (const Row& r : rows)
+    for (int k = 0; k < 8; ++k) pull[texel_key(image_of(r, k), r.texel[k])] += r.weight[k] * r.weight[k];
+  return pull;
+}
+
+SeamSystem seam_system(const std::vector<Row>& rows, const std::vector<SeamImage>& images) {
+  SeamSystem sys{rows, images, {}, {}, std::vector<int32_t>(rows.size() * 8, -1)};
+  const double ref = mean_covered_sigma2(rows, images);
+  std::unordered_map<uint64_t, double> pull = row_pulls(rows);
+  std::unordered_map<uint64_t, uint32_t> local;
+  for (size_t r = 0; r < rows.size(); ++r)
+    for (int k = 0; k < 8; ++k) {
+      const uint32_t im = image_of(rows[r], k), t = rows[r].texel[k];
+      const double s2 = sigma2(images, im, t);
+      const double h = !is_covered(images, im, t) ? kHoldFree
+                       : s2 > 1e-6 * ref ? kHoldCovered * ref / s2 * std::max(1.0, pull[texel_key(im, t)] / kPull)
+                                         : -1.0;
+      if (h < 0.0) continue;
+      auto [it, added] = local.emplace(texel_key(im, t), uint32_t(sys.free_texel.size()));
+      if (added) sys.free_texel.push_back(texel_key(im, t)), sys.hold.push_back(h);
+      sys.slot[r * 8 + k] = int32_t(it->second);
+    }
+  return sys;
+}
+
+// out = (A^T A + H) x over the free texels; ax: A x, one value per row.
+void apply(const SeamSystem& sys, const std::vector<double>& x, std::vector<double>& ax, std::vector<double>& out) {
+  const std::vector<Row>& rows = sys.rows;
+  for (size_t r = 0; r < rows.size(); ++r) {
+    double s = 0.0;
+    for (int k = 0; k < 8; ++k)
+      if (sys.slot[r * 8 + k] >= 0) s += rows[r].weight[k] * x[size_t(sys.slot[r * 8 + k])];
+    ax[r] = s;
+  }
+  for (size_t i = 0; i < sys.hold.size(); ++i) out[i] = sys.hold[i] * x[i];
+  for (size_t r = 0; r < rows.size(); ++r)
+    for (int k = 0; k < 8; ++k)
+      if (sys.slot[r * 8 + k] >= 0) out[size_t(sys.slot[r * 8 + k])] += rows[r].weight[k] * ax[r];
+}
+
+// Adds channel c's squared jumps across the rows to sq, and their mean level to level.
+void jump(const SeamSystem& sys, int c, double& sq, double& level) {
+  for (const Row& r : sys.rows) {
+    double d = 0.0, a = 0.0, b = 0.0;
+    for (int k = 0; k < 8; ++k) {
+      const double v = value(sys.images, image_of(r, k), r.texel[k], c);
+      d += r.weight[k] * v;
+      (k < 4 ? a : b) += std::fabs(r.weight[k]) * v;
+    }
+    sq += d * d;
+    level += 0.5 * (a + b);
+  }
+}
+
+// Channel c's free texels (x0) and the right-hand side H x0 - A^T fixed.
+void start_channel(const SeamSystem& sys, int c, std::vector<double>& x, std::vector<double>& rhs) {
+  const std::vector<Row>& rows = sys.rows;
+  std::vector<double> fixed(rows.size());
+  for (size_t r = 0; r < rows.size(); ++r) {
+    double s = 0.0;
+    for (int k = 0; k < 8; ++k)
+      if (sys.slot[r * 8 + k] < 0)
+        s += rows[r].weight[k] * value(sys.images, image_of(rows[r], k), rows[r].texel[k], c);
+    fixed[r] = s;
+  }
+  for (size_t i = 0; i < x.size(); ++i) {
+    x[i] = value(sys.images, uint32_t(sys.free_texel[i] >> 32), uint32_t(sys.free_texel[i]), c);
+    rhs[i] = sys.hold[i] * x[i];
+  }
+  for (size_t r = 0; r < rows.size(); ++r)
+    for (int k = 0; k < 8; ++k)
+      if (sys.slot[r * 8 + k] >= 0) rhs[size_t(sys.slot[r * 8 + k])] -= rows[r].weight[k] * fixed[r];
+}
+
+// Solves (A^T A + H) x = rhs by conjugate gradients from x.
+void conjugate_gradients(const SeamSystem& sys, const std::vector<double>& rhs, std::vector<double>& x) {
+  const size_t m = x.size();
+  std::vector<double> res(m), dir(m), kd(m), ax(sys.rows.size());
+  apply(sys, x, ax, kd);
+  double rr = 0.0, bb = 0.0;
+  for (size_t i = 0; i < m; ++i) {
+    res[i] = dir[i] = rhs[i] - kd[i];
+    rr += res[i] * res[i];
+    bb += rhs[i] * rhs[i];
+  }
+  for (int it = 0; it < kMaxIterations && rr > 1e-20 * bb && rr > 0.0; ++it) {
+    apply(sys, dir, ax, kd);
+    double dkd = 0.0;
+    for (size_t i = 0; i < m; ++i) dkd += dir[i] * kd[i];
+    if (!(dkd > 0.0)) break;
+    const double alpha = rr / dkd;
+    double rr_next = 0.0;
+    for (size_t i = 0; i < m; ++i) {
+      x[i] += alpha * dir[i];
+      res[i] -= alpha * kd[i];
+      rr_next += res[i] * res[i];
+    }
+    for (size_t i = 0; i < m; ++i) dir[i] = res[i] + (rr_next / rr) * dir[i];
+    rr = rr_next;
+  }
+}
+
+struct ChannelJumps {
+  double before = 0, after = 0, level = 0;
+};
+
+// Channel c: minimises sum_r (row . texels)^2 + sum_i hold_i (x_i - x0_i)^2
+// over the texels that may move, (A^T A + H) x = H x0 - A^T fixed, and
+// writes the result back; the jumps before and after.
+void solve_channel(const SeamSystem& sys, int c, ChannelJumps& jumps) {
+  double unused = 0.0;
+  jump(sys, c, jumps.before, jumps.level);
+  const size_t m = sys.free_texel.size();
+  if (m == 0) {
+    jump(sys, c, jumps.after, unused);
+    return;
+  }
+  std::vector<double> x(m), rhs(m);
+  start_channel(sys, c, x, rhs);
+  conjugate_gradients(sys, rhs, x);
+  for (size_t i = 0; i < m; ++i)
+    if (std::isfinite(x[i])) {
+      const SeamImage& im = sys.images[size_t(sys.free_texel[i] >> 32)];
+      im.colour[size_t(uint32_t(sys.free_texel[i])) * im.stride + c] = float(std::max(x[i], 0.0));
+    }
+  jump(sys, c, jumps.after, unused);
+}
+
 }  // namespace
 
 std::vector<SeamEdge> find_seams(const Mesh& mesh, std::vector<OpenEdge>* open) {
@@ -189,168 +396,23 @@ SeamStats stitch_seams(const std::vector<SeamEdge>& seams, const std::vector<uin
 SeamStats stitch_images(const std::vector<LinkedSeam>& seams, const std::vector<SeamImage>& images, int colour) {
   SeamStats stats;
   colour = std::clamp(colour, 0, 3);
-  std::vector<Row> rows;
-  for (const LinkedSeam& link : seams) {
-    const SeamEdge& s = link.edge;
-    const SeamImage &A = images[link.a], &B = images[link.b];
-    if (A.width == 0 || A.height == 0 || B.width == 0 || B.height == 0) continue;
-    auto texels = [&](const float* p, const float* q, const SeamImage& im) {
-      return std::hypot(double(q[0] - p[0]) * im.width, double(q[1] - p[1]) * im.height);
-    };
-    const double len = std::max(texels(s.a0, s.a1, A), texels(s.b0, s.b1, B));
-    if (!std::isfinite(len)) continue;
-    const int n = int(std::clamp(std::ceil(2.0 * len), 2.0, 4096.0));
-    // Rows weigh sqrt(texels per sample): an edge pulls as hard as it is long,
-    // however finely it is sampled.
-    const double scale = std::sqrt(std::max(len, 0.5) / n);
-    for (int k = 0; k < n; ++k) {
-      const float t = (float(k) + 0.5f) / float(n);
-      const float a[2] = {s.a0[0] + t * (s.a1[0] - s.a0[0]), s.a0[1] + t * (s.a1[1] - s.a0[1])};
-      const float b[2] = {s.b0[0] + t * (s.b1[0] - s.b0[0]), s.b0[1] + t * (s.b1[1] - s.b0[1])};
-      Row r;
-      r.image[0] = link.a;
-      r.image[1] = link.b;
-      bilinear(a, A.width, A.height, scale, r.texel, r.weight);
-      bilinear(b, B.width, B.height, -scale, r.texel + 4, r.weight + 4);
-      rows.push_back(r);
-    }
-    ++stats.edges;
-  }
+  const std::vector<Row> rows = seam_rows(seams, images, stats);
   stats.samples = rows.size();
   if (rows.empty()) return stats;
-  auto image_of = [](const Row& r, int k) { return r.image[k >> 2]; };
-  auto key = [](uint32_t image, uint32_t t) { return (uint64_t(image) << 32) | t; };
-  auto covered = [&](uint32_t image, uint32_t t) { return images[image].covered[t] != 0; };
-  auto value = [&](uint32_t image, uint32_t t, int c) {
-    const SeamImage& im = images[image];
-    return double(im.colour[size_t(t) * im.stride + c]);
-  };
-  // The texels the rows read, numbered locally. A covered texel is held to
-  // its value in proportion to 1 / its error (the error channel), so it moves
-  // by about its own noise at most; one without error (exact) stays fixed and
-  // enters the rows as a constant. Texels outside the islands hold only an
-  // extrapolation and move freely.
-  auto sigma2 = [&](uint32_t image, uint32_t t) {
-    const SeamImage& im = images[image];
-    const double e = im.error ? double(im.error[size_t(t) * im.error_stride]) : 0.0;
-    return std::isfinite(e) ? e * e : 0.0;
-  };
-  double ref = 0.0;
-  size_t ref_count = 0;
-  for (const Row& r : rows)
-    for (int k = 0; k < 8; ++k)
-      if (covered(image_of(r, k), r.texel[k])) ref += sigma2(image_of(r, k), r.texel[k]), ++ref_count;
-  ref = ref_count ? ref / double(ref_count) : 0.0;
-  // How hard the rows pull on each texel (sum of squared weights): a texel
-  // pulled by many seam points is held harder, so that none moves by more
-  // than about its error however many seams pass it.
-  std::unordered_map<uint64_t, double> pull;
-  for (const Row& r : rows)
-    for (int k = 0; k < 8; ++k) pull[key(image_of(r, k), r.texel[k])] += r.weight[k] * r.weight[k];
-  std::unordered_map<uint64_t, uint32_t> local;
-  std::vector<uint64_t> free_texel;
-  std::vector<double> hold;
-  std::vector<int32_t> slot(rows.size() * 8, -1);  // local index of each row entry, -1 if fixed
-  for (size_t r = 0; r < rows.size(); ++r)
-    for (int k = 0; k < 8; ++k) {
-      const uint32_t im = image_of(rows[r], k), t = rows[r].texel[k];
-      const double s2 = sigma2(im, t);
-      const double h = !covered(im, t)   ? kHoldFree
-                       : s2 > 1e-6 * ref ? kHoldCovered * ref / s2 * std::max(1.0, pull[key(im, t)] / kPull)
-                                         : -1.0;
-      if (h < 0.0) continue;
-      auto [it, added] = local.emplace(key(im, t), uint32_t(free_texel.size()));
-      if (added) free_texel.push_back(key(im, t)), hold.push_back(h);
-      slot[r * 8 + k] = int32_t(it->second);
-    }
-  const size_t m = free_texel.size();
-  auto free_value = [&](size_t i, int c) { return value(uint32_t(free_texel[i] >> 32), uint32_t(free_texel[i]), c); };
-
-  // Per channel (in parallel, each on its own buffers): minimise
-  // sum_r (row . texels)^2 + sum_i hold_i (x_i - x0_i)^2 over the texels that
-  // may move: (A^T A + H) x = H x0 - A^T fixed, by conjugate gradients from x0.
-  auto apply = [&](const std::vector<double>& x, std::vector<double>& ax, std::vector<double>& out) {
-    for (size_t r = 0; r < rows.size(); ++r) {
-      double s = 0.0;
-      for (int k = 0; k < 8; ++k)
-        if (slot[r * 8 + k] >= 0) s += rows[r].weight[k] * x[size_t(slot[r * 8 + k])];
-      ax[r] = s;
-    }
-    for (size_t i = 0; i < m; ++i) out[i] = hold[i] * x[i];
-    for (size_t r = 0; r < rows.size(); ++r)
-      for (int k = 0; k < 8; ++k)
-        if (slot[r * 8 + k] >= 0) out[size_t(slot[r * 8 + k])] += rows[r].weight[k] * ax[r];
-  };
-  auto jump = [&](int c, double& sq, double& level) {
-    for (const Row& r : rows) {
-      double d = 0.0, a = 0.0, b = 0.0;
-      for (int k = 0; k < 8; ++k) {
-        const double v = value(image_of(r, k), r.texel[k], c);
-        d += r.weight[k] * v;
-        (k < 4 ? a : b) += std::fabs(r.weight[k]) * v;
-      }
-      sq += d * d;
-      level += 0.5 * (a + b);
-    }
-  };
-  double before_c[3] = {0, 0, 0}, after_c[3] = {0, 0, 0}, level_c[3] = {0, 0, 0};
-  auto solve = [&](int c) {
-    double unused = 0.0;
-    jump(c, before_c[c], level_c[c]);
-    if (m == 0) {
-      jump(c, after_c[c], unused);
-      return;
-    }
-    std::vector<double> x(m), rhs(m), res(m), dir(m), kd(m), fixed(rows.size()), ax(rows.size());
-    for (size_t r = 0; r < rows.size(); ++r) {
-      double s = 0.0;
-      for (int k = 0; k < 8; ++k)
-        if (slot[r * 8 + k] < 0) s += rows[r].weight[k] * value(image_of(rows[r], k), rows[r].texel[k], c);
-      fixed[r] = s;
-    }
-    for (size_t i = 0; i < m; ++i) x[i] = free_value(i, c), rhs[i] = hold[i] * x[i];
-    for (size_t r = 0; r < rows.size(); ++r)
-      for (int k = 0; k < 8; ++k)
-        if (slot[r * 8 + k] >= 0) rhs[size_t(slot[r * 8 + k])] -= rows[r].weight[k] * fixed[r];
-    apply(x, ax, kd);
-    double rr = 0.0, bb = 0.0;
-    for (size_t i = 0; i < m; ++i) {
-      res[i] = dir[i] = rhs[i] - kd[i];
-      rr += res[i] * res[i];
-      bb += rhs[i] * rhs[i];
-    }
-    for (int it = 0; it < kMaxIterations && rr > 1e-20 * bb && rr > 0.0; ++it) {
-      apply(dir, ax, kd);
-      double dkd = 0.0;
-      for (size_t i = 0; i < m; ++i) dkd += dir[i] * kd[i];
-      if (!(dkd > 0.0)) break;
-      const double alpha = rr / dkd;
-      double rr_next = 0.0;
-      for (size_t i = 0; i < m; ++i) {
-        x[i] += alpha * dir[i];
-        res[i] -= alpha * kd[i];
-        rr_next += res[i] * res[i];
-      }
-      for (size_t i = 0; i < m; ++i) dir[i] = res[i] + (rr_next / rr) * dir[i];
-      rr = rr_next;
-    }
-    for (size_t i = 0; i < m; ++i)
-      if (std::isfinite(x[i])) {
-        const SeamImage& im = images[size_t(free_texel[i] >> 32)];
-        im.colour[size_t(uint32_t(free_texel[i])) * im.stride + c] = float(std::max(x[i], 0.0));
-      }
-    jump(c, after_c[c], unused);
-  };
-  // Small systems are solved in turn; larger ones (seams between many
-  // objects) one channel per thread. The channels are independent: the same
-  // texels either way.
+  const SeamSystem sys = seam_system(rows, images);
+  // Per channel, each on its own buffers. Small systems are solved in turn;
+  // larger ones (seams between many objects) one channel per thread. The
+  // channels are independent: the same texels either way.
+  ChannelJumps jumps[3];
+  auto solve = [&](int c) { solve_channel(sys, c, jumps[c]); };
   if (rows.size() * size_t(colour) < 20000) {
     for (int c = 0; c < colour; ++c) solve(c);
   } else {
     tbb::parallel_for(0, colour, solve);
   }
-  const double before = before_c[0] + before_c[1] + before_c[2], after = after_c[0] + after_c[1] + after_c[2],
-               level = level_c[0] + level_c[1] + level_c[2];
+  const double before = jumps[0].before + jumps[1].before + jumps[2].before,
+               after = jumps[0].after + jumps[1].after + jumps[2].after,
+               level = jumps[0].level + jumps[1].level + jumps[2].level;
   if (level > 0.0) {
     const double count = double(rows.size()) * colour;
     const double mean = level / count;

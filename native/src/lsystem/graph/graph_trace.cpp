@@ -126,164 +126,213 @@ inline void set_ray(TraceFrame& f, Vec3d o, Vec3d d) {
   }
 }
 
+// A ray's walk through the graph: the frames (one per level), the hops still
+// to enter and the closest hit so far, whose hit record is made once at the end.
+struct RayWalk {
+  RayWalk(const GraphClasses& graph, TraceThread& th, double t_near, double t_far, bool closest_hit)
+      : g(graph), thread(th), tnear(t_near), t0(float_down(t_near)), closest(closest_hit), best(t_far) {
+    if (thread.frames.size() < size_t(kMaxGraphLevels) + 1) thread.frames.resize(size_t(kMaxGraphLevels) + 1);
+    if (thread.pending.size() < 256) thread.pending.resize(256);
+    frames = thread.frames.data();
+    pend = thread.pending.data();
+  }
+  // Room for `more` hops in the pending array.
+  void reserve_pending(size_t more) {
+    if (npend + more > thread.pending.size()) {
+      thread.pending.resize(2 * (npend + more));
+      pend = thread.pending.data();
+    }
+  }
+
+  const GraphClasses& g;
+  TraceThread& thread;
+  const double tnear;
+  const float t0;
+  const bool closest;  // false: any hit ends the walk (occlusion)
+  TraceFrame* frames;
+  // Hops still to enter, nearest at the back: a per-thread array that only
+  // grows (written field by field: no store-forwarding stalls).
+  TracePending* pend;
+  size_t npend = 0;
+  double best;
+  bool found = false;
+  // The closest hit so far.
+  const GraphTracePrim* hit_tp = nullptr;
+  int hit_level = 0, hit_face = 0;
+  Vec3d hit_p;  // in the frame of the hit primitive's view
+  const GraphHop* hit_via[kMaxGraphLevels + 1];
+  csg::Crossing cr[csg::kMaxPrimitiveCrossings];
+};
+
+// One visit of the node at `level`: tests its primitives and queues the hops
+// that the ray meets before the closest hit so far, nearest last.
+struct NodeVisit {
+  NodeVisit(RayWalk& walk, int lev)
+      : w(walk), level(lev), f(walk.frames[lev]), e(*f.e), r4(f), t1(float(walk.best)), np(e.tprims.size()),
+        nh(e.hops.size()), first(walk.npend) {}
+
+  // Primitive `tp`, whose box the ray enters before the closest hit so far;
+  // true to stop (occluded).
+  bool prim_met(const GraphTracePrim& tp) {
+    const int n = csg::intersect(tp.gp->prim, f.o, f.d, 0.0, w.cr);
+    for (int k = 0; k < n; ++k) {
+      const double t = w.cr[k].t;
+      if (t < w.tnear) continue;
+      if (t >= w.best) break;
+      w.found = true;
+      if (!w.closest) return true;
+      w.best = t;
+      t1 = float(w.best);
+      w.hit_tp = &tp;
+      w.hit_level = level;
+      w.hit_face = w.cr[k].face;
+      w.hit_p = f.o + t * f.d;
+      for (int lev = 1; lev <= level; ++lev) w.hit_via[lev] = w.frames[lev].via;
+      break;
+    }
+    return false;
+  }
+  // Hop h, whose box the ray enters at t: inserted into this visit's queued
+  // run, kept sorted with the nearest at the back.
+  void queue_hop(size_t h, double t) {
+    TracePending* pend = w.pend;
+    size_t j = w.npend++;
+    while (j > first && pend[j - 1].t < t) {
+      pend[j].t = pend[j - 1].t;
+      pend[j].level = pend[j - 1].level;
+      pend[j].hop = pend[j - 1].hop;
+      --j;
+    }
+    pend[j].t = t;
+    pend[j].level = uint32_t(level);
+    pend[j].hop = uint32_t(h);
+  }
+  // Item `item` (a tprim, then the hops; else an unused lane, NaN origin)
+  // whose box the ray enters at te (before best); true to stop (occluded).
+  bool item_met(size_t item, float te) {
+    if (item < np) return prim_met(e.tprims[item]);
+    if (item < np + nh) queue_hop(item - np, te);
+    return false;
+  }
+  // The items met in a cluster; the closest hit so far culls them.
+  bool cluster_met(const GraphCluster& cl) {
+    alignas(16) float item_entry[4];
+    for (int m = boxes4(cl.box, f, r4, w.t0, t1, item_entry); m; m &= m - 1) {
+      const int l = __builtin_ctz(unsigned(m));
+      if (double(item_entry[l]) > w.best) continue;
+      if (item_met(cl.item[l], item_entry[l])) return true;
+    }
+    return false;
+  }
+  // The clusters met (a single one directly), then the items met in them.
+  bool run() {
+    const size_t nc = e.clusters.size();
+    if (nc == 1) return cluster_met(e.clusters[0]);
+    alignas(16) float entry[4];
+    for (size_t b = 0; b < e.cluster_boxes.size(); ++b) {
+      for (int mask = boxes4(e.cluster_boxes[b], f, r4, w.t0, t1, entry); mask; mask &= mask - 1) {
+        const int lane = __builtin_ctz(unsigned(mask));
+        const size_t c = 4 * b + size_t(lane);
+        if (c >= nc) break;  // an unused lane (NaN origin)
+        if (double(entry[lane]) > w.best) continue;
+        if (cluster_met(e.clusters[c])) return true;
+      }
+    }
+    return false;
+  }
+
+  RayWalk& w;
+  const int level;
+  const TraceFrame& f;
+  const GraphExpansion& e;
+  const Ray4 r4;
+  float t1;  // best in float: its rounding is within the 2^-20 of boxes4
+  const size_t np, nh;
+  const size_t first;  // this visit's run of queued hops
+};
+
+// Visits the node at `level`; true to stop (occlusion found).
+bool visit(RayWalk& w, int level) {
+  const GraphExpansion& e = *w.frames[level].e;
+  if (e.clusters.empty()) return false;
+  w.reserve_pending(e.hops.size());
+  return NodeVisit(w, level).run();
+}
+
+// Enters the nearest hop still queued, unless a closer hit was found after it
+// was queued; true to stop (occlusion found).
+bool enter_next(RayWalk& w) {
+  --w.npend;
+  const double pt = w.pend[w.npend].t;
+  const uint32_t plevel = w.pend[w.npend].level, phop = w.pend[w.npend].hop;
+  if (pt > w.best) return false;
+  const TraceFrame& f = w.frames[plevel];
+  const int level = int(plevel) + 1;
+  if (level > kMaxGraphLevels) {  // unreachable: a frame is at least one derivation step
+    ++w.thread.truncated;
+    return false;
+  }
+  const GraphHop& c = f.e->hops[phop];
+  TraceFrame& next = w.frames[level];
+  set_ray(next, c.to_local.point(f.o), c.to_local.vector(f.d));
+  uint64_t key = 0;
+  if (c.path_dependent) {  // then so are the nodes above it
+    key = f.key;
+    for (int s = 0; s < c.steps; ++s) key = child_path_key(key, c.path[s]);
+  }
+  next.key = key;
+  next.via = &c;
+  next.e = w.thread.cache.find(w.g, c.classes[c.steps - 1], key, c.path_dependent);
+  return visit(w, level);
+}
+
+// The hit record of the closest hit: its path and classes from the hops that
+// led to it, the normal mapped back up the hops, the keys.
+void record_hit(const RayWalk& w, GraphHit& hit) {
+  const GraphTracePrim& tp = *w.hit_tp;
+  int lv = 0;  // derivation steps from the root
+  hit.classes[0] = 0;
+  for (int lev = 1; lev <= w.hit_level; ++lev) {
+    const GraphHop& v = *w.hit_via[lev];
+    for (int s = 0; s < v.steps; ++s) {
+      hit.path[lv] = v.path[s];
+      hit.classes[++lv] = v.classes[s];
+    }
+  }
+  for (int s = 0; s < tp.steps; ++s) {
+    hit.path[lv] = tp.path[s];
+    hit.classes[++lv] = tp.classes[s];
+  }
+  hit.t = w.best;
+  hit.levels = lv;
+  hit.shape = tp.gp->shape;
+  hit.material = tp.gp->material;
+  hit.prim = tp.prim;
+  // The normal (in the frame of the view that holds the primitive) back up the hops.
+  Vec3d nl = csg::normal(tp.gp->prim, w.hit_face, w.hit_p);
+  for (int lev = w.hit_level; lev > 0; --lev) nl = w.hit_via[lev]->to_local.transpose_vector(nl);
+  hit.n = normalize(nl);
+  hit.node_key = ancestor_path_key(w.g.root_key, hit, hit.levels);
+  hit.instance_key = child_path_key(hit.node_key, hit.prim);
+}
+
 // Closest hit (hit != nullptr) or any hit (hit == nullptr) in [tnear, tfar).
 bool trace(const GraphClasses& g, TraceThread& thread, Vec3d o, Vec3d d, double tnear, double tfar, GraphHit* hit) {
   const GraphNodeClass& root = g.classes[0];
   if (!(tnear <= tfar) || !box_hit(root.lo, root.hi, o, d, tnear, tfar)) return false;
   ExpansionCache& cache = thread.cache;
   cache.begin_trace(g);
-  if (thread.frames.size() < size_t(kMaxGraphLevels) + 1) thread.frames.resize(size_t(kMaxGraphLevels) + 1);
-  if (thread.pending.size() < 256) thread.pending.resize(256);
-  TraceFrame* frames = thread.frames.data();
-  // Hops still to enter, nearest at the back: a per-thread array that only
-  // grows (written field by field: no store-forwarding stalls).
-  TracePending* pend = thread.pending.data();
-  size_t npend = 0;
-  double best = tfar;
-  bool found = false;
-  const float t0 = float_down(tnear);
-  // The closest hit so far; the hit record is made once at the end.
-  const GraphTracePrim* hit_tp = nullptr;
-  int hit_level = 0, hit_face = 0;
-  Vec3d hit_p;  // in the frame of the hit primitive's view
-  const GraphHop* hit_via[kMaxGraphLevels + 1];
-  csg::Crossing cr[csg::kMaxPrimitiveCrossings];
-  // Tests the primitives of the node at `level` and queues the hops that
-  // the ray meets before `best`, nearest last; true to stop (occlusion found).
-  auto visit = [&](int level) {
-    const TraceFrame& f = frames[level];
-    const GraphExpansion& e = *f.e;
-    alignas(16) float entry[4];
-    const Ray4 r4(f);
-    float t1 = float(best);  // its rounding is within the 2^-20 of boxes4
-    const size_t np = e.tprims.size(), nh = e.hops.size();
-    if (e.clusters.empty()) return false;
-    if (npend + nh > thread.pending.size()) {
-      thread.pending.resize(2 * (npend + nh));
-      pend = thread.pending.data();
-    }
-    const size_t first = npend;  // this visit's run of queued hops
-    // Item `item` (a tprim, then the hops; else an unused lane, NaN origin)
-    // whose box the ray enters at te (before best); true to stop (occluded).
-    auto item_met = [&](size_t item, float te) -> bool {
-      if (item < np) {
-        const GraphTracePrim& tp = e.tprims[item];
-        const int n = csg::intersect(tp.gp->prim, f.o, f.d, 0.0, cr);
-        for (int k = 0; k < n; ++k) {
-          const double t = cr[k].t;
-          if (t < tnear) continue;
-          if (t >= best) break;
-          found = true;
-          if (!hit) return true;
-          best = t;
-          t1 = float(best);
-          hit_tp = &tp;
-          hit_level = level;
-          hit_face = cr[k].face;
-          hit_p = f.o + t * f.d;
-          for (int lev = 1; lev <= level; ++lev) hit_via[lev] = frames[lev].via;
-          break;
-        }
-      } else if (item < np + nh) {
-        const size_t h = item - np;
-        const double t = te;
-        // Insertion into this visit's queued run, kept sorted with the nearest at the back.
-        size_t j = npend++;
-        while (j > first && pend[j - 1].t < t) {
-          pend[j].t = pend[j - 1].t;
-          pend[j].level = pend[j - 1].level;
-          pend[j].hop = pend[j - 1].hop;
-          --j;
-        }
-        pend[j].t = t;
-        pend[j].level = uint32_t(level);
-        pend[j].hop = uint32_t(h);
-      }
-      return false;
-    };
-    // The clusters met (a single one directly), then the items met in
-    // them; the closest hit so far culls both.
-    auto cluster_met = [&](const GraphCluster& cl) -> bool {
-      alignas(16) float item_entry[4];
-      for (int m = boxes4(cl.box, f, r4, t0, t1, item_entry); m; m &= m - 1) {
-        const int l = __builtin_ctz(unsigned(m));
-        if (double(item_entry[l]) > best) continue;
-        if (item_met(cl.item[l], item_entry[l])) return true;
-      }
-      return false;
-    };
-    const size_t nc = e.clusters.size();
-    if (nc == 1) return cluster_met(e.clusters[0]);
-    for (size_t b = 0; b < e.cluster_boxes.size(); ++b) {
-      for (int mask = boxes4(e.cluster_boxes[b], f, r4, t0, t1, entry); mask; mask &= mask - 1) {
-        const int lane = __builtin_ctz(unsigned(mask));
-        const size_t c = 4 * b + size_t(lane);
-        if (c >= nc) break;  // an unused lane (NaN origin)
-        if (double(entry[lane]) > best) continue;
-        if (cluster_met(e.clusters[c])) return true;
-      }
-    }
-    return false;
-  };
-  TraceFrame& f0 = frames[0];
+  RayWalk w(g, thread, tnear, tfar, hit != nullptr);
+  TraceFrame& f0 = w.frames[0];
   f0.e = cache.find(g, 0, g.root_key, root.path_dependent);
   set_ray(f0, o, d);
   f0.key = g.root_key;
   f0.via = nullptr;
-  bool stop = visit(0);
-  while (!stop && npend > 0) {
-    --npend;
-    const double pt = pend[npend].t;
-    const uint32_t plevel = pend[npend].level, phop = pend[npend].hop;
-    if (pt > best) continue;  // a closer hit was found after it was queued
-    const TraceFrame& f = frames[plevel];
-    const int level = int(plevel) + 1;
-    if (level > kMaxGraphLevels) {  // unreachable: a frame is at least one derivation step
-      ++thread.truncated;
-      continue;
-    }
-    const GraphHop& c = f.e->hops[phop];
-    TraceFrame& next = frames[level];
-    set_ray(next, c.to_local.point(f.o), c.to_local.vector(f.d));
-    uint64_t key = 0;
-    if (c.path_dependent) {  // then so are the nodes above it
-      key = f.key;
-      for (int s = 0; s < c.steps; ++s) key = child_path_key(key, c.path[s]);
-    }
-    next.key = key;
-    next.via = &c;
-    next.e = cache.find(g, c.classes[c.steps - 1], key, c.path_dependent);
-    stop = visit(level);
-  }
-  if (found && hit) {
-    const GraphTracePrim& tp = *hit_tp;
-    int lv = 0;  // derivation steps from the root
-    hit->classes[0] = 0;
-    for (int lev = 1; lev <= hit_level; ++lev) {
-      const GraphHop& v = *hit_via[lev];
-      for (int s = 0; s < v.steps; ++s) {
-        hit->path[lv] = v.path[s];
-        hit->classes[++lv] = v.classes[s];
-      }
-    }
-    for (int s = 0; s < tp.steps; ++s) {
-      hit->path[lv] = tp.path[s];
-      hit->classes[++lv] = tp.classes[s];
-    }
-    hit->t = best;
-    hit->levels = lv;
-    hit->shape = tp.gp->shape;
-    hit->material = tp.gp->material;
-    hit->prim = tp.prim;
-    // The normal (in the frame of the view that holds the primitive) back up the hops.
-    Vec3d nl = csg::normal(tp.gp->prim, hit_face, hit_p);
-    for (int lev = hit_level; lev > 0; --lev) nl = hit_via[lev]->to_local.transpose_vector(nl);
-    hit->n = normalize(nl);
-    hit->node_key = ancestor_path_key(g.root_key, *hit, hit->levels);
-    hit->instance_key = child_path_key(hit->node_key, hit->prim);
-  }
+  bool stop = visit(w, 0);
+  while (!stop && w.npend > 0) stop = enter_next(w);
+  if (w.found && hit) record_hit(w, *hit);
   cache.end_trace(g);
-  return found;
+  return w.found;
 }
 
 }  // namespace
