@@ -19,9 +19,11 @@ its own package; nothing imports upwards):
                     (the last bake's statistics, on the scene)
     bake/           one bake run here (job), a bake folder from a farm (folder), a scene file
                     for batch machines (scene_file)
+    gltf/           a .glb with the lightmaps through Blender's glTF exporter (export) and their
+                    8-bit encoding (rgbm)
     preview/        the lightmaps shown while a bake runs (live)
     properties/     scene and object settings
-    operators/      bake, remove preview, L-system, scene-file export, bake-folder import
+    operators/      bake, remove preview, L-system, scene-file export, bake-folder import, glTF export
     ui/             Render Properties > PhotonLM Lightmaps
 """
 
@@ -49,10 +51,12 @@ MODULE_NAMES = (
     "uv.uvcheck", "uv.atlas_pack", "uv.uvmaps",
     "writeback.record", "writeback.images", "writeback.closures", "writeback.wiring", "writeback.atlas",
     "writeback.lsystem", "writeback.apply",
+    "gltf.rgbm", "gltf.export",
     "bake.job", "bake.folder", "bake.scene_file",
     "preview.live",
     "properties.object", "properties.scene",
     "operators.bake", "operators.lsystem", "operators.export_scene_file", "operators.import_folder",
+    "operators.export_gltf",
     "ui.panel",
 )
 # What runs without NumPy: a panel saying what is missing and how to get it.
@@ -78,6 +82,10 @@ def _modules():
 
 
 _modules()
+
+if dependencies.missing() is None:
+    # Blender's glTF exporter looks for this name in every enabled add-on's module.
+    from .gltf.export import GltfHook as glTF2ExportUserExtension  # noqa: E402,F401
 
 
 def _registered():

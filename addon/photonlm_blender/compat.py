@@ -21,6 +21,8 @@ between or after behaves as the nearest one with the same API.
     engines     eevee_engine_id (BLENDER_EEVEE in 3.x and 5.x, BLENDER_EEVEE_NEXT in 4.2-4.4)
     cameras     set_equirectangular (panorama settings on Camera.cycles before 4.0, on Camera after)
     colours     linear_colorspace, is_linear_colorspace ('Linear' before 4.0, 'Linear Rec.709' after)
+    glTF        gltf_exporter_types (the glTF exporter's Extension and BinaryData classes: its
+                io.exp.gltf2_io_binary_data module became io.exp.binary_data in 4.x)
 """
 import math
 
@@ -322,3 +324,25 @@ def linear_colorspace(image):
 def is_linear_colorspace(name):
     """Whether an image in colour space `name` holds linear values the engine takes as they are."""
     return name in ("Linear", "Linear Rec.709", "Non-Color", "Raw", "Generic Data")
+
+
+# ---- the glTF exporter (io_scene_gltf2, shipped with Blender) ---------------------------------------------
+
+def gltf_exporter_types(gltf_object):
+    """(Extension, BinaryData, gltf2_io) of the glTF exporter that made `gltf_object` (a glTF
+    property it passed to a hook): the classes it recognises while writing the file, from the same
+    modules it uses. The binary-data module's name changed in 4.x."""
+    import importlib
+    import sys
+    io_module = sys.modules[type(gltf_object).__module__]          # <exporter>.io.com.gltf2_io
+    root = io_module.__name__.rsplit(".io.com.", 1)[0]
+    extensions = importlib.import_module(root + ".io.com.gltf2_io_extensions")
+    for name in (".io.exp.binary_data", ".io.exp.gltf2_io_binary_data"):
+        try:
+            binary = importlib.import_module(root + name)
+            break
+        except ImportError:
+            continue
+    else:
+        raise ImportError("the glTF exporter's binary data module was not found under %s" % root)
+    return extensions.Extension, binary.BinaryData, io_module

@@ -1,6 +1,6 @@
 """The Blender add-on's imports, read from its source with ast (nothing is imported, so no bpy):
 no import cycles, no add-on import inside a function, and every import points down the layers
-that addon/photonlm_blender/__init__.py lists (base modules, export, uv, writeback, bake, preview,
+that addon/photonlm_blender/__init__.py lists (base modules, export, uv, writeback, gltf, bake, preview,
 properties, operators, ui); __init__.py names every module for registration and reloading."""
 import ast
 import os
@@ -10,7 +10,7 @@ import pytest
 ADDON = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "addon", "photonlm_blender")
 PACKAGE = "photonlm_blender"
 # Bottom to top: a module imports from its own layer's package or from layers below.
-LAYERS = (("version", "compat", "dependencies", "bridge", "stages"), ("export",), ("uv",), ("writeback",), ("bake",),
+LAYERS = (("version", "compat", "dependencies", "bridge", "stages"), ("export",), ("uv",), ("writeback",), ("gltf",), ("bake",),
           ("preview",), ("properties",), ("operators",), ("ui",))
 SCRIPTS = {"export.world_render_child"}  # run as a script by a child Blender, not imported
 

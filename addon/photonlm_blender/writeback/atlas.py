@@ -313,6 +313,19 @@ def forget(names):
             obj.modifiers.remove(warp)
 
 
+
+def object_lightmap(obj):
+    """Where an object's baked light is, as the write-back keeps it: (image, UV map name), its atlas
+    page (the image named by the object's PAGE_KEY) read through ATLAS_UV, else its own image
+    <object>_lightmap read through the lightmap UV map; (None, None) for an object without one."""
+    page = obj.get(PAGE_KEY)
+    if page:
+        image = bpy.data.images.get(page)
+        if image is not None:
+            return image, ATLAS_UV
+    image = bpy.data.images.get(obj.name + "_lightmap")
+    return (image, LIGHTMAP_UV) if image is not None else (None, None)
+
 def remove_stale(stale):
     """Remove the pages of an earlier, larger atlas (after the materials are wired to the new pages):
     their files, and their images where nothing uses them."""
