@@ -170,7 +170,8 @@ def png_pixels(data, name):
         bpy.data.images.remove(image)
 
 
-def check_file(checks, glb, objs, last, rgbm):
+def check_file(checks, glb, objs, lightmap_of, rgbm):
+    """lightmap_of(name) -> (UV map, EXR path) of a baked object."""
     used = glb.json.get("extensionsUsed", [])
     checks.check("MOZ_lightmap" in used and "FB_materials_lightmap" in used and not glb.json.get("extensionsRequired"),
                  "extensionsUsed names MOZ_lightmap and FB_materials_lightmap (used: %s), none required" % used)
@@ -197,11 +198,12 @@ def check_file(checks, glb, objs, last, rgbm):
             textures.add((moz.get("index"), rng))
         checks.check(ok_ext and len(textures) == 1, "'%s': its material carries MOZ_lightmap, FB_materials_lightmap "
                      "and extras on texture %s, texCoord 1" % (name, sorted(textures)))
-        lm_pos, lm_uv = local_triangles(obj, "lightmap")
+        uv_name, exr_path = lightmap_of(name)
+        lm_pos, lm_uv = local_triangles(obj, uv_name)
         got = [glb.triangles(p, "TEXCOORD_1") for p in prims]
         diff = match_triangles(np.concatenate([g[0] for g in got]), np.concatenate([g[1] for g in got]), lm_pos, lm_uv)
-        checks.check(diff <= TOL_UV, "'%s': TEXCOORD_1 = its lightmap UVs, triangle by triangle (%d triangles, "
-                     "max |diff| %.2g)" % (name, len(lm_pos), diff))
+        checks.check(diff <= TOL_UV, "'%s': TEXCOORD_1 = its UV map '%s', triangle by triangle (%d triangles, "
+                     "max |diff| %.2g)" % (name, uv_name, len(lm_pos), diff))
         if "UVMap" in obj.data.uv_layers:
             tex_pos, tex_uv = local_triangles(obj, "UVMap")
             got0 = [glb.triangles(p, "TEXCOORD_0") for p in prims]
@@ -211,7 +213,7 @@ def check_file(checks, glb, objs, last, rgbm):
         (tex, rng), = textures
         mime, data = glb.image_bytes(tex)
         px = png_pixels(data, name)
-        exr = scenes.exr_rgb(last["objects"][name]["path"])
+        exr = scenes.exr_rgb(exr_path)
         enc = rgbm.encode(exr, rng)
         checks.check(mime == "image/png" and px.shape == enc.shape and np.array_equal(px, enc),
                      "'%s': the PNG (%d bytes, %s) holds the RGBM encoding of its EXR byte for byte"
@@ -302,8 +304,26 @@ def main():
     checks.check(active_outputs(objs) == outputs_before,
                  "after the export every material's active output is the one before (%s)"
                  % sorted({tuple(v) for v in active_outputs(objs).values()}))
-    worst = check_file(checks, glb, objs, last, rgbm)
+    worst = check_file(checks, glb, objs, lambda n: ("lightmap", last["objects"][n]["path"]), rgbm)
     print("largest relative error above range/255: %.4f %% (bound %.4f %%)" % (100 * worst, 100 / 255.0))
+
+    # Atlas pages: objects share a page's texture, read through the UV map 'PhotonLM Atlas'.
+    s = bpy.context.scene.photonlm
+    s.lightmap_layout, s.atlas_size = 'ATLAS', '512'
+    scenes.photonlm_bake(300_000, 16, seed=3, target_error=0.0)
+    atlas_path = os.path.join(out, "cornell_atlas.glb")
+    res = bpy.ops.photonlm.export_gltf(filepath=atlas_path)
+    atlas = Glb(atlas_path)
+    pages = {o["photonlm_atlas_page"] for o in objs.values()}
+    checks.check(res == {'FINISHED'} and sorted(im["name"] for im in atlas.json["images"]) == sorted(pages),
+                 "atlas: the file's images are the %d page(s) %s, %d bytes" % (len(pages), sorted(pages),
+                                                                              os.path.getsize(atlas_path)))
+
+    def page_of(name):
+        image = bpy.data.images[objs[name]["photonlm_atlas_page"]]
+        return "PhotonLM Atlas", bpy.path.abspath(image.filepath)
+    check_file(checks, atlas, objs, page_of, rgbm)
+    s.lightmap_layout = 'OBJECT'
     check_import(checks, path, objs, glb)
     checks.finish()
 
