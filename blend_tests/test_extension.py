@@ -14,7 +14,10 @@ own engine libraries whatever this Blender loaded, and bakes what the CLI bakes.
      (the texels under the cube darker than the floor's mean);
    - File > Export > PhotonLM scene writes the same scene, `photonlm bake` bakes it outside Blender,
      and every lightmap equals the add-on's bit for bit (same float32 inputs, same seed: the engine's
-     result depends on nothing else).
+     result depends on nothing else);
+   - File > Export > glTF with PhotonLM lightmaps finds the add-on's hook as an extension
+     (bl_ext.user_default.photonlm_blender) and gives the cube and the floor, which share Blender's
+     default material, a copy of it each with its own lightmap (MOZ_lightmap).
 """
 import json
 import os
@@ -71,6 +74,13 @@ try:
     report["objects"] = sorted(last.get("objects", {}))
     report["maps"] = sorted({l.split()[-1] for l in open("/proc/self/maps") if ".so" in l})
     report["export"] = sorted(bpy.ops.photonlm.export_scene_file(filepath=args["scene_file"]))
+    gltf_path = os.path.join(args["out"], "scene.glb")
+    report["gltf"] = sorted(bpy.ops.photonlm.export_gltf(filepath=gltf_path))
+    import struct
+    data = open(gltf_path, "rb").read()
+    doc = json.loads(data[20:20 + struct.unpack_from("<I", data, 12)[0]])
+    report["gltf_lightmaps"] = sorted((m["extras"]["photonlm_lightmap"]["object"], m["name"])
+                                      for m in doc.get("materials", []) if "MOZ_lightmap" in m.get("extensions", {}))
 except Exception as e:
     import traceback
     report["error"] = traceback.format_exc()
@@ -153,6 +163,11 @@ def main():
 
     checks.check(rep.get("export") == ["FINISHED"] and os.path.isfile(args["scene_file"]),
                  "the scene file was exported")
+    lightmapped = rep.get("gltf_lightmaps", [])
+    checks.check(rep.get("gltf") == ["FINISHED"] and [o for o, _ in lightmapped] == sorted(rep.get("objects", []))
+                 and len({m for _, m in lightmapped}) == 1,
+                 "File > Export > glTF with PhotonLM lightmaps, as the exporter finds the extension's hook: a "
+                 "material copy with MOZ_lightmap per baked object, sharing Blender's material: %s" % lightmapped)
     cli = scenes.cli_path()
     cli_out = os.path.join(out, "cli")
     r = run([cli, "bake", args["scene_file"], "-o", cli_out])

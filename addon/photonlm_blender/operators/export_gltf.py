@@ -36,9 +36,10 @@ class PHOTONLM_OT_export_gltf(bpy.types.Operator, ExportHelper):
             return {'CANCELLED'}
         for note in summary["notes"]:
             self.report({'WARNING'}, note)
-        self.report({'INFO'}, "Exported %d objects with lightmaps (%d textures) to %s (%.1f MB, %.2f s)"
+        size = summary["size"]
+        self.report({'INFO'}, "Exported %d objects with lightmaps (%d textures) to %s (%s, %.2f s)"
                     % (len(summary["objects"]), len(summary["textures"]), summary["path"],
-                       summary["size"] / 1e6, summary["seconds"]))
+                       "%.1f MB" % (size / 1e6) if size >= 1e6 else "%.0f KB" % (size / 1e3), summary["seconds"]))
         return {'FINISHED'}
 
 
