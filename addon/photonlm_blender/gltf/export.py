@@ -54,7 +54,6 @@ class _Export:
         self.lightmaps = lightmaps    # object name -> (bpy image, UV map name, its index in the evaluated mesh)
         self.textures = {}            # image name -> (glTF texture, range, PNG bytes)
         self.materials = {}           # (id of the exporter's material, object name) -> our copy
-        self.meshes = set()           # ids of the glTF meshes given lightmaps
         self.objects = {}             # object name -> names of its materials given the lightmap
         self.notes = []
         self.errors = []
@@ -87,11 +86,11 @@ class _Export:
         image, uv_name, uv_index = entry
         types = compat.gltf_exporter_types(node)
         Extension, _, io = types
-        if id(mesh) in self.meshes:  # shared with another baked object's node: its own copy
-            mesh = copy.copy(mesh)
-            mesh.primitives = [copy.copy(p) for p in mesh.primitives]
-            node.mesh = mesh
-        self.meshes.add(id(mesh))
+        # The node's own copy of the mesh and its primitives (the accessors are shared): the exporter
+        # may give one mesh to several nodes, and the others keep it as it was.
+        mesh = copy.copy(mesh)
+        mesh.primitives = [copy.copy(p) for p in mesh.primitives]
+        node.mesh = mesh
         texture, value_range, _ = self.texture(image, types)
         intensity = IRRADIANCE_PER_TEXEL * value_range
         names = self.objects.setdefault(obj.name, [])
