@@ -30,7 +30,7 @@
 #include "api/handles.h"
 #include "demo_scenes.h"
 #include "lightmap/reconstruct.h"
-#include "transport/control/bake.h"
+#include "transport/context/bake_scene.h"
 #include "transport/film/film.h"
 #include "transport/lights/emitters.h"
 #include "transport/materials/bsdf.h"
@@ -140,20 +140,21 @@ std::vector<double> mirror_reference(uint32_t res) {
 struct Setup {
   const Scene& scene;
   std::vector<std::string> warnings;
-  EmbreeScene accel;
-  TexelSpace space;
+  std::unique_ptr<BakeScene> ctx;
   OlGroups ols;
-  std::vector<Emitter> emitters;
-  MaterialTable lobes;
-  std::vector<ol::OctGrid> grids;
-  float extent;
-  Setup(const Scene& s, unsigned threads) : scene(s), accel(s, threads) {
-    space = build_texel_space(s, warnings);
+  const TexelSpace& space;
+  Setup(const Scene& s, unsigned threads)
+      : scene(s), ctx(std::make_unique<BakeScene>(s, BakeSettings{}, threads)), space(ctx->space) {
+    ctx->accel = std::make_unique<EmbreeScene>(s, threads);
+    ctx->rtc = ctx->accel->handle();
+    ctx->space = build_texel_space(s, warnings);
     ols = build_ol_groups(s, warnings);
-    const Vec3 lo = accel.bounds_min(), hi = accel.bounds_max();
-    extent = length(hi - lo);
-    emitters = build_emitters(s, (lo + hi) * 0.5f, 0.5f * extent * 1.01f);
-    lobes = MaterialTable(s);
+    ctx->ol_views = ols.views;
+    const Vec3 lo = ctx->accel->bounds_min(), hi = ctx->accel->bounds_max();
+    ctx->extent = length(hi - lo);
+    ctx->emitters = build_emitters(s, (lo + hi) * 0.5f, 0.5f * ctx->extent * 1.01f);
+    ctx->lobes = MaterialTable(s);
+    ctx->caustics = ctx->lobes.any_lobes();
   }
 };
 
@@ -168,11 +169,11 @@ struct Traced {
 
 // Traces `photons` photons (seed), keeping the receiver's caustic sums and, with points, the hits' points.
 Traced trace(Setup& st, uint32_t receiver, uint64_t photons, uint32_t seed, bool points, tbb::task_arena& arena) {
-  plm_bake_settings settings = default_settings();
+  BakeSettings& settings = st.ctx->settings;
   settings.seed = seed;
   settings.photon_count = photons;
-  PhotonTracer tracer(st.scene, st.accel.handle(), st.space.views, st.space.csg_views, st.ols.views, st.emitters,
-                      settings, st.extent, 1, st.grids, nullptr, &st.lobes);
+  settings.decide(st.scene);
+  PhotonTracer tracer(*st.ctx);
   tracer.keep_caustic_points(points);
   const MeshView& v = st.space.views[receiver];
   const size_t n = size_t(v.mesh->lightmap_width) * v.mesh->lightmap_height;

@@ -13,9 +13,10 @@
 
 #include "accel/embree_scene.h"
 #include "api/handles.h"
+#include "api/settings.h"
 #include "demo_scenes.h"
 #include "test_support.h"
-#include "transport/control/bake.h"
+#include "transport/control/stages.h"
 #include "transport/direct/direct.h"
 #include "transport/direct/direct_pool.h"
 #include "transport/direct/direct_rounds.h"
@@ -37,28 +38,26 @@ void open_scene(SceneBuilder& b, bool sun, bool sky, bool portal = false, uint32
 
 // The direct pass of a scene as the bake runs it, with `samples` a texel.
 struct Direct {
+  std::unique_ptr<BakeScene> ctx;  // what space's views point into
   DirectResult result;
   TexelSpace space;
 };
 Direct direct_pass(SceneBuilder& b, uint32_t samples, uint32_t seed, double target = 0.0) {
-  const Scene& scene = b.scene->scene;
   plm_bake_settings s = default_settings();
   s.direct_samples = samples;
   s.seed = seed;
   s.target_error = target;
   s.thread_count = 2;
-  std::vector<std::string> warnings;
+  Scene& scene = b.scene->scene;
+  const ProgressFn none;
+  BakeRun run(none);
   Direct d;
-  tbb::task_arena arena(2);
-  arena.execute([&] { d.space = build_texel_space(scene, warnings); });
-  EmbreeScene accel(scene, 2);
-  const float extent = length(accel.bounds_max() - accel.bounds_min());
-  const std::vector<Emitter> emitters =
-      build_emitters(scene, photon_footprint(scene, accel.bounds_min(), accel.bounds_max()));
-  const SurfaceMap surfaces = surface_map(scene, d.space.views);
-  const DirectPass pass(accel.handle(), surfaces, d.space.views, d.space.csg_views, d.space.areas, emitters, s, extent);
+  d.ctx = set_up(scene, check_bake(scene, api::engine_settings(s, scene), run), run);
+  for (MeshView& v : d.ctx->space.views) v.contact = nullptr;  // every point open, faces in contact too
+  const DirectPass pass(*d.ctx);
   const DirectControl control{[](double) {}, [] { return false; }, nullptr};
-  d.result = run_direct_pass(arena, pass, d.space, s, control);
+  d.result = run_direct_pass(d.ctx->arena, pass, d.ctx->space, d.ctx->settings, control);
+  d.space = std::move(d.ctx->space);
   return d;
 }
 

@@ -12,6 +12,7 @@
 
 #include "accel/embree_scene.h"
 #include "api/handles.h"
+#include "api/settings.h"
 #include "demo_scenes.h"
 #include "test_support.h"
 #include "transport/film/film.h"
@@ -26,19 +27,30 @@ using plm_demo::SceneBuilder;
 // The open scene's meshes with made-up radiosity to look up: the ground
 // brighter along x, the box uniform; `error` the error every texel reports
 // (local; none wide).
+// A context with the Embree scene and the texel space, no lights: what the
+// gather reads.
+std::unique_ptr<BakeScene> gather_context(const Scene& scene, const plm_bake_settings& s) {
+  auto ctx = std::make_unique<BakeScene>(scene, api::engine_settings(s, scene), 2);
+  std::vector<std::string> warnings;
+  ctx->arena.execute([&] { ctx->space = build_texel_space(scene, warnings); });
+  ctx->accel = std::make_unique<EmbreeScene>(scene, 2);
+  ctx->rtc = ctx->accel->handle();
+  ctx->extent = length(ctx->accel->bounds_max() - ctx->accel->bounds_min());
+  ctx->surfaces = surface_map(scene, ctx->space.views);
+  return ctx;
+}
+
 struct GatherScene {
   SceneBuilder b;
-  TexelSpace space;
+  std::unique_ptr<BakeScene> ctx;
   std::vector<std::vector<float>> images, local, wide;
   std::vector<std::vector<Vec3>> albedo;
   std::vector<uint8_t> back_lit;
 
   explicit GatherScene(float error) {
     plm_test::open_scene(b);
-    const Scene& scene = b.scene->scene;
-    std::vector<std::string> warnings;
-    tbb::task_arena arena(2);
-    arena.execute([&] { space = build_texel_space(scene, warnings); });
+    ctx = gather_context(b.scene->scene, plm_test::settings_with(0, 16));
+    const TexelSpace& space = ctx->space;
     for (const MeshView& v : space.views) {
       const uint32_t w = v.mesh->lightmap_width, h = v.mesh->lightmap_height;
       std::vector<float> img(4 * size_t(w) * h, 0.0f);
@@ -53,16 +65,10 @@ struct GatherScene {
   }
 
   GatherResult gather(uint32_t seed, uint32_t samples) const {
-    const Scene& scene = b.scene->scene;
-    plm_bake_settings s = plm_test::settings_with(0, 16);
-    s.seed = seed;
-    EmbreeScene accel(scene, 2);
-    const float extent = length(accel.bounds_max() - accel.bounds_min());
-    const SurfaceMap surfaces = surface_map(scene, space.views);
-    const FinalGather fg(accel.handle(), surfaces, space.views, space.areas, s, extent);
-    tbb::task_arena arena(2);
+    ctx->settings.seed = seed;
+    const FinalGather fg(*ctx);
     OpenShares open;
-    return run_final_gather(arena, fg, space, images, local, wide, albedo, back_lit.data(), open, samples,
+    return run_final_gather(*ctx, fg, {images, local, wide, albedo, back_lit.data()}, open, samples,
                             [] { return true; });
   }
 };
@@ -75,7 +81,7 @@ TEST(FinalGather, CalibratedVarianceMatchesTheSpreadOverSeeds) {
   GatherScene g(0.0f);
   ASSERT_TRUE(g.b.ok()) << g.b.error;
   constexpr int kSeeds = 24;
-  const size_t n = g.space.covered.size();
+  const size_t n = g.ctx->space.covered.size();
   std::vector<double> sum(n, 0.0), sum_sq(n, 0.0), estimated(n, 0.0), pairs(n, 0.0);
   double scale_sum = 0.0;
   for (int seed = 0; seed < kSeeds; ++seed) {
@@ -113,7 +119,7 @@ TEST(FinalGather, LookupErrorStatisticsBracketTheSpread) {
   GatherScene g(kError);
   ASSERT_TRUE(g.b.ok()) << g.b.error;
   const GatherResult base = g.gather(1, 16);
-  const size_t n = g.space.covered.size();
+  const size_t n = g.ctx->space.covered.size();
   double all = 0.0, cells = 0.0, rays = 0.0;
   for (const GatherInfo& i : base.info) all += i.lookup_all, cells += i.lookup_cells, rays += i.lookup_rays;
   ASSERT_GT(rays, 0.0);
@@ -129,7 +135,7 @@ TEST(FinalGather, LookupErrorStatisticsBracketTheSpread) {
     for (int trial = 0; trial < kTrials; ++trial) {
       const float offset = noise(gen);
       for (size_t i = 0; i < g.images.size(); ++i) {
-        const uint32_t w = g.space.views[i].mesh->lightmap_width;
+        const uint32_t w = g.ctx->space.views[i].mesh->lightmap_width;
         std::vector<float> cell_noise(size_t(w / 5 + 1) * (g.images[i].size() / 4 / w / 5 + 1));
         for (float& c : cell_noise) c = noise(gen);
         for (size_t t = 0; 4 * t < g.images[i].size(); ++t) {
@@ -172,20 +178,14 @@ namespace {
 // share times the texel's area): under a box standing on it, 1 m^2.
 double closed_ground_area(const SceneBuilder& b, bool with_contact, std::vector<uint8_t> back_lit, double* far_min) {
   const Scene& scene = b.scene->scene;
-  std::vector<std::string> warnings;
-  TexelSpace space;
-  tbb::task_arena arena(2);
-  arena.execute([&] { space = build_texel_space(scene, warnings); });
-  EmbreeScene accel(scene, 2);
-  const float extent = length(accel.bounds_max() - accel.bounds_min());
-  const SurfaceMap surfaces = surface_map(scene, space.views);
-  std::vector<std::vector<uint8_t>> contact;
+  const std::unique_ptr<BakeScene> ctx = gather_context(scene, plm_test::settings_with(0, 16));
+  TexelSpace& space = ctx->space;
   if (with_contact) {
-    contact = contact_candidates(accel.handle(), scene, space.views, surfaces, 1e-6f * extent);
+    ctx->contact = contact_candidates(ctx->rtc, scene, space.views, ctx->surfaces, 1e-6f * ctx->extent);
     for (size_t i = 0; i < space.views.size(); ++i)
-      if (!contact[i].empty()) space.views[i].contact = contact[i].data();
+      if (!ctx->contact[i].empty()) space.views[i].contact = ctx->contact[i].data();
   }
-  const FinalGather fg(accel.handle(), surfaces, space.views, space.areas, plm_test::settings_with(0, 16), extent);
+  const FinalGather fg(*ctx);
   const MeshView& ground = space.views[0];
   double closed = 0.0;
   *far_min = 1.0;

@@ -33,6 +33,7 @@ LAYERS = (
     "transport/lights",
     "transport/materials",
     "transport/rays",
+    "transport/context",
     "transport/photons",
     "transport/film",
     "transport/direct",
@@ -40,6 +41,7 @@ LAYERS = (
     "transport/output",
     "transport/farm",
     "transport/control",
+    "transport/jobs",
     "api",
     "io",
 )

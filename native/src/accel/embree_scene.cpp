@@ -36,7 +36,7 @@ void EmbreeScene::build(const Scene& scene, unsigned thread_count) {
   size_t triangles = 0;
   for (const Mesh& mesh : scene.meshes) triangles += mesh.triangle_count();
   rtcSetSceneBuildQuality(scene_, triangles >= kHighQualityTriangles ? RTC_BUILD_QUALITY_HIGH : RTC_BUILD_QUALITY_MEDIUM);
-  // Rays skip the triangle they leave through a context filter (see transport/control/bake.cpp).
+  // Rays skip the triangle they leave through a context filter (transport/rays/tracing.h, TraceContext).
   rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
   for (size_t id = 0; id < scene.meshes.size(); ++id) {
     const Mesh& mesh = scene.meshes[id];

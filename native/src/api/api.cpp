@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "api/handles.h"
+#include "api/settings.h"
 #include "api/struct_size.h"
 #include "lsystem/lsystem_object.h"
 #include "photonlm/photonlm.h"
@@ -16,9 +17,8 @@
 #include "subdiv/limit_area.h"
 #include "subdiv/subdiv.h"
 #include "transport/control/bake.h"
+#include "transport/jobs/bake_jobs.h"
 #include "transport/farm/partial_file.h"
-#include "transport/farm/shard.h"
-#include "transport/farm/texel_ranges.h"
 #include "util/error.h"
 #include "util/image_file.h"
 
@@ -137,7 +137,7 @@ plm_status run_bake(const char* function, plm_scene* scene, const plm_bake_setti
       };
     auto* result = new plm_result();
     try {
-      result->output = plm::bake(scene->scene, s, fn, &hook);
+      result->output = plm::bake(scene->scene, plm::api::engine_settings(s, scene->scene), fn, &hook);
     } catch (...) {
       delete result;
       throw;
@@ -165,42 +165,10 @@ plm::subdiv::Cage make_cage(const float* positions, uint32_t vertex_count, const
   return cage;
 }
 
-// Bakes a shard's or texel range's job (index of count) and hands write the
-// header of its part (engine, scene, settings without the thread count,
-// layout, scene path); progress ends at 1 once write has written the file.
-void bake_part(plm_scene* scene, const plm_bake_settings& s, plm::ShardJob& job, const char* scene_path,
-               plm_progress_fn progress, void* user_data, const std::function<void(plm::PartHeader&)>& write) {
-  plm::ProgressFn fn;
-  if (progress) fn = [&](double f, const char* stage) { return progress(user_data, f, stage) != 0; };
-  plm::bake(scene->scene, s, fn, nullptr, &job);
-  plm::PartHeader h;
-  h.engine_version = plm_version();
-  h.scene_hash = job.layout.scene_hash;
-  h.settings = s;
-  h.settings.thread_count = 0;
-  h.shard_index = job.index;
-  h.shard_count = job.count;
-  h.layout = job.layout;
-  h.scene_path = scene_path ? scene_path : "";
-  write(h);
-  if (fn) fn(1.0, "done");
-}
-
-// The bake's settings from a part's header, with the caller's thread count.
-plm_bake_settings settings_of(const plm::PartHeader& h, uint32_t thread_count) {
-  plm_bake_settings s = plm::default_settings();
-  s.photon_count = h.settings.photon_count;
-  s.max_bounces = h.settings.max_bounces;
-  s.seed = h.settings.seed;
-  s.direct_samples = h.settings.direct_samples;
-  s.filter_radius = h.settings.filter_radius;
-  s.dilation = h.settings.dilation;
-  s.texel_value = h.settings.texel_value;
-  s.sampler = h.settings.sampler;
-  s.target_error = 0.0;
-  s.time_budget = 0.0;
-  s.thread_count = thread_count;
-  return s;
+// The host's progress callback as the engine's (empty without one).
+plm::ProgressFn progress_fn(plm_progress_fn progress, void* user_data) {
+  if (!progress) return {};
+  return [progress, user_data](double f, const char* stage) { return progress(user_data, f, stage) != 0; };
 }
 
 std::vector<std::string> part_list(const char* fn, const char* const* part_paths, uint32_t part_count) {
@@ -520,13 +488,10 @@ plm_status plm_bake_shard(plm_scene* scene, const plm_bake_settings* settings, u
                 ": expected 0 <= shard < shard_count");
     if (scene_path && std::strlen(scene_path) > 255)
       plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_bake_shard: scene_path is longer than 255 bytes");
-    const plm_bake_settings s = settings_or_default(settings, "plm_bake_shard");
-    plm::ShardJob job;
-    job.mode = plm::ShardJob::kTrace;
-    job.index = shard;
-    job.count = shard_count;
-    bake_part(scene, s, job, scene_path, progress, user_data,
-              [&](plm::PartHeader& h) { plm::write_part_file(part_path, h, job.segments); });
+    const plm::BakeSettings s =
+        plm::api::engine_settings(settings_or_default(settings, "plm_bake_shard"), scene->scene);
+    plm::bake_shard(scene->scene, s, shard, shard_count, {scene_path ? scene_path : "", part_path},
+                    progress_fn(progress, user_data));
   });
 }
 
@@ -545,35 +510,18 @@ plm_status plm_bake_texels(plm_scene* scene, const plm_bake_settings* settings, 
     if (scene_path && std::strlen(scene_path) > 255)
       plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_bake_texels: scene_path is longer than 255 bytes");
     const std::vector<std::string> paths = part_list("plm_bake_texels", part_paths, part_count);
-    plm::ShardJob job;
-    job.mode = stage == PLM_TEXELS_DIRECT ? plm::ShardJob::kDirect : plm::ShardJob::kGather;
-    job.index = range;
-    job.count = range_count;
-    plm_bake_settings s = settings_or_default(settings, "plm_bake_texels");
-    double direct_target = s.target_error;
+    const plm::PartTarget target{scene_path ? scene_path : "", part_path};
+    const plm_bake_settings s = settings_or_default(settings, "plm_bake_texels");
     if (stage == PLM_TEXELS_GATHER) {
-      const plm::PartHeader first = plm::load_parts(paths, plm_version(), plm::scene_hash(scene->scene), job);
-      s = settings_of(first, s.thread_count);
-      direct_target = job.direct_target;
-    } else if (part_count > 0) {
+      plm::bake_gather_range(scene->scene, s.thread_count, range, range_count, paths, target,
+                             progress_fn(progress, user_data));
+      return;
+    }
+    if (part_count > 0)
       plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_bake_texels: the direct pass of a texel range reads no parts (",
                 part_count, " given)");
-    }
-    bake_part(scene, s, job, scene_path, progress, user_data, [&](plm::PartHeader& h) {
-      h.settings.target_error = 0.0;
-      const plm::CoveredSlice slice = plm::texel_range(job.layout.covered, range, range_count);
-      h.range_begin = slice.begin;
-      h.range_end = slice.end;
-      h.direct_target = direct_target;
-      if (stage == PLM_TEXELS_DIRECT) {
-        h.kind = plm::PartKind::kDirect;
-        plm::write_direct_part(part_path, h, job.direct.at(0));
-      } else {
-        h.kind = plm::PartKind::kGather;
-        h.gathered = job.gathered;
-        plm::write_gather_part(part_path, h, job.gather.at(0));
-      }
-    });
+    plm::bake_direct_range(scene->scene, plm::api::engine_settings(s, scene->scene), range, range_count, target,
+                           progress_fn(progress, user_data));
   });
 }
 
@@ -583,8 +531,7 @@ plm_status plm_part_info(const char* part_path, plm_bake_settings* out_settings,
     require(part_path, "plm_part_info", "part_path");
     const plm::PartHeader h = plm::read_part_header(part_path);
     if (out_settings) {
-      plm_bake_settings s = h.settings;
-      s.struct_size = uint32_t(sizeof s);
+      const plm_bake_settings s = plm::api::c_settings(h.settings);
       plm::api::write_sized(out_settings, s, "plm_part_info", "out_settings");
     }
     if (out_shard) *out_shard = h.shard_index;
@@ -604,15 +551,9 @@ plm_status plm_bake_merge(plm_scene* scene, const char* const* part_paths, uint3
     require(out_result, "plm_bake_merge", "out_result");
     *out_result = nullptr;
     const std::vector<std::string> paths = part_list("plm_bake_merge", part_paths, part_count);
-    plm::ShardJob job;
-    scene->scene.refine_cages(thread_count);  // the hash is of the refined triangles, as the shards' were
-    const plm::PartHeader h = plm::load_parts(paths, plm_version(), plm::scene_hash(scene->scene), job);
-    const plm_bake_settings s = settings_of(h, thread_count);
-    plm::ProgressFn fn;
-    if (progress) fn = [&](double f, const char* stage) { return progress(user_data, f, stage) != 0; };
     auto* result = new plm_result();
     try {
-      result->output = plm::bake(scene->scene, s, fn, nullptr, &job);
+      result->output = plm::bake_merge(scene->scene, paths, thread_count, progress_fn(progress, user_data));
     } catch (...) {
       delete result;
       throw;

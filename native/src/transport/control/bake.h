@@ -1,3 +1,6 @@
+// What a bake returns, and its progress callback. The bake itself is a
+// composition of stages (transport/jobs/bake_jobs.h, transport/control/stages.h).
+//
 // The photon-lightmap bake ([Thesis §3.5.2]): photons leave the lights in
 // proportion to their power, bounce diffusely with Russian roulette, and every
 // hit on a lightmapped surface adds its flux to the texel it lands in. A texel
@@ -34,21 +37,5 @@ struct BakeOutput {
 
 // Returns false to cancel. Called from the baking thread only.
 using ProgressFn = std::function<bool(double fraction, const char* stage)>;
-
-plm_bake_settings default_settings();
-
-struct PreviewHook;  // live_preview.h
-struct ShardJob;     // transport/farm/shard.h
-
-// Throws plm::Error on invalid input and PLM_ERROR_CANCELLED on cancel.
-// preview (may be null): snapshots of the lightmaps while the bake runs.
-// With a shard job the bake is one part of a sharded bake (transport/farm/shard.h):
-// kTrace traces the shard's photon batches into job->segments and returns
-// after them (no direct pass, no outputs); kMerge takes every shard's
-// segments instead of tracing photons and bakes the rest as usual.
-// The scene's pending subdivision cages are refined first (Scene::refine_cages,
-// counted in the set-up time).
-BakeOutput bake(Scene& scene, const plm_bake_settings& settings, const ProgressFn& progress,
-                const PreviewHook* preview = nullptr, ShardJob* job = nullptr);
 
 }  // namespace plm

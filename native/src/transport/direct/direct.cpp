@@ -57,16 +57,15 @@ double DirectSums::phantom_variance_of_mean(const DirectNoise& noise) const {
   return noise.scale * (typical - m) * (typical - m) / (n * n);
 }
 
-DirectPass::DirectPass(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
-                       const std::vector<CsgView>& csgs, const std::vector<TexelAreas>& areas,
-                       const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent,
-                       const TextureSet* textures, const PassageTracer* passage)
-    : rtc_(rtc), surfaces_(surfaces), views_(views), csgs_(csgs), emitters_(emitters), textures_(textures),
-      passage_(passage),
-      points_(views, areas, settings), seed_(settings.seed), sobol_(settings.sampler != PLM_SAMPLER_RANDOM),
-      offset_scale_(1e-6f * scene_extent), table_(emitters),
-      all_lights_(emitters.size() <= kAllLights),
-      local_choice_(!all_lights_ && emitters.size() <= kMaxLocalChoice) {
+DirectPass::DirectPass(const BakeScene& ctx)
+    : rtc_(ctx.rtc), surfaces_(ctx.surfaces), views_(ctx.space.views), csgs_(ctx.space.csg_views),
+      emitters_(ctx.emitters), textures_(ctx.textures.get()), passage_(ctx.passage.get()),
+      points_(ctx.space.views, ctx.space.areas, ctx.settings), seed_(ctx.settings.seed), sobol_(ctx.settings.sobol),
+      offset_scale_(1e-6f * ctx.extent), table_(ctx.emitters),
+      all_lights_(ctx.emitters.size() <= kAllLights),
+      local_choice_(!all_lights_ && ctx.emitters.size() <= kMaxLocalChoice) {
+  const std::vector<Emitter>& emitters = ctx.emitters;
+  const std::vector<MeshView>& views = ctx.space.views;
   if (!all_lights_ && emitters.size() <= kCandidates)
     for (uint32_t k = 0; k < emitters.size(); ++k) all_candidates_.push_back(k);
   is_sky_.assign(emitters.size(), 0);

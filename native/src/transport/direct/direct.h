@@ -10,6 +10,7 @@
 
 #include "lightmap/texel_area.h"
 #include "scene/texture.h"
+#include "transport/context/bake_scene.h"
 #include "transport/direct/stratified_sums.h"
 #include "transport/direct/texel_points.h"
 #include "transport/lights/emitters.h"
@@ -59,10 +60,7 @@ struct DirectSums : StratifiedSums {
 
 class DirectPass {
  public:
-  DirectPass(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
-             const std::vector<CsgView>& csgs, const std::vector<TexelAreas>& areas,
-             const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent,
-             const TextureSet* textures = nullptr, const PassageTracer* passage = nullptr);
+  explicit DirectPass(const BakeScene& ctx);
 
   // Adds `samples` (rounded up to a square) stratified samples of round `round`
   // to texel `texel` of mesh `mesh`; mesh = mesh count + c means sub-texel

@@ -106,7 +106,7 @@ void calibrate(const std::vector<DirectCalibration>& records, DirectNoise& noise
 }
 
 DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, const TexelSpace& space,
-                             const plm_bake_settings& settings, const DirectControl& control, CoveredSlice slice) {
+                             const BakeSettings& settings, const DirectControl& control, CoveredSlice slice) {
   const std::vector<CoveredTexel>& covered = space.covered;
   DirectResult out;
   std::vector<DirectSums>& direct = out.sums;
@@ -125,7 +125,7 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
   std::vector<DirectTexelNoise> noise(direct.size());
   const bool whole = slice.begin == 0 && slice.end == covered.size();
   const WholeEstimate aim =
-      settings.target_error > 0.0 && !whole ? estimate_whole(arena, pass, covered, schedule.first()) : WholeEstimate();
+      settings.targeted() && !whole ? estimate_whole(arena, pass, covered, schedule.first()) : WholeEstimate();
   for (uint32_t round = 0; round < rounds && !todo.empty(); ++round) {
     run_in_groups(
         arena, todo.size(), 64,
@@ -145,7 +145,7 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
     for (const DirectSums& d : direct) mean += d.mean();
     mean /= double(std::max<size_t>(direct.size(), 1));
     out.noise.typical = typical_sample(direct);
-    if (round == 0 && settings.sampler != PLM_SAMPLER_RANDOM) {
+    if (round == 0 && settings.sobol) {
       out.calibration = calibrate_direct(arena, pass, covered, slice.begin, direct,
                                          probing ? schedule.probe() : schedule.first());
       calibrate(out.calibration, out.noise);

@@ -60,7 +60,7 @@ struct DirectControl {
 // relative to an estimate of the whole's mean (whole_mean in the .cpp), so
 // that slices each under it put the whole under it.
 DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, const TexelSpace& space,
-                             const plm_bake_settings& settings, const DirectControl& control,
+                             const BakeSettings& settings, const DirectControl& control,
                              CoveredSlice slice = {});
 
 // true / pair-difference variance from calibration records in order (1 with

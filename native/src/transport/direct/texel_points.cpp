@@ -34,8 +34,8 @@ Vec3 shading_normal_at(const Mesh& mesh, uint32_t tri, Vec3 p, Vec3 geometric) {
 }
 
 TexelPoints::TexelPoints(const std::vector<MeshView>& views, const std::vector<TexelAreas>& areas,
-                         const plm_bake_settings& settings)
-    : views_(views), areas_(areas), cycles_window_(settings.texel_value == PLM_TEXEL_CYCLES) {}
+                         const BakeSettings& settings)
+    : views_(views), areas_(areas), cycles_window_(settings.cycles_window) {}
 // The surface point at texel coordinates (x, y) (texel units), if a triangle covers it.
 bool TexelPoints::surface_point(uint32_t mesh_id, uint32_t texel, float x, float y, Vec3& p, Vec3& n,
                                uint32_t& tri) const {

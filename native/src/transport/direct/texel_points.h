@@ -10,6 +10,7 @@
 
 #include "lightmap/texel_area.h"
 #include "photonlm/photonlm.h"
+#include "transport/plan/settings.h"
 #include "transport/rays/tracing.h"
 
 namespace plm {
@@ -21,7 +22,7 @@ Vec3 shading_normal_at(const Mesh& mesh, uint32_t tri, Vec3 p, Vec3 geometric);
 class TexelPoints {
  public:
   TexelPoints(const std::vector<MeshView>& views, const std::vector<TexelAreas>& areas,
-              const plm_bake_settings& settings);
+              const BakeSettings& settings);
 
   // Where a texel's sample points lie: its strata cover the texel (origin,
   // side per stratum), or with PLM_TEXEL_CYCLES its central half if a

@@ -128,7 +128,7 @@ void encode_header(const PartHeader& h, uint64_t payload_bytes, uint64_t payload
   c.put(uint32_t(kPartHeaderBytes));
   c.put_chars(h.engine_version, kVersionChars);
   c.put(h.scene_hash);
-  const plm_bake_settings& s = h.settings;
+  const BakeSettings& s = h.settings;
   c.put(uint64_t(s.photon_count));
   for (uint32_t v : {s.max_bounces, s.seed, s.direct_samples, s.filter_radius, s.dilation, s.texel_value, s.sampler})
     c.put(v);
@@ -171,7 +171,7 @@ PartHeader decode_header(unsigned char* buf, const std::string& path, uint64_t& 
   PartHeader h;
   h.engine_version = c.get_chars(kVersionChars);
   h.scene_hash = c.get<uint64_t>();
-  plm_bake_settings& s = h.settings;
+  BakeSettings& s = h.settings;
   s.photon_count = c.get<uint64_t>();
   for (uint32_t* v : {&s.max_bounces, &s.seed, &s.direct_samples, &s.filter_radius, &s.dilation, &s.texel_value,
                       &s.sampler})
@@ -524,7 +524,7 @@ PartHeader read_part_file(const std::string& path, std::vector<PhotonSegment>& s
 
 std::string part_mismatch(const PartHeader& a, const PartHeader& b) {
   // b's value first: the message is about b ("its seed 8 against 7").
-  const plm_bake_settings &s = a.settings, &t = b.settings;
+  const BakeSettings &s = a.settings, &t = b.settings;
   auto against = [](const std::string& what, auto mine, auto theirs) {
     return what + " " + std::to_string(mine) + " against " + std::to_string(theirs);
   };

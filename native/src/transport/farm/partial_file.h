@@ -46,7 +46,7 @@ enum class PartKind : uint32_t { kPhotons = 0, kDirect = 1, kGather = 2 };
 struct PartHeader {
   std::string engine_version;   // plm_version(), at most 15 characters
   uint64_t scene_hash = 0;
-  plm_bake_settings settings{};  // thread_count, target_error and time_budget are not kept (0)
+  BakeSettings settings;  // thread_count, target_error and time_budget are not kept (0)
   uint32_t shard_index = 0, shard_count = 0;  // the shard, or the texel range, and their count
   ShardLayout layout;            // batch, texel and mesh counts, caustics, quantum (layout.scene_hash unused)
   uint32_t segment_count = 0;

@@ -74,10 +74,10 @@ std::vector<std::pair<uint64_t, uint64_t>> shard_segments(uint64_t first, uint64
   return out;
 }
 
-void trace_shard(tbb::task_arena& arena, const PhotonTracer& tracer, unsigned threads, uint64_t cap,
-                 const Accumulators& shape, ShardJob& job, const std::function<void(double)>& progress) {
-  const auto [first, last] = shard_batches(job.layout.batch_count, job.index, job.count);
-  job.segments.clear();
+std::vector<PhotonSegment> trace_segments(tbb::task_arena& arena, const PhotonTracer& tracer, unsigned threads,
+                                          uint64_t cap, const Accumulators& shape, uint64_t first, uint64_t last,
+                                          const std::function<void(double)>& progress) {
+  std::vector<PhotonSegment> segments;
   const uint64_t total = last - first;
   uint64_t done = 0;
   for (const auto& [begin, end] : shard_segments(first, last)) {
@@ -102,18 +102,18 @@ void trace_shard(tbb::task_arena& arena, const PhotonTracer& tracer, unsigned th
           return true;
         });
     done += end - begin;
-    job.segments.push_back(std::move(seg));
+    segments.push_back(std::move(seg));
   }
+  return segments;
 }
 
-ShardLayout shard_layout(const Scene& scene, const plm_bake_settings& settings, const TexelSpace& space,
+ShardLayout shard_layout(const Scene& scene, const BakeSettings& settings, const TexelSpace& space,
                          const Accumulators& acc) {
-  const uint64_t cap = settings.photon_count ? settings.photon_count : (uint64_t(1) << 40);
-  return {scene_hash(scene),  (cap + kBatchPhotons - 1) / kBatchPhotons, space.texel_count, space.covered.size(),
+  return {scene_hash(scene),  (settings.photon_cap + kBatchPhotons - 1) / kBatchPhotons, space.texel_count, space.covered.size(),
           uint32_t(scene.meshes.size()), !acc.caustic.empty(), acc.quantum};
 }
 
-void check_shardable(const Scene& scene, const plm_bake_settings& s, ShardJob::Mode mode) {
+void check_shardable(const Scene& scene, const BakeSettings& s, ShardJob::Mode mode) {
   if (s.time_budget > 0.0)
     fail(PLM_ERROR_INVALID_ARGUMENT, "a sharded bake cannot have a time budget (", s.time_budget,
          " s): its photon count would depend on each machine's speed; set a photon count instead");

@@ -20,6 +20,7 @@
 #include "transport/direct/direct_rounds.h"
 #include "transport/film/film.h"
 #include "transport/gather/final_gather.h"
+#include "transport/plan/settings.h"
 
 namespace plm {
 
@@ -43,7 +44,7 @@ struct ShardLayout {
   FluxQuantum quantum;
 };
 
-// One part of a sharded bake (transport/control/bake.h bake(..., job)): kTrace traces a
+// One part of a sharded bake (transport/jobs/bake_jobs.h): kTrace traces a
 // shard's photons; kDirect runs the direct pass of a texel range, kGather the
 // final gather of one over the photon and direct parts
 // (transport/farm/texel_ranges.h); kMerge bakes the rest from every part.
@@ -60,17 +61,18 @@ struct ShardJob {
   std::vector<GatherResult> gather;
   bool gathered = false;                // kGather: the bake has a final gather (else its part holds no texels)
   double direct_target = 0.0;           // kMerge, kGather: the direct parts' target error (0: none)
-  ShardLayout layout;                   // set by the bake
+  ShardLayout layout;                   // the bake's (shard_layout); the parts' (load_parts)
 };
 
 class PhotonTracer;
 
-// Traces the batches of shard job.index of job.count (of job.layout's batch
-// count, photons [0, cap)) into job.segments, each summed into accumulators
-// shaped as `shape` (texels, meshes, caustics, quantum). progress(fraction)
-// is called on this thread after each group of batches.
-void trace_shard(tbb::task_arena& arena, const PhotonTracer& tracer, unsigned threads, uint64_t cap,
-                 const Accumulators& shape, ShardJob& job, const std::function<void(double)>& progress);
+// Traces batches [first, last) (of photons [0, cap)) as shard_segments cuts
+// them, each summed into accumulators shaped as `shape` (texels, meshes,
+// caustics, quantum). progress(fraction) is called on this thread after each
+// group of batches.
+std::vector<PhotonSegment> trace_segments(tbb::task_arena& arena, const PhotonTracer& tracer, unsigned threads,
+                                          uint64_t cap, const Accumulators& shape, uint64_t first, uint64_t last,
+                                          const std::function<void(double)>& progress);
 
 // Batches [first, last) of shard k of n over `batches` batches (contiguous,
 // sizes differing by at most one, in shard order).
@@ -83,10 +85,10 @@ std::vector<std::pair<uint64_t, uint64_t>> shard_segments(uint64_t first, uint64
 // bake cannot be split: no photon pass, a time budget or a target error (the photon count
 // then depends on timing or on the estimate; a texel range's direct pass may
 // have a target), OL groups and L-system objects; texel ranges without a direct pass.
-void check_shardable(const Scene& scene, const plm_bake_settings& settings, ShardJob::Mode mode = ShardJob::kTrace);
+void check_shardable(const Scene& scene, const BakeSettings& settings, ShardJob::Mode mode = ShardJob::kTrace);
 
 // The layout of a bake of `scene` with these settings, texels and sums.
-ShardLayout shard_layout(const Scene& scene, const plm_bake_settings& settings, const TexelSpace& space,
+ShardLayout shard_layout(const Scene& scene, const BakeSettings& settings, const TexelSpace& space,
                          const Accumulators& acc);
 
 // A 64-bit hash of what the photon pass reads from the scene: geometry, UVs,

@@ -13,11 +13,6 @@ CoveredSlice texel_range(size_t covered, uint32_t k, uint32_t n) {
   return {at(k), at(uint64_t(k) + 1)};
 }
 
-CoveredSlice job_slice(const ShardJob* job, ShardJob::Mode mode, size_t covered) {
-  if (!job || job->mode != mode) return {};
-  return texel_range(covered, job->index, job->count);
-}
-
 DirectResult join_direct(std::vector<DirectResult>& ranges, uint32_t sampler, const TexelSpace& space) {
   const size_t covered = space.covered.size();
   DirectResult out;

@@ -23,10 +23,6 @@ namespace plm {
 // Covered texels of range k of n: contiguous, sizes differing by at most one.
 CoveredSlice texel_range(size_t covered, uint32_t k, uint32_t n);
 
-// The slice the bake's direct pass (mode kDirect) or final gather (kGather)
-// covers: the job's texel range in that mode, else every covered texel.
-CoveredSlice job_slice(const ShardJob* job, ShardJob::Mode mode, size_t covered);
-
 // Every range's direct pass (in range order, moved from) as one machine's:
 // the sums in order, the calibration's scale from all its texels in order
 // (1 with the random sampler), the phantom sample as the last round computed

@@ -1,8 +1,6 @@
-// The bake's film: every lightmap texel in one global index (meshes with
-// texels of their own, mesh after mesh, then CSG solids' sub-texels), the
-// covered texels in that order (the direct pass and the final gather work
-// through these), and the photon sums per texel, exact in any order of
-// addition so that they never depend on the thread count.
+// The bake's film: the photon sums per texel of the global texel index
+// (transport/context/texel_space.h), exact in any order of addition so that
+// they never depend on the thread count.
 #pragma once
 
 #include <tbb/parallel_for.h>
@@ -14,38 +12,13 @@
 #include <string>
 #include <vector>
 
-#include "csg/csg_lightmap.h"
 #include "lightmap/texel_area.h"
 #include "scene/scene.h"
+#include "transport/context/texel_space.h"
 #include "transport/photons/photon_tracer.h"
 #include "transport/rays/tracing.h"
 
 namespace plm {
-
-// A texel that holds a value (area > 0). mesh >= the mesh count means
-// sub-texel `texel` of CSG solid mesh - mesh count.
-struct CoveredTexel {
-  uint32_t mesh, texel;  // local texel of that mesh
-};
-
-// Covered texels [begin, end) in the covered order: all of them by default,
-// one texel range of a sharded bake otherwise (transport/farm/texel_ranges.h).
-struct CoveredSlice {
-  size_t begin = 0, end = SIZE_MAX;
-  CoveredSlice clamped(size_t covered) const { return {std::min(begin, covered), std::min(end, covered)}; }
-  size_t size() const { return end - begin; }
-};
-
-struct TexelSpace {
-  std::vector<TexelAreas> areas;           // per mesh (empty without a lightmap)
-  std::vector<std::vector<Vec3>> normals;  // per mesh, per triangle (views point into them)
-  std::vector<MeshView> views;             // per mesh
-  std::vector<std::unique_ptr<csg::CsgLightmap>> csg_maps;  // per CSG solid (null without a carrier)
-  std::vector<CsgView> csg_views;          // per CSG solid
-  std::vector<CoveredTexel> covered;
-  std::vector<size_t> covered_begin;  // per mesh, then per CSG solid: index of its first covered texel
-  uint64_t texel_count = 0;
-};
 
 // Runs each(i) for i < count (the meshes), where texels(i) is mesh i's
 // lightmap size: lightmaps of up to kParallelTexels texels in parallel, the
@@ -62,13 +35,6 @@ void for_lightmaps(size_t count, Texels&& texels, Each&& each) {
   for (size_t i = 0; i < count; ++i)
     if (texels(i) > kParallelTexels) each(i);
 }
-
-// Texel areas of every lightmap (OL meshes' lightmaps are resolved from
-// their OL, CSG carriers' from their solid: they have no texels here) and
-// the sub-texels of CSG solids with a carrier, at the carrier's texel size.
-// Adds each mesh's warnings (transport/plan/validate.h) and the CSG solids'.
-// Runs its per-mesh work in parallel: call it inside the bake's arena.
-TexelSpace build_texel_space(const Scene& scene, std::vector<std::string>& warnings);
 
 // Photon fluxes are added as whole multiples of a power-of-two quantum
 // (docs/design/sharding.md, "Why the merge is exact"): each hit is rounded to

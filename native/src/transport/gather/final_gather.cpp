@@ -25,15 +25,14 @@ struct CellShare {
 
 }  // namespace
 
-FinalGather::FinalGather(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
-                         const std::vector<TexelAreas>& areas, const plm_bake_settings& settings, float scene_extent,
-                         const PassageTracer* passage, bool black_known, const MaterialTable* materials)
-    : rtc_(rtc), surfaces_(surfaces), views_(views), areas_(areas), points_(views, areas, settings),
-      seed_(settings.seed), offset_scale_(1e-6f * scene_extent),
+FinalGather::FinalGather(const BakeScene& ctx)
+    : rtc_(ctx.rtc), surfaces_(ctx.surfaces), views_(ctx.space.views), areas_(ctx.space.areas),
+      points_(ctx.space.views, ctx.space.areas, ctx.settings), seed_(ctx.settings.seed),
+      offset_scale_(1e-6f * ctx.extent),
       // A texel's photon pool reaches filter_radius texels (at least 1 where
       // barely covered): texels within a pool's width of each other share hits.
-      cell_side_(2 * std::max(settings.filter_radius, 1u) + 1), passage_(passage), black_known_(black_known),
-      materials_(materials && materials->any_view_scale() ? materials : nullptr) {}
+      cell_side_(2 * std::max(ctx.settings.filter_radius, 1u) + 1), passage_(ctx.passage.get()),
+      black_known_(ctx.lobes.any_lobes()), materials_(ctx.lobes.any_view_scale() ? &ctx.lobes : nullptr) {}
 
 void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
                                const GatherSource& source, GatherSums& sums, GatherInfo& info) const {
@@ -238,13 +237,16 @@ SurfaceHit FinalGather::passed(const RayPacket& packet, unsigned l, Vec3 dir, Ve
   return h;
 }
 
-GatherResult run_final_gather(tbb::task_arena& arena, const FinalGather& gather, const TexelSpace& space,
-                              const std::vector<std::vector<float>>& images,
-                              const std::vector<std::vector<float>>& local,
-                              const std::vector<std::vector<float>>& wide,
-                              const std::vector<std::vector<Vec3>>& albedo, const uint8_t* back_lit,
-                              OpenShares& open, uint32_t samples,
-                              const std::function<bool()>& after_group, CoveredSlice slice) {
+GatherResult run_final_gather(const BakeScene& ctx, const FinalGather& gather, const GatherLookup& lookup,
+                              OpenShares& open, uint32_t samples, const std::function<bool()>& after_group,
+                              CoveredSlice slice) {
+  tbb::task_arena& arena = ctx.arena;
+  const TexelSpace& space = ctx.space;
+  const std::vector<std::vector<float>>& images = lookup.images;
+  const std::vector<std::vector<float>>& local = lookup.local;
+  const std::vector<std::vector<float>>& wide = lookup.wide;
+  const std::vector<std::vector<Vec3>>& albedo = lookup.albedo;
+  const uint8_t* back_lit = lookup.back_lit;
   std::vector<float> radiosity(3 * space.texel_count, 0.0f), local_error(space.texel_count, 0.0f),
       wide_error(space.texel_count, 0.0f);
   for (size_t i = 0; i < images.size(); ++i) {

@@ -16,9 +16,11 @@
 
 #include "lightmap/texel_area.h"
 #include "photonlm/photonlm.h"
+#include "transport/context/bake_scene.h"
 #include "transport/direct/stratified_sums.h"
 #include "transport/direct/texel_points.h"
 #include "transport/film/film.h"
+#include "transport/plan/settings.h"
 #include "transport/materials/material_table.h"
 #include "transport/rays/passage.h"
 #include "transport/rays/tracing.h"
@@ -66,15 +68,13 @@ struct GatherSource {
 
 class FinalGather {
  public:
-  // passage: scenes with passable materials, whose rays go on through them (transport/rays/passage.h); else null.
-  // black_known: scenes with lobes, where a ray meeting the front of a surface without a diffuse
-  // part (glass, metal) counts a known 0 even where that surface has no lightmap.
-  // materials: where some material's diffuse radiance depends on where it
-  // leaves (MaterialLobes::view_scale: layers, Burley), the table; else null.
-  FinalGather(RTCScene rtc, const SurfaceMap& surfaces, const std::vector<MeshView>& views,
-              const std::vector<TexelAreas>& areas, const plm_bake_settings& settings, float scene_extent,
-              const PassageTracer* passage = nullptr, bool black_known = false,
-              const MaterialTable* materials = nullptr);
+  // From the context: in scenes with passable materials its rays go on
+  // through them (transport/rays/passage.h); in scenes with lobes a ray
+  // meeting the front of a surface without a diffuse part (glass, metal)
+  // counts a known 0 even where that surface has no lightmap; where some
+  // material's diffuse radiance depends on where it leaves
+  // (MaterialLobes::view_scale: layers, Burley), the table says how.
+  explicit FinalGather(const BakeScene& ctx);
 
   // Adds `samples` (rounded up to a square) cosine-distributed rays from the
   // direct pass's points of texel `texel` of mesh `mesh` (meshes only). Each
@@ -145,8 +145,8 @@ size_t gather_calibration_step(size_t covered);
 // neighbouring strata say: 0.2-0.7 on the benchmark scenes.
 double gather_scale(const std::vector<GatherInfo>& info);
 
-// Runs the gather with `samples` rays per covered texel (meshes only), looking
-// up `images` (per mesh: R, G, B, error per texel, as transport/output/film_estimate.h's
+// Runs the gather with `samples` rays per covered texel (meshes only) in the
+// context's arena, looking up `images` (per mesh: R, G, B, error per texel, as transport/output/film_estimate.h's
 // Estimate holds them) and `local` and `wide` (per mesh, the error per texel
 // that lookups see: Estimate::lookup_local, lookup_wide) with each
 // triangle's `albedo` and the meshes whose backs photons reached
@@ -157,12 +157,15 @@ double gather_scale(const std::vector<GatherInfo>& info);
 // `slice` (all by default; the sums then start at its first): a texel's rays
 // depend on it and the images alone, so slices give the same sums as one run
 // (the scale is recomputed over all of them: join_gather).
-GatherResult run_final_gather(tbb::task_arena& arena, const FinalGather& gather, const TexelSpace& space,
-                              const std::vector<std::vector<float>>& images,
-                              const std::vector<std::vector<float>>& local,
-                              const std::vector<std::vector<float>>& wide,
-                              const std::vector<std::vector<Vec3>>& albedo, const uint8_t* back_lit,
-                              OpenShares& open, uint32_t samples,
-                              const std::function<bool()>& after_group, CoveredSlice slice = {});
+struct GatherLookup {
+  const std::vector<std::vector<float>>& images;
+  const std::vector<std::vector<float>>& local;
+  const std::vector<std::vector<float>>& wide;
+  const std::vector<std::vector<Vec3>>& albedo;
+  const uint8_t* back_lit;
+};
+GatherResult run_final_gather(const BakeScene& ctx, const FinalGather& gather, const GatherLookup& lookup,
+                              OpenShares& open, uint32_t samples, const std::function<bool()>& after_group,
+                              CoveredSlice slice = {});
 
 }  // namespace plm

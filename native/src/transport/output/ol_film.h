@@ -15,6 +15,7 @@
 #include "ol/orientation_lightmap.h"
 #include "scene/scene.h"
 #include "transport/output/images.h"
+#include "transport/context/bake_scene.h"
 #include "transport/photons/photon_tracer.h"
 
 namespace plm {
@@ -34,11 +35,8 @@ struct OlGroups {
 OlGroups build_ol_groups(const Scene& scene, std::vector<std::string>& warnings);
 
 // L-system objects: each one's OL grid and its root and stub areas from the
-// flattened object; out gets one LSystemOutput per object with its root OL.
-struct LSystemOls {
-  std::vector<ol::OctGrid> grids;          // per L-system object
-  std::vector<lsystem::OlAreas> areas;     // per L-system object
-};
+// flattened object (LSystemOls, transport/context/bake_scene.h); out gets one
+// LSystemOutput per object with its root OL.
 LSystemOls build_lsystem_ols(const Scene& scene, tbb::task_arena& arena, std::vector<LSystemOutput>& out,
                              std::vector<std::string>& warnings);
 

@@ -10,6 +10,7 @@
 #include <cstdint>
 
 #include "photonlm/photonlm.h"
+#include "transport/plan/settings.h"
 #include "util/rng.h"
 #include "util/sobol.h"
 
@@ -21,7 +22,7 @@ constexpr uint32_t kBatchPhotons = 4096;
 
 class PhotonSampler {
  public:
-  PhotonSampler(uint64_t index, const plm_bake_settings& s, double pick_offset, Rng::SeedHash seed_hash)
+  PhotonSampler(uint64_t index, const BakeSettings& s, double pick_offset, Rng::SeedHash seed_hash)
       : rng_(seed_hash, index), global_(index), index_(uint32_t(index % kBatchPhotons)),
         key_(s.sampler == PLM_SAMPLER_SOBOL ? uint32_t(splitmix64((uint64_t(s.seed) << 32) ^ (index / kBatchPhotons))) : 0u),
         mode_(s.sampler),

@@ -27,21 +27,18 @@ double radical_inverse3(uint64_t i) {
 
 }  // namespace
 
-PhotonTracer::PhotonTracer(const Scene& scene, RTCScene rtc, const std::vector<MeshView>& views,
-                           const std::vector<CsgView>& csg_views, const std::vector<OlMeshView>& ol_views,
-                           const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent,
-                           uint32_t first_recorded_depth, const std::vector<ol::OctGrid>& ls_grids,
-                           const TextureSet* textures, const MaterialTable* lobes)
-    : scene_(scene), textures_(textures), rtc_(rtc), views_(views), csg_views_(csg_views), ol_views_(ol_views),
-      emitters_(emitters), ls_grids_(ls_grids), settings_(settings),
-      offset_scale_(1e-6f * scene_extent), first_recorded_(first_recorded_depth), table_(emitters) {
-  pick_offset_ = double(Rng(settings.seed, ~0ull).next_float());
-  seed_hash_ = {splitmix64(settings.seed)};
+PhotonTracer::PhotonTracer(const BakeScene& ctx)
+    : scene_(ctx.scene), textures_(ctx.textures.get()), rtc_(ctx.rtc), views_(ctx.space.views),
+      csg_views_(ctx.space.csg_views), ol_views_(ctx.ol_views), emitters_(ctx.emitters), ls_grids_(ctx.ls_ols.grids),
+      settings_(ctx.settings), offset_scale_(1e-6f * ctx.extent), first_recorded_(ctx.settings.two_pass ? 1u : 0u),
+      table_(ctx.emitters) {
+  pick_offset_ = double(Rng(settings_.seed, ~0ull).next_float());
+  seed_hash_ = {splitmix64(settings_.seed)};
   default_material_.albedo = {0.8f, 0.8f, 0.8f};
-  mesh_only_ = !textures && csg_views.empty() && scene.lsystems.empty();
-  if (lobes && lobes->any_lobes()) {
-    lobes_ = lobes;
-    lambda_offset_ = double(Rng(settings.seed, ~0ull - 1).next_float());
+  mesh_only_ = !textures_ && csg_views_.empty() && scene_.lsystems.empty();
+  if (ctx.lobes.any_lobes()) {
+    lobes_ = &ctx.lobes;
+    lambda_offset_ = double(Rng(settings_.seed, ~0ull - 1).next_float());
   }
   build_hit_tables();
 }

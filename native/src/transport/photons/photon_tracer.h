@@ -16,8 +16,10 @@
 #include "photonlm/photonlm.h"
 #include "scene/scene.h"
 #include "scene/texture.h"
+#include "transport/context/bake_scene.h"
 #include "transport/lights/emitters.h"
 #include "transport/materials/material_table.h"
+#include "transport/plan/settings.h"
 #include "transport/rays/tracing.h"
 #include "util/rng.h"
 
@@ -63,27 +65,14 @@ struct BatchOutput {
   double truncated_flux = 0.0;
 };
 
-constexpr uint32_t kNoBin = ~0u;
-
-// A mesh as the photon tracer sees its OL group: group -1 for none, else the
-// OL bin of each triangle's normal (kNoBin for degenerate triangles).
-struct OlMeshView {
-  int32_t group = -1;
-  const uint32_t* bins = nullptr;
-  bool backup = false;  // a backup OL: it records what the mesh's texels record (the indirect hits)
-};
-
 class PhotonTracer {
  public:
-  // Hits on lightmapped meshes are recorded from depth first_recorded_depth
-  // on, hits on OL meshes at every depth (they get no direct pass). With
-  // lobes (a table with any_lobes()), photons follow them and depth 1 means
-  // "after the light's direct part" (see trace_photon).
-  PhotonTracer(const Scene& scene, RTCScene rtc, const std::vector<MeshView>& views,
-               const std::vector<CsgView>& csg_views, const std::vector<OlMeshView>& ol_views,
-               const std::vector<Emitter>& emitters, const plm_bake_settings& settings, float scene_extent,
-               uint32_t first_recorded_depth, const std::vector<ol::OctGrid>& ls_grids,
-               const TextureSet* textures = nullptr, const MaterialTable* lobes = nullptr);
+  // Hits on lightmapped meshes are recorded from depth 1 on where the bake
+  // has a direct pass (BakeSettings::two_pass), else from depth 0; hits on OL
+  // meshes at every depth (they get no direct pass). With lobes (a table with
+  // any_lobes()), photons follow them and depth 1 means "after the light's
+  // direct part" (see trace_photon).
+  explicit PhotonTracer(const BakeScene& ctx);
 
   // A triangle's material (grey 0.8 in a scene without materials).
   const Material& material(const Mesh& mesh, uint32_t tri) const { return material_by_id(mesh.material_ids[tri]); }
@@ -188,7 +177,7 @@ class PhotonTracer {
   const std::vector<OlMeshView>& ol_views_;
   const std::vector<Emitter>& emitters_;
   const std::vector<ol::OctGrid>& ls_grids_;  // per L-system object: its OLs' grid
-  plm_bake_settings settings_;
+  BakeSettings settings_;
   float offset_scale_;
   uint32_t first_recorded_;
   EmitterTable table_;

@@ -35,7 +35,7 @@ void add_mesh_warnings(const Mesh& mesh, const TexelAreas* areas, std::vector<st
                        "); overlapping surfaces share one value");
 }
 
-void validate(const Scene& scene, const plm_bake_settings& s) {
+void validate(const Scene& scene, const BakeSettings& s) {
   const bool steered = s.target_error > 0.0 || s.time_budget > 0.0;
   if (s.photon_count == 0 && !steered)
     fail(PLM_ERROR_INVALID_ARGUMENT, "settings: photon_count must be > 0 unless target_error or time_budget is set");
@@ -72,9 +72,8 @@ void validate(const Scene& scene, const plm_bake_settings& s) {
     fail(PLM_ERROR_INVALID_SCENE, "the lightmaps hold ", texels, " texels together; the limit is 2^31");
 }
 
-plm_bake_settings effective_settings(const Scene& scene, const plm_bake_settings& requested,
-                                     std::vector<std::string>& warnings) {
-  plm_bake_settings settings = requested;
+BakeSettings effective_settings(const Scene& scene, const BakeSettings& requested, std::vector<std::string>& warnings) {
+  BakeSettings settings = requested;
   bool ordinary_texels = false;
   for (const Mesh& m : scene.meshes)
     ordinary_texels = ordinary_texels || scene.own_texels(m) || (m.has_lightmap() && m.csg_carrier >= 0);

@@ -9,18 +9,18 @@
 #include "lightmap/texel_area.h"
 #include "photonlm/photonlm.h"
 #include "scene/scene.h"
+#include "transport/plan/settings.h"
 
 namespace plm {
 
 // Throws plm::Error (PLM_ERROR_INVALID_ARGUMENT or _INVALID_SCENE) naming
 // the setting or what the scene lacks.
-void validate(const Scene& scene, const plm_bake_settings& s);
+void validate(const Scene& scene, const BakeSettings& s);
 
 // The settings the bake follows: orientation lightmaps do not steer, so with
 // no ordinary texel a target error is dropped (with a warning) and the photon
 // count or the time budget decides.
-plm_bake_settings effective_settings(const Scene& scene, const plm_bake_settings& requested,
-                                     std::vector<std::string>& warnings);
+BakeSettings effective_settings(const Scene& scene, const BakeSettings& requested, std::vector<std::string>& warnings);
 
 // Refuses (PLM_ERROR_OUT_OF_MEMORY) a bake whose estimated peak memory
 // exceeds the memory free, naming the largest lightmap; warns past 60 % of

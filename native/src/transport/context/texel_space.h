@@ -1,0 +1,53 @@
+// The bake's texel space: every lightmap texel in one global index (meshes
+// with texels of their own, mesh after mesh, then CSG solids' sub-texels),
+// and the covered texels in that order (the direct pass and the final gather
+// work through these).
+#pragma once
+
+#include <algorithm>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "csg/csg_lightmap.h"
+#include "lightmap/texel_area.h"
+#include "scene/scene.h"
+#include "transport/rays/tracing.h"
+
+namespace plm {
+
+// A texel that holds a value (area > 0). mesh >= the mesh count means
+// sub-texel `texel` of CSG solid mesh - mesh count.
+struct CoveredTexel {
+  uint32_t mesh, texel;  // local texel of that mesh
+};
+
+// Covered texels [begin, end) in the covered order: all of them by default,
+// one texel range of a sharded bake otherwise (transport/farm/texel_ranges.h).
+struct CoveredSlice {
+  size_t begin = 0, end = SIZE_MAX;
+  CoveredSlice clamped(size_t covered) const { return {std::min(begin, covered), std::min(end, covered)}; }
+  size_t size() const { return end - begin; }
+};
+
+struct TexelSpace {
+  std::vector<TexelAreas> areas;           // per mesh (empty without a lightmap)
+  std::vector<std::vector<Vec3>> normals;  // per mesh, per triangle (views point into them)
+  std::vector<MeshView> views;             // per mesh
+  std::vector<std::unique_ptr<csg::CsgLightmap>> csg_maps;  // per CSG solid (null without a carrier)
+  std::vector<CsgView> csg_views;          // per CSG solid
+  std::vector<CoveredTexel> covered;
+  std::vector<size_t> covered_begin;  // per mesh, then per CSG solid: index of its first covered texel
+  uint64_t texel_count = 0;
+};
+
+// Texel areas of every lightmap (OL meshes' lightmaps are resolved from
+// their OL, CSG carriers' from their solid: they have no texels here) and
+// the sub-texels of CSG solids with a carrier, at the carrier's texel size.
+// Adds each mesh's warnings (transport/plan/validate.h) and the CSG solids'.
+// Runs its per-mesh work in parallel: call it inside the bake's arena.
+TexelSpace build_texel_space(const Scene& scene, std::vector<std::string>& warnings);
+
+}  // namespace plm
