@@ -130,6 +130,217 @@ void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, 
   else sample<false>(mesh_id, texel, round, samples, sums);
 }
 
+// One interval of u_pick per light (the choice's stratification then leaves
+// each light's sample count within about one of n p_k): candidates first, then
+// the others by power.
+size_t DirectPass::choose_local(float u_pick, const uint32_t* candidates, size_t count, const float* share,
+                                float local, bool select, const ChoiceScratch& scratch) const {
+  float rest = u_pick;
+  size_t i = 0, last = 0;
+  for (; i < count; ++i) {
+    const float q = share[i] + (1.0f - local) * table_.probability(candidates[i]);
+    if (rest < q) break;
+    rest -= q;
+    if (q > 0.0f) last = i;
+  }
+  if (i < count) return candidates[i];
+  if (select && !scratch.others.empty()) {
+    const std::vector<double>& cdf = scratch.others_cdf;
+    const double target = double(rest) / (1.0f - local);
+    const size_t o = size_t(std::upper_bound(cdf.begin(), cdf.end(), target) - cdf.begin());
+    return scratch.others[std::min(o, scratch.others.size() - 1)];
+  }
+  return candidates[last];  // rounding past the end
+}
+
+// The light a cosine-sampled ray from the sample's point brings back where it
+// meets a triangle emitter, weighted by the balance heuristic against that
+// emitter's own samples (multiple importance sampling).
+template <bool kPassage, class Probability>
+Vec3 DirectPass::cosine_ray_light(const PendingSample& ps, TraceContext& tc, bool smooth,
+                                  const Probability& probability) const {
+  const Vec3 local = cosine_hemisphere(ps.v[0], ps.v[1]);
+  Vec3 t, b;
+  make_frame(ps.shading, t, b);
+  const Vec3 dir = t * local.x + b * local.y + ps.shading * local.z;
+  tc.skip_prim = ps.tri;
+  RTCRayHit rh;
+  rh.ray = make_ray(ps.origin, dir, std::numeric_limits<float>::infinity());
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  if (smooth && !(dot(ps.normal, dir) > 0.0f)) rh.ray.tfar = -1.0f;  // below the triangle's plane: no light
+  else rtcIntersect1(rtc_, tc.context(), &rh);
+  SurfaceHit h = surfaces_.hit(rh);
+  Vec3 through{1, 1, 1};
+  float distance = h.t;
+  if constexpr (kPassage) {
+    if (passage_->passable(h)) {
+      h = passage_->continue_through(rtc_, h, dir, through);
+      distance = length(h.point - ps.origin);
+    }
+  }
+  const int32_t hit_emitter = h.kind == SurfaceKind::Triangle && !triangle_emitter_[h.index].empty()
+                                  ? triangle_emitter_[h.index][h.prim]
+                                  : -1;
+  if (hit_emitter >= 0) {
+    const Emitter& he = emitters_[size_t(hit_emitter)];
+    const float cos_l = std::fabs(dot(he.normal, dir)), cos_s = local.z;
+    // Irradiance estimate L cos / p_cos = pi L, weighted; stored as irradiance / pi.
+    const float r = cos_weight_ratio(cos_s, cos_l * he.area, probability(size_t(hit_emitter)), distance);
+    if (cos_l > 0.0f && cos_s > 0.0f && r > 0.0f) {
+      const Vec3 L = he.textured
+                         ? textures_->emission(*views_[h.index].mesh, he.material, he.triangle, h.u, h.v)
+                         : he.radiance;
+      float weight = r / (1.0f + r);
+      if (ps.burley >= 0.0f) weight *= bsdf::burley_receive(cos_s, ps.burley);
+      return kPassage ? L * through * weight : L * weight;
+    }
+  }
+  return {0, 0, 0};
+}
+
+// What the local choice adds to a texel's variance is the spread of each
+// light's sample count n_k around n p_k: the stratum of u_pick that holds the
+// boundary between two lights' intervals gives its one sample to either
+// (variance f (1 - f), 1/6 on average), which moves the estimate by the
+// difference of the two lights' sample means / n. So choice_sq gets
+// (mean_a - mean_b)^2 / 6 for each two lights with samples that follow each
+// other in u_pick (lights without samples between them have narrow
+// intervals: skipped), from the tallies of the lights the texel's samples
+// chose, in the order of their intervals; the tallies are cleared.
+void DirectPass::add_choice_spread(ChoiceScratch& scratch, bool selected, const uint32_t* chosen, DirectSums& sums) {
+  // The lights in the order of their intervals of u_pick: candidates, then
+  // the others, each by index.
+  std::vector<uint32_t>& touched = scratch.touched;
+  if (selected) {  // candidates were selected
+    auto place = [&](uint32_t k) { return scratch.slot_of[k] >= 0 ? uint64_t(scratch.slot_of[k]) : kCandidates + uint64_t(k); };
+    std::sort(touched.begin(), touched.end(), [&](uint32_t a, uint32_t b) { return place(a) < place(b); });
+    for (size_t i = 0; i < kCandidates; ++i) scratch.slot_of[chosen[i]] = -1;
+  } else {
+    std::sort(touched.begin(), touched.end());
+  }
+  double previous_mean = 0.0;
+  for (size_t i = 0; i < touched.size(); ++i) {
+    ChoiceScratch::Tally& t = scratch.tallies[touched[i]];
+    const double mean_k = t.sum / t.count;
+    if (i > 0) sums.choice_sq += (mean_k - previous_mean) * (mean_k - previous_mean) / 6.0;
+    previous_mean = mean_k;
+    t = ChoiceScratch::Tally{};
+  }
+  touched.clear();
+}
+
+// Adds sample j's light to the texel's sums and its pairs: of successive
+// strata, or with the local choice of successive samples of one light (the
+// choice is stratified, so pairs of different lights would count the lights'
+// differences as noise; with the choice by power, beyond kMaxLocalChoice
+// lights, a texel has fewer samples than lights: pairs of neighbouring strata,
+// as with all lights); and where the world's part is split off, that part's
+// and the rest's pairs.
+[[gnu::always_inline]] inline void DirectPass::add_sample(uint32_t j, const PendingSample& ps, bool split_sky, TexelTally& tally,
+                            ChoiceScratch& scratch, DirectSums& sums) const {
+  const double a = sums.add(ps.e);
+  if (split_sky) {  // the world's part and the rest, paired as the whole is
+    const double sky = (double(ps.sky.x) + ps.sky.y + ps.sky.z) / 3.0;
+    for (int ch = 0; ch < 3; ++ch) sums.sky_rgb[ch] += ps.sky[ch];  // float: ample for a texel's samples
+    if (tally.split_pairs.completes(j)) {
+      sums.sky_pair_sq += float((sky - tally.previous_sky) * (sky - tally.previous_sky));
+      sums.other_pair_sq += float((a - sky - tally.previous_other) * (a - sky - tally.previous_other));
+    }
+    tally.previous_sky = sky, tally.previous_other = a - sky;
+  }
+  if (!local_choice_) {
+    tally.pairs.add(j, a, sums);
+  } else {
+    ChoiceScratch::Tally& t = scratch.tallies[ps.k];
+    if (t.count == 0) scratch.touched.push_back(uint32_t(ps.k));
+    if (t.count % 2 == 1) sums.add_pair(a, t.unpaired);
+    t.unpaired = a;
+    t.sum += a;
+    ++t.count;
+  }
+}
+
+// Traces the shadow rays gathered in rays.packet and adds each unblocked
+// ray's light to its sample in chunk (the world's part also to sky). With
+// measure_reach, world rays are intersected rather than only tested, and
+// their blockers' distances kept (the sky pool's reach).
+template <bool kPassage>
+[[gnu::always_inline]] inline void DirectPass::trace_shadow_rays(ShadowRays& rays, PendingSample* chunk, bool measure_reach,
+                                   DirectSums& sums) const {
+  const unsigned lanes = rays.packet.size;
+  if (measure_reach && rays.sky_lanes) {
+    rays.packet.intersect(rtc_);
+    for (unsigned l = 0; l < lanes; ++l) {
+      PendingSample& ps = chunk[rays.sample[l]];
+      const bool blocked = rays.packet.rh.hit.geomID[l] != RTC_INVALID_GEOMETRY_ID;
+      if (rays.sky_lanes >> l & 1u) {
+        ++sums.sky_rays;
+        if (blocked) {
+          ++sums.sky_blocked;
+          sums.sky_inv_distance += 1.0f / std::fmax(rays.packet.rh.ray.tfar[l], offset_scale_);
+        } else {
+          ps.sky += rays.value[l];
+        }
+      }
+      if (!blocked) ps.e += rays.value[l];
+    }
+    rays.sky_lanes = 0;
+    return;
+  }
+  if constexpr (kPassage) {
+    Vec3 through[RayPacket::kLanes];
+    passage_->occluded(rays.packet, rtc_, through);
+    for (unsigned l = 0; l < lanes; ++l) chunk[rays.sample[l]].e += rays.value[l] * through[l];
+    return;
+  }
+  rays.packet.occluded(rtc_);
+  for (unsigned l = 0; l < lanes; ++l)
+    if (!rays.packet.blocked(l)) chunk[rays.sample[l]].e += rays.value[l];
+  if (rays.sky_lanes) {
+    sums.sky_rays += uint32_t(__builtin_popcount(rays.sky_lanes));
+    for (unsigned l = 0; l < lanes; ++l)
+      if ((rays.sky_lanes >> l & 1u) && !rays.packet.blocked(l)) chunk[rays.sample[l]].sky += rays.value[l];
+    rays.sky_lanes = 0;
+  }
+}
+
+// draw, trace_shadow_rays and add_sample are steps of sample's loop, forced
+// inline: as calls they cost the direct pass 7 % more instructions.
+// Sample j's numbers: the light choice u_pick, the point on the light u, the
+// MIS direction v and the point in a sparse texel w; with the local choice
+// also the point (x, y) in the texel. Light choice and light sample are a 4D
+// Sobol point per sample (random otherwise, with the choice stratified through
+// a permutation: tied to j it would follow the strata's rows, so each light
+// would be sampled in one band of the texel only -- a shifted shadow).
+// Sobol's index shuffle does the same. With the local choice, the choice and
+// the point in the texel are one 3D Sobol point: each light's samples then
+// cover the texel evenly (on the jittered grid they fell on a random subset
+// of strata).
+[[gnu::always_inline]] inline void DirectPass::draw(const SampleNumbers& d, uint32_t j, Rng& rng, float& x, float& y, float& u_pick, float* u,
+                      float* v, float* w) const {
+  if (sobol_) {
+    float g[4];
+    if (!local_choice_) {
+      d.light.point(j, 4, g);
+      u_pick = g[0], u[0] = g[1], u[1] = g[2], u[2] = g[3];
+    } else {
+      d.light.point(j, 3, g);
+      u_pick = g[0];
+      x = d.origin_x + g[1] * float(d.m) * d.side;
+      y = d.origin_y + g[2] * float(d.m) * d.side;
+      d.surface.point(j, 3, u);
+    }
+    if (has_triangle_emitters_) d.mis.point(j, 2, v);
+    if (d.sparse) d.piece.point(j, 3, w);
+  } else {
+    u_pick = (float(permute(j, d.n, d.pick_key)) + rng.next_float()) / float(d.n);
+    for (int i = 0; i < 3; ++i) u[i] = rng.next_float();
+    for (int i = 0; i < 2; ++i) v[i] = rng.next_float();
+    for (int i = 0; i < 3; ++i) w[i] = rng.next_float();  // drawn always: streams stay as they were
+  }
+}
+
 template <bool kPassage>
 void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums) const {
   if (emitters_.empty()) return;
@@ -152,23 +363,11 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
   const Mesh* smooth = !csg && views_[mesh_id].mesh->smooth() ? views_[mesh_id].mesh : nullptr;
   const uint8_t* contact = csg ? nullptr : views_[mesh_id].contact;
   const float* burley = csg ? nullptr : views_[mesh_id].burley;
-  const SobolGroup light_dims(sobol_key, 0), mis_dims(sobol_key, 1), piece_dims(sobol_key, 2), surface_dims(sobol_key, 3);
-  StratumPairs pairs, split_pairs;  // split_pairs: of the world part and the rest (split_sky_)
-  double previous_sky = 0.0, previous_other = 0.0;
-  // With the local choice, pairs are two successive samples of the same
-  // light: the choice is stratified, so pairs of different lights would count
-  // the lights' differences as noise. (With the
-  // choice by power, beyond kMaxLocalChoice lights, a texel has fewer samples
-  // than lights: pairs of neighbouring strata, as with all lights.)
-  // What the choice does add is the spread of each light's sample count n_k
-  // around n p_k: the stratum of u_pick that holds the boundary between two
-  // lights' intervals gives its one sample to either (variance f (1 - f),
-  // 1/6 on average), which moves the estimate by the difference of the two
-  // lights' sample means / n. So choice_sq gets (mean_a - mean_b)^2 / 6 for
-  // each two lights with samples that follow each other in u_pick (lights
-  // without samples between them have narrow intervals: skipped).
-  // Per-light tallies live in per-thread scratch (no allocation per texel
-  // once it has grown to the light count).
+  const SampleNumbers numbers{SobolGroup(sobol_key, 0), SobolGroup(sobol_key, 1), SobolGroup(sobol_key, 2),
+                              SobolGroup(sobol_key, 3), pick_key, n, m, origin_x, origin_y, side, sparse};
+  TexelTally tally;
+  // Per-light tallies (add_sample) live in per-thread scratch (no allocation
+  // per texel once it has grown to the light count).
   thread_local ChoiceScratch scratch;
   if (local_choice_ && scratch.tallies.size() < emitters_.size()) scratch.tallies.resize(emitters_.size());
   // The candidates of the local choice: all lights, or with more than
@@ -194,20 +393,8 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
   // each sample in turn (the MIS ray, the sums), so every sum adds the same
   // numbers in the same order as sample by sample.
   constexpr uint32_t kChunk = 8;
-  struct Pending {
-    Vec3 origin, normal, shading, e;  // normal: geometric; shading: the interpolated one (smooth meshes)
-    Vec3 sky;                         // the world's part of e (split_sky_)
-    float v[2];
-    float burley;  // the point's Burley roughness, < 0 for Lambert
-    size_t k;
-    uint32_t tri;
-    bool inside, contact;
-  };
-  Pending chunk[kChunk];
-  RayPacket packet;
-  Vec3 lane_value[RayPacket::kLanes];  // a lane's irradiance if nothing blocks it
-  uint32_t lane_sample[RayPacket::kLanes];
-  uint32_t sky_lanes = 0;  // bit l: lane l is a ray to the world's smooth part (split_sky_)
+  PendingSample chunk[kChunk];
+  ShadowRays rays;
   const bool split_sky = split_sky_ && !csg;
   // The world rays of round 0's first kReachSamples samples also bring back
   // how far their blocker is (the reach of the pooling); the others only need
@@ -215,50 +402,12 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
   // a target, all of whose samples are round 0's, 25 % more time).
   constexpr uint32_t kReachSamples = 16;
   const bool measure_reach = split_sky && round == 0;
-  uint32_t chunk_first = 0;  // the sample index of the chunk's first sample
-  auto trace_packet = [&] {
-    const unsigned lanes = packet.size;
-    if (measure_reach && sky_lanes && chunk_first < kReachSamples) {
-      packet.intersect(rtc_);
-      for (unsigned l = 0; l < lanes; ++l) {
-        Pending& ps = chunk[lane_sample[l]];
-        const bool blocked = packet.rh.hit.geomID[l] != RTC_INVALID_GEOMETRY_ID;
-        if (sky_lanes >> l & 1u) {
-          ++sums.sky_rays;
-          if (blocked) {
-            ++sums.sky_blocked;
-            sums.sky_inv_distance += 1.0f / std::fmax(packet.rh.ray.tfar[l], offset_scale_);
-          } else {
-            ps.sky += lane_value[l];
-          }
-        }
-        if (!blocked) ps.e += lane_value[l];
-      }
-      sky_lanes = 0;
-      return;
-    }
-    if constexpr (kPassage) {
-      Vec3 through[RayPacket::kLanes];
-      passage_->occluded(packet, rtc_, through);
-      for (unsigned l = 0; l < lanes; ++l) chunk[lane_sample[l]].e += lane_value[l] * through[l];
-      return;
-    }
-    packet.occluded(rtc_);
-    for (unsigned l = 0; l < lanes; ++l)
-      if (!packet.blocked(l)) chunk[lane_sample[l]].e += lane_value[l];
-    if (sky_lanes) {
-      sums.sky_rays += uint32_t(__builtin_popcount(sky_lanes));
-      for (unsigned l = 0; l < lanes; ++l)
-        if ((sky_lanes >> l & 1u) && !packet.blocked(l)) chunk[lane_sample[l]].sky += lane_value[l];
-      sky_lanes = 0;
-    }
-  };
   for (uint32_t j0 = 0; j0 < n; j0 += kChunk) {
-    chunk_first = j0;
+    const bool reach_here = measure_reach && j0 < kReachSamples;
     const uint32_t chunk_size = std::min(kChunk, n - j0);
     for (uint32_t c = 0; c < chunk_size; ++c) {
       const uint32_t j = j0 + c;
-      Pending& ps = chunk[c];
+      PendingSample& ps = chunk[c];
       ps.inside = ps.contact = false;
       ps.e = ps.sky = {0, 0, 0};
       ps.burley = -1.0f;
@@ -266,35 +415,8 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
       float y = origin_y + (float(j / m) + rng.next_float()) * side;
       Vec3 p, normal;
       uint32_t tri;
-      // Light choice and light sample: a 4D Sobol point per sample (random
-      // otherwise, with the choice stratified through a permutation: tied to j
-      // it would follow the strata's rows, so each light would be sampled in
-      // one band of the texel only -- a shifted shadow). Sobol's index shuffle
-      // does the same. With the local choice, the choice and the point in the
-      // texel are one 3D Sobol point: each light's samples then cover the
-      // texel evenly (on the jittered grid they fell on a random subset of
-      // strata).
       float u_pick, u[3], w[3] = {0, 0, 0};  // w: point in sparse texels; ps.v: cosine direction (MIS)
-      if (sobol_) {
-        float g[4];
-        if (!local_choice_) {
-          light_dims.point(j, 4, g);
-          u_pick = g[0], u[0] = g[1], u[1] = g[2], u[2] = g[3];
-        } else {
-          light_dims.point(j, 3, g);
-          u_pick = g[0];
-          x = origin_x + g[1] * float(m) * side;
-          y = origin_y + g[2] * float(m) * side;
-          surface_dims.point(j, 3, u);
-        }
-        if (has_triangle_emitters_) mis_dims.point(j, 2, ps.v);
-        if (sparse) piece_dims.point(j, 3, w);
-      } else {
-        u_pick = (float(permute(j, n, pick_key)) + rng.next_float()) / float(n);
-        for (float& r : u) r = rng.next_float();
-        for (float& r : ps.v) r = rng.next_float();
-        for (float& r : w) r = rng.next_float();  // drawn always: streams stay as they were
-      }
+      draw(numbers, j, rng, x, y, u_pick, u, ps.v, w);
       if (csg) {
         Vec3d dp, dn;
         csg->lightmap->sample_point(texel, x, y, dp, dn);
@@ -321,27 +443,7 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
           local = local_shares(p, shading, candidates, candidate_count, share);
           chosen_here = true;
         }
-        // One interval of u_pick per light (the choice's stratification then
-        // leaves each light's sample count within about one of n p_k):
-        // candidates first, then the others by power.
-        float rest = u_pick;
-        size_t i = 0, last = 0;
-        for (; i < candidate_count; ++i) {
-          const float q = share[i] + (1.0f - local) * table_.probability(candidates[i]);
-          if (rest < q) break;
-          rest -= q;
-          if (q > 0.0f) last = i;
-        }
-        if (i < candidate_count) {
-          k = candidates[i];
-        } else if (select && !scratch.others.empty()) {
-          const std::vector<double>& cdf = scratch.others_cdf;
-          const double target = double(rest) / (1.0f - local);
-          const size_t o = size_t(std::upper_bound(cdf.begin(), cdf.end(), target) - cdf.begin());
-          k = scratch.others[std::min(o, scratch.others.size() - 1)];
-        } else {
-          k = candidates[last];  // rounding past the end
-        }
+        k = choose_local(u_pick, candidates, candidate_count, share, local, select, scratch);
       } else if (!all_lights_) {
         k = table_.choose(u_pick);
       }
@@ -362,103 +464,26 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
           weight = 1.0f / (1.0f + cos_weight_ratio(cos_s, cos_l * em.area, probability(kk), ds.distance));
         }
         if (ps.burley >= 0.0f) weight *= bsdf::burley_receive(dot(shading, ds.dir), ps.burley);
-        lane_value[packet.size] = ds.irradiance * (weight / (kPi * probability(kk)));
-        lane_sample[packet.size] = c;
-        if (split_sky && is_sky_[kk]) sky_lanes |= 1u << packet.size;
+        rays.value[rays.packet.size] = ds.irradiance * (weight / (kPi * probability(kk)));
+        rays.sample[rays.packet.size] = c;
+        if (split_sky && is_sky_[kk]) rays.sky_lanes |= 1u << rays.packet.size;
         const bool triangle = em.kind == EmitterKind::Triangle;
-        packet.add(ps.origin, ds.dir, std::isinf(ds.distance) ? ds.distance : ds.distance * (1.0f - 1e-4f), tc.skip_geom,
-                   tri, triangle ? SurfaceMap::mesh_geometry(em.mesh) : RTC_INVALID_GEOMETRY_ID,
-                   triangle ? em.triangle : RTC_INVALID_GEOMETRY_ID);
-        if (packet.full()) trace_packet();
+        rays.packet.add(ps.origin, ds.dir, std::isinf(ds.distance) ? ds.distance : ds.distance * (1.0f - 1e-4f),
+                        tc.skip_geom, tri, triangle ? SurfaceMap::mesh_geometry(em.mesh) : RTC_INVALID_GEOMETRY_ID,
+                        triangle ? em.triangle : RTC_INVALID_GEOMETRY_ID);
+        if (rays.packet.full()) trace_shadow_rays<kPassage>(rays, chunk, reach_here, sums);
       }
     }
-    if (packet.size > 0) trace_packet();
+    if (rays.packet.size > 0) trace_shadow_rays<kPassage>(rays, chunk, reach_here, sums);
     for (uint32_t c = 0; c < chunk_size; ++c) {
       const uint32_t j = j0 + c;
-      Pending& ps = chunk[c];
+      PendingSample& ps = chunk[c];
       if (!ps.inside) continue;
-      const size_t k = ps.k;
-      Vec3& e = ps.e;
-      if (has_triangle_emitters_ && !ps.contact) {
-        const Vec3 local = cosine_hemisphere(ps.v[0], ps.v[1]);
-        Vec3 t, b;
-        make_frame(ps.shading, t, b);
-        const Vec3 dir = t * local.x + b * local.y + ps.shading * local.z;
-        tc.skip_prim = ps.tri;
-        RTCRayHit rh;
-        rh.ray = make_ray(ps.origin, dir, std::numeric_limits<float>::infinity());
-        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-        if (smooth && !(dot(ps.normal, dir) > 0.0f)) rh.ray.tfar = -1.0f;  // below the triangle's plane: no light
-        else rtcIntersect1(rtc_, tc.context(), &rh);
-        SurfaceHit h = surfaces_.hit(rh);
-        Vec3 through{1, 1, 1};
-        float distance = h.t;
-        if constexpr (kPassage) {
-          if (passage_->passable(h)) {
-            h = passage_->continue_through(rtc_, h, dir, through);
-            distance = length(h.point - ps.origin);
-          }
-        }
-        const int32_t hit_emitter = h.kind == SurfaceKind::Triangle && !triangle_emitter_[h.index].empty()
-                                        ? triangle_emitter_[h.index][h.prim]
-                                        : -1;
-        if (hit_emitter >= 0) {
-          const Emitter& he = emitters_[size_t(hit_emitter)];
-          const float cos_l = std::fabs(dot(he.normal, dir)), cos_s = local.z;
-          // Irradiance estimate L cos / p_cos = pi L, weighted; stored as irradiance / pi.
-          const float r = cos_weight_ratio(cos_s, cos_l * he.area, probability(size_t(hit_emitter)), distance);
-          if (cos_l > 0.0f && cos_s > 0.0f && r > 0.0f) {
-            const Vec3 L = he.textured
-                               ? textures_->emission(*views_[h.index].mesh, he.material, he.triangle, h.u, h.v)
-                               : he.radiance;
-            float weight = r / (1.0f + r);
-            if (ps.burley >= 0.0f) weight *= bsdf::burley_receive(cos_s, ps.burley);
-            e += kPassage ? L * through * weight : L * weight;
-          }
-        }
-      }
-      const double a = sums.add(e);
-      if (split_sky) {  // the world's part and the rest, paired as the whole is
-        const double sky = (double(ps.sky.x) + ps.sky.y + ps.sky.z) / 3.0;
-        for (int ch = 0; ch < 3; ++ch) sums.sky_rgb[ch] += ps.sky[ch];  // float: ample for a texel's samples
-        if (split_pairs.completes(j)) {
-          sums.sky_pair_sq += float((sky - previous_sky) * (sky - previous_sky));
-          sums.other_pair_sq += float((a - sky - previous_other) * (a - sky - previous_other));
-        }
-        previous_sky = sky, previous_other = a - sky;
-      }
-      if (!local_choice_) {
-        pairs.add(j, a, sums);
-      } else {
-        ChoiceScratch::Tally& t = scratch.tallies[k];
-        if (t.count == 0) scratch.touched.push_back(uint32_t(k));
-        if (t.count % 2 == 1) sums.add_pair(a, t.unpaired);
-        t.unpaired = a;
-        t.sum += a;
-        ++t.count;
-      }
+      if (has_triangle_emitters_ && !ps.contact) ps.e += cosine_ray_light<kPassage>(ps, tc, smooth != nullptr, probability);
+      add_sample(j, ps, split_sky, tally, scratch, sums);
     }
   }
-  // The lights in the order of their intervals of u_pick: candidates, then
-  // the others, each by index.
-  std::vector<uint32_t>& touched = scratch.touched;
-  if (select && chosen_here) {  // candidates were selected
-    auto place = [&](uint32_t k) { return scratch.slot_of[k] >= 0 ? uint64_t(scratch.slot_of[k]) : kCandidates + uint64_t(k); };
-    std::sort(touched.begin(), touched.end(), [&](uint32_t a, uint32_t b) { return place(a) < place(b); });
-    for (const uint32_t k : chosen) scratch.slot_of[k] = -1;
-  } else {
-    std::sort(touched.begin(), touched.end());
-  }
-  double previous_mean = 0.0;
-  for (size_t i = 0; i < touched.size(); ++i) {
-    ChoiceScratch::Tally& t = scratch.tallies[touched[i]];
-    const double mean_k = t.sum / t.count;
-    if (i > 0) sums.choice_sq += (mean_k - previous_mean) * (mean_k - previous_mean) / 6.0;
-    previous_mean = mean_k;
-    t = ChoiceScratch::Tally{};
-  }
-  touched.clear();
+  add_choice_spread(scratch, select && chosen_here, chosen, sums);
 }
 
 }  // namespace plm

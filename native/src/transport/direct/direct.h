@@ -16,6 +16,8 @@
 #include "transport/lights/emitters.h"
 #include "transport/rays/passage.h"
 #include "transport/rays/tracing.h"
+#include "util/rng.h"
+#include "util/sobol.h"
 
 namespace plm {
 
@@ -93,6 +95,50 @@ class DirectPass {
   // Fills chosen[0 .. kCandidates) with the lights of most unoccluded
   // irradiance at p (normal n) and scratch's slot_of, others and others_cdf.
   void select_candidates(Vec3 p, Vec3 n, uint32_t* chosen, ChoiceScratch& scratch) const;
+  // The light of the local choice whose interval holds u_pick.
+  size_t choose_local(float u_pick, const uint32_t* candidates, size_t count, const float* share, float local,
+                      bool select, const ChoiceScratch& scratch) const;
+  // choice_sq from the texel's per-light tallies (selected: candidates were selected).
+  static void add_choice_spread(ChoiceScratch& scratch, bool selected, const uint32_t* chosen, DirectSums& sums);
+  // A sample between the tracing of its shadow rays and its sums.
+  struct PendingSample {
+    Vec3 origin, normal, shading, e;  // normal: geometric; shading: the interpolated one (smooth meshes)
+    Vec3 sky;                         // the world's part of e (split_sky_)
+    float v[2];                       // the cosine-sampled (MIS) direction's numbers
+    float burley;                     // the point's Burley roughness, < 0 for Lambert
+    size_t k;                         // the light chosen
+    uint32_t tri;
+    bool inside, contact;
+  };
+  // What a texel's samples draw their numbers from: Sobol dimensions or the
+  // stream, and the texel's strata (m x m = n over the window at origin, side wide).
+  struct SampleNumbers {
+    SobolGroup light, mis, piece, surface;
+    uint32_t pick_key, n, m;
+    float origin_x, origin_y, side;
+    bool sparse;
+  };
+  void draw(const SampleNumbers& d, uint32_t j, Rng& rng, float& x, float& y, float& u_pick, float* u, float* v,
+            float* w) const;
+  // A texel's running pairs: of successive strata, and of the world's part and the rest.
+  struct TexelTally {
+    StratumPairs pairs, split_pairs;
+    double previous_sky = 0.0, previous_other = 0.0;
+  };
+  void add_sample(uint32_t j, const PendingSample& ps, bool split_sky, TexelTally& tally, ChoiceScratch& scratch,
+                  DirectSums& sums) const;
+  // Shadow rays of a chunk of samples, traced in packets.
+  struct ShadowRays {
+    RayPacket packet;
+    Vec3 value[RayPacket::kLanes];  // a lane's irradiance if nothing blocks it
+    uint32_t sample[RayPacket::kLanes];
+    uint32_t sky_lanes = 0;  // bit l: lane l is a ray to the world's smooth part (split_sky_)
+  };
+  template <bool kPassage>
+  void trace_shadow_rays(ShadowRays& rays, PendingSample* chunk, bool measure_reach, DirectSums& sums) const;
+  // The MIS ray's light at a sample (probability(k): light k's choice probability).
+  template <bool kPassage, class Probability>
+  Vec3 cosine_ray_light(const PendingSample& ps, TraceContext& tc, bool smooth, const Probability& probability) const;
 
   RTCScene rtc_;
   const SurfaceMap& surfaces_;
