@@ -3,7 +3,8 @@
 # tests (CTest), the Python bridge tests (pytest) and the headless Blender
 # tests in Blender 3.4, 4.3 and 5.2 (blend_tests/blenders.txt says which where),
 # then the C++ unit tests again under AddressSanitizer + UBSan, then
-# 150,000 libFuzzer inputs from a fixed seed on the C API (scripts/fuzz.sh, clang, build-fuzz/),
+# 150,000 libFuzzer inputs from a fixed seed per fuzzer (100,000 on the C API, whose inputs bake
+# scenes, 15,000 on part files; scripts/fuzz.sh, clang, build-fuzz/),
 # tame floats (within +-1e8, no denormals): a regression run over the committed corpus (which
 # holds every crash found so far) that does not fail on luck. Exploration with the full float
 # range is scripts/fuzz.sh SECONDS (docs/robustness.md).
