@@ -7,6 +7,8 @@ import os
 
 import pytest
 
+from graphs import strong_groups
+
 ADDON = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "addon", "photonlm_blender")
 PACKAGE = "photonlm_blender"
 # Bottom to top: a module imports from its own layer's package or from layers below.
@@ -63,33 +65,8 @@ def _layer(name):
 
 
 def cycles():
-    """The strongly connected groups of more than one module (Tarjan)."""
-    index, low, stack, on, groups = {}, {}, [], set(), []
-
-    def visit(v):
-        index[v] = low[v] = len(index)
-        stack.append(v)
-        on.add(v)
-        for w, _, _ in GRAPH[v]:
-            if w not in index:
-                visit(w)
-                low[v] = min(low[v], low[w])
-            elif w in on:
-                low[v] = min(low[v], index[w])
-        if low[v] == index[v]:
-            group = []
-            while True:
-                w = stack.pop()
-                on.discard(w)
-                group.append(w)
-                if w == v:
-                    break
-            if len(group) > 1:
-                groups.append(sorted(group))
-    for v in sorted(GRAPH):
-        if v not in index:
-            visit(v)
-    return groups
+    """The strongly connected groups of more than one module."""
+    return strong_groups({v: [w for w, _, _ in edges] for v, edges in GRAPH.items()})
 
 
 def test_no_import_cycles():

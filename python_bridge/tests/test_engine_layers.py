@@ -12,6 +12,8 @@ import sys
 
 import pytest
 
+from graphs import strong_groups
+
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "native")
 SRC = os.path.join(ROOT, "src")
 PUBLIC = os.path.join(ROOT, "include")
@@ -97,36 +99,6 @@ def folder_graph(node=folder):
             if target and not target.startswith("?") and node(target) != node(p):
                 graph[node(p)].setdefault(node(target), []).append((p, line, name))
     return graph
-
-
-def strong_groups(graph):
-    """The strongly connected groups of more than one folder (Tarjan)."""
-    index, low, stack, on, groups = {}, {}, [], set(), []
-
-    def visit(v):
-        index[v] = low[v] = len(index)
-        stack.append(v)
-        on.add(v)
-        for w in sorted(graph.get(v, {})):
-            if w not in index:
-                visit(w)
-                low[v] = min(low[v], low[w])
-            elif w in on:
-                low[v] = min(low[v], index[w])
-        if low[v] == index[v]:
-            group = []
-            while True:
-                w = stack.pop()
-                on.discard(w)
-                group.append(w)
-                if w == v:
-                    break
-            if len(group) > 1:
-                groups.append(sorted(group))
-    for v in sorted(graph):
-        if v not in index:
-            visit(v)
-    return groups
 
 
 def cycles(graph):
