@@ -665,9 +665,9 @@ def artist_room(texture_dir):
     return objs
 
 
-def evaluated_lightmap_triangles(obj):
-    """World positions (T, 3, 3) and 'lightmap' UVs (T, 3, 2) of obj's evaluated mesh (None
-    without that UV map)."""
+def evaluated_lightmap_triangles(obj, uv_name="lightmap", world=True):
+    """World (or, world=False, object-space) positions (T, 3, 3) and `uv_name` UVs (T, 3, 2) of
+    obj's evaluated mesh (None without that UV map)."""
     dg = bpy.context.evaluated_depsgraph_get()
     ev = obj.evaluated_get(dg)
     me = ev.to_mesh()
@@ -676,13 +676,15 @@ def evaluated_lightmap_triangles(obj):
         nt = len(me.loop_triangles)
         co = np.empty(len(me.vertices) * 3, np.float32)
         me.vertices.foreach_get("co", co)
-        m = np.array(ev.matrix_world, np.float64)
-        pos = co.reshape(-1, 3) @ m[:3, :3].T + m[:3, 3]
+        pos = co.reshape(-1, 3)
+        if world:
+            m = np.array(ev.matrix_world, np.float64)
+            pos = pos @ m[:3, :3].T + m[:3, 3]
         tv = np.empty(nt * 3, np.int32)
         me.loop_triangles.foreach_get("vertices", tv)
         tl = np.empty(nt * 3, np.int32)
         me.loop_triangles.foreach_get("loops", tl)
-        layer = me.uv_layers.get("lightmap")
+        layer = me.uv_layers.get(uv_name)
         uv = None
         if layer is not None:
             a = np.empty(len(me.loops) * 2, np.float32)

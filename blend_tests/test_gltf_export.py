@@ -72,26 +72,6 @@ def build_scene():
     return {n: o for n, o in objs.items() if n != "light"}
 
 
-def local_triangles(obj, uv_name):
-    """Object-space positions (T, 3, 3) and `uv_name` UVs (T, 3, 2) of obj's evaluated mesh."""
-    ev = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
-    me = ev.to_mesh()
-    try:
-        me.calc_loop_triangles()
-        nt = len(me.loop_triangles)
-        co = np.empty(len(me.vertices) * 3, np.float32)
-        me.vertices.foreach_get("co", co)
-        tv = np.empty(nt * 3, np.int32)
-        me.loop_triangles.foreach_get("vertices", tv)
-        tl = np.empty(nt * 3, np.int32)
-        me.loop_triangles.foreach_get("loops", tl)
-        a = np.empty(len(me.loops) * 2, np.float32)
-        me.uv_layers[uv_name].data.foreach_get("uv", a)
-        return co.reshape(-1, 3)[tv].reshape(nt, 3, 3), a.reshape(-1, 2)[tl].reshape(nt, 3, 2)
-    finally:
-        ev.to_mesh_clear()
-
-
 def match_triangles(pos_a, uv_a, pos_b, uv_b):
     """Largest UV difference over triangles of a matched to b by centroid, corners by position;
     inf where a triangle has no counterpart or two share one."""
@@ -202,13 +182,13 @@ def check_file(checks, glb, objs, lightmap_of, rgbm):
         checks.check(ok_ext and len(textures) == 1, "'%s': its material carries MOZ_lightmap, FB_materials_lightmap "
                      "and extras on texture %s, texCoord 1" % (name, sorted(textures)))
         uv_name, exr_path = lightmap_of(name)
-        lm_pos, lm_uv = local_triangles(obj, uv_name)
+        lm_pos, lm_uv = scenes.evaluated_lightmap_triangles(obj, uv_name, world=False)
         got = [glb.triangles(p, "TEXCOORD_1") for p in prims]
         diff = match_triangles(np.concatenate([g[0] for g in got]), np.concatenate([g[1] for g in got]), lm_pos, lm_uv)
         checks.check(diff <= TOL_UV, "'%s': TEXCOORD_1 = its UV map '%s', triangle by triangle (%d triangles, "
                      "max |diff| %.2g)" % (name, uv_name, len(lm_pos), diff))
         if "UVMap" in obj.data.uv_layers:
-            tex_pos, tex_uv = local_triangles(obj, "UVMap")
+            tex_pos, tex_uv = scenes.evaluated_lightmap_triangles(obj, "UVMap", world=False)
             got0 = [glb.triangles(p, "TEXCOORD_0") for p in prims]
             d0 = match_triangles(np.concatenate([g[0] for g in got0]), np.concatenate([g[1] for g in got0]),
                                  tex_pos, tex_uv)
@@ -249,11 +229,11 @@ def check_import(checks, path, objs, glb):
         if orig is None:
             checks.check(False, "imported '%s' matches no exported object" % obj.name)
             continue
-        lm_pos, lm_uv = local_triangles(orig, "lightmap")
+        lm_pos, lm_uv = scenes.evaluated_lightmap_triangles(orig, "lightmap", world=False)
         layers = obj.data.uv_layers
         diff = math.inf
         if len(layers) >= 2:
-            pos, uv = local_triangles(obj, layers[1].name)
+            pos, uv = scenes.evaluated_lightmap_triangles(obj, layers[1].name, world=False)
             diff = match_triangles(pos, uv, lm_pos, lm_uv)
         checks.check(diff <= TOL_UV, "imported '%s': second UV map '%s' = the lightmap UVs (max |diff| %.2g)"
                      % (base, layers[1].name if len(layers) >= 2 else None, diff))
