@@ -317,12 +317,12 @@ void check_record(bool ok, const std::string& path, const char* what, uint64_t t
          " out of range (not a part a bake wrote)");
 }
 
-bool finite_sums(const StratifiedSums& s) {
-  return std::isfinite(s.rgb[0]) && std::isfinite(s.rgb[1]) && std::isfinite(s.rgb[2]) && s.sum_sq >= 0.0 &&
-         s.pair_sq >= 0.0 && std::isfinite(s.sum_sq) && std::isfinite(s.pair_sq) && s.paired <= s.count;
-}
-
 bool non_negative(double v) { return v >= 0.0 && std::isfinite(v); }
+
+bool finite_sums(const StratifiedSums& s) {
+  return std::isfinite(s.rgb[0]) && std::isfinite(s.rgb[1]) && std::isfinite(s.rgb[2]) && non_negative(s.sum_sq) &&
+         non_negative(s.pair_sq) && s.paired <= s.count;
+}
 
 }  // namespace
 
