@@ -454,11 +454,35 @@ int write_bake_outputs(plm_result* r, const plm::SceneFile& scene, const plm_bak
     jm["texels"] = texels;
     jm["texels_above_twice_target"] = above;
     jm["ol_group"] = m.ol_group >= 0 ? ordered_json(scene.ol_groups[size_t(m.ol_group)].name) : ordered_json();
+    // Light groups: each layer beside the lightmap, <mesh>_lightmap.<group>.exr.
+    if (plm_result_layer_count(r) > 0) {
+      ordered_json layers = ordered_json::array();
+      const std::string stem = name.substr(0, name.size() - 4);
+      for (uint32_t l = 0; l < plm_result_layer_count(r); ++l) {
+        const std::string group = plm_result_layer_name(r, l);
+        const std::string layer_file = stem + "." + group + ".exr";
+        used.insert(layer_file);
+        if (plm_result_write_layer_exr(r, m.id, l, (dir + layer_file).c_str()) != PLM_OK) {
+          std::fprintf(stderr, "%s: %s\n", cmd.c_str(), plm_last_error());
+          return abandon(kBakeFailed);
+        }
+        written.push_back(dir + layer_file);
+        layers.push_back({{"group", group}, {"file", layer_file}});
+      }
+      jm["layers"] = layers;
+    }
     meshes.push_back(jm);
     std::printf("%-24s %5ux%-5u mean %.6g -> %s\n", m.name.c_str(), m.width, m.height, (sum[0] + sum[1] + sum[2]) * k / 3.0,
                 name.c_str());
   }
   report["meshes"] = meshes;
+  ordered_json light_groups = ordered_json::array();
+  for (uint32_t l = 0; l < plm_result_layer_count(r); ++l) {
+    double error_estimate = 0.0;
+    plm_result_layer_error(r, l, &error_estimate);
+    light_groups.push_back({{"name", plm_result_layer_name(r, l)}, {"error_estimate", error_estimate}});
+  }
+  if (!light_groups.empty()) report["light_groups"] = light_groups;
   ordered_json groups = ordered_json::array();
   for (const plm::SceneFileOlGroup& g : scene.ol_groups) {
     if (g_interrupted) return abandon(kInterrupted);

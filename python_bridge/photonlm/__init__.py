@@ -591,6 +591,29 @@ class Scene(_Handle):
         texel shows the OL at the texel's normal); one without needs no UVs."""
         _check(_C.plm_scene_set_mesh_ol_group(self._h, _uint(mesh, "mesh"), _uint(group, "group")))
 
+    def add_light_group(self, name):
+        """Declare a light group and return its id (1, 2, ...; 0 is the default group).
+
+        One bake then gives each lightmap one layer per group (Result.layers, Result.lightmap_layer),
+        from the same photons and direct samples; the layers add up to the lightmap. name: letters,
+        digits, '_' and '-' (it names the layer's files), not "default"."""
+        out = ctypes.c_uint32()
+        _check(_C.plm_scene_add_light_group(self._h, _name(name), ctypes.byref(out)))
+        return out.value
+
+    def set_light_group(self, group, *, light=None, mesh=None, world=False):
+        """Put a light, a mesh's emission or the world (world=True) into a light group (0: the
+        default group). Give exactly one of light, mesh and world."""
+        if (light is not None) + (mesh is not None) + bool(world) != 1:
+            raise ValueError("set_light_group: give exactly one of light=, mesh= and world=True")
+        group = _uint(group, "group")
+        if light is not None:
+            _check(_C.plm_scene_set_light_group(self._h, _uint(light, "light"), group))
+        elif mesh is not None:
+            _check(_C.plm_scene_set_mesh_light_group(self._h, _uint(mesh, "mesh"), group))
+        else:
+            _check(_C.plm_scene_set_world_light_group(self._h, group))
+
     def add_lsystem(self, name, rules, depth=0, seed=0, matrix=None, step=-1, angle=-1, width=-1,
                     materials=None, ol_level=0, ol_resolution=0):
         """Add an L-system object (a plant traced as a scene graph, lit through orientation
@@ -957,6 +980,43 @@ class Result(_Handle):
         lm = Lightmap(np.empty((h, w, 3), np.float32), *(np.empty((h, w), np.float32) for _ in range(3)))
         _check(_C.plm_result_copy_lightmap(self._h, mesh_id, *(_ptr(a, ctypes.c_float) for a in lm)))
         return lm
+
+    @property
+    def layers(self):
+        """list of the light-group layers' names, in layer order ("default" for the default group);
+        empty without light groups."""
+        h = self._h
+        return [(_C.plm_result_layer_name(h, i) or b"").decode("utf-8", "replace")
+                for i in range(_C.plm_result_layer_count(h))]
+
+    def layer_error(self, layer):
+        """A layer's estimated relative error over the covered texels (as stats' error_estimate)."""
+        out = ctypes.c_double()
+        _check(_C.plm_result_layer_error(self._h, self._layer(layer), ctypes.byref(out)))
+        return out.value
+
+    def _layer(self, layer):
+        if isinstance(layer, str):
+            names = self.layers
+            if layer not in names:
+                raise PhotonlmError("no light-group layer %r (the result has %s)" % (layer, names or "none"),
+                                    "PLM_ERROR_INVALID_ARGUMENT")
+            return names.index(layer)
+        return _uint(layer, "layer")
+
+    def lightmap_layer(self, mesh_id, layer):
+        """A light-group layer (its index or name) of a mesh's lightmap: (rgb (h, w, 3), error (h, w))
+        float32 arrays. The layers add up to the lightmap's rgb."""
+        w, h = self.lightmap_size(mesh_id)
+        rgb, err = np.empty((h, w, 3), np.float32), np.empty((h, w), np.float32)
+        _check(_C.plm_result_copy_lightmap_layer(self._h, mesh_id, self._layer(layer), _ptr(rgb, ctypes.c_float),
+                                                 _ptr(err, ctypes.c_float)))
+        return rgb, err
+
+    def write_layer_exr(self, mesh_id, layer, path):
+        """Write a light-group layer of a mesh's lightmap as OpenEXR (R, G, B, error, hits), atomically."""
+        _check(_C.plm_result_write_layer_exr(self._h, _uint(mesh_id, "mesh_id"), self._layer(layer),
+                                             os.fsencode(os.fspath(path))))
 
     def orientation_lightmap(self, group):
         """Copy an OL group's map into new numpy arrays (an OrientationLightmap)."""

@@ -683,6 +683,46 @@ PLM_API plm_status plm_write_heat_map_exr(const char* path, uint32_t width, uint
 PLM_API plm_status plm_read_lightmap_exr(const char* path, uint32_t* width, uint32_t* height, float* rgb,
                                          float* error, float* hits);
 
+/* ---- Light groups ------------------------------------------------------------
+ *
+ * Light groups split a bake by what lights it (Blender's View Layer > Light
+ * Groups): one bake gives each lightmap one layer per group, from the same
+ * photons and direct samples, and a host mixes the layers at any strength and
+ * tint without baking again (light is additive). Lights, meshes' emission and
+ * the world belong to the default group (id 0) unless put into a declared
+ * one. The layers are the default group (where an emitter is in it) and then
+ * every declared group in order; they add up to the lightmap (up to float
+ * rounding). Each layer carries its own error estimate. Only ordinary
+ * lightmaps are split: plm_bake fails for a scene with light groups and OL
+ * groups, CSG solids or L-system objects, and sharded bakes (plm_bake_shard,
+ * plm_bake_texels, plm_bake_merge) refuse light groups. */
+
+/* Declares a light group; *out_group gets its id (1, 2, ... in order). The
+ * name (at most 64 of letters, digits, '_' and '-'; not "default") names the
+ * layer and its files. */
+PLM_API plm_status plm_scene_add_light_group(plm_scene* scene, const char* name, uint32_t* out_group);
+/* Puts light `light`, the emission of mesh `mesh`, or the world into group
+ * `group` (0: the default group). */
+PLM_API plm_status plm_scene_set_light_group(plm_scene* scene, uint32_t light, uint32_t group);
+PLM_API plm_status plm_scene_set_mesh_light_group(plm_scene* scene, uint32_t mesh, uint32_t group);
+PLM_API plm_status plm_scene_set_world_light_group(plm_scene* scene, uint32_t group);
+
+/* The result's layers: their count (0 without light groups), and layer
+ * `layer`'s name ("default" for the default group; NULL for a bad index)
+ * and estimated relative error over the covered texels. */
+PLM_API uint32_t plm_result_layer_count(const plm_result* result);
+PLM_API const char* plm_result_layer_name(const plm_result* result, uint32_t layer);
+PLM_API plm_status plm_result_layer_error(const plm_result* result, uint32_t layer, double* out_relative_error);
+/* Layer `layer` of mesh `mesh_id`'s lightmap into caller-owned buffers (rgb:
+ * width * height * 3 floats, error: width * height, either may be NULL),
+ * rows bottom first, as plm_result_copy_lightmap. */
+PLM_API plm_status plm_result_copy_lightmap_layer(const plm_result* result, uint32_t mesh_id, uint32_t layer,
+                                                  float* rgb, float* error);
+/* The layer as an OpenEXR file as plm_result_write_exr writes the lightmap
+ * (channels R, G, B, error, hits; hits are the whole lightmap's). */
+PLM_API plm_status plm_result_write_layer_exr(const plm_result* result, uint32_t mesh_id, uint32_t layer,
+                                              const char* path);
+
 /* ---- Orientation lightmaps (OL) -------------------------------------------
  *
  * An OL group stores the light of its meshes by surface normal instead of by

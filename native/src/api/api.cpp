@@ -70,6 +70,14 @@ const plm::LightmapImage& lightmap_of(const plm_result* r, uint32_t mesh_id, con
   return map;
 }
 
+// Sharded bakes carry no light-group layers (their part files hold the whole's sums only).
+void refuse_light_groups(const plm::Scene& scene, const char* function) {
+  if (!scene.light_groups.empty())
+    plm::fail(PLM_ERROR_INVALID_SCENE, function, ": the scene has light groups (", scene.light_groups.size(),
+              ", the first '", scene.light_groups[0], "'), which sharded bakes do not split; bake it on one machine "
+              "(plm_bake), or without light groups");
+}
+
 const plm::OlImage& ol_of(const plm_result* r, uint32_t group, const char* function) {
   require(r, function, "result");
   return result_item(r->output.ols, group, function, "OL group", "OL groups");
@@ -483,6 +491,7 @@ plm_status plm_bake_shard(plm_scene* scene, const plm_bake_settings* settings, u
   return guarded("plm_bake_shard", [&] {
     require(scene, "plm_bake_shard", "scene");
     require(part_path, "plm_bake_shard", "part_path");
+    refuse_light_groups(scene->scene, "plm_bake_shard");
     if (shard_count == 0 || shard >= shard_count)
       plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_bake_shard: shard ", shard, " of ", shard_count,
                 ": expected 0 <= shard < shard_count");
@@ -501,6 +510,7 @@ plm_status plm_bake_texels(plm_scene* scene, const plm_bake_settings* settings, 
   return guarded("plm_bake_texels", [&] {
     require(scene, "plm_bake_texels", "scene");
     require(part_path, "plm_bake_texels", "part_path");
+    refuse_light_groups(scene->scene, "plm_bake_texels");
     if (stage != PLM_TEXELS_DIRECT && stage != PLM_TEXELS_GATHER)
       plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_bake_texels: stage ", stage,
                 " is neither PLM_TEXELS_DIRECT nor PLM_TEXELS_GATHER");
@@ -549,6 +559,7 @@ plm_status plm_bake_merge(plm_scene* scene, const char* const* part_paths, uint3
   return guarded("plm_bake_merge", [&] {
     require(scene, "plm_bake_merge", "scene");
     require(out_result, "plm_bake_merge", "out_result");
+    refuse_light_groups(scene->scene, "plm_bake_merge");
     *out_result = nullptr;
     const std::vector<std::string> paths = part_list("plm_bake_merge", part_paths, part_count);
     auto* result = new plm_result();
@@ -689,6 +700,73 @@ plm_status plm_scene_set_mesh_ol_group(plm_scene* scene, uint32_t mesh, uint32_t
   return guarded("plm_scene_set_mesh_ol_group", [&] {
     require(scene, "plm_scene_set_mesh_ol_group", "scene");
     scene->scene.set_mesh_ol_group(mesh, group);
+  });
+}
+
+plm_status plm_scene_add_light_group(plm_scene* scene, const char* name, uint32_t* out_group) {
+  return guarded("plm_scene_add_light_group", [&] {
+    require(scene, "plm_scene_add_light_group", "scene");
+    const uint32_t id = scene->scene.add_light_group(name);
+    if (out_group) *out_group = id;
+  });
+}
+
+plm_status plm_scene_set_light_group(plm_scene* scene, uint32_t light, uint32_t group) {
+  return guarded("plm_scene_set_light_group", [&] {
+    require(scene, "plm_scene_set_light_group", "scene");
+    scene->scene.set_light_group(light, group);
+  });
+}
+
+plm_status plm_scene_set_mesh_light_group(plm_scene* scene, uint32_t mesh, uint32_t group) {
+  return guarded("plm_scene_set_mesh_light_group", [&] {
+    require(scene, "plm_scene_set_mesh_light_group", "scene");
+    scene->scene.set_mesh_light_group(mesh, group);
+  });
+}
+
+plm_status plm_scene_set_world_light_group(plm_scene* scene, uint32_t group) {
+  return guarded("plm_scene_set_world_light_group", [&] {
+    require(scene, "plm_scene_set_world_light_group", "scene");
+    scene->scene.set_world_light_group(group);
+  });
+}
+
+uint32_t plm_result_layer_count(const plm_result* result) {
+  return result ? uint32_t(result->output.layer_names.size()) : 0;
+}
+
+const char* plm_result_layer_name(const plm_result* result, uint32_t layer) {
+  if (!result || layer >= result->output.layer_names.size()) return nullptr;
+  return result->output.layer_names[layer].c_str();
+}
+
+plm_status plm_result_layer_error(const plm_result* result, uint32_t layer, double* out_relative_error) {
+  return guarded("plm_result_layer_error", [&] {
+    require(result, "plm_result_layer_error", "result");
+    require(out_relative_error, "plm_result_layer_error", "out_relative_error");
+    *out_relative_error = result_item(result->output.layer_errors, layer, "plm_result_layer_error", "layer", "layers");
+  });
+}
+
+plm_status plm_result_copy_lightmap_layer(const plm_result* result, uint32_t mesh_id, uint32_t layer, float* rgb,
+                                          float* error) {
+  return guarded("plm_result_copy_lightmap_layer", [&] {
+    const plm::LightmapImage& img = lightmap_of(result, mesh_id, "plm_result_copy_lightmap_layer");
+    result_item(img.layer_rgb, layer, "plm_result_copy_lightmap_layer", "layer", "layers");
+    const size_t n = size_t(img.width) * img.height;
+    if (rgb) std::memcpy(rgb, img.layer_rgb[layer].data(), 3 * n * sizeof(float));
+    if (error) std::memcpy(error, img.layer_error[layer].data(), n * sizeof(float));
+  });
+}
+
+plm_status plm_result_write_layer_exr(const plm_result* result, uint32_t mesh_id, uint32_t layer, const char* path) {
+  return guarded("plm_result_write_layer_exr", [&] {
+    const plm::LightmapImage& img = lightmap_of(result, mesh_id, "plm_result_write_layer_exr");
+    result_item(img.layer_rgb, layer, "plm_result_write_layer_exr", "layer", "layers");
+    require(path, "plm_result_write_layer_exr", "path");
+    plm::write_rgb_exr_atomic(path, img.width, img.height, img.layer_rgb[layer].data(), {"error", "hits"},
+                              {img.layer_error[layer].data(), img.hits.data()});
   });
 }
 

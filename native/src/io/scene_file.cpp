@@ -25,7 +25,7 @@ void engine(plm_status s, const std::string& path) {
 struct Reader {
   const SceneFileOptions& options;
   SceneFile& out;
-  std::vector<std::string> mesh_names, ol_names;
+  std::vector<std::string> mesh_names, ol_names, light_group_names;
 
   void materials(const json& v, const std::string& path) {
     array(v, path, options.limits.max_items, "materials");
@@ -117,6 +117,23 @@ struct Reader {
       out.ol_groups.push_back({name, id, resolution});
       ol_names.push_back(name);
     }
+  }
+
+  // "light_groups": ["day", "night"]: the groups lights, meshes' emission and the world name by "group".
+  void light_groups(const json& v, const std::string& path) {
+    array(v, path, options.limits.max_items, "light groups");
+    for (size_t i = 0; i < v.size(); ++i) {
+      const std::string name = string(v[i], index_path(path, i));
+      uint32_t id = 0;
+      engine(plm_scene_add_light_group(out.scene, name.c_str(), &id), index_path(path, i));
+      light_group_names.push_back(name);
+    }
+  }
+
+  // The engine id of the light group that obj's "group" names (0: none given).
+  uint32_t light_group(const json& obj, const std::string& path) {
+    const json* g = optional(obj, "group");
+    return g ? reference(*g, path + ".group", light_group_names, "scene.light_groups") + 1 : 0;
   }
 
   void resolution(const json& v, const std::string& path, uint32_t& w, uint32_t& h) {
@@ -306,7 +323,7 @@ struct Reader {
       check_keys(m, p,
                  {"name", "positions", "indices", "lightmap_uv", "obj", "material", "materials",
                   "lightmap_resolution", "ol_group", "gltf", "gltf_mesh", "gltf_node", "gltf_texcoord",
-                  "texture_uv", "normals", "smooth", "subdivision"});
+                  "texture_uv", "normals", "smooth", "subdivision", "group"});
       SceneFileMesh info;
       info.name = name_or(m, p, "mesh" + std::to_string(i));
       if (const json* r = optional(m, "lightmap_resolution")) resolution(*r, p + ".lightmap_resolution", info.width, info.height);
@@ -320,6 +337,8 @@ struct Reader {
       if (const json* sd = optional(m, "subdivision")) {  // a polygon cage refined by the engine
         info.id = subdivision_mesh(m, *sd, p, info, lightmap, one_material ? &material : nullptr, per_triangle);
         shading(m, p, info.id, 0);
+        if (const uint32_t group = light_group(m, p))
+          engine(plm_scene_set_mesh_light_group(out.scene, info.id, group), p + ".group");
         if (const json* g = optional(m, "ol_group")) {
           const uint32_t group = reference(*g, p + ".ol_group", ol_names, "scene.ol_groups");
           engine(plm_scene_set_mesh_ol_group(out.scene, info.id, out.ol_groups[group].id), p + ".ol_group");
@@ -400,6 +419,8 @@ struct Reader {
         engine(plm_scene_set_mesh_texture_uv(out.scene, id, tuv.data()), pt);
       }
       shading(m, p, id, indices.size() / 3);
+      if (const uint32_t group = light_group(m, p))
+        engine(plm_scene_set_mesh_light_group(out.scene, id, group), p + ".group");
       if (const json* g = optional(m, "ol_group")) {
         const uint32_t group = reference(*g, p + ".ol_group", ol_names, "scene.ol_groups");
         engine(plm_scene_set_mesh_ol_group(out.scene, id, out.ol_groups[group].id), p + ".ol_group");
@@ -417,7 +438,7 @@ struct Reader {
       const json& l = object(v[i], p);
       check_keys(l, p,
                  {"name", "type", "color", "power", "matrix", "location", "radius", "angle", "size_x", "size_y",
-                  "spot_size", "spot_blend"});
+                  "spot_size", "spot_blend", "group"});
       const std::string name = name_or(l, p, "light" + std::to_string(i));
       const uint32_t type =
           enum_value(required(l, p, "type"), p + ".type", {"POINT", "SPOT", "SUN", "AREA_RECT", "AREA_DISK", "PORTAL"});
@@ -445,13 +466,16 @@ struct Reader {
         if (const json* x = optional(l, s.key)) *s.field = to_float(*x, p + "." + s.key);
       uint32_t id = 0;
       engine(plm_scene_add_light(out.scene, name.c_str(), &light, &id), p);
+      if (const uint32_t group = light_group(l, p)) engine(plm_scene_set_light_group(out.scene, id, group), p + ".group");
     }
   }
 
   // {"radiance": colour} or {"map": "sky.exr", "rotation": [9 numbers], "strength": s} (map relative to the file).
   void world(const json& v, const std::string& path) {
     object(v, path);
-    check_keys(v, path, {"radiance", "map", "rotation", "strength"});
+    check_keys(v, path, {"radiance", "map", "rotation", "strength", "group"});
+    if (const uint32_t group = light_group(v, path))
+      engine(plm_scene_set_world_light_group(out.scene, group), path + ".group");
     const json* map = optional(v, "map");
     if (!map) {
       for (const char* k : {"rotation", "strength"})
@@ -572,7 +596,7 @@ struct Reader {
     // "metadata": free-form, for the tools that write the file (the Blender export); not read.
     check_keys(root, p,
                {"version", "settings", "world", "materials", "ol_groups", "meshes", "lights", "csg", "metadata",
-                "conventions"});
+                "conventions", "light_groups"});
     if (const json* ver = optional(root, "version")) {
       if (u32(*ver, p + ".version") != 1) fail(p + ".version", "this reader knows version 1, got " + shown(*ver));
     }
@@ -581,6 +605,7 @@ struct Reader {
       engine(plm_scene_set_conventions(
                  out.scene, int32_t(enum_value(*x, p + ".conventions", {"cycles-3.4", "cycles-4"}))),
              p + ".conventions");
+    if (const json* x = optional(root, "light_groups")) light_groups(*x, p + ".light_groups");
     if (const json* x = optional(root, "materials")) materials(*x, p + ".materials");
     if (const json* x = optional(root, "ol_groups")) ol_groups(*x, p + ".ol_groups");
     if (const json* x = optional(root, "meshes")) meshes(*x, p + ".meshes");
@@ -628,7 +653,7 @@ bool parse_scene_file_text(std::string_view text, const SceneFileOptions& option
       error = std::string("cannot create a scene: ") + plm_last_error();
       return false;
     }
-    Reader reader{options, out, {}, {}};
+    Reader reader{options, out, {}, {}, {}};
     reader.scene(root);
     return true;
   } catch (const InputError& e) {

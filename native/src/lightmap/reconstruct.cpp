@@ -130,13 +130,15 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
   };
   auto is_sparse = [&](size_t t) { return ta.coverage[t] < params.min_coverage; };
 
-  // Pass 1: the estimated mean squared error of the whole lightmap per radius.
+  // Pass 1: the estimated mean squared error of the whole lightmap per radius
+  // (none at a fixed radius).
   struct Totals {
     double var[kMaxRadius + 1] = {}, bias[kMaxRadius + 1] = {};
     double counted = 0.0;
   };
   std::vector<Totals> blocks((height + kBlockRows - 1) / kBlockRows);
-  for_rows(height, [&](uint32_t b, uint32_t y) {
+  if (params.fixed_radius >= 0) blocks.clear();
+  for_rows(blocks.empty() ? 0 : height, [&](uint32_t b, uint32_t y) {
     Totals& s = blocks[b];
     for (uint32_t t = y * width; t < (y + 1) * width; ++t) {
       if (!(ta.area[t] > 0.0) || is_sparse(t)) continue;
@@ -162,6 +164,7 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
   auto total_mse = [&](uint32_t r) { return total_var[r] + std::max(0.0, total_bias[r]); };
   for (uint32_t r = 1; r <= r_max; ++r)
     if (total_mse(r) < total_mse(chosen)) chosen = r;
+  if (params.fixed_radius >= 0) chosen = std::min(uint32_t(params.fixed_radius), kMaxRadius);
   const double mean_bias_sq = counted > 0.0 ? std::max(0.0, total_bias[chosen]) / counted : 0.0;
 
   // Hits per texel's worth of covered area, for the lookups' local error.

@@ -43,6 +43,9 @@ struct ReconstructParams {
   // contact shadows and shadow edges that the direct light shows.
   // A texel whose guide is negative (or NaN) pools with no other.
   const double* guide = nullptr;
+  // >= 0: pool at this radius, chosen elsewhere (a light group's share pools as
+  // its bake's whole did), with no bias estimate.
+  int32_t fixed_radius = -1;
 };
 
 // The lightmap's texel side in world units: sqrt(total area / total

@@ -1,6 +1,7 @@
 #include "scene/scene.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -228,6 +229,49 @@ void Scene::set_world_map_file(const char* path, const float rotation[9], float 
   if (!path || !*path) fail(PLM_ERROR_INVALID_ARGUMENT, "world map: path must not be NULL or empty");
   world_map = std::make_shared<const EnvironmentMap>(EnvironmentMap::from_file(path, rotation, strength));
   world = {0, 0, 0};
+}
+
+uint32_t Scene::add_light_group(const char* name) {
+  const std::string owner = "light group " + quoted_or(name, light_groups.size());
+  if (!name || !*name) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": the name must not be empty");
+  const std::string n = name;
+  if (n.size() > 64) fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": the name is longer than 64 characters");
+  for (const char c : n)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-'))
+      fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": the name holds '", std::string(1, c),
+           "' (letters, digits, '_' and '-' only: it names the layer's files)");
+  if (n == "default") fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": 'default' is the default group's name");
+  if (std::find(light_groups.begin(), light_groups.end(), n) != light_groups.end())
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": a light group of that name exists");
+  light_groups.push_back(n);
+  return uint32_t(light_groups.size());
+}
+
+namespace {
+void check_light_group(const Scene& s, uint32_t group, const std::string& owner) {
+  if (group > s.light_groups.size())
+    fail(PLM_ERROR_INVALID_ARGUMENT, owner, ": light group ", group, " does not exist (",
+         s.light_groups.size(), " declared; 0 is the default group)");
+}
+}  // namespace
+
+void Scene::set_light_group(uint32_t light, uint32_t group) {
+  if (light >= lights.size())
+    fail(PLM_ERROR_INVALID_ARGUMENT, "set light group: light ", light, " does not exist (", lights.size(), " lights)");
+  check_light_group(*this, group, "light '" + lights[light].name + "'");
+  lights[light].light_group = group;
+}
+
+void Scene::set_mesh_light_group(uint32_t mesh, uint32_t group) {
+  if (mesh >= meshes.size())
+    fail(PLM_ERROR_INVALID_ARGUMENT, "set mesh light group: mesh ", mesh, " does not exist (", meshes.size(), " meshes)");
+  check_light_group(*this, group, "mesh '" + meshes[mesh].name + "'");
+  meshes[mesh].light_group = group;
+}
+
+void Scene::set_world_light_group(uint32_t group) {
+  check_light_group(*this, group, "world");
+  world_light_group = group;
 }
 
 uint32_t Scene::add_ol_group(const char* name, uint32_t resolution) {

@@ -55,6 +55,7 @@ struct Mesh {
   uint32_t lightmap_width = 0, lightmap_height = 0;
   int32_t csg_carrier = -1;  // the CSG solid this mesh tessellates (not traced), -1 for none
   int32_t ol_group = -1;  // orientation-lightmap group, -1 for none (a mesh has a lightmap or a group, not both)
+  uint32_t light_group = 0;  // its emission's light group (Scene::light_groups index + 1; 0: the default group)
   // Subdivision meshes: the cage, whose limit surface gives the mesh's OL areas
   // (subdiv/limit_area.h); null for other meshes.
   std::shared_ptr<const subdiv::CageCopy> cage;
@@ -79,6 +80,7 @@ struct Mesh {
 struct Light {
   std::string name;
   plm_light desc;
+  uint32_t light_group = 0;  // Scene::light_groups index + 1; 0: the default group
 };
 
 // An orientation-lightmap group ([Thesis §6.2]): lightmap-less meshes whose
@@ -111,6 +113,11 @@ struct Scene {
   // Whose Cycles the lights follow (plm_conventions;
   // docs/design/cycles-versions.md).
   int32_t conventions = PLM_CONVENTIONS_CYCLES_3_4;
+  // Light groups (docs/design/light-groups.md): the names of the groups
+  // declared; lights, emissive meshes and the world name one by its index + 1
+  // (0: the default group, every emitter not given another).
+  std::vector<std::string> light_groups;
+  uint32_t world_light_group = 0;
 
   void set_conventions(int32_t value);
   uint32_t add_material(const char* name, const float albedo[3], const float emission[3]);
@@ -170,6 +177,15 @@ struct Scene {
     return false;
   }
   uint32_t add_ol_group(const char* name, uint32_t resolution);
+  // Declares a light group; returns its id (1, 2, ...; 0 is the default
+  // group). Throws for a name that is empty, "default", taken, or holds
+  // other characters than letters, digits, '_' and '-' (it names files).
+  uint32_t add_light_group(const char* name);
+  // Puts a light, a mesh's emission or the world into a group (0: the default
+  // group). Throws naming the bad index.
+  void set_light_group(uint32_t light, uint32_t group);
+  void set_mesh_light_group(uint32_t mesh, uint32_t group);
+  void set_world_light_group(uint32_t group);
   // Puts a mesh into a group (a later call moves it). Throws for bad indices
   // and for a mesh that has a lightmap.
   void set_mesh_ol_group(uint32_t mesh, uint32_t group);

@@ -68,6 +68,9 @@ struct BakeScene {
   std::unique_ptr<TextureSet> textures;  // null unless a material names an image
   std::vector<Emitter> emitters;
   double emitted = 0.0;  // W, all emitters together
+  // Light groups (docs/design/light-groups.md): the group of each layer
+  // (0: the default group); empty without groups.
+  std::vector<uint32_t> layers;
 
   MaterialTable lobes;                     // empty in scenes without lobes or Burley surfaces
   bool caustics = false;                   // lobes.any_lobes(): caustic photons get sums of their own

@@ -33,6 +33,11 @@ struct BakeOutput {
   std::vector<LSystemOutput> lsystems;   // one per L-system object
   std::vector<std::string> warnings;
   plm_bake_stats stats{};
+  // With light groups: each layer's name (its group's; "default" for the
+  // default group) and its estimated relative error over the covered
+  // texels (sqrt(mean variance) / mean value, as the bake's own).
+  std::vector<std::string> layer_names;
+  std::vector<double> layer_errors;
 };
 
 // Returns false to cancel. Called from the baking thread only.

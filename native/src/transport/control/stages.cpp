@@ -41,6 +41,7 @@ void set_up_emitters(BakeScene& ctx, Vec3 lo, Vec3 hi, BakeRun& run) {
     fail(PLM_ERROR_INVALID_SCENE, "nothing lights the scene: it has no light with power, no emissive material and "
          "no world light, so every lightmap would be black");
   ctx.emitted = emitted;
+  ctx.layers = assign_layers(scene, ctx.emitters);
   run.out.stats.emitted_power = emitted;
 }
 
@@ -199,12 +200,14 @@ std::unique_ptr<BakeScene> set_up(const Scene& scene, const BakeSettings& settin
   set_up_emitters(*ctx, lo, hi, run);
   set_up_surfaces(*ctx, run);
   run.out.stats.seconds_setup = seconds_since(run.t_start);
-  run.acc = Accumulators(ctx->space.texel_count, scene.meshes.size(), ctx->caustics, flux_quantum(ctx->emitted));
+  run.acc = Accumulators(ctx->space.texel_count, scene.meshes.size(), ctx->caustics, flux_quantum(ctx->emitted),
+                         uint32_t(ctx->layers.size()));
   return ctx;
 }
 
 Estimator estimator(const BakeScene& ctx, const BakeRun& run) {
-  return {ctx.space, run.direct.values, run.acc, ctx.settings.filter_radius, &run.gather, ctx.settings.gather};
+  return {ctx.space,           run.direct.values,     run.acc, ctx.settings.filter_radius, &run.gather,
+          ctx.settings.gather, &run.direct.layer_rgb};
 }
 
 void direct_pass(const BakeScene& ctx, BakeRun& run, CoveredSlice slice) {
@@ -320,12 +323,33 @@ void estimate_result(const BakeScene& ctx, BakeRun& run) {
                                "); lower the lightmap resolution or allow more time");
 }
 
+// The layers' names and their estimated errors, from the images.
+void name_layers(const BakeScene& ctx, BakeOutput& out) {
+  for (const uint32_t g : ctx.layers) {
+    out.layer_names.push_back(g == 0 ? "default" : ctx.scene.light_groups[g - 1]);
+    double value = 0.0, var = 0.0, count = 0.0;
+    for (const LightmapImage& img : out.lightmaps) {
+      const size_t l = out.layer_names.size() - 1;
+      if (img.layer_rgb.size() <= l) continue;
+      for (size_t t = 0; t < img.coverage.size(); ++t) {
+        if (!(img.coverage[t] > 0.0f)) continue;
+        const float* v = &img.layer_rgb[l][3 * t];
+        value += (double(v[0]) + v[1] + v[2]) / 3.0;
+        var += double(img.layer_error[l][t]) * img.layer_error[l][t];
+        count += 1.0;
+      }
+    }
+    out.layer_errors.push_back(value > 0.0 ? std::sqrt(var / count) / (value / count) : 0.0);
+  }
+}
+
 void write_outputs(const BakeScene& ctx, BakeRun& run) {
   finish_ol_groups(ctx.scene, run.photons, run.ol_groups, run.out.ols);
   finish_lsystems(run.photons, run.out.lsystems);
   run.report(kProgressPhotons, "writing lightmaps");
   write_lightmaps(ctx.arena, ctx.scene, estimator(ctx, run), run.photons, run.ol_groups.maps, run.last,
                   ctx.settings.dilation, run.out.lightmaps, run.out.warnings);
+  name_layers(ctx, run.out);
   run.out.stats.seconds_total = seconds_since(run.t_start);
   run.report(1.0, "done");
 }

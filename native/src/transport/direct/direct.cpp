@@ -63,7 +63,7 @@ DirectPass::DirectPass(const BakeScene& ctx)
       points_(ctx.space.views, ctx.space.areas, ctx.settings), seed_(ctx.settings.seed), sobol_(ctx.settings.sobol),
       offset_scale_(1e-6f * ctx.extent), table_(ctx.emitters),
       all_lights_(ctx.emitters.size() <= kAllLights),
-      local_choice_(!all_lights_ && ctx.emitters.size() <= kMaxLocalChoice) {
+      local_choice_(!all_lights_ && ctx.emitters.size() <= kMaxLocalChoice), layers_(uint32_t(ctx.layers.size())) {
   const std::vector<Emitter>& emitters = ctx.emitters;
   const std::vector<MeshView>& views = ctx.space.views;
   if (!all_lights_ && emitters.size() <= kCandidates)
@@ -125,9 +125,9 @@ void DirectPass::select_candidates(Vec3 p, Vec3 n, uint32_t* chosen, ChoiceScrat
 }
 
 void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
-                              DirectSums& sums) const {
-  if (passage_) sample<true>(mesh_id, texel, round, samples, sums);
-  else sample<false>(mesh_id, texel, round, samples, sums);
+                              DirectSums& sums, float* layer_rgb) const {
+  if (passage_) sample<true>(mesh_id, texel, round, samples, sums, layer_rgb);
+  else sample<false>(mesh_id, texel, round, samples, sums, layer_rgb);
 }
 
 // One interval of u_pick per light (the choice's stratification then leaves
@@ -158,7 +158,7 @@ size_t DirectPass::choose_local(float u_pick, const uint32_t* candidates, size_t
 // emitter's own samples (multiple importance sampling).
 template <bool kPassage, class Probability>
 Vec3 DirectPass::cosine_ray_light(const PendingSample& ps, TraceContext& tc, bool smooth,
-                                  const Probability& probability) const {
+                                  const Probability& probability, uint32_t& layer) const {
   const Vec3 local = cosine_hemisphere(ps.v[0], ps.v[1]);
   Vec3 t, b;
   make_frame(ps.shading, t, b);
@@ -193,6 +193,7 @@ Vec3 DirectPass::cosine_ray_light(const PendingSample& ps, TraceContext& tc, boo
                          : he.radiance;
       float weight = r / (1.0f + r);
       if (ps.burley >= 0.0f) weight *= bsdf::burley_receive(cos_s, ps.burley);
+      layer = he.layer;
       return kPassage ? L * through * weight : L * weight;
     }
   }
@@ -267,8 +268,13 @@ void DirectPass::add_choice_spread(ChoiceScratch& scratch, bool selected, const 
 // their blockers' distances kept (the sky pool's reach).
 template <bool kPassage>
 [[gnu::always_inline]] inline void DirectPass::trace_shadow_rays(ShadowRays& rays, PendingSample* chunk, bool measure_reach,
-                                   DirectSums& sums) const {
+                                   DirectSums& sums, float* layer_rgb) const {
   const unsigned lanes = rays.packet.size;
+  // With light groups, each ray's light also goes to its layer's sums.
+  auto to_layer = [&](unsigned l, Vec3 value) {
+    float* out = layer_rgb + 3 * size_t(rays.layer[l]);
+    for (int c = 0; c < 3; ++c) out[c] += value[c];
+  };
   if (measure_reach && rays.sky_lanes) {
     rays.packet.intersect(rtc_);
     for (unsigned l = 0; l < lanes; ++l) {
@@ -283,7 +289,10 @@ template <bool kPassage>
           ps.sky += rays.value[l];
         }
       }
-      if (!blocked) ps.e += rays.value[l];
+      if (!blocked) {
+        ps.e += rays.value[l];
+        if (layer_rgb) to_layer(l, rays.value[l]);
+      }
     }
     rays.sky_lanes = 0;
     return;
@@ -291,12 +300,18 @@ template <bool kPassage>
   if constexpr (kPassage) {
     Vec3 through[RayPacket::kLanes];
     passage_->occluded(rays.packet, rtc_, through);
-    for (unsigned l = 0; l < lanes; ++l) chunk[rays.sample[l]].e += rays.value[l] * through[l];
+    for (unsigned l = 0; l < lanes; ++l) {
+      chunk[rays.sample[l]].e += rays.value[l] * through[l];
+      if (layer_rgb) to_layer(l, rays.value[l] * through[l]);
+    }
     return;
   }
   rays.packet.occluded(rtc_);
   for (unsigned l = 0; l < lanes; ++l)
     if (!rays.packet.blocked(l)) chunk[rays.sample[l]].e += rays.value[l];
+  if (layer_rgb)
+    for (unsigned l = 0; l < lanes; ++l)
+      if (!rays.packet.blocked(l)) to_layer(l, rays.value[l]);
   if (rays.sky_lanes) {
     sums.sky_rays += uint32_t(__builtin_popcount(rays.sky_lanes));
     for (unsigned l = 0; l < lanes; ++l)
@@ -342,7 +357,8 @@ template <bool kPassage>
 }
 
 template <bool kPassage>
-void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums) const {
+void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums,
+                        float* layer_rgb) const {
   if (emitters_.empty()) return;
   // A CSG sub-texel: points from its lightmap; rays leave the exact surface by
   // the origin offset alone (a ray may rightly hit the primitive it leaves).
@@ -466,20 +482,27 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
         if (ps.burley >= 0.0f) weight *= bsdf::burley_receive(dot(shading, ds.dir), ps.burley);
         rays.value[rays.packet.size] = ds.irradiance * (weight / (kPi * probability(kk)));
         rays.sample[rays.packet.size] = c;
+        rays.layer[rays.packet.size] = em.layer;
         if (split_sky && is_sky_[kk]) rays.sky_lanes |= 1u << rays.packet.size;
         const bool triangle = em.kind == EmitterKind::Triangle;
         rays.packet.add(ps.origin, ds.dir, std::isinf(ds.distance) ? ds.distance : ds.distance * (1.0f - 1e-4f),
                         tc.skip_geom, tri, triangle ? SurfaceMap::mesh_geometry(em.mesh) : RTC_INVALID_GEOMETRY_ID,
                         triangle ? em.triangle : RTC_INVALID_GEOMETRY_ID);
-        if (rays.packet.full()) trace_shadow_rays<kPassage>(rays, chunk, reach_here, sums);
+        if (rays.packet.full()) trace_shadow_rays<kPassage>(rays, chunk, reach_here, sums, layer_rgb);
       }
     }
-    if (rays.packet.size > 0) trace_shadow_rays<kPassage>(rays, chunk, reach_here, sums);
+    if (rays.packet.size > 0) trace_shadow_rays<kPassage>(rays, chunk, reach_here, sums, layer_rgb);
     for (uint32_t c = 0; c < chunk_size; ++c) {
       const uint32_t j = j0 + c;
       PendingSample& ps = chunk[c];
       if (!ps.inside) continue;
-      if (has_triangle_emitters_ && !ps.contact) ps.e += cosine_ray_light<kPassage>(ps, tc, smooth != nullptr, probability);
+      if (has_triangle_emitters_ && !ps.contact) {
+        uint32_t layer = 0;
+        const Vec3 mis = cosine_ray_light<kPassage>(ps, tc, smooth != nullptr, probability, layer);
+        ps.e += mis;
+        if (layer_rgb)
+          for (int ch = 0; ch < 3; ++ch) layer_rgb[3 * size_t(layer) + ch] += mis[ch];
+      }
       add_sample(j, ps, split_sky, tally, scratch, sums);
     }
   }

@@ -19,16 +19,20 @@ namespace {
 // covered texel `first`) are measured here, and the extra samples join their sums.
 std::vector<DirectCalibration> calibrate_direct(tbb::task_arena& arena, const DirectPass& pass,
                                                 const std::vector<CoveredTexel>& covered, size_t first,
-                                                std::vector<DirectSums>& direct, uint32_t samples) {
+                                                DirectResult& result, uint32_t samples) {
+  std::vector<DirectSums>& direct = result.sums;
   constexpr uint32_t kCalibrationRound = 0xFF;  // a key no refinement round uses
   const size_t step = std::max<size_t>(4, covered.size() / 1024);
   const size_t m = covered.size() / step;
   const size_t k0 = (first + step - 1) / step, k1 = std::min(m, (first + direct.size() + step - 1) / step);
   std::vector<DirectSums> extra(k1 > k0 ? k1 - k0 : 0);
+  const size_t layer_floats = 3 * size_t(result.layers);
+  std::vector<float> extra_layers(extra.size() * layer_floats, 0.0f);
   arena.execute([&] {
     tbb::parallel_for(size_t(0), extra.size(), [&](size_t j) {
       const CoveredTexel& c = covered[(k0 + j) * step];
-      pass.sample_texel(c.mesh, c.texel, kCalibrationRound, samples, extra[j]);
+      pass.sample_texel(c.mesh, c.texel, kCalibrationRound, samples, extra[j],
+                        layer_floats ? &extra_layers[j * layer_floats] : nullptr);
     });
   });
   std::vector<DirectCalibration> out(extra.size());
@@ -54,6 +58,7 @@ std::vector<DirectCalibration> calibrate_direct(tbb::task_arena& arena, const Di
       }
     }
     a.merge(b);
+    for (size_t f = 0; f < layer_floats; ++f) result.layer_sums(r.texel - first)[f] += extra_layers[j * layer_floats + f];
   }
   return out;
 }
@@ -113,6 +118,8 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
   slice = slice.clamped(covered.size());
   const CoveredTexel* const texels = covered.data() + slice.begin;
   direct.resize(slice.size());
+  out.layers = pass.layers();
+  out.layer_rgb.assign(3 * size_t(out.layers) * direct.size(), 0.0f);
   const DirectSchedule schedule(settings.target_error, settings.direct_samples);
   const uint32_t rounds = DirectSchedule::kMaxRounds;
   std::vector<uint32_t> todo(direct.size());
@@ -133,7 +140,7 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
           tbb::parallel_for(tbb::blocked_range<uint64_t>(first_texel, first_texel + n, 16), [&](const auto& r) {
             for (uint64_t k = r.begin(); k < r.end(); ++k) {
               const CoveredTexel& c = texels[todo[k]];
-              pass.sample_texel(c.mesh, c.texel, round, want[todo[k]], direct[todo[k]]);
+              pass.sample_texel(c.mesh, c.texel, round, want[todo[k]], direct[todo[k]], out.layer_sums(todo[k]));
             }
           });
         },
@@ -146,7 +153,7 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
     mean /= double(std::max<size_t>(direct.size(), 1));
     out.noise.typical = typical_sample(direct);
     if (round == 0 && settings.sobol) {
-      out.calibration = calibrate_direct(arena, pass, covered, slice.begin, direct,
+      out.calibration = calibrate_direct(arena, pass, covered, slice.begin, out,
                                          probing ? schedule.probe() : schedule.first());
       calibrate(out.calibration, out.noise);
     }
@@ -164,6 +171,7 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
       probing = false;
       if (schedule.refines(aim_mean, noise) && !control.stop()) {  // round 0 again, with first() samples
         for (DirectSums& d : direct) dropped += d.count, d = DirectSums();
+        std::fill(out.layer_rgb.begin(), out.layer_rgb.end(), 0.0f);
         out.calibration.clear();
         std::fill(want.begin(), want.end(), schedule.first());
         --round;  // the loop's ++round runs round 0 again

@@ -34,6 +34,11 @@ struct DirectCalibration {
 
 struct DirectResult {
   std::vector<DirectSums> sums;  // per covered texel of the slice, from its first
+  // With light groups: per covered texel of the slice and layer, the layer's
+  // part of sums.rgb (3 floats; texel k's layer l at 3 * (k * layers + l)).
+  std::vector<float> layer_rgb;
+  uint32_t layers = 0;
+  float* layer_sums(size_t k) { return layers ? &layer_rgb[3 * k * layers] : nullptr; }
   DirectNoise noise;
   DirectValues values;  // the estimate's direct light (pool_direct) after the last round
   uint64_t samples = 0;  // in all

@@ -68,8 +68,12 @@ FluxQuantum flux_quantum(double emitted);
 class Accumulators {
  public:
   // caustics: the scene has lobes, and caustic photons (BatchOutput::caustic_hits) get sums of their own.
-  Accumulators(uint64_t texels, size_t meshes, bool caustics = false, FluxQuantum quantum_in = {})
-      : sum(3 * texels, 0.0), sum_sq(texels, 0.0), hits(texels, 0), back_lit(meshes, 0), quantum(quantum_in) {
+  // layers: the bake's light-group layers (0 without groups), whose photon
+  // fluxes get sums of their own (layer_sum).
+  Accumulators(uint64_t texels, size_t meshes, bool caustics = false, FluxQuantum quantum_in = {},
+               uint32_t layer_count = 0)
+      : sum(3 * texels, 0.0), sum_sq(texels, 0.0), hits(texels, 0), back_lit(meshes, 0), quantum(quantum_in),
+        layers(layer_count), layer_sum(size_t(3) * layer_count * texels, 0.0) {
     if (caustics) caustic.resize(texels);
   }
   std::vector<double> sum, sum_sq;  // flux / pick probability (not yet divided by the photon count)
@@ -79,6 +83,15 @@ class Accumulators {
   uint64_t total_sq_q = 0;
   uint64_t total_hits = 0;
   FluxQuantum quantum;
+  // With light groups (docs/design/light-groups.md): per layer, the flux of
+  // its photons' hits, ordinary and caustic together, 3 per texel; layer l's
+  // texel t at 3 * (l * texels + t). Each hit's rounded flux, so that the
+  // layers add up to sum + caustic.sum exactly.
+  uint32_t layers = 0;
+  std::vector<double> layer_sum;
+  const double* layer_flux(uint32_t layer, uint64_t texel) const {
+    return &layer_sum[3 * (size_t(layer) * hits.size() + texel)];
+  }
   // Caustic photons' sums (empty without lobes): their own reconstruction
   // and variance (transport/output/film_estimate.h), added to the texel.
   struct CausticSums {
@@ -107,17 +120,21 @@ class Accumulators {
   // Adds hits [h, end) to the texel sums (caustic: the caustic sums), each
   // flux and squared flux rounded to the quantum; returns the squared fluxes
   // in quanta of q2, for add_totals (transport/film/photon_batches.h calls both
-  // from several threads, one texel block at a time).
-  uint64_t add_hits(const Hit* h, const Hit* end, bool caustic_hits) {
+  // from several threads, one texel block at a time). With layers, layer[i]
+  // is hit i's layer.
+  uint64_t add_hits(const Hit* h, const Hit* end, bool caustic_hits, const uint32_t* layer = nullptr) {
     double* s = caustic_hits ? caustic.sum.data() : sum.data();
     double* s2 = caustic_hits ? caustic.sum_sq.data() : sum_sq.data();
     uint32_t* n = caustic_hits ? caustic.hits.data() : hits.data();
     uint64_t total = 0;  // a local: the stores through the arrays could otherwise alias it
     for (; h != end; ++h) {
       const size_t t = h->texel;
-      s[3 * t] += quantum.flux(h->r);
-      s[3 * t + 1] += quantum.flux(h->g);
-      s[3 * t + 2] += quantum.flux(h->b);
+      const double f[3] = {quantum.flux(h->r), quantum.flux(h->g), quantum.flux(h->b)};
+      for (int c = 0; c < 3; ++c) s[3 * t + c] += f[c];
+      if (layer) {
+        double* ls = &layer_sum[3 * (size_t(*layer++) * hits.size() + t)];
+        for (int c = 0; c < 3; ++c) ls[c] += f[c];
+      }
       const double a = (double(h->r) + h->g + h->b) / 3.0;
       const double sq = quantum.squared(a * a);
       s2[t] += sq;

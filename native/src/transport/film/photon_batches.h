@@ -38,10 +38,12 @@ class PhotonBatches {
     BatchOutput batch;
     std::vector<uint32_t> start;  // per block: first of its hits in `sorted`, then the end
     std::vector<Hit> sorted;
+    std::vector<uint32_t> sorted_layers;  // with light groups: the sorted hits' layers
   };
-  // Adds hits (caustic ones to the caustic sums) block by block; returns
-  // their squared fluxes in quanta.
-  uint64_t add_hits(const std::vector<Hit>& hits, bool caustic, Scratch& s);
+  // Adds hits (caustic ones to the caustic sums) block by block, with light
+  // groups each into its layer (layers[i]: hit i's); returns their squared
+  // fluxes in quanta.
+  uint64_t add_hits(const std::vector<Hit>& hits, const std::vector<uint32_t>& layers, bool caustic, Scratch& s);
 
   const PhotonTracer& tracer_;
   Accumulators& acc_;

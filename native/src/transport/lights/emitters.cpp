@@ -1,5 +1,6 @@
 #include "transport/lights/emitters.h"
 
+#include <algorithm>
 #include <limits>
 #include <memory>
 
@@ -271,6 +272,7 @@ std::vector<Emitter> build_emitters(const Scene& scene, Footprint fp, const Text
   const auto shared = std::make_shared<const Footprint>(fp);
   for (const Light& light : scene.lights) {
     Emitter e = light_emitter(light, scene.conventions);
+    e.group = light.light_group;
     if (e.kind == EmitterKind::Sun) {
       // Irradiance S on a surface facing the sun: flux S through the disk.
       e.footprint = shared;
@@ -309,6 +311,7 @@ std::vector<Emitter> build_emitters(const Scene& scene, Footprint fp, const Text
       e.triangle = t;
       e.material = material;
       e.textured = textures && textures->emission_varies(mesh, material);
+      e.group = mesh.light_group;
       if (average(e.flux) > 0.0f) out.push_back(e);  // denormal emission can underflow to 0
     }
   }
@@ -320,6 +323,7 @@ std::vector<Emitter> build_emitters(const Scene& scene, Footprint fp, const Text
     e.flux = scene.world * (4.0f * kPi * disk_area);
     e.scale = e.flux;
     e.radiance = scene.world;
+    e.group = scene.world_light_group;
     if (average(e.flux) > 0.0f) out.push_back(e);
   }
   if (scene.world_map) {
@@ -335,6 +339,7 @@ std::vector<Emitter> build_emitters(const Scene& scene, Footprint fp, const Text
       e.flux = map.integral(part) * disk_area;
       e.scale = e.flux;
       e.radiance = map.integral(part) * (1.0f / (4.0f * kPi));
+      e.group = scene.world_light_group;
       if (average(e.flux) > 0.0f) out.push_back(e);
     }
   }
@@ -760,6 +765,16 @@ float unoccluded_irradiance(const Emitter& e, Vec3 p, Vec3 n) {
     }
   }
   return 0.0f;
+}
+
+std::vector<uint32_t> assign_layers(const Scene& scene, std::vector<Emitter>& emitters) {
+  if (scene.light_groups.empty()) return {};
+  const bool any_default = std::any_of(emitters.begin(), emitters.end(), [](const Emitter& e) { return e.group == 0; });
+  std::vector<uint32_t> groups;
+  if (any_default) groups.push_back(0);
+  for (uint32_t g = 1; g <= scene.light_groups.size(); ++g) groups.push_back(g);
+  for (Emitter& e : emitters) e.layer = any_default ? e.group : e.group - 1;
+  return groups;
 }
 
 }  // namespace plm

@@ -47,6 +47,9 @@ struct Emitter {
   // mean over the triangle; a sample's own radiance is the texture at its
   // point (TextureSet::emission at EmitterSample / DirectSample bu, bv).
   bool textured = false;
+  // Its light group (Scene::light_groups index + 1, 0: the default) and that
+  // group's layer of the bake (assign_layers; 0 without groups).
+  uint32_t group = 0, layer = 0;
   float pick = 0;   // the emitter's share of photons is proportional to this (its mean flux by default)
   // Sun and world with portals: a share of the photons (and of the sky's
   // direct samples) go through the portals, chosen by portal_pick; the
@@ -94,6 +97,12 @@ Footprint photon_footprint(const Scene& scene, Vec3 lo, Vec3 hi);
 // triangle (their power, by which they are picked) and mark them textured.
 class TextureSet;
 std::vector<Emitter> build_emitters(const Scene& scene, Footprint footprint, const TextureSet* textures = nullptr);
+
+// The layers of a bake with light groups (docs/design/light-groups.md), as
+// the groups they hold (0: the default group): the default group first where
+// an emitter is in it, then every declared group; each emitter's `layer` set.
+// Empty, and the layers untouched, for a scene without declared groups.
+std::vector<uint32_t> assign_layers(const Scene& scene, std::vector<Emitter>& emitters);
 // The same with photons over the box [center - radius, center + radius].
 std::vector<Emitter> build_emitters(const Scene& scene, Vec3 scene_center, float scene_radius,
                                     const TextureSet* textures = nullptr);

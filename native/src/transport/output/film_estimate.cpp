@@ -192,6 +192,15 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
   }
 }
 
+const double* Estimator::guide(size_t i, std::vector<double>& buffer) const {
+  if (direct.empty()) return nullptr;
+  buffer.assign(space.areas[i].area.size(), 0.0);
+  size_t k = space.covered_begin[i];
+  for (size_t t = 0; t < buffer.size(); ++t)
+    if (space.areas[i].area[t] > 0.0) buffer[t] = direct.mean(k++);
+  return buffer.data();
+}
+
 void Estimator::texels(size_t i, uint64_t photons, EstimateBuffers& b, double* gather_part, bool lookups,
                        PhotonPart* part) const {
   std::vector<double>& value3 = b.value3;
@@ -207,14 +216,7 @@ void Estimator::texels(size_t i, uint64_t photons, EstimateBuffers& b, double* g
     params.max_radius = filter_radius;
     params.photons = double(photons);
     params.phantom_sq = acc.phantom_sq();
-    std::vector<double>& guide = b.guide;
-    if (!direct.empty()) {  // the direct light guides the reconstruction
-      guide.assign(n, 0.0);
-      size_t k = space.covered_begin[i];
-      for (size_t t = 0; t < n; ++t)
-        if (space.areas[i].area[t] > 0.0) guide[t] = direct.mean(k++);
-      params.guide = guide.data();
-    }
+    params.guide = guide(i, b.guide);  // the direct light guides the reconstruction
     const size_t g0 = space.views[i].texel_offset;
     reconstruct_indirect(space.areas[i], mesh.lightmap_width, mesh.lightmap_height,
                          {&acc.sum[3 * g0], &acc.sum_sq[g0], &acc.hits[g0]}, params, value3, variance, lookup);

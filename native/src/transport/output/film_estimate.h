@@ -48,6 +48,13 @@ struct Estimator {
   const GatherResult* gather = nullptr;  // per covered texel (empty sums without a gather)
   // Whether estimates also give the error the final gather's lookups see (Estimate::lookup_local, lookup_wide).
   bool lookups = false;
+  // With light groups: the direct pass's per-layer sums (DirectResult::layer_rgb), or null.
+  const std::vector<float>* direct_layers = nullptr;
+
+  // The guide of mesh i's photon reconstruction (its texels' direct light,
+  // lightmap/reconstruct.h ReconstructParams::guide) in `buffer`; null
+  // without a direct pass.
+  const double* guide(size_t i, std::vector<double>& buffer) const;
 
   // Sub-texel `sub` of CSG solid c: irradiance / pi (3 values) and its
   // estimated mean squared error. No pooling: the photon estimate of the

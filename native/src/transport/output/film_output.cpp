@@ -8,6 +8,7 @@
 #include "lightmap/dilate.h"
 #include "lightmap/object_seams.h"
 #include "lightmap/stitch.h"
+#include "transport/output/layers.h"
 
 namespace plm {
 namespace {
@@ -134,6 +135,34 @@ void blend_backup(const ol::OrientationLightmap& map, const TexelAreas& areas, c
   }
 }
 
+// Mesh i's light-group layers (layer_texels) from its texels `values` before
+// dilation, dilated and stitched as the whole lightmap is: the same texels
+// filled from the same neighbours, and seams solved with the whole's error as
+// every layer's weights, so that the layers still add up to the whole.
+// `stitched`: the whole after dilation and stitching (its error channel is
+// the one the stitch weighed by).
+void write_layers(const Estimator& est, size_t i, uint64_t photons, const std::vector<float>& values,
+                  const std::vector<uint8_t>& covered, const std::vector<float>& stitched, uint32_t dilation,
+                  const std::vector<SeamEdge>* seams, LightmapImage& img) {
+  std::vector<std::vector<float>> layers;
+  layer_texels(est, i, photons, values, layers);
+  const size_t n = covered.size();
+  img.layer_rgb.resize(layers.size());
+  img.layer_error.resize(layers.size());
+  for (size_t l = 0; l < layers.size(); ++l) {
+    std::vector<float>& v = layers[l];
+    std::vector<uint8_t> filled = covered;
+    dilate(v, 4, filled, img.width, img.height, dilation);
+    std::vector<float> error(n);
+    for (size_t t = 0; t < n; ++t) error[t] = v[4 * t + 3], v[4 * t + 3] = stitched[4 * t + 3];
+    if (seams) stitch_seams(*seams, covered, v, 4, img.width, img.height);
+    img.layer_rgb[l].resize(3 * n);
+    for (size_t t = 0; t < n; ++t)
+      for (int c = 0; c < 3; ++c) img.layer_rgb[l][3 * t + c] = v[4 * t + c];
+    img.layer_error[l] = std::move(error);
+  }
+}
+
 }  // namespace
 
 void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator& est, uint64_t photons,
@@ -184,8 +213,12 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
         }
       }
       const std::vector<uint8_t> covered = filled;
+      const std::vector<float> undilated = est.acc.layers ? values : std::vector<float>();
       dilate(values, 4, filled, img.width, img.height, dilation);
       if (!seams.joint[i]) stitch_seams(seams.within[i], covered, values, 4, img.width, img.height);
+      if (est.acc.layers)
+        write_layers(est, i, photons, undilated, covered, values, dilation, seams.joint[i] ? nullptr : &seams.within[i],
+                     img);
       img.rgb.resize(3 * n);
       img.error.resize(n);
       for (size_t t = 0; t < n; ++t) {
@@ -206,6 +239,17 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
     view[i] = {images[i].rgb.data(), 3, images[i].error.data(), 1, covered[i].data(), images[i].width, images[i].height};
   }
   arena.execute([&] { stitch_scene_seams(seams, view); });
+  // Each light-group layer stitched as the whole was, weighed by the whole's error.
+  for (uint32_t l = 0; l < est.acc.layers; ++l) {
+    std::vector<SeamImage> layer_view = view;
+    std::vector<std::vector<float>> spare(images.size());  // a mesh without layers: its colours untouched
+    for (size_t i = 0; i < images.size(); ++i) {
+      if (!seams.joint[i]) continue;
+      if (images[i].layer_rgb.size() <= l) spare[i] = images[i].rgb;
+      layer_view[i].colour = images[i].layer_rgb.size() > l ? images[i].layer_rgb[l].data() : spare[i].data();
+    }
+    arena.execute([&] { stitch_scene_seams(seams, layer_view); });
+  }
 }
 
 }  // namespace plm

@@ -22,6 +22,9 @@ struct LightmapImage {
   std::vector<float> error;     // standard error of the texel's mean RGB
   std::vector<float> hits;      // photon hits recorded
   std::vector<float> coverage;  // covered fraction (0 for dilated texels)
+  // With light groups: per layer, its part of rgb (3 per texel) and that
+  // part's error (transport/output/layers.h); they add up to rgb.
+  std::vector<std::vector<float>> layer_rgb, layer_error;
 };
 
 // Bins per side of an OL group created with resolution 0: 16 x 16 bins of

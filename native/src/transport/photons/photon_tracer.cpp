@@ -36,6 +36,7 @@ PhotonTracer::PhotonTracer(const BakeScene& ctx)
   seed_hash_ = {splitmix64(settings_.seed)};
   default_material_.albedo = {0.8f, 0.8f, 0.8f};
   mesh_only_ = !textures_ && csg_views_.empty() && scene_.lsystems.empty();
+  layered_ = !ctx.layers.empty();
   if (ctx.lobes.any_lobes()) {
     lobes_ = &ctx.lobes;
     lambda_offset_ = double(Rng(settings_.seed, ~0ull - 1).next_float());
@@ -60,9 +61,12 @@ void PhotonTracer::trace_batch(uint64_t first, uint64_t count, BatchOutput& out)
   out.ol_hits.clear();
   out.ls_hits.clear();
   out.back_meshes.clear();
+  out.hit_layers.clear();
+  out.caustic_layers.clear();
   out.rays = out.truncated = 0;
   out.truncated_flux = 0.0;
   lsystem::GraphHit graph_hit;
+  if (layered_) return trace_layered_batch(first, count, graph_hit, out);
   if (lobes_) return trace_lobe_batch(first, count, graph_hit, out);
   if (mesh_only_)
     for (uint64_t i = first; i < first + count; ++i) trace_photon<true, false>(i, graph_hit, out);
@@ -77,6 +81,17 @@ __attribute__((noinline)) void PhotonTracer::trace_lobe_batch(uint64_t first, ui
     for (uint64_t i = first; i < first + count; ++i) trace_photon<true, true>(i, graph_hit, out);
   else
     for (uint64_t i = first; i < first + count; ++i) trace_photon<false, true>(i, graph_hit, out);
+}
+
+// Scenes with light groups: each photon's hits tagged with its layer.
+__attribute__((noinline)) void PhotonTracer::trace_layered_batch(uint64_t first, uint64_t count,
+                                                                  lsystem::GraphHit& graph_hit, BatchOutput& out) const {
+  for (uint64_t i = first; i < first + count; ++i) {
+    if (lobes_) mesh_only_ ? trace_photon<true, true>(i, graph_hit, out) : trace_photon<false, true>(i, graph_hit, out);
+    else mesh_only_ ? trace_photon<true, false>(i, graph_hit, out) : trace_photon<false, false>(i, graph_hit, out);
+    out.hit_layers.resize(out.hits.size(), out.layer);
+    out.caustic_layers.resize(out.caustic_hits.size(), out.layer);
+  }
 }
 
 void PhotonTracer::build_hit_tables() {
@@ -131,6 +146,7 @@ void PhotonTracer::trace_photon(uint64_t index, lsystem::GraphHit& graph_hit, Ba
   sampler.emission(u_pick, u);
   const size_t k = table_.choose(u_pick);
   const Emitter& em = emitters_[k];
+  out.layer = em.layer;
   EmitterSample s = sample_emitter(em, u);
   if (!kMeshOnly && em.textured)  // the texture at the photon's origin: flux 2 pi L(x) A, unbiased whatever the mean
     s.weight = textures_->emission(*views_[em.mesh].mesh, em.material, em.triangle, s.bu, s.bv) *

@@ -60,6 +60,10 @@ struct BatchOutput {
   std::vector<OlHit> ol_hits;
   std::vector<LsHit> ls_hits;
   std::vector<uint32_t> back_meshes;  // meshes whose back a photon reached (the final gather's dark backs)
+  // With light groups: the layer of each hit's photon (hits, caustic_hits);
+  // empty without. layer: the last photon's (set by trace_photon).
+  std::vector<uint32_t> hit_layers, caustic_layers;
+  uint32_t layer = 0;
   uint64_t rays = 0;
   uint64_t truncated = 0;
   double truncated_flux = 0.0;
@@ -129,6 +133,7 @@ class PhotonTracer {
   // kLobes: the scene has specular lobes (lobes_); the photon follows them
   // and its path is classified (PathState), the purely diffuse loop stays as it was.
   void trace_lobe_batch(uint64_t first, uint64_t count, lsystem::GraphHit& graph_hit, BatchOutput& out) const;
+  void trace_layered_batch(uint64_t first, uint64_t count, lsystem::GraphHit& graph_hit, BatchOutput& out) const;
   template <bool kMeshOnly, bool kLobes>
   void trace_photon(uint64_t index, lsystem::GraphHit& graph_hit, BatchOutput& out) const;
   // A photon path's class in a scene with lobes (docs/design/materials.md,
@@ -188,6 +193,7 @@ class PhotonTracer {
   std::vector<uint8_t> covered_;     // per texel of the meshes that record hits
   SurfaceMap surfaces_;              // triangle normals from hit_tris_
   bool mesh_only_ = false;           // trace_photon<true> applies
+  bool layered_ = false;             // the bake has light groups: hits carry their photon's layer
   Rng::SeedHash seed_hash_{};        // of settings_.seed, for the photons' Rng
   const MaterialTable* lobes_ = nullptr;  // null in scenes without lobes
   double lambda_offset_ = 0.0;            // rotation of the photons' stratified wavelengths

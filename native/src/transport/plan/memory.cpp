@@ -21,6 +21,10 @@ constexpr uint64_t kBaseBytes = uint64_t(64) << 20;
 // Scenes with specular lobes keep the caustic photons' sums apart (transport/film/film.h):
 // 3 + 1 doubles and a count per texel.
 constexpr uint64_t kCausticBytesPerTexel = 36;
+// Light groups (transport/output/layers.h): per layer, 3 doubles of photon
+// flux and, in the images, 4 floats a texel; while a lightmap's layers are
+// made, 3 doubles and 4 floats more; 3 floats of direct sums per covered texel.
+constexpr uint64_t kLayerBytesPerTexel = 24 + 16 + 40, kLayerBytesPerCoveredTexel = 12;
 // Image textures: float RGB for the bake (12 bytes a pixel), and while one is
 // read, its pixels as read (up to 4 float channels: 16 bytes).
 constexpr uint64_t kBytesPerTexturePixel = 12, kBytesPerReadPixel = 16;
@@ -61,7 +65,11 @@ MemoryEstimate estimate_bake_memory(const Scene& scene) {
     }
   }
   e.bytes += kBytesPerReadPixel * largest_image;
-  const uint64_t per_texel = kBytesPerTexel + (scene.has_lobes() ? kCausticBytesPerTexel : 0);
+  // Light groups: the declared ones, and the default group.
+  const uint64_t layers = scene.light_groups.empty() ? 0 : scene.light_groups.size() + 1;
+  const uint64_t per_texel =
+      kBytesPerTexel + (scene.has_lobes() ? kCausticBytesPerTexel : 0) + layers * kLayerBytesPerTexel;
+  const uint64_t per_covered = kBytesPerCoveredTexel + layers * kLayerBytesPerCoveredTexel;
   for (size_t i = 0; i < scene.meshes.size(); ++i) {
     const Mesh& m = scene.meshes[i];
     e.bytes += kBytesPerTriangle * m.triangle_count();
@@ -74,7 +82,7 @@ MemoryEstimate estimate_bake_memory(const Scene& scene) {
     }
     // Islands cover a few more texels than their area (their borders): 1.2x.
     const double covered = std::min(texels, 1.2 * uv_area * texels);
-    const uint64_t bytes = uint64_t(texels) * per_texel + uint64_t(covered) * kBytesPerCoveredTexel;
+    const uint64_t bytes = uint64_t(texels) * per_texel + uint64_t(covered) * per_covered;
     e.bytes += bytes;
     if (bytes > e.largest_bytes) e.largest_bytes = bytes, e.largest_mesh = i;
   }

@@ -70,6 +70,18 @@ void validate(const Scene& scene, const BakeSettings& s) {
          "mesh has one (orientation lightmaps do not steer the bake): set photon_count or time_budget");
   if (texels >= (uint64_t(1) << 31))
     fail(PLM_ERROR_INVALID_SCENE, "the lightmaps hold ", texels, " texels together; the limit is 2^31");
+  // Light groups split the texels of ordinary lightmaps (docs/design/light-groups.md);
+  // what stores light otherwise has no layers.
+  if (!scene.light_groups.empty()) {
+    const char* other = !scene.ol_groups.empty() ? "orientation-lightmap groups"
+                        : !scene.csgs.empty()    ? "CSG solids"
+                        : !scene.lsystems.empty() ? "L-system objects"
+                                                  : nullptr;
+    if (other)
+      fail(PLM_ERROR_INVALID_SCENE, "light groups (", scene.light_groups.size(), " declared, the first '",
+           scene.light_groups[0], "') split ordinary lightmaps only, and the scene has ", other,
+           ": bake it without light groups, or those objects as meshes with lightmaps");
+  }
 }
 
 BakeSettings effective_settings(const Scene& scene, const BakeSettings& requested, std::vector<std::string>& warnings) {

@@ -1,0 +1,27 @@
+// Light-group layers of a lightmap (docs/design/light-groups.md): each
+// group's part of the final texel values, from the same photons and direct
+// samples as the whole. A texel's value V is its direct light D plus its
+// indirect light I = V - D; layer l takes of D the share its lights have in
+// the texel's direct sums, and of I the share its photons have in the
+// texel's photon flux pooled as the whole's reconstruction pools it. The
+// shares of a texel add up to 1, so the layers add up to V (up to float
+// rounding), whatever the gather and the pooling did to V.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "transport/output/film_estimate.h"
+
+namespace plm {
+
+// Per layer, mesh i's texels as R, G, B, error (4 floats a texel, 0 where
+// uncovered) from its final texels `values` (the same layout) at `photons`
+// photons. A layer's error: its shares of the direct and indirect variances
+// (a group whose lights give a share s of a texel's samples or photons
+// carries about s of their variance).
+void layer_texels(const Estimator& est, size_t i, uint64_t photons, const std::vector<float>& values,
+                  std::vector<std::vector<float>>& layers);
+
+}  // namespace plm
