@@ -9,6 +9,7 @@
 #include "transport/film/photon_batches.h"
 #include "transport/lights/footprint.h"
 #include "transport/output/film_output.h"
+#include "transport/output/layers.h"
 #include "transport/photons/photon_sampler.h"
 #include "transport/plan/validate.h"
 #include "util/error.h"
@@ -207,7 +208,7 @@ std::unique_ptr<BakeScene> set_up(const Scene& scene, const BakeSettings& settin
 
 Estimator estimator(const BakeScene& ctx, const BakeRun& run) {
   return {ctx.space,           run.direct.values,     run.acc, ctx.settings.filter_radius, &run.gather,
-          ctx.settings.gather, &run.direct.layer_rgb};
+          ctx.settings.gather, &run.direct};
 }
 
 void direct_pass(const BakeScene& ctx, BakeRun& run, CoveredSlice slice) {
@@ -293,8 +294,15 @@ void final_gather(const BakeScene& ctx, BakeRun& run, CoveredSlice slice) {
   if (!start_gather(run)) return;
   const FinalGather pass(ctx);
   const Estimate& now = run.last;
-  const GatherLookup lookup{now.values, now.lookup_local, now.lookup_wide, run.tracer->triangle_albedos(),
-                            run.acc.back_lit.data()};
+  // With light groups, each ray's light splits by the layers' shares of the texel it sees.
+  std::vector<std::vector<float>> shares;
+  if (!ctx.layers.empty()) shares = layer_shares(ctx.arena, estimator(ctx, run), run.photons, now.values);
+  const GatherLookup lookup{now.values,
+                            now.lookup_local,
+                            now.lookup_wide,
+                            run.tracer->triangle_albedos(),
+                            run.acc.back_lit.data(),
+                            shares.empty() ? nullptr : &shares};
   const double end = direct_end(ctx.settings);
   run.gather = run_final_gather(ctx, pass, lookup, run.open_shares,
                                 gather_samples(ctx.settings.target_error, run.gathers - 1),

@@ -73,6 +73,8 @@ class DirectPass {
                     float* layer_rgb = nullptr) const;
   // The bake's light-group layers (0 without groups).
   uint32_t layers() const { return layers_; }
+  // Whether a sample sends one shadow ray to a light chosen at random (more than kAllLights lights).
+  bool chooses_lights() const { return !all_lights_; }
 
  private:
   // sample_texel without (kPassage false: as in scenes without passable

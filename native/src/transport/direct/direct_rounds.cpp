@@ -119,6 +119,7 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
   const CoveredTexel* const texels = covered.data() + slice.begin;
   direct.resize(slice.size());
   out.layers = pass.layers();
+  out.chooses_lights = pass.chooses_lights();
   out.layer_rgb.assign(3 * size_t(out.layers) * direct.size(), 0.0f);
   const DirectSchedule schedule(settings.target_error, settings.direct_samples);
   const uint32_t rounds = DirectSchedule::kMaxRounds;

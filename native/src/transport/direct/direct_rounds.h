@@ -38,6 +38,7 @@ struct DirectResult {
   // part of sums.rgb (3 floats; texel k's layer l at 3 * (k * layers + l)).
   std::vector<float> layer_rgb;
   uint32_t layers = 0;
+  bool chooses_lights = false;  // each sample's shadow ray goes to one light chosen at random (DirectPass)
   float* layer_sums(size_t k) { return layers ? &layer_rgb[3 * k * layers] : nullptr; }
   DirectNoise noise;
   DirectValues values;  // the estimate's direct light (pool_direct) after the last round

@@ -35,9 +35,10 @@ FinalGather::FinalGather(const BakeScene& ctx)
       black_known_(ctx.lobes.any_lobes()), materials_(ctx.lobes.any_view_scale() ? &ctx.lobes : nullptr) {}
 
 void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
-                               const GatherSource& source, GatherSums& sums, GatherInfo& info) const {
-  if (passage_) sample<true>(mesh_id, texel, round, samples, source, sums, info);
-  else sample<false>(mesh_id, texel, round, samples, source, sums, info);
+                               const GatherSource& source, GatherSums& sums, GatherInfo& info,
+                               float* layer_rgb) const {
+  if (passage_) sample<true>(mesh_id, texel, round, samples, source, sums, info, layer_rgb);
+  else sample<false>(mesh_id, texel, round, samples, source, sums, info, layer_rgb);
 }
 
 float FinalGather::open_share(uint32_t mesh_id, uint32_t texel, const uint8_t* back_lit) const {
@@ -80,7 +81,7 @@ float FinalGather::open_share(uint32_t mesh_id, uint32_t texel, const uint8_t* b
 
 template <bool kPassage>
 void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
-                         const GatherSource& source, GatherSums& sums, GatherInfo& info) const {
+                         const GatherSource& source, GatherSums& sums, GatherInfo& info, float* layer_rgb) const {
   const uint64_t global = views_[mesh_id].texel_offset + texel;
   // A stream of its own: (round | 0x100) is no round of the direct pass's.
   Rng rng(seed_ ^ 0x7F4A7C15u, (global << 9) | 0x100u | (round & 0xFF));
@@ -183,6 +184,10 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
               a *= lane_weight[l];
               if (open > 0.0f && open < 1.0f) a = a * (1.0f / open);
               e = {a.x * d[0], a.y * d[1], a.z * d[2]};
+              if (layer_rgb) {  // each layer's part of what the ray sees, by the texel's shares
+                const float* share = source.layer_share + 3 * (hv.texel_offset + ht) * source.layers;
+                for (uint32_t g = 0; g < 3 * source.layers; ++g) layer_rgb[g] += e[g % 3] * share[g];
+              }
               const double albedo = average(a), local = albedo * source.local[hv.texel_offset + ht];
               const uint32_t row = uint32_t(ht) / hm.lightmap_width, column = uint32_t(ht) % hm.lightmap_width;
               const uint64_t cell = uint64_t(mesh) << 42 | uint64_t(row / cell_side_) << 21 | column / cell_side_;
@@ -278,14 +283,24 @@ GatherResult run_final_gather(const BakeScene& ctx, const FinalGather& gather, c
       });
     }
   }
+  // With light groups: the layers' shares of every texel's light, in the global order.
+  const uint32_t layers = lookup.layer_shares ? uint32_t(ctx.layers.size()) : 0;
+  std::vector<float> layer_share(3 * size_t(layers) * (layers ? space.texel_count : 0), 0.0f);
+  for (size_t i = 0; layers && i < lookup.layer_shares->size(); ++i) {
+    const std::vector<float>& s = (*lookup.layer_shares)[i];
+    std::copy(s.begin(), s.end(), layer_share.begin() + 3 * layers * space.views[i].texel_offset);
+  }
   const GatherSource source{radiosity.data(), local_error.data(), wide_error.data(), &albedo, back_lit,
-                            open.share.empty() ? nullptr : open.share.data()};
+                            open.share.empty() ? nullptr : open.share.data(),
+                            layers ? layer_share.data() : nullptr, layers};
   slice = slice.clamped(space.covered.size());
   const CoveredTexel* const covered = space.covered.data() + slice.begin;
   GatherResult out;
   const size_t step = gather_calibration_step(space.covered.size());
   out.sums.resize(slice.size());
   out.info.resize(slice.size());
+  out.layers = layers;
+  out.layer_rgb.assign(3 * size_t(layers) * slice.size(), 0.0f);
   run_in_groups(
       arena, slice.size(), 64,
       [&](uint64_t first_texel, uint64_t n) {
@@ -293,7 +308,8 @@ GatherResult run_final_gather(const BakeScene& ctx, const FinalGather& gather, c
           for (uint64_t k = r.begin(); k < r.end(); ++k) {
             GatherSums& a = out.sums[k];
             GatherInfo& info = out.info[k];
-            gather.sample_texel(covered[k].mesh, covered[k].texel, 0, samples, source, a, info);
+            gather.sample_texel(covered[k].mesh, covered[k].texel, 0, samples, source, a, info,
+                                layers ? &out.layer_rgb[3 * k * layers] : nullptr);
             if ((slice.begin + k) % step != 0 || info.unknown) continue;
             // A calibration texel: an independent replicate (it looks up the
             // same estimate, so the difference holds the rays' noise alone).

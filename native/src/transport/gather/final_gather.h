@@ -64,6 +64,10 @@ struct GatherSource {
   const std::vector<std::vector<Vec3>>* albedo = nullptr;  // per mesh, per triangle
   const uint8_t* back_lit = nullptr;  // per mesh: a photon reached its back (else its backs are dark)
   const float* open = nullptr;        // per global texel: FinalGather::open_share (null: 1 everywhere)
+  // With light groups: per global texel, each layer's share of its radiosity
+  // (3 per layer: texel t's layer l at 3 * (t * layers + l)), or null.
+  const float* layer_share = nullptr;
+  uint32_t layers = 0;
 };
 
 class FinalGather {
@@ -86,8 +90,10 @@ class FinalGather {
   // that hits what the source cannot look up (a mesh without its own texels,
   // a CSG solid, such backs) counts in info.unknown: such a texel's gather is
   // not used. Thread-safe for distinct texels.
+  // With the source's layer shares, layer_rgb (3 per layer) gets each
+  // layer's part of the sums' rgb.
   void sample_texel(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, const GatherSource& source,
-                    GatherSums& sums, GatherInfo& info) const;
+                    GatherSums& sums, GatherInfo& info, float* layer_rgb = nullptr) const;
 
   // The share of a texel's points (those its value is the mean over) that
   // light can reach: neither inside a closed object standing on the surface
@@ -102,7 +108,7 @@ class FinalGather {
   // passable materials) or with rays through passages.
   template <bool kPassage>
   void sample(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, const GatherSource& source,
-              GatherSums& sums, GatherInfo& info) const;
+              GatherSums& sums, GatherInfo& info, float* layer_rgb) const;
   // Lane l's hit, continued through passable surfaces; through: their weight.
   SurfaceHit passed(const RayPacket& packet, unsigned l, Vec3 dir, Vec3& through) const;
 
@@ -132,6 +138,10 @@ struct OpenShares {
 struct GatherResult {
   std::vector<GatherSums> sums;  // empty: no gather
   std::vector<GatherInfo> info;
+  // With light groups: per covered texel, each layer's part of sums' rgb (3
+  // floats per layer; texel k's layer l at 3 * (k * layers + l)).
+  std::vector<float> layer_rgb;
+  uint32_t layers = 0;
   double typical = 0.0;  // the phantom sample (typical_sample)
   double scale = 1.0;    // what makes the pair estimates honest (gather_scale)
 };
@@ -163,6 +173,9 @@ struct GatherLookup {
   const std::vector<std::vector<float>>& wide;
   const std::vector<std::vector<Vec3>>& albedo;
   const uint8_t* back_lit;
+  // With light groups: per mesh, per texel, each layer's share of its light
+  // (3 floats per layer), or null.
+  const std::vector<std::vector<float>>* layer_shares = nullptr;
 };
 GatherResult run_final_gather(const BakeScene& ctx, const FinalGather& gather, const GatherLookup& lookup,
                               OpenShares& open, uint32_t samples, const std::function<bool()>& after_group,

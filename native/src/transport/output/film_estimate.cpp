@@ -109,6 +109,7 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
   lookup_rays.assign(n, 0.0);
   usable.assign(n, 0);
   radius.assign(n, uint8_t(kGatherRadius));
+  b.photon_weight.assign(n, 1.0);
   double shared = 0.0, pairs = 0.0;  // over the texels: ray pairs' products within one cell, and all
   const double width = texel_width(space.areas[i]);
   size_t k = space.covered_begin[i];
@@ -180,6 +181,7 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
     }
     const double w = v_photons + v_gather > 0.0 ? v_gather / (v_photons + v_gather) : 0.0;
     for (int c = 0; c < 3; ++c) value3[3 * t + c] = w * value3[3 * t + c] + (1.0 - w) * g_value[3 * t + c];
+    b.photon_weight[t] = w;
     variance[t] = w * w * v_photons + (1.0 - w) * (1.0 - w) * v_gather;
     // What a later gather's lookups see: the gather's own noise is local (its
     // fit's reach); its fit's bias and what its lookups carried in from far
@@ -206,6 +208,7 @@ void Estimator::texels(size_t i, uint64_t photons, EstimateBuffers& b, double* g
   std::vector<double>& value3 = b.value3;
   std::vector<double>& variance = b.variance;
   LookupError* lookup = lookups ? &b.lookup : nullptr;
+  b.photon_weight.clear();
   const Mesh& mesh = *space.views[i].mesh;
   const size_t n = size_t(mesh.lightmap_width) * mesh.lightmap_height;
   // The photons' part: as the estimate before made it where `part` holds

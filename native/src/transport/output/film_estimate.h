@@ -14,6 +14,7 @@
 
 #include "lightmap/reconstruct.h"
 #include "transport/direct/direct_pool.h"
+#include "transport/direct/direct_rounds.h"
 #include "transport/film/film.h"
 #include "transport/gather/final_gather.h"
 #include "transport/plan/scheduler.h"
@@ -29,6 +30,10 @@ struct EstimateBuffers {
   std::vector<double> guide;
   std::vector<double> g_guide, g_mean, g_var, g_value, g_fit_var, lookup_rays, rays_fit, fit1, var1, rays1;
   std::vector<uint8_t> usable, radius;
+  // Per texel, the photons' weight w in the indirect light's blend with the
+  // final gather (combine_gather; 1 where the gather is not used); empty
+  // without a gather.
+  std::vector<double> photon_weight;
 };
 
 // The photons' reconstruction of every lightmap at one photon count, per
@@ -48,8 +53,8 @@ struct Estimator {
   const GatherResult* gather = nullptr;  // per covered texel (empty sums without a gather)
   // Whether estimates also give the error the final gather's lookups see (Estimate::lookup_local, lookup_wide).
   bool lookups = false;
-  // With light groups: the direct pass's per-layer sums (DirectResult::layer_rgb), or null.
-  const std::vector<float>* direct_layers = nullptr;
+  // With light groups: the direct pass's sums, per layer too (DirectResult::layer_rgb), or null.
+  const DirectResult* direct_result = nullptr;
 
   // The guide of mesh i's photon reconstruction (its texels' direct light,
   // lightmap/reconstruct.h ReconstructParams::guide) in `buffer`; null

@@ -4,12 +4,13 @@
 #include <cmath>
 
 #include "lightmap/reconstruct.h"
+#include "transport/film/film.h"
 
 namespace plm {
 namespace {
 
-// Per layer and channel, a share of a whole: parts[l][c] / the parts' sum,
-// or `fallback` where the sum is 0.
+// Per layer and channel, a share of a whole: part[l * stride + c] / the
+// parts' sum, or `fallback` where the sum is 0.
 struct Shares {
   std::vector<double> s;  // 3 per layer
   void of(const double* part, size_t stride, uint32_t layers, const std::vector<double>& fallback) {
@@ -44,21 +45,26 @@ std::vector<double> mesh_shares(const std::vector<double>& totals, uint32_t laye
   return out;
 }
 
-}  // namespace
+double mean3(const double* v) { return (v[0] + v[1] + v[2]) / 3.0; }
 
-void layer_texels(const Estimator& est, size_t i, uint64_t photons, const std::vector<float>& values,
-                  std::vector<std::vector<float>>& layers_out) {
+// What splits a lightmap's texels: each layer's photons pooled as the whole's
+// reconstruction pools them, the whole's pool (for the shares' noise), the
+// photons' weight in the blend with the final gather, and the lightmap's own
+// shares for texels without parts.
+struct Parts {
+  std::vector<double> pooled;  // 3 per layer per texel
+  std::vector<double> whole_value, whole_mse;
+  std::vector<double> photon_weight;  // per texel; empty without a gather
+  std::vector<double> photon_fallback, direct_fallback, gather_fallback;
+};
+
+Parts mesh_parts(const Estimator& est, size_t i, uint64_t photons) {
   const uint32_t layers = est.acc.layers;
   const TexelAreas& ta = est.space.areas[i];
   const Mesh& mesh = *est.space.views[i].mesh;
   const size_t n = ta.area.size();
-  const size_t first = est.space.covered_begin[i];
-  layers_out.assign(layers, std::vector<float>(4 * n, 0.0f));
-  if (layers == 0) return;
-
-  // Each layer's photon flux pooled at the radius the whole's reconstruction
-  // chose (the same texels pool together), 3 per layer per texel.
-  std::vector<double> pooled(3 * size_t(layers) * n, 0.0);
+  Parts p;
+  p.pooled.assign(3 * size_t(layers) * n, 0.0);
   if (photons > 0) {
     std::vector<double> guide, value3, mse;
     ReconstructParams params;
@@ -69,54 +75,139 @@ void layer_texels(const Estimator& est, size_t i, uint64_t photons, const std::v
     const uint64_t g0 = est.space.views[i].texel_offset;
     const PhotonSums whole{&est.acc.sum[3 * g0], &est.acc.sum_sq[g0], &est.acc.hits[g0]};
     params.fixed_radius = int32_t(reconstruct_indirect(ta, mesh.lightmap_width, mesh.lightmap_height, whole, params,
-                                                       value3, mse));
+                                                       p.whole_value, p.whole_mse));
     for (uint32_t l = 0; l < layers; ++l) {
       const PhotonSums part{est.acc.layer_flux(l, g0), &est.acc.sum_sq[g0], &est.acc.hits[g0]};
       reconstruct_indirect(ta, mesh.lightmap_width, mesh.lightmap_height, part, params, value3, mse);
       for (size_t t = 0; t < n; ++t)
-        for (int c = 0; c < 3; ++c) pooled[3 * (t * layers + l) + c] = value3[3 * t + c];
+        for (int c = 0; c < 3; ++c) p.pooled[3 * (t * layers + l) + c] = value3[3 * t + c];
+    }
+    if (est.gather && !est.gather->sums.empty()) {
+      EstimateBuffers b;
+      est.texels(i, photons, b);
+      p.photon_weight.swap(b.photon_weight);
     }
   }
-  const bool direct = !est.direct.empty() && est.direct_layers && !est.direct_layers->empty();
-  // The lightmap's own shares, for texels without a part of their own.
-  std::vector<double> photon_totals(3 * size_t(layers), 0.0), direct_totals(3 * size_t(layers), 0.0);
-  for (size_t t = 0, k = first; t < n; ++t) {
+  const DirectResult* dr = est.direct_result;
+  const GatherResult* gr = est.gather && est.gather->layers == layers ? est.gather : nullptr;
+  std::vector<double> photon_totals(3 * size_t(layers), 0.0), direct_totals = photon_totals,
+                      gather_totals = photon_totals;
+  for (size_t t = 0, k = est.space.covered_begin[i]; t < n; ++t) {
     if (!(ta.area[t] > 0.0)) continue;
     for (size_t f = 0; f < 3 * size_t(layers); ++f) {
-      photon_totals[f] += pooled[3 * t * layers + f];
-      if (direct) direct_totals[f] += (*est.direct_layers)[3 * k * layers + f];
+      photon_totals[f] += p.pooled[3 * t * layers + f];
+      if (dr && !dr->layer_rgb.empty()) direct_totals[f] += dr->layer_rgb[3 * k * layers + f];
+      if (gr && !gr->layer_rgb.empty()) gather_totals[f] += gr->layer_rgb[3 * k * layers + f];
     }
     ++k;
   }
-  const std::vector<double> photon_fallback = mesh_shares(photon_totals, layers);
-  const std::vector<double> direct_fallback = mesh_shares(direct_totals, layers);
+  p.photon_fallback = mesh_shares(photon_totals, layers);
+  p.direct_fallback = mesh_shares(direct_totals, layers);
+  p.gather_fallback = mesh_shares(gather_totals, layers);
+  return p;
+}
 
-  Shares direct_share, photon_share;
-  std::vector<double> raw(3 * size_t(layers));
-  for (size_t t = 0, k = first; t < n; ++t) {
+}  // namespace
+
+void layer_texels(const Estimator& est, size_t i, uint64_t photons, const std::vector<float>& values,
+                  std::vector<std::vector<float>>& layers_out) {
+  const uint32_t layers = est.acc.layers;
+  const TexelAreas& ta = est.space.areas[i];
+  const size_t n = ta.area.size();
+  layers_out.assign(layers, std::vector<float>(4 * n, 0.0f));
+  if (layers == 0) return;
+  const Parts parts = mesh_parts(est, i, photons);
+  const DirectResult* dr = est.direct_result;
+  const bool direct = !est.direct.empty() && dr && !dr->layer_rgb.empty();
+  const GatherResult* gr = est.gather && est.gather->layers == layers && !est.gather->layer_rgb.empty() &&
+                                   !parts.photon_weight.empty()
+                               ? est.gather
+                               : nullptr;
+  Shares direct_share, photon_share, gather_share;
+  std::vector<double> raw(3 * size_t(layers), 0.0), gathered(3 * size_t(layers), 0.0);
+  for (size_t t = 0, k = est.space.covered_begin[i]; t < n; ++t) {
     if (!(ta.area[t] > 0.0)) continue;
     double d[3] = {0, 0, 0}, ind[3], var_d = 0.0;
     if (direct) {
       for (int c = 0; c < 3; ++c) d[c] = est.direct.value3[3 * k + c];
       var_d = est.direct.variance[k];
-      for (size_t f = 0; f < raw.size(); ++f) raw[f] = (*est.direct_layers)[3 * k * layers + f];
-    } else {
-      std::fill(raw.begin(), raw.end(), 0.0);
+      for (size_t f = 0; f < raw.size(); ++f) raw[f] = dr->layer_rgb[3 * k * layers + f];
     }
     for (int c = 0; c < 3; ++c) ind[c] = double(values[4 * t + c]) - d[c];
     const double error = values[4 * t + 3];
     const double var_ind = std::max(0.0, error * error - var_d);
-    direct_share.of(raw.data(), 3, layers, direct_fallback);
-    photon_share.of(&pooled[3 * t * layers], 3, layers, photon_fallback);
+    direct_share.of(raw.data(), 3, layers, parts.direct_fallback);
+    photon_share.of(&parts.pooled[3 * t * layers], 3, layers, parts.photon_fallback);
+    // The indirect light's shares: the photons' where they alone give it,
+    // else the photons' and the final gather's (each layer's part of what
+    // the texel's gather rays saw) as the estimate blends the two.
+    double a[3] = {0, 0, 0}, g[3] = {0, 0, 0}, w = 1.0, gather_relative = 0.0;
+    if (!parts.whole_value.empty())
+      for (int c = 0; c < 3; ++c) a[c] = parts.whole_value[3 * t + c];
+    if (gr && parts.photon_weight[t] < 1.0 && gr->sums[k].count > 0) {
+      const GatherSums& gs = gr->sums[k];
+      w = parts.photon_weight[t];
+      for (int c = 0; c < 3; ++c) g[c] = gs.rgb[c] / gs.count;
+      for (size_t f = 0; f < gathered.size(); ++f) gathered[f] = gr->layer_rgb[3 * k * layers + f];
+      gather_share.of(gathered.data(), 3, layers, parts.gather_fallback);
+      const double gm = mean3(g);
+      gather_relative = gm > 0.0 ? gs.variance_of_mean(gr->typical, 0.0, gr->scale) / (gm * gm) : 0.0;
+    }
+    // The shares' own noise: with one light chosen per sample, how the n
+    // samples fell to the groups (binomial); the photons' share from the
+    // texel's pool (its relative variance), the gather's from its rays'.
+    const double d_mean = mean3(d), i_mean = std::max(0.0, mean3(ind));
+    const double samples = direct ? std::max(1.0, double(dr->sums[k].count)) : 1.0;
+    const double a_mean = mean3(a), a_w = w * a_mean, g_w = (1.0 - w) * mean3(g);
+    const double photon_relative =
+        a_mean > 0.0 && !parts.whole_mse.empty() ? parts.whole_mse[t] / (a_mean * a_mean) : 0.0;
     for (uint32_t l = 0; l < layers; ++l) {
       float* out = &layers_out[l][4 * t];
-      for (int c = 0; c < 3; ++c)
-        out[c] = float(d[c] * direct_share.s[3 * l + c] + ind[c] * photon_share.s[3 * l + c]);
-      const double var = direct_share.mean(l, d) * var_d + photon_share.mean(l, ind) * var_ind;
+      for (int c = 0; c < 3; ++c) {
+        double share = photon_share.s[3 * l + c];
+        const double den = w * a[c] + (1.0 - w) * g[c];
+        if (w < 1.0 && den > 0.0) share = (w * a[c] * share + (1.0 - w) * g[c] * gather_share.s[3 * l + c]) / den;
+        out[c] = float(d[c] * direct_share.s[3 * l + c] + ind[c] * share);
+      }
+      const double sd = direct_share.mean(l, d), sp = photon_share.mean(l, ind);
+      const double sg = w < 1.0 ? gather_share.mean(l, g) : sp;
+      const double split = a_w + g_w > 0.0 ? 1.0 / (a_w + g_w) : 0.0;
+      const double si = a_w + g_w > 0.0 ? (a_w * sp + g_w * sg) * split : sp;
+      const double choice = direct && dr->chooses_lights ? d_mean * d_mean * sd * (1.0 - sd) / samples : 0.0;
+      const double share_var = (a_w * split) * (a_w * split) * sp * (1.0 - sp) * photon_relative +
+                               (g_w * split) * (g_w * split) * sg * (1.0 - sg) * gather_relative;
+      const double var = sd * var_d + choice + si * si * var_ind + i_mean * i_mean * share_var;
       out[3] = float(std::sqrt(std::max(0.0, var)));
     }
     ++k;
   }
+}
+
+std::vector<std::vector<float>> layer_shares(tbb::task_arena& arena, const Estimator& est, uint64_t photons,
+                                             const std::vector<std::vector<float>>& values) {
+  const uint32_t layers = est.acc.layers;
+  const size_t meshes = est.space.views.size();
+  std::vector<std::vector<float>> out(meshes);
+  arena.execute([&] {
+    for_lightmaps(meshes, [&](size_t i) { return est.space.areas[i].area.size(); }, [&](size_t i) {
+      if (!est.space.views[i].texel_area || values[i].empty()) return;
+      std::vector<std::vector<float>> parts;
+      layer_texels(est, i, photons, values[i], parts);
+      const size_t n = est.space.areas[i].area.size();
+      std::vector<float>& share = out[i];
+      share.assign(3 * size_t(layers) * n, 1.0f / float(layers));
+      for (size_t t = 0; t < n; ++t) {
+        for (int c = 0; c < 3; ++c) {
+          double whole = 0.0;
+          for (uint32_t l = 0; l < layers; ++l) whole += std::max(0.0f, parts[l][4 * t + c]);
+          if (!(whole > 0.0)) continue;
+          for (uint32_t l = 0; l < layers; ++l)
+            share[3 * (t * layers + l) + c] = float(std::max(0.0f, parts[l][4 * t + c]) / whole);
+        }
+      }
+    });
+  });
+  return out;
 }
 
 }  // namespace plm

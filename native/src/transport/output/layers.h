@@ -8,6 +8,8 @@
 // rounding), whatever the gather and the pooling did to V.
 #pragma once
 
+#include <tbb/task_arena.h>
+
 #include <cstddef>
 #include <cstdint>
 #include <vector>
@@ -18,10 +20,16 @@ namespace plm {
 
 // Per layer, mesh i's texels as R, G, B, error (4 floats a texel, 0 where
 // uncovered) from its final texels `values` (the same layout) at `photons`
-// photons. A layer's error: its shares of the direct and indirect variances
-// (a group whose lights give a share s of a texel's samples or photons
-// carries about s of their variance).
+// photons. A layer's error: its part of the direct variance (a group whose
+// lights give a share s of a texel's samples carries about s of it), of the
+// indirect one (s^2 of it), and its shares' own noise (layers.cpp).
 void layer_texels(const Estimator& est, size_t i, uint64_t photons, const std::vector<float>& values,
                   std::vector<std::vector<float>>& layers);
+
+// What the final gather's rays split their light by (GatherLookup::layer_shares):
+// per mesh, per texel, each layer's share of the texel's light (3 per layer;
+// of the estimate `values`, Estimate::values), from layer_texels.
+std::vector<std::vector<float>> layer_shares(tbb::task_arena& arena, const Estimator& est, uint64_t photons,
+                                             const std::vector<std::vector<float>>& values);
 
 }  // namespace plm
