@@ -1,16 +1,16 @@
 // libFuzzer target for the C API: the input is decoded into a
 // sequence of calls (add material / material lobe / mesh / subdivision cage / light / CSG solid, set
 // world / world map (from memory or an EXR file), bake, copy, write EXR, read warnings and stats,
-// structs of the wrong size, release) with arbitrary floats, sizes and indices. The
+// structs of the wrong size, light groups and their layers, release) with arbitrary floats, sizes and indices. The
 // library must never crash, hang, leak or trip a sanitizer, and a bake that
 // returns PLM_OK must give finite, non-negative lightmaps and statistics.
 //
 // Build and run: scripts/fuzz.sh [seconds]. Input format (all little endian):
 // a stream of ops, one byte each, each followed by its operands: the bytes
-// 208, 209 and 210 are ops 13, 14 and 15 (lobe, world map, struct sizes),
-// every other byte is op byte % 13 (material ... start over). No fuzzer find
-// in the corpus has one of the three as an op byte, so each decodes to the
-// calls it was found with;
+// 208, 209, 210 and 211 are ops 13, 14, 15 and 16 (lobe, world map, struct
+// sizes, light groups), every other byte is op byte % 13 (material ... start
+// over). No fuzzer find in the corpus has one of the four as an op byte, so
+// each decodes to the calls it was found with;
 // a float operand is a tag byte and then either 4 raw bytes (tag % 8 == 0),
 // one byte indexing kSpecialFloats (tag % 8 == 1), or one signed byte / 16.
 // Reading past the end gives zeros. native/fuzz/make_corpus.py writes seeds.
@@ -504,6 +504,36 @@ void bake(State& st, Reader& in) {
   check_result(st);
 }
 
+// Light groups: a group declared (any name), a light, a mesh or the world put
+// into a group (any ids), then a layer of the last result copied: finite.
+void light_groups(State& st, Reader& in) {
+  uint32_t id = 0;
+  const uint8_t what = in.u8();
+  if (what & 1) expect_message(plm_scene_add_light_group(st.scene, in.name(), &id));
+  const uint32_t group = in.u8() % 4, target = in.u8() % 8;
+  switch (what >> 1 & 3) {
+    case 0: expect_message(plm_scene_set_light_group(st.scene, target, group)); break;
+    case 1: expect_message(plm_scene_set_mesh_light_group(st.scene, target, group)); break;
+    case 2: expect_message(plm_scene_set_world_light_group(st.scene, group)); break;
+    default: break;
+  }
+  const uint32_t layers = plm_result_layer_count(st.result), layer = in.u8() % (layers + 2);
+  (void)plm_result_layer_name(st.result, layer);
+  double error = 0.0;
+  const plm_status e = plm_result_layer_error(st.result, layer, &error);
+  expect_message(e);
+  if (e == PLM_OK) check(std::isfinite(error) && error >= 0.0, "a layer's error is finite");
+  const uint32_t mesh = in.u8() % (st.meshes + 2);
+  uint32_t w = 0, h = 0;
+  if (plm_result_lightmap_size(st.result, mesh, &w, &h) != PLM_OK) return;
+  std::vector<float> rgb(3 * size_t(w) * h), err(size_t(w) * h);
+  const plm_status s = plm_result_copy_lightmap_layer(st.result, mesh, layer, rgb.data(), err.data());
+  expect_message(s);
+  if (s != PLM_OK) return;
+  for (const float v : rgb) check(std::isfinite(v), "a layer's texels are finite");
+  for (const float v : err) check(std::isfinite(v) && v >= 0.0f, "a layer's errors are finite, >= 0");
+}
+
 void copy(State& st, Reader& in) {
   const uint32_t mesh = in.u8() % (st.meshes + 2);
   uint32_t w = 0, h = 0;
@@ -593,7 +623,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   check(plm_scene_create(&st.scene) == PLM_OK, "create a scene");
   for (int ops = 0; ops < 48 && !in.done(); ++ops) {
     const uint8_t byte = in.u8();
-    switch (byte >= 208 && byte <= 210 ? 13 + (byte - 208) : byte % 13) {
+    switch (byte >= 208 && byte <= 211 ? 13 + (byte - 208) : byte % 13) {
       case 0: {
         const char* name = in.name();
         float albedo[3], emission[3];
@@ -640,6 +670,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       case 13: add_lobe(st, in); break;
       case 14: set_world_map(st, in); break;
       case 15: struct_sizes(st, in); break;
+      case 16: light_groups(st, in); break;
       default:  // 12: start over with an empty scene
         plm_result_release(st.result);
         st.result = nullptr;

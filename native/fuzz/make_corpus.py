@@ -93,7 +93,7 @@ def warnings():
     return bytes([8, 1])
 
 
-# Ops 13-15 are op bytes 208-210.
+# Ops 13-16 are op bytes 208-211.
 SIZE = {"zero": 0, "older": 1, "newer": 2, "short": 3, "current": 5}
 
 
@@ -129,6 +129,11 @@ def csg_node_of_size(node, size, name=2):
     return bytes([210, 2, 0, node, SIZE[size], name])
 
 
+def light_group(what, group, target, layer=0, mesh=0, name=2):
+    """what: 1 declares a group (named by `name`), bits 1-2 pick light / mesh / world (0-2) to put into `group`."""
+    return bytes([211, what]) + (bytes([name]) if what & 1 else b"") + bytes([group, target, layer, mesh])
+
+
 SEEDS = {
     "point_over_quad": material((0.8, 0.8, 0.8), (0, 0, 0)) + quad((-1, -1, 0), (2, 0, 0), (0, 2, 0), 0, 8) +
     light(0, 100.0, matrix=[(11, 1.0)]) + bake() + copy(0) + exr(0) + warnings(),
@@ -158,6 +163,10 @@ SEEDS = {
     bake_of_size("older") + stats_of_size("older") + stats_of_size("zero") + stats_of_size("newer") +
     bake_of_size("short") + light_of_size("zero") + light_of_size("current") + csg_node_of_size(1, "short") +
     csg_node_of_size(0, "current") + bake_of_size("current") + stats_of_size("current"),
+    "light_groups": material((0.7, 0.7, 0.7), (0, 0, 0)) + quad((-1, -1, 0), (2, 0, 0), (0, 2, 0), 0, 4) +
+    light(0, 100.0, matrix=[(11, 1.0)]) + world((0.2, 0.3, 0.4)) + light_group(1, 1, 0) +
+    light_group(1 | 4, 2, 0, name=1) + light_group(4, 1, 0) + bake(1500, 4) + light_group(6, 0, 0, 1, 0) +
+    light_group(6, 0, 0, 2, 0) + light_group(2, 3, 9, 0, 1),
 }
 
 
