@@ -217,11 +217,8 @@ TEST(LightGroups, BadGroupsAreRefusedNamingWhatIsWrong) {
   refused(plm_scene_set_light_group(b.scene, 7, 1), "light 7 does not exist");
   refused(plm_scene_set_mesh_light_group(b.scene, 9, 1), "mesh 9 does not exist");
   refused(plm_scene_set_world_light_group(b.scene, 5), "world: light group 5");
-  // Sharded bakes refuse light groups.
-  plm_bake_settings s = plm_test::settings_with(20000, 4);
-  EXPECT_EQ(plm_bake_shard(b.scene, &s, 0, 2, nullptr, "/nonexistent/part", nullptr, nullptr), PLM_ERROR_INVALID_SCENE);
-  EXPECT_NE(std::string(plm_last_error()).find("light groups"), std::string::npos) << plm_last_error();
-  // So do scenes with OL groups.
+  // Scenes with OL groups refuse light groups.
+  const plm_bake_settings s = plm_test::settings_with(20000, 4);
   uint32_t ol = 0;
   ASSERT_EQ(plm_scene_add_ol_group(b.scene, "ol", 0, &ol), PLM_OK);
   plm_result* r = nullptr;

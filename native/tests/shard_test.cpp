@@ -717,3 +717,44 @@ TEST(TexelRanges, PartsWithValuesNoBakeWritesAreRefused) {
   d.sums[1].pair_sq = -1.0;
   refused(write_d, read_direct, "the direct sums");
 }
+
+// Light groups across machines: shards, direct and gather ranges and the merge
+// give every layer of every lightmap bit for bit as one machine does.
+TEST(TexelRanges, LightGroupLayersMergeExactly) {
+  plm_demo::SceneBuilder b;
+  plm_test::open_scene(b, true, true, 16);
+  ASSERT_TRUE(b.ok()) << b.error;
+  uint32_t day = 0;
+  ASSERT_EQ(plm_scene_add_light_group(b.scene, "day", &day), PLM_OK);
+  ASSERT_EQ(plm_scene_set_light_group(b.scene, 0, day), PLM_OK);  // the sun; the sky stays in the default group
+  plm_bake_settings s = small_settings(100000);
+  BakeResult one;
+  ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &one.r), PLM_OK) << plm_last_error();
+  ASSERT_EQ(plm_result_layer_count(one.r), 2u);
+  TempDir dir;
+  const auto photons = bake_shards(b.scene, s, 2, dir.path, "open");
+  const auto direct = bake_ranges(b.scene, s, PLM_TEXELS_DIRECT, 2, {}, dir.path);
+  const auto gather = bake_ranges(b.scene, s, PLM_TEXELS_GATHER, 2, joined({photons, direct}), dir.path);
+  EXPECT_EQ(plm::read_part_header(photons[0]).layout.layers, 2u);
+  BakeResult merged;
+  std::string error;
+  ASSERT_EQ(merge(b.scene, joined({gather, direct, photons}), merged, error), PLM_OK) << error;
+  expect_identical(one, merged, mesh_count(b));
+  ASSERT_EQ(plm_result_layer_count(merged.r), 2u);
+  for (uint32_t m = 0; m < mesh_count(b); ++m) {
+    uint32_t w = 0, h = 0;
+    ASSERT_EQ(plm_result_lightmap_size(one.r, m, &w, &h), PLM_OK);
+    for (uint32_t l = 0; l < 2; ++l) {
+      std::vector<float> a(3 * size_t(w) * h), ae(size_t(w) * h), c = a, ce = ae;
+      ASSERT_EQ(plm_result_copy_lightmap_layer(one.r, m, l, a.data(), ae.data()), PLM_OK);
+      ASSERT_EQ(plm_result_copy_lightmap_layer(merged.r, m, l, c.data(), ce.data()), PLM_OK);
+      expect_same_bits(a, c, "layer rgb", m);
+      expect_same_bits(ae, ce, "layer error", m);
+    }
+  }
+  // A scene whose groups changed since the shards were baked is another scene.
+  ASSERT_EQ(plm_scene_set_light_group(b.scene, 0, 0), PLM_OK);
+  BakeResult other;
+  EXPECT_EQ(merge(b.scene, joined({gather, direct, photons}), other, error), PLM_ERROR_INVALID_ARGUMENT);
+  EXPECT_NE(error.find("another scene"), std::string::npos) << error;
+}

@@ -692,10 +692,10 @@ PLM_API plm_status plm_read_lightmap_exr(const char* path, uint32_t* width, uint
  * the world belong to the default group (id 0) unless put into a declared
  * one. The layers are the default group (where an emitter is in it) and then
  * every declared group in order; they add up to the lightmap (up to float
- * rounding). Each layer carries its own error estimate. Only ordinary
- * lightmaps are split: plm_bake fails for a scene with light groups and OL
- * groups, CSG solids or L-system objects, and sharded bakes (plm_bake_shard,
- * plm_bake_texels, plm_bake_merge) refuse light groups. */
+ * rounding). Each layer carries its own error estimate. Sharded bakes carry
+ * the layers in their part files, and the merge gives them bit for bit as
+ * plm_bake does. Only ordinary lightmaps are split: a bake fails for a scene
+ * with light groups and OL groups, CSG solids or L-system objects. */
 
 /* Declares a light group; *out_group gets its id (1, 2, ... in order). The
  * name (at most 64 of letters, digits, '_' and '-'; not "default") names the

@@ -70,14 +70,6 @@ const plm::LightmapImage& lightmap_of(const plm_result* r, uint32_t mesh_id, con
   return map;
 }
 
-// Sharded bakes carry no light-group layers (their part files hold the whole's sums only).
-void refuse_light_groups(const plm::Scene& scene, const char* function) {
-  if (!scene.light_groups.empty())
-    plm::fail(PLM_ERROR_INVALID_SCENE, function, ": the scene has light groups (", scene.light_groups.size(),
-              ", the first '", scene.light_groups[0], "'), which sharded bakes do not split; bake it on one machine "
-              "(plm_bake), or without light groups");
-}
-
 const plm::OlImage& ol_of(const plm_result* r, uint32_t group, const char* function) {
   require(r, function, "result");
   return result_item(r->output.ols, group, function, "OL group", "OL groups");
@@ -491,7 +483,6 @@ plm_status plm_bake_shard(plm_scene* scene, const plm_bake_settings* settings, u
   return guarded("plm_bake_shard", [&] {
     require(scene, "plm_bake_shard", "scene");
     require(part_path, "plm_bake_shard", "part_path");
-    refuse_light_groups(scene->scene, "plm_bake_shard");
     if (shard_count == 0 || shard >= shard_count)
       plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_bake_shard: shard ", shard, " of ", shard_count,
                 ": expected 0 <= shard < shard_count");
@@ -510,7 +501,6 @@ plm_status plm_bake_texels(plm_scene* scene, const plm_bake_settings* settings, 
   return guarded("plm_bake_texels", [&] {
     require(scene, "plm_bake_texels", "scene");
     require(part_path, "plm_bake_texels", "part_path");
-    refuse_light_groups(scene->scene, "plm_bake_texels");
     if (stage != PLM_TEXELS_DIRECT && stage != PLM_TEXELS_GATHER)
       plm::fail(PLM_ERROR_INVALID_ARGUMENT, "plm_bake_texels: stage ", stage,
                 " is neither PLM_TEXELS_DIRECT nor PLM_TEXELS_GATHER");
@@ -559,7 +549,6 @@ plm_status plm_bake_merge(plm_scene* scene, const char* const* part_paths, uint3
   return guarded("plm_bake_merge", [&] {
     require(scene, "plm_bake_merge", "scene");
     require(out_result, "plm_bake_merge", "out_result");
-    refuse_light_groups(scene->scene, "plm_bake_merge");
     *out_result = nullptr;
     const std::vector<std::string> paths = part_list("plm_bake_merge", part_paths, part_count);
     auto* result = new plm_result();

@@ -75,6 +75,7 @@ class DirectPass {
   uint32_t layers() const { return layers_; }
   // Whether a sample sends one shadow ray to a light chosen at random (more than kAllLights lights).
   bool chooses_lights() const { return !all_lights_; }
+  static bool chooses_lights(size_t emitters) { return emitters > kAllLights; }
 
  private:
   // sample_texel without (kPassage false: as in scenes without passable

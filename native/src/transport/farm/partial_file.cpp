@@ -48,14 +48,17 @@ struct Cursor {
   }
 };
 
-uint64_t segment_bytes(uint64_t texels, uint32_t meshes, bool caustics) {
+uint64_t segment_bytes(uint64_t texels, uint32_t meshes, bool caustics, uint32_t layers) {
   const uint64_t sums = texels * (3 * 8 + 8 + 4);
-  return 9 * 8 + sums + meshes + (caustics ? sums : 0);
+  return 9 * 8 + sums + meshes + (caustics ? sums : 0) + texels * layers * 3 * 8;
 }
 
 // Texel parts' records: DirectSums, DirectCalibration, GatherSums + GatherInfo.
 constexpr uint64_t kDirectTexelBytes = 6 * 8 + 2 * 4 + 6 * 4 + 2 * 4, kCalibrationBytes = 8 + 8 + 8 + 4 + 4 + 8 + 4 * 8 + 4 + 4,
                    kGatherTexelBytes = 5 * 8 + 2 * 4 + 4 + 4 + 4 * 8 + 3 * 4;
+// With light groups, each texel record of a direct or gather part ends with
+// the texel's layer sums (3 floats per layer).
+uint64_t layer_bytes(uint32_t layers) { return uint64_t(layers) * 3 * 4; }
 // Texel records are packed and checksummed this many at a time (writer and reader alike).
 constexpr size_t kTexelChunk = 4096;
 
@@ -63,11 +66,13 @@ uint64_t payload_bytes_of(const PartHeader& h) {
   const uint64_t texels = h.range_end - h.range_begin;
   switch (h.kind) {
     case PartKind::kPhotons:
-      return h.segment_count * segment_bytes(h.layout.texel_count, h.layout.mesh_count, h.layout.caustics);
+      return h.segment_count *
+             segment_bytes(h.layout.texel_count, h.layout.mesh_count, h.layout.caustics, h.layout.layers);
     case PartKind::kDirect:
-      return texels * kDirectTexelBytes + uint64_t(h.calibration_count) * kCalibrationBytes;
+      return texels * (kDirectTexelBytes + layer_bytes(h.layout.layers)) +
+             uint64_t(h.calibration_count) * kCalibrationBytes;
     case PartKind::kGather:
-      return h.gathered ? texels * kGatherTexelBytes : 0;
+      return h.gathered ? texels * (kGatherTexelBytes + layer_bytes(h.layout.layers)) : 0;
   }
   return 0;
 }
@@ -141,7 +146,7 @@ void encode_header(const PartHeader& h, uint64_t payload_bytes, uint64_t payload
   c.put(h.layout.quantum.q);
   c.put(h.layout.quantum.q2);
   c.put(h.segment_count);
-  c.put(uint32_t(0));
+  c.put(h.layout.layers);
   c.put(payload_bytes);
   c.put(payload_sum);
   c.put_chars(h.scene_path, kPathChars);
@@ -187,7 +192,7 @@ PartHeader decode_header(unsigned char* buf, const std::string& path, uint64_t& 
   h.layout.quantum.inv_q = 1.0 / h.layout.quantum.q;
   h.layout.quantum.inv_q2 = 1.0 / h.layout.quantum.q2;
   h.segment_count = c.get<uint32_t>();
-  c.get<uint32_t>();
+  h.layout.layers = c.get<uint32_t>();
   payload_bytes = c.get<uint64_t>();
   payload_sum = c.get<uint64_t>();
   h.scene_path = c.get_chars(kPathChars);
@@ -324,6 +329,16 @@ bool finite_sums(const StratifiedSums& s) {
          non_negative(s.pair_sq) && s.paired <= s.count;
 }
 
+// A texel record's layer sums (3 floats per layer): light, so finite and >= 0.
+void read_layers(Cursor& c, float* out, uint32_t layers, const std::string& path, const char* what, uint64_t texel) {
+  bool ok = true;
+  for (uint32_t f = 0; f < 3 * layers; ++f) {
+    out[f] = c.get<float>();
+    ok = ok && non_negative(out[f]);
+  }
+  check_record(ok, path, what, texel);
+}
+
 }  // namespace
 
 const char* part_kind_name(PartKind kind) {
@@ -356,6 +371,7 @@ void write_part_file(const std::string& path, const PartHeader& header, const st
         w.array(a.caustic.sum_sq);
         w.array(a.caustic.hits);
       }
+      w.array(a.layer_sum);
     }
   });
 }
@@ -370,8 +386,9 @@ void write_direct_part(const std::string& path, const PartHeader& header, const 
     fail(PLM_ERROR_INTERNAL, path, ": ", direct.sums.size(), " direct sums for texels ", h.range_begin, "-",
          h.range_end);
   write_part(path, h, [&](Writer& w) {
-    write_records(w, direct.sums.size(), kDirectTexelBytes, [&](size_t i, Cursor& c) {
+    write_records(w, direct.sums.size(), kDirectTexelBytes + layer_bytes(h.layout.layers), [&](size_t i, Cursor& c) {
       const DirectSums& d = direct.sums[i];
+      for (uint32_t f = 0; f < 3 * h.layout.layers; ++f) c.put(direct.layer_rgb[3 * i * h.layout.layers + f]);
       put_stratified(c, d);
       c.put(d.choice_sq);
       for (float v : {d.sky_rgb[0], d.sky_rgb[1], d.sky_rgb[2], d.sky_pair_sq, d.other_pair_sq, d.sky_inv_distance})
@@ -403,7 +420,8 @@ void write_gather_part(const std::string& path, const PartHeader& header, const 
     fail(PLM_ERROR_INTERNAL, path, ": ", gather.sums.size(), " gather sums for texels ", h.range_begin, "-",
          h.range_end);
   write_part(path, h, [&](Writer& w) {
-    write_records(w, texels, kGatherTexelBytes, [&](size_t i, Cursor& c) {
+    write_records(w, texels, kGatherTexelBytes + layer_bytes(h.layout.layers), [&](size_t i, Cursor& c) {
+      for (uint32_t f = 0; f < 3 * h.layout.layers; ++f) c.put(gather.layer_rgb[3 * i * h.layout.layers + f]);
       put_stratified(c, gather.sums[i]);
       const GatherInfo& g = gather.info[i];
       c.put(g.unknown);
@@ -419,8 +437,12 @@ PartHeader read_direct_part(const std::string& path, DirectResult& direct) {
     direct = DirectResult();
     direct.rounds = h.direct_rounds;
     direct.sums.resize(h.range_end - h.range_begin);
-    read_records(r, direct.sums.size(), kDirectTexelBytes, [&](size_t i, Cursor& c) {
+    direct.layers = h.layout.layers;
+    direct.layer_rgb.resize(3 * size_t(direct.layers) * direct.sums.size());
+    read_records(r, direct.sums.size(), kDirectTexelBytes + layer_bytes(h.layout.layers), [&](size_t i, Cursor& c) {
       DirectSums& d = direct.sums[i];
+      read_layers(c, &direct.layer_rgb[3 * i * direct.layers], direct.layers, path, "the direct sums' layers",
+                  h.range_begin + i);
       get_stratified(c, d);
       d.choice_sq = c.get<double>();
       for (float* v : {&d.sky_rgb[0], &d.sky_rgb[1], &d.sky_rgb[2], &d.sky_pair_sq, &d.other_pair_sq,
@@ -463,7 +485,11 @@ PartHeader read_gather_part(const std::string& path, GatherResult& gather) {
     const size_t texels = h.gathered ? h.range_end - h.range_begin : 0;
     gather.sums.resize(texels);
     gather.info.resize(texels);
-    read_records(r, texels, kGatherTexelBytes, [&](size_t i, Cursor& c) {
+    gather.layers = h.layout.layers;
+    gather.layer_rgb.resize(3 * size_t(gather.layers) * texels);
+    read_records(r, texels, kGatherTexelBytes + layer_bytes(h.layout.layers), [&](size_t i, Cursor& c) {
+      read_layers(c, &gather.layer_rgb[3 * i * gather.layers], gather.layers, path, "the gather sums' layers",
+                  h.range_begin + i);
       get_stratified(c, gather.sums[i]);
       GatherInfo& g = gather.info[i];
       g.unknown = c.get<uint32_t>();
@@ -495,7 +521,7 @@ PartHeader read_part_file(const std::string& path, std::vector<PhotonSegment>& s
     segments.clear();
     for (uint32_t i = 0; i < h.segment_count; ++i) {
       PhotonSegment s;
-      s.acc = Accumulators(L.texel_count, L.mesh_count, L.caustics, L.quantum);
+      s.acc = Accumulators(L.texel_count, L.mesh_count, L.caustics, L.quantum, L.layers);
       Accumulators& a = s.acc;
       s.begin = r.value<uint64_t>();
       s.end = r.value<uint64_t>();
@@ -515,6 +541,7 @@ PartHeader read_part_file(const std::string& path, std::vector<PhotonSegment>& s
         r.array(a.caustic.sum_sq);
         r.array(a.caustic.hits);
       }
+      r.array(a.layer_sum);
       a.total_sq = double(a.total_sq_q) * L.quantum.q2;
       a.caustic.total_sq = double(a.caustic.total_sq_q) * L.quantum.q2;
       segments.push_back(std::move(s));
@@ -543,8 +570,9 @@ std::string part_mismatch(const PartHeader& a, const PartHeader& b) {
   if (a.layout.batch_count != b.layout.batch_count || a.layout.texel_count != b.layout.texel_count ||
       a.layout.covered != b.layout.covered ||
       a.layout.mesh_count != b.layout.mesh_count || a.layout.caustics != b.layout.caustics ||
-      a.layout.quantum.q != b.layout.quantum.q || a.layout.quantum.q2 != b.layout.quantum.q2)
-    return "sizes (batches, texels, meshes or flux quantum)";
+      a.layout.quantum.q != b.layout.quantum.q || a.layout.quantum.q2 != b.layout.quantum.q2 ||
+      a.layout.layers != b.layout.layers)
+    return "sizes (batches, texels, meshes, light-group layers or flux quantum)";
   return "";
 }
 
@@ -658,7 +686,7 @@ PartHeader load_parts(const std::vector<std::string>& paths, const std::string& 
   early.end = cut;
   late.begin = cut;
   late.end = L.batch_count;
-  early.acc = late.acc = Accumulators(L.texel_count, L.mesh_count, L.caustics, L.quantum);
+  early.acc = late.acc = Accumulators(L.texel_count, L.mesh_count, L.caustics, L.quantum, L.layers);
   // Parts in shard order; their segments must follow each other without gaps.
   // A range's gather looks up the first `cut` batches only: it reads the
   // shards that hold them and passes over the rest (the merge reads all).

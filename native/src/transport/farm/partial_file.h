@@ -9,7 +9,7 @@
 //     scene hash, the settings that fix the photon pass (photon_count,
 //     max_bounces, seed, direct_samples, filter_radius, dilation, texel_value,
 //     sampler), shard index and count, batch count, texel count, mesh count,
-//     caustic sums or not, flux quanta, segment count, payload size and
+//     caustic sums or not, flux quanta, segment count, light-group layers, payload size and
 //     checksum, the scene file's path (256 bytes); the part's kind (photons,
 //     direct, gather), gathered or not, covered texel count, the range's
 //     covered texels [begin, end), the direct pass's target error, its rounds
@@ -18,11 +18,14 @@
 //     batches [begin, end), rays, truncated paths, truncated flux, hits and
 //     squared-flux quanta in all; per texel RGB flux sums (3 doubles), squared
 //     sums (double), hit counts (uint32); per mesh back-lit flags (byte);
-//     the same for caustic photons where the scene has specular lobes.
-//   payload of a direct part: per texel of the range its DirectSums (88
+//     the same for caustic photons where the scene has specular lobes;
+//     with light groups, per layer per texel its RGB flux sums (3 doubles).
+//   payload of a direct part: per texel of the range its layer sums (3
+//     floats per layer, none without light groups) and its DirectSums (88
 //     bytes), then the calibration records (80 bytes each)
 //   payload of a gather part (where the bake gathers): per texel of the
-//     range its GatherSums and GatherInfo (100 bytes)
+//     range its layer sums (as a direct part's), then its GatherSums and
+//     GatherInfo (100 bytes)
 //
 // Written to a temporary file in the same folder, flushed to disk and renamed,
 // so a reader never sees half a file; read back with every size and checksum

@@ -110,7 +110,7 @@ std::vector<PhotonSegment> trace_segments(tbb::task_arena& arena, const PhotonTr
 ShardLayout shard_layout(const Scene& scene, const BakeSettings& settings, const TexelSpace& space,
                          const Accumulators& acc) {
   return {scene_hash(scene),  (settings.photon_cap + kBatchPhotons - 1) / kBatchPhotons, space.texel_count, space.covered.size(),
-          uint32_t(scene.meshes.size()), !acc.caustic.empty(), acc.quantum};
+          uint32_t(scene.meshes.size()), !acc.caustic.empty(), acc.quantum, acc.layers};
 }
 
 void check_shardable(const Scene& scene, const BakeSettings& s, ShardJob::Mode mode) {
@@ -175,6 +175,13 @@ uint64_t scene_hash(const Scene& scene) {
   for (const Light& l : scene.lights)
     h.bytes(reinterpret_cast<const char*>(&l.desc) + kLightFrom, sizeof l.desc - kLightFrom);
   if (scene.conventions != PLM_CONVENTIONS_CYCLES_3_4) h.value(scene.conventions);  // the default hashes as before
+  if (!scene.light_groups.empty()) {  // light groups (a scene without them hashes as before)
+    h.value(uint64_t(scene.light_groups.size()));
+    for (const std::string& g : scene.light_groups) h.str(g);
+    for (const Light& l : scene.lights) h.value(l.light_group);
+    for (const Mesh& m : scene.meshes) h.value(m.light_group);
+    h.value(scene.world_light_group);
+  }
   h.value(uint64_t(scene.csgs.size()));
   for (const CsgSolid& c : scene.csgs) h.value(c.carrier);
   h.value(uint64_t(scene.ol_groups.size()));

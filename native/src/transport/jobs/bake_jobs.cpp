@@ -3,6 +3,7 @@
 #include <utility>
 
 #include "transport/control/stages.h"
+#include "transport/direct/direct.h"
 #include "transport/farm/partial_file.h"
 #include "transport/farm/shard.h"
 #include "transport/farm/texel_ranges.h"
@@ -69,6 +70,7 @@ void direct_or_parts(const BakeScene& ctx, BakeRun& run, std::vector<DirectResul
   if (parts.empty()) return direct_pass(ctx, run);
   const auto t_direct = Clock::now();
   ctx.arena.execute([&] { run.direct = join_direct(parts, ctx.settings.sampler, ctx.space); });
+  run.direct.chooses_lights = DirectPass::chooses_lights(ctx.emitters.size());
   run.out.stats.direct_samples = run.direct.samples;
   run.out.stats.seconds_direct = seconds_since(t_direct);
   run.live.check(ctx.arena, ctx.scene, estimator(ctx, run), 0, ctx.settings.dilation);
