@@ -12,6 +12,12 @@ namespace plm {
 
 namespace {
 
+// Adds light to its layer's sums (3 floats per layer; null: no light groups).
+inline void add_to_layer(float* layer_rgb, uint32_t layer, Vec3 light) {
+  if (!layer_rgb) return;
+  for (int c = 0; c < 3; ++c) layer_rgb[3 * size_t(layer) + c] += light[c];
+}
+
 // p_cos / p_light for the balance heuristic, as a finite ratio: cosine
 // sampling's density cos_s / pi against light sampling's pick * d^2 /
 // (cos_l * area). Written this way round, needle-thin emitters (cos_l * area
@@ -158,7 +164,7 @@ size_t DirectPass::choose_local(float u_pick, const uint32_t* candidates, size_t
 // emitter's own samples (multiple importance sampling).
 template <bool kPassage, class Probability>
 Vec3 DirectPass::cosine_ray_light(const PendingSample& ps, TraceContext& tc, bool smooth,
-                                  const Probability& probability, uint32_t& layer) const {
+                                  const Probability& probability, float* layer_rgb) const {
   const Vec3 local = cosine_hemisphere(ps.v[0], ps.v[1]);
   Vec3 t, b;
   make_frame(ps.shading, t, b);
@@ -193,8 +199,9 @@ Vec3 DirectPass::cosine_ray_light(const PendingSample& ps, TraceContext& tc, boo
                          : he.radiance;
       float weight = r / (1.0f + r);
       if (ps.burley >= 0.0f) weight *= bsdf::burley_receive(cos_s, ps.burley);
-      layer = he.layer;
-      return kPassage ? L * through * weight : L * weight;
+      const Vec3 light = kPassage ? L * through * weight : L * weight;
+      add_to_layer(layer_rgb, he.layer, light);
+      return light;
     }
   }
   return {0, 0, 0};
@@ -271,10 +278,7 @@ template <bool kPassage>
                                    DirectSums& sums, float* layer_rgb) const {
   const unsigned lanes = rays.packet.size;
   // With light groups, each ray's light also goes to its layer's sums.
-  auto to_layer = [&](unsigned l, Vec3 value) {
-    float* out = layer_rgb + 3 * size_t(rays.layer[l]);
-    for (int c = 0; c < 3; ++c) out[c] += value[c];
-  };
+  auto to_layer = [&](unsigned l, Vec3 value) { add_to_layer(layer_rgb, rays.layer[l], value); };
   if (measure_reach && rays.sky_lanes) {
     rays.packet.intersect(rtc_);
     for (unsigned l = 0; l < lanes; ++l) {
@@ -291,7 +295,7 @@ template <bool kPassage>
       }
       if (!blocked) {
         ps.e += rays.value[l];
-        if (layer_rgb) to_layer(l, rays.value[l]);
+        to_layer(l, rays.value[l]);
       }
     }
     rays.sky_lanes = 0;
@@ -302,7 +306,7 @@ template <bool kPassage>
     passage_->occluded(rays.packet, rtc_, through);
     for (unsigned l = 0; l < lanes; ++l) {
       chunk[rays.sample[l]].e += rays.value[l] * through[l];
-      if (layer_rgb) to_layer(l, rays.value[l] * through[l]);
+      to_layer(l, rays.value[l] * through[l]);
     }
     return;
   }
@@ -496,13 +500,8 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
       const uint32_t j = j0 + c;
       PendingSample& ps = chunk[c];
       if (!ps.inside) continue;
-      if (has_triangle_emitters_ && !ps.contact) {
-        uint32_t layer = 0;
-        const Vec3 mis = cosine_ray_light<kPassage>(ps, tc, smooth != nullptr, probability, layer);
-        ps.e += mis;
-        if (layer_rgb)
-          for (int ch = 0; ch < 3; ++ch) layer_rgb[3 * size_t(layer) + ch] += mis[ch];
-      }
+      if (has_triangle_emitters_ && !ps.contact)
+        ps.e += cosine_ray_light<kPassage>(ps, tc, smooth != nullptr, probability, layer_rgb);
       add_sample(j, ps, split_sky, tally, scratch, sums);
     }
   }

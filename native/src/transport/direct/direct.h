@@ -149,9 +149,9 @@ class DirectPass {
                          float* layer_rgb) const;
   // The MIS ray's light at a sample (probability(k): light k's choice probability).
   template <bool kPassage, class Probability>
-  // The emitter's layer goes to `layer` where it brings light.
+  // With light groups, the light also goes to the emitter's layer in layer_rgb.
   Vec3 cosine_ray_light(const PendingSample& ps, TraceContext& tc, bool smooth, const Probability& probability,
-                        uint32_t& layer) const;
+                        float* layer_rgb) const;
 
   RTCScene rtc_;
   const SurfaceMap& surfaces_;

@@ -13,6 +13,13 @@
 namespace plm {
 namespace {
 
+// Light groups: each layer's part of what a ray sees (e), by the layers'
+// shares of the global texel it looked up, into layer_rgb (3 per layer).
+inline void add_layers(const GatherSource& source, uint64_t texel, Vec3 e, float* layer_rgb) {
+  const float* share = source.layer_share + 3 * texel * source.layers;
+  for (uint32_t g = 0; g < 3 * source.layers; ++g) layer_rgb[g] += e[g % 3] * share[g];
+}
+
 constexpr uint32_t kCellCapacity = kMaxGatherSamples;  // rays whose cells a texel keeps apart
 constexpr uint32_t kCalibrationRound = 0xFF;            // the replicates' key (the gather's rounds count from 0)
 constexpr uint32_t kOpenRound = 0xFE;                   // open_share's points
@@ -184,10 +191,7 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
               a *= lane_weight[l];
               if (open > 0.0f && open < 1.0f) a = a * (1.0f / open);
               e = {a.x * d[0], a.y * d[1], a.z * d[2]};
-              if (layer_rgb) {  // each layer's part of what the ray sees, by the texel's shares
-                const float* share = source.layer_share + 3 * (hv.texel_offset + ht) * source.layers;
-                for (uint32_t g = 0; g < 3 * source.layers; ++g) layer_rgb[g] += e[g % 3] * share[g];
-              }
+              if (layer_rgb) add_layers(source, hv.texel_offset + ht, e, layer_rgb);
               const double albedo = average(a), local = albedo * source.local[hv.texel_offset + ht];
               const uint32_t row = uint32_t(ht) / hm.lightmap_width, column = uint32_t(ht) % hm.lightmap_width;
               const uint64_t cell = uint64_t(mesh) << 42 | uint64_t(row / cell_side_) << 21 | column / cell_side_;
