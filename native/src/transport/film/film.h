@@ -123,25 +123,7 @@ class Accumulators {
   // from several threads, one texel block at a time). With layers, layer[i]
   // is hit i's layer.
   uint64_t add_hits(const Hit* h, const Hit* end, bool caustic_hits, const uint32_t* layer = nullptr) {
-    double* s = caustic_hits ? caustic.sum.data() : sum.data();
-    double* s2 = caustic_hits ? caustic.sum_sq.data() : sum_sq.data();
-    uint32_t* n = caustic_hits ? caustic.hits.data() : hits.data();
-    uint64_t total = 0;  // a local: the stores through the arrays could otherwise alias it
-    for (; h != end; ++h) {
-      const size_t t = h->texel;
-      const double f[3] = {quantum.flux(h->r), quantum.flux(h->g), quantum.flux(h->b)};
-      for (int c = 0; c < 3; ++c) s[3 * t + c] += f[c];
-      if (layer) {
-        double* ls = &layer_sum[3 * (size_t(*layer++) * hits.size() + t)];
-        for (int c = 0; c < 3; ++c) ls[c] += f[c];
-      }
-      const double a = (double(h->r) + h->g + h->b) / 3.0;
-      const double sq = quantum.squared(a * a);
-      s2[t] += sq;
-      total += uint64_t(sq * quantum.inv_q2);
-      ++n[t];
-    }
-    return total;
+    return layer ? add_hits_to<true>(h, end, caustic_hits, layer) : add_hits_to<false>(h, end, caustic_hits, nullptr);
   }
   // Counts `count` hits whose squared fluxes sum to sq_q quanta.
   void add_totals(uint64_t count, uint64_t sq_q, bool caustic_hits) {
@@ -154,6 +136,32 @@ class Accumulators {
       total_sq = double(total_sq_q) * quantum.q2;
       total_hits += count;
     }
+  }
+
+ private:
+  // add_hits, with or without the hits' layers (kLayered: a loop of its own,
+  // so that a bake without light groups runs the loop it always ran).
+  template <bool kLayered>
+  uint64_t add_hits_to(const Hit* h, const Hit* end, bool caustic_hits, const uint32_t* layer) {
+    double* s = caustic_hits ? caustic.sum.data() : sum.data();
+    double* s2 = caustic_hits ? caustic.sum_sq.data() : sum_sq.data();
+    uint32_t* n = caustic_hits ? caustic.hits.data() : hits.data();
+    uint64_t total = 0;  // a local: the stores through the arrays could otherwise alias it
+    for (; h != end; ++h) {
+      const size_t t = h->texel;
+      const double f[3] = {quantum.flux(h->r), quantum.flux(h->g), quantum.flux(h->b)};
+      for (int c = 0; c < 3; ++c) s[3 * t + c] += f[c];
+      if constexpr (kLayered) {
+        double* ls = &layer_sum[3 * (size_t(*layer++) * hits.size() + t)];
+        for (int c = 0; c < 3; ++c) ls[c] += f[c];
+      }
+      const double a = (double(h->r) + h->g + h->b) / 3.0;
+      const double sq = quantum.squared(a * a);
+      s2[t] += sq;
+      total += uint64_t(sq * quantum.inv_q2);
+      ++n[t];
+    }
+    return total;
   }
 };
 
