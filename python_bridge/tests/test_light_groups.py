@@ -104,3 +104,28 @@ def test_cli_writes_a_file_per_layer(tmp_path):
                        timeout=300)
     assert r.returncode == 1
     assert "scene.lights[1].group" in r.stderr and "evening" in r.stderr
+
+
+@pytest.mark.skipif(CLI is None or not os.access(CLI, os.X_OK), reason="the photonlm CLI was not found")
+def test_cli_merge_writes_the_layers_of_one_machine(tmp_path):
+    scene = {
+        "version": 1,
+        "light_groups": ["sun", "lamp"],
+        "materials": [{"name": "grey", "albedo": 0.6}],
+        "meshes": [dict(QUAD, name="floor", material="grey", lightmap_resolution=8)],
+        "lights": [{"type": "SUN", "power": 3, "group": "sun"},
+                   {"type": "POINT", "power": 100, "location": [0, 0, 1], "group": "lamp"}],
+        "settings": {"photon_count": 40000, "direct_samples": 4, "seed": 2},
+    }
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(scene))
+
+    def cli(*args):
+        r = subprocess.run([CLI] + [str(a) for a in args], capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stderr
+    cli("bake", path, "-o", tmp_path / "one")
+    for k in (1, 2):
+        cli("bake", path, "--shard", "%d/2" % k, "-o", tmp_path / "parts")
+    cli("merge", tmp_path / "parts", "--scene", path, "-o", tmp_path / "merged")
+    for name in ("floor_lightmap.exr", "floor_lightmap.sun.exr", "floor_lightmap.lamp.exr"):
+        assert (tmp_path / "one" / name).read_bytes() == (tmp_path / "merged" / name).read_bytes(), name
