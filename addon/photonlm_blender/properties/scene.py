@@ -93,16 +93,23 @@ def _noisiest_get(self):
     return "%s (%.0f %%)" % (stats["noisiest"], 100.0 * float(share)) if share is not None else str(stats["noisiest"])
 
 
+def _light_group_update(self, context):
+    """A strength or tint set by the panel or a script: tag the scene, so that the drivers of the
+    light groups' mix (which read the scene's evaluated copy) see the new value."""
+    self.id_data.update_tag()
+
+
 class PhotonlmLightGroup(bpy.types.PropertyGroup):
     """A light group's strength and tint in the preview (writeback/lightgroups.py): its name is the
     group's (Blender's Light Group, the layer's)."""
     strength: FloatProperty(
         name="Strength", description="How strongly this light group's baked light shows in the lightmap "
         "preview (1 = as baked, 0 = off); keyframe it to relight an animation without baking again",
-        default=1.0, min=0.0, soft_max=10.0)
+        default=1.0, min=0.0, soft_max=10.0, update=_light_group_update)
     tint: FloatVectorProperty(
         name="Tint", description="A colour multiplying this light group's baked light in the lightmap preview "
-        "(white = as baked)", subtype='COLOR', size=3, default=(1.0, 1.0, 1.0), min=0.0, soft_max=1.0)
+        "(white = as baked)", subtype='COLOR', size=3, default=(1.0, 1.0, 1.0), min=0.0, soft_max=1.0,
+        update=_light_group_update)
 
 
 class PhotonlmSceneSettings(bpy.types.PropertyGroup):
