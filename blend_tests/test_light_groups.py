@@ -12,10 +12,13 @@ by a point and an area lamp in "night", baked once through the add-on (32 x 32 l
     alone at those strengths (the lamps hidden; the sun hidden and the sky black; every power
     halved; bakes without light groups): the means over the lit pixels within 1 %, and on 16 x 12
     blocks within 4 % on average (the bakes' own noise); strength 1 and a white tint render as
-    the plain lightmap; a red tint on night leaves only red in the night-only render;
+    the plain lightmap; a tint reaches the mix;
 (c) a keyframed strength (night 0 at frame 1, 1 at frame 10) reaches the mix at frame 5 without
     baking again (the driven strength in the node group is the animated value, strictly between);
-(d) a light group the engine cannot take ("default") is refused before the bake, naming it.
+(d) a light group the engine cannot take ("default") is refused before the bake, naming it;
+(e) an atlas bake gives every page a page per layer (<page>_lightmap.day / .night) that add up to
+    it, and the preview reads them;
+(f) the scene-file export writes the groups ("light_groups", each light's and the world's "group").
 About a minute.
 """
 import math
@@ -31,7 +34,7 @@ import numpy as np  # noqa: E402
 
 RES = 32
 SKY = (0.45, 0.6, 1.0)
-BAKE = dict(photons=10_000_000, max_bounces=8, target_error=0.01)
+BAKE = dict(photons=6_000_000, max_bounces=8, target_error=0.01)
 SETTINGS = dict(direct_samples=16)
 WALLS = ("floor", "ceiling", "wall_window", "wall_back", "wall_left", "wall_right")
 
@@ -81,7 +84,7 @@ def build():
     r.image_settings.color_depth = '32'
     scene.view_settings.view_transform = 'Standard'
     scene.render.engine = scenes.eevee_engine()
-    scene.eevee.taa_render_samples = 4
+    scene.eevee.taa_render_samples = 1
     scene.photonlm.preview_mode = 'LIGHTMAP'
     return scene, sun, lamp, panel
 
@@ -220,6 +223,45 @@ def check_refused_name(scene, checks):
     checks.check(refused, "a Light Group called 'default' is refused before the bake, by name")
 
 
+def check_atlas(scene, checks):
+    """(e): an atlas bake gives each page a page per layer, and the preview reads them."""
+    scene.photonlm.lightmap_layout = 'ATLAS'
+    scene.photonlm.atlas_size = '512'
+    last = scenes.photonlm_bake(1_000_000, 8, seed=1, target_error=0.05, **SETTINGS)
+    pages = sorted({o["image"] for o in last["objects"].values()})
+    worst, ok = 0.0, bool(pages)
+    for page in pages:
+        layers = [bpy.data.images.get("%s.%s" % (page, g)) for g in ("day", "night")]
+        if any(im is None for im in layers):
+            ok = False
+            continue
+        full = pixels(bpy.data.images[page])
+        day, night = (pixels(im) for im in layers)
+        lit = full.sum(axis=-1) > 1e-6 * full.sum(axis=-1).max()
+        worst = max(worst, float((np.abs(day + night - full)[lit] / full[lit].max(axis=-1, keepdims=True)).max()))
+    checks.check(ok and worst < 1e-4, "atlas: pages %s have a page per layer, day + night = the page (%.1e)"
+                 % (pages, worst))
+    mat = bpy.data.materials["mat_floor"]
+    images = {n.image.name for n in mat.node_tree.nodes if str(n.get("photonlm", "")).startswith("layer_")}
+    page = last["objects"]["floor"]["image"]
+    checks.check(images == {page + ".day", page + ".night"}, "atlas: the floor's preview reads %s" % sorted(images))
+    scene.photonlm.lightmap_layout = 'OBJECT'
+
+
+def check_scene_file(checks):
+    """(f): the scene-file export carries the groups: "light_groups", and "group" on lights and world."""
+    import json
+    from photonlm_blender.bake import scene_file
+    path = os.path.join(scenes.out_dir("light_groups"), "scene.json")
+    path, meta = scene_file.export_scene_file(bpy.context, path)
+    doc = json.load(open(path))
+    groups = {l.get("name"): l.get("group") for l in doc.get("lights", [])}
+    checks.check(doc.get("light_groups") == ["day", "night"] and meta["light_groups"] == ["day", "night"]
+                 and groups == {"sun": "day", "lamp": "night", "panel": "night"}
+                 and doc.get("world", {}).get("group") == "day",
+                 "the scene file holds the groups %s, the lights' %s and the world's" % (doc.get("light_groups"), groups))
+
+
 def main():
     t_start = time.perf_counter()
     scenes.setup_paths()
@@ -240,16 +282,17 @@ def main():
                               ("both", (1.0, 1.0))):
         set_mix(scene, day, night)
         mixes[key] = render("mix_" + key)
-    set_mix(scene, 0.0, 1.0, (1.0, 0.0, 0.0))
-    red = render("mix_night_red")
+    set_mix(scene, 0.0, 1.0, (1.0, 0.5, 0.0))
+    bpy.context.view_layer.update()
+    from photonlm_blender.writeback import lightgroups
+    tint = tuple(bpy.data.node_groups[lightgroups.MIX_GROUP].nodes["tint night"].outputs[0].default_value)[:3]
+    checks.check(np.allclose(tint, (1.0, 0.5, 0.0)), "the night tint reaches the mix (%s)" % (tint,))
     set_mix(scene, 1.0, 1.0)
     plain_preview(wired, True)
     plain = render("plain")
     plain_preview(wired, False)
     same = float(np.abs(mixes["both"] - plain).max() / max(plain[..., :3].max(), 1e-9))
     checks.check(same < 1e-3, "strengths 1 and white tints render as the plain lightmap (%.1e)" % same)
-    checks.check(np.allclose(red[..., 0], mixes["night"][..., 0], rtol=1e-3, atol=1e-6)
-                 and float(red[..., 1:3].max()) < 1e-6, "a red tint on night leaves its red only")
 
     # separate bakes of those lights alone, without light groups
     vl = bpy.context.view_layer
@@ -286,6 +329,8 @@ def main():
     lamp.lightgroup = panel_light.lightgroup = "night"
     scenes.photonlm_bake(1_000_000, 8, seed=1, target_error=0.05, **SETTINGS)
     check_keyframes(scene, checks)
+    check_scene_file(checks)
+    check_atlas(scene, checks)
     check_refused_name(scene, checks)
     print("light_groups: %.1f s" % (time.perf_counter() - t_start))
     checks.finish()
