@@ -15,7 +15,8 @@ by a point and an area lamp in "night", baked once through the add-on (32 x 32 l
     the plain lightmap; a tint reaches the mix;
 (c) a keyframed strength (night 0 at frame 1, 1 at frame 10) reaches the mix at frame 5 without
     baking again (the driven strength in the node group is the animated value, strictly between);
-(d) a light group the engine cannot take ("default") is refused before the bake, naming it;
+(d) an orientation lightmap with light groups is refused with the engine's reason, and a light
+    group the engine cannot take ("default") before the bake, by name;
 (e) an atlas bake gives every page a page per layer (<page>_lightmap.day / .night) that add up to
     it, and the preview reads them;
 (f) the scene-file export writes the groups ("light_groups", each light's and the world's "group").
@@ -209,18 +210,31 @@ def check_keyframes(scene, checks):
     checks.check(abs(group.nodes[node].outputs[0].default_value - 1.0) < 1e-6, "frame 10: strength 1")
 
 
-def check_refused_name(scene, checks):
-    """(d): Blender's Light Group "default" is refused before the bake, by name."""
+def bake_error():
+    """The error a bake reports, or "" where it finishes."""
+    try:
+        return "" if bpy.ops.photonlm.bake() == {'FINISHED'} else "cancelled"
+    except RuntimeError as e:  # the operator's error report, raised in background mode
+        return str(e)
+
+
+def check_refusals(scene, checks):
+    """(d): an orientation lightmap with light groups is refused with the engine's message; Auto
+    gives a plain lightmap instead; Blender's Light Group "default" is refused before the bake."""
+    obj = bpy.data.objects["wall_back"]
+    obj.photonlm.mode = 'ORIENTATION'
+    error = bake_error()
+    print("light_groups: with an orientation lightmap: %s" % error)
+    checks.check("light groups" in error and "orientation-lightmap groups" in error,
+                 "light groups with an orientation lightmap: the bake is refused with the engine's reason")
+    obj.photonlm.mode = 'AUTO'
     vl = bpy.context.view_layer
     vl.lightgroups.add(name="default")
     bpy.data.objects["lamp"].lightgroup = "default"
-    try:
-        res = bpy.ops.photonlm.bake()
-        refused = res == {'CANCELLED'}
-    except RuntimeError as e:  # the operator's error report, raised in background mode
-        refused = "light group 'default'" in str(e)
-        print("light_groups: refused: %s" % e)
-    checks.check(refused, "a Light Group called 'default' is refused before the bake, by name")
+    error = bake_error()
+    print("light_groups: with a Light Group 'default': %s" % error)
+    checks.check("light group 'default' cannot be baked" in error,
+                 "a Light Group called 'default' is refused before the bake, by name")
 
 
 def check_atlas(scene, checks):
@@ -331,7 +345,7 @@ def main():
     check_keyframes(scene, checks)
     check_scene_file(checks)
     check_atlas(scene, checks)
-    check_refused_name(scene, checks)
+    check_refusals(scene, checks)
     print("light_groups: %.1f s" % (time.perf_counter() - t_start))
     checks.finish()
 

@@ -18,6 +18,8 @@ What is exported
   power are what Cycles emits (lights.py); a light whose node tree is more than the default
   Emission is reported (its nodes are not baked).
 - World: Background colour x strength (a uniform radiance), or world.color without nodes.
+- Light groups (lightgroups.py): the view layer's Light Groups that lights, emissive objects or
+  the world name; each emitter goes to its group (Manifest.light_groups lists them).
 """
 import dataclasses
 import re
@@ -486,7 +488,8 @@ def _ol_group(export, plm, orig, triangles, resolution, reports):
     """The OL group an object's light goes to, or None for an ordinary lightmap: the first of its
     collections marked 'One Orientation Lightmap' (instances and objects without lightmaps too);
     else its own OL for mode ORIENTATION, or AUTO with more than AUTO_TRIANGLES_PER_TEXEL
-    triangles per texel of its lightmap. Only objects with a lightmap get their own OL."""
+    triangles per texel of its lightmap (not with light groups, which split ordinary lightmaps only).
+    Only objects with a lightmap get their own OL."""
     for coll in orig.users_collection:
         settings = getattr(coll, "photonlm", None)
         if settings is not None and settings.orientation_lightmap:
@@ -505,6 +508,10 @@ def _ol_group(export, plm, orig, triangles, resolution, reports):
     elif mode == 'BACKUP':
         reason = "its Lighting is set to Lightmap + OL Backup"
     elif mode == 'AUTO' and triangles > AUTO_TRIANGLES_PER_TEXEL * texels:
+        if export.groups:  # light groups split ordinary lightmaps only
+            reports.info("object '%s': a plain lightmap, not the orientation lightmap Auto would choose "
+                         "(%d triangles on %d texels): the scene has light groups" % (orig.name, triangles, texels))
+            return None
         reason = ("Auto: %d triangles on %d lightmap texels (more than %d per texel)"
                   % (triangles, texels, AUTO_TRIANGLES_PER_TEXEL))
     else:

@@ -12,6 +12,8 @@ the target error. result holds the lightmaps; what is read of it:
     result.write_ol_exr(group_id, path), result.ol_stats(group_id)
     result.lsystem_lookup(...)            for L-system objects (only a bake in Blender has them)
     result.texel_counts                   optional {mesh id: (texels, texels above twice the target)}
+    result.layers, result.lightmap_layer(mesh_id, k), result.write_layer_exr(mesh_id, k, path)
+                                          light-group layers (optional: none without light groups)
     result.close()
 a photonlm.Result as the engine returns it, or bake/folder.py's FolderResult over a folder's EXRs.
 

@@ -280,6 +280,8 @@ def store(context, selected_only, reports, lightmaps, out_dir, pack, per_object,
         images[n] = page_images[p.page]
         errors[n] = error_images[p.page]
         layer_images[n] = layer_pages[p.page]
+        per_object[n]["layers"] = {layer: dict(image=im.name, path=lightgroups.layer_file(files[p.page], layer))
+                                   for layer, im in layer_pages[p.page]}
         per_object[n].update(image=page_images[p.page].name, path=files[p.page],
                              error_image=error_images[p.page].name,
                              error_path=files[p.page][:-len("_lightmap.exr")] + "_error.exr",
