@@ -264,7 +264,7 @@ def store(context, selected_only, reports, lightmaps, out_dir, pack, per_object,
         error_images.append(error_image)
         kept = layout is not None and k < len(layout["files"])  # Bake Selected adds to this page
         layer_pages.append(_layer_pages(plm, files[k], page_images[-1].name, k in changed, kept, layers,
-                                        layer_blocks, lightmaps, placements, k, size, pad, pack))
+                                        layer_blocks or {}, lightmaps, placements, k, size, pad, pack, reports))
 
     images, errors, uv_maps, layer_images = {}, {}, {}, {}
     for n in names:
@@ -305,15 +305,23 @@ def store(context, selected_only, reports, lightmaps, out_dir, pack, per_object,
 
 
 def _layer_pages(plm, page_file, page_image, changed, kept, layers, layer_blocks, lightmaps, placements, k, size,
-                 pad, pack):
+                 pad, pack, reports):
     """The light-group layers of page k: [(layer, image)]. A changed page's layers are written (an
     earlier page's layer file read first where Bake Selected adds to it), an unchanged one's kept."""
     out = []
     for i, layer in enumerate(layers):
         path = lightgroups.layer_file(page_file, layer)
         name = lightgroups.layer_image_name(page_image, layer)
+        if kept and not os.path.isfile(path):  # Bake Selected: an earlier page baked without this group
+            reports.warning("atlas page '%s' has no layer '%s' (it was baked without that light group): the "
+                            "preview of its other objects lacks that group's light; bake all objects (Bake "
+                            "Lightmaps)" % (page_image, layer))
         if not changed:
-            out.append((layer, bpy.data.images.get(name) or load_image(name, path, pack)))
+            image = bpy.data.images.get(name)
+            if image is None and os.path.isfile(path):
+                image = load_image(name, path, pack)
+            if image is not None:
+                out.append((layer, image))
             continue
         page = _blank(size)
         if kept and os.path.isfile(path):

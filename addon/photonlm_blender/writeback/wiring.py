@@ -306,14 +306,21 @@ def _light_groups(tree, frame, uv, tex, layers, mix, x0, y0):
     group = _node(tree, "light_groups", 'ShaderNodeGroup', frame)
     _set(group, "node_tree", mix)
     _set(group, "location", (x0 + 260.0 * 1.5, y0 + 300.0))
+    sources = {}
     for k, (layer, image) in enumerate(layers):
-        layer_tex = _node(tree, "layer_%d" % k, 'ShaderNodeTexImage', frame)
+        layer_tex = sources[layer] = _node(tree, "layer_%d" % k, 'ShaderNodeTexImage', frame)
         _set(layer_tex, "location", (x0 + 260.0, y0 + 300.0 + 280.0 * (k + 1)))
         _set(layer_tex, "image", image)
         _set(layer_tex, "interpolation", 'Linear')
         _set(layer_tex, "extension", 'EXTEND')
         _link(tree, uv.outputs['UV'], layer_tex.inputs['Vector'])
         _link(tree, layer_tex.outputs['Color'], group.inputs[layer])
+    for socket in group.inputs:  # links of an earlier bake's layers go; a layer without an image: no light
+        for link in list(socket.links):
+            if sources.get(socket.name) != link.from_node:
+                tree.links.remove(link)
+        if not socket.is_linked and hasattr(socket, "default_value"):
+            _set(socket, "default_value", (0.0, 0.0, 0.0, 1.0))
     return group.outputs['Color']
 
 
