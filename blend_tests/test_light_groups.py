@@ -177,15 +177,14 @@ def check_wiring(scene, checks):
 
 
 def plain_preview(wired, on):
-    """Feed each material's multiply from its lightmap image (on) or from the light groups' mix."""
+    """Feed each material's multiply from its lightmap image (on: as the live preview does while a
+    bake runs) or from the light groups' mix again."""
+    from photonlm_blender.preview import live
     for mat in wired:
-        nt = mat.node_tree
-        tagged = {n.get("photonlm"): n for n in nt.nodes if n.get("photonlm") is not None}
-        mul = tagged["multiply"]
-        b = mul.inputs['Color2'] if mul.bl_idname == 'ShaderNodeMixRGB' else next(
-            s for s in mul.inputs if s.identifier == "B_Color")
-        src = tagged["image"].outputs['Color'] if on else tagged["light_groups"].outputs['Color']
-        nt.links.new(src, b)
+        live._feed_multiply(mat, from_groups=not on)
+        multiply = next(n for n in mat.node_tree.nodes if n.get("photonlm") == "multiply")
+        feeding = {l.from_node.get("photonlm") for l in mat.node_tree.links if l.to_node == multiply}
+        assert ("image" if on else "light_groups") in feeding, (mat.name, feeding)
 
 
 def check_keyframes(scene, checks):
