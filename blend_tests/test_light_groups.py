@@ -19,7 +19,8 @@ by a point and an area lamp in "night", baked once through the add-on (32 x 32 l
     group the engine cannot take ("default") before the bake, by name;
 (e) an atlas bake gives every page a page per layer (<page>_lightmap.day / .night) that add up to
     it, and the preview reads them;
-(f) the scene-file export writes the groups ("light_groups", each light's and the world's "group").
+(f) the scene-file export writes the groups ("light_groups", each light's and the world's "group"),
+    and its bake by the CLI, imported as a bake folder, brings the layers in.
 About a minute.
 """
 import math
@@ -273,6 +274,23 @@ def check_scene_file(checks):
                  and groups == {"sun": "day", "lamp": "night", "panel": "night"}
                  and doc.get("world", {}).get("group") == "day",
                  "the scene file holds the groups %s, the lights' %s and the world's" % (doc.get("light_groups"), groups))
+    # Baked by the CLI and imported: the layers come in as a bake in Blender brings them.
+    import subprocess
+    from photonlm_blender.bake import folder
+    out = os.path.join(scenes.out_dir("light_groups"), "cli_bake")
+    r = subprocess.run([scenes.cli_path(), "bake", path, "-o", out], capture_output=True, text=True, timeout=600)
+    if not checks.check(r.returncode == 0, "the CLI bakes the scene file (%s)" % r.stderr.strip()[-300:]):
+        return
+    last, _ = folder.import_folder(bpy.context, out)
+    o = last["objects"]["floor"]
+    images = [bpy.data.images.get(o.get("layers", {}).get(g, {}).get("image", "")) for g in ("day", "night")]
+    ok = all(im is not None for im in images)
+    if ok:
+        full = pixels(bpy.data.images[o["image"]])
+        day, night = (pixels(im) for im in images)
+        ok = float(np.abs(day + night - full).max()) <= 1e-4 * float(full.max())
+    checks.check(ok and last["stats"].get("light_layers") == "day,night",
+                 "an imported CLI bake brings the floor's layers, which add up to its lightmap")
 
 
 def main():
