@@ -12,10 +12,12 @@ its own package; nothing imports upwards):
                     the NumPy check, finding the `photonlm` package, stage timing
     export/         Blender -> photonlm.Scene, one converter per kind of data: meshes (the one mesh
                     reader), materials + flatten, lights, world, csg, subdiv, lsystem, resolution,
-                    scene (the whole export; it returns a Manifest of what was sent)
+                    lightgroups (Blender's Light Groups -> the engine's), scene (the whole export; it
+                    returns a Manifest of what was sent)
     uv/             lightmap UV maps (uvmaps), their measures (uvcheck), atlas packing (atlas_pack)
     writeback/      a result -> Blender: apply (the one write-back), images (EXRs, heat maps),
-                    atlas pages, material wiring and its preview closures, L-system light, record
+                    atlas pages, material wiring and its preview closures, the light groups' mix,
+                    L-system light, record
                     (the last bake's statistics, on the scene)
     bake/           one bake run here (job), a bake folder from a farm (folder), a scene file
                     for batch machines (scene_file)
@@ -47,9 +49,10 @@ bl_info = {
 MODULE_NAMES = (
     "version", "compat", "dependencies", "bridge", "stages",
     "export.meshes", "export.resolution", "export.flatten", "export.materials", "export.lights",
-    "export.world", "export.csg", "export.subdiv", "export.lsystem", "export.scene",
+    "export.world", "export.csg", "export.subdiv", "export.lsystem", "export.lightgroups", "export.scene",
     "uv.uvcheck", "uv.atlas_pack", "uv.uvmaps",
-    "writeback.record", "writeback.images", "writeback.closures", "writeback.wiring", "writeback.atlas",
+    "writeback.record", "writeback.images", "writeback.closures", "writeback.lightgroups", "writeback.wiring",
+    "writeback.atlas",
     "writeback.lsystem", "writeback.apply",
     "gltf.rgbm", "gltf.export",
     "bake.job", "bake.folder", "bake.scene_file",

@@ -107,18 +107,29 @@ def vertex_creases(mesh):
 def set_group_outputs(tree, sockets):
     """Make a node group's outputs exactly `sockets`: (name, socket type idname) pairs. Before 4.0
     NodeTree.outputs; from 4.0 the group's interface (items_tree, new_socket)."""
+    _set_group_sockets(tree, sockets, 'OUTPUT')
+
+
+def set_group_inputs(tree, sockets):
+    """Make a node group's inputs exactly `sockets`: (name, socket type idname) pairs (as
+    set_group_outputs)."""
+    _set_group_sockets(tree, sockets, 'INPUT')
+
+
+def _set_group_sockets(tree, sockets, in_out):
     interface = getattr(tree, "interface", None)
     if interface is not None:
         for item in list(interface.items_tree):
-            if getattr(item, "item_type", None) == 'SOCKET' and item.in_out == 'OUTPUT':
+            if getattr(item, "item_type", None) == 'SOCKET' and item.in_out == in_out:
                 interface.remove(item)
         for name, socket_type in sockets:
-            interface.new_socket(name, in_out='OUTPUT', socket_type=socket_type)
+            interface.new_socket(name, in_out=in_out, socket_type=socket_type)
         return
-    for socket in list(tree.outputs):
-        tree.outputs.remove(socket)
+    collection = tree.outputs if in_out == 'OUTPUT' else tree.inputs
+    for socket in list(collection):
+        collection.remove(socket)
     for name, socket_type in sockets:
-        tree.outputs.new(socket_type, name)
+        collection.new(socket_type, name)
 
 
 # ---- materials and worlds -----------------------------------------------------------------------------------

@@ -2,8 +2,9 @@
 
 SceneFileWriter has the scene-building methods of photonlm.Scene (add_material, add_mesh,
 add_subdiv_mesh, add_light, set_world, set_world_map, set_world_map_file, add_csg, set_csg_carrier,
-add_ol_group, set_ol_group_backup, set_mesh_ol_group, add_material_lobe, set_material_texture,
-set_mesh_texture_uv, set_mesh_normals, set_mesh_smooth, set_conventions) with the
+add_ol_group, set_ol_group_backup, set_mesh_ol_group, add_light_group, set_light_group,
+add_material_lobe, set_material_texture, set_mesh_texture_uv, set_mesh_normals, set_mesh_smooth,
+set_conventions) with the
 same arguments and the
 same returned ids, so code that builds a
 photonlm.Scene can build a file instead:
@@ -108,6 +109,8 @@ class SceneFileWriter:
         self.csg = []
         self.world = None
         self.world_pixels = None  # set_world_map's (H, W, 3) float32 pixels, written on write()
+        self.light_groups = []   # names; ids are 1, 2, ... (0: the default group)
+        self.world_group = 0     # the world's light group id
         self.settings = {}
         self.metadata = None
         self.conventions = "cycles-3.4"
@@ -336,6 +339,33 @@ class SceneFileWriter:
     def set_mesh_ol_group(self, mesh, group):
         mesh = self._index(mesh, self.meshes, "mesh")
         self.meshes[mesh]["ol_group"] = self._index(group, self.ol_groups, "group")
+
+    def add_light_group(self, name):
+        name = str(name)
+        label = "light group '%s'" % name
+        if not re.fullmatch(r"[A-Za-z0-9_-]{1,64}", name):
+            raise ValueError("%s: the name must be 1 to 64 letters, digits, '_' and '-'" % label)
+        if name == "default" or name in self.light_groups:
+            raise ValueError("%s: %s" % (label, "'default' is the default group's name" if name == "default"
+                                         else "a light group of that name exists"))
+        self.light_groups.append(name)
+        return len(self.light_groups)
+
+    def set_light_group(self, group, *, light=None, mesh=None, world=False):
+        if (light is not None) + (mesh is not None) + bool(world) != 1:
+            raise ValueError("set_light_group: give exactly one of light=, mesh= and world=True")
+        group = _uint(group, "group")
+        if group > len(self.light_groups):
+            raise ValueError("light group %d does not exist (%d declared; 0 is the default group)"
+                             % (group, len(self.light_groups)))
+        if world:
+            self.world_group = group
+            return
+        items, what = (self.lights, "light") if light is not None else (self.meshes, "mesh")
+        item = items[self._index(light if light is not None else mesh, items, what)]
+        item.pop("group", None)
+        if group:
+            item["group"] = self.light_groups[group - 1]
 
     def add_material_lobe(self, material, kind, color, roughness=0.0, ior=None, abbe=0.0, weight=1.0):
         material = self._index(material, self.materials, "material")
@@ -596,18 +626,23 @@ class SceneFileWriter:
                 e["smooth"] = True
             if m["ol_group"] is not None:
                 e["ol_group"] = m["ol_group"]
+            if "group" in m:
+                e["group"] = m["group"]
             meshes.append(e)
         scene = {"version": 1}
         if self.conventions != "cycles-3.4":
             scene["conventions"] = self.conventions
         if self.metadata is not None:
             scene["metadata"] = self.metadata
-        for key, value in (("materials", materials), ("ol_groups", self.ol_groups), ("meshes", meshes),
+        for key, value in (("light_groups", self.light_groups), ("materials", materials),
+                           ("ol_groups", self.ol_groups), ("meshes", meshes),
                            ("lights", self.lights), ("csg", self.csg)):
             if value:
                 scene[key] = value
         if self.world is not None:
             scene["world"] = dict(self.world)
+            if self.world_group:
+                scene["world"]["group"] = self.light_groups[self.world_group - 1]
             if "map" in self.world:
                 scene["world"]["map"] = self._world_map_file(texture_dir, texture_dir_rel, copied, texture_names)
         if self.settings:

@@ -15,7 +15,8 @@ the materials wired, and the statistics of the report stored for the Last Bake p
 Objects in the report that the .blend lacks (a report of another scene, a renamed object) are
 skipped with a warning each; a folder without report.json, a report that is no bake report, a
 missing, unreadable or mis-sized EXR and a folder of shard part files (not yet merged) are
-refused with a message naming what is wrong, and nothing changes.
+refused with a message naming what is wrong, and nothing changes. A bake with light groups
+(report.json's light_groups, each mesh's layers) brings its layers too, as a bake in Blender does.
 """
 import glob
 import json
@@ -108,10 +109,12 @@ class FolderResult:
     and warnings of its report, the lightmaps of its EXRs, the texel counts of its report; "writing"
     an EXR copies the folder's file."""
 
-    def __init__(self, stats, warnings, lightmaps, ols, texel_counts):
+    def __init__(self, stats, warnings, lightmaps, ols, texel_counts, layers=(), layer_files=None):
         self.stats = stats
         self.warnings = warnings
         self._lightmaps = lightmaps  # mesh id -> (EXR path, photonlm.Lightmap)
+        self.layers = list(layers)   # the light groups' layer names (report.json's light_groups)
+        self._layer_files = layer_files or {}  # mesh id -> [EXR path per layer]
         self._ols = ols              # group id -> (EXR path, {"resolution", "hits"})
         # mesh id -> (texels, texels above twice the target) from the report (the engine's counts);
         # for a report without them the write-back counts the texels with photon hits (a covered
@@ -123,6 +126,13 @@ class FolderResult:
 
     def write_exr(self, mesh_id, path):
         _copy(self._lightmaps[mesh_id][0], path)
+
+    def lightmap_layer(self, mesh_id, layer):
+        lm = bridge.get().read_lightmap_exr(self._layer_files[mesh_id][layer])
+        return lm.rgb, lm.error
+
+    def write_layer_exr(self, mesh_id, layer, path):
+        _copy(self._layer_files[mesh_id][layer], path)
 
     def write_ol_exr(self, group_id, path):
         _copy(self._ols[group_id][0], path)
@@ -146,6 +156,16 @@ def _copy(source, path):
         if os.path.exists(tmp):
             os.remove(tmp)
         raise
+
+
+def _layer_names(report, report_path):
+    """The light groups' layer names of a report (its light_groups), [] without light groups."""
+    groups = report.get("light_groups") or []
+    names = [g.get("name") if isinstance(g, dict) else None for g in groups]
+    if not isinstance(groups, list) or not all(isinstance(n, str) and n for n in names):
+        raise FolderError("%s: light_groups is not a list of groups with names: %s"
+                          % (report_path, json.dumps(groups)[:200]))
+    return names
 
 
 def _materials_of(obj):
@@ -179,6 +199,8 @@ class BakeFolder:
         warnings = [w for w in warnings if isinstance(w, str)]
         lightmaps, ols, missing = {}, {}, []
         counts = {}  # mesh id -> (texels, texels above twice the target) from the report
+        layers = _layer_names(report, report_path)
+        layer_files = {}  # mesh id -> [EXR path per layer]
         for i, entry in enumerate(report["meshes"]):
             name = _string(entry.get("name")) if isinstance(entry, dict) else None
             file = _string(entry.get("file")) if isinstance(entry, dict) else None
@@ -205,6 +227,7 @@ class BakeFolder:
             path = os.path.join(self.folder, file)
             lm = self._read_exr(name, path, tuple(size))
             lightmaps[i] = (path, self.photonlm.Lightmap(lm.rgb, lm.error, lm.hits, coverage_mask(lm.hits)))
+            layer_files[i] = self._layer_files(name, entry, layers, report_path, tuple(size))
             pair = (entry.get("texels"), entry.get("texels_above_twice_target"))
             if all(isinstance(c, int) and not isinstance(c, bool) for c in pair):
                 counts[i] = pair
@@ -229,7 +252,7 @@ class BakeFolder:
                 atlas.check(context.scene, self.manifest.baked, False)
             except atlas.AtlasError as e:
                 raise FolderError(str(e)) from None
-        self.result = FolderResult(stats, warnings, lightmaps, ols, counts)
+        self.result = FolderResult(stats, warnings, lightmaps, ols, counts, layers, layer_files)
         self.seconds_read = time.perf_counter() - t0
 
     def _read_exr(self, what, path, size):
@@ -246,6 +269,24 @@ class BakeFolder:
             raise FolderError("the lightmap of '%s' (%s) is %d x %d, the report says %d x %d"
                               % (what, path, lm.rgb.shape[1], lm.rgb.shape[0], size[0], size[1]))
         return lm
+
+    def _layer_files(self, name, entry, layers, report_path, size):
+        """The EXRs of a mesh entry's light-group layers, in the order of `layers` (checked as the
+        lightmap is); FolderError naming a layer the entry lacks."""
+        given = {}
+        for item in entry.get("layers") or []:
+            if isinstance(item, dict) and isinstance(item.get("group"), str) and isinstance(item.get("file"), str) \
+                    and os.path.basename(item["file"]) == item["file"]:
+                given[item["group"]] = item["file"]
+        paths = []
+        for layer in layers:
+            if layer not in given:
+                raise FolderError("%s: the lightmap of '%s' has no layer '%s' (the report's light_groups name it)"
+                                  % (report_path, name, layer))
+            path = os.path.join(self.folder, given[layer])
+            self._read_exr("%s' layer '%s" % (name, layer), path, size)
+            paths.append(path)
+        return paths
 
     def _ol_group(self, i, entry, report_path, view_layer):
         """The export.OlGroup of report entry ol_groups[i] (its collection's or its object's), or None

@@ -18,7 +18,7 @@ object the mesh id, image names, EXR paths, the coverage mask and its share of n
 import time
 
 from .. import bridge, stages
-from ..export import lsystem
+from ..export import lightgroups, lsystem
 from ..export import scene as export
 from ..uv import uvmaps
 from ..writeback import apply, atlas
@@ -56,6 +56,10 @@ class BakeJob:
                                 % ("selected" if selected_only else "visible"))
             if not export.light_sources(context):
                 raise BakeError(export.unlit_scene_message(context))
+            try:
+                lightgroups.check_names(export.light_group_plan(context))
+            except ValueError as e:
+                raise BakeError(str(e)) from None
         try:
             with self.times("export_uv"):
                 self.created_uvs = uvmaps.ensure_for_scene(context, objects, self.reports)

@@ -13,12 +13,17 @@ Where the lightmaps go: each object with a lightmap is a mesh named after the ob
 "metadata" lists, per object, the mesh index and that file name (and the OL groups'), for
 scripts; File > Import > PhotonLM bake folder (bake/folder.py) brings the baked folder back by
 the mesh names report.json lists.
+
+Light groups (export/lightgroups.py) go into the file as its "light_groups" and each emitter's
+"group"; `photonlm bake` then writes <mesh>_lightmap.<group>.exr beside each lightmap, and the
+metadata lists the groups.
 """
 import types
 
 import bpy
 
 from .. import bridge
+from ..export import lightgroups
 from ..export import scene as export
 from ..uv import uvmaps
 from ..version import VERSION
@@ -42,10 +47,17 @@ def export_scene_file(context, path, reports=None, obj_threshold=200_000):
     uvmaps.commit(uvmaps.ensure_for_scene(context, objects, reports))
     writer = SceneFileWriter(obj_threshold=obj_threshold)
     factory = types.SimpleNamespace(Scene=lambda: writer)
+    try:
+        lightgroups.check_names(export.light_group_plan(context))
+    except ValueError as e:
+        raise ExportError(str(e)) from None
     result = export.export_scene(context, factory, reports)
     if not result.manifest.baked and not writer.ol_groups:
         raise ExportError("nothing to export: no visible mesh object with 'Bake Lightmap' enabled "
                           "(or every one was skipped, see the reports)")
+    refused = light_group_conflict(result.manifest)
+    if refused:
+        raise ExportError(refused)
     for name, _ in result.manifest.lsystems:  # not reached today: the writer refuses L-systems
         reports.warning("L-system '%s' is not in the scene file" % name)
     writer.set_settings(**export.bake_settings(context.scene))
@@ -61,6 +73,7 @@ def export_scene_file(context, path, reports=None, obj_threshold=200_000):
         "ol_groups": [{"name": g.name, "group": g.group_id, "objects": list(g.objects),
                        "ol_file": group_files[writer.ol_groups[g.group_id].get("name", "ol%d" % g.group_id)]}
                       for g in result.manifest.ol_groups.values()],
+        "light_groups": list(result.manifest.light_groups),
     }
     # The CLI names files after the mesh and group names; the add-on after object names.
     try:
@@ -73,3 +86,18 @@ def export_scene_file(context, path, reports=None, obj_threshold=200_000):
                  "%d CSG solids to %s" % (len(result.manifest.baked), result.geometry_only, result.lights,
                                           len(writer.ol_groups), len(writer.csg), path))
     return path, writer.metadata
+
+
+def light_group_conflict(manifest):
+    """Why `photonlm bake` would refuse the file's light groups (they split ordinary lightmaps only),
+    or ""."""
+    if not manifest.light_groups:
+        return ""
+    other = ("orientation lightmaps (%s)" % ", ".join("'%s'" % g.name for g in manifest.ol_groups.values())
+             if manifest.ol_groups else
+             "CSG solids (%s)" % ", ".join("'%s'" % n for n in manifest.csg_objects) if manifest.csg_objects else "")
+    if not other:
+        return ""
+    return ("the scene has light groups (%s) and %s, which light groups do not split: bake it without "
+            "light groups (clear the Light Groups of the view layer) or those objects as plain lightmaps"
+            % (", ".join(manifest.light_groups), other))

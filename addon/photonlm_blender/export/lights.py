@@ -7,8 +7,9 @@ import numpy as np
 from .. import compat
 
 
-def add_light(plm, obj_eval, matrix, reports):
-    """Add an evaluated light (or portal) to the bridge scene; False where it emits nothing or is skipped."""
+def add_light(plm, obj_eval, matrix, reports, group=0):
+    """Add an evaluated light (or portal) to the bridge scene, in light group `group` (an engine id;
+    0: the default group); False where it emits nothing or is skipped."""
     light = obj_eval.data
     m = [list(row) for row in matrix]
     if light.type == 'AREA' and getattr(getattr(light, "cycles", None), "is_portal", False):
@@ -33,20 +34,22 @@ def add_light(plm, obj_eval, matrix, reports):
     t = light.type
     try:
         if t == 'POINT':
-            plm.add_light('POINT', radius=light.shadow_soft_size, **kw)
+            lid = plm.add_light('POINT', radius=light.shadow_soft_size, **kw)
         elif t == 'SPOT':
-            plm.add_light('SPOT', radius=light.shadow_soft_size, spot_size=light.spot_size,
+            lid = plm.add_light('SPOT', radius=light.shadow_soft_size, spot_size=light.spot_size,
                           spot_blend=light.spot_blend, **kw)
         elif t == 'SUN':
-            plm.add_light('SUN', angle=light.angle, **kw)
+            lid = plm.add_light('SUN', angle=light.angle, **kw)
         elif t == 'AREA':
             shape = light.shape
             sy = light.size_y if shape in ('RECTANGLE', 'ELLIPSE') else light.size
-            plm.add_light('AREA_RECT' if shape in ('SQUARE', 'RECTANGLE') else 'AREA_DISK',
+            lid = plm.add_light('AREA_RECT' if shape in ('SQUARE', 'RECTANGLE') else 'AREA_DISK',
                           size=light.size, size_y=sy, **kw)
         else:
             reports.warning("light '%s': type %s is not supported: skipped" % (obj_eval.name, t))
             return False
+        if group:
+            plm.set_light_group(group, light=lid)
     except Exception as e:
         reports.warning("light '%s' skipped: %s" % (obj_eval.name, getattr(e, "message", e)))
         return False

@@ -18,6 +18,8 @@ What is exported
   power are what Cycles emits (lights.py); a light whose node tree is more than the default
   Emission is reported (its nodes are not baked).
 - World: Background colour x strength (a uniform radiance), or world.color without nodes.
+- Light groups (lightgroups.py): the view layer's Light Groups that lights, emissive objects or
+  the world name; each emitter goes to its group (Manifest.light_groups lists them).
 """
 import dataclasses
 import re
@@ -25,7 +27,7 @@ import re
 import numpy as np
 
 from .. import compat, stages
-from . import csg, lights, lsystem, materials, subdiv
+from . import csg, lightgroups, lights, lsystem, materials, subdiv
 from . import world as world_export
 from .resolution import AUTO_TRIANGLES_PER_TEXEL, ResolutionRule
 from .meshes import LIGHTMAP_UV, mesh_arrays, shading_normals, surface_area
@@ -186,6 +188,7 @@ class Manifest:
     ol_groups: dict = dataclasses.field(default_factory=dict)     # key -> OlGroup
     lsystems: list = dataclasses.field(default_factory=list)      # (object name, engine id) of L-system objects
     csg_objects: list = dataclasses.field(default_factory=list)   # names of objects traced as exact CSG solids
+    light_groups: list = dataclasses.field(default_factory=list)  # names of the declared light groups
     triangles: int = 0          # triangles the engine traces (refined ones for subdivision cages)
     selected_only: bool = False  # Bake Selected: the other objects' lightmaps and OLs stay as they are
     target_error: float = 0.0    # the bake's target error (0: none)
@@ -204,6 +207,7 @@ class SceneExport:
         self.lights = 0
         self.cages = 0              # objects added as subdivision cages (refined by the engine)
         self.texture_files = materials.TextureFiles()  # images for the engine; cleanup() after the bake
+        self.groups = lightgroups.GroupIds([], [])     # the declared light groups (lightgroups.py)
 
 
 class OlGroup:
@@ -247,6 +251,8 @@ def export_scene(context, photonlm, reports, selected_only=False, times=None):
     with times("export_world"):
         world = world_export.start(scene.world)  # a sky to render renders beside the mesh export
     try:
+        export.groups = declare_light_groups(plm, context)
+        export.manifest.light_groups = list(export.groups.names)
         default_id = _add_material(export, plm, None, reports)
         bake_names = {o.name for o in lightmap_objects(context, selected_only)}
         for inst in depsgraph.object_instances:
@@ -256,7 +262,7 @@ def export_scene(context, photonlm, reports, selected_only=False, times=None):
             if not is_renderable(parent, view_layer):
                 continue
             if obj_eval.type == 'LIGHT':
-                if lights.add_light(plm, obj_eval, inst.matrix_world, reports):
+                if lights.add_light(plm, obj_eval, inst.matrix_world, reports, export.groups.of(orig)):
                     export.lights += 1
                 continue
             if obj_eval.type not in GEOMETRY_TYPES:
@@ -278,11 +284,45 @@ def export_scene(context, photonlm, reports, selected_only=False, times=None):
                 plm.refine_subdiv_meshes()
         with times("export_world"):
             world_export.set_world(plm, scene.world, reports, world)
+            if export.groups.of(scene.world):
+                plm.set_light_group(export.groups.of(scene.world), world=True)
     except BaseException:
         world.cancel()
         plm.close()
         raise
     return export
+
+
+def light_group_plan(context):
+    """The light groups an export declares (export/lightgroups.py): the view layer's Light Groups
+    that a visible light, emissive object or the world names, in its order; [] for none."""
+    view_layer = context.view_layer
+    declared = set(lightgroups.view_layer_groups(view_layer))
+    if not declared:
+        return []
+    emitters = [context.scene.world] if world_export.emits(context.scene.world) else []
+    for obj in view_layer.objects:
+        if lightgroups.lightgroup_of(obj) not in declared or not is_renderable(obj, view_layer):
+            continue
+        if obj.type == 'LIGHT' or any(s.material is not None and max(materials.read_material(s.material).emission) > 0.0
+                                      for s in obj.material_slots):
+            emitters.append(obj)
+    return lightgroups.plan(view_layer, emitters)
+
+
+def declare_light_groups(plm, context):
+    """Declare the planned light groups in the engine scene (checking their names first: ValueError
+    naming the one it refuses). Returns the lightgroups.GroupIds."""
+    names = light_group_plan(context)
+    lightgroups.check_names(names)
+    return lightgroups.GroupIds(names, [plm.add_light_group(n) for n in names])
+
+
+def _set_mesh_group(export, plm, orig, mesh_id):
+    """Put a mesh's emission into its object's light group (nothing without groups)."""
+    group = export.groups.of(orig)
+    if group:
+        plm.set_light_group(group, mesh=mesh_id)
 
 
 def _add_material(export, plm, mat, reports):
@@ -350,6 +390,7 @@ def _add_object(export, plm, orig, obj_eval, matrix, is_instance, with_lightmap,
         reports.warning("object '%s' skipped: %s" % (orig.name, getattr(e, "message", e)))
         return
     export.manifest.triangles += len(tris)
+    _set_mesh_group(export, plm, orig, mesh_id)
     if tex_uv is not None and hasattr(plm, "set_mesh_texture_uv"):
         plm.set_mesh_texture_uv(mesh_id, tex_uv)
     if normals is not None:
@@ -394,6 +435,7 @@ def _add_subdiv_object(export, plm, orig, obj_eval, cage, with_lightmap, density
                  % (orig.name, cage.level, len(cage.face_sizes)))
     export.cages += 1
     export.manifest.triangles += cage.triangle_count()
+    _set_mesh_group(export, plm, orig, mesh_id)
     group = _ol_group(export, plm, orig, cage.triangle_count(), resolution, reports)
     if group is not None:
         plm.set_mesh_ol_group(mesh_id, group.group_id)
@@ -446,7 +488,8 @@ def _ol_group(export, plm, orig, triangles, resolution, reports):
     """The OL group an object's light goes to, or None for an ordinary lightmap: the first of its
     collections marked 'One Orientation Lightmap' (instances and objects without lightmaps too);
     else its own OL for mode ORIENTATION, or AUTO with more than AUTO_TRIANGLES_PER_TEXEL
-    triangles per texel of its lightmap. Only objects with a lightmap get their own OL."""
+    triangles per texel of its lightmap (not with light groups, which split ordinary lightmaps only).
+    Only objects with a lightmap get their own OL."""
     for coll in orig.users_collection:
         settings = getattr(coll, "photonlm", None)
         if settings is not None and settings.orientation_lightmap:
@@ -465,6 +508,10 @@ def _ol_group(export, plm, orig, triangles, resolution, reports):
     elif mode == 'BACKUP':
         reason = "its Lighting is set to Lightmap + OL Backup"
     elif mode == 'AUTO' and triangles > AUTO_TRIANGLES_PER_TEXEL * texels:
+        if export.groups:  # light groups split ordinary lightmaps only
+            reports.info("object '%s': a plain lightmap, not the orientation lightmap Auto would choose "
+                         "(%d triangles on %d texels): the scene has light groups" % (orig.name, triangles, texels))
+            return None
         reason = ("Auto: %d triangles on %d lightmap texels (more than %d per texel)"
                   % (triangles, texels, AUTO_TRIANGLES_PER_TEXEL))
     else:

@@ -13,7 +13,8 @@ copy into an in-memory float image per object ("PhotonLM live <object>", tagged
 image[wiring.TAG] = LIVE_TAG) and, the first time, points each baked material's preview
 at it: a material wired by an earlier bake gets the live image on its lightmap Image Texture
 node, one without wiring gets the preview nodes (wiring.wire_material, no heat map), and
-both show the Lightmaps output. What each material was (its lightmap image, whether it was
+both show the Lightmaps output (a material wired with light groups reads the live image instead of
+its layers until the bake ends). What each material was (its lightmap image, whether it was
 wired, which outputs were active, the remembered original output) is kept first.
 
 end(success=False) (cancel, error) puts every material back as it was and removes the live
@@ -132,6 +133,7 @@ class LivePreview:
             self._saved[mat_name] = _save(mat)
             if node is not None:
                 node.image = image
+                _feed_multiply(mat, from_groups=False)  # light groups: the live image, not the layers
             else:
                 wiring.wire_material(mat, image, engine)  # its notes come again with the final wiring
             wiring.set_preview(mat, 'LIGHTMAP')
@@ -172,12 +174,25 @@ def _save(mat):
                 remembered=tree.get(wiring.ORIGINAL_OUTPUT_KEY))
 
 
+def _feed_multiply(mat, from_groups):
+    """Feed the preview's Multiply from the light groups' mix (from_groups, where the material has
+    one) or from its lightmap Image Texture."""
+    tree = mat.node_tree
+    tagged = {n.get(wiring.TAG): n for n in tree.nodes if n.get(wiring.TAG) in ("image", "light_groups", "multiply")}
+    source = tagged.get("light_groups" if from_groups else "image")
+    if source is None or "multiply" not in tagged or ("light_groups" not in tagged):
+        return
+    _, _, b, _ = compat.mix_color_sockets(tagged["multiply"])
+    tree.links.new(source.outputs['Color'], b)
+
+
 def _restore(mat, saved):
     tree = mat.node_tree
     if saved["wired"]:
         node = _image_node(mat)
         if node is not None:
             node.image = saved["image"]
+            _feed_multiply(mat, from_groups=True)
     else:
         wiring.remove_wiring(mat)
     outputs = [n for n in tree.nodes if n.bl_idname == 'ShaderNodeOutputMaterial']

@@ -2,7 +2,8 @@
 bake's statistics, which writeback/record.py keeps on the scene). How an object's lightmap size
 follows from them: export/resolution.py."""
 import bpy
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import (BoolProperty, CollectionProperty, EnumProperty, FloatProperty, FloatVectorProperty, IntProperty,
+                       PointerProperty, StringProperty)
 
 from .. import bridge
 from ..writeback import record, wiring
@@ -90,6 +91,25 @@ def _noisiest_get(self):
         return ""
     share = stats.get("noisiest_above")
     return "%s (%.0f %%)" % (stats["noisiest"], 100.0 * float(share)) if share is not None else str(stats["noisiest"])
+
+
+def _light_group_update(self, context):
+    """A strength or tint set by the panel or a script: tag the scene, so that the drivers of the
+    light groups' mix (which read the scene's evaluated copy) see the new value."""
+    self.id_data.update_tag()
+
+
+class PhotonlmLightGroup(bpy.types.PropertyGroup):
+    """A light group's strength and tint in the preview (writeback/lightgroups.py): its name is the
+    group's (Blender's Light Group, the layer's)."""
+    strength: FloatProperty(
+        name="Strength", description="How strongly this light group's baked light shows in the lightmap "
+        "preview (1 = as baked, 0 = off); keyframe it to relight an animation without baking again",
+        default=1.0, min=0.0, soft_max=10.0, update=_light_group_update)
+    tint: FloatVectorProperty(
+        name="Tint", description="A colour multiplying this light group's baked light in the lightmap preview "
+        "(white = as baked)", subtype='COLOR', size=3, default=(1.0, 1.0, 1.0), min=0.0, soft_max=1.0,
+        update=_light_group_update)
 
 
 class PhotonlmSceneSettings(bpy.types.PropertyGroup):
@@ -205,9 +225,13 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
                               get=_stat_getter("photons_per_second", _fmt_rate))
     last_warnings: StringProperty(name="Warnings", get=_stat_getter("warning_count", _fmt_count))
     last_objects: StringProperty(name="Objects", get=_stat_getter("objects", _fmt_count))
+    light_groups: CollectionProperty(
+        type=PhotonlmLightGroup, name="Light Groups",
+        description="The strength and tint of each light group in the lightmap preview (made by a bake with "
+        "Light Groups)")
 
 
-_CLASSES = (PhotonlmSceneSettings,)
+_CLASSES = (PhotonlmLightGroup, PhotonlmSceneSettings)
 
 
 PREVIEW_MODE_INDEX = {'OFF': 0, 'LIGHTMAP': 1, 'ERROR': 2}  # how preview_mode is stored in a file

@@ -64,6 +64,36 @@ class PHOTONLM_PT_lightmaps(bpy.types.Panel):
             col.label(text=_heat_legend(context.scene))
 
 
+def baked_light_groups(scene):
+    """The light groups of the last bake that have settings: [(layer name, settings)]."""
+    names = [n for n in str(_stats(scene).get("light_layers", "")).split(",") if n]
+    groups = scene.photonlm.light_groups
+    return [(n, groups[n]) for n in names if groups.get(n) is not None]
+
+
+class PHOTONLM_PT_light_groups(_Sub, bpy.types.Panel):
+    """The strength and tint of each light group in the preview (keyframe them to relight an
+    animation without baking again)."""
+    bl_label = "Light Groups"
+    bl_idname = "PHOTONLM_PT_light_groups"
+
+    @classmethod
+    def poll(cls, context):
+        return bool(baked_light_groups(context.scene))
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = False
+        col = layout.column(align=True)
+        for name, item in baked_light_groups(context.scene):
+            row = col.row(align=True)
+            split = row.split(factor=0.3)
+            split.label(text="Other Lights" if name == "default" else name, icon='LIGHT')
+            sub = split.row(align=True)
+            sub.prop(item, "strength", text="")
+            sub.prop(item, "tint", text="")
+
+
 class PHOTONLM_PT_last_bake(_Sub, bpy.types.Panel):
     bl_label = "Last Bake"
     bl_idname = "PHOTONLM_PT_last_bake"
@@ -317,7 +347,7 @@ class PHOTONLM_PT_special(_Sub, bpy.types.Panel):
         layout.operator_menu_enum("photonlm.add_lsystem", "preset", text="Add L-System", icon='OUTLINER_OB_CURVES')
 
 
-_CLASSES = (PHOTONLM_PT_lightmaps, PHOTONLM_PT_last_bake, PHOTONLM_PT_warnings, PHOTONLM_PT_last_times,
+_CLASSES = (PHOTONLM_PT_lightmaps, PHOTONLM_PT_light_groups, PHOTONLM_PT_last_bake, PHOTONLM_PT_warnings, PHOTONLM_PT_last_times,
             PHOTONLM_PT_sampling,
             PHOTONLM_PT_output, PHOTONLM_PT_object, PHOTONLM_PT_special)
 

@@ -12,6 +12,8 @@ the target error. result holds the lightmaps; what is read of it:
     result.write_ol_exr(group_id, path), result.ol_stats(group_id)
     result.lsystem_lookup(...)            for L-system objects (only a bake in Blender has them)
     result.texel_counts                   optional {mesh id: (texels, texels above twice the target)}
+    result.layers, result.lightmap_layer(mesh_id, k), result.write_layer_exr(mesh_id, k, path)
+                                          light-group layers (optional: none without light groups)
     result.close()
 a photonlm.Result as the engine returns it, or bake/folder.py's FolderResult over a folder's EXRs.
 
@@ -31,7 +33,7 @@ import numpy as np
 from ..export.scene import safe_file_name
 from ..export.meshes import LIGHTMAP_UV
 from ..uv import uvmaps
-from . import atlas, images, lsystem, record, wiring
+from . import atlas, images, lightgroups, lsystem, record, wiring
 
 
 def apply(context, manifest, result, reports, stage_seconds, figures=None, outputs=None):
@@ -61,6 +63,8 @@ def apply(context, manifest, result, reports, stage_seconds, figures=None, outpu
         error_images = {}
         atlas_mode = atlas.is_atlas(scene)
         atlas_blocks, uv_maps = {}, {}
+        layers = list(getattr(result, "layers", None) or [])  # light groups (writeback/lightgroups.py)
+        atlas_layers, layer_images = {}, {}
         # The EXRs are written on threads (the engine's calls release the GIL): a small
         # object's two files cost about 0.8 ms each, which on a small scene is most of the
         # write-back. At most a few objects' writes wait at a time (each holds its heat map's
@@ -74,6 +78,7 @@ def apply(context, manifest, result, reports, stage_seconds, figures=None, outpu
                 path = error_path = None
                 if atlas_mode:  # written into atlas pages below
                     atlas_blocks[b.object_name] = lm
+                    atlas_layers[b.object_name] = [result.lightmap_layer(b.mesh_id, i) for i in range(len(layers))]
                 else:
                     base = safe_file_name(b.object_name)
                     fname = base + "_lightmap.exr"
@@ -88,6 +93,9 @@ def apply(context, manifest, result, reports, stage_seconds, figures=None, outpu
                         writes[len(writes) - 4 * workers - 1].result()
                     writes.append(pool.submit(result.write_exr, b.mesh_id, path))
                     writes.append(pool.submit(images.write_error_exr, error_path, images.error_image_pixels(relative)))
+                    for i, layer in enumerate(layers):
+                        writes.append(pool.submit(result.write_layer_exr, b.mesh_id, i,
+                                                  lightgroups.layer_file(path, layer)))
                     paths[b.object_name] = (path, error_path)
                 texels, above = known_counts.get(b.mesh_id) or texel_counts(lm, relative, target)
                 small = b.width * b.height <= 1024 * 1024
@@ -103,17 +111,24 @@ def apply(context, manifest, result, reports, stage_seconds, figures=None, outpu
             error_image = images.load_image(name + "_error", error_path, pack)
             error_image[wiring.TAG] = wiring.ERROR_IMAGE_TAG
             error_images[name] = error_image
+            layer_images[name] = _load_layers(name + "_lightmap", path, layers, pack, per_object[name])
         for name, o in per_object.items():
             o["image"] = lightmap_images[name].name if name in lightmap_images else None
             o["error_image"] = error_images[name].name if name in error_images else None
         stale = []
         if atlas_mode:
-            lightmap_images, error_images, uv_maps, stale = atlas.store(
-                context, manifest.selected_only, reports, atlas_blocks, out_dir, pack, per_object)
+            lightmap_images, error_images, uv_maps, stale, layer_images = atlas.store(
+                context, manifest.selected_only, reports, atlas_blocks, out_dir, pack, per_object,
+                layers=layers, layer_blocks=atlas_layers)
             atlas_blocks.clear()
+            atlas_layers.clear()
         else:
             atlas.forget(per_object)
-        _wire(context, manifest, reports, lightmap_images, error_images, target, uv_maps)
+        mix = None
+        if layers:
+            lightgroups.sync_settings(scene, layers)
+            mix = lightgroups.mix_group(scene, layers)
+        _wire(context, manifest, reports, lightmap_images, error_images, target, uv_maps, layer_images, mix)
         atlas.remove_stale(stale)
         for name, lid in manifest.lsystems:
             obj = bpy.data.objects.get(name)
@@ -163,7 +178,7 @@ def apply(context, manifest, result, reports, stage_seconds, figures=None, outpu
         noisiest=noisiest[0] if noisiest else "",
         noisiest_above=float(per_object[noisiest[0]]["error_above"]) if noisiest else 0.0,
         direct_samples=int(stats["direct_samples"]),
-        triangles=int(manifest.triangles), **times,
+        triangles=int(manifest.triangles), **times, light_layers=",".join(layers),
         warning_lines="\n".join(shown_warnings))
     all_figures.update(figures or {})
     record.store(scene, all_figures, dict(
@@ -180,10 +195,23 @@ def texel_counts(lm, relative, target):
     return int(np.count_nonzero(covered)), int(np.count_nonzero(relative[covered] > 2.0 * target))
 
 
-def _wire(context, manifest, reports, lightmap_images, error_images, target, uv_maps):
+def _load_layers(base, path, layers, pack, entry):
+    """Load the light-group layers of the lightmap file `path` as images <base>.<layer>; note them in the
+    object's per_object entry. Returns [(layer, image)]."""
+    out = []
+    for layer in layers:
+        layer_path = lightgroups.layer_file(path, layer)
+        out.append((layer, images.load_image(lightgroups.layer_image_name(base, layer), layer_path, pack)))
+    entry["layers"] = {layer: dict(image=image.name, path=lightgroups.layer_file(path, layer)) for layer, image in out}
+    return out
+
+
+def _wire(context, manifest, reports, lightmap_images, error_images, target, uv_maps, layer_images=None, mix=None):
     """Wire each baked object's materials to its lightmap image and its heat map, read through
     its uv_maps entry (default: the lightmap UV map). A material shared by baked objects shows
-    the first one's image: all of them where they share an atlas page."""
+    the first one's image: all of them where they share an atlas page. With light groups (mix: the
+    node group of writeback/lightgroups.py) the preview sums the object's layer_images instead."""
+    layer_images = layer_images or {}
     engine = context.scene.render.engine
     owners = {}
     for b in sorted(manifest.baked, key=lambda b: b.object_name):
@@ -203,7 +231,8 @@ def _wire(context, manifest, reports, lightmap_images, error_images, target, uv_
                             "'%s' only (give each object its own material)"
                             % (name, ", ".join("'%s'" % o for o in objs), objs[0]))
         for note in wiring.wire_material(mat, lightmap_images[objs[0]], engine, error_image=error_images[objs[0]],
-                                         target_error=target, uv_map=uv_maps.get(objs[0], LIGHTMAP_UV)):
+                                         target_error=target, uv_map=uv_maps.get(objs[0], LIGHTMAP_UV),
+                                         layers=layer_images.get(objs[0]) if mix is not None else None, mix=mix):
             reports.warning(note)
         wiring.set_preview(mat, context.scene.photonlm.preview_mode)
 

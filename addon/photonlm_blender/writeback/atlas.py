@@ -7,7 +7,8 @@ page at the place uv/atlas_pack.py finds for it, with a ring of atlas_pad texels
 repeats the block's edge texels. Per page the bake writes
     <scene>_atlas_<k>_lightmap.exr   R, G, B, error, hits (as a one-object lightmap file)
     <scene>_atlas_<k>_error.exr      the heat map of its relative errors
-and loads them as images of the same names. Each object gets
+and loads them as images of the same names; with light groups each layer has pages of its own,
+<scene>_atlas_<k>_lightmap.<group>.exr (writeback/lightgroups.py). Each object gets
     the UV map 'PhotonLM Atlas': its lightmap UVs moved into its block, u' = u su + ou,
         v' = v sv + ov. The mesh holding the lightmap map (the object's own, or the helper mesh of
         an automatic map that a Data Transfer modifier brings, uv/uvmaps.py) holds a copy of it as
@@ -37,7 +38,7 @@ from ..export.meshes import LIGHTMAP_UV
 from ..export.resolution import atlas_pad
 from ..export.scene import safe_file_name
 from ..uv import atlas_pack, uvmaps
-from . import wiring
+from . import lightgroups, wiring
 from .images import error_image_pixels, load_image, relative_error, write_error_exr
 
 ATLAS_UV = "PhotonLM Atlas"
@@ -213,11 +214,13 @@ def _relative(path):
     return path
 
 
-def store(context, selected_only, reports, lightmaps, out_dir, pack, per_object):
+def store(context, selected_only, reports, lightmaps, out_dir, pack, per_object, layers=(), layer_blocks=None):
     """Pack the baked lightmaps {object name: photonlm.Lightmap} into atlas pages, write and load the
     pages, give each object its atlas UV map and properties. Returns (images, error_images, uv_maps)
-    by object name for the preview wiring, and the stale pages for remove_stale (after the wiring);
-    adds each object's "atlas" entry to per_object."""
+    by object name for the preview wiring, the stale pages for remove_stale (after the wiring), and
+    with light groups (layers: their names; layer_blocks: {object name: [(rgb, error) per layer]})
+    {object name: [(layer, page layer image)]}: each layer has pages of its own,
+    <page>_lightmap.<layer>. Adds each object's "atlas" entry to per_object."""
     scene = context.scene
     size, pad = page_size(scene), atlas_pad(scene.photonlm)
     layout = usable_layout(scene)[0] if selected_only else None
@@ -229,7 +232,7 @@ def store(context, selected_only, reports, lightmaps, out_dir, pack, per_object)
     files = [os.path.join(out_dir, page_name(scene, k) + "_lightmap.exr") for k in range(count)]
     if layout is not None:  # pages already there keep their files
         files[:len(layout["files"])] = [bpy.path.abspath(f) for f in layout["files"]]
-    page_images, error_images = [], []
+    page_images, error_images, layer_pages = [], [], []
     for k in range(count):
         name = page_name(scene, k)
         if layout is not None and k < len(layout["pages"]):  # a page already there keeps its name
@@ -259,8 +262,11 @@ def store(context, selected_only, reports, lightmaps, out_dir, pack, per_object)
             error_image = bpy.data.images.get(name + "_error") or load_image(name + "_error", error_path, pack)
         error_image[wiring.TAG] = wiring.ERROR_IMAGE_TAG
         error_images.append(error_image)
+        kept = layout is not None and k < len(layout["files"])  # Bake Selected adds to this page
+        layer_pages.append(_layer_pages(plm, files[k], page_images[-1].name, k in changed, kept, layers,
+                                        layer_blocks or {}, lightmaps, placements, k, size, pad, pack, reports))
 
-    images, errors, uv_maps = {}, {}, {}
+    images, errors, uv_maps, layer_images = {}, {}, {}, {}
     for n in names:
         p = placements[n]
         so = p.scale_offset(size)
@@ -273,6 +279,9 @@ def store(context, selected_only, reports, lightmaps, out_dir, pack, per_object)
             obj[SCALE_OFFSET_KEY] = list(so)
         images[n] = page_images[p.page]
         errors[n] = error_images[p.page]
+        layer_images[n] = layer_pages[p.page]
+        per_object[n]["layers"] = {layer: dict(image=im.name, path=lightgroups.layer_file(files[p.page], layer))
+                                   for layer, im in layer_pages[p.page]}
         per_object[n].update(image=page_images[p.page].name, path=files[p.page],
                              error_image=error_images[p.page].name,
                              error_path=files[p.page][:-len("_lightmap.exr")] + "_error.exr",
@@ -287,12 +296,53 @@ def store(context, selected_only, reports, lightmaps, out_dir, pack, per_object)
                                 % (n, largest, largest))
     blocks = {n: list(p) for n, p in placements.items()}
     scene[LAYOUT_KEY] = dict(size=size, pad=pad, pages=[im.name for im in page_images],
-                             files=[_relative(f) for f in files], blocks=blocks)
+                             files=[_relative(f) for f in files], blocks=blocks, layers=",".join(layers))
     stale = []
     if old_layout is not None and not selected_only:
         stale = [(name, path) for name, path in zip(old_layout.get("pages", ()), old_layout.get("files", ()))
                  if name not in scene[LAYOUT_KEY]["pages"]]
-    return images, errors, uv_maps, stale
+    return images, errors, uv_maps, stale, layer_images
+
+
+def _layer_pages(plm, page_file, page_image, changed, kept, layers, layer_blocks, lightmaps, placements, k, size,
+                 pad, pack, reports):
+    """The light-group layers of page k: [(layer, image)]. A changed page's layers are written (an
+    earlier page's layer file read first where Bake Selected adds to it), an unchanged one's kept."""
+    out = []
+    for i, layer in enumerate(layers):
+        path = lightgroups.layer_file(page_file, layer)
+        name = lightgroups.layer_image_name(page_image, layer)
+        if kept and not os.path.isfile(path):  # Bake Selected: an earlier page baked without this group
+            reports.warning("atlas page '%s' has no layer '%s' (it was baked without that light group): the "
+                            "preview of its other objects lacks that group's light; bake all objects (Bake "
+                            "Lightmaps)" % (page_image, layer))
+        if not changed:
+            image = bpy.data.images.get(name)
+            if image is None and os.path.isfile(path):
+                image = load_image(name, path, pack)
+            if image is not None:
+                out.append((layer, image))
+            continue
+        page = _blank(size)
+        if kept and os.path.isfile(path):
+            old = plm.read_lightmap_exr(path)
+            if old.rgb.shape[:2] == (size, size):
+                page = (old.rgb, old.error, old.hits)
+        for n, blocks in layer_blocks.items():
+            p = placements[n]
+            if p.page == k:
+                rgb, err = blocks[i]
+                paste(page, _Block(rgb, err, lightmaps[n].hits), p, pad)
+        plm.write_lightmap_exr(path, *page)
+        out.append((layer, load_image(name, path, pack)))
+    return out
+
+
+class _Block:
+    """A layer's block as paste() takes it (the lightmap's hits: a layer has none of its own)."""
+
+    def __init__(self, rgb, error, hits):
+        self.rgb, self.error, self.hits = rgb, error, hits
 
 
 def forget(names):
@@ -330,11 +380,13 @@ def remove_stale(stale):
     """Remove the pages of an earlier, larger atlas (after the materials are wired to the new pages):
     their files, and their images where nothing uses them."""
     for name, path in stale:
-        for im_name in (name, name[:-len("_lightmap")] + "_error"):
+        layer_images = [im.name for im in bpy.data.images if im.name.startswith(name + ".")]
+        for im_name in [name, name[:-len("_lightmap")] + "_error"] + layer_images:
             im = bpy.data.images.get(im_name)
             if im is not None and im.users == 0:
                 bpy.data.images.remove(im)
         path = bpy.path.abspath(path)
-        for f in (path, path[:-len("_lightmap.exr")] + "_error.exr"):
+        layer_files = [lightgroups.layer_file(path, im_name[len(name) + 1:]) for im_name in layer_images]
+        for f in [path, path[:-len("_lightmap.exr")] + "_error.exr"] + layer_files:
             if os.path.isfile(f):
                 os.remove(f)

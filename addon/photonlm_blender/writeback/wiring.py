@@ -23,6 +23,11 @@ re-activates the original output (its name is kept in the node tree's ID propert
 "photonlm_original_output"). A material without the heat map (an orientation-lightmap
 lookup) shows its lightmap in ERROR mode. Baking again reuses the tagged nodes.
 
+With light groups (writeback/lightgroups.py) an Image Texture per layer (<object>_lightmap.<group>,
+tagged "layer_<k>") feeds the shared node group 'PhotonLM Light Groups' (tagged "light_groups"),
+whose mix of the layers by the groups' strengths and tints takes the lightmap image's place in the
+Multiply.
+
 A material used by several baked objects can show only one lightmap: it is wired to the
 first of those objects (by name) and the bake reports the others. Give each object its
 own material (or a single-user copy) to preview all of them. Materials whose outputs are
@@ -171,10 +176,13 @@ def ol_lookup_group():
 
 
 def wire_material(mat, image, render_engine, orientation=False, error_image=None, target_error=0.02,
-                  uv_map=LIGHTMAP_UV):
+                  uv_map=LIGHTMAP_UV, layers=None, mix=None):
     """Add (or update) the preview nodes of `mat` for lightmap `image` read through UV map `uv_map`
     (an atlas page: 'PhotonLM Atlas'; orientation=True: an orientation lightmap looked up by the
     world normal) and, with error_image, the heat map of its relative errors against target_error.
+    With light groups, layers ([(group, layer image)]) and mix (the node group 'PhotonLM Light
+    Groups') give the lightmap colour instead of `image`: the layers mixed by their groups'
+    strengths and tints.
     Returns report strings.
     The active output is not changed here (see set_preview)."""
     notes = []
@@ -220,7 +228,7 @@ def wire_material(mat, image, render_engine, orientation=False, error_image=None
     else:
         _set(emit.inputs['Strength'], "default_value", 1.0)
         _feed(tree, mul_a, None, tuple(info.albedo) + (1.0,))
-    _link(tree, tex.outputs['Color'], mul_b)
+    _link(tree, _light_groups(tree, frame, uv, tex, layers, mix, x0, y0), mul_b)
     _link(tree, mul_out, emit.inputs['Color'])
 
     # The specular part keeps the material's own shading (a copy of its closures without the
@@ -282,6 +290,38 @@ def wire_material(mat, image, render_engine, orientation=False, error_image=None
         if n is not None:
             _set(n, "target", target)
     return notes
+
+
+def _light_groups(tree, frame, uv, tex, layers, mix, x0, y0):
+    """The socket giving the lightmap colour: the lightmap image's, or with light groups the mix
+    node group's over one image node per layer (tagged "layer_<k>", "light_groups")."""
+    layers = list(layers or []) if mix is not None else []
+    for n in [n for n in tree.nodes if str(n.get(TAG, "")).startswith("layer_")
+              and not int(str(n.get(TAG))[len("layer_"):] or 0) < len(layers)]:
+        tree.nodes.remove(n)
+    if not layers:
+        for n in [n for n in tree.nodes if n.get(TAG) == "light_groups"]:
+            tree.nodes.remove(n)
+        return tex.outputs['Color']
+    group = _node(tree, "light_groups", 'ShaderNodeGroup', frame)
+    _set(group, "node_tree", mix)
+    _set(group, "location", (x0 + 260.0 * 1.5, y0 + 300.0))
+    sources = {}
+    for k, (layer, image) in enumerate(layers):
+        layer_tex = sources[layer] = _node(tree, "layer_%d" % k, 'ShaderNodeTexImage', frame)
+        _set(layer_tex, "location", (x0 + 260.0, y0 + 300.0 + 280.0 * (k + 1)))
+        _set(layer_tex, "image", image)
+        _set(layer_tex, "interpolation", 'Linear')
+        _set(layer_tex, "extension", 'EXTEND')
+        _link(tree, uv.outputs['UV'], layer_tex.inputs['Vector'])
+        _link(tree, layer_tex.outputs['Color'], group.inputs[layer])
+    for socket in group.inputs:  # links of an earlier bake's layers go; a layer without an image: no light
+        for link in list(socket.links):
+            if sources.get(socket.name) != link.from_node:
+                tree.links.remove(link)
+        if not socket.is_linked and hasattr(socket, "default_value"):
+            _set(socket, "default_value", (0.0, 0.0, 0.0, 1.0))
+    return group.outputs['Color']
 
 
 def _wire_heat_map(tree, frame, uv, error_image, target_error, x0, y0):
