@@ -747,3 +747,46 @@ def run_windowed(checks, name, script, timeout):
         print(text[-4000:])
         checks.finish()
     return r
+
+
+LIGHT_GROUPS_ROOM = ("floor", "ceiling", "wall_window", "wall_back", "wall_left", "wall_right")
+
+
+def light_groups_room(res, sky):
+    """A 4 x 4 x 2.5 m room with a 1.6 x 1 m window in its -x wall (six objects, each its own
+    diffuse material, res x res lightmaps), a sun through the window and a uniform sky (`sky`
+    x 2) in Blender's Light Group "day", a point and an area lamp in "night", and a camera at the
+    back wall looking at the window. Returns (scene, sun, lamp, panel)."""
+    scene = clear_scene()
+    grey = (0.7, 0.7, 0.7)
+    uv = (0, 0, 1, 1)
+
+    def wall(name, quads, colour=grey):
+        return quads_object(name, quads, diffuse_material("mat_" + name, colour), res)
+    wall("floor", [((-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0), uv)], (0.6, 0.5, 0.4))
+    wall("ceiling", [((-2, -2, 2.5), (-2, 2, 2.5), (2, 2, 2.5), (2, -2, 2.5), uv)])
+    wall("wall_back", [((2, 2, 0), (2, -2, 0), (2, -2, 2.5), (2, 2, 2.5), uv)])
+    wall("wall_left", [((-2, 2, 0), (2, 2, 0), (2, 2, 2.5), (-2, 2, 2.5), uv)], (0.3, 0.6, 0.3))
+    wall("wall_right", [((2, -2, 0), (-2, -2, 0), (-2, -2, 2.5), (2, -2, 2.5), uv)])
+
+    def piece(y0, y1, z0, z1):  # x = -2, u along +y, v along +z (normal +x), UVs by position
+        r = ((y0 + 2) / 4, z0 / 2.5, (y1 + 2) / 4, z1 / 2.5)
+        return ((-2, y0, z0), (-2, y1, z0), (-2, y1, z1), (-2, y0, z1), r)
+    wall("wall_window", [piece(-2, 2, 0, 0.8), piece(-2, 2, 1.8, 2.5), piece(-2, -0.8, 0.8, 1.8),
+                         piece(0.8, 2, 0.8, 1.8)])
+    sun = add_light("sun", 'SUN', (-4, 0, 3), (0, math.radians(-50), 0), energy=8.0, angle=0.05)
+    set_world_color(sky, 2.0)
+    lamp = add_light("lamp", 'POINT', (0.5, 1.0, 2.0), energy=60.0, shadow_soft_size=0.1)
+    panel = add_light("panel", 'AREA', (0.8, -1.0, 2.45), energy=40.0, size=0.6)
+    cam = bpy.data.objects.new("camera", bpy.data.cameras.new("camera"))
+    cam.data.lens = 16.0
+    cam.location = (1.9, 0.3, 1.4)
+    cam.rotation_euler = (math.radians(78), 0, math.radians(90))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    vl = bpy.context.view_layer
+    for name in ("day", "night"):
+        vl.lightgroups.add(name=name)
+    sun.lightgroup = scene.world.lightgroup = "day"
+    lamp.lightgroup = panel.lightgroup = "night"
+    return scene, sun, lamp, panel

@@ -1,7 +1,7 @@
 """Light groups: one bake, relit in the preview without baking again.
 
-A 4 x 4 x 2.5 m room with a window in its -x wall, lit by a sun through the window and a sky
-(a uniform world) in Blender's Light Group "day" (sun.lightgroup = world.lightgroup = "day") and
+A 4 x 4 x 2.5 m room with a window in its -x wall (scenes.light_groups_room), lit by a sun through
+the window and a sky (a uniform world) in Blender's Light Group "day" (sun.lightgroup = world.lightgroup = "day") and
 by a point and an area lamp in "night", baked once through the add-on (32 x 32 lightmaps, 1 %):
 (a) every object gets the images <object>_lightmap.day and <object>_lightmap.night (files
     <object>_lightmap.<group>.exr beside its lightmap), and day + night is its lightmap to 1e-4
@@ -23,7 +23,6 @@ by a point and an area lamp in "night", baked once through the add-on (32 x 32 l
     and its bake by the CLI, imported as a bake folder, brings the layers in.
 About a minute.
 """
-import math
 import os
 import sys
 import time
@@ -38,47 +37,11 @@ RES = 32
 SKY = (0.45, 0.6, 1.0)
 BAKE = dict(photons=6_000_000, max_bounces=8, target_error=0.01)
 SETTINGS = dict(direct_samples=16)
-WALLS = ("floor", "ceiling", "wall_window", "wall_back", "wall_left", "wall_right")
-
-
-def room():
-    """The room's six objects (each its own diffuse material), their quads facing inwards."""
-    grey = (0.7, 0.7, 0.7)
-    uv = (0, 0, 1, 1)
-
-    def wall(name, quads, colour=grey):
-        return scenes.quads_object(name, quads, scenes.diffuse_material("mat_" + name, colour), RES)
-    wall("floor", [((-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0), uv)], (0.6, 0.5, 0.4))
-    wall("ceiling", [((-2, -2, 2.5), (-2, 2, 2.5), (2, 2, 2.5), (2, -2, 2.5), uv)])
-    wall("wall_back", [((2, 2, 0), (2, -2, 0), (2, -2, 2.5), (2, 2, 2.5), uv)])
-    wall("wall_left", [((-2, 2, 0), (2, 2, 0), (2, 2, 2.5), (-2, 2, 2.5), uv)], (0.3, 0.6, 0.3))
-    wall("wall_right", [((2, -2, 0), (-2, -2, 0), (-2, -2, 2.5), (2, -2, 2.5), uv)])
-
-    def piece(y0, y1, z0, z1):  # x = -2, u along +y, v along +z (normal +x), UVs by position
-        r = ((y0 + 2) / 4, z0 / 2.5, (y1 + 2) / 4, z1 / 2.5)
-        return ((-2, y0, z0), (-2, y1, z0), (-2, y1, z1), (-2, y0, z1), r)
-    wall("wall_window", [piece(-2, 2, 0, 0.8), piece(-2, 2, 1.8, 2.5), piece(-2, -0.8, 0.8, 1.8),
-                         piece(0.8, 2, 0.8, 1.8)])
+WALLS = scenes.LIGHT_GROUPS_ROOM
 
 
 def build():
-    scene = scenes.clear_scene()
-    room()
-    sun = scenes.add_light("sun", 'SUN', (-4, 0, 3), (0, math.radians(-50), 0), energy=8.0, angle=0.05)
-    scenes.set_world_color(SKY, 2.0)
-    lamp = scenes.add_light("lamp", 'POINT', (0.5, 1.0, 2.0), energy=60.0, shadow_soft_size=0.1)
-    panel = scenes.add_light("panel", 'AREA', (0.8, -1.0, 2.45), energy=40.0, size=0.6)
-    cam = bpy.data.objects.new("camera", bpy.data.cameras.new("camera"))
-    cam.data.lens = 16.0
-    cam.location = (1.9, 0.3, 1.4)
-    cam.rotation_euler = (math.radians(78), 0, math.radians(90))
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    vl = bpy.context.view_layer
-    for name in ("day", "night"):
-        vl.lightgroups.add(name=name)
-    sun.lightgroup = scene.world.lightgroup = "day"
-    lamp.lightgroup = panel.lightgroup = "night"
+    scene, sun, lamp, panel = scenes.light_groups_room(RES, SKY)
     r = scene.render
     r.resolution_x, r.resolution_y, r.resolution_percentage = 160, 120, 100
     r.film_transparent = True
@@ -303,6 +266,9 @@ def main():
                                                                    100 * last["stats"]["error_estimate"]))
     checks.check(last["stats"].get("light_layers") == "day,night", "the bake's layers are day, night (%s)"
                  % last["stats"].get("light_layers"))
+    errors = [float(e) for e in str(last["stats"].get("light_layer_errors", "")).split(",") if e]
+    checks.check(len(errors) == 2 and all(0.0 < e < 1.0 for e in errors),
+                 "each layer has its estimated error (%s)" % ", ".join("%.2f %%" % (100 * e) for e in errors))
     check_layers(last, checks)
     check_wiring(scene, checks)
     wired = [bpy.data.materials["mat_" + n] for n in WALLS]
@@ -326,7 +292,6 @@ def main():
     checks.check(same < 1e-3, "strengths 1 and white tints render as the plain lightmap (%.1e)" % same)
 
     # separate bakes of those lights alone, without light groups
-    vl = bpy.context.view_layer
     for obj in (sun, lamp, panel_light):
         obj.lightgroup = ""
     scene.world.lightgroup = ""

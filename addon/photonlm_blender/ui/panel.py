@@ -85,10 +85,16 @@ class PHOTONLM_PT_light_groups(_Sub, bpy.types.Panel):
         layout = self.layout
         layout.use_property_split = False
         col = layout.column(align=True)
+        errors = [e for e in str(_stats(context.scene).get("light_layer_errors", "")).split(",") if e]
+        names = [n for n in str(_stats(context.scene).get("light_layers", "")).split(",") if n]
+        error_of = dict(zip(names, (float(e) for e in errors))) if len(errors) == len(names) else {}
         for name, item in baked_light_groups(context.scene):
             row = col.row(align=True)
             split = row.split(factor=0.3)
-            split.label(text="Other Lights" if name == "default" else name, icon='LIGHT')
+            label = "Other Lights" if name == "default" else name
+            if name in error_of:  # the layer's estimated error, as the bake's under Last Bake
+                label += " (%.1f %%)" % (100.0 * error_of[name])
+            split.label(text=label, icon='LIGHT')
             sub = split.row(align=True)
             sub.prop(item, "strength", text="")
             sub.prop(item, "tint", text="")

@@ -125,6 +125,8 @@ def apply(context, manifest, result, reports, stage_seconds, figures=None, outpu
         else:
             atlas.forget(per_object)
         mix = None
+        layer_errors = layer_error_figures(result, layers)
+        notices.extend(noisy_layer_notices(layers, layer_errors, float(stats["error_estimate"]), target))
         if layers:
             lightgroups.sync_settings(scene, layers)
             mix = lightgroups.mix_group(scene, layers)
@@ -179,6 +181,7 @@ def apply(context, manifest, result, reports, stage_seconds, figures=None, outpu
         noisiest_above=float(per_object[noisiest[0]]["error_above"]) if noisiest else 0.0,
         direct_samples=int(stats["direct_samples"]),
         triangles=int(manifest.triangles), **times, light_layers=",".join(layers),
+        light_layer_errors=",".join("%.6g" % e for e in layer_errors),
         warning_lines="\n".join(shown_warnings))
     all_figures.update(figures or {})
     record.store(scene, all_figures, dict(
@@ -187,6 +190,24 @@ def apply(context, manifest, result, reports, stage_seconds, figures=None, outpu
         noisiest=noisiest, reports=list(reports.items) + [('WARNING', n) for n in notices],
         notices=notices, **(outputs or {})))
     return record.last(scene)
+
+
+def layer_error_figures(result, layers):
+    """Each light-group layer's estimated relative error (the engine's), [] where the result has no
+    layers or gives no errors (a bake folder)."""
+    if not layers or not hasattr(result, "layer_error"):
+        return []
+    return [float(result.layer_error(k)) for k in range(len(layers))]
+
+
+def noisy_layer_notices(layers, errors, whole_error, target):
+    """A notice for each layer estimated at more than twice the target (or twice the bake's own
+    error without one): a group with a small share of the light is that much noisier."""
+    limit = 2.0 * (target if target > 0.0 else whole_error)
+    return ["light group '%s': its layer's estimated error is %.1f %% (the lightmap's %.1f %%): a group with "
+            "a small share of the light is noisier relative to its own light; lower the Target Error for a "
+            "clean layer" % ("Other Lights" if name == "default" else name, 100.0 * e, 100.0 * whole_error)
+            for name, e in zip(layers, errors) if limit > 0.0 and e > limit]
 
 
 def texel_counts(lm, relative, target):

@@ -441,7 +441,7 @@ PartHeader read_direct_part(const std::string& path, DirectResult& direct) {
     direct.layer_rgb.resize(3 * size_t(direct.layers) * direct.sums.size());
     read_records(r, direct.sums.size(), kDirectTexelBytes + layer_bytes(h.layout.layers), [&](size_t i, Cursor& c) {
       DirectSums& d = direct.sums[i];
-      read_layers(c, &direct.layer_rgb[3 * i * direct.layers], direct.layers, path, "the direct sums' layers",
+      read_layers(c, direct.layer_rgb.data() + 3 * i * direct.layers, direct.layers, path, "the direct sums' layers",
                   h.range_begin + i);
       get_stratified(c, d);
       d.choice_sq = c.get<double>();
@@ -488,7 +488,7 @@ PartHeader read_gather_part(const std::string& path, GatherResult& gather) {
     gather.layers = h.layout.layers;
     gather.layer_rgb.resize(3 * size_t(gather.layers) * texels);
     read_records(r, texels, kGatherTexelBytes + layer_bytes(h.layout.layers), [&](size_t i, Cursor& c) {
-      read_layers(c, &gather.layer_rgb[3 * i * gather.layers], gather.layers, path, "the gather sums' layers",
+      read_layers(c, gather.layer_rgb.data() + 3 * i * gather.layers, gather.layers, path, "the gather sums' layers",
                   h.range_begin + i);
       get_stratified(c, gather.sums[i]);
       GatherInfo& g = gather.info[i];
