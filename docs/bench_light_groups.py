@@ -11,6 +11,10 @@ its peak resident memory (ru_maxrss) and the engine's times; medians over seeds.
 Then speed against error for two groups: the two layers of one bake against two bakes, one per
 group's lamps, at the same target; each measured against a converged bake of that group's lamps
 (target 0.3 %): relative RMSE = sqrt(mean((value - ref)^2)) / mean(ref) over every covered texel.
+
+Last, a dim group (--dim): a 4 x 4 x 2.5 m room with a window, a sun and a sky through it in group
+"day" beside two lamps in "night" giving about 30x its light, baked to 1 %; the day layer against a
+converged bake of the sun and sky alone (0.4 %), and a bake of them alone at 1 %.
 """
 import argparse
 import json
@@ -89,16 +93,82 @@ def rmse(maps_, refs):
     return float(np.sqrt(np.mean(diff ** 2)) / np.mean(ref))
 
 
+def dim_room(scene, day=True, night=True, groups=True):
+    """The room of --dim: five 48 x 48 lightmapped faces and a window wall; returns the faces' ids."""
+    tri = np.array([[0, 1, 2], [0, 2, 3]], np.uint32)
+    uv = np.array([[[0, 0], [1, 0], [1, 1]], [[0, 0], [1, 1], [0, 1]]], np.float32)
+    mats = [scene.add_material(albedo=a) for a in (0.7, (0.6, 0.5, 0.4), (0.3, 0.6, 0.3))]
+
+    def quad(name, c, res, m):
+        return scene.add_mesh(name, np.array(c, np.float32), tri, uv, material_ids=np.array([m, m], np.uint32),
+                              resolution=res)
+    faces = [quad("floor", [(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)], 48, mats[1]),
+             quad("ceiling", [(-2, -2, 2.5), (-2, 2, 2.5), (2, 2, 2.5), (2, -2, 2.5)], 48, mats[0]),
+             quad("back", [(2, 2, 0), (2, -2, 0), (2, -2, 2.5), (2, 2, 2.5)], 48, mats[0]),
+             quad("left", [(-2, 2, 0), (2, 2, 0), (2, 2, 2.5), (-2, 2, 2.5)], 48, mats[2]),
+             quad("right", [(2, -2, 0), (-2, -2, 0), (-2, -2, 2.5), (2, -2, 2.5)], 48, mats[0])]
+    for k, (y0, y1, z0, z1) in enumerate([(-2, 2, 0, 0.8), (-2, 2, 1.8, 2.5), (-2, -0.8, 0.8, 1.8),
+                                          (0.8, 2, 0.8, 1.8)]):
+        quad("window%d" % k, [(-2, y0, z0), (-2, y1, z0), (-2, y1, z1), (-2, y0, z1)], 12, mats[0])
+    ids = [scene.add_light_group("day"), scene.add_light_group("night")] if groups else None
+    if day:
+        d = np.array([math.cos(math.radians(40)), 0.0, -math.sin(math.radians(40))])  # the sun's travel
+        z = -d
+        x = np.cross([0.0, 1.0, 0.0], z)
+        x /= np.linalg.norm(x)
+        m = np.eye(4, dtype=np.float32)
+        m[:3, 0], m[:3, 1], m[:3, 2] = x, np.cross(z, x), z
+        sun = scene.add_light("SUN", power=8.0, matrix=m)
+        scene.set_world((0.9, 1.2, 2.0))
+        if groups:
+            scene.set_light_group(ids[0], light=sun)
+            scene.set_light_group(ids[0], world=True)
+    if night:
+        for (x, y, z), kind, power in (((0.5, 1.0, 2.0), "POINT", 240.0), ((0.8, -1.0, 2.45), "AREA_RECT", 160.0)):
+            m = np.eye(4, dtype=np.float32)
+            m[:3, 3] = (x, y, z)
+            lamp = scene.add_light(kind, power=power, radius=0.1, size=0.6, size_y=0.6, matrix=m)
+            if groups:
+                scene.set_light_group(ids[1], light=lamp)
+    return faces
+
+
+def dim_maps(target, seed, **kw):
+    """The --dim room's faces (the day layer with groups) and the bake's seconds and error figures."""
+    with photonlm.Scene() as scene:
+        faces = dim_room(scene, **kw)
+        with scene.bake(target_error=target, seed=seed) as r:
+            covered = [r.lightmap(m).coverage > 0 for m in faces]
+            rgb = [r.lightmap_layer(m, 0)[0] if r.layers else r.lightmap(m).rgb for m in faces]
+            error = r.layer_error(0) if r.layers else r.stats["error_estimate"]
+            return list(zip(rgb, covered)), r.stats["seconds_total"], r.stats["error_estimate"], error
+
+
+def dim_group(seeds):
+    ref = dim_maps(0.004, 99, night=False, groups=False)[0]
+    print()
+    print("| seed | whole error | day layer RMSE | its estimate | bake s | day alone RMSE | day alone s |")
+    print("|---|---|---|---|---|---|---|")
+    for seed in range(1, seeds + 1):
+        layer, t, whole, reported = dim_maps(0.01, seed)
+        alone, t_alone, _, _ = dim_maps(0.01, seed, night=False, groups=False)
+        print("| %d | %.2f %% | %.1f %% | %.1f %% | %.2f | %.2f %% | %.1f |" % (
+            seed, 100 * whole, 100 * rmse(layer, ref), 100 * reported, t, 100 * rmse(alone, ref), t_alone))
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--groups", default="0,1,2,4,8")
     ap.add_argument("--seeds", type=int, default=3)
     ap.add_argument("--target", type=float, default=0.02)
+    ap.add_argument("--dim", action="store_true", help="only the dim group's room")
     ap.add_argument("--case", type=int)
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args()
     if args.case is not None:
         return one_case(args.case, args.seed, args.target)
+    if args.dim:
+        return dim_group(args.seeds)
 
     print("| groups | layers | bake s | direct s | photons s | peak MB | error estimate | layers' errors |")
     print("|---|---|---|---|---|---|---|---|")
@@ -123,6 +193,7 @@ def main():
         print("| %d | %.2f %% | %.2f %% | %.2f | %.2f %% | %.2f %% | %.2f |" % (
             seed, 100 * rmse(l0, refs[0]), 100 * rmse(l1, refs[1]), t, 100 * rmse(a0, refs[0]),
             100 * rmse(a1, refs[1]), t0 + t1))
+    dim_group(args.seeds)
 
 
 if __name__ == "__main__":
