@@ -21,7 +21,7 @@ from mathutils import Vector
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 import window_shots as ws  # noqa: E402
-from window_shots import biggest_area, fail  # noqa: E402
+from window_shots import fail  # noqa: E402
 
 ws.NAME = "make_light_groups_screenshots"
 OUT = sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv[:-1] else os.path.join(HERE, "images")
@@ -40,15 +40,7 @@ def set_mix(day, night, tint):
 def steps():
     win = bpy.context.window_manager.windows[0]
     screen = win.screen
-    area = biggest_area(screen, 'VIEW_3D')
-    if area is None:
-        fail("no 3D viewport")
-    space = area.spaces.active
-    space.shading.type = 'MATERIAL'
-    space.overlay.show_overlays = False
-    space.show_gizmo = False
-    for o in bpy.context.view_layer.objects:
-        o.select_set(False)
+    area, space = ws.material_viewport(screen)
     cam = bpy.context.scene.camera
     forward = cam.matrix_world.to_3x3() @ Vector((0, 0, -1))
     ws.look(space, tuple(cam.location), tuple(cam.location + forward), 16.0)

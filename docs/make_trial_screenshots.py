@@ -178,15 +178,7 @@ def save(name):
 def steps():
     win = bpy.context.window_manager.windows[0]
     screen = win.screen
-    area = biggest_area(screen, 'VIEW_3D')
-    if area is None:
-        fail("no 3D viewport")
-    space = area.spaces.active
-    space.shading.type = 'MATERIAL'
-    space.overlay.show_overlays = False
-    space.show_gizmo = False
-    for o in bpy.context.view_layer.objects:
-        o.select_set(False)
+    area, space = ws.material_viewport(screen)
     ws.look(space, EYE, TARGET_POINT, LENS)
     props = next((a for a in screen.areas if a.type == 'PROPERTIES'), None)
     if props is not None:

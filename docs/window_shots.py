@@ -83,6 +83,21 @@ def look(space, eye, target, lens):
     space.clip_start = 0.01
 
 
+def material_viewport(screen):
+    """The window's biggest 3D viewport in Material Preview, without overlays, gizmos or a
+    selection: (area, space). Fails without one."""
+    area = biggest_area(screen, 'VIEW_3D')
+    if area is None:
+        fail("no 3D viewport")
+    space = area.spaces.active
+    space.shading.type = 'MATERIAL'
+    space.overlay.show_overlays = False
+    space.show_gizmo = False
+    for o in bpy.context.view_layer.objects:
+        o.select_set(False)
+    return area, space
+
+
 def window_region(area):
     return next(r for r in area.regions if r.type == 'WINDOW')
 
