@@ -11,6 +11,8 @@ viewport, and the whole window (the Light Groups panel with its sliders) at the 
 
 Writes light_groups_day.png, light_groups_night.png, light_groups_mix.png (the viewport) and
 light_groups_panel.png (the window) into OUT_DIR (default docs/images).
+The user guide shows the three viewport shots side by side (light_groups_day_night_mix.png) and
+the panel's column of light_groups_panel.png.
 """
 import os
 import sys
