@@ -735,7 +735,7 @@ TEST(TexelRanges, LightGroupLayersMergeExactly) {
   const auto photons = bake_shards(b.scene, s, 2, dir.path, "open");
   const auto direct = bake_ranges(b.scene, s, PLM_TEXELS_DIRECT, 2, {}, dir.path);
   const auto gather = bake_ranges(b.scene, s, PLM_TEXELS_GATHER, 2, joined({photons, direct}), dir.path);
-  EXPECT_EQ(plm::read_part_header(photons[0]).layout.layers, 2u);
+  EXPECT_EQ(plm::read_part_header(photons[0]).layout.split.layers, 2u);
   BakeResult merged;
   std::string error;
   ASSERT_EQ(merge(b.scene, joined({gather, direct, photons}), merged, error), PLM_OK) << error;

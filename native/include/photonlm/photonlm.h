@@ -82,7 +82,8 @@ PLM_API const char* plm_last_error(void);
  * struct, the size given and the current size. The layouts the library
  * knows are the current one of each struct and these older ones:
  *   plm_bake_settings  up to filter_radius (no texel_value, sampler: their
- *                      defaults, PLM_TEXEL_CYCLES and PLM_SAMPLER_DEFAULT)
+ *                      defaults, PLM_TEXEL_CYCLES and PLM_SAMPLER_DEFAULT),
+ *                      and up to sampler (no directional: 0)
  *   plm_bake_stats     up to error_p95 (no error_above, memory_estimate)
  *   plm_lobe           up to abbe (no weight: 1)
  * Arrays of structs (the primitives and nodes of plm_scene_add_csg) carry
@@ -511,11 +512,12 @@ typedef struct plm_bake_settings {
   uint32_t texel_value;     /* plm_texel_value (texels less than half covered, or whose centre is
                                not covered, are always averaged over their covered area) */
   uint32_t sampler;         /* plm_sampler */
+  uint32_t directional;     /* 1: directional lightmaps (SH L1, see "Directional lightmaps"); 0: none */
 } plm_bake_settings;
 
 /* struct_size, photon_count 1,000,000, max_bounces 1024, seed 0, threads 0, dilation 8,
  * no target error, no time budget, direct_samples 64, filter_radius 2,
- * PLM_TEXEL_CYCLES, PLM_SAMPLER_DEFAULT. */
+ * PLM_TEXEL_CYCLES, PLM_SAMPLER_DEFAULT, no directional lightmaps. */
 PLM_API void plm_bake_settings_default(plm_bake_settings* settings);
 
 /* Called from the thread that called plm_bake, at least every few tenths of a
@@ -722,6 +724,35 @@ PLM_API plm_status plm_result_copy_lightmap_layer(const plm_result* result, uint
  * (channels R, G, B, error, hits; hits are the whole lightmap's). */
 PLM_API plm_status plm_result_write_layer_exr(const plm_result* result, uint32_t mesh_id, uint32_t layer,
                                               const char* path);
+
+/* ---- Directional lightmaps ----------------------------------------------------
+ *
+ * With plm_bake_settings.directional, each lightmap also keeps the direction
+ * of its light, so that normal maps and bump respond to baked light: per
+ * texel and channel the first-order spherical harmonics (SH L1) of the
+ * light, in Godot 4's layout and normalisation. Band 0 is L0, bands 1, 2, 3
+ * are L1 m = -1, 0, 1 (along the world's y, z and x axes: Blender's, z up).
+ * A surface of unit normal n (world space) at the texel receives
+ *
+ *     value(n) = 0.282095 L0 + 0.32573 (L1_-1 n.y + L1_0 n.z + L1_1 n.x)
+ *
+ * (irradiance / pi, the lightmap's units). At the texel's own normal this
+ * is the lightmap's value; it changes with n as the texel's light does to
+ * first order, and for light from all of the hemisphere alike it is that
+ * light's exact SH L1 (docs/design/directional.md). Only ordinary lightmaps
+ * get directions: a bake with directional and light groups, OL groups, CSG
+ * solids or L-system objects fails. Sharded bakes carry them in their part
+ * files, and the merge gives them bit for bit as plm_bake does. */
+
+/* Whether the result has directional lightmaps (1) or not (0). */
+PLM_API uint32_t plm_result_directional(const plm_result* result);
+/* SH band `band` (0: L0, 1: L1_-1, 2: L1_0, 3: L1_1) of mesh `mesh_id`'s
+ * lightmap into a caller-owned buffer of width * height * 3 floats, rows
+ * bottom first, as plm_result_copy_lightmap. */
+PLM_API plm_status plm_result_copy_lightmap_sh(const plm_result* result, uint32_t mesh_id, uint32_t band, float* rgb);
+/* The band as an OpenEXR file (channels R, G, B; hits as the lightmap's). */
+PLM_API plm_status plm_result_write_sh_exr(const plm_result* result, uint32_t mesh_id, uint32_t band,
+                                           const char* path);
 
 /* ---- Orientation lightmaps (OL) -------------------------------------------
  *

@@ -759,6 +759,40 @@ plm_status plm_result_write_layer_exr(const plm_result* result, uint32_t mesh_id
   });
 }
 
+uint32_t plm_result_directional(const plm_result* result) {
+  return result && result->output.directional ? 1 : 0;
+}
+
+namespace {
+const plm::LightmapImage& sh_lightmap_of(const plm_result* result, uint32_t mesh_id, uint32_t band,
+                                         const char* function) {
+  const plm::LightmapImage& img = lightmap_of(result, mesh_id, function);
+  if (!result->output.directional)
+    plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": the bake has no directional lightmaps (bake with "
+              "plm_bake_settings.directional = 1)");
+  if (band > 3) plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": band ", band, " is not 0 (L0) to 3 (L1_1)");
+  return img;
+}
+}  // namespace
+
+plm_status plm_result_copy_lightmap_sh(const plm_result* result, uint32_t mesh_id, uint32_t band, float* rgb) {
+  return guarded("plm_result_copy_lightmap_sh", [&] {
+    const plm::LightmapImage& img = sh_lightmap_of(result, mesh_id, band, "plm_result_copy_lightmap_sh");
+    require(rgb, "plm_result_copy_lightmap_sh", "rgb");
+    plm::sh_band(img, band, rgb);
+  });
+}
+
+plm_status plm_result_write_sh_exr(const plm_result* result, uint32_t mesh_id, uint32_t band, const char* path) {
+  return guarded("plm_result_write_sh_exr", [&] {
+    const plm::LightmapImage& img = sh_lightmap_of(result, mesh_id, band, "plm_result_write_sh_exr");
+    require(path, "plm_result_write_sh_exr", "path");
+    std::vector<float> rgb(3 * size_t(img.width) * img.height);
+    plm::sh_band(img, band, rgb.data());
+    plm::write_rgb_exr_atomic(path, img.width, img.height, rgb.data(), {"hits"}, {img.hits.data()});
+  });
+}
+
 plm_status plm_result_ol(const plm_result* result, uint32_t group, const float** rgb, const float** error,
                          uint32_t* resolution) {
   return guarded("plm_result_ol", [&] {

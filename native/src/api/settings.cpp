@@ -16,6 +16,7 @@ plm_bake_settings default_settings() {
   s.filter_radius = 2;
   s.texel_value = PLM_TEXEL_CYCLES;
   s.sampler = PLM_SAMPLER_DEFAULT;
+  s.directional = 0;
   return s;
 }
 
@@ -34,6 +35,7 @@ BakeSettings engine_settings(const plm_bake_settings& c, const Scene& scene) {
   s.filter_radius = c.filter_radius;
   s.texel_value = c.texel_value;
   s.sampler = c.sampler;
+  s.directional = c.directional != 0;
   s.decide(scene);
   return s;
 }
@@ -51,6 +53,7 @@ plm_bake_settings c_settings(const BakeSettings& s) {
   c.filter_radius = s.filter_radius;
   c.texel_value = s.texel_value;
   c.sampler = s.sampler;
+  c.directional = s.directional ? 1 : 0;
   return c;
 }
 

@@ -18,6 +18,7 @@
 #include "scene/scene.h"
 #include "scene/texture.h"
 #include "transport/context/texel_space.h"
+#include "transport/film/split.h"
 #include "transport/lights/emitters.h"
 #include "transport/materials/material_table.h"
 #include "transport/plan/settings.h"
@@ -71,6 +72,9 @@ struct BakeScene {
   // Light groups (docs/design/light-groups.md): the group of each layer
   // (0: the default group); empty without groups.
   std::vector<uint32_t> layers;
+  // What the texels keep of each sample's light besides their sums: the
+  // layers, and with directional lightmaps the direction moment (transport/film/split.h).
+  SplitLayout split;
 
   MaterialTable lobes;                     // empty in scenes without lobes or Burley surfaces
   bool caustics = false;                   // lobes.any_lobes(): caustic photons get sums of their own

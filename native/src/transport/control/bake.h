@@ -38,6 +38,7 @@ struct BakeOutput {
   // texels (sqrt(mean variance) / mean value, as the bake's own).
   std::vector<std::string> layer_names;
   std::vector<double> layer_errors;
+  bool directional = false;  // the lightmaps carry direction moments (LightmapImage::direction_rgb)
 };
 
 // Returns false to cancel. Called from the baking thread only.

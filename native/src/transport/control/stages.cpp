@@ -43,6 +43,7 @@ void set_up_emitters(BakeScene& ctx, Vec3 lo, Vec3 hi, BakeRun& run) {
          "no world light, so every lightmap would be black");
   ctx.emitted = emitted;
   ctx.layers = assign_layers(scene, ctx.emitters);
+  ctx.split = {uint32_t(ctx.layers.size()), ctx.settings.directional};
   run.out.stats.emitted_power = emitted;
 }
 
@@ -174,7 +175,7 @@ BakeRun::BakeRun(const ProgressFn& progress, const PreviewHook* preview)
 BakeSettings check_bake(Scene& scene, const BakeSettings& requested, BakeRun& run) {
   scene.refine_cages(requested.thread_count);
   validate(scene, requested);
-  run.out.stats.memory_estimate = check_memory(scene, run.out.warnings);  // before allocating anything
+  run.out.stats.memory_estimate = check_memory(scene, requested, run.out.warnings);  // before allocating anything
   const BakeSettings settings = effective_settings(scene, requested, run.out.warnings);
   run.budget = TimeBudget(settings.time_budget, run.t_start);
   return settings;
@@ -202,7 +203,7 @@ std::unique_ptr<BakeScene> set_up(const Scene& scene, const BakeSettings& settin
   set_up_surfaces(*ctx, run);
   run.out.stats.seconds_setup = seconds_since(run.t_start);
   run.acc = Accumulators(ctx->space.texel_count, scene.meshes.size(), ctx->caustics, flux_quantum(ctx->emitted),
-                         uint32_t(ctx->layers.size()));
+                         ctx->split);
   return ctx;
 }
 
@@ -358,6 +359,7 @@ void write_outputs(const BakeScene& ctx, BakeRun& run) {
   write_lightmaps(ctx.arena, ctx.scene, estimator(ctx, run), run.photons, run.ol_groups.maps, run.last,
                   ctx.settings.dilation, run.out.lightmaps, run.out.warnings);
   name_layers(ctx, run.out);
+  run.out.directional = ctx.split.directional;
   run.out.stats.seconds_total = seconds_since(run.t_start);
   run.report(1.0, "done");
 }

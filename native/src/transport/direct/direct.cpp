@@ -12,12 +12,6 @@ namespace plm {
 
 namespace {
 
-// Adds light to its layer's sums (3 floats per layer; null: no light groups).
-inline void add_to_layer(float* layer_rgb, uint32_t layer, Vec3 light) {
-  if (!layer_rgb) return;
-  for (int c = 0; c < 3; ++c) layer_rgb[3 * size_t(layer) + c] += light[c];
-}
-
 // p_cos / p_light for the balance heuristic, as a finite ratio: cosine
 // sampling's density cos_s / pi against light sampling's pick * d^2 /
 // (cos_l * area). Written this way round, needle-thin emitters (cos_l * area
@@ -69,7 +63,7 @@ DirectPass::DirectPass(const BakeScene& ctx)
       points_(ctx.space.views, ctx.space.areas, ctx.settings), seed_(ctx.settings.seed), sobol_(ctx.settings.sobol),
       offset_scale_(1e-6f * ctx.extent), table_(ctx.emitters),
       all_lights_(ctx.emitters.size() <= kAllLights),
-      local_choice_(!all_lights_ && ctx.emitters.size() <= kMaxLocalChoice), layers_(uint32_t(ctx.layers.size())) {
+      local_choice_(!all_lights_ && ctx.emitters.size() <= kMaxLocalChoice), split_(ctx.split) {
   const std::vector<Emitter>& emitters = ctx.emitters;
   const std::vector<MeshView>& views = ctx.space.views;
   if (!all_lights_ && emitters.size() <= kCandidates)
@@ -131,9 +125,9 @@ void DirectPass::select_candidates(Vec3 p, Vec3 n, uint32_t* chosen, ChoiceScrat
 }
 
 void DirectPass::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
-                              DirectSums& sums, float* layer_rgb) const {
-  if (passage_) sample<true>(mesh_id, texel, round, samples, sums, layer_rgb);
-  else sample<false>(mesh_id, texel, round, samples, sums, layer_rgb);
+                              DirectSums& sums, float* split) const {
+  if (passage_) sample<true>(mesh_id, texel, round, samples, sums, split);
+  else sample<false>(mesh_id, texel, round, samples, sums, split);
 }
 
 // One interval of u_pick per light (the choice's stratification then leaves
@@ -164,7 +158,7 @@ size_t DirectPass::choose_local(float u_pick, const uint32_t* candidates, size_t
 // emitter's own samples (multiple importance sampling).
 template <bool kPassage, class Probability>
 Vec3 DirectPass::cosine_ray_light(const PendingSample& ps, TraceContext& tc, bool smooth,
-                                  const Probability& probability, float* layer_rgb) const {
+                                  const Probability& probability, float* split) const {
   const Vec3 local = cosine_hemisphere(ps.v[0], ps.v[1]);
   Vec3 t, b;
   make_frame(ps.shading, t, b);
@@ -200,7 +194,7 @@ Vec3 DirectPass::cosine_ray_light(const PendingSample& ps, TraceContext& tc, boo
       float weight = r / (1.0f + r);
       if (ps.burley >= 0.0f) weight *= bsdf::burley_receive(cos_s, ps.burley);
       const Vec3 light = kPassage ? L * through * weight : L * weight;
-      add_to_layer(layer_rgb, he.layer, light);
+      if (split) add_split(split, split_, he.layer, light, direction_weight(dir, ps.shading));
       return light;
     }
   }
@@ -275,10 +269,10 @@ void DirectPass::add_choice_spread(ChoiceScratch& scratch, bool selected, const 
 // their blockers' distances kept (the sky pool's reach).
 template <bool kPassage>
 [[gnu::always_inline]] inline void DirectPass::trace_shadow_rays(ShadowRays& rays, PendingSample* chunk, bool measure_reach,
-                                   DirectSums& sums, float* layer_rgb) const {
+                                   DirectSums& sums, float* split) const {
   const unsigned lanes = rays.packet.size;
-  // With light groups, each ray's light also goes to its layer's sums.
-  auto to_layer = [&](unsigned l, Vec3 value) { add_to_layer(layer_rgb, rays.layer[l], value); };
+  // Each ray's light also goes to the texel's split (light groups, directional lightmaps).
+  auto to_layer = [&](unsigned l, Vec3 value) { add_split(split, split_, rays.layer[l], value, rays.u[l]); };
   if (measure_reach && rays.sky_lanes) {
     rays.packet.intersect(rtc_);
     for (unsigned l = 0; l < lanes; ++l) {
@@ -313,7 +307,7 @@ template <bool kPassage>
   rays.packet.occluded(rtc_);
   for (unsigned l = 0; l < lanes; ++l)
     if (!rays.packet.blocked(l)) chunk[rays.sample[l]].e += rays.value[l];
-  if (layer_rgb)
+  if (split)
     for (unsigned l = 0; l < lanes; ++l)
       if (!rays.packet.blocked(l)) to_layer(l, rays.value[l]);
   if (rays.sky_lanes) {
@@ -362,7 +356,7 @@ template <bool kPassage>
 
 template <bool kPassage>
 void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums,
-                        float* layer_rgb) const {
+                        float* split) const {
   if (emitters_.empty()) return;
   // A CSG sub-texel: points from its lightmap; rays leave the exact surface by
   // the origin offset alone (a ray may rightly hit the primitive it leaves).
@@ -487,21 +481,22 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
         rays.value[rays.packet.size] = ds.irradiance * (weight / (kPi * probability(kk)));
         rays.sample[rays.packet.size] = c;
         rays.layer[rays.packet.size] = em.layer;
+        if (split_.directional) rays.u[rays.packet.size] = direction_weight(ds.dir, shading);
         if (split_sky && is_sky_[kk]) rays.sky_lanes |= 1u << rays.packet.size;
         const bool triangle = em.kind == EmitterKind::Triangle;
         rays.packet.add(ps.origin, ds.dir, std::isinf(ds.distance) ? ds.distance : ds.distance * (1.0f - 1e-4f),
                         tc.skip_geom, tri, triangle ? SurfaceMap::mesh_geometry(em.mesh) : RTC_INVALID_GEOMETRY_ID,
                         triangle ? em.triangle : RTC_INVALID_GEOMETRY_ID);
-        if (rays.packet.full()) trace_shadow_rays<kPassage>(rays, chunk, reach_here, sums, layer_rgb);
+        if (rays.packet.full()) trace_shadow_rays<kPassage>(rays, chunk, reach_here, sums, split);
       }
     }
-    if (rays.packet.size > 0) trace_shadow_rays<kPassage>(rays, chunk, reach_here, sums, layer_rgb);
+    if (rays.packet.size > 0) trace_shadow_rays<kPassage>(rays, chunk, reach_here, sums, split);
     for (uint32_t c = 0; c < chunk_size; ++c) {
       const uint32_t j = j0 + c;
       PendingSample& ps = chunk[c];
       if (!ps.inside) continue;
       if (has_triangle_emitters_ && !ps.contact)
-        ps.e += cosine_ray_light<kPassage>(ps, tc, smooth != nullptr, probability, layer_rgb);
+        ps.e += cosine_ray_light<kPassage>(ps, tc, smooth != nullptr, probability, split);
       add_sample(j, ps, split_sky, tally, scratch, sums);
     }
   }

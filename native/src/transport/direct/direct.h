@@ -67,12 +67,12 @@ class DirectPass {
   // Adds `samples` (rounded up to a square) stratified samples of round `round`
   // to texel `texel` of mesh `mesh`; mesh = mesh count + c means sub-texel
   // `texel` of CSG solid c. Thread-safe for distinct texels. With light
-  // groups, layer_rgb (3 per layer, or null) gets each layer's part of the
-  // samples' light (the same sums as sums.rgb, split by the lights' layers).
+  // groups or directional lightmaps, split (split().floats(), or null) gets
+  // the samples' light split by the lights' layers and its direction moment
+  // (transport/film/split.h; the same light as sums.rgb).
   void sample_texel(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums,
-                    float* layer_rgb = nullptr) const;
-  // The bake's light-group layers (0 without groups).
-  uint32_t layers() const { return layers_; }
+                    float* split = nullptr) const;
+  const SplitLayout& split() const { return split_; }
   // Whether a sample sends one shadow ray to a light chosen at random (more than kAllLights lights).
   bool chooses_lights() const { return !all_lights_; }
   static bool chooses_lights(size_t emitters) { return emitters > kAllLights; }
@@ -82,7 +82,7 @@ class DirectPass {
   // materials) or with shadow and MIS rays through passages.
   template <bool kPassage>
   void sample(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums,
-              float* layer_rgb) const;
+              float* split) const;
   // Shares of the local choice among `count` candidate lights at point p,
   // normal n: share[i] = 0.9 x candidate i's unoccluded irradiance / their
   // sum. Returns the local part, 0.9, or 0 if no candidate lights p.
@@ -142,16 +142,17 @@ class DirectPass {
     Vec3 value[RayPacket::kLanes];  // a lane's irradiance if nothing blocks it
     uint32_t sample[RayPacket::kLanes];
     uint32_t layer[RayPacket::kLanes];  // the light's layer (light groups)
+    Vec3 u[RayPacket::kLanes] = {};     // the ray's direction weight (directional lightmaps)
     uint32_t sky_lanes = 0;  // bit l: lane l is a ray to the world's smooth part (split_sky_)
   };
   template <bool kPassage>
   void trace_shadow_rays(ShadowRays& rays, PendingSample* chunk, bool measure_reach, DirectSums& sums,
-                         float* layer_rgb) const;
+                         float* split) const;
   // The MIS ray's light at a sample (probability(k): light k's choice probability).
   template <bool kPassage, class Probability>
-  // With light groups, the light also goes to the emitter's layer in layer_rgb.
+  // The light also goes to the texel's split (add_split).
   Vec3 cosine_ray_light(const PendingSample& ps, TraceContext& tc, bool smooth, const Probability& probability,
-                        float* layer_rgb) const;
+                        float* split) const;
 
   RTCScene rtc_;
   const SurfaceMap& surfaces_;
@@ -193,7 +194,7 @@ class DirectPass {
   std::vector<uint8_t> is_sky_;
   bool local_choice_;
   std::vector<uint32_t> all_candidates_;  // 0 .. lights - 1 when there are at most kCandidates
-  uint32_t layers_ = 0;
+  SplitLayout split_;
 };
 
 }  // namespace plm

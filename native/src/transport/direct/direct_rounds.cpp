@@ -26,13 +26,13 @@ std::vector<DirectCalibration> calibrate_direct(tbb::task_arena& arena, const Di
   const size_t m = covered.size() / step;
   const size_t k0 = (first + step - 1) / step, k1 = std::min(m, (first + direct.size() + step - 1) / step);
   std::vector<DirectSums> extra(k1 > k0 ? k1 - k0 : 0);
-  const size_t layer_floats = 3 * size_t(result.layers);
-  std::vector<float> extra_layers(extra.size() * layer_floats, 0.0f);
+  const size_t split_floats = 3 * size_t(result.slots);
+  std::vector<float> extra_split(extra.size() * split_floats, 0.0f);
   arena.execute([&] {
     tbb::parallel_for(size_t(0), extra.size(), [&](size_t j) {
       const CoveredTexel& c = covered[(k0 + j) * step];
       pass.sample_texel(c.mesh, c.texel, kCalibrationRound, samples, extra[j],
-                        layer_floats ? &extra_layers[j * layer_floats] : nullptr);
+                        split_floats ? &extra_split[j * split_floats] : nullptr);
     });
   });
   std::vector<DirectCalibration> out(extra.size());
@@ -58,7 +58,7 @@ std::vector<DirectCalibration> calibrate_direct(tbb::task_arena& arena, const Di
       }
     }
     a.merge(b);
-    for (size_t f = 0; f < layer_floats; ++f) result.layer_sums(r.texel - first)[f] += extra_layers[j * layer_floats + f];
+    for (size_t f = 0; f < split_floats; ++f) result.split_sums(r.texel - first)[f] += extra_split[j * split_floats + f];
   }
   return out;
 }
@@ -118,9 +118,9 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
   slice = slice.clamped(covered.size());
   const CoveredTexel* const texels = covered.data() + slice.begin;
   direct.resize(slice.size());
-  out.layers = pass.layers();
+  out.slots = pass.split().slots();
   out.chooses_lights = pass.chooses_lights();
-  out.layer_rgb.assign(3 * size_t(out.layers) * direct.size(), 0.0f);
+  out.split_rgb.assign(3 * size_t(out.slots) * direct.size(), 0.0f);
   const DirectSchedule schedule(settings.target_error, settings.direct_samples);
   const uint32_t rounds = DirectSchedule::kMaxRounds;
   std::vector<uint32_t> todo(direct.size());
@@ -141,7 +141,7 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
           tbb::parallel_for(tbb::blocked_range<uint64_t>(first_texel, first_texel + n, 16), [&](const auto& r) {
             for (uint64_t k = r.begin(); k < r.end(); ++k) {
               const CoveredTexel& c = texels[todo[k]];
-              pass.sample_texel(c.mesh, c.texel, round, want[todo[k]], direct[todo[k]], out.layer_sums(todo[k]));
+              pass.sample_texel(c.mesh, c.texel, round, want[todo[k]], direct[todo[k]], out.split_sums(todo[k]));
             }
           });
         },
@@ -172,7 +172,7 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
       probing = false;
       if (schedule.refines(aim_mean, noise) && !control.stop()) {  // round 0 again, with first() samples
         for (DirectSums& d : direct) dropped += d.count, d = DirectSums();
-        std::fill(out.layer_rgb.begin(), out.layer_rgb.end(), 0.0f);
+        std::fill(out.split_rgb.begin(), out.split_rgb.end(), 0.0f);
         out.calibration.clear();
         std::fill(want.begin(), want.end(), schedule.first());
         --round;  // the loop's ++round runs round 0 again

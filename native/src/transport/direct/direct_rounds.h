@@ -34,12 +34,13 @@ struct DirectCalibration {
 
 struct DirectResult {
   std::vector<DirectSums> sums;  // per covered texel of the slice, from its first
-  // With light groups: per covered texel of the slice and layer, the layer's
-  // part of sums.rgb (3 floats; texel k's layer l at 3 * (k * layers + l)).
-  std::vector<float> layer_rgb;
-  uint32_t layers = 0;
+  // With light groups or directional lightmaps: per covered texel of the
+  // slice, the split of sums.rgb (transport/film/split.h: 3 floats per slot;
+  // texel k's slot l at 3 * (k * slots + l)).
+  std::vector<float> split_rgb;
+  uint32_t slots = 0;
   bool chooses_lights = false;  // each sample's shadow ray goes to one light chosen at random (DirectPass)
-  float* layer_sums(size_t k) { return layers ? &layer_rgb[3 * k * layers] : nullptr; }
+  float* split_sums(size_t k) { return slots ? &split_rgb[3 * k * slots] : nullptr; }
   DirectNoise noise;
   DirectValues values;  // the estimate's direct light (pool_direct) after the last round
   uint64_t samples = 0;  // in all

@@ -67,12 +67,12 @@ uint64_t payload_bytes_of(const PartHeader& h) {
   switch (h.kind) {
     case PartKind::kPhotons:
       return h.segment_count *
-             segment_bytes(h.layout.texel_count, h.layout.mesh_count, h.layout.caustics, h.layout.layers);
+             segment_bytes(h.layout.texel_count, h.layout.mesh_count, h.layout.caustics, h.layout.split.slots());
     case PartKind::kDirect:
-      return texels * (kDirectTexelBytes + layer_bytes(h.layout.layers)) +
+      return texels * (kDirectTexelBytes + layer_bytes(h.layout.split.slots())) +
              uint64_t(h.calibration_count) * kCalibrationBytes;
     case PartKind::kGather:
-      return h.gathered ? texels * (kGatherTexelBytes + layer_bytes(h.layout.layers)) : 0;
+      return h.gathered ? texels * (kGatherTexelBytes + layer_bytes(h.layout.split.slots())) : 0;
   }
   return 0;
 }
@@ -146,7 +146,7 @@ void encode_header(const PartHeader& h, uint64_t payload_bytes, uint64_t payload
   c.put(h.layout.quantum.q);
   c.put(h.layout.quantum.q2);
   c.put(h.segment_count);
-  c.put(h.layout.layers);
+  c.put(h.layout.split.layers);
   c.put(payload_bytes);
   c.put(payload_sum);
   c.put_chars(h.scene_path, kPathChars);
@@ -158,6 +158,7 @@ void encode_header(const PartHeader& h, uint64_t payload_bytes, uint64_t payload
   c.put(h.direct_target);
   c.put(h.direct_rounds);
   c.put(h.calibration_count);
+  c.put(uint32_t(h.layout.split.directional));
   Cursor end{buf, kPartHeaderBytes - 8};
   end.put(hash_bytes(buf, kPartHeaderBytes - 8));
 }
@@ -192,7 +193,7 @@ PartHeader decode_header(unsigned char* buf, const std::string& path, uint64_t& 
   h.layout.quantum.inv_q = 1.0 / h.layout.quantum.q;
   h.layout.quantum.inv_q2 = 1.0 / h.layout.quantum.q2;
   h.segment_count = c.get<uint32_t>();
-  h.layout.layers = c.get<uint32_t>();
+  h.layout.split.layers = c.get<uint32_t>();
   payload_bytes = c.get<uint64_t>();
   payload_sum = c.get<uint64_t>();
   h.scene_path = c.get_chars(kPathChars);
@@ -205,6 +206,8 @@ PartHeader decode_header(unsigned char* buf, const std::string& path, uint64_t& 
   h.direct_target = c.get<double>();
   h.direct_rounds = c.get<uint32_t>();
   h.calibration_count = c.get<uint32_t>();
+  h.layout.split.directional = c.get<uint32_t>() != 0;
+  s.directional = h.layout.split.directional;
   const bool texel_part = h.kind != PartKind::kPhotons;
   if (kind > 2 || h.shard_count == 0 || h.shard_index >= h.shard_count ||
       h.segment_count > (texel_part ? 0u : 2u) || h.range_begin > h.range_end || h.range_end > h.layout.covered)
@@ -329,12 +332,14 @@ bool finite_sums(const StratifiedSums& s) {
          non_negative(s.pair_sq) && s.paired <= s.count;
 }
 
-// A texel record's layer sums (3 floats per layer): light, so finite and >= 0.
-void read_layers(Cursor& c, float* out, uint32_t layers, const std::string& path, const char* what, uint64_t texel) {
+// A texel record's split (transport/film/split.h): the layers' light, finite
+// and >= 0, then the direction moment's, finite.
+void read_split(Cursor& c, float* out, const SplitLayout& split, const std::string& path, const char* what,
+                uint64_t texel) {
   bool ok = true;
-  for (uint32_t f = 0; f < 3 * layers; ++f) {
+  for (uint32_t f = 0; f < 3 * split.slots(); ++f) {
     out[f] = c.get<float>();
-    ok = ok && non_negative(out[f]);
+    ok = ok && (f < 3 * split.layers ? non_negative(out[f]) : std::isfinite(out[f]));
   }
   check_record(ok, path, what, texel);
 }
@@ -371,7 +376,7 @@ void write_part_file(const std::string& path, const PartHeader& header, const st
         w.array(a.caustic.sum_sq);
         w.array(a.caustic.hits);
       }
-      w.array(a.layer_sum);
+      w.array(a.split_sum);
     }
   });
 }
@@ -386,9 +391,10 @@ void write_direct_part(const std::string& path, const PartHeader& header, const 
     fail(PLM_ERROR_INTERNAL, path, ": ", direct.sums.size(), " direct sums for texels ", h.range_begin, "-",
          h.range_end);
   write_part(path, h, [&](Writer& w) {
-    write_records(w, direct.sums.size(), kDirectTexelBytes + layer_bytes(h.layout.layers), [&](size_t i, Cursor& c) {
+    const uint32_t slots = h.layout.split.slots();
+    write_records(w, direct.sums.size(), kDirectTexelBytes + layer_bytes(slots), [&](size_t i, Cursor& c) {
       const DirectSums& d = direct.sums[i];
-      for (uint32_t f = 0; f < 3 * h.layout.layers; ++f) c.put(direct.layer_rgb[3 * i * h.layout.layers + f]);
+      for (uint32_t f = 0; f < 3 * slots; ++f) c.put(direct.split_rgb[3 * i * slots + f]);
       put_stratified(c, d);
       c.put(d.choice_sq);
       for (float v : {d.sky_rgb[0], d.sky_rgb[1], d.sky_rgb[2], d.sky_pair_sq, d.other_pair_sq, d.sky_inv_distance})
@@ -420,8 +426,9 @@ void write_gather_part(const std::string& path, const PartHeader& header, const 
     fail(PLM_ERROR_INTERNAL, path, ": ", gather.sums.size(), " gather sums for texels ", h.range_begin, "-",
          h.range_end);
   write_part(path, h, [&](Writer& w) {
-    write_records(w, texels, kGatherTexelBytes + layer_bytes(h.layout.layers), [&](size_t i, Cursor& c) {
-      for (uint32_t f = 0; f < 3 * h.layout.layers; ++f) c.put(gather.layer_rgb[3 * i * h.layout.layers + f]);
+    const uint32_t slots = h.layout.split.slots();
+    write_records(w, texels, kGatherTexelBytes + layer_bytes(slots), [&](size_t i, Cursor& c) {
+      for (uint32_t f = 0; f < 3 * slots; ++f) c.put(gather.split_rgb[3 * i * slots + f]);
       put_stratified(c, gather.sums[i]);
       const GatherInfo& g = gather.info[i];
       c.put(g.unknown);
@@ -437,11 +444,11 @@ PartHeader read_direct_part(const std::string& path, DirectResult& direct) {
     direct = DirectResult();
     direct.rounds = h.direct_rounds;
     direct.sums.resize(h.range_end - h.range_begin);
-    direct.layers = h.layout.layers;
-    direct.layer_rgb.resize(3 * size_t(direct.layers) * direct.sums.size());
-    read_records(r, direct.sums.size(), kDirectTexelBytes + layer_bytes(h.layout.layers), [&](size_t i, Cursor& c) {
+    direct.slots = h.layout.split.slots();
+    direct.split_rgb.resize(3 * size_t(direct.slots) * direct.sums.size());
+    read_records(r, direct.sums.size(), kDirectTexelBytes + layer_bytes(direct.slots), [&](size_t i, Cursor& c) {
       DirectSums& d = direct.sums[i];
-      read_layers(c, direct.layer_rgb.data() + 3 * i * direct.layers, direct.layers, path, "the direct sums' layers",
+      read_split(c, direct.split_rgb.data() + 3 * i * direct.slots, h.layout.split, path, "the direct sums' split",
                   h.range_begin + i);
       get_stratified(c, d);
       d.choice_sq = c.get<double>();
@@ -485,10 +492,10 @@ PartHeader read_gather_part(const std::string& path, GatherResult& gather) {
     const size_t texels = h.gathered ? h.range_end - h.range_begin : 0;
     gather.sums.resize(texels);
     gather.info.resize(texels);
-    gather.layers = h.layout.layers;
-    gather.layer_rgb.resize(3 * size_t(gather.layers) * texels);
-    read_records(r, texels, kGatherTexelBytes + layer_bytes(h.layout.layers), [&](size_t i, Cursor& c) {
-      read_layers(c, gather.layer_rgb.data() + 3 * i * gather.layers, gather.layers, path, "the gather sums' layers",
+    gather.slots = h.layout.split.slots();
+    gather.split_rgb.resize(3 * size_t(gather.slots) * texels);
+    read_records(r, texels, kGatherTexelBytes + layer_bytes(gather.slots), [&](size_t i, Cursor& c) {
+      read_split(c, gather.split_rgb.data() + 3 * i * gather.slots, h.layout.split, path, "the gather sums' split",
                   h.range_begin + i);
       get_stratified(c, gather.sums[i]);
       GatherInfo& g = gather.info[i];
@@ -521,7 +528,7 @@ PartHeader read_part_file(const std::string& path, std::vector<PhotonSegment>& s
     segments.clear();
     for (uint32_t i = 0; i < h.segment_count; ++i) {
       PhotonSegment s;
-      s.acc = Accumulators(L.texel_count, L.mesh_count, L.caustics, L.quantum, L.layers);
+      s.acc = Accumulators(L.texel_count, L.mesh_count, L.caustics, L.quantum, L.split);
       Accumulators& a = s.acc;
       s.begin = r.value<uint64_t>();
       s.end = r.value<uint64_t>();
@@ -541,7 +548,7 @@ PartHeader read_part_file(const std::string& path, std::vector<PhotonSegment>& s
         r.array(a.caustic.sum_sq);
         r.array(a.caustic.hits);
       }
-      r.array(a.layer_sum);
+      r.array(a.split_sum);
       a.total_sq = double(a.total_sq_q) * L.quantum.q2;
       a.caustic.total_sq = double(a.caustic.total_sq_q) * L.quantum.q2;
       segments.push_back(std::move(s));
@@ -571,8 +578,8 @@ std::string part_mismatch(const PartHeader& a, const PartHeader& b) {
       a.layout.covered != b.layout.covered ||
       a.layout.mesh_count != b.layout.mesh_count || a.layout.caustics != b.layout.caustics ||
       a.layout.quantum.q != b.layout.quantum.q || a.layout.quantum.q2 != b.layout.quantum.q2 ||
-      a.layout.layers != b.layout.layers)
-    return "sizes (batches, texels, meshes, light-group layers or flux quantum)";
+      a.layout.split.layers != b.layout.split.layers || a.layout.split.directional != b.layout.split.directional)
+    return "sizes (batches, texels, meshes, light-group layers, directional lightmaps or flux quantum)";
   return "";
 }
 
@@ -686,7 +693,7 @@ PartHeader load_parts(const std::vector<std::string>& paths, const std::string& 
   early.end = cut;
   late.begin = cut;
   late.end = L.batch_count;
-  early.acc = late.acc = Accumulators(L.texel_count, L.mesh_count, L.caustics, L.quantum, L.layers);
+  early.acc = late.acc = Accumulators(L.texel_count, L.mesh_count, L.caustics, L.quantum, L.split);
   // Parts in shard order; their segments must follow each other without gaps.
   // A range's gather looks up the first `cut` batches only: it reads the
   // shards that hold them and passes over the rest (the merge reads all).

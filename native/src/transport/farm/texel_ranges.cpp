@@ -20,11 +20,11 @@ DirectResult join_direct(std::vector<DirectResult>& ranges, uint32_t sampler, co
     if (out.sums.empty()) out.sums = std::move(r.sums);
     else out.sums.insert(out.sums.end(), r.sums.begin(), r.sums.end());
     out.calibration.insert(out.calibration.end(), r.calibration.begin(), r.calibration.end());
-    out.layer_rgb.insert(out.layer_rgb.end(), r.layer_rgb.begin(), r.layer_rgb.end());
-    out.layers = r.layers;
+    out.split_rgb.insert(out.split_rgb.end(), r.split_rgb.begin(), r.split_rgb.end());
+    out.slots = r.slots;
     out.rounds = std::max(out.rounds, r.rounds);
     r.sums.clear();
-    r.layer_rgb.clear();
+    r.split_rgb.clear();
   }
   if (out.sums.size() != covered)
     fail(PLM_ERROR_INVALID_ARGUMENT, "the direct parts hold ", out.sums.size(), " texels where the scene covers ",
@@ -58,8 +58,8 @@ GatherResult join_gather(std::vector<GatherResult>& ranges, size_t covered) {
   for (GatherResult& r : ranges) {
     out.sums.insert(out.sums.end(), r.sums.begin(), r.sums.end());
     out.info.insert(out.info.end(), r.info.begin(), r.info.end());
-    out.layer_rgb.insert(out.layer_rgb.end(), r.layer_rgb.begin(), r.layer_rgb.end());
-    out.layers = r.layers;
+    out.split_rgb.insert(out.split_rgb.end(), r.split_rgb.begin(), r.split_rgb.end());
+    out.slots = r.slots;
     r = GatherResult();
   }
   if (out.sums.size() != covered)

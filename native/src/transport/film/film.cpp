@@ -24,7 +24,7 @@ void Accumulators::add(const Accumulators& o) {
   };
   add_sums(sum, o.sum);
   add_sums(sum_sq, o.sum_sq);
-  add_sums(layer_sum, o.layer_sum);
+  add_sums(split_sum, o.split_sum);
   add_counts(hits, o.hits);
   for (size_t m = 0; m < back_lit.size(); ++m) back_lit[m] |= o.back_lit[m];
   total_sq_q += o.total_sq_q;

@@ -15,6 +15,7 @@
 #include "lightmap/texel_area.h"
 #include "scene/scene.h"
 #include "transport/context/texel_space.h"
+#include "transport/film/split.h"
 #include "transport/photons/photon_tracer.h"
 #include "transport/rays/tracing.h"
 
@@ -68,12 +69,12 @@ FluxQuantum flux_quantum(double emitted);
 class Accumulators {
  public:
   // caustics: the scene has lobes, and caustic photons (BatchOutput::caustic_hits) get sums of their own.
-  // layers: the bake's light-group layers (0 without groups), whose photon
-  // fluxes get sums of their own (layer_sum).
+  // split: the light-group layers and direction moment the photons' fluxes
+  // are split into (transport/film/split.h; split_sum).
   Accumulators(uint64_t texels, size_t meshes, bool caustics = false, FluxQuantum quantum_in = {},
-               uint32_t layer_count = 0)
+               SplitLayout split_in = {})
       : sum(3 * texels, 0.0), sum_sq(texels, 0.0), hits(texels, 0), back_lit(meshes, 0), quantum(quantum_in),
-        layers(layer_count), layer_sum(size_t(3) * layer_count * texels, 0.0) {
+        split(split_in), slots(split_in.slots()), split_sum(size_t(3) * slots * texels, 0.0) {
     if (caustics) caustic.resize(texels);
   }
   std::vector<double> sum, sum_sq;  // flux / pick probability (not yet divided by the photon count)
@@ -83,14 +84,17 @@ class Accumulators {
   uint64_t total_sq_q = 0;
   uint64_t total_hits = 0;
   FluxQuantum quantum;
-  // With light groups (docs/design/light-groups.md): per layer, the flux of
-  // its photons' hits, ordinary and caustic together, 3 per texel; layer l's
-  // texel t at 3 * (l * texels + t). Each hit's rounded flux, so that the
-  // layers add up to sum + caustic.sum exactly.
-  uint32_t layers = 0;
-  std::vector<double> layer_sum;
-  const double* layer_flux(uint32_t layer, uint64_t texel) const {
-    return &layer_sum[3 * (size_t(layer) * hits.size() + texel)];
+  // With light groups (docs/design/light-groups.md) or directional
+  // lightmaps (docs/design/directional.md): per slot of the split, the hits'
+  // flux split, ordinary and caustic together, 3 per texel; slot l's texel t
+  // at 3 * (l * texels + t). Each hit's rounded flux (times its rounded
+  // direction weight), so that the layers add up to sum + caustic.sum exactly
+  // and the sums do not depend on the order of addition.
+  SplitLayout split;
+  uint32_t slots = 0;
+  std::vector<double> split_sum;
+  const double* slot_flux(uint32_t slot, uint64_t texel) const {
+    return &split_sum[3 * (size_t(slot) * hits.size() + texel)];
   }
   // Caustic photons' sums (empty without lobes): their own reconstruction
   // and variance (transport/output/film_estimate.h), added to the texel.
@@ -121,9 +125,11 @@ class Accumulators {
   // flux and squared flux rounded to the quantum; returns the squared fluxes
   // in quanta of q2, for add_totals (transport/film/photon_batches.h calls both
   // from several threads, one texel block at a time). With layers, layer[i]
-  // is hit i's layer.
-  uint64_t add_hits(const Hit* h, const Hit* end, bool caustic_hits, const uint32_t* layer = nullptr) {
-    return layer ? add_hits_to<true>(h, end, caustic_hits, layer) : add_hits_to<false>(h, end, caustic_hits, nullptr);
+  // is hit i's layer; with directional lightmaps, u[3 i ..] its direction weight.
+  uint64_t add_hits(const Hit* h, const Hit* end, bool caustic_hits, const uint32_t* layer = nullptr,
+                    const float* u = nullptr) {
+    if (!slots) return add_hits_to<false>(h, end, caustic_hits, nullptr, nullptr);
+    return add_hits_to<true>(h, end, caustic_hits, layer, u);
   }
   // Counts `count` hits whose squared fluxes sum to sq_q quanta.
   void add_totals(uint64_t count, uint64_t sq_q, bool caustic_hits) {
@@ -139,10 +145,10 @@ class Accumulators {
   }
 
  private:
-  // add_hits, with or without the hits' layers (kLayered: a loop of its own,
-  // so that a bake without light groups runs the loop it always ran).
-  template <bool kLayered>
-  uint64_t add_hits_to(const Hit* h, const Hit* end, bool caustic_hits, const uint32_t* layer) {
+  // add_hits, with or without a split (kSplit: a loop of its own, so that a
+  // bake without light groups or directions runs the loop it always ran).
+  template <bool kSplit>
+  uint64_t add_hits_to(const Hit* h, const Hit* end, bool caustic_hits, const uint32_t* layer, const float* u) {
     double* s = caustic_hits ? caustic.sum.data() : sum.data();
     double* s2 = caustic_hits ? caustic.sum_sq.data() : sum_sq.data();
     uint32_t* n = caustic_hits ? caustic.hits.data() : hits.data();
@@ -151,9 +157,18 @@ class Accumulators {
       const size_t t = h->texel;
       const double f[3] = {quantum.flux(h->r), quantum.flux(h->g), quantum.flux(h->b)};
       for (int c = 0; c < 3; ++c) s[3 * t + c] += f[c];
-      if constexpr (kLayered) {
-        double* ls = &layer_sum[3 * (size_t(*layer++) * hits.size() + t)];
-        for (int c = 0; c < 3; ++c) ls[c] += f[c];
+      if constexpr (kSplit) {
+        if (layer) {
+          double* ls = &split_sum[3 * (size_t(*layer++) * hits.size() + t)];
+          for (int c = 0; c < 3; ++c) ls[c] += f[c];
+        }
+        if (u) {
+          for (uint32_t a = 0; a < 3; ++a) {
+            double* ds = &split_sum[3 * (size_t(split.axis_slot(a)) * hits.size() + t)];
+            for (int c = 0; c < 3; ++c) ds[c] += quantum.flux(f[c] * double(u[a]));
+          }
+          u += 3;
+        }
       }
       const double a = (double(h->r) + h->g + h->b) / 3.0;
       const double sq = quantum.squared(a * a);

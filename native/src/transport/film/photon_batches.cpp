@@ -29,26 +29,29 @@ PhotonBatches::PhotonBatches(const PhotonTracer& tracer, Accumulators& acc, unsi
   locks_ = std::make_unique<tbb::spin_mutex[]>(blocks_);
 }
 
-uint64_t PhotonBatches::add_hits(const std::vector<Hit>& hits, const std::vector<uint32_t>& layers, bool caustic,
-                                 Scratch& s) {
+uint64_t PhotonBatches::add_hits(const std::vector<Hit>& hits, const std::vector<uint32_t>& layers,
+                                 const std::vector<float>& u, bool caustic, Scratch& s) {
   if (hits.empty()) return 0;
   const Hit* first = hits.data();
-  const bool layered = acc_.layers > 0;
+  const bool layered = acc_.split.layers > 0, directional = acc_.split.directional;
   if (blocks_ == 1) {  // one thread: nothing to sort or wait for
     tbb::spin_mutex::scoped_lock lock(locks_[0]);
-    return acc_.add_hits(first, first + hits.size(), caustic, layered ? layers.data() : nullptr);
+    return acc_.add_hits(first, first + hits.size(), caustic, layered ? layers.data() : nullptr,
+                         directional ? u.data() : nullptr);
   }
   // Counting sort by block, then each block's run under its lock.
   s.start.assign(blocks_ + 1, 0);
   for (const Hit& h : hits) ++s.start[(h.texel >> shift_) + 1];
   for (uint32_t b = 0; b < blocks_; ++b) s.start[b + 1] += s.start[b];
   s.sorted.resize(hits.size());
-  if (layered) {
-    s.sorted_layers.resize(hits.size());
+  if (layered || directional) {
+    if (layered) s.sorted_layers.resize(hits.size());
+    if (directional) s.sorted_u.resize(3 * hits.size());
     for (size_t i = 0; i < hits.size(); ++i) {
       const uint32_t at = s.start[hits[i].texel >> shift_]++;
       s.sorted[at] = hits[i];
-      s.sorted_layers[at] = layers[i];
+      if (layered) s.sorted_layers[at] = layers[i];
+      if (directional) std::copy_n(&u[3 * i], 3, &s.sorted_u[3 * size_t(at)]);
     }
   } else {
     for (const Hit& h : hits) s.sorted[s.start[h.texel >> shift_]++] = h;  // start[b] moves to block b's end
@@ -60,7 +63,8 @@ uint64_t PhotonBatches::add_hits(const std::vector<Hit>& hits, const std::vector
     if (end == begin) continue;
     tbb::spin_mutex::scoped_lock lock(locks_[b]);
     sq_q += acc_.add_hits(s.sorted.data() + begin, s.sorted.data() + end, caustic,
-                          layered ? s.sorted_layers.data() + begin : nullptr);
+                          layered ? s.sorted_layers.data() + begin : nullptr,
+                          directional ? s.sorted_u.data() + 3 * size_t(begin) : nullptr);
     begin = end;
   }
   return sq_q;
@@ -74,8 +78,8 @@ void PhotonBatches::trace(uint64_t first, uint64_t n) {
     for (uint64_t i = r.begin(); i < r.end(); ++i) {
       const uint64_t p0 = (first + i) * kBatchPhotons;
       tracer_.trace_batch(p0, std::min<uint64_t>(kBatchPhotons, cap_ - p0), bo);
-      const uint64_t sq = add_hits(bo.hits, bo.hit_layers, false, s);
-      const uint64_t caustic_sq = add_hits(bo.caustic_hits, bo.caustic_layers, true, s);
+      const uint64_t sq = add_hits(bo.hits, bo.hit_layers, bo.hit_u, false, s);
+      const uint64_t caustic_sq = add_hits(bo.caustic_hits, bo.caustic_layers, bo.caustic_u, true, s);
       {
         tbb::spin_mutex::scoped_lock lock(totals_);
         acc_.add_totals(bo.hits.size(), sq, false);

@@ -39,11 +39,14 @@ class PhotonBatches {
     std::vector<uint32_t> start;  // per block: first of its hits in `sorted`, then the end
     std::vector<Hit> sorted;
     std::vector<uint32_t> sorted_layers;  // with light groups: the sorted hits' layers
+    std::vector<float> sorted_u;          // with directional lightmaps: their direction weights
   };
   // Adds hits (caustic ones to the caustic sums) block by block, with light
-  // groups each into its layer (layers[i]: hit i's); returns their squared
+  // groups each into its layer (layers[i]: hit i's), with directional
+  // lightmaps with its direction weight (u[3 i ..]); returns their squared
   // fluxes in quanta.
-  uint64_t add_hits(const std::vector<Hit>& hits, const std::vector<uint32_t>& layers, bool caustic, Scratch& s);
+  uint64_t add_hits(const std::vector<Hit>& hits, const std::vector<uint32_t>& layers, const std::vector<float>& u,
+                    bool caustic, Scratch& s);
 
   const PhotonTracer& tracer_;
   Accumulators& acc_;

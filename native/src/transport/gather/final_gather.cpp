@@ -13,11 +13,13 @@
 namespace plm {
 namespace {
 
-// Light groups: each layer's part of what a ray sees (e), by the layers'
-// shares of the global texel it looked up, into layer_rgb (3 per layer).
-inline void add_layers(const GatherSource& source, uint64_t texel, Vec3 e, float* layer_rgb) {
+// The split of what a ray sees (e): each layer's part by the layers' shares
+// of the global texel it looked up, the direction moment by the ray's own
+// direction weight u (transport/film/split.h).
+inline void add_gathered(const GatherSource& source, uint64_t texel, Vec3 e, Vec3 u, float* split) {
   const float* share = source.layer_share + 3 * texel * source.layers;
-  for (uint32_t g = 0; g < 3 * source.layers; ++g) layer_rgb[g] += e[g % 3] * share[g];
+  for (uint32_t g = 0; g < 3 * source.layers; ++g) split[g] += e[g % 3] * share[g];
+  if (source.directional) add_split(split + 3 * size_t(source.layers), SplitLayout{0, true}, 0, e, u);
 }
 
 constexpr uint32_t kCellCapacity = kMaxGatherSamples;  // rays whose cells a texel keeps apart
@@ -43,9 +45,9 @@ FinalGather::FinalGather(const BakeScene& ctx)
 
 void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
                                const GatherSource& source, GatherSums& sums, GatherInfo& info,
-                               float* layer_rgb) const {
-  if (passage_) sample<true>(mesh_id, texel, round, samples, source, sums, info, layer_rgb);
-  else sample<false>(mesh_id, texel, round, samples, source, sums, info, layer_rgb);
+                               float* split) const {
+  if (passage_) sample<true>(mesh_id, texel, round, samples, source, sums, info, split);
+  else sample<false>(mesh_id, texel, round, samples, source, sums, info, split);
 }
 
 float FinalGather::open_share(uint32_t mesh_id, uint32_t texel, const uint8_t* back_lit) const {
@@ -88,7 +90,7 @@ float FinalGather::open_share(uint32_t mesh_id, uint32_t texel, const uint8_t* b
 
 template <bool kPassage>
 void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
-                         const GatherSource& source, GatherSums& sums, GatherInfo& info, float* layer_rgb) const {
+                         const GatherSource& source, GatherSums& sums, GatherInfo& info, float* split) const {
   const uint64_t global = views_[mesh_id].texel_offset + texel;
   // A stream of its own: (round | 0x100) is no round of the direct pass's.
   Rng rng(seed_ ^ 0x7F4A7C15u, (global << 9) | 0x100u | (round & 0xFF));
@@ -111,7 +113,7 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
   // lanes are marked with a negative tfar and not traced.
   RayPacket packet;
   uint32_t lane_sample[RayPacket::kLanes];
-  Vec3 lane_dir[RayPacket::kLanes];
+  Vec3 lane_dir[RayPacket::kLanes], lane_u[RayPacket::kLanes] = {};
   float lane_weight[RayPacket::kLanes];
   for (uint32_t j0 = 0; j0 < n; j0 += RayPacket::kLanes) {
     uint32_t zero_lanes = 0, contact_lanes = 0;  // bit l: lane l is a known zero; ... a point in contact
@@ -130,6 +132,7 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
       make_frame(shading, t, b);
       lane_sample[packet.size] = j;
       lane_dir[packet.size] = t * local.x + b * local.y + shading * local.z;
+      if (split && source.directional) lane_u[packet.size] = direction_weight(lane_dir[packet.size], shading);
       lane_weight[packet.size] = burley && burley[tri] >= 0.0f ? bsdf::burley_receive(local.z, burley[tri]) : 1.0f;
       if (contact && contact[texel] && in_contact(rtc_, surfaces_, p, normal, mesh_id, tri, offset_scale_))
         contact_lanes |= 1u << packet.size;
@@ -191,7 +194,7 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
               a *= lane_weight[l];
               if (open > 0.0f && open < 1.0f) a = a * (1.0f / open);
               e = {a.x * d[0], a.y * d[1], a.z * d[2]};
-              if (layer_rgb) add_layers(source, hv.texel_offset + ht, e, layer_rgb);
+              if (split) add_gathered(source, hv.texel_offset + ht, e, lane_u[l], split);
               const double albedo = average(a), local = albedo * source.local[hv.texel_offset + ht];
               const uint32_t row = uint32_t(ht) / hm.lightmap_width, column = uint32_t(ht) % hm.lightmap_width;
               const uint64_t cell = uint64_t(mesh) << 42 | uint64_t(row / cell_side_) << 21 | column / cell_side_;
@@ -296,15 +299,16 @@ GatherResult run_final_gather(const BakeScene& ctx, const FinalGather& gather, c
   }
   const GatherSource source{radiosity.data(), local_error.data(), wide_error.data(), &albedo, back_lit,
                             open.share.empty() ? nullptr : open.share.data(),
-                            layers ? layer_share.data() : nullptr, layers};
+                            layers ? layer_share.data() : nullptr, layers, ctx.split.directional};
+  const uint32_t slots = layers + (ctx.split.directional ? 3u : 0u);
   slice = slice.clamped(space.covered.size());
   const CoveredTexel* const covered = space.covered.data() + slice.begin;
   GatherResult out;
   const size_t step = gather_calibration_step(space.covered.size());
   out.sums.resize(slice.size());
   out.info.resize(slice.size());
-  out.layers = layers;
-  out.layer_rgb.assign(3 * size_t(layers) * slice.size(), 0.0f);
+  out.slots = slots;
+  out.split_rgb.assign(3 * size_t(slots) * slice.size(), 0.0f);
   run_in_groups(
       arena, slice.size(), 64,
       [&](uint64_t first_texel, uint64_t n) {
@@ -313,7 +317,7 @@ GatherResult run_final_gather(const BakeScene& ctx, const FinalGather& gather, c
             GatherSums& a = out.sums[k];
             GatherInfo& info = out.info[k];
             gather.sample_texel(covered[k].mesh, covered[k].texel, 0, samples, source, a, info,
-                                layers ? &out.layer_rgb[3 * k * layers] : nullptr);
+                                slots ? &out.split_rgb[3 * k * slots] : nullptr);
             if ((slice.begin + k) % step != 0 || info.unknown) continue;
             // A calibration texel: an independent replicate (it looks up the
             // same estimate, so the difference holds the rays' noise alone).

@@ -68,6 +68,7 @@ struct GatherSource {
   // (3 per layer: texel t's layer l at 3 * (t * layers + l)), or null.
   const float* layer_share = nullptr;
   uint32_t layers = 0;
+  bool directional = false;  // directional lightmaps: the rays' direction moments are kept (split.h)
 };
 
 class FinalGather {
@@ -90,10 +91,11 @@ class FinalGather {
   // that hits what the source cannot look up (a mesh without its own texels,
   // a CSG solid, such backs) counts in info.unknown: such a texel's gather is
   // not used. Thread-safe for distinct texels.
-  // With the source's layer shares, layer_rgb (3 per layer) gets each
-  // layer's part of the sums' rgb.
+  // With the source's layer shares or directional lightmaps, split
+  // (transport/film/split.h: the source's layers, then the direction moment)
+  // gets the split of the sums' rgb.
   void sample_texel(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, const GatherSource& source,
-                    GatherSums& sums, GatherInfo& info, float* layer_rgb = nullptr) const;
+                    GatherSums& sums, GatherInfo& info, float* split = nullptr) const;
 
   // The share of a texel's points (those its value is the mean over) that
   // light can reach: neither inside a closed object standing on the surface
@@ -108,7 +110,7 @@ class FinalGather {
   // passable materials) or with rays through passages.
   template <bool kPassage>
   void sample(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, const GatherSource& source,
-              GatherSums& sums, GatherInfo& info, float* layer_rgb) const;
+              GatherSums& sums, GatherInfo& info, float* split) const;
   // Lane l's hit, continued through passable surfaces; through: their weight.
   SurfaceHit passed(const RayPacket& packet, unsigned l, Vec3 dir, Vec3& through) const;
 
@@ -138,10 +140,11 @@ struct OpenShares {
 struct GatherResult {
   std::vector<GatherSums> sums;  // empty: no gather
   std::vector<GatherInfo> info;
-  // With light groups: per covered texel, each layer's part of sums' rgb (3
-  // floats per layer; texel k's layer l at 3 * (k * layers + l)).
-  std::vector<float> layer_rgb;
-  uint32_t layers = 0;
+  // With light groups or directional lightmaps: per covered texel, the split
+  // of sums' rgb (transport/film/split.h: 3 floats per slot; texel k's slot l
+  // at 3 * (k * slots + l)).
+  std::vector<float> split_rgb;
+  uint32_t slots = 0;
   double typical = 0.0;  // the phantom sample (typical_sample)
   double scale = 1.0;    // what makes the pair estimates honest (gather_scale)
 };

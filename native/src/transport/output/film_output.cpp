@@ -135,35 +135,45 @@ void blend_backup(const ol::OrientationLightmap& map, const TexelAreas& areas, c
   }
 }
 
-// Mesh i's light-group layers (layer_texels) from its texels `values` before
-// dilation, dilated and stitched as the whole lightmap is: the same texels
+// Parts of mesh i's lightmap (its light-group layers, layer_texels, or its
+// direction moments, direction_texels: 4 floats a texel, the last the part's
+// error) dilated and stitched as the whole lightmap is: the same texels
 // filled from the same neighbours, and seams solved with the whole's error as
-// every layer's weights, so that the layers still add up to the whole.
+// every part's weights, so that layers still add up to the whole.
 // `stitched`: the whole after dilation and stitching (its error channel is
-// the one the stitch weighed by).
-void write_layers(const Estimator& est, size_t i, uint64_t photons, const std::vector<float>& values,
-                  const std::vector<uint8_t>& covered, const std::vector<float>& stitched, uint32_t dilation,
-                  const std::vector<SeamEdge>* seams, LightmapImage& img) {
-  std::vector<std::vector<float>> layers;
-  layer_texels(est, i, photons, values, layers);
+// the one the stitch weighed by). Into rgb (3 per texel) and, if given, error.
+void write_parts(std::vector<std::vector<float>>& parts, const std::vector<uint8_t>& covered,
+                 const std::vector<float>& stitched, uint32_t dilation, const std::vector<SeamEdge>* seams,
+                 const LightmapImage& img, std::vector<std::vector<float>>& rgb,
+                 std::vector<std::vector<float>>* error) {
   const size_t n = covered.size();
-  img.layer_rgb.resize(layers.size());
-  img.layer_error.resize(layers.size());
-  for (size_t l = 0; l < layers.size(); ++l) {
-    std::vector<float>& v = layers[l];
+  rgb.resize(parts.size());
+  if (error) error->resize(parts.size());
+  for (size_t l = 0; l < parts.size(); ++l) {
+    std::vector<float>& v = parts[l];
     std::vector<uint8_t> filled = covered;
     dilate(v, 4, filled, img.width, img.height, dilation);
-    std::vector<float> error(n);
-    for (size_t t = 0; t < n; ++t) error[t] = v[4 * t + 3], v[4 * t + 3] = stitched[4 * t + 3];
+    std::vector<float> e(n);
+    for (size_t t = 0; t < n; ++t) e[t] = v[4 * t + 3], v[4 * t + 3] = stitched[4 * t + 3];
     if (seams) stitch_seams(*seams, covered, v, 4, img.width, img.height);
-    img.layer_rgb[l].resize(3 * n);
+    rgb[l].resize(3 * n);
     for (size_t t = 0; t < n; ++t)
-      for (int c = 0; c < 3; ++c) img.layer_rgb[l][3 * t + c] = v[4 * t + c];
-    img.layer_error[l] = std::move(error);
+      for (int c = 0; c < 3; ++c) rgb[l][3 * t + c] = v[4 * t + c];
+    if (error) (*error)[l] = std::move(e);
   }
 }
 
 }  // namespace
+
+void sh_band(const LightmapImage& img, uint32_t band, float* rgb) {
+  const size_t n = size_t(img.width) * img.height;
+  if (band == 0) {  // V / 2 = kShEval0 L0
+    for (size_t f = 0; f < 3 * n; ++f) rgb[f] = float(img.rgb[f] / (2.0 * kShEval0));
+    return;
+  }
+  const std::vector<float>& d = img.direction_rgb[band == 1 ? 1 : band == 2 ? 2 : 0];  // y, z, x
+  for (size_t f = 0; f < 3 * n; ++f) rgb[f] = float(d[f] / kShEval1);
+}
 
 void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator& est, uint64_t photons,
                      const std::vector<ol::OrientationLightmap>& ols, Estimate& last, uint32_t dilation,
@@ -213,12 +223,20 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
         }
       }
       const std::vector<uint8_t> covered = filled;
-      const std::vector<float> undilated = est.acc.layers ? values : std::vector<float>();
+      const std::vector<float> undilated = est.acc.slots ? values : std::vector<float>();
       dilate(values, 4, filled, img.width, img.height, dilation);
       if (!seams.joint[i]) stitch_seams(seams.within[i], covered, values, 4, img.width, img.height);
-      if (est.acc.layers)
-        write_layers(est, i, photons, undilated, covered, values, dilation, seams.joint[i] ? nullptr : &seams.within[i],
-                     img);
+      const std::vector<SeamEdge>* within = seams.joint[i] ? nullptr : &seams.within[i];
+      if (est.acc.split.layers) {
+        std::vector<std::vector<float>> parts;
+        layer_texels(est, i, photons, undilated, parts);
+        write_parts(parts, covered, values, dilation, within, img, img.layer_rgb, &img.layer_error);
+      }
+      if (est.acc.split.directional) {
+        std::vector<std::vector<float>> parts;
+        direction_texels(est, i, photons, undilated, parts);
+        write_parts(parts, covered, values, dilation, within, img, img.direction_rgb, nullptr);
+      }
       img.rgb.resize(3 * n);
       img.error.resize(n);
       for (size_t t = 0; t < n; ++t) {
@@ -239,17 +257,23 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
     view[i] = {images[i].rgb.data(), 3, images[i].error.data(), 1, covered[i].data(), images[i].width, images[i].height};
   }
   arena.execute([&] { stitch_scene_seams(seams, view); });
-  // Each light-group layer stitched as the whole was, weighed by the whole's error.
-  for (uint32_t l = 0; l < est.acc.layers; ++l) {
-    std::vector<SeamImage> layer_view = view;
-    std::vector<std::vector<float>> spare(images.size());  // a mesh without layers: its colours untouched
-    for (size_t i = 0; i < images.size(); ++i) {
-      if (!seams.joint[i]) continue;
-      if (images[i].layer_rgb.size() <= l) spare[i] = images[i].rgb;
-      layer_view[i].colour = images[i].layer_rgb.size() > l ? images[i].layer_rgb[l].data() : spare[i].data();
+  // Each light-group layer and direction moment stitched as the whole was, weighed by the whole's error.
+  auto stitch_parts = [&](uint32_t count, auto part_of) {
+    for (uint32_t l = 0; l < count; ++l) {
+      std::vector<SeamImage> part_view = view;
+      std::vector<std::vector<float>> spare(images.size());  // a mesh without parts: its colours untouched
+      for (size_t i = 0; i < images.size(); ++i) {
+        if (!seams.joint[i]) continue;
+        std::vector<std::vector<float>>& parts = part_of(images[i]);
+        if (parts.size() <= l) spare[i] = images[i].rgb;
+        part_view[i].colour = parts.size() > l ? parts[l].data() : spare[i].data();
+      }
+      arena.execute([&] { stitch_scene_seams(seams, part_view); });
     }
-    arena.execute([&] { stitch_scene_seams(seams, layer_view); });
-  }
+  };
+  stitch_parts(est.acc.split.layers, [](LightmapImage& img) -> std::vector<std::vector<float>>& { return img.layer_rgb; });
+  if (est.acc.split.directional)
+    stitch_parts(3, [](LightmapImage& img) -> std::vector<std::vector<float>>& { return img.direction_rgb; });
 }
 
 }  // namespace plm

@@ -25,7 +25,19 @@ struct LightmapImage {
   // With light groups: per layer, its part of rgb (3 per texel) and that
   // part's error (transport/output/layers.h); they add up to rgb.
   std::vector<std::vector<float>> layer_rgb, layer_error;
+  // Directional lightmaps (docs/design/directional.md): per world axis x,
+  // y, z, the direction moment D (3 per texel): a surface of unit normal n
+  // at the texel receives rgb / 2 + D . n.
+  std::vector<std::vector<float>> direction_rgb;
 };
+
+// Directional lightmaps' SH L1 in Godot 4's layout (photonlm.h, "Directional
+// lightmaps"): band 0 is L0, bands 1, 2, 3 are L1 along y, z, x; a surface of
+// unit normal n receives kShEval0 L0 + kShEval1 (L1 . n). kShEval0 is Y00,
+// kShEval1 the first band's Y1 times the cosine lobe's 2/3.
+constexpr double kShEval0 = 0.28209479177387814, kShEval1 = 0.32573500793527993;
+// Band `band` of img's SH into rgb (3 floats per texel).
+void sh_band(const LightmapImage& img, uint32_t band, float* rgb);
 
 // Bins per side of an OL group created with resolution 0: 16 x 16 bins of
 // 4 pi / 256 sr each (~0.05 sr, a cone of ~7 degrees half-angle).

@@ -58,8 +58,9 @@ struct Parts {
   std::vector<double> photon_fallback, direct_fallback, gather_fallback;
 };
 
-Parts mesh_parts(const Estimator& est, size_t i, uint64_t photons) {
-  const uint32_t layers = est.acc.layers;
+// Of slots [first, first + layers) of the split (transport/film/split.h).
+Parts mesh_parts(const Estimator& est, size_t i, uint64_t photons, uint32_t first, uint32_t layers) {
+  const uint32_t slots = est.acc.slots;
   const TexelAreas& ta = est.space.areas[i];
   const Mesh& mesh = *est.space.views[i].mesh;
   const size_t n = ta.area.size();
@@ -77,7 +78,7 @@ Parts mesh_parts(const Estimator& est, size_t i, uint64_t photons) {
     params.fixed_radius = int32_t(reconstruct_indirect(ta, mesh.lightmap_width, mesh.lightmap_height, whole, params,
                                                        p.whole_value, p.whole_mse));
     for (uint32_t l = 0; l < layers; ++l) {
-      const PhotonSums part{est.acc.layer_flux(l, g0), &est.acc.sum_sq[g0], &est.acc.hits[g0]};
+      const PhotonSums part{est.acc.slot_flux(first + l, g0), &est.acc.sum_sq[g0], &est.acc.hits[g0]};
       reconstruct_indirect(ta, mesh.lightmap_width, mesh.lightmap_height, part, params, value3, mse);
       for (size_t t = 0; t < n; ++t)
         for (int c = 0; c < 3; ++c) p.pooled[3 * (t * layers + l) + c] = value3[3 * t + c];
@@ -89,15 +90,15 @@ Parts mesh_parts(const Estimator& est, size_t i, uint64_t photons) {
     }
   }
   const DirectResult* dr = est.direct_result;
-  const GatherResult* gr = est.gather && est.gather->layers == layers ? est.gather : nullptr;
+  const GatherResult* gr = est.gather && est.gather->slots == slots ? est.gather : nullptr;
   std::vector<double> photon_totals(3 * size_t(layers), 0.0), direct_totals = photon_totals,
                       gather_totals = photon_totals;
   for (size_t t = 0, k = est.space.covered_begin[i]; t < n; ++t) {
     if (!(ta.area[t] > 0.0)) continue;
     for (size_t f = 0; f < 3 * size_t(layers); ++f) {
       photon_totals[f] += p.pooled[3 * t * layers + f];
-      if (dr && !dr->layer_rgb.empty()) direct_totals[f] += dr->layer_rgb[3 * k * layers + f];
-      if (gr && !gr->layer_rgb.empty()) gather_totals[f] += gr->layer_rgb[3 * k * layers + f];
+      if (dr && !dr->split_rgb.empty()) direct_totals[f] += dr->split_rgb[3 * (k * slots + first) + f];
+      if (gr && !gr->split_rgb.empty()) gather_totals[f] += gr->split_rgb[3 * (k * slots + first) + f];
     }
     ++k;
   }
@@ -111,15 +112,15 @@ Parts mesh_parts(const Estimator& est, size_t i, uint64_t photons) {
 
 void layer_texels(const Estimator& est, size_t i, uint64_t photons, const std::vector<float>& values,
                   std::vector<std::vector<float>>& layers_out) {
-  const uint32_t layers = est.acc.layers;
+  const uint32_t layers = est.acc.split.layers, slots = est.acc.slots;
   const TexelAreas& ta = est.space.areas[i];
   const size_t n = ta.area.size();
   layers_out.assign(layers, std::vector<float>(4 * n, 0.0f));
   if (layers == 0) return;
-  const Parts parts = mesh_parts(est, i, photons);
+  const Parts parts = mesh_parts(est, i, photons, 0, layers);
   const DirectResult* dr = est.direct_result;
-  const bool direct = !est.direct.empty() && dr && !dr->layer_rgb.empty();
-  const GatherResult* gr = est.gather && est.gather->layers == layers && !est.gather->layer_rgb.empty() &&
+  const bool direct = !est.direct.empty() && dr && !dr->split_rgb.empty();
+  const GatherResult* gr = est.gather && est.gather->slots == slots && !est.gather->split_rgb.empty() &&
                                    !parts.photon_weight.empty()
                                ? est.gather
                                : nullptr;
@@ -131,7 +132,7 @@ void layer_texels(const Estimator& est, size_t i, uint64_t photons, const std::v
     if (direct) {
       for (int c = 0; c < 3; ++c) d[c] = est.direct.value3[3 * k + c];
       var_d = est.direct.variance[k];
-      for (size_t f = 0; f < raw.size(); ++f) raw[f] = dr->layer_rgb[3 * k * layers + f];
+      for (size_t f = 0; f < raw.size(); ++f) raw[f] = dr->split_rgb[3 * k * slots + f];
     }
     for (int c = 0; c < 3; ++c) ind[c] = double(values[4 * t + c]) - d[c];
     const double error = values[4 * t + 3];
@@ -148,7 +149,7 @@ void layer_texels(const Estimator& est, size_t i, uint64_t photons, const std::v
       const GatherSums& gs = gr->sums[k];
       w = parts.photon_weight[t];
       for (int c = 0; c < 3; ++c) g[c] = gs.rgb[c] / gs.count;
-      for (size_t f = 0; f < gathered.size(); ++f) gathered[f] = gr->layer_rgb[3 * k * layers + f];
+      for (size_t f = 0; f < gathered.size(); ++f) gathered[f] = gr->split_rgb[3 * k * slots + f];
       gather_share.of(gathered.data(), 3, layers, parts.gather_fallback);
       const double gm = mean3(g);
       gather_relative = gm > 0.0 ? gs.variance_of_mean(gr->typical, 0.0, gr->scale) / (gm * gm) : 0.0;
@@ -190,9 +191,59 @@ void layer_texels(const Estimator& est, size_t i, uint64_t photons, const std::v
   }
 }
 
+void direction_texels(const Estimator& est, size_t i, uint64_t photons, const std::vector<float>& values,
+                      std::vector<std::vector<float>>& axes) {
+  const SplitLayout& split = est.acc.split;
+  const uint32_t slots = est.acc.slots, first = split.layers;
+  const TexelAreas& ta = est.space.areas[i];
+  const size_t n = ta.area.size();
+  axes.assign(3, std::vector<float>(4 * n, 0.0f));
+  if (!split.directional) return;
+  const Parts parts = mesh_parts(est, i, photons, first, 3);
+  const DirectResult* dr = est.direct_result;
+  const bool direct = !est.direct.empty() && dr && !dr->split_rgb.empty();
+  const GatherResult* gr = est.gather && est.gather->slots == slots && !est.gather->split_rgb.empty() &&
+                                   !parts.photon_weight.empty()
+                               ? est.gather
+                               : nullptr;
+  // A part's moment over its light, per axis and channel (0 where it has no light).
+  auto ratio = [](double part, double whole) { return whole > 0.0 ? part / whole : 0.0; };
+  for (size_t t = 0, k = est.space.covered_begin[i]; t < n; ++t) {
+    if (!(ta.area[t] > 0.0)) continue;
+    double d[3] = {0, 0, 0}, ind[3];
+    if (direct)
+      for (int c = 0; c < 3; ++c) d[c] = est.direct.value3[3 * k + c];
+    for (int c = 0; c < 3; ++c) ind[c] = double(values[4 * t + c]) - d[c];
+    // The indirect light's moments: the photons' where they alone give it,
+    // else the photons' and the final gather's as the estimate blends them.
+    double w = 1.0, g[3] = {0, 0, 0};
+    const GatherSums* gs = nullptr;
+    if (gr && parts.photon_weight[t] < 1.0 && gr->sums[k].count > 0) {
+      gs = &gr->sums[k];
+      w = parts.photon_weight[t];
+      for (int c = 0; c < 3; ++c) g[c] = gs->rgb[c] / gs->count;
+    }
+    for (uint32_t a = 0; a < 3; ++a) {
+      float* out = &axes[a][4 * t];
+      for (int c = 0; c < 3; ++c) {
+        const double sd = direct ? ratio(dr->split_rgb[3 * (k * slots + first + a) + c], dr->sums[k].rgb[c]) : 0.0;
+        const double pa = parts.whole_value.empty() ? 0.0 : parts.whole_value[3 * t + c];
+        double si = ratio(parts.pooled.empty() ? 0.0 : parts.pooled[3 * (3 * t + a) + c], pa);
+        if (gs) {
+          const double sg = ratio(gr->split_rgb[3 * (k * slots + first + a) + c], gs->rgb[c]);
+          const double den = w * pa + (1.0 - w) * g[c];
+          if (den > 0.0) si = (w * pa * si + (1.0 - w) * g[c] * sg) / den;
+        }
+        out[c] = float(d[c] * sd + ind[c] * si);
+      }
+    }
+    ++k;
+  }
+}
+
 std::vector<std::vector<float>> layer_shares(tbb::task_arena& arena, const Estimator& est, uint64_t photons,
                                              const std::vector<std::vector<float>>& values) {
-  const uint32_t layers = est.acc.layers;
+  const uint32_t layers = est.acc.split.layers;
   const size_t meshes = est.space.views.size();
   std::vector<std::vector<float>> out(meshes);
   arena.execute([&] {

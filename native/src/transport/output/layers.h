@@ -26,6 +26,16 @@ namespace plm {
 void layer_texels(const Estimator& est, size_t i, uint64_t photons, const std::vector<float>& values,
                   std::vector<std::vector<float>>& layers);
 
+// Directional lightmaps (docs/design/directional.md): per world axis x, y, z,
+// mesh i's texels' direction moment D as R, G, B, 0 (4 floats a texel, 0
+// where uncovered), from its final texels `values`: a surface of unit normal
+// n there receives V / 2 + D . n (V the texel's value). The direct light
+// takes its moment from the direct sums' split, the indirect light from the
+// photons' pooled as the whole's are and the final gather's, as the whole
+// blends them.
+void direction_texels(const Estimator& est, size_t i, uint64_t photons, const std::vector<float>& values,
+                      std::vector<std::vector<float>>& axes);
+
 // What the final gather's rays split their light by (GatherLookup::layer_shares):
 // per mesh, per texel, each layer's share of the texel's light (3 per layer;
 // of the estimate `values`, Estimate::values), from layer_texels.

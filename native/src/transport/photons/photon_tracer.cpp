@@ -37,6 +37,7 @@ PhotonTracer::PhotonTracer(const BakeScene& ctx)
   default_material_.albedo = {0.8f, 0.8f, 0.8f};
   mesh_only_ = !textures_ && csg_views_.empty() && scene_.lsystems.empty();
   layered_ = !ctx.layers.empty();
+  directional_ = ctx.split.directional;
   if (ctx.lobes.any_lobes()) {
     lobes_ = &ctx.lobes;
     lambda_offset_ = double(Rng(settings_.seed, ~0ull - 1).next_float());
@@ -63,6 +64,8 @@ void PhotonTracer::trace_batch(uint64_t first, uint64_t count, BatchOutput& out)
   out.back_meshes.clear();
   out.hit_layers.clear();
   out.caustic_layers.clear();
+  out.hit_u.clear();
+  out.caustic_u.clear();
   out.rays = out.truncated = 0;
   out.truncated_flux = 0.0;
   lsystem::GraphHit graph_hit;
@@ -225,7 +228,7 @@ void PhotonTracer::trace_photon(uint64_t index, lsystem::GraphHit& graph_hit, Ba
       if (front)
         out.ls_hits.push_back({h.index, ls_grids_[h.index].bin(h.ol_normal), h.stub_key, flux.x, flux.y, flux.z});
     } else {
-      if (front && depth >= first_recorded_) record(h, flux, out);
+      if (front && depth >= first_recorded_) record(h, flux, out, dir, normal);
       if (h.kind == SurfaceKind::Triangle) {
         const uint32_t mesh = h.index;  // a copy: push_back takes a reference, which would keep h in memory
         if (!front && (out.back_meshes.empty() || out.back_meshes.back() != mesh)) out.back_meshes.push_back(mesh);
@@ -291,7 +294,10 @@ inline bool PhotonTracer::lobe_hit(uint64_t index, const SurfaceHit& h, const Hi
   if (h.kind == SurfaceKind::LSystem) {
     if (front) out.ls_hits.push_back({h.index, ls_grids_[h.index].bin(h.ol_normal), h.stub_key, seen.x, seen.y, seen.z});
   } else {
-    if (front && wanted) record_into(h, record, cls == kCaustic ? out.caustic_hits : out.hits);
+    if (front && wanted) {
+      const bool caustic = cls == kCaustic;
+      record_into(h, record, caustic ? out.caustic_hits : out.hits, caustic ? out.caustic_u : out.hit_u, dir, normal);
+    }
     if (keep_points_ && front && wanted && cls == kCaustic && h.kind == SurfaceKind::Triangle &&
         hit_meshes_[h.index].covered)
       out.caustic_points.push_back({h.point, record.x, record.y, record.z, h.index});
@@ -460,16 +466,30 @@ inline float PhotonTracer::shading_ratio(const HitMesh& hm, const SurfaceHit& h,
 
 // A front-side hit on a mesh or CSG solid into the texel (or CSG sub-texel)
 // it falls in, if any.
-inline void PhotonTracer::record(const SurfaceHit& h, Vec3 flux, BatchOutput& out) const {
-  record_into(h, flux, out.hits);
+inline void PhotonTracer::record(const SurfaceHit& h, Vec3 flux, BatchOutput& out, Vec3 dir, Vec3 normal) const {
+  record_into(h, flux, out.hits, out.hit_u, dir, normal);
 }
 
-inline void PhotonTracer::record_into(const SurfaceHit& h, Vec3 flux, std::vector<Hit>& hits) const {
+void PhotonTracer::add_direction(const SurfaceHit& h, Vec3 dir, Vec3 normal, std::vector<float>& u) const {
+  Vec3 n = normal;
+  if (h.kind == SurfaceKind::Triangle && views_[h.index].mesh->smooth()) {
+    const Vec3 s = views_[h.index].mesh->shading_normal(h.prim, h.u, h.v, h.normal);
+    n = dot(s, normal) < 0.0f ? -s : s;
+  }
+  const Vec3 w = direction_weight(-dir, n);
+  u.insert(u.end(), {w.x, w.y, w.z});
+}
+
+inline void PhotonTracer::record_into(const SurfaceHit& h, Vec3 flux, std::vector<Hit>& hits, std::vector<float>& u,
+                                      Vec3 dir, Vec3 normal) const {
   if (h.kind == SurfaceKind::CsgFace) {
     const CsgView& cv = csg_views_[h.index];
     if (!cv.lightmap) return;
     const int64_t sub = cv.lightmap->sub_texel_of_hit(h.prim, int(h.face), to_double(h.point));
-    if (sub >= 0) hits.push_back({uint32_t(cv.texel_offset + uint64_t(sub)), flux.x, flux.y, flux.z});
+    if (sub >= 0) {
+      hits.push_back({uint32_t(cv.texel_offset + uint64_t(sub)), flux.x, flux.y, flux.z});
+      if (directional_) add_direction(h, dir, normal, u);
+    }
     return;
   }
   const HitMesh& hm = hit_meshes_[h.index];
@@ -488,6 +508,7 @@ inline void PhotonTracer::record_into(const SurfaceHit& h, Vec3 flux, std::vecto
       rec.r = flux.x;
       rec.g = flux.y;
       rec.b = flux.z;
+      if (directional_) add_direction(h, dir, normal, u);
     }
   }
 }

@@ -64,6 +64,9 @@ struct BatchOutput {
   // empty without. layer: the last photon's (set by trace_photon).
   std::vector<uint32_t> hit_layers, caustic_layers;
   uint32_t layer = 0;
+  // With directional lightmaps: each hit's direction weight (3 floats a hit,
+  // transport/film/split.h); empty without.
+  std::vector<float> hit_u, caustic_u;
   uint64_t rays = 0;
   uint64_t truncated = 0;
   double truncated_flux = 0.0;
@@ -171,8 +174,13 @@ class PhotonTracer {
   inline bool pressed(const HitMesh& hm, const SurfaceHit& h, bool front, Vec3 normal) const;
   // special_hit's shading-normal weight alone (hm.shading set).
   inline float shading_ratio(const HitMesh& hm, const SurfaceHit& h, Vec3 dir, bool front, Vec3 normal) const;
-  inline void record(const SurfaceHit& h, Vec3 flux, BatchOutput& out) const;
-  inline void record_into(const SurfaceHit& h, Vec3 flux, std::vector<Hit>& hits) const;
+  // dir: the photon's direction, normal: the surface's on the photon's side
+  // (the direction weight of directional lightmaps, into u).
+  inline void record(const SurfaceHit& h, Vec3 flux, BatchOutput& out, Vec3 dir, Vec3 normal) const;
+  inline void record_into(const SurfaceHit& h, Vec3 flux, std::vector<Hit>& hits, std::vector<float>& u, Vec3 dir,
+                          Vec3 normal) const;
+  // Hit h's direction weight into u (about the shading normal on smooth meshes).
+  void add_direction(const SurfaceHit& h, Vec3 dir, Vec3 normal, std::vector<float>& u) const;
 
   const Scene& scene_;
   const TextureSet* textures_;  // null for an untextured scene
@@ -194,6 +202,7 @@ class PhotonTracer {
   SurfaceMap surfaces_;              // triangle normals from hit_tris_
   bool mesh_only_ = false;           // trace_photon<true> applies
   bool layered_ = false;             // the bake has light groups: hits carry their photon's layer
+  bool directional_ = false;         // directional lightmaps: hits carry their direction weight
   Rng::SeedHash seed_hash_{};        // of settings_.seed, for the photons' Rng
   const MaterialTable* lobes_ = nullptr;  // null in scenes without lobes
   double lambda_offset_ = 0.0;            // rotation of the photons' stratified wavelengths

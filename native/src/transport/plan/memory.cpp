@@ -50,7 +50,7 @@ uint64_t file_number(const char* path) {
 
 }  // namespace
 
-MemoryEstimate estimate_bake_memory(const Scene& scene) {
+MemoryEstimate estimate_bake_memory(const Scene& scene, bool directional) {
   MemoryEstimate e;
   e.bytes = kBaseBytes;
   std::set<std::string> images;
@@ -65,8 +65,9 @@ MemoryEstimate estimate_bake_memory(const Scene& scene) {
     }
   }
   e.bytes += kBytesPerReadPixel * largest_image;
-  // Light groups: the declared ones, and the default group.
-  const uint64_t layers = scene.light_groups.empty() ? 0 : scene.light_groups.size() + 1;
+  // Light groups: the declared ones, and the default group; directional
+  // lightmaps' moments cost as much as three layers (transport/film/split.h).
+  const uint64_t layers = (scene.light_groups.empty() ? 0 : scene.light_groups.size() + 1) + (directional ? 3 : 0);
   const uint64_t per_texel =
       kBytesPerTexel + (scene.has_lobes() ? kCausticBytesPerTexel : 0) + layers * kLayerBytesPerTexel;
   const uint64_t per_covered = kBytesPerCoveredTexel + layers * kLayerBytesPerCoveredTexel;

@@ -19,7 +19,7 @@ struct MemoryEstimate {
 
 // Per lightmap texel, per covered texel (estimated from the UV triangles'
 // areas), per triangle and per texture pixel, measured on Release builds.
-MemoryEstimate estimate_bake_memory(const Scene& scene);
+MemoryEstimate estimate_bake_memory(const Scene& scene, bool directional = false);
 
 // Bytes this process can still allocate: MemAvailable, or the cgroup's limit
 // less its use where that is lower; 0 where neither can be read.

@@ -28,6 +28,7 @@ struct BakeSettings {
   uint32_t filter_radius = 2;
   uint32_t texel_value = PLM_TEXEL_CYCLES;
   uint32_t sampler = PLM_SAMPLER_DEFAULT;
+  bool directional = false;  // SH L1 directional lightmaps (docs/design/directional.md)
 
   // Decided by decide().
   bool two_pass = true;       // a direct pass (direct_samples > 0), photons record from depth 1

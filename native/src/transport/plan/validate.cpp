@@ -82,6 +82,18 @@ void validate(const Scene& scene, const BakeSettings& s) {
            scene.light_groups[0], "') split ordinary lightmaps only, and the scene has ", other,
            ": bake it without light groups, or those objects as meshes with lightmaps");
   }
+  // Directional lightmaps keep the direction of ordinary lightmaps' light (docs/design/directional.md).
+  if (s.directional) {
+    const char* other = !scene.light_groups.empty() ? "light groups"
+                        : !scene.ol_groups.empty()  ? "orientation-lightmap groups"
+                        : !scene.csgs.empty()       ? "CSG solids"
+                        : !scene.lsystems.empty()   ? "L-system objects"
+                                                    : nullptr;
+    if (other)
+      fail(PLM_ERROR_INVALID_SCENE, "directional lightmaps are made for ordinary lightmaps only, and the scene has ",
+           other, ": bake it without directional lightmaps",
+           scene.light_groups.empty() ? ", or those objects as meshes with lightmaps" : " or without light groups");
+  }
 }
 
 BakeSettings effective_settings(const Scene& scene, const BakeSettings& requested, std::vector<std::string>& warnings) {
@@ -97,8 +109,8 @@ BakeSettings effective_settings(const Scene& scene, const BakeSettings& requeste
   return settings;
 }
 
-uint64_t check_memory(const Scene& scene, std::vector<std::string>& warnings) {
-  const MemoryEstimate memory = estimate_bake_memory(scene);
+uint64_t check_memory(const Scene& scene, const BakeSettings& settings, std::vector<std::string>& warnings) {
+  const MemoryEstimate memory = estimate_bake_memory(scene, settings.directional);
   if (const uint64_t free = available_memory()) {
     // The largest lightmap, if any (a scene of L-system objects alone has no mesh).
     std::string where, which;

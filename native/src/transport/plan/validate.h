@@ -25,7 +25,7 @@ BakeSettings effective_settings(const Scene& scene, const BakeSettings& requeste
 // Refuses (PLM_ERROR_OUT_OF_MEMORY) a bake whose estimated peak memory
 // exceeds the memory free, naming the largest lightmap; warns past 60 % of
 // it. Returns the estimate in bytes.
-uint64_t check_memory(const Scene& scene, std::vector<std::string>& warnings);
+uint64_t check_memory(const Scene& scene, const BakeSettings& settings, std::vector<std::string>& warnings);
 
 // A mesh's degenerate triangles and, given its texel areas, its lightmap UV
 // problems (zero UV area, outside the UV square, overlapping islands).
