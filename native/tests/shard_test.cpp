@@ -718,6 +718,48 @@ TEST(TexelRanges, PartsWithValuesNoBakeWritesAreRefused) {
   refused(write_d, read_direct, "the direct sums");
 }
 
+// Directional lightmaps across machines: every SH band of every lightmap bit
+// for bit as one machine gives it; parts of a plain bake do not merge into a
+// directional one.
+TEST(TexelRanges, DirectionalLightmapsMergeExactly) {
+  plm_demo::SceneBuilder b;
+  plm_test::open_scene(b, true, true, 16);
+  ASSERT_TRUE(b.ok()) << b.error;
+  plm_bake_settings s = small_settings(100000);
+  s.directional = 1;
+  BakeResult one;
+  ASSERT_EQ(plm_bake(b.scene, &s, nullptr, nullptr, &one.r), PLM_OK) << plm_last_error();
+  TempDir dir;
+  const auto photons = bake_shards(b.scene, s, 2, dir.path, "open");
+  const auto direct = bake_ranges(b.scene, s, PLM_TEXELS_DIRECT, 2, {}, dir.path);
+  const auto gather = bake_ranges(b.scene, s, PLM_TEXELS_GATHER, 2, joined({photons, direct}), dir.path);
+  EXPECT_TRUE(plm::read_part_header(photons[0]).layout.split.directional);
+  EXPECT_TRUE(plm::read_part_header(direct[0]).settings.directional);
+  BakeResult merged;
+  std::string error;
+  ASSERT_EQ(merge(b.scene, joined({gather, direct, photons}), merged, error), PLM_OK) << error;
+  expect_identical(one, merged, mesh_count(b));
+  ASSERT_EQ(plm_result_directional(merged.r), 1u);
+  for (uint32_t m = 0; m < mesh_count(b); ++m) {
+    uint32_t w = 0, h = 0;
+    ASSERT_EQ(plm_result_lightmap_size(one.r, m, &w, &h), PLM_OK);
+    for (uint32_t band = 0; band < 4; ++band) {
+      std::vector<float> a(3 * size_t(w) * h), c = a;
+      ASSERT_EQ(plm_result_copy_lightmap_sh(one.r, m, band, a.data()), PLM_OK);
+      ASSERT_EQ(plm_result_copy_lightmap_sh(merged.r, m, band, c.data()), PLM_OK);
+      expect_same_bits(a, c, "SH band", m);
+    }
+  }
+  // A plain bake's photon parts with directional direct and gather parts: refused.
+  plm_bake_settings plain = s;
+  plain.directional = 0;
+  TempDir other_dir;
+  const auto plain_photons = bake_shards(b.scene, plain, 2, other_dir.path, "open");
+  BakeResult mixed;
+  EXPECT_NE(merge(b.scene, joined({gather, direct, plain_photons}), mixed, error), PLM_OK);
+  EXPECT_NE(error.find("directional"), std::string::npos) << error;
+}
+
 // Light groups across machines: shards, direct and gather ranges and the merge
 // give every layer of every lightmap bit for bit as one machine does.
 TEST(TexelRanges, LightGroupLayersMergeExactly) {

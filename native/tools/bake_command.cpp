@@ -47,6 +47,7 @@ struct Args {
   int stage = -1;  // PLM_TEXELS_DIRECT or PLM_TEXELS_GATHER with a range
   std::vector<std::string> parts;  // --parts: what the gather reads (default: the output folder)
   bool has_target = false, has_budget = false, has_photons = false, has_seed = false, has_threads = false;
+  int directional = -1;  // --directional on|off; -1: as the scene file says
   double target_error = 0, time_budget = 0;
   uint64_t photons = 0;
   uint32_t seed = 0, threads = 0;
@@ -118,6 +119,10 @@ std::string parse_args(int argc, char** argv, Args& a) {
         a.range_count = uint32_t(n);
         a.stage = opt == "--direct" ? PLM_TEXELS_DIRECT : PLM_TEXELS_GATHER;
       }
+    } else if (opt == "--directional") {
+      const std::string text = v;
+      if (text != "on" && text != "off") return "--directional: '" + text + "' is not on or off";
+      a.directional = text == "on" ? 1 : 0;
     } else if (opt == "--parts") {
       a.parts.push_back(v);
     } else if (opt == "--threads") {
@@ -222,6 +227,7 @@ ordered_json settings_json(const plm_bake_settings& s) {
   j["filter_radius"] = s.filter_radius;
   j["texel_value"] = plm::texel_value_name(s.texel_value);
   j["sampler"] = plm::sampler_name(s.sampler);
+  j["directional"] = s.directional != 0;
   return j;
 }
 
@@ -272,6 +278,7 @@ int bake_command(int argc, char** argv) {
   if (a.has_photons) s.photon_count = a.photons;
   if (a.has_seed) s.seed = a.seed;
   if (a.has_threads) s.thread_count = a.threads;
+  if (a.directional >= 0) s.directional = uint32_t(a.directional);
 
   if (!make_output_folder(a.out_dir, error)) return bad_input(error);
   const auto t0 = std::chrono::steady_clock::now();
@@ -470,6 +477,22 @@ int write_bake_outputs(plm_result* r, const plm::SceneFile& scene, const plm_bak
         layers.push_back({{"group", group}, {"file", layer_file}});
       }
       jm["layers"] = layers;
+    }
+    // Directional lightmaps: the SH bands beside the lightmap, <mesh>_lightmap_sh0.exr (L0) .. _sh3.exr.
+    if (plm_result_directional(r)) {
+      ordered_json sh = ordered_json::array();
+      const std::string stem = name.substr(0, name.size() - 4);
+      for (uint32_t band = 0; band < 4; ++band) {
+        const std::string band_file = stem + "_sh" + std::to_string(band) + ".exr";
+        used.insert(band_file);
+        if (plm_result_write_sh_exr(r, m.id, band, (dir + band_file).c_str()) != PLM_OK) {
+          std::fprintf(stderr, "%s: %s\n", cmd.c_str(), plm_last_error());
+          return abandon(kBakeFailed);
+        }
+        written.push_back(dir + band_file);
+        sh.push_back(band_file);
+      }
+      jm["sh"] = sh;
     }
     meshes.push_back(jm);
     std::printf("%-24s %5ux%-5u mean %.6g -> %s\n", m.name.c_str(), m.width, m.height, (sum[0] + sum[1] + sum[2]) * k / 3.0,

@@ -3,7 +3,7 @@
 //   photonlm furnace [--albedo R] [--emission E] [--photons N] [--res N] [-o DIR]
 //   photonlm cornell [--photons N] [--res N] [--seed S] [-o DIR]
 //   photonlm bake SCENE.json -o DIR [--target-error X] [--time-budget S] [--photons N] [--seed N] [--threads N]
-//                 [--shard K/N | --direct K/N | --gather K/N [--parts PATH]...]
+//                 [--directional on|off] [--shard K/N | --direct K/N | --gather K/N [--parts PATH]...]
 //   photonlm merge PART... -o DIR [--scene SCENE.json] [--threads N] [--target-error X]
 // furnace/cornell: progress goes to stderr; results (time, photons, error) to stdout.
 // bake (bake_command.cpp): see docs/scene-file.md; shards and merge (merge_command.cpp): docs/farm.md.
@@ -35,7 +35,8 @@ int usage(const char* error) {
                "       photonlm furnace [--albedo R] [--emission E] [--photons N] [--res N] [-o DIR]\n"
                "       photonlm cornell [--photons N] [--res N] [--seed S] [--threads T] [-o DIR]\n"
                "       photonlm bake SCENE.json -o DIR [--target-error X] [--time-budget S] [--photons N]\n"
-               "                     [--seed N] [--threads N] [--shard K/N | --direct K/N | --gather K/N [--parts P]]\n"
+               "                     [--seed N] [--threads N] [--directional on|off]\n"
+               "                     [--shard K/N | --direct K/N | --gather K/N [--parts P]]\n"
                "       photonlm merge PART... -o DIR [--scene SCENE.json] [--threads N] [--target-error X]\n"
                "furnace: closed box with uniform emission and albedo; the exact texel value is E/(1-R).\n"
                "cornell: Cornell box with a 200 W area light; writes one EXR per object with -o.\n"

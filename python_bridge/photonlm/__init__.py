@@ -673,7 +673,7 @@ class Scene(_Handle):
 
     def bake(self, photons=None, max_bounces=None, seed=None, threads=None, dilation=None, progress=None,
              target_error=None, time_budget=None, direct_samples=None, filter_radius=None,
-             texel_value=None, sampler=None, preview=None, preview_interval=3.0):
+             texel_value=None, sampler=None, directional=None, preview=None, preview_interval=3.0):
         """Bake all lightmaps and return a Result. The GIL is released while the engine runs.
         A setting left None takes the engine's default (default_settings()).
 
@@ -686,6 +686,7 @@ class Scene(_Handle):
         texel_value: "CYCLES" (direct light averaged over the texel's central 0.5 x 0.5 square,
         what Cycles 3.4 bakes converge to) or "AREA" (over the whole texel: smoother edges). sampler: "DEFAULT" (Owen-scrambled
         Sobol points for the direct pass, pseudo-random photons), "RANDOM" or "SOBOL" (everywhere).
+        directional: True to keep each texel's light's direction too (SH L1: Result.lightmap_sh).
 
         progress: optional callable(fraction, stage) called from this thread every few tenths
         of a second; returning False cancels (BakeCancelled). An exception raised in it cancels
@@ -700,7 +701,7 @@ class Scene(_Handle):
         settings = _bake_settings(photons=photons, max_bounces=max_bounces, seed=seed, threads=threads,
                                   dilation=dilation, target_error=target_error, time_budget=time_budget,
                                   direct_samples=direct_samples, filter_radius=filter_radius,
-                                  texel_value=texel_value, sampler=sampler)
+                                  texel_value=texel_value, sampler=sampler, directional=directional)
         raised = []
         callback = _progress_callback(progress, raised)  # referenced until plm_bake returns
         out = _lib.ResultPtr()
@@ -786,6 +787,10 @@ def _bake_settings(**given):
         field = _SETTING_FIELDS[name]
         if name in _SETTING_CHOICES:
             value = _choice(value, name, _SETTING_CHOICES[name])
+        elif name == "directional":
+            if not isinstance(value, (bool, int)) or value not in (0, 1):
+                raise ValueError("directional must be True or False, got %r" % (value,))
+            value = int(value)
         elif name in ("target_error", "time_budget"):
             value = float(value)
             if not value >= 0.0:
@@ -925,7 +930,7 @@ _STAT_KEYS = ("photons_emitted", "photon_hits", "rays_traced", "paths_truncated"
 _SETTING_FIELDS = {"photons": "photon_count", "max_bounces": "max_bounces", "seed": "seed", "threads": "thread_count",
                    "dilation": "dilation", "target_error": "target_error", "time_budget": "time_budget",
                    "direct_samples": "direct_samples", "filter_radius": "filter_radius",
-                   "texel_value": "texel_value", "sampler": "sampler"}
+                   "texel_value": "texel_value", "sampler": "sampler", "directional": "directional"}
 _SETTING_CHOICES = {"texel_value": ("CYCLES", "AREA"), "sampler": ("DEFAULT", "RANDOM", "SOBOL")}
 
 
@@ -942,7 +947,8 @@ def _settings_dict(settings):
     out = {}
     for name, field in _SETTING_FIELDS.items():
         value = getattr(settings, field)
-        out[name] = _SETTING_CHOICES[name][value] if name in _SETTING_CHOICES else value
+        out[name] = (_SETTING_CHOICES[name][value] if name in _SETTING_CHOICES
+                     else bool(value) if name == "directional" else value)
     return out
 
 
@@ -1017,6 +1023,26 @@ class Result(_Handle):
         """Write a light-group layer of a mesh's lightmap as OpenEXR (R, G, B, error, hits), atomically."""
         _check(_C.plm_result_write_layer_exr(self._h, _uint(mesh_id, "mesh_id"), self._layer(layer),
                                              os.fsencode(os.fspath(path))))
+
+    @property
+    def directional(self):
+        """True when the bake kept its light's directions (Scene.bake(directional=True))."""
+        return bool(_C.plm_result_directional(self._h))
+
+    def lightmap_sh(self, mesh_id):
+        """A directional bake's SH L1 of a mesh's lightmap: a float32 array (4, h, w, 3) of the bands
+        L0, L1_-1, L1_0, L1_1 in Godot 4's layout (photonlm.h, "Directional lightmaps"): a surface of
+        unit world normal n receives 0.282095 L0 + 0.32573 (L1_-1 n.y + L1_0 n.z + L1_1 n.x)."""
+        w, h = self.lightmap_size(mesh_id)
+        out = np.empty((4, h, w, 3), np.float32)
+        for band in range(4):
+            _check(_C.plm_result_copy_lightmap_sh(self._h, mesh_id, band, _ptr(out[band], ctypes.c_float)))
+        return out
+
+    def write_sh_exr(self, mesh_id, band, path):
+        """Write SH band `band` (0: L0 .. 3: L1_1) of a mesh's lightmap as OpenEXR (R, G, B, hits), atomically."""
+        _check(_C.plm_result_write_sh_exr(self._h, _uint(mesh_id, "mesh_id"), _uint(band, "band"),
+                                          os.fsencode(os.fspath(path))))
 
     def orientation_lightmap(self, group):
         """Copy an OL group's map into new numpy arrays (an OrientationLightmap)."""

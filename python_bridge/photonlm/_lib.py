@@ -128,6 +128,7 @@ class plm_bake_settings(_Sized):
         ("filter_radius", c_uint32),
         ("texel_value", c_uint32),
         ("sampler", c_uint32),
+        ("directional", c_uint32),
     ]
 
 
@@ -286,6 +287,9 @@ _SIGNATURES = {
     "plm_result_layer_error": (status_t, [ResultPtr, c_uint32, POINTER(c_double)]),
     "plm_result_copy_lightmap_layer": (status_t, [ResultPtr, c_uint32, c_uint32, FloatPtr, FloatPtr]),
     "plm_result_write_layer_exr": (status_t, [ResultPtr, c_uint32, c_uint32, c_char_p]),
+    "plm_result_directional": (c_uint32, [ResultPtr]),
+    "plm_result_copy_lightmap_sh": (status_t, [ResultPtr, c_uint32, c_uint32, FloatPtr]),
+    "plm_result_write_sh_exr": (status_t, [ResultPtr, c_uint32, c_uint32, c_char_p]),
     "plm_lobe_default": (None, [POINTER(plm_lobe), c_int]),
     "plm_scene_add_material_lobe": (status_t, [ScenePtr, c_uint32, POINTER(plm_lobe)]),
     "plm_scene_set_material_diffuse": (status_t, [ScenePtr, c_uint32, c_int32, c_float]),

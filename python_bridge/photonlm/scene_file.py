@@ -525,6 +525,10 @@ class SceneFileWriter:
                 raise ValueError("unknown bake setting %r (known: %s)" % (key, ", ".join(_SETTINGS)))
             if key in ("texel_value", "sampler"):
                 value = str(value)
+            elif key == "directional":
+                if value not in (True, False):
+                    raise ValueError("directional must be True or False, got %r" % (value,))
+                value = bool(value)
             elif key in ("target_error", "time_budget"):
                 value = float(value)
                 if not value >= 0.0 or not math.isfinite(value):

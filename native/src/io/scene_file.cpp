@@ -567,7 +567,7 @@ struct Reader {
     object(v, path);
     check_keys(v, path,
                {"photon_count", "max_bounces", "seed", "thread_count", "dilation", "target_error", "time_budget",
-                "direct_samples", "filter_radius", "texel_value", "sampler"});
+                "direct_samples", "filter_radius", "texel_value", "sampler", "directional"});
     plm_bake_settings& s = out.settings;
     if (const json* x = optional(v, "photon_count")) s.photon_count = integer(*x, path + ".photon_count", uint64_t(1) << 40);
     struct {
@@ -588,6 +588,10 @@ struct Reader {
     if (const json* x = optional(v, "texel_value")) s.texel_value = enum_value(*x, path + ".texel_value", {"CYCLES", "AREA"});
     if (const json* x = optional(v, "sampler"))
       s.sampler = enum_value(*x, path + ".sampler", {"DEFAULT", "RANDOM", "SOBOL"});
+    if (const json* x = optional(v, "directional")) {
+      if (!x->is_boolean()) fail(path + ".directional", "must be true or false, got " + shown(*x));
+      s.directional = x->get<bool>() ? 1 : 0;
+    }
   }
 
   void scene(const json& root) {

@@ -569,6 +569,9 @@ std::string part_mismatch(const PartHeader& a, const PartHeader& b) {
   if (s.max_bounces != t.max_bounces || s.direct_samples != t.direct_samples || s.filter_radius != t.filter_radius ||
       s.dilation != t.dilation || s.texel_value != t.texel_value || s.sampler != t.sampler)
     return "settings (max_bounces, direct_samples, filter_radius, dilation, texel_value or sampler)";
+  if (s.directional != t.directional)
+    return std::string("settings: ") + (t.directional ? "directional" : "plain") + " lightmaps against " +
+           (s.directional ? "directional" : "plain") + " ones";
   if (a.kind == b.kind && a.shard_count != b.shard_count)
     return against(a.kind == PartKind::kPhotons ? "shard count" : "range count", b.shard_count, a.shard_count);
   if (a.kind == b.kind && a.direct_target != b.direct_target)

@@ -50,6 +50,7 @@ BakeSettings settings_of(const PartHeader& h, uint32_t thread_count, const Scene
   s.dilation = h.settings.dilation;
   s.texel_value = h.settings.texel_value;
   s.sampler = h.settings.sampler;
+  s.directional = h.settings.directional;
   s.thread_count = thread_count;
   s.decide(scene);
   return s;
