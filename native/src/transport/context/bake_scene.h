@@ -18,7 +18,7 @@
 #include "scene/scene.h"
 #include "scene/texture.h"
 #include "transport/context/texel_space.h"
-#include "transport/film/split.h"
+#include "transport/context/split.h"
 #include "transport/lights/emitters.h"
 #include "transport/materials/material_table.h"
 #include "transport/plan/settings.h"
@@ -73,7 +73,7 @@ struct BakeScene {
   // (0: the default group); empty without groups.
   std::vector<uint32_t> layers;
   // What the texels keep of each sample's light besides their sums: the
-  // layers, and with directional lightmaps the direction moment (transport/film/split.h).
+  // layers, and with directional lightmaps the direction moment (transport/context/split.h).
   SplitLayout split;
 
   MaterialTable lobes;                     // empty in scenes without lobes or Burley surfaces

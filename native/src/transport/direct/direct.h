@@ -69,7 +69,7 @@ class DirectPass {
   // `texel` of CSG solid c. Thread-safe for distinct texels. With light
   // groups or directional lightmaps, split (split().floats(), or null) gets
   // the samples' light split by the lights' layers and its direction moment
-  // (transport/film/split.h; the same light as sums.rgb).
+  // (transport/context/split.h; the same light as sums.rgb).
   void sample_texel(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums,
                     float* split = nullptr) const;
   const SplitLayout& split() const { return split_; }

@@ -35,7 +35,7 @@ struct DirectCalibration {
 struct DirectResult {
   std::vector<DirectSums> sums;  // per covered texel of the slice, from its first
   // With light groups or directional lightmaps: per covered texel of the
-  // slice, the split of sums.rgb (transport/film/split.h: 3 floats per slot;
+  // slice, the split of sums.rgb (transport/context/split.h: 3 floats per slot;
   // texel k's slot l at 3 * (k * slots + l)).
   std::vector<float> split_rgb;
   uint32_t slots = 0;

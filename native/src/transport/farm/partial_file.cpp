@@ -332,7 +332,7 @@ bool finite_sums(const StratifiedSums& s) {
          non_negative(s.pair_sq) && s.paired <= s.count;
 }
 
-// A texel record's split (transport/film/split.h): the layers' light, finite
+// A texel record's split (transport/context/split.h): the layers' light, finite
 // and >= 0, then the direction moment's, finite.
 void read_split(Cursor& c, float* out, const SplitLayout& split, const std::string& path, const char* what,
                 uint64_t texel) {

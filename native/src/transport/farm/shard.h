@@ -42,7 +42,7 @@ struct ShardLayout {
   uint32_t mesh_count = 0;
   bool caustics = false;
   FluxQuantum quantum;
-  SplitLayout split;  // light-group layers and directional lightmaps' moments (transport/film/split.h)
+  SplitLayout split;  // light-group layers and directional lightmaps' moments (transport/context/split.h)
 };
 
 // One part of a sharded bake (transport/jobs/bake_jobs.h): kTrace traces a

@@ -15,7 +15,7 @@
 #include "lightmap/texel_area.h"
 #include "scene/scene.h"
 #include "transport/context/texel_space.h"
-#include "transport/film/split.h"
+#include "transport/context/split.h"
 #include "transport/photons/photon_tracer.h"
 #include "transport/rays/tracing.h"
 
@@ -70,7 +70,7 @@ class Accumulators {
  public:
   // caustics: the scene has lobes, and caustic photons (BatchOutput::caustic_hits) get sums of their own.
   // split: the light-group layers and direction moment the photons' fluxes
-  // are split into (transport/film/split.h; split_sum).
+  // are split into (transport/context/split.h; split_sum).
   Accumulators(uint64_t texels, size_t meshes, bool caustics = false, FluxQuantum quantum_in = {},
                SplitLayout split_in = {})
       : sum(3 * texels, 0.0), sum_sq(texels, 0.0), hits(texels, 0), back_lit(meshes, 0), quantum(quantum_in),

@@ -15,7 +15,7 @@ namespace {
 
 // The split of what a ray sees (e): each layer's part by the layers' shares
 // of the global texel it looked up, the direction moment by the ray's own
-// direction weight u (transport/film/split.h).
+// direction weight u (transport/context/split.h).
 inline void add_gathered(const GatherSource& source, uint64_t texel, Vec3 e, Vec3 u, float* split) {
   const float* share = source.layer_share + 3 * texel * source.layers;
   for (uint32_t g = 0; g < 3 * source.layers; ++g) split[g] += e[g % 3] * share[g];

@@ -92,7 +92,7 @@ class FinalGather {
   // a CSG solid, such backs) counts in info.unknown: such a texel's gather is
   // not used. Thread-safe for distinct texels.
   // With the source's layer shares or directional lightmaps, split
-  // (transport/film/split.h: the source's layers, then the direction moment)
+  // (transport/context/split.h: the source's layers, then the direction moment)
   // gets the split of the sums' rgb.
   void sample_texel(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, const GatherSource& source,
                     GatherSums& sums, GatherInfo& info, float* split = nullptr) const;
@@ -141,7 +141,7 @@ struct GatherResult {
   std::vector<GatherSums> sums;  // empty: no gather
   std::vector<GatherInfo> info;
   // With light groups or directional lightmaps: per covered texel, the split
-  // of sums' rgb (transport/film/split.h: 3 floats per slot; texel k's slot l
+  // of sums' rgb (transport/context/split.h: 3 floats per slot; texel k's slot l
   // at 3 * (k * slots + l)).
   std::vector<float> split_rgb;
   uint32_t slots = 0;

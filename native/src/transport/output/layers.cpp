@@ -58,7 +58,7 @@ struct Parts {
   std::vector<double> photon_fallback, direct_fallback, gather_fallback;
 };
 
-// Of slots [first, first + layers) of the split (transport/film/split.h).
+// Of slots [first, first + layers) of the split (transport/context/split.h).
 Parts mesh_parts(const Estimator& est, size_t i, uint64_t photons, uint32_t first, uint32_t layers) {
   const uint32_t slots = est.acc.slots;
   const TexelAreas& ta = est.space.areas[i];

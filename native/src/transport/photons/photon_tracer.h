@@ -65,7 +65,7 @@ struct BatchOutput {
   std::vector<uint32_t> hit_layers, caustic_layers;
   uint32_t layer = 0;
   // With directional lightmaps: each hit's direction weight (3 floats a hit,
-  // transport/film/split.h); empty without.
+  // transport/context/split.h); empty without.
   std::vector<float> hit_u, caustic_u;
   uint64_t rays = 0;
   uint64_t truncated = 0;

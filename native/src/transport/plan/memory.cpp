@@ -66,7 +66,7 @@ MemoryEstimate estimate_bake_memory(const Scene& scene, bool directional) {
   }
   e.bytes += kBytesPerReadPixel * largest_image;
   // Light groups: the declared ones, and the default group; directional
-  // lightmaps' moments cost as much as three layers (transport/film/split.h).
+  // lightmaps' moments cost as much as three layers (transport/context/split.h).
   const uint64_t layers = (scene.light_groups.empty() ? 0 : scene.light_groups.size() + 1) + (directional ? 3 : 0);
   const uint64_t per_texel =
       kBytesPerTexel + (scene.has_lobes() ? kCausticBytesPerTexel : 0) + layers * kLayerBytesPerTexel;
