@@ -29,6 +29,7 @@
 #include <cmath>
 #include <cstring>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "photonlm/photonlm.h"
@@ -133,7 +134,8 @@ uint32_t older_size<plm_lobe>() {
 }
 template <typename T>
 bool known_size(uint32_t size) {
-  return size == sizeof(T) || size == older_size<T>();
+  return size == sizeof(T) || size == older_size<T>() ||
+         (std::is_same_v<T, plm_bake_settings> && size == offsetof(plm_bake_settings, directional));
 }
 
 // A struct_size for T: mostly the current one, else the older layout, zero,
@@ -175,6 +177,15 @@ void check_result(const State& st) {
     for (float v : err) check(std::isfinite(v) && v >= 0.0f, "texel errors finite and >= 0");
     for (float v : hits) check(v >= 0.0f && v == std::floor(v), "hit counts are whole numbers");
     for (float v : cov) check(std::isfinite(v) && v >= 0.0f, "coverage finite and >= 0");
+    if (plm_result_directional(st.result)) {  // SH bands: L0 the lightmap's, every band finite
+      for (uint32_t band = 0; band < 4; ++band) {
+        check(plm_result_copy_lightmap_sh(st.result, m, band, rgb.data()) == PLM_OK, "copy an SH band");
+        for (float v : rgb) check(std::isfinite(v), "SH bands finite");
+      }
+    } else {
+      check(plm_result_copy_lightmap_sh(st.result, m, 0, rgb.data()) == PLM_ERROR_INVALID_ARGUMENT,
+            "no SH bands without directional lightmaps");
+    }
   }
   for (uint32_t i = 0; i < plm_result_warning_count(st.result); ++i)
     check(plm_result_warning(st.result, i)[0] != '\0', "warnings are not empty");
@@ -481,6 +492,7 @@ void bake(State& st, Reader& in) {
     if (s.photon_count == 0) s.photon_count = 1;
   }
   if (flags & 4) s.filter_radius = in.u8() % 70;  // above 64 is an error
+  if (flags & 64) s.directional = 1;
   int calls = 1 + in.u8() % 8;
   // NULL settings mean the defaults, a million photons: too slow to fuzz, so
   // only on a scene without meshes, which fails before tracing.
