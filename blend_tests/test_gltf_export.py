@@ -20,7 +20,10 @@ Expected, reading the .glb in plain Python (GLB header, JSON and BIN chunks):
 - round trip: Blender's glTF importer, into an empty scene, gives each object a second UV map equal
   to its lightmap UVs, and its material the extras (the lightmap's texture index, which names a PNG
   in the file). Wiring the lightmap into the imported material is not done by the importer.
-- the operator refuses with a message when no object has a lightmap.
+- the operator refuses with a message when no object has a lightmap;
+- with light groups (the lamp in Light Group "lamp", its only light), extras.photonlm_lightmap lists
+  the layers: each object's single layer "lamp" with its own RGBM texture, strength 1 and a white
+  tint, whose PNG decodes to the layer's EXR within the encoding's bound.
 """
 import json
 import math
@@ -314,8 +317,42 @@ def main():
     worst = check_file(checks, atlas, objs, page_of, rgbm)
     print("atlas: largest relative error above range/255: %.4f %%" % (100 * worst))
     s.lightmap_layout = 'OBJECT'
+    check_light_groups(checks, objs, out, rgbm)
     check_import(checks, path, objs, glb)
     checks.finish()
+
+
+def check_light_groups(checks, objs, out, rgbm):
+    """The lamp in Light Group "lamp": every lightmap's one layer, in the extras with its own texture."""
+    from photonlm_blender.writeback import lightgroups
+    bpy.context.view_layer.lightgroups.add(name="lamp")
+    bpy.data.objects["ceiling_light"].lightgroup = "lamp"
+    last = scenes.photonlm_bake(300_000, 16, seed=3, target_error=0.0)
+    checks.check(last["stats"].get("light_layers") == "lamp", "the bake's layers: %s" % last["stats"].get("light_layers"))
+    path = os.path.join(out, "cornell_groups.glb")
+    res = bpy.ops.photonlm.export_gltf(filepath=path)
+    glb = Glb(path)
+    nodes = {n["name"]: n for n in glb.json["nodes"]}
+    worst = 0.0
+    for name in objs:
+        prim = glb.json["meshes"][nodes[name]["mesh"]]["primitives"][0]
+        extras = glb.json["materials"][prim["material"]].get("extras", {}).get("photonlm_lightmap", {})
+        layers = extras.get("layers", [])
+        ok = (res == {'FINISHED'} and [lay.get("group") for lay in layers] == ["lamp"]
+              and layers[0]["texture"] != extras.get("texture") and layers[0]["strength"] == 1.0
+              and layers[0]["tint"] == [1.0, 1.0, 1.0]
+              and abs(layers[0]["intensity"] - math.pi * layers[0]["range"]) <= 1e-6 * layers[0]["intensity"])
+        checks.check(ok, "'%s': the extras list the layer 'lamp' with its own texture (%s)" % (name, layers))
+        if not ok:
+            continue
+        layer_exr = lightgroups.layer_file(last["objects"][name]["path"], "lamp")
+        exr = scenes.exr_rgb(layer_exr)
+        px = png_pixels(glb.image_bytes(layers[0]["texture"])[1], name + "_lamp")
+        err = np.abs(rgbm.decode(px, layers[0]["range"]) - exr)
+        bound = rgbm.error_bound(px, layers[0]["range"])[..., None] * (1 + 1e-6) + 1e-7 * layers[0]["range"]
+        worst = max(worst, float((err - bound).max()))
+    checks.check(worst <= 0.0, "every layer's PNG decodes to its EXR within the encoding's bound")
+    bpy.data.objects["ceiling_light"].lightgroup = ""
 
 
 main()

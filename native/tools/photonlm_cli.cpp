@@ -5,6 +5,7 @@
 //   photonlm bake SCENE.json -o DIR [--target-error X] [--time-budget S] [--photons N] [--seed N] [--threads N]
 //                 [--directional on|off] [--shard K/N | --direct K/N | --gather K/N [--parts PATH]...]
 //   photonlm merge PART... -o DIR [--scene SCENE.json] [--threads N] [--target-error X]
+//   photonlm gltf SCENE.json BAKE_DIR -o FILE.glb
 // furnace/cornell: progress goes to stderr; results (time, photons, error) to stdout.
 // bake (bake_command.cpp): see docs/scene-file.md; shards and merge (merge_command.cpp): docs/farm.md.
 #include <chrono>
@@ -17,6 +18,7 @@
 
 #include "bake_command.h"
 #include "demo_scenes.h"
+#include "gltf_command.h"
 #include "merge_command.h"
 
 namespace {
@@ -38,6 +40,7 @@ int usage(const char* error) {
                "                     [--seed N] [--threads N] [--directional on|off]\n"
                "                     [--shard K/N | --direct K/N | --gather K/N [--parts P]]\n"
                "       photonlm merge PART... -o DIR [--scene SCENE.json] [--threads N] [--target-error X]\n"
+               "       photonlm gltf SCENE.json BAKE_DIR -o FILE.glb\n"
                "furnace: closed box with uniform emission and albedo; the exact texel value is E/(1-R).\n"
                "cornell: Cornell box with a 200 W area light; writes one EXR per object with -o.\n"
                "bake: bakes a JSON scene file (docs/scene-file.md) into DIR: one EXR per lightmap and\n"
@@ -155,6 +158,7 @@ int run(const Options& o) {
 int main(int argc, char** argv) {
   if (argc >= 2 && std::strcmp(argv[1], "bake") == 0) return plm_cli::bake_command(argc - 2, argv + 2);
   if (argc >= 2 && std::strcmp(argv[1], "merge") == 0) return plm_cli::merge_command(argc - 2, argv + 2);
+  if (argc >= 2 && std::strcmp(argv[1], "gltf") == 0) return plm_cli::gltf_command(argc - 2, argv + 2);
   Options o;
   std::string error;
   if (!parse(argc, argv, o, error)) return usage(error.empty() ? nullptr : error.c_str());

@@ -15,10 +15,12 @@ for it) gives each baked object's node:
       extensions.MOZ_lightmap          {index, texCoord: 1, intensity}
       extensions.FB_materials_lightmap {lightmapTexture: {index, texCoord: 1}, lightmapFactor: [i, i, i]}
       extras.photonlm_lightmap         {encoding: "RGBM", range, colorSpace: "linear", texture, texCoord,
-                                        intensity, object, image}
+                                        intensity, object, image[, layers]}
   with intensity = pi x range: decoded rgb x a (in [0, 1]) times intensity is the irradiance the
   lightmap holds (its texels are irradiance / pi in Cycles' units), what three.js's lightMap with
-  lightMapIntensity takes.
+  lightMapIntensity takes. A bake with light groups adds `layers`: per group (in the scene's
+  order) {group, texture, range, intensity, strength, tint}, each layer's own RGBM texture; the
+  layers add up to the lightmap, and strength x tint are the panel's mix when the file was written.
 The materials are exported with their preview off (their own shading, not the lightmap preview)
 and put back as they were. The hook does nothing in other glTF exports.
 """
@@ -31,7 +33,7 @@ import bpy
 import numpy as np
 
 from .. import compat
-from ..writeback import wiring
+from ..writeback import lightgroups, wiring
 from ..writeback.atlas import object_lightmap
 from . import rgbm
 
@@ -78,6 +80,20 @@ class _Export:
         self.textures[image.name] = (texture, value_range, data)
         return self.textures[image.name]
 
+    def layers(self, image, types):
+        """The light-group layers of lightmap image `image` (lightgroups.layer_image_name), as the
+        extras list them; empty without groups."""
+        out = []
+        for item in bpy.context.scene.photonlm.light_groups:
+            layer_image = bpy.data.images.get(lightgroups.layer_image_name(image.name, item.name))
+            if layer_image is None:
+                continue
+            texture, value_range, _ = self.texture(layer_image, types)
+            out.append({"group": item.name, "texture": texture, "range": value_range,
+                        "intensity": IRRADIANCE_PER_TEXEL * value_range, "strength": item.strength,
+                        "tint": list(item.tint)[:3]})
+        return out
+
     def node(self, node, obj):
         entry = self.lightmaps.get(obj.name)
         mesh = getattr(node, "mesh", None)
@@ -93,6 +109,7 @@ class _Export:
         node.mesh = mesh
         texture, value_range, _ = self.texture(image, types)
         intensity = IRRADIANCE_PER_TEXEL * value_range
+        layers = self.layers(image, types)
         names = self.objects.setdefault(obj.name, [])
         for prim in mesh.primitives:
             attrs = dict(prim.attributes)
@@ -124,6 +141,8 @@ class _Export:
                                       "decode": "value = rgb * a * range", "units": "irradiance / pi",
                                       "intensity": intensity, "texture": texture, "texCoord": TEXCOORD,
                                       "object": obj.name, "image": image.name}
+                if layers:
+                    extras[EXTRAS_KEY]["layers"] = layers
                 mat.extras = extras
                 self.materials[mkey] = mat
                 names.append(mat.name)

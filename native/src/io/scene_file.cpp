@@ -39,6 +39,7 @@ struct Reader {
       if (const json* e = optional(m, "emission")) rgb(*e, p + ".emission", emission);
       uint32_t id = 0;
       engine(plm_scene_add_material(out.scene, name.empty() ? nullptr : name.c_str(), albedo, emission, &id), p);
+      out.material_albedo.push_back({albedo[0], albedo[1], albedo[2]});
       if (const json* t = optional(m, "albedo_texture")) texture(*t, p + ".albedo_texture", id, PLM_TEXTURE_ALBEDO);
       if (const json* t = optional(m, "emission_texture"))
         texture(*t, p + ".emission_texture", id, PLM_TEXTURE_EMISSION);
@@ -419,6 +420,16 @@ struct Reader {
         engine(plm_scene_set_mesh_texture_uv(out.scene, id, tuv.data()), pt);
       }
       shading(m, p, id, indices.size() / 3);
+      if (options.keep_geometry) {
+        auto g = std::make_shared<SceneFileMesh::Geometry>();
+        g->positions = std::move(positions);
+        g->indices = std::move(indices);
+        if (lightmap) g->uv = std::move(uv);
+        g->materials = std::move(mats);
+        if (const json* jt = optional(m, "texture_uv"))
+          for (const json& x : *jt) g->texture_uv.push_back(x.get<float>());
+        info.geometry = std::move(g);
+      }
       if (const uint32_t group = light_group(m, p))
         engine(plm_scene_set_mesh_light_group(out.scene, id, group), p + ".group");
       if (const json* g = optional(m, "ol_group")) {

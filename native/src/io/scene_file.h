@@ -7,6 +7,8 @@
 #pragma once
 
 #include <cstdint>
+#include <array>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -30,6 +32,9 @@ struct SceneFileOptions {
   std::string base_dir;
   // false: an "obj" reference is an error (the fuzzer reads no files).
   bool allow_file_access = true;
+  // Keep each mesh's triangles as given to the engine (SceneFileMesh::geometry;
+  // `photonlm gltf` writes them); subdivision cages, refined by the engine, keep none.
+  bool keep_geometry = false;
 };
 
 struct SceneFileMesh {
@@ -37,6 +42,14 @@ struct SceneFileMesh {
   uint32_t id = 0;                   // plm mesh id
   uint32_t width = 0, height = 0;    // lightmap size; 0 x 0 = geometry only
   int32_t ol_group = -1;             // index into SceneFile::ol_groups, or -1
+  // With SceneFileOptions::keep_geometry: the triangles as given to the engine.
+  struct Geometry {
+    std::vector<float> positions;       // 3 per vertex
+    std::vector<uint32_t> indices;      // 3 per triangle
+    std::vector<float> uv, texture_uv;  // 6 per triangle each, or empty
+    std::vector<uint32_t> materials;    // 1 per triangle, or empty (material 0 or the engine's grey)
+  };
+  std::shared_ptr<const Geometry> geometry;  // null: not kept (or a subdivision cage)
 };
 
 struct SceneFileOlGroup {
@@ -58,6 +71,7 @@ class SceneFile {
   std::vector<SceneFileMesh> meshes;
   std::vector<SceneFileOlGroup> ol_groups;
   std::vector<std::string> material_names;  // "" for unnamed materials
+  std::vector<std::array<float, 3>> material_albedo;
 };
 
 // Reads the JSON text of a scene file. On failure returns false, sets error
