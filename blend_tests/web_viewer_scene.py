@@ -62,7 +62,7 @@ def build(kind):
         scenes.clear_scene()
         scenes.cornell_box(resolution=32)
         scenes.cornell_camera()
-        bake = dict(max_bounces=8, target_error=0.02)
+        bake = dict(max_bounces=8, target_error=0.01)
     elif kind == "room":
         scene, sun, lamp, panel = scenes.light_groups_room(64, (0.45, 0.6, 1.0))
         for light in (lamp, panel):  # the day: sun and sky, no light groups
