@@ -32,7 +32,7 @@ def main():
     os.makedirs(out, exist_ok=True)
     view = wv.bake_and_render(out, scene, 640, 480, blender="5.2")
     blender_png, browser_png = os.path.join(out, "blender.png"), os.path.join(out, "browser.png")
-    times = [wv.screenshot(out, view, browser_png) for _ in range(LOADS)]
+    times = [wv.screenshot(out, view, browser_png)[0] for _ in range(LOADS)]
     result = wv.compare(browser_png, blender_png)
     wv.side_by_side(blender_png, browser_png, os.path.join(out, "side_by_side.png"))
     texels = sum(v["texels"] for v in view["lightmaps"].values())

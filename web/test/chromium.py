@@ -5,6 +5,7 @@ driver, no WebSocket library, only the standard library.
         browser.open(url)
         browser.wait_for("window.__photonlmReady === true", error="window.__photonlmError")
         png_bytes = browser.screenshot()
+        assert not browser.console        # the page's warnings, errors and uncaught exceptions
 
 Also serve(directory): the files of a directory over HTTP on 127.0.0.1 (a thread), as
 `python3 -m http.server` serves them.
@@ -52,6 +53,7 @@ class Chromium:
         self.next_id = 0
         self.buffer = b""
         self.session = None
+        self.console = []   # the page's console warnings and errors, uncaught exceptions
 
     def __enter__(self):
         self.profile = tempfile.mkdtemp(prefix="photonlm-chromium-")
@@ -124,10 +126,21 @@ class Chromium:
         deadline = time.monotonic() + (wait or self.timeout)
         while True:
             reply = self._message(deadline)
+            self._note(reply)
             if reply.get("id") == self.next_id:
                 if "error" in reply:
                     raise BrowserError("%s: %s" % (method, reply["error"]))
                 return reply.get("result", {})
+
+    def _note(self, event):
+        """Keeps the page's console warnings and errors and its uncaught exceptions."""
+        method, params = event.get("method"), event.get("params", {})
+        if method == "Runtime.consoleAPICalled" and params.get("type") in ("warning", "error", "assert"):
+            text = " ".join(str(a.get("value", a.get("description", ""))) for a in params.get("args", []))
+            self.console.append("%s: %s" % (params["type"], text))
+        elif method == "Runtime.exceptionThrown":
+            details = params.get("exceptionDetails", {})
+            self.console.append("exception: %s" % details.get("exception", {}).get("description", details.get("text")))
 
     def evaluate(self, expression):
         result = self.call("Runtime.evaluate", expression=expression, returnByValue=True)

@@ -13,7 +13,8 @@ opens the .glb in headless Chromium from the same camera at the same size (320 x
   the two renderers' anti-aliasing and texel look-ups differ);
 - the lit pixels' mean brightness agrees within MAX_BIAS (measured: 0.1 %): lightMapIntensity =
   pi x range is the right scale;
-- the page is ready (window.__photonlmReady) within a minute; its time to the first frame is printed.
+- the page is ready (window.__photonlmReady) within a minute, with nothing in its console's
+  warnings and errors; its time to the first frame is printed.
 
     /usr/bin/python3 web/test/test_web_viewer.py    (PHOTONLM_WEB_BLENDER=5.2|4.3|3.4, default 5.2)
 
@@ -128,14 +129,15 @@ def site(out, dist=None):
 
 
 def screenshot(out, view, path):
-    """The page's screenshot of scene.glb from the view; returns its time to the first frame (ms)."""
+    """The page's screenshot of scene.glb from the view; returns its time to the first frame (ms)
+    and the page's console warnings and errors."""
     with serve(site(out)) as base, Chromium(view["width"], view["height"]) as browser:
         browser.open(page_url(base, view))
         browser.wait_for("window.__photonlmReady === true", error="window.__photonlmError")
         first_frame = browser.evaluate("window.__photonlmFirstFrameMs")
         with open(path, "wb") as f:
             f.write(browser.screenshot())
-    return first_frame
+        return first_frame, list(browser.console)
 
 
 def main():
@@ -143,9 +145,10 @@ def main():
     base = os.environ.get("PHOTONLM_TEST_OUT") or os.path.join(build, "blend_test_out", "5.2")
     out = os.path.join(base, "web_viewer")
     os.makedirs(out, exist_ok=True)
-    failed = []
+    failed, checks = [], [0]
 
     def check(ok, text):
+        checks[0] += 1
         print("[%s] web_viewer: %s" % ("PASS" if ok else "FAIL", text), flush=True)
         if not ok:
             failed.append(text)
@@ -157,9 +160,10 @@ def main():
           % (view["export_seconds"], view["glb_bytes"], png_bytes, texels, png_bytes / texels))
     blender_png, browser_png = os.path.join(out, "blender.png"), os.path.join(out, "browser.png")
     t0 = time.perf_counter()
-    first_frame = screenshot(out, view, browser_png)
+    first_frame, console = screenshot(out, view, browser_png)
     check(first_frame is not None, "the page drew scene.glb in Chromium: first frame %.0f ms after navigation "
           "(%.1f s with Chromium's start)" % (first_frame or -1, time.perf_counter() - t0))
+    check(not console, "the page's console has no warnings or errors (%s)" % ("; ".join(console) or "none"))
     result = compare(browser_png, blender_png)
     check(result["pixels"] > 0.5 * view["width"] * view["height"],
           "%d lit pixels compared (of %d)" % (result["pixels"], view["width"] * view["height"]))
@@ -171,7 +175,7 @@ def main():
     side_by_side(blender_png, browser_png, os.path.join(out, "side_by_side.png"))
     Image.fromarray((np.clip(result["per_pixel"] * 10.0, 0, 1) * 255).astype(np.uint8)).save(
         os.path.join(out, "difference.png"))
-    print("web_viewer: %d checks, %d failed (images in %s)" % (4, len(failed), out))
+    print("web_viewer: %d checks, %d failed (images in %s)" % (checks[0], len(failed), out))
     if failed:
         raise SystemExit("web_viewer FAILED: " + "; ".join(failed))
 
