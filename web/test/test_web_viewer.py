@@ -18,6 +18,8 @@ opens the .glb in headless Chromium from the same camera at the same size (320 x
 
     /usr/bin/python3 web/test/test_web_viewer.py    (PHOTONLM_WEB_BLENDER=5.2|4.3|3.4, default 5.2)
 
+(Measured with the scene made in 4.3: 0.55 % and -0.12 %; in 3.4: 0.66 % and -0.07 %.)
+
 Writes blender.png, browser.png, side_by_side.png and difference.png into
 $PHOTONLM_TEST_OUT/web_viewer (default build/blend_test_out/5.2/web_viewer).
 """
