@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # README command 2: install what is missing, build, run every test: C++ unit
 # tests (CTest), the Python bridge tests (pytest) and the headless Blender
-# tests in Blender 3.4, 4.3 and 5.2 (blend_tests/blenders.txt says which where),
+# tests in Blender 3.4, 4.3 and 5.2 (blend_tests/blenders.txt says which where), the web
+# viewer in headless Chromium against Blender 5.2 (web/test/test_web_viewer.py),
 # then the C++ unit tests again under AddressSanitizer + UBSan, then
 # 150,000 libFuzzer inputs from a fixed seed per fuzzer (100,000 on the C API, whose inputs bake
 # scenes, 15,000 on part files; scripts/fuzz.sh, clang, build-fuzz/),
@@ -18,6 +19,8 @@ mkdir -p build
 scripts/blender_root.sh trixie > build/root-trixie.log 2>&1 & trixie=$!
 scripts/blender_root.sh sid > build/root-sid.log 2>&1 & sid=$!
 scripts/build.sh
+# The web viewer's page (web/dist) for its test: the locked three.js and esbuild from npm, then the bundle.
+(cd web && npm ci --no-audit --no-fund && npm run build)
 wait $trixie || true
 wait $sid || true
 cat build/root-trixie.log build/root-sid.log

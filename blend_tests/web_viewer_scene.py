@@ -1,0 +1,165 @@
+"""The Blender half of the web viewer's test (web/test/test_web_viewer.py) and of
+docs/make_web_screenshots.py: a scene baked with the add-on, exported with its lightmaps to a .glb
+(File > Export > glTF with PhotonLM lightmaps), and rendered in EEVEE with the lightmap preview
+under the Standard view transform, the view the page must reproduce.
+
+    scripts/blender.sh 5.2 -b --factory-startup --python-exit-code 1 \\
+        --python blend_tests/web_viewer_scene.py -- OUT_DIR [cornell|room] [WIDTH HEIGHT [PHOTONS]]
+
+Scenes: `cornell`, the Cornell box (32 x 32 texels per object); `room`, the sunlit room of
+scenes.light_groups_room without its light groups (64 x 64). Their Diffuse BSDFs are swapped for
+Principled BSDFs of the same colour (no specular, roughness 1), which Blender's glTF exporter
+writes as base colours. Writes into OUT_DIR:
+- scene.glb, the export;
+- blender.png, the EEVEE render (WIDTH x HEIGHT, default 320 x 240; Standard, no dither, black world);
+- view.json, the render's camera in glTF's axes for the page's URL (cam, target, vertical fov in
+  degrees, width, height) and the export's numbers (seconds, file size, each lightmap's texels
+  and PNG bytes).
+"""
+import json
+import math
+import os
+import sys
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import scenes  # noqa: E402
+
+import addon_utils  # noqa: E402
+import bpy  # noqa: E402
+from mathutils import Vector  # noqa: E402
+
+
+def enable_addons():
+    """Blender's glTF exporter finds the add-on's hook among enabled add-ons: enable both as
+    Preferences does."""
+    src = os.environ.get("PHOTONLM_SOURCE_DIR") or os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    for sub in ("addon", "python_bridge"):
+        p = os.path.join(src, sub)
+        if p not in sys.path:
+            sys.path.insert(0, p)
+    addon_utils.enable("io_scene_gltf2", default_set=True)
+    addon_utils.enable("photonlm_blender", default_set=True, handle_error=lambda e: print("ENABLE ERROR", e))
+    return scenes.setup_paths()
+
+
+def principled_materials():
+    """Every object's Diffuse BSDF material swapped for a Principled BSDF of its colour."""
+    for obj in bpy.context.scene.objects:
+        if obj.type != 'MESH':
+            continue
+        for slot in obj.material_slots:
+            old = slot.material
+            diffuse = [n for n in old.node_tree.nodes if n.bl_idname == 'ShaderNodeBsdfDiffuse']
+            if diffuse:
+                color = tuple(diffuse[0].inputs["Color"].default_value)[:3]
+                slot.material = scenes.diffuse_material(old.name + "_principled", color, principled=True)
+
+
+def build(kind):
+    """The scene to bake and its camera; returns (bake settings)."""
+    if kind == "cornell":
+        scenes.clear_scene()
+        scenes.cornell_box(resolution=32)
+        scenes.cornell_camera()
+        bake = dict(max_bounces=8, target_error=0.01)
+    elif kind == "room":
+        scene, sun, lamp, panel = scenes.light_groups_room(64, (0.45, 0.6, 1.0))
+        for light in (lamp, panel):  # the day: sun and sky, no light groups
+            bpy.data.objects.remove(light)
+        sun.lightgroup = scene.world.lightgroup = ""
+        vl = bpy.context.view_layer
+        while len(vl.lightgroups):
+            vl.lightgroups.remove(vl.lightgroups[0])
+        bake = dict(max_bounces=8, target_error=0.01, direct_samples=16)
+    else:
+        raise SystemExit("web_viewer_scene: unknown scene '%s' (cornell or room)" % kind)
+    principled_materials()
+    return bake
+
+
+def camera_view(width, height):
+    """The scene camera in glTF's axes (Blender (x, y, z) is (x, z, -y)): position, a point on its
+    axis and the vertical field of view of a width x height render (sensor fit Auto)."""
+    cam = bpy.context.scene.camera
+    data = cam.data
+    if data.sensor_fit not in ('AUTO', 'HORIZONTAL') or data.shift_x or data.shift_y:
+        raise SystemExit("web_viewer_scene: the camera must fit its sensor horizontally, without shift")
+    m = cam.matrix_world
+    pos = m.translation
+    forward = (m.to_3x3() @ Vector((0.0, 0.0, -1.0))).normalized()
+    half = math.atan(data.sensor_width / (2.0 * data.lens))  # along the larger side
+    if width >= height or data.sensor_fit == 'HORIZONTAL':
+        half_v = math.atan(math.tan(half) * height / width)
+    else:
+        half_v = half
+
+    def gltf(v):
+        return [round(v[0], 6), round(v[2], 6), round(-v[1], 6)]
+    return dict(cam=gltf(pos), target=gltf(pos + forward), fov=math.degrees(2.0 * half_v), width=width, height=height)
+
+
+def render(path, width, height):
+    """EEVEE, the lightmap preview, Standard view transform, no dither; the world black and the
+    lights off for the render (the preview is emission: the light is the lightmap's)."""
+    scene = bpy.context.scene
+    r = scene.render
+    r.engine = scenes.eevee_engine()
+    r.resolution_x, r.resolution_y, r.resolution_percentage = width, height, 100
+    r.film_transparent = False
+    r.dither_intensity = 0.0
+    r.image_settings.file_format = 'PNG'
+    r.image_settings.color_mode = 'RGB'
+    r.image_settings.color_depth = '8'
+    scene.eevee.taa_render_samples = 16
+    vs = scene.view_settings
+    vs.view_transform, vs.look, vs.exposure, vs.gamma = 'Standard', 'None', 0.0, 1.0
+    scene.display_settings.display_device = 'sRGB'
+    scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
+    for obj in scene.objects:
+        if obj.type == 'LIGHT':
+            obj.hide_render = True
+    scene.photonlm.preview_mode = 'LIGHTMAP'
+    r.filepath = path
+    bpy.ops.render.render(write_still=True)
+
+
+def main():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    if not argv:
+        raise SystemExit("usage: ... --python blend_tests/web_viewer_scene.py -- OUT_DIR [cornell|room] "
+                         "[WIDTH HEIGHT [PHOTONS]]")
+    out = os.path.abspath(argv[0])
+    kind = argv[1] if len(argv) > 1 else "cornell"
+    width, height = (int(argv[2]), int(argv[3])) if len(argv) > 3 else (320, 240)
+    photons = int(argv[4]) if len(argv) > 4 else 20_000_000
+    os.makedirs(out, exist_ok=True)
+    enable_addons()
+    bake = build(kind)
+    bpy.context.scene.photonlm.output_dir = os.path.join(out, "lightmaps")
+    last = scenes.photonlm_bake(photons, seed=1, **bake)
+    print("web_viewer_scene: baked %d objects in %.1f s" % (len(last["objects"]), last["wall_seconds"]), flush=True)
+
+    from photonlm_blender.gltf.export import export_glb
+    glb = os.path.join(out, "scene.glb")
+    t0 = time.perf_counter()
+    summary = export_glb(bpy.context, glb)
+    seconds = time.perf_counter() - t0
+    lightmaps = {}
+    for name, tex in summary["textures"].items():
+        w, h = bpy.data.images[name].size
+        lightmaps[name] = dict(texels=w * h, png_bytes=tex["png_bytes"], range=tex["range"])
+    render(os.path.join(out, "blender.png"), width, height)
+    view = camera_view(width, height)
+    view.update(scene=kind, blender=bpy.app.version_string, export_seconds=seconds, glb_bytes=summary["size"],
+                lightmaps=lightmaps, bake_seconds=last["wall_seconds"])
+    with open(os.path.join(out, "view.json"), "w") as f:
+        json.dump(view, f, indent=1)
+    texels = sum(v["texels"] for v in lightmaps.values())
+    png = sum(v["png_bytes"] for v in lightmaps.values())
+    print("web_viewer_scene: %s exported in %.2f s, %d bytes; %d lightmaps, %d texels in %d PNG bytes "
+          "(%.2f MB per million texels)" % (glb, seconds, summary["size"], len(lightmaps), texels, png,
+                                            png / texels), flush=True)
+
+
+main()
