@@ -4,10 +4,12 @@ docs/make_web_screenshots.py: a scene baked with the add-on, exported with its l
 under the Standard view transform, the view the page must reproduce.
 
     scripts/blender.sh 5.2 -b --factory-startup --python-exit-code 1 \\
-        --python blend_tests/web_viewer_scene.py -- OUT_DIR [cornell|room] [WIDTH HEIGHT [PHOTONS]]
+        --python blend_tests/web_viewer_scene.py -- OUT_DIR [cornell|room|groups] [WIDTH HEIGHT [PHOTONS]]
 
 Scenes: `cornell`, the Cornell box (32 x 32 texels per object); `room`, the sunlit room of
-scenes.light_groups_room without its light groups (64 x 64). Their Diffuse BSDFs are swapped for
+scenes.light_groups_room without its light groups (64 x 64); `groups`, that room with its light
+groups (sun and sky "day", two lamps "night", 32 x 32), mixed as GROUPS_MIX says before the
+export and the render (the file carries the mix; the page mixes the layers as the preview does). Their Diffuse BSDFs are swapped for
 Principled BSDFs of the same colour (no specular, roughness 1), which Blender's glTF exporter
 writes as base colours. Writes into OUT_DIR:
 - scene.glb, the export;
@@ -72,10 +74,25 @@ def build(kind):
         while len(vl.lightgroups):
             vl.lightgroups.remove(vl.lightgroups[0])
         bake = dict(max_bounces=8, target_error=0.01, direct_samples=16)
+    elif kind == "groups":
+        scenes.light_groups_room(32, (0.45, 0.6, 1.0))
+        bake = dict(max_bounces=8, target_error=0.01, direct_samples=16)
     else:
-        raise SystemExit("web_viewer_scene: unknown scene '%s' (cornell or room)" % kind)
+        raise SystemExit("web_viewer_scene: unknown scene '%s' (cornell, room or groups)" % kind)
     principled_materials()
     return bake
+
+
+GROUPS_MIX = {"day": (1.0, (1.0, 1.0, 1.0)), "night": (0.4, (1.0, 0.7, 0.4))}  # strength, tint
+
+
+def set_mix():
+    """The Light Groups panel's strengths and tints as GROUPS_MIX says."""
+    groups = bpy.context.scene.photonlm.light_groups
+    for name, (strength, tint) in GROUPS_MIX.items():
+        groups[name].strength = strength
+        groups[name].tint = tint
+    bpy.context.view_layer.update()
 
 
 def camera_view(width, height):
@@ -140,6 +157,8 @@ def main():
     last = scenes.photonlm_bake(photons, seed=1, **bake)
     print("web_viewer_scene: baked %d objects in %.1f s" % (len(last["objects"]), last["wall_seconds"]), flush=True)
 
+    if kind == "groups":
+        set_mix()
     from photonlm_blender.gltf.export import export_glb
     glb = os.path.join(out, "scene.glb")
     t0 = time.perf_counter()

@@ -18,21 +18,23 @@ async function imageBytes(parser, index) {
   return new Uint8Array(await response.arrayBuffer());
 }
 
-/**
- * An RGBM lightmap as a linear half-float texture of rgb x m (the decoded value over `range`;
- * the material's lightMapIntensity, pi x range, makes it irradiance). Sampled as the file says
- * (linear, no mipmaps, clamped), on UV set `texCoord`.
- */
-export async function lightmapTexture(parser, info) {
-  const textureDef = parser.json.textures[info.texture];
-  const png = await decodePng(await imageBytes(parser, textureDef.source));
-  const { width, height, data } = png;
-  const half = new Uint16Array(width * height * 4);
+/** An RGBM texture's values over its range (rgb x m, 4 floats a texel, rows top first) and its size. */
+async function decodeRgbm(parser, textureIndex) {
+  const textureDef = parser.json.textures[textureIndex];
+  const { width, height, data } = await decodePng(await imageBytes(parser, textureDef.source));
+  const values = new Float32Array(width * height * 4);
   for (let i = 0; i < width * height; i++) {
     const m = data[4 * i + 3] / 255;
-    for (let c = 0; c < 3; c++) half[4 * i + c] = THREE.DataUtils.toHalfFloat((data[4 * i + c] / 255) * m);
-    half[4 * i + 3] = THREE.DataUtils.toHalfFloat(1);
+    for (let c = 0; c < 3; c++) values[4 * i + c] = (data[4 * i + c] / 255) * m;
+    values[4 * i + 3] = 1;
   }
+  return { width, height, values };
+}
+
+/** A half-float texture of `values` (4 floats a texel), sampled as the file says, on UV set `texCoord`. */
+function halfTexture(width, height, values, info) {
+  const half = new Uint16Array(values.length);
+  for (let i = 0; i < values.length; i++) half[i] = THREE.DataUtils.toHalfFloat(values[i]);
   // Rows top first, as the PNG: glTF's v = 0 is the image's top row, three.js's t = 0 the first row.
   const texture = new THREE.DataTexture(half, width, height, THREE.RGBAFormat, THREE.HalfFloatType);
   texture.colorSpace = THREE.NoColorSpace;
@@ -45,6 +47,78 @@ export async function lightmapTexture(parser, info) {
   texture.name = info.image || `lightmap ${info.texture}`;
   texture.needsUpdate = true;
   return texture;
+}
+
+/**
+ * An RGBM lightmap as a linear half-float texture of rgb x m (the decoded value over `range`;
+ * the material's lightMapIntensity, pi x range, makes it irradiance). Sampled as the file says
+ * (linear, no mipmaps, clamped), on UV set `texCoord`. With light groups (info.layers), the
+ * texture also carries its layers' values (texture.userData.layers) for the mixer (mixLayers).
+ */
+export async function lightmapTexture(parser, info) {
+  const { width, height, values } = await decodeRgbm(parser, info.texture);
+  const texture = halfTexture(width, height, values, info);
+  if (info.layers && info.layers.length) {
+    texture.userData.range = info.range;
+    texture.userData.layers = await Promise.all(info.layers.map(async (layer) => {
+      const decoded = await decodeRgbm(parser, layer.texture);
+      if (decoded.width !== width || decoded.height !== height) {
+        throw new Error(`light group ${layer.group}: its lightmap is ${decoded.width} x ${decoded.height}, ` +
+                        `the lightmap ${width} x ${height}`);
+      }
+      return { group: layer.group, scale: layer.range / info.range, values: decoded.values };
+    }));
+    texture.userData.whole = values;
+  }
+  return texture;
+}
+
+/**
+ * The light groups of the lightmaps of `textures` (lightmapTexture's): each one's strength and tint
+ * as the file had them (the first material that names it), in order of appearance.
+ */
+export function lightGroups(infos) {
+  const groups = new Map();
+  for (const info of infos) {
+    for (const layer of info.layers || []) {
+      if (!groups.has(layer.group)) {
+        groups.set(layer.group, { strength: layer.strength ?? 1, tint: (layer.tint || [1, 1, 1]).slice(0, 3) });
+      }
+    }
+  }
+  return groups;
+}
+
+/**
+ * Sets every lightmap with layers to sum over its layers of layer x strength x tint (`groups`:
+ * name -> {strength, tint}), as Blender's Light Groups preview does; with every strength 1 and
+ * every tint white, the lightmap as baked (the layers add up to it).
+ */
+export function mixLayers(textures, groups) {
+  const identity = [...groups.values()].every((g) => g.strength === 1 && g.tint.every((t) => t === 1));
+  for (const texture of textures) {
+    const { layers, whole } = texture.userData;
+    if (!layers) continue;
+    const half = texture.image.data;
+    if (identity) {
+      for (let i = 0; i < whole.length; i++) half[i] = THREE.DataUtils.toHalfFloat(whole[i]);
+    } else {
+      const n = whole.length / 4;
+      const sum = new Float32Array(3 * n);
+      for (const layer of layers) {
+        const g = groups.get(layer.group);
+        for (let c = 0; c < 3; c++) {
+          const k = layer.scale * g.strength * g.tint[c];
+          if (k === 0) continue;
+          for (let i = 0; i < n; i++) sum[3 * i + c] += k * layer.values[4 * i + c];
+        }
+      }
+      for (let i = 0; i < n; i++) {
+        for (let c = 0; c < 3; c++) half[4 * i + c] = THREE.DataUtils.toHalfFloat(sum[3 * i + c]);
+      }
+    }
+    texture.needsUpdate = true;
+  }
 }
 
 /**
@@ -66,7 +140,8 @@ function lambertWith(source, lightMap, info) {
 
 /**
  * Gives every material of `gltf` with photonlm's extras its decoded lightmap. Returns the number of
- * materials given one; each lightmap texture is decoded once.
+ * materials given one, the lightmap textures (each decoded once) and the light groups
+ * (lightGroups) of the file.
  */
 export async function applyLightmaps(gltf) {
   const textures = new Map();
@@ -87,5 +162,12 @@ export async function applyLightmaps(gltf) {
     }));
     mesh.material = Array.isArray(mesh.material) ? replaced : replaced[0];
   }
-  return materials.size;
+  const infos = [];
+  gltf.scene.traverse((object) => {
+    if (!object.isMesh) return;
+    for (const m of Array.isArray(object.material) ? object.material : [object.material]) {
+      if (m && m.userData[EXTRAS_KEY]) infos.push(m.userData[EXTRAS_KEY]);
+    }
+  });
+  return { count: materials.size, textures: await Promise.all(textures.values()), groups: lightGroups(infos) };
 }

@@ -7,11 +7,12 @@
 //   target=x,y,z        point looked at     } instead of the file's first camera or a view of the
 //   fov=DEGREES         vertical field of view (default 50)   whole scene
 //   exposure=STOPS      exposure, as Blender's Film exposure (default 0)
+//   mix=G:S,G:S         light groups' strengths (default: as the file was written; tints as written)
 //   ui=0                no panel (screenshots)
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/examples/jsm/loaders/GLTFLoader.js';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
-import { applyLightmaps } from './lightmaps.js';
+import { applyLightmaps, mixLayers } from './lightmaps.js';
 
 const params = new URLSearchParams(window.location.search);
 
@@ -92,13 +93,43 @@ function placeCamera(gltf) {
   controls.update();
 }
 
+/** A strength slider and a tint picker per light group (the file's Light Groups), if it has any. */
+function addMixer(groups, changed) {
+  for (const [name, group] of groups) {
+    const row = document.createElement('label');
+    row.textContent = name;
+    const strength = document.createElement('input');
+    Object.assign(strength, { type: 'range', min: '0', max: '2', step: '0.01', value: String(group.strength) });
+    strength.dataset.group = name;
+    const tint = document.createElement('input');
+    const hex = (v) => Math.round(Math.min(1, Math.max(0, v)) ** (1 / 2.2) * 255).toString(16).padStart(2, '0');
+    Object.assign(tint, { type: 'color', value: `#${group.tint.map(hex).join('')}` });
+    strength.addEventListener('input', () => { group.strength = Number(strength.value); changed(); });
+    tint.addEventListener('input', () => {
+      group.tint = [1, 3, 5].map((k) => (parseInt(tint.value.slice(k, k + 2), 16) / 255) ** 2.2);
+      changed();
+    });
+    row.append(strength, tint);
+    panel.append(row);
+  }
+}
+
 async function main() {
   const file = params.get('file');
   if (!file) throw new Error('no file: open this page with ?file=URL of a .glb');
   if (params.get('ui') === '0') panel.hidden = true;
   status.textContent = `loading ${file}`;
   const gltf = await new GLTFLoader().loadAsync(file);
-  const count = await applyLightmaps(gltf);
+  const { count, textures, groups } = await applyLightmaps(gltf);
+  for (const item of (params.get('mix') || '').split(',').filter(Boolean)) {
+    const [name, value] = item.split(':');
+    if (!groups.has(name)) throw new Error(`mix: no light group ${name} in the file (it has: ${[...groups.keys()]})`);
+    const strength = Number(value);
+    if (!Number.isFinite(strength) || strength < 0) throw new Error(`mix: ${item}: expected GROUP:STRENGTH >= 0`);
+    groups.get(name).strength = strength;
+  }
+  mixLayers(textures, groups);
+  addMixer(groups, () => { mixLayers(textures, groups); render(); });
   scene.add(gltf.scene);
   placeCamera(gltf);
   slider.addEventListener('input', () => setExposure(Number(slider.value)));

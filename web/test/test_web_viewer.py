@@ -157,7 +157,18 @@ def main():
         if not ok:
             failed.append(text)
 
-    view = bake_and_render(out)
+    compare_scene(out, bake_and_render(out), check)
+    # The room with light groups, mixed before the export: the page mixes the layers as the preview does.
+    groups_out = os.path.join(base, "web_viewer_groups")
+    os.makedirs(groups_out, exist_ok=True)
+    compare_scene(groups_out, bake_and_render(groups_out, scene="groups"), check, "light groups mixed: ")
+    print("web_viewer: %d checks, %d failed (images in %s)" % (checks[0], len(failed), out))
+    if failed:
+        raise SystemExit("web_viewer FAILED: " + "; ".join(failed))
+
+
+def compare_scene(out, view, check, what=""):
+    """The page's screenshot of out/scene.glb against Blender's render out/blender.png."""
     texels = sum(v["texels"] for v in view["lightmaps"].values())
     png_bytes = sum(v["png_bytes"] for v in view["lightmaps"].values())
     print("web viewer: export %.2f s, %d bytes; lightmap PNGs %d bytes for %d texels (%.0f bytes per texel)"
@@ -165,23 +176,20 @@ def main():
     blender_png, browser_png = os.path.join(out, "blender.png"), os.path.join(out, "browser.png")
     t0 = time.perf_counter()
     first_frame, console = screenshot(out, view, browser_png)
-    check(first_frame is not None, "the page drew scene.glb in Chromium: first frame %.0f ms after navigation "
+    check(first_frame is not None, what + "the page drew scene.glb in Chromium: first frame %.0f ms after navigation "
           "(%.1f s with Chromium's start)" % (first_frame or -1, time.perf_counter() - t0))
-    check(not console, "the page's console has no warnings or errors (%s)" % ("; ".join(console) or "none"))
+    check(not console, what + "the page's console has no warnings or errors (%s)" % ("; ".join(console) or "none"))
     result = compare(browser_png, blender_png)
     check(result["pixels"] > 0.5 * view["width"] * view["height"],
-          "%d lit pixels compared (of %d)" % (result["pixels"], view["width"] * view["height"]))
+          what + "%d lit pixels compared (of %d)" % (result["pixels"], view["width"] * view["height"]))
     check(result["mean_difference"] <= MAX_MEAN_DIFFERENCE,
-          "mean relative difference browser vs Blender on the lit pixels: %.2f %% (bound %.0f %%)"
+          what + "mean relative difference browser vs Blender on the lit pixels: %.2f %% (bound %.0f %%)"
           % (100 * result["mean_difference"], 100 * MAX_MEAN_DIFFERENCE))
-    check(abs(result["bias"]) <= MAX_BIAS, "mean brightness browser / Blender - 1: %+.2f %% (bound %.0f %%)"
+    check(abs(result["bias"]) <= MAX_BIAS, what + "mean brightness browser / Blender - 1: %+.2f %% (bound %.0f %%)"
           % (100 * result["bias"], 100 * MAX_BIAS))
     side_by_side(blender_png, browser_png, os.path.join(out, "side_by_side.png"))
     Image.fromarray((np.clip(result["per_pixel"] * 10.0, 0, 1) * 255).astype(np.uint8)).save(
         os.path.join(out, "difference.png"))
-    print("web_viewer: %d checks, %d failed (images in %s)" % (checks[0], len(failed), out))
-    if failed:
-        raise SystemExit("web_viewer FAILED: " + "; ".join(failed))
 
 
 if __name__ == "__main__":
