@@ -54,12 +54,13 @@ MODULE_NAMES = (
     "writeback.record", "writeback.images", "writeback.closures", "writeback.lightgroups", "writeback.wiring",
     "writeback.atlas",
     "writeback.lsystem", "writeback.apply",
-    "gltf.rgbm", "gltf.export",
+    "gltf.rgbm", "gltf.export", "gltf.rewire",
     "bake.job", "bake.folder", "bake.scene_file",
     "preview.live",
     "properties.object", "properties.scene",
     "operators.bake", "operators.lsystem", "operators.export_scene_file", "operators.import_folder",
     "operators.export_gltf",
+    "operators.import_gltf",
     "ui.panel",
 )
 # What runs without NumPy: a panel saying what is missing and how to get it.
