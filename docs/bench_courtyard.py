@@ -4,7 +4,7 @@ the add-on in headless Blender, with the time of every stage and the peak memory
     PHOTONLM_LIBRARY=$PWD/build/lib/libphotonlm.so PHOTONLM_SOURCE_DIR=$PWD \
         blender -b --factory-startup --python docs/bench_courtyard.py -- --out /tmp/bench_courtyard \
         [--objects 128] [--target 0.05] [--level 2] [--blender-subdiv] [--photons N] [--time-budget S]
-        [--bakes 2] [--scene-file] [--profile] [--export-only]
+        [--bakes 2] [--scene-file] [--profile] [--export-only] [--gltf]
 
 Scene: a ground and four walls (boxes) around N Suzanne monkeys on the ground, each with a Subdivision
 Surface modifier (render level --level, 2 by default: about 15,700 triangles a monkey) and smooth
@@ -164,6 +164,8 @@ def main():
     ap.add_argument("--bakes", type=int, default=2, help="bakes in a row (the first makes the UV maps)")
     ap.add_argument("--profile", action="store_true", help="cProfile each bake into DIR/profile_<k>.txt")
     ap.add_argument("--export-only", action="store_true", help="export only, no engine bake (export stages)")
+    ap.add_argument("--gltf", action="store_true",
+                    help="after the bakes, File > Export > glTF with PhotonLM lightmaps: DIR/courtyard.glb, its time and size")
     ap.add_argument("--scene-file", action="store_true",
                     help="also write the scene as a scene file, DIR/scene/courtyard.json (for `photonlm bake`)")
     args = ap.parse_args(argv)
@@ -180,13 +182,33 @@ def main():
     results = []
     for k in range(args.bakes):
         results.append(export_once(args, k) if args.export_only else bake_once(args, k))
+    gltf = gltf_export(args) if args.gltf else None
     if args.scene_file:
         from photonlm_blender.bake import scene_file as scene_file_export
         path, _ = scene_file_export.export_scene_file(bpy.context, os.path.join(args.out, "scene", "courtyard.json"))
         print("scene file:", path)
     with open(os.path.join(args.out, "courtyard.json"), "w") as f:
         json.dump(dict(monkeys=args.objects, level=args.level, native_subdivision=not args.blender_subdiv,
-                       blender_triangles=blender_triangles, seconds_build=seconds_build, bakes=results), f, indent=1)
+                       blender_triangles=blender_triangles, seconds_build=seconds_build, bakes=results, gltf=gltf),
+                  f, indent=1)
+
+
+def gltf_export(args):
+    """The .glb of the baked courtyard (the glTF exporter finds the add-on's hook among enabled add-ons)."""
+    import addon_utils
+    addon_utils.enable("io_scene_gltf2", default_set=True)
+    addon_utils.enable("photonlm_blender", default_set=True)
+    from photonlm_blender.gltf.export import export_glb
+    path = os.path.join(args.out, "courtyard.glb")
+    t0 = time.perf_counter()
+    summary = export_glb(bpy.context, path)
+    seconds = time.perf_counter() - t0
+    texels = sum(bpy.data.images[name].size[0] * bpy.data.images[name].size[1] for name in summary["textures"])
+    png = sum(t["png_bytes"] for t in summary["textures"].values())
+    out = dict(seconds=seconds, bytes=summary["size"], objects=len(summary["objects"]), texels=texels, png_bytes=png)
+    print("glTF: %d objects in %.1f s, %.1f MB (lightmap PNGs %.2f MB per million texels)"
+          % (out["objects"], seconds, summary["size"] / 1e6, png / texels))
+    return out
 
 
 def export_once(args, k):
