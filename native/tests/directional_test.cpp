@@ -183,6 +183,38 @@ TEST(Directional, TheLightmapIsThePlainBakesBitForBit) {
   EXPECT_GT(toward_sun / v_sum, 0.3);
 }
 
+// With glass in the scene its caustic photons have sums of their own, and
+// the moments' slots hold them with the ordinary hits: a glass box on the
+// floor under the sun, the floor's light still points at the sun, and L0 is
+// the lightmap wherever the caustics fall.
+TEST(Directional, CausticPhotonsKeepTheirDirection) {
+  plm_demo::SceneBuilder b;
+  floor_scene(b, true, 0.4, false);
+  const uint32_t glass = b.material("glass", {0.0f, 0.0f, 0.0f});
+  plm_lobe lobe;
+  plm_lobe_default(&lobe, PLM_LOBE_GLASS);
+  ASSERT_EQ(plm_scene_add_material_lobe(b.scene, glass, &lobe), PLM_OK) << plm_last_error();
+  b.box("block", {0.5f, 0.5f, 0.6f}, {0.6f, 0.6f, 0.6f}, 0.0f, glass, 0);
+  BakeResult r;
+  plm_test::bake(b, directional_settings(200000, 16), r);
+  const Sh sh = sh_of(r, 0);
+  const plm_test::Map map = r.map(0);
+  const double sun[3] = {0.0, -std::sin(0.4), std::cos(0.4)};
+  double light[3] = {0, 0, 0};
+  for (size_t t = 0; t < size_t(sh.w) * sh.h; ++t) {
+    if (!(map.coverage[t] > 0.0f)) continue;
+    for (int c = 0; c < 3; ++c) {
+      const double v = sh.value(t, c);
+      EXPECT_NEAR(v, map.rgb[3 * t + c], 1e-5 * v + 1e-9);
+      double d[3];
+      sh.moment(t, c, d);
+      for (int a = 0; a < 3; ++a) ASSERT_TRUE(std::isfinite(d[a]));
+      light[0] += d[0], light[1] += d[1], light[2] += d[2] + 0.5 * v;
+    }
+  }
+  EXPECT_LT(angle_deg(light, sun), 3.0);
+}
+
 TEST(Directional, BadRequestsAreRefusedNamingWhatIsWrong) {
   plm_demo::SceneBuilder b;
   floor_scene(b, true, 0.5, false);

@@ -54,12 +54,15 @@ double mean3(const double* v) { return (v[0] + v[1] + v[2]) / 3.0; }
 struct Parts {
   std::vector<double> pooled;  // 3 per layer per texel
   std::vector<double> whole_value, whole_mse;
+  std::vector<double> caustic_value;  // the caustic photons' pooled flux (3 per texel; empty without)
   std::vector<double> photon_weight;  // per texel; empty without a gather
   std::vector<double> photon_fallback, direct_fallback, gather_fallback;
 };
 
-// Of slots [first, first + layers) of the split (transport/context/split.h).
-Parts mesh_parts(const Estimator& est, size_t i, uint64_t photons, uint32_t first, uint32_t layers) {
+// Of slots [first, first + layers) of the split (transport/context/split.h);
+// with `caustics`, also the caustic photons pooled alike (Parts::caustic_value).
+Parts mesh_parts(const Estimator& est, size_t i, uint64_t photons, uint32_t first, uint32_t layers,
+                 bool caustics = false) {
   const uint32_t slots = est.acc.slots;
   const TexelAreas& ta = est.space.areas[i];
   const Mesh& mesh = *est.space.views[i].mesh;
@@ -77,6 +80,11 @@ Parts mesh_parts(const Estimator& est, size_t i, uint64_t photons, uint32_t firs
     const PhotonSums whole{&est.acc.sum[3 * g0], &est.acc.sum_sq[g0], &est.acc.hits[g0]};
     params.fixed_radius = int32_t(reconstruct_indirect(ta, mesh.lightmap_width, mesh.lightmap_height, whole, params,
                                                        p.whole_value, p.whole_mse));
+    if (caustics && !est.acc.caustic.empty()) {
+      const Accumulators::CausticSums& cs = est.acc.caustic;
+      const PhotonSums caustic{&cs.sum[3 * g0], &cs.sum_sq[g0], &cs.hits[g0]};
+      reconstruct_indirect(ta, mesh.lightmap_width, mesh.lightmap_height, caustic, params, p.caustic_value, mse);
+    }
     for (uint32_t l = 0; l < layers; ++l) {
       const PhotonSums part{est.acc.slot_flux(first + l, g0), &est.acc.sum_sq[g0], &est.acc.hits[g0]};
       reconstruct_indirect(ta, mesh.lightmap_width, mesh.lightmap_height, part, params, value3, mse);
@@ -199,7 +207,7 @@ void direction_texels(const Estimator& est, size_t i, uint64_t photons, const st
   const size_t n = ta.area.size();
   axes.assign(3, std::vector<float>(4 * n, 0.0f));
   if (!split.directional) return;
-  const Parts parts = mesh_parts(est, i, photons, first, 3);
+  const Parts parts = mesh_parts(est, i, photons, first, 3, true);  // the slots hold caustic hits too
   const DirectResult* dr = est.direct_result;
   const bool direct = !est.direct.empty() && dr && !dr->split_rgb.empty();
   const GatherResult* gr = est.gather && est.gather->slots == slots && !est.gather->split_rgb.empty() &&
@@ -227,7 +235,9 @@ void direction_texels(const Estimator& est, size_t i, uint64_t photons, const st
       float* out = &axes[a][4 * t];
       for (int c = 0; c < 3; ++c) {
         const double sd = direct ? ratio(dr->split_rgb[3 * (k * slots + first + a) + c], dr->sums[k].rgb[c]) : 0.0;
-        const double pa = parts.whole_value.empty() ? 0.0 : parts.whole_value[3 * t + c];
+        // The photons' flux pooled as the moments' are: ordinary and caustic hits alike.
+        const double pa = (parts.whole_value.empty() ? 0.0 : parts.whole_value[3 * t + c]) +
+                          (parts.caustic_value.empty() ? 0.0 : parts.caustic_value[3 * t + c]);
         double si = ratio(parts.pooled.empty() ? 0.0 : parts.pooled[3 * (3 * t + a) + c], pa);
         if (gs) {
           const double sg = ratio(gr->split_rgb[3 * (k * slots + first + a) + c], gs->rgb[c]);
