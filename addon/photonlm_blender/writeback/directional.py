@@ -46,15 +46,6 @@ def band_image_name(base, band):
     return "%s_sh%d" % (base, band)
 
 
-def value(lightmap, bands, normal):
-    """value(n) of the module text for a lightmap V (..., 3), its L1 bands [(..., 3) x 3] in the order
-    of BANDS and unit world normals (..., 3), unclamped (numpy; for scripts and tests)."""
-    import numpy as np
-    n = np.asarray(normal, np.float32)
-    d = SH_L1 * (bands[2] * n[..., 0:1] + bands[0] * n[..., 1:2] + bands[1] * n[..., 2:3])
-    return 0.5 * np.asarray(lightmap, np.float32) + d
-
-
 def shading_normal(surface):
     """The socket whose normal the material's diffuse part is shaded with: what feeds the Normal
     input of the first Principled or Diffuse BSDF found from `surface` (the Material Output's
