@@ -28,9 +28,13 @@ the preview, the refusals.
     with Directional off (measured: 0.17 against 0.000 in all three Blenders: the plain lightmap of
     a flat wall under a sun and a uniform sky is uniform), after which the wall's material holds
     no directional nodes (exactly as before).
+    A bake without Directional then removes the wall's band files and images.
 (d) Directional with a light group is refused before the bake with a message naming both, and so
     is the scene-file export; an atlas bake gives its page three band pages that the preview reads.
-About half a minute.
+(e) Bake Selected gives the wall's bands as the whole bake does (bit for bit, the same seed); the
+    scene-file export says "directional": true, and its bake by the CLI, imported as a bake folder,
+    brings the same bands (to float rounding).
+About a minute.
 """
 import math
 import os
@@ -200,6 +204,8 @@ def preview(wall, mat, checks):
         l.from_node == nmap and l.to_socket == group.inputs["Normal"] for l in nt.links)
     checks.check(fed, "the wall's preview evaluates '%s' fed by the Normal Map node" % directional.GROUP)
     lum_on, alpha = render_wall("wall_directional")
+    from photonlm_blender.writeback import record
+    band_files = [b["path"] for b in record.last()["objects"][wall.name]["sh"]]
     scenes.photonlm_bake(1_000_000, 4, seed=1, target_error=0.0, directional=False, direct_samples=WALL_SAMPLES)
     lum_off, _ = render_wall("wall_plain")
     inside = alpha > 0.99
@@ -212,7 +218,54 @@ def preview(wall, mat, checks):
     ours = [n.get("photonlm") for n in nt.nodes if n.get("photonlm") in ("directional", "sh_1", "sh_2", "sh_3",
                                                                            "sh_geometry")]
     checks.check(not ours, "a bake without Directional leaves no directional nodes (%s)" % ours)
+    stale = [f for f in band_files if os.path.isfile(f)] + [
+        n for n in ("wall_lightmap_sh%d" % b for b in (1, 2, 3)) if bpy.data.images.get(n) is not None]
+    checks.check(not stale, "a bake without Directional removes the earlier bands' files and images (%s)" % stale)
     scene.photonlm.preview_mode = 'OFF'
+
+
+def paths_in_and_out(wall, checks):
+    """(e) Bake Selected, and the scene-file export baked by the CLI and imported as a bake folder, bring
+    the bands as the bake in Blender does."""
+    import json
+    import subprocess
+    from photonlm_blender.bake import folder, scene_file
+    scene = bpy.context.scene
+    settings = dict(directional=True, direct_samples=WALL_SAMPLES)
+    whole = scenes.photonlm_bake(1_000_000, 4, seed=1, target_error=0.0, **settings)
+    _, ref = bands(whole, wall.name)
+    vl = bpy.context.view_layer
+    for o in vl.objects:
+        o.select_set(o == wall)
+    vl.objects.active = wall
+    t0 = time.perf_counter()
+    res = bpy.ops.photonlm.bake(selected_only=True)
+    from photonlm_blender.writeback import record
+    last = record.last()
+    ok = res == {'FINISHED'} and bool(last["objects"].get(wall.name, {}).get("sh"))
+    if ok:
+        _, again = bands(last, wall.name)
+        ok = all(np.array_equal(a, b) for a, b in zip(ref, again))
+    checks.check(ok, "Bake Selected writes the wall's bands, the same as the whole bake's (%.1f s)"
+                 % (time.perf_counter() - t0))
+    for o in vl.objects:
+        o.select_set(False)
+    path = os.path.join(scenes.out_dir("directional"), "scene.json")
+    path, _ = scene_file.export_scene_file(bpy.context, path)
+    doc = json.load(open(path))
+    checks.check(doc.get("settings", {}).get("directional") is True, "the scene file says \"directional\": true")
+    out = os.path.join(scenes.out_dir("directional"), "cli_bake")
+    r = subprocess.run([scenes.cli_path(), "bake", path, "-o", out], capture_output=True, text=True, timeout=600)
+    if not checks.check(r.returncode == 0, "the CLI bakes the scene file (%s)" % r.stderr.strip()[-300:]):
+        return
+    last, _ = folder.import_folder(bpy.context, out)
+    o = last["objects"].get(wall.name, {})
+    ok = [b.get("image") for b in o.get("sh", [])] == ["wall_lightmap_sh%d" % b for b in (1, 2, 3)]
+    if ok:
+        _, imported = bands(last, wall.name)
+        ok = all(np.allclose(a, b, rtol=1e-5, atol=1e-6) for a, b in zip(ref, imported))
+    checks.check(ok, "an imported CLI bake brings the wall's bands, the same as the bake in Blender's")
+    scene.photonlm.directional = False
 
 
 def refusals_and_atlas(wall, checks):
@@ -262,6 +315,7 @@ def main():
     floor_under_a_sun(checks)
     wall, mat = brick_wall_vs_cycles(checks)
     preview(wall, mat, checks)
+    paths_in_and_out(wall, checks)
     refusals_and_atlas(wall, checks)
     print("directional: %.1f s" % (time.perf_counter() - t_start))
     checks.finish()

@@ -146,6 +146,10 @@ def apply(context, manifest, result, reports, stage_seconds, figures=None, outpu
         _wire(context, manifest, reports, lightmap_images, error_images, target, uv_maps, layer_images, mix,
               sh_images)
         atlas.remove_stale(stale)
+        if not with_sh:  # an earlier directional bake's bands no longer match these lightmaps
+            directional.remove_stale_bands([o["path"] for o in per_object.values() if o.get("path")],
+                                           [n + "_lightmap" for n in per_object] + list(
+                                               {o["image"] for o in per_object.values() if o.get("image")}))
         for name, lid in manifest.lsystems:
             obj = bpy.data.objects.get(name)
             if obj is not None:

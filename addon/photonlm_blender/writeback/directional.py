@@ -16,8 +16,11 @@ The write-back keeps L0 as the lightmap itself and writes the three L1 bands bes
 `photonlm bake` gives them), loaded as float images <object>_lightmap_sh1 .. _sh3. The preview
 evaluates value(n) with the material's shading normal (the normal that feeds its BSDF's Normal
 input: a Normal Map or Bump node, else the geometry's) in one shared node group, GROUP
-("PhotonLM Directional"), clamped at 0.
+("PhotonLM Directional"), clamped at 0. A bake without directions removes the bands an earlier
+directional bake left beside its lightmaps (remove_stale_bands).
 """
+import os
+
 import bpy
 
 from .. import compat
@@ -44,6 +47,22 @@ def band_file(path, band):
 def band_image_name(base, band):
     """The image of SH band `band` of the lightmap image `base` (<object>_lightmap, a page's)."""
     return "%s_sh%d" % (base, band)
+
+
+def remove_stale_bands(lightmap_files, lightmap_images):
+    """After a bake without directions: remove the L1 band files beside `lightmap_files` and the
+    band images of `lightmap_images` (names) that no material uses any more, left by an earlier
+    directional bake (they would not match the new lightmaps)."""
+    for path in lightmap_files:
+        for band in BANDS:
+            f = band_file(path, band)
+            if os.path.isfile(f):
+                os.remove(f)
+    for base in lightmap_images:
+        for band in BANDS:
+            image = bpy.data.images.get(band_image_name(base, band))
+            if image is not None and image.users == 0:
+                bpy.data.images.remove(image)
 
 
 def shading_normal(surface):
