@@ -82,8 +82,8 @@ def check_files(last, name, checks):
     o = last["objects"][name]
     sh = o.get("sh") or []
     ok = [b["band"] for b in sh] == [1, 2, 3] and all(
-        b["image"] == "%s_lightmap_sh%d" % (name, b["band"]) and b["path"] == directional.band_file(o["path"], b["band"])
-        and os.path.isfile(b["path"]) and bpy.data.images.get(b["image"]) is not None for b in sh)
+        b["image"] == "%s_lightmap_sh%d" % (name, b["band"])
+        and b["path"] == directional.band_file(o["path"], b["band"]) and os.path.isfile(b["path"]) and bpy.data.images.get(b["image"]) is not None for b in sh)
     checks.check(ok, "%s: images %s_lightmap_sh1 .. _sh3 and their files beside the lightmap" % (name, name))
     return ok
 

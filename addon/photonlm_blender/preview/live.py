@@ -13,9 +13,10 @@ copy into an in-memory float image per object ("PhotonLM live <object>", tagged
 image[wiring.TAG] = LIVE_TAG) and, the first time, points each baked material's preview
 at it: a material wired by an earlier bake gets the live image on its lightmap Image Texture
 node, one without wiring gets the preview nodes (wiring.wire_material, no heat map), and
-both show the Lightmaps output (a material wired with light groups or directional lightmaps reads the
-live image instead of its layers or SH bands until the bake ends). What each material was (its lightmap image, whether it was
-wired, which outputs were active, the remembered original output) is kept first.
+both show the Lightmaps output (a material wired with light groups or directional lightmaps
+reads the live image instead of its layers or SH bands until the bake ends). What each material
+was (its lightmap image, whether it was wired, which outputs were active, the remembered
+original output) is kept first.
 
 end(success=False) (cancel, error) puts every material back as it was and removes the live
 images: nothing of the bake is left. end(success=True) comes after BakeJob.finish() has wired
