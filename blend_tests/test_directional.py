@@ -30,7 +30,8 @@ the preview, the refusals.
     no directional nodes (exactly as before).
     A bake without Directional then removes the wall's band files and images.
 (d) Directional with a light group is refused before the bake with a message naming both, and so
-    is the scene-file export; an atlas bake gives its page three band pages that the preview reads.
+    is the scene-file export; an atlas bake gives its page three band pages that the preview reads,
+    and Bake Selected writes them again.
 (e) Bake Selected gives the wall's bands as the whole bake does (bit for bit, the same seed); the
     scene-file export says "directional": true, and its bake by the CLI, imported as a bake folder,
     brings the same bands (to float rounding).
@@ -304,6 +305,17 @@ def refusals_and_atlas(wall, checks):
     nonzero = ok and max(float(np.abs(pixels(im)).max()) for im in images) > 0.0
     checks.check(ok and nonzero and wired == {im.name for im in images},
                  "atlas: page %s has band pages _sh1 .. _sh3 that the wall's preview reads" % page)
+    before = [pixels(im) for im in images] if ok else []
+    vl = bpy.context.view_layer
+    for o in vl.objects:
+        o.select_set(o == wall)
+    res = bpy.ops.photonlm.bake(selected_only=True)
+    for o in vl.objects:
+        o.select_set(False)
+    after = [bpy.data.images.get("%s_sh%d" % (page, b)) for b in (1, 2, 3)]
+    same = res == {'FINISHED'} and bool(before) and all(im is not None for im in after) and all(
+        np.array_equal(a, pixels(b)) for a, b in zip(before, after))
+    checks.check(same, "atlas: Bake Selected writes the wall's bands into its page again (the same seed: the same)")
     scene.photonlm.lightmap_layout = 'OBJECT'
     scene.photonlm.directional = False
 
