@@ -790,3 +790,73 @@ def light_groups_room(res, sky):
     sun.lightgroup = scene.world.lightgroup = "day"
     lamp.lightgroup = panel.lightgroup = "night"
     return scene, sun, lamp, panel
+
+
+# ---- a brick wall with a normal map (directional lightmaps) -----------------------------------------------
+
+BRICK_CELL = (12, 6)  # pixels per brick cell of brick_normals (mortar included)
+BRICK_WALL_FRAME = np.array([(1.0, 0.0, 0.0), (0.0, 0.0, 1.0), (0.0, -1.0, 0.0)])  # rows: T, B, N of brick_wall
+
+
+def brick_normals(res, cell=BRICK_CELL, bevel=0.5, tilt=0.15, seed=7):
+    """A tangent-space normal map (res, res, 3), row 0 = bottom: bricks of cell[0] x cell[1] texels
+    (their first column and row: mortar, normal (0, 0, 1)), alternate rows shifted by half a brick;
+    each brick's edge texels bevelled outwards (slope `bevel`), its inner texels tilted by a random
+    slope up to `tilt` per brick."""
+    rng = np.random.default_rng(seed)
+    n = np.zeros((res, res, 3))
+    n[..., 2] = 1.0
+    cw, ch = cell
+    tilts = rng.uniform(-tilt, tilt, size=(res // ch + 2, res // cw + 3, 2))
+    for i in range(res):
+        row = i // ch
+        y = i % ch
+        for j in range(res):
+            shifted = j + (cw // 2 if row % 2 else 0)
+            col = shifted // cw
+            x = shifted % cw
+            if x == 0 or y == 0:
+                continue  # mortar
+            sx = -bevel if x == 1 else bevel if x == cw - 1 else tilts[row, col, 0]
+            sy = -bevel if y == 1 else bevel if y == ch - 1 else tilts[row, col, 1]
+            n[i, j] = (sx, sy, 1.0)
+    return (n / np.linalg.norm(n, axis=-1, keepdims=True)).astype(np.float32)
+
+
+def normal_map_image(name, normals):
+    """A float Non-Color image of tangent-space normals (0.5 n + 0.5)."""
+    h, w, _ = normals.shape
+    image = bpy.data.images.new(name, w, h, alpha=False, float_buffer=True)
+    image.colorspace_settings.name = 'Non-Color'
+    px = np.ones((h, w, 4), np.float32)
+    px[..., :3] = 0.5 * normals + 0.5
+    image.pixels.foreach_set(px.ravel())
+    image.pack()
+    return image
+
+
+def brick_material(name, image, color=(0.6, 0.3, 0.2)):
+    """A Principled BSDF (no specular) whose Normal comes from `image` through a Normal Map node
+    (tangent space, UV map 'UVMap'), the map read with Closest interpolation."""
+    mat = diffuse_material(name, color, principled=True)
+    nt = mat.node_tree
+    bsdf = nt.nodes["Principled BSDF"]
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    tex.interpolation = 'Closest'
+    uv = nt.nodes.new("ShaderNodeUVMap")
+    uv.uv_map = "UVMap"
+    nmap = nt.nodes.new("ShaderNodeNormalMap")
+    nmap.space = 'TANGENT'
+    nmap.uv_map = "UVMap"
+    nt.links.new(uv.outputs["UV"], tex.inputs["Vector"])
+    nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
+    nt.links.new(nmap.outputs["Normal"], bsdf.inputs["Normal"])
+    tex.location, uv.location, nmap.location = (-900, -300), (-1100, -300), (-550, -300)
+    return mat
+
+
+def brick_wall(res, mat):
+    """A 2 x 2 m wall in the xz plane facing -y, UVs (both maps) 0..1 along x and z: its tangent
+    frame is BRICK_WALL_FRAME."""
+    return quads_object("wall", [((-1, 0, 0), (1, 0, 0), (1, 0, 2), (-1, 0, 2), (0, 0, 1, 1))], mat, res)

@@ -16,7 +16,9 @@ Objects in the report that the .blend lacks (a report of another scene, a rename
 skipped with a warning each; a folder without report.json, a report that is no bake report, a
 missing, unreadable or mis-sized EXR and a folder of shard part files (not yet merged) are
 refused with a message naming what is wrong, and nothing changes. A bake with light groups
-(report.json's light_groups, each mesh's layers) brings its layers too, as a bake in Blender does.
+(report.json's light_groups, each mesh's layers) brings its layers too, as a bake in Blender does,
+and a directional bake (report.json's settings.directional, each mesh's "sh": its four SH band
+files) its bands.
 """
 import glob
 import json
@@ -109,13 +111,15 @@ class FolderResult:
     and warnings of its report, the lightmaps of its EXRs, the texel counts of its report; "writing"
     an EXR copies the folder's file."""
 
-    def __init__(self, stats, warnings, lightmaps, ols, texel_counts, layers=(), layer_files=None):
+    def __init__(self, stats, warnings, lightmaps, ols, texel_counts, layers=(), layer_files=None, sh_files=None):
         self.stats = stats
         self.warnings = warnings
         self._lightmaps = lightmaps  # mesh id -> (EXR path, photonlm.Lightmap)
         self.layers = list(layers)   # the light groups' layer names (report.json's light_groups)
         self._layer_files = layer_files or {}  # mesh id -> [EXR path per layer]
         self._ols = ols              # group id -> (EXR path, {"resolution", "hits"})
+        self._sh_files = sh_files or {}  # mesh id -> [EXR path per SH band 0..3] (directional bakes)
+        self.directional = bool(self._sh_files)
         # mesh id -> (texels, texels above twice the target) from the report (the engine's counts);
         # for a report without them the write-back counts the texels with photon hits (a covered
         # texel no photon reached then counts as outside).
@@ -133,6 +137,13 @@ class FolderResult:
 
     def write_layer_exr(self, mesh_id, layer, path):
         _copy(self._layer_files[mesh_id][layer], path)
+
+    def lightmap_sh(self, mesh_id):
+        """The SH bands as photonlm.Result.lightmap_sh gives them: (4, h, w, 3)."""
+        return np.stack([bridge.get().read_lightmap_exr(f).rgb for f in self._sh_files[mesh_id]])
+
+    def write_sh_exr(self, mesh_id, band, path):
+        _copy(self._sh_files[mesh_id][band], path)
 
     def write_ol_exr(self, group_id, path):
         _copy(self._ols[group_id][0], path)
@@ -201,6 +212,8 @@ class BakeFolder:
         counts = {}  # mesh id -> (texels, texels above twice the target) from the report
         layers = _layer_names(report, report_path)
         layer_files = {}  # mesh id -> [EXR path per layer]
+        directional = settings.get("directional") is True
+        sh_files = {}  # mesh id -> [EXR path per SH band] (directional bakes)
         for i, entry in enumerate(report["meshes"]):
             name = _string(entry.get("name")) if isinstance(entry, dict) else None
             file = _string(entry.get("file")) if isinstance(entry, dict) else None
@@ -228,6 +241,8 @@ class BakeFolder:
             lm = self._read_exr(name, path, tuple(size))
             lightmaps[i] = (path, self.photonlm.Lightmap(lm.rgb, lm.error, lm.hits, coverage_mask(lm.hits)))
             layer_files[i] = self._layer_files(name, entry, layers, report_path, tuple(size))
+            if directional:
+                sh_files[i] = self._sh_files(name, entry, report_path, tuple(size))
             pair = (entry.get("texels"), entry.get("texels_above_twice_target"))
             if all(isinstance(c, int) and not isinstance(c, bool) for c in pair):
                 counts[i] = pair
@@ -252,7 +267,7 @@ class BakeFolder:
                 atlas.check(context.scene, self.manifest.baked, False)
             except atlas.AtlasError as e:
                 raise FolderError(str(e)) from None
-        self.result = FolderResult(stats, warnings, lightmaps, ols, counts, layers, layer_files)
+        self.result = FolderResult(stats, warnings, lightmaps, ols, counts, layers, layer_files, sh_files)
         self.seconds_read = time.perf_counter() - t0
 
     def _read_exr(self, what, path, size):
@@ -286,6 +301,19 @@ class BakeFolder:
             path = os.path.join(self.folder, given[layer])
             self._read_exr("%s' layer '%s" % (name, layer), path, size)
             paths.append(path)
+        return paths
+
+    def _sh_files(self, name, entry, report_path, size):
+        """The EXRs of a mesh entry's four SH bands (its "sh"), checked as the lightmap is; FolderError
+        where the entry lacks them."""
+        files = entry.get("sh")
+        if not isinstance(files, list) or len(files) != 4 or not all(
+                isinstance(f, str) and os.path.basename(f) == f for f in files):
+            raise FolderError("%s: the bake is directional, but the lightmap of '%s' has no list of its four SH "
+                              "band files ('sh')" % (report_path, name))
+        paths = [os.path.join(self.folder, f) for f in files]
+        for band, path in enumerate(paths):
+            self._read_exr("%s' SH band '%d" % (name, band), path, size)
         return paths
 
     def _ol_group(self, i, entry, report_path, view_layer):

@@ -10,7 +10,10 @@ earlier lightmap images and files as they were (what it did to lightmap UV maps 
 
 Before anything changes, the job refuses a scene that nothing lights (no visible light with
 power, no emissive material, a black world); the engine refuses it too, and refuses a bake
-that would not fit in the memory free (both come back as .error, the scene unchanged).
+that would not fit in the memory free (both come back as .error, the scene unchanged). A
+directional bake (scene.photonlm.directional) of a scene with light groups, orientation lightmaps,
+CSG solids or L-system objects is refused after the export (export/scene.py's
+directional_conflict), as the engine would refuse it.
 
 finish() returns the last bake's record (writeback/record.py's last(): the statistics, and per
 object the mesh id, image names, EXR paths, the coverage mask and its share of noisy texels).
@@ -75,6 +78,10 @@ class BakeJob:
         if not self.manifest.baked and not self.manifest.lsystems:
             self.abort(context)
             raise BakeError("nothing to bake: every object was skipped (see the reports)")
+        refused = export.directional_conflict(self.manifest, self.settings.get("directional", False))
+        if refused:
+            self.abort(context)
+            raise BakeError(refused)
         if atlas.is_atlas(context.scene):
             try:
                 atlas.check(context.scene, self.manifest.baked, selected_only)

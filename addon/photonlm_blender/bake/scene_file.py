@@ -16,7 +16,8 @@ the mesh names report.json lists.
 
 Light groups (export/lightgroups.py) go into the file as its "light_groups" and each emitter's
 "group"; `photonlm bake` then writes <mesh>_lightmap.<group>.exr beside each lightmap, and the
-metadata lists the groups.
+metadata lists the groups. With Directional on the file's settings say "directional": true and
+`photonlm bake` writes <mesh>_lightmap_sh0..3.exr beside each lightmap (report.json's "sh").
 """
 import types
 
@@ -55,7 +56,8 @@ def export_scene_file(context, path, reports=None, obj_threshold=200_000):
     if not result.manifest.baked and not writer.ol_groups:
         raise ExportError("nothing to export: no visible mesh object with 'Bake Lightmap' enabled "
                           "(or every one was skipped, see the reports)")
-    refused = light_group_conflict(result.manifest)
+    refused = light_group_conflict(result.manifest) or \
+        export.directional_conflict(result.manifest, context.scene.photonlm.directional)
     if refused:
         raise ExportError(refused)
     for name, _ in result.manifest.lsystems:  # not reached today: the writer refuses L-systems

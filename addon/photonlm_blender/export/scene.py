@@ -99,10 +99,34 @@ def bake_settings(scene):
     texel_value = settings.texel_value  # 'CYCLES': what this Blender's Cycles bake holds
     if texel_value == 'CYCLES':
         texel_value = compat.cycles_texel_value()
-    return dict(photons=int(settings.photons), max_bounces=int(settings.max_bounces),
-                seed=int(settings.seed), target_error=float(settings.target_error),
-                time_budget=float(settings.time_budget), direct_samples=int(settings.direct_samples),
-                texel_value=texel_value, dilation=int(settings.lightmap_margin))
+    out = dict(photons=int(settings.photons), max_bounces=int(settings.max_bounces),
+               seed=int(settings.seed), target_error=float(settings.target_error),
+               time_budget=float(settings.time_budget), direct_samples=int(settings.direct_samples),
+               texel_value=texel_value, dilation=int(settings.lightmap_margin))
+    if settings.directional:  # only when on: a bake (and a scene file) without it is as before
+        out["directional"] = True
+    return out
+
+
+def directional_conflict(manifest, directional):
+    """Why a directional bake of what the export found would be refused (directional lightmaps are
+    made for ordinary lightmaps only: not with light groups, orientation lightmaps, CSG solids or
+    L-system objects), or "". The engine refuses the same; this says it before the bake starts,
+    in the panel's words."""
+    if not directional:
+        return ""
+    if manifest.light_groups:
+        return ("Directional lightmaps cannot be baked with light groups (%s): turn Directional off, or "
+                "clear the view layer's Light Groups" % ", ".join(manifest.light_groups))
+    others = [("orientation lightmaps", [g.name for g in manifest.ol_groups.values()]),
+              ("exact CSG shapes", list(manifest.csg_objects)),
+              ("L-system objects", [name for name, _ in manifest.lsystems])]
+    for what, names in others:
+        if names:
+            return ("Directional lightmaps are made for ordinary lightmaps only, and the scene has %s (%s): turn "
+                    "Directional off, or bake those objects as plain lightmaps"
+                    % (what, ", ".join("'%s'" % n for n in names[:5]) + (", ..." if len(names) > 5 else "")))
+    return ""
 
 
 class _Quiet:

@@ -13,9 +13,10 @@ copy into an in-memory float image per object ("PhotonLM live <object>", tagged
 image[wiring.TAG] = LIVE_TAG) and, the first time, points each baked material's preview
 at it: a material wired by an earlier bake gets the live image on its lightmap Image Texture
 node, one without wiring gets the preview nodes (wiring.wire_material, no heat map), and
-both show the Lightmaps output (a material wired with light groups reads the live image instead of
-its layers until the bake ends). What each material was (its lightmap image, whether it was
-wired, which outputs were active, the remembered original output) is kept first.
+both show the Lightmaps output (a material wired with light groups or directional lightmaps
+reads the live image instead of its layers or SH bands until the bake ends). What each material
+was (its lightmap image, whether it was wired, which outputs were active, the remembered
+original output) is kept first.
 
 end(success=False) (cancel, error) puts every material back as it was and removes the live
 images: nothing of the bake is left. end(success=True) comes after BakeJob.finish() has wired
@@ -133,7 +134,7 @@ class LivePreview:
             self._saved[mat_name] = _save(mat)
             if node is not None:
                 node.image = image
-                _feed_multiply(mat, from_groups=False)  # light groups: the live image, not the layers
+                _feed_multiply(mat, from_groups=False)  # the live image, not the layers or SH bands
             else:
                 wiring.wire_material(mat, image, engine)  # its notes come again with the final wiring
             wiring.set_preview(mat, 'LIGHTMAP')
@@ -175,12 +176,15 @@ def _save(mat):
 
 
 def _feed_multiply(mat, from_groups):
-    """Feed the preview's Multiply from the light groups' mix (from_groups, where the material has
-    one) or from its lightmap Image Texture."""
+    """Feed the preview's Multiply from what the last bake's wiring feeds it with (from_groups):
+    the directional lightmap's node group or the light groups' mix, where the material has one; or
+    from its lightmap Image Texture (the live image, which has neither layers nor directions)."""
     tree = mat.node_tree
-    tagged = {n.get(wiring.TAG): n for n in tree.nodes if n.get(wiring.TAG) in ("image", "light_groups", "multiply")}
-    source = tagged.get("light_groups" if from_groups else "image")
-    if source is None or "multiply" not in tagged or ("light_groups" not in tagged):
+    roles = ("image", "light_groups", "directional", "multiply")
+    tagged = {n.get(wiring.TAG): n for n in tree.nodes if n.get(wiring.TAG) in roles}
+    wired = tagged.get("directional") or tagged.get("light_groups")
+    source = wired if from_groups else tagged.get("image")
+    if source is None or "multiply" not in tagged or wired is None:
         return
     _, _, b, _ = compat.mix_color_sockets(tagged["multiply"])
     tree.links.new(source.outputs['Color'], b)

@@ -166,6 +166,12 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
         "mixes two objects). More margin keeps mipmapped or compressed lightmaps seamless further away; it "
         "costs atlas space: a 32-texel block with a margin of 8 fills 40 x 40",
         default=8, min=1, max=64)
+    directional: BoolProperty(
+        name="Directional", default=False,
+        description="Also keep the direction of each texel's light (SH L1: three more images per lightmap), so "
+                    "that normal maps and bump respond to the baked light in the preview and in engines that read "
+                    "directional lightmaps (Godot 4's layout). Four times the lightmap files and memory; not "
+                    "with light groups, orientation lightmaps, exact shapes or L-system objects")
     output_dir: StringProperty(
         name="Output", description="Folder for the EXR lightmaps (<object>_lightmap.exr). A relative path "
         "(//) is relative to the .blend file and the images link their files relative to it, so the "

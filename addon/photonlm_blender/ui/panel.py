@@ -223,6 +223,7 @@ class PHOTONLM_PT_output(_Sub, bpy.types.Panel):
         sub.active = settings.lightmap_layout == 'ATLAS'
         sub.prop(settings, "atlas_size", text="Page Size")
         col.prop(settings, "lightmap_margin", text="Margin")
+        col.prop(settings, "directional", text="Directional")
         col.prop(settings, "native_subdivision", text="Engine Subdivision")
         col.prop(settings, "output_dir", text="Folder")
         col.prop(settings, "pack_lightmaps", text="Pack")

@@ -14,6 +14,8 @@ the target error. result holds the lightmaps; what is read of it:
     result.texel_counts                   optional {mesh id: (texels, texels above twice the target)}
     result.layers, result.lightmap_layer(mesh_id, k), result.write_layer_exr(mesh_id, k, path)
                                           light-group layers (optional: none without light groups)
+    result.directional, result.lightmap_sh(mesh_id), result.write_sh_exr(mesh_id, band, path)
+                                          directional lightmaps' SH bands (optional: none without)
     result.close()
 a photonlm.Result as the engine returns it, or bake/folder.py's FolderResult over a folder's EXRs.
 
@@ -33,7 +35,7 @@ import numpy as np
 from ..export.scene import safe_file_name
 from ..export.meshes import LIGHTMAP_UV
 from ..uv import uvmaps
-from . import atlas, images, lightgroups, lsystem, record, wiring
+from . import atlas, directional, images, lightgroups, lsystem, record, wiring
 
 
 def apply(context, manifest, result, reports, stage_seconds, figures=None, outputs=None):
@@ -65,6 +67,8 @@ def apply(context, manifest, result, reports, stage_seconds, figures=None, outpu
         atlas_blocks, uv_maps = {}, {}
         layers = list(getattr(result, "layers", None) or [])  # light groups (writeback/lightgroups.py)
         atlas_layers, layer_images = {}, {}
+        with_sh = bool(getattr(result, "directional", False))  # writeback/directional.py
+        atlas_sh, sh_images = {}, {}
         # The EXRs are written on threads (the engine's calls release the GIL): a small
         # object's two files cost about 0.8 ms each, which on a small scene is most of the
         # write-back. At most a few objects' writes wait at a time (each holds its heat map's
@@ -79,6 +83,8 @@ def apply(context, manifest, result, reports, stage_seconds, figures=None, outpu
                 if atlas_mode:  # written into atlas pages below
                     atlas_blocks[b.object_name] = lm
                     atlas_layers[b.object_name] = [result.lightmap_layer(b.mesh_id, i) for i in range(len(layers))]
+                    if with_sh:
+                        atlas_sh[b.object_name] = result.lightmap_sh(b.mesh_id)
                 else:
                     base = safe_file_name(b.object_name)
                     fname = base + "_lightmap.exr"
@@ -96,6 +102,10 @@ def apply(context, manifest, result, reports, stage_seconds, figures=None, outpu
                     for i, layer in enumerate(layers):
                         writes.append(pool.submit(result.write_layer_exr, b.mesh_id, i,
                                                   lightgroups.layer_file(path, layer)))
+                    if with_sh:
+                        for band in directional.BANDS:
+                            writes.append(pool.submit(result.write_sh_exr, b.mesh_id, band,
+                                                      directional.band_file(path, band)))
                     paths[b.object_name] = (path, error_path)
                 texels, above = known_counts.get(b.mesh_id) or texel_counts(lm, relative, target)
                 small = b.width * b.height <= 1024 * 1024
@@ -112,16 +122,19 @@ def apply(context, manifest, result, reports, stage_seconds, figures=None, outpu
             error_image[wiring.TAG] = wiring.ERROR_IMAGE_TAG
             error_images[name] = error_image
             layer_images[name] = _load_layers(name + "_lightmap", path, layers, pack, per_object[name])
+            if with_sh:
+                sh_images[name] = _load_sh(name + "_lightmap", path, pack, per_object[name])
         for name, o in per_object.items():
             o["image"] = lightmap_images[name].name if name in lightmap_images else None
             o["error_image"] = error_images[name].name if name in error_images else None
         stale = []
         if atlas_mode:
-            lightmap_images, error_images, uv_maps, stale, layer_images = atlas.store(
+            lightmap_images, error_images, uv_maps, stale, layer_images, sh_images = atlas.store(
                 context, manifest.selected_only, reports, atlas_blocks, out_dir, pack, per_object,
-                layers=layers, layer_blocks=atlas_layers)
+                layers=layers, layer_blocks=atlas_layers, sh_blocks=atlas_sh if with_sh else None)
             atlas_blocks.clear()
             atlas_layers.clear()
+            atlas_sh.clear()
         else:
             atlas.forget(per_object)
         mix = None
@@ -130,8 +143,13 @@ def apply(context, manifest, result, reports, stage_seconds, figures=None, outpu
         if layers:
             lightgroups.sync_settings(scene, layers)
             mix = lightgroups.mix_group(scene, layers)
-        _wire(context, manifest, reports, lightmap_images, error_images, target, uv_maps, layer_images, mix)
+        _wire(context, manifest, reports, lightmap_images, error_images, target, uv_maps, layer_images, mix,
+              sh_images)
         atlas.remove_stale(stale)
+        if not with_sh:  # an earlier directional bake's bands no longer match these lightmaps
+            directional.remove_stale_bands([o["path"] for o in per_object.values() if o.get("path")],
+                                           [n + "_lightmap" for n in per_object] + list(
+                                               {o["image"] for o in per_object.values() if o.get("image")}))
         for name, lid in manifest.lsystems:
             obj = bpy.data.objects.get(name)
             if obj is not None:
@@ -180,7 +198,7 @@ def apply(context, manifest, result, reports, stage_seconds, figures=None, outpu
         noisiest=noisiest[0] if noisiest else "",
         noisiest_above=float(per_object[noisiest[0]]["error_above"]) if noisiest else 0.0,
         direct_samples=int(stats["direct_samples"]),
-        triangles=int(manifest.triangles), **times, light_layers=",".join(layers),
+        triangles=int(manifest.triangles), **times, light_layers=",".join(layers), directional=int(with_sh),
         light_layer_errors=",".join("%.6g" % e for e in layer_errors),
         warning_lines="\n".join(shown_warnings))
     all_figures.update(figures or {})
@@ -227,12 +245,26 @@ def _load_layers(base, path, layers, pack, entry):
     return out
 
 
-def _wire(context, manifest, reports, lightmap_images, error_images, target, uv_maps, layer_images=None, mix=None):
+def _load_sh(base, path, pack, entry):
+    """Load the L1 bands of the lightmap file `path` as images <base>_sh1 .. _sh3; note them in the
+    object's per_object entry. Returns [image per band]."""
+    out = [images.load_image(directional.band_image_name(base, band), directional.band_file(path, band), pack)
+           for band in directional.BANDS]
+    entry["sh"] = [dict(band=band, image=image.name, path=directional.band_file(path, band))
+                   for band, image in zip(directional.BANDS, out)]
+    return out
+
+
+def _wire(context, manifest, reports, lightmap_images, error_images, target, uv_maps, layer_images=None, mix=None,
+          sh_images=None):
     """Wire each baked object's materials to its lightmap image and its heat map, read through
     its uv_maps entry (default: the lightmap UV map). A material shared by baked objects shows
     the first one's image: all of them where they share an atlas page. With light groups (mix: the
-    node group of writeback/lightgroups.py) the preview sums the object's layer_images instead."""
+    node group of writeback/lightgroups.py) the preview sums the object's layer_images instead; with
+    directional lightmaps (sh_images: the L1 bands' images by object) it evaluates them at the
+    material's shading normal (writeback/directional.py)."""
     layer_images = layer_images or {}
+    sh_images = sh_images or {}
     engine = context.scene.render.engine
     owners = {}
     for b in sorted(manifest.baked, key=lambda b: b.object_name):
@@ -253,7 +285,8 @@ def _wire(context, manifest, reports, lightmap_images, error_images, target, uv_
                             % (name, ", ".join("'%s'" % o for o in objs), objs[0]))
         for note in wiring.wire_material(mat, lightmap_images[objs[0]], engine, error_image=error_images[objs[0]],
                                          target_error=target, uv_map=uv_maps.get(objs[0], LIGHTMAP_UV),
-                                         layers=layer_images.get(objs[0]) if mix is not None else None, mix=mix):
+                                         layers=layer_images.get(objs[0]) if mix is not None else None, mix=mix,
+                                         sh=sh_images.get(objs[0])):
             reports.warning(note)
         wiring.set_preview(mat, context.scene.photonlm.preview_mode)
 

@@ -8,7 +8,9 @@ repeats the block's edge texels. Per page the bake writes
     <scene>_atlas_<k>_lightmap.exr   R, G, B, error, hits (as a one-object lightmap file)
     <scene>_atlas_<k>_error.exr      the heat map of its relative errors
 and loads them as images of the same names; with light groups each layer has pages of its own,
-<scene>_atlas_<k>_lightmap.<group>.exr (writeback/lightgroups.py). Each object gets
+<scene>_atlas_<k>_lightmap.<group>.exr (writeback/lightgroups.py), and directional lightmaps their
+L1 bands' pages <scene>_atlas_<k>_lightmap_sh1.exr .. _sh3.exr (writeback/directional.py). Each
+object gets
     the UV map 'PhotonLM Atlas': its lightmap UVs moved into its block, u' = u su + ou,
         v' = v sv + ov. The mesh holding the lightmap map (the object's own, or the helper mesh of
         an automatic map that a Data Transfer modifier brings, uv/uvmaps.py) holds a copy of it as
@@ -38,7 +40,7 @@ from ..export.meshes import LIGHTMAP_UV
 from ..export.resolution import atlas_pad
 from ..export.scene import safe_file_name
 from ..uv import atlas_pack, uvmaps
-from . import lightgroups, wiring
+from . import directional, lightgroups, wiring
 from .images import error_image_pixels, load_image, relative_error, write_error_exr
 
 ATLAS_UV = "PhotonLM Atlas"
@@ -214,13 +216,17 @@ def _relative(path):
     return path
 
 
-def store(context, selected_only, reports, lightmaps, out_dir, pack, per_object, layers=(), layer_blocks=None):
+def store(context, selected_only, reports, lightmaps, out_dir, pack, per_object, layers=(), layer_blocks=None,
+          sh_blocks=None):
     """Pack the baked lightmaps {object name: photonlm.Lightmap} into atlas pages, write and load the
     pages, give each object its atlas UV map and properties. Returns (images, error_images, uv_maps)
     by object name for the preview wiring, the stale pages for remove_stale (after the wiring), and
     with light groups (layers: their names; layer_blocks: {object name: [(rgb, error) per layer]})
     {object name: [(layer, page layer image)]}: each layer has pages of its own,
-    <page>_lightmap.<layer>. Adds each object's "atlas" entry to per_object."""
+    <page>_lightmap.<layer>, and with directional lightmaps (sh_blocks: {object name: its SH bands,
+    photonlm.Result.lightmap_sh's (4, h, w, 3)}) {object name: [page band image per L1 band]}: each
+    band has pages of its own, <page>_lightmap_sh<band>. Adds each object's "atlas" entry to
+    per_object."""
     scene = context.scene
     size, pad = page_size(scene), atlas_pad(scene.photonlm)
     layout = usable_layout(scene)[0] if selected_only else None
@@ -232,7 +238,7 @@ def store(context, selected_only, reports, lightmaps, out_dir, pack, per_object,
     files = [os.path.join(out_dir, page_name(scene, k) + "_lightmap.exr") for k in range(count)]
     if layout is not None:  # pages already there keep their files
         files[:len(layout["files"])] = [bpy.path.abspath(f) for f in layout["files"]]
-    page_images, error_images, layer_pages = [], [], []
+    page_images, error_images, layer_pages, sh_pages = [], [], [], []
     for k in range(count):
         name = page_name(scene, k)
         if layout is not None and k < len(layout["pages"]):  # a page already there keeps its name
@@ -265,8 +271,10 @@ def store(context, selected_only, reports, lightmaps, out_dir, pack, per_object,
         kept = layout is not None and k < len(layout["files"])  # Bake Selected adds to this page
         layer_pages.append(_layer_pages(plm, files[k], page_images[-1].name, k in changed, kept, layers,
                                         layer_blocks or {}, lightmaps, placements, k, size, pad, pack, reports))
+        sh_pages.append(_sh_pages(plm, files[k], page_images[-1].name, k in changed, kept, sh_blocks, lightmaps,
+                                  placements, k, size, pad, pack, reports) if sh_blocks is not None else [])
 
-    images, errors, uv_maps, layer_images = {}, {}, {}, {}
+    images, errors, uv_maps, layer_images, sh_images = {}, {}, {}, {}, {}
     for n in names:
         p = placements[n]
         so = p.scale_offset(size)
@@ -280,6 +288,10 @@ def store(context, selected_only, reports, lightmaps, out_dir, pack, per_object,
         images[n] = page_images[p.page]
         errors[n] = error_images[p.page]
         layer_images[n] = layer_pages[p.page]
+        sh_images[n] = sh_pages[p.page]
+        if sh_pages[p.page]:
+            per_object[n]["sh"] = [dict(band=band, image=im.name, path=directional.band_file(files[p.page], band))
+                                   for band, im in zip(directional.BANDS, sh_pages[p.page])]
         per_object[n]["layers"] = {layer: dict(image=im.name, path=lightgroups.layer_file(files[p.page], layer))
                                    for layer, im in layer_pages[p.page]}
         per_object[n].update(image=page_images[p.page].name, path=files[p.page],
@@ -301,7 +313,42 @@ def store(context, selected_only, reports, lightmaps, out_dir, pack, per_object,
     if old_layout is not None and not selected_only:
         stale = [(name, path) for name, path in zip(old_layout.get("pages", ()), old_layout.get("files", ()))
                  if name not in scene[LAYOUT_KEY]["pages"]]
-    return images, errors, uv_maps, stale, layer_images
+    return images, errors, uv_maps, stale, layer_images, sh_images
+
+
+def _sh_pages(plm, page_file, page_image, changed, kept, sh_blocks, lightmaps, placements, k, size, pad, pack,
+              reports):
+    """The L1 bands of page k: [image per band]. A changed page's bands are written (an earlier
+    page's band file read first where Bake Selected adds to it), an unchanged one's kept."""
+    out = []
+    for band in directional.BANDS:
+        path = directional.band_file(page_file, band)
+        name = directional.band_image_name(page_image, band)
+        if kept and not os.path.isfile(path) and band == directional.BANDS[0]:
+            reports.warning("atlas page '%s' has no directional bands (it was baked without Directional): the "
+                            "preview of its other objects shows half their light; bake all objects (Bake "
+                            "Lightmaps)" % page_image)
+        if not changed:
+            image = bpy.data.images.get(name)
+            if image is None and os.path.isfile(path):
+                image = load_image(name, path, pack)
+            if image is None:
+                return []
+            out.append(image)
+            continue
+        page = _blank(size)
+        if kept and os.path.isfile(path):
+            old = plm.read_lightmap_exr(path)
+            if old.rgb.shape[:2] == (size, size):
+                page = (old.rgb, old.error, old.hits)
+        for n, bands in sh_blocks.items():
+            p = placements[n]
+            if p.page == k:
+                hits = lightmaps[n].hits
+                paste(page, _Block(bands[band], np.zeros_like(hits), hits), p, pad)
+        plm.write_lightmap_exr(path, *page)
+        out.append(load_image(name, path, pack))
+    return out
 
 
 def _layer_pages(plm, page_file, page_image, changed, kept, layers, layer_blocks, lightmaps, placements, k, size,
@@ -381,12 +428,14 @@ def remove_stale(stale):
     their files, and their images where nothing uses them."""
     for name, path in stale:
         layer_images = [im.name for im in bpy.data.images if im.name.startswith(name + ".")]
-        for im_name in [name, name[:-len("_lightmap")] + "_error"] + layer_images:
+        sh_images = [directional.band_image_name(name, band) for band in directional.BANDS]
+        for im_name in [name, name[:-len("_lightmap")] + "_error"] + layer_images + sh_images:
             im = bpy.data.images.get(im_name)
             if im is not None and im.users == 0:
                 bpy.data.images.remove(im)
         path = bpy.path.abspath(path)
         layer_files = [lightgroups.layer_file(path, im_name[len(name) + 1:]) for im_name in layer_images]
-        for f in [path, path[:-len("_lightmap.exr")] + "_error.exr"] + layer_files:
+        sh_files = [directional.band_file(path, band) for band in directional.BANDS]
+        for f in [path, path[:-len("_lightmap.exr")] + "_error.exr"] + layer_files + sh_files:
             if os.path.isfile(f):
                 os.remove(f)

@@ -28,6 +28,12 @@ tagged "layer_<k>") feeds the shared node group 'PhotonLM Light Groups' (tagged 
 whose mix of the layers by the groups' strengths and tints takes the lightmap image's place in the
 Multiply.
 
+With directional lightmaps (writeback/directional.py) an Image Texture per L1 band
+(<object>_lightmap_sh1 .. _sh3, tagged "sh_1" .. "sh_3") and the lightmap's colour feed the
+shared node group 'PhotonLM Directional' (tagged "directional") with the material's shading
+normal (what feeds its BSDF's Normal input, else a Geometry node's Normal, tagged "sh_geometry");
+its value of the light at that normal takes the lightmap's place in the Multiply.
+
 A material used by several baked objects can show only one lightmap: it is wired to the
 first of those objects (by name) and the bake reports the others. Give each object its
 own material (or a single-user copy) to preview all of them. Materials whose outputs are
@@ -40,6 +46,7 @@ from .. import compat
 from ..export.materials import ORIGINAL_OUTPUT_KEY, TAG, is_ours, original_output, output_nodes, read_material
 from ..export.meshes import LIGHTMAP_UV
 from . import closures as preview_closures
+from . import directional
 
 ERROR_IMAGE_TAG = "error"  # image[TAG] of the heat-map images the bake loads (<object>_error)
 # The heat map's colours at 0, 1, 2 and 4 times the target error (linear RGB).
@@ -176,13 +183,15 @@ def ol_lookup_group():
 
 
 def wire_material(mat, image, render_engine, orientation=False, error_image=None, target_error=0.02,
-                  uv_map=LIGHTMAP_UV, layers=None, mix=None):
+                  uv_map=LIGHTMAP_UV, layers=None, mix=None, sh=None):
     """Add (or update) the preview nodes of `mat` for lightmap `image` read through UV map `uv_map`
     (an atlas page: 'PhotonLM Atlas'; orientation=True: an orientation lightmap looked up by the
     world normal) and, with error_image, the heat map of its relative errors against target_error.
     With light groups, layers ([(group, layer image)]) and mix (the node group 'PhotonLM Light
     Groups') give the lightmap colour instead of `image`: the layers mixed by their groups'
-    strengths and tints.
+    strengths and tints. With directional lightmaps, sh ([L1 band image] x 3, bands 1, 2, 3) makes
+    the lightmap colour the light at the material's shading normal (node group 'PhotonLM
+    Directional').
     Returns report strings.
     The active output is not changed here (see set_preview)."""
     notes = []
@@ -228,7 +237,8 @@ def wire_material(mat, image, render_engine, orientation=False, error_image=None
     else:
         _set(emit.inputs['Strength'], "default_value", 1.0)
         _feed(tree, mul_a, None, tuple(info.albedo) + (1.0,))
-    _link(tree, _light_groups(tree, frame, uv, tex, layers, mix, x0, y0), mul_b)
+    light = _light_groups(tree, frame, uv, tex, layers, mix, x0, y0)
+    _link(tree, _directional(tree, frame, uv, light, sh, info.surface, x0, y0), mul_b)
     _link(tree, mul_out, emit.inputs['Color'])
 
     # The specular part keeps the material's own shading (a copy of its closures without the
@@ -321,6 +331,40 @@ def _light_groups(tree, frame, uv, tex, layers, mix, x0, y0):
                 tree.links.remove(link)
         if not socket.is_linked and hasattr(socket, "default_value"):
             _set(socket, "default_value", (0.0, 0.0, 0.0, 1.0))
+    return group.outputs['Color']
+
+
+def _directional(tree, frame, uv, light, sh, surface, x0, y0):
+    """The socket giving the lightmap colour at the shading normal: `light` without sh, else the
+    node group 'PhotonLM Directional' over `light`, one image node per L1 band (tagged "sh_<band>")
+    and the normal feeding the diffuse BSDF's Normal input (a Geometry node's, tagged
+    "sh_geometry", where that input is not linked)."""
+    roles = ["directional", "sh_geometry"] + ["sh_%d" % band for band in directional.BANDS]
+    if not sh:
+        for n in [n for n in tree.nodes if n.get(TAG) in roles]:
+            tree.nodes.remove(n)
+        return light
+    group = _node(tree, "directional", 'ShaderNodeGroup', frame)
+    _set(group, "node_tree", directional.group())
+    _set(group, "location", (x0 + 260.0 * 1.5, y0 - 220.0))
+    for k, (band, image) in enumerate(zip(directional.BANDS, sh)):
+        band_tex = _node(tree, "sh_%d" % band, 'ShaderNodeTexImage', frame)
+        _set(band_tex, "location", (x0 + 260.0 * 0.5, y0 - 300.0 - 240.0 * k))
+        _set(band_tex, "image", image)
+        _set(band_tex, "interpolation", 'Linear')
+        _set(band_tex, "extension", 'EXTEND')
+        _link(tree, uv.outputs['UV'], band_tex.inputs['Vector'])
+        _link(tree, band_tex.outputs['Color'], group.inputs[directional.BAND_INPUTS[k]])
+    normal = directional.shading_normal(surface)
+    if normal is None:
+        geometry = _node(tree, "sh_geometry", 'ShaderNodeNewGeometry', frame)
+        _set(geometry, "location", (x0 + 260.0 * 0.5, y0 - 300.0 - 240.0 * 3))
+        normal = geometry.outputs['Normal']
+    else:
+        for n in [n for n in tree.nodes if n.get(TAG) == "sh_geometry"]:
+            tree.nodes.remove(n)
+    _link(tree, normal, group.inputs['Normal'])
+    _link(tree, light, group.inputs['Lightmap'])
     return group.outputs['Color']
 
 
