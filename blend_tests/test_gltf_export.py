@@ -23,7 +23,10 @@ Expected, reading the .glb in plain Python (GLB header, JSON and BIN chunks):
 - the operator refuses with a message when no object has a lightmap;
 - with light groups (the lamp in Light Group "lamp", its only light), extras.photonlm_lightmap lists
   the layers: each object's single layer "lamp" with its own RGBM texture, strength 1 and a white
-  tint, whose PNG decodes to the layer's EXR within the encoding's bound.
+  tint, whose PNG decodes to the layer's EXR within the encoding's bound;
+- with Directional, extras.photonlm_lightmap.sh holds the three L1 bands in glTF's axes (L1_-1 = the
+  baked band along Blender's z, L1_0 = minus the band along y, L1_1 = the band along x), each an
+  RGBM_SIGNED texture that decodes to the band within m x range / 255.
 """
 import json
 import math
@@ -318,6 +321,7 @@ def main():
     print("atlas: largest relative error above range/255: %.4f %%" % (100 * worst))
     s.lightmap_layout = 'OBJECT'
     check_light_groups(checks, objs, out, rgbm)
+    check_sh(checks, objs, out, rgbm)
     check_import(checks, path, objs, glb)
     checks.finish()
 
@@ -353,6 +357,38 @@ def check_light_groups(checks, objs, out, rgbm):
         worst = max(worst, float((err - bound).max()))
     checks.check(worst <= 0.0, "every layer's PNG decodes to its EXR within the encoding's bound")
     bpy.data.objects["ceiling_light"].lightgroup = ""
+    vl = bpy.context.view_layer
+    vl.lightgroups.remove(vl.lightgroups["lamp"])
+
+
+def check_sh(checks, objs, out, rgbm):
+    """A directional bake: the extras' "sh" bands, in glTF's axes, decode to the baked bands."""
+    from photonlm_blender.writeback import directional
+    bpy.context.scene.photonlm.directional = True
+    last = scenes.photonlm_bake(300_000, 16, seed=3, target_error=0.0)
+    path = os.path.join(out, "cornell_sh.glb")
+    res = bpy.ops.photonlm.export_gltf(filepath=path)
+    glb = Glb(path)
+    nodes = {n["name"]: n for n in glb.json["nodes"]}
+    worst, ok_all = 0.0, res == {'FINISHED'}
+    for name in objs:
+        prim = glb.json["meshes"][nodes[name]["mesh"]]["primitives"][0]
+        sh = glb.json["materials"][prim["material"]].get("extras", {}).get("photonlm_lightmap", {}).get("sh", {})
+        bands = sh.get("bands", [])
+        ok = sh.get("encoding") == "RGBM_SIGNED" and [b.get("m") for b in bands] == [-1, 0, 1]
+        ok_all = ok_all and ok
+        if not ok:
+            continue
+        baked = [scenes.exr_rgb(directional.band_file(last["objects"][name]["path"], b)) for b in directional.BANDS]
+        want = {-1: baked[1], 0: -baked[0], 1: baked[2]}  # Blender (x, y, z) is glTF (x, -z, y)
+        for b in bands:
+            px = png_pixels(glb.image_bytes(b["texture"])[1], "%s_sh%d" % (name, b["m"]))
+            err = np.abs(rgbm.decode_signed(px, b["range"]) - want[b["m"]])
+            bound = px[..., 3:4].astype(np.float64) / 255.0 * b["range"] / 255.0 * (1 + 1e-6) + 1e-7 * b["range"]
+            worst = max(worst, float((err - bound).max()))
+    checks.check(ok_all, "directional: every material's extras hold the L1 bands m = -1, 0, 1 (RGBM_SIGNED)")
+    checks.check(worst <= 0.0, "directional: each band decodes to the baked band in glTF's axes within m range / 255")
+    bpy.context.scene.photonlm.directional = False
 
 
 main()

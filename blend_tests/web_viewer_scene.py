@@ -4,12 +4,14 @@ docs/make_web_screenshots.py: a scene baked with the add-on, exported with its l
 under the Standard view transform, the view the page must reproduce.
 
     scripts/blender.sh 5.2 -b --factory-startup --python-exit-code 1 \\
-        --python blend_tests/web_viewer_scene.py -- OUT_DIR [cornell|room|groups] [WIDTH HEIGHT [PHOTONS]]
+        --python blend_tests/web_viewer_scene.py -- OUT_DIR [cornell|room|groups|artist] [WIDTH HEIGHT [PHOTONS]]
 
 Scenes: `cornell`, the Cornell box (32 x 32 texels per object); `room`, the sunlit room of
 scenes.light_groups_room without its light groups (64 x 64); `groups`, that room with its light
 groups (sun and sky "day", two lamps "night", 32 x 32), mixed as GROUPS_MIX says before the
-export and the render (the file carries the mix; the page mixes the layers as the preview does). Their Diffuse BSDFs are swapped for
+export and the render (the file carries the mix; the page mixes the layers as the preview does);
+`artist`, the artist's room (scenes.artist_room: Blender's default materials, a modifier stack, an
+image texture, smooth shading, a sun through a Boolean window) from inside. Their Diffuse BSDFs are swapped for
 Principled BSDFs of the same colour (no specular, roughness 1), which Blender's glTF exporter
 writes as base colours. Writes into OUT_DIR:
 - scene.glb, the export;
@@ -74,11 +76,23 @@ def build(kind):
         while len(vl.lightgroups):
             vl.lightgroups.remove(vl.lightgroups[0])
         bake = dict(max_bounces=8, target_error=0.01, direct_samples=16)
+    elif kind == "artist":
+        scenes.clear_scene()
+        scenes.artist_room(scenes.out_dir("web_viewer_artist"))
+        cam_data = bpy.data.cameras.new("camera")
+        cam_data.lens, cam_data.sensor_width, cam_data.sensor_fit = 18.0, 36.0, 'AUTO'
+        cam = bpy.data.objects.new("camera", cam_data)
+        bpy.context.scene.collection.objects.link(cam)
+        eye, target = Vector((-2.85, -1.5, 1.65)), Vector((1.8, 0.5, 0.8))
+        cam.location = eye
+        cam.rotation_euler = (target - eye).to_track_quat('-Z', 'Y').to_euler()
+        bpy.context.scene.camera = cam
+        return dict(max_bounces=8, target_error=0.01)
     elif kind == "groups":
         scenes.light_groups_room(32, (0.45, 0.6, 1.0))
         bake = dict(max_bounces=8, target_error=0.01, direct_samples=16)
     else:
-        raise SystemExit("web_viewer_scene: unknown scene '%s' (cornell, room or groups)" % kind)
+        raise SystemExit("web_viewer_scene: unknown scene '%s' (cornell, room, groups or artist)" % kind)
     principled_materials()
     return bake
 

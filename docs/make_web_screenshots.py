@@ -6,12 +6,12 @@ docs/gltf.md (the difference on the lit pixels, the export's time and sizes, the
 its first frame over a few loads).
 
     (cd web && npm ci && npm run build)
-    /usr/bin/python3 docs/make_web_screenshots.py [room|cornell] [OUT_DIR]
+    /usr/bin/python3 docs/make_web_screenshots.py [artist|room|cornell] [OUT_DIR]
 
 writes blender.png, browser.png, side_by_side.png, difference.png and numbers.json into OUT_DIR
 (default /tmp/web_shots/<scene>), and with PHOTONLM_DOC_SAVE=1 copies side_by_side.png to
-docs/images/web_vs_blender.png. The scene is the sunlit room of the light groups test without its
-groups (default) or the Cornell box (blend_tests/web_viewer_scene.py), 640 x 480.
+docs/images/web_vs_blender.png. The scene is the artist's room (default), the sunlit room of the
+light groups test without its groups or the Cornell box (blend_tests/web_viewer_scene.py), 640 x 480.
 """
 import json
 import os
@@ -27,7 +27,7 @@ LOADS = 5  # page loads timed
 
 
 def main():
-    scene = sys.argv[1] if len(sys.argv) > 1 else "room"
+    scene = sys.argv[1] if len(sys.argv) > 1 else "artist"
     out = os.path.abspath(sys.argv[2]) if len(sys.argv) > 2 else os.path.join("/tmp/web_shots", scene)
     os.makedirs(out, exist_ok=True)
     view = wv.bake_and_render(out, scene, 640, 480, blender="5.2")

@@ -2,7 +2,8 @@
 // with the lightmaps `photonlm bake` wrote for it, as one binary glTF, in the
 // form the Blender add-on's export writes (docs/gltf.md): each lightmap an
 // RGBM PNG on TEXCOORD_1, declared by MOZ_lightmap, FB_materials_lightmap and
-// extras.photonlm_lightmap (with light groups, their layers too).
+// extras.photonlm_lightmap (with light groups, their layers too; with
+// directional lightmaps, the SH L1 bands in glTF's axes).
 #include "gltf_command.h"
 
 #include <algorithm>
@@ -13,6 +14,7 @@
 #include <fstream>
 #include <map>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -67,6 +69,34 @@ std::vector<unsigned char> rgbm(const std::vector<float>& rgb, uint32_t w, uint3
   return out;
 }
 
+// Signed values (SH L1 bands) the same way (the add-on's gltf/rgbm.py
+// encode_signed): value = (2 (r, g, b) - 1) m range, range the largest
+// finite magnitude, m a texel's largest magnitude over it rounded up.
+std::vector<unsigned char> rgbm_signed(const std::vector<float>& rgb, uint32_t w, uint32_t h, double& range) {
+  double top = 0.0;
+  for (float v : rgb)
+    if (std::isfinite(v)) top = std::max(top, std::fabs(double(v)));
+  range = top > 0.0 ? top : 1.0;
+  std::vector<unsigned char> out(4 * size_t(w) * h);
+  for (uint32_t y = 0; y < h; ++y) {
+    for (uint32_t x = 0; x < w; ++x) {
+      const float* v = &rgb[3 * (size_t(h - 1 - y) * w + x)];
+      double c[3], peak = 0.0;
+      for (int k = 0; k < 3; ++k) {
+        c[k] = std::isfinite(v[k]) ? std::clamp(double(v[k]) / range, -1.0, 1.0) : 0.0;
+        peak = std::max(peak, std::fabs(c[k]));
+      }
+      const double m = std::ceil(peak * 255.0);
+      const double scale = m > 0.0 ? 255.0 / m : 0.0;
+      unsigned char* o = &out[4 * (size_t(y) * w + x)];
+      for (int k = 0; k < 3; ++k)
+        o[k] = (unsigned char)std::clamp(std::nearbyint((c[k] * scale + 1.0) * 0.5 * 255.0), 0.0, 255.0);
+      o[3] = (unsigned char)m;
+    }
+  }
+  return out;
+}
+
 void png_append(void* context, void* data, int size) {
   auto* out = static_cast<std::vector<unsigned char>*>(context);
   out->insert(out->end(), static_cast<unsigned char*>(data), static_cast<unsigned char*>(data) + size);
@@ -105,8 +135,10 @@ struct Writer {
     model.accessors.push_back(a);
     return int(model.accessors.size() - 1);
   }
-  // A lightmap EXR as an RGBM PNG texture; its range in `range`.
-  int texture(const std::string& path, const std::string& name, double& range, std::string& error) {
+  // A lightmap EXR as an RGBM PNG texture (sign < 0: -1 x the file's
+  // values; sign != 0: signed values, RGBM_SIGNED); its range in `range`.
+  int texture(const std::string& path, const std::string& name, double& range, std::string& error,
+              int sign = 0) {
     uint32_t w = 0, h = 0;
     if (plm_read_lightmap_exr(path.c_str(), &w, &h, nullptr, nullptr, nullptr) != PLM_OK) {
       error = plm_last_error();
@@ -117,7 +149,9 @@ struct Writer {
       error = plm_last_error();
       return -1;
     }
-    const std::vector<unsigned char> px = rgbm(rgb, w, h, range);
+    if (sign < 0)
+      for (float& v : rgb) v = -v;
+    const std::vector<unsigned char> px = sign ? rgbm_signed(rgb, w, h, range) : rgbm(rgb, w, h, range);
     std::vector<unsigned char> png;
     if (!stbi_write_png_to_func(png_append, &png, int(w), int(h), 4, px.data(), int(4 * w))) {
       error = path + ": the PNG could not be encoded";
@@ -225,6 +259,7 @@ int gltf_command(int argc, char** argv) {
     int texture = -1;
     double range = 1.0;
     Value::Array layers;
+    Value sh_info;
     const auto entry = baked.find(m.name);
     if (m.width > 0 && entry != baked.end()) {
       texture = w.texture(dir + entry->second.value("file", ""), m.name + "_lightmap", range, error);
@@ -240,6 +275,27 @@ int gltf_command(int argc, char** argv) {
                                              {"intensity", number(kPi * layer_range)},
                                              {"strength", number(1.0)},
                                              {"tint", Value(Value::Array{number(1.0), number(1.0), number(1.0)})}}));
+      }
+      // SH L1 bands (<mesh>_lightmap_sh1..3: along Blender's y, z, x) in glTF's axes, where
+      // Blender's (x, y, z) is (x, -z, y): L1_-1 (glTF's y) is band 2, L1_0 (z) minus band 1, L1_1 band 3.
+      const auto sh = entry->second.value("sh", nlohmann::json::array());
+      if (sh.size() == 4) {
+        Value::Array bands;
+        for (const auto& [m_index, band, sign] : {std::tuple{-1, 2, 1}, std::tuple{0, 1, -1}, std::tuple{1, 3, 1}}) {
+          double band_range = 1.0;
+          const int bt = w.texture(dir + sh[size_t(band)].get<std::string>(),
+                                   m.name + "_lightmap_L1_" + std::to_string(m_index), band_range, error, sign);
+          if (bt < 0) return fail(kBadInput, error);
+          bands.push_back(Value(Value::Object{{"m", Value(m_index)}, {"texture", Value(bt)}, {"range", number(band_range)}}));
+        }
+        sh_info = Value(Value::Object{{"layout", Value(std::string("Godot 4 SH L1"))},
+                                      {"axes", Value(std::string("glTF (y up)"))},
+                                      {"encoding", Value(std::string("RGBM_SIGNED"))},
+                                      {"decode", Value(std::string("value = (2 * rgb - 1) * a * range"))},
+                                      {"l0", Value(std::string("the lightmap's value / (2 * 0.282095)"))},
+                                      {"evaluate", Value(std::string(
+                                                       "0.282095 * L0 + 0.32573 * (L1_-1 * n.y + L1_0 * n.z + L1_1 * n.x)"))},
+                                      {"bands", Value(bands)}});
       }
       ++lightmaps;
     } else if (m.width > 0) {
@@ -295,6 +351,7 @@ int gltf_command(int argc, char** argv) {
                          {"object", Value(m.name)},
                          {"image", Value(m.name + "_lightmap")}};
         if (!layers.empty()) lm["layers"] = Value(layers);
+        if (sh_info.IsObject()) lm["sh"] = sh_info;
         mat.extras = Value(Value::Object{{"photonlm_lightmap", Value(lm)}});
       }
       w.model.materials.push_back(mat);

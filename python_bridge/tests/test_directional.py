@@ -93,6 +93,21 @@ def test_cli_writes_the_bands_and_merges_them_as_one_machine(tmp_path):
     cli("merge", tmp_path / "parts", "--scene", path, "-o", tmp_path / "merged")
     for name in ["floor_lightmap.exr"] + bands:
         assert (tmp_path / "one" / name).read_bytes() == (tmp_path / "merged" / name).read_bytes(), name
+    # photonlm gltf: the bands in the extras, in glTF's axes (Blender's (x, y, z) is glTF's (x, -z, y)).
+    from test_cli_gltf import read_glb, view
+    from PIL import Image
+    import io
+    cli("gltf", path, tmp_path / "one", "-o", tmp_path / "scene.glb")
+    doc, binary = read_glb(tmp_path / "scene.glb")
+    sh = doc["materials"][0]["extras"]["photonlm_lightmap"]["sh"]
+    assert sh["encoding"] == "RGBM_SIGNED" and [b["m"] for b in sh["bands"]] == [-1, 0, 1]
+    baked = [photonlm.read_lightmap_exr(tmp_path / "one" / bands[k]).rgb for k in (1, 2, 3)]
+    for b, want in zip(sh["bands"], (baked[1], -baked[0], baked[2])):
+        image = doc["images"][doc["textures"][b["texture"]]["source"]]
+        px = np.asarray(Image.open(io.BytesIO(view(doc, binary, image["bufferView"]))).convert("RGBA"),
+                        np.float64)[::-1] / 255.0
+        got = (2.0 * px[..., :3] - 1.0) * px[..., 3:4] * b["range"]
+        assert np.all(np.abs(got - want) <= px[..., 3:4] * b["range"] / 255.0 * (1 + 1e-6) + 1e-7 * b["range"])
     # --directional off overrides the file; a bad value is refused naming the option.
     cli("bake", path, "--directional", "off", "-o", tmp_path / "plain")
     assert sorted(os.listdir(tmp_path / "plain")) == ["floor_lightmap.exr", "report.json"]

@@ -21,6 +21,10 @@ for it) gives each baked object's node:
   lightMapIntensity takes. A bake with light groups adds `layers`: per group (in the scene's
   order) {group, texture, range, intensity, strength, tint}, each layer's own RGBM texture; the
   layers add up to the lightmap, and strength x tint are the panel's mix when the file was written.
+  A directional bake adds `sh`: the L1 bands in glTF's axes (y up) as Godot 4 lays them out, each in
+  its own texture encoded RGBM_SIGNED (value = (2 rgb - 1) x a x range), L0 being the lightmap's
+  value / (2 x 0.282095); a surface of unit normal n (glTF's axes) receives
+  0.282095 L0 + 0.32573 (L1_-1 n.y + L1_0 n.z + L1_1 n.x) (docs/gltf.md).
 The materials are exported with their preview off (their own shading, not the lightmap preview)
 and put back as they were. The hook does nothing in other glTF exports.
 """
@@ -33,7 +37,7 @@ import bpy
 import numpy as np
 
 from .. import compat
-from ..writeback import lightgroups, wiring
+from ..writeback import directional, lightgroups, wiring
 from ..writeback.atlas import object_lightmap
 from . import rgbm
 
@@ -55,6 +59,7 @@ class _Export:
     def __init__(self, lightmaps):
         self.lightmaps = lightmaps    # object name -> (bpy image, UV map name, its index in the evaluated mesh)
         self.textures = {}            # image name -> (glTF texture, range, PNG bytes)
+        self.sh_bands = {}            # lightmap image name -> its extras' "sh" (directional bakes)
         self.materials = {}           # (id of the exporter's material, object name) -> our copy
         self.objects = {}             # object name -> names of its materials given the lightmap
         self.notes = []
@@ -94,6 +99,43 @@ class _Export:
                         "tint": list(item.tint)[:3]})
         return out
 
+    def signed_texture(self, name, values, types):
+        """A texture of signed values (h, w, 3), RGBM_SIGNED; (texture, range)."""
+        _, BinaryData, io = types
+        value_range = rgbm.signed_range(values)
+        data = rgbm.png(rgbm.encode_signed(values, value_range))
+        source = io.Image(buffer_view=BinaryData(data=data), extensions=None, extras=None,
+                          mime_type="image/png", name=name, uri=None)
+        sampler = io.Sampler(extensions=None, extras=None, mag_filter=LINEAR, min_filter=LINEAR, name=None,
+                             wrap_s=CLAMP_TO_EDGE, wrap_t=CLAMP_TO_EDGE)
+        texture = io.Texture(extensions=None, extras=None, name=name, sampler=sampler, source=source)
+        self.textures[name] = (texture, value_range, data)
+        return texture, value_range
+
+    def sh(self, image, types):
+        """The L1 bands of lightmap image `image` (writeback/directional.py) in glTF's axes, as the
+        extras list them; None without them. Blender's (x, y, z) is glTF's (x, -z, y): glTF's L1_-1
+        (its y) is Blender's band 2 (z), L1_0 (its z) minus band 1 (y), L1_1 (x) band 3."""
+        bands = [bpy.data.images.get(directional.band_image_name(image.name, b)) for b in directional.BANDS]
+        if any(b is None for b in bands):
+            return None
+        if image.name in self.sh_bands:
+            return self.sh_bands[image.name]
+        values = []
+        for b in bands:
+            w, h = b.size
+            px = np.empty(w * h * 4, np.float32)
+            b.pixels.foreach_get(px)
+            values.append(px.reshape(h, w, 4)[..., :3])
+        out = {"layout": "Godot 4 SH L1", "axes": "glTF (y up)", "encoding": rgbm.SIGNED,
+               "decode": "value = (2 * rgb - 1) * a * range", "l0": "the lightmap's value / (2 * 0.282095)",
+               "evaluate": "0.282095 * L0 + 0.32573 * (L1_-1 * n.y + L1_0 * n.z + L1_1 * n.x)", "bands": []}
+        for m, name, v in ((-1, "L1_-1", values[1]), (0, "L1_0", -values[0]), (1, "L1_1", values[2])):
+            texture, value_range = self.signed_texture("%s_%s" % (image.name, name), v, types)
+            out["bands"].append({"m": m, "texture": texture, "range": value_range})
+        self.sh_bands[image.name] = out
+        return out
+
     def node(self, node, obj):
         entry = self.lightmaps.get(obj.name)
         mesh = getattr(node, "mesh", None)
@@ -110,6 +152,7 @@ class _Export:
         texture, value_range, _ = self.texture(image, types)
         intensity = IRRADIANCE_PER_TEXEL * value_range
         layers = self.layers(image, types)
+        sh = self.sh(image, types)
         names = self.objects.setdefault(obj.name, [])
         for prim in mesh.primitives:
             attrs = dict(prim.attributes)
@@ -143,6 +186,8 @@ class _Export:
                                       "object": obj.name, "image": image.name}
                 if layers:
                     extras[EXTRAS_KEY]["layers"] = layers
+                if sh:
+                    extras[EXTRAS_KEY]["sh"] = sh
                 mat.extras = extras
                 self.materials[mkey] = mat
                 names.append(mat.name)

@@ -53,6 +53,34 @@ def error_bound(rgbm, value_range):
     return np.asarray(rgbm, np.float64)[..., 3] / STEPS * value_range / (2.0 * STEPS)
 
 
+SIGNED = "RGBM_SIGNED"
+
+
+def signed_range(values):
+    """RANGE for signed values (SH L1 bands): their largest finite magnitude (1 for all zeros)."""
+    finite = np.abs(values[np.isfinite(values)])
+    top = float(finite.max()) if finite.size else 0.0
+    return top if top > 0.0 else 1.0
+
+
+def encode_signed(values, value_range):
+    """(h, w, 3) signed values -> (h, w, 4) uint8 for `value_range`: value = (2 (r, g, b) - 1) m RANGE,
+    m the texel's largest magnitude over RANGE rounded up to 1/255, r, g, b rounded to 1/255; a channel
+    is off by at most m RANGE / 255. Non-finite values count as 0."""
+    x = np.nan_to_num(np.asarray(values, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    x = np.clip(x / value_range, -1.0, 1.0)
+    m = np.ceil(np.abs(x).max(axis=2) * STEPS)
+    scale = np.where(m > 0, STEPS / np.maximum(m, 1.0), 0.0)
+    c = np.clip(np.rint((x * scale[..., None] + 1.0) * 0.5 * STEPS), 0, 255)
+    return np.concatenate([c, m[..., None]], axis=2).astype(np.uint8)
+
+
+def decode_signed(encoded, value_range):
+    """(h, w, 4) uint8 from encode_signed -> (h, w, 3) float64 values."""
+    v = np.asarray(encoded, np.float64) / STEPS
+    return (2.0 * v[..., :3] - 1.0) * v[..., 3:4] * value_range
+
+
 def png(rgba, bottom_up=True):
     """An RGBA 8-bit PNG file's bytes for (h, w, 4) uint8 pixels; bottom_up: row 0 is the image's
     bottom (Blender's and the engine's order; a PNG stores the top row first). Each row is filtered
