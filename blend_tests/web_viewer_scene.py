@@ -87,7 +87,7 @@ def build(kind):
         cam.location = eye
         cam.rotation_euler = (target - eye).to_track_quat('-Z', 'Y').to_euler()
         bpy.context.scene.camera = cam
-        return dict(max_bounces=8, target_error=0.01)
+        bake = dict(max_bounces=8, target_error=0.01)
     elif kind == "groups":
         scenes.light_groups_room(32, (0.45, 0.6, 1.0))
         bake = dict(max_bounces=8, target_error=0.01, direct_samples=16)

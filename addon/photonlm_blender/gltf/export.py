@@ -275,7 +275,7 @@ def export_glb(context, filepath, use_selection=False):
         for mat in materials:
             wiring.set_preview(mat, 'OFF')
         result = bpy.ops.export_scene.gltf(
-            filepath=filepath, export_format='GLB', use_selection=use_selection, use_visible=True,
+            filepath=filepath, export_format='GLB', use_selection=use_selection, use_visible=True, use_renderable=True,
             export_apply=True, export_texcoords=True, export_normals=True, export_materials='EXPORT',
             export_cameras=False, export_lights=False, export_animations=False)
     finally:

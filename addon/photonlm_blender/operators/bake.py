@@ -97,11 +97,14 @@ class PHOTONLM_OT_bake(bpy.types.Operator):
             return {'CANCELLED'}
         report_all(self, job.reports)
         s = last["stats"]
-        self.report({'INFO'}, "Baked %d lightmaps: %s photons in %.2f s (%.2f M photons/s), error %.2f %% "
-                    "(%.1f %% of the texels above %.3g %%), %d warnings"
+        # Above twice the target (or twice the error): said only for an error above rounding (a bake
+        # whose light has no noise, e.g. a uniform sky on an open wall, reads 1e-15).
+        above = (" (%.1f %% of the texels above %.3g %%)" % (100.0 * s["error_above"], 200.0 * s["error_target"])
+                 if s["error_target"] > 1e-9 else "")
+        self.report({'INFO'}, "Baked %d lightmaps: %s photons in %.2f s (%.2f M photons/s), error %.2f %%%s, "
+                    "%d warnings"
                     % (len(last["objects"]), "{:,}".format(int(s["photons_emitted"])), s["seconds_total"],
-                       s["photons_per_second"] / 1e6, 100.0 * s["error_estimate"], 100.0 * s["error_above"],
-                       200.0 * s["error_target"], s["warning_count"]))
+                       s["photons_per_second"] / 1e6, 100.0 * s["error_estimate"], above, s["warning_count"]))
         # Last, so that the status bar shows them: the bake came close to the memory free, or much
         # of the lightmap is noisy.
         for text in job.notices:

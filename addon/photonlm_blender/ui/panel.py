@@ -115,7 +115,7 @@ class PHOTONLM_PT_last_bake(_Sub, bpy.types.Panel):
         stats = _stats(context.scene)
         rows = [("Objects", "last_objects"), ("Photons", "last_photons"), ("Time", "last_time"),
                 ("Error", "last_error")]
-        if "error_above" in stats:
+        if "error_above" in stats and float(stats.get("error_target", 0.0)) > 1e-9:  # not for an exact bake
             rows += [("Above %.3g %%" % (200.0 * float(stats.get("error_target", 0.0))), "last_error_above"),
                      ("Percentile 95", "last_error_p95")]
         if settings.last_hint:
