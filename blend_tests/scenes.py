@@ -118,6 +118,34 @@ def setup_paths():
     return photonlm_blender
 
 
+def enable_gltf_addons():
+    """Blender's glTF exporter finds PhotonLM's hook among enabled add-ons: enable both as
+    Preferences does (the add-on from $PHOTONLM_SOURCE_DIR/addon, as setup_paths puts it)."""
+    import addon_utils
+    src = os.environ.get("PHOTONLM_SOURCE_DIR") or os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    for sub in ("addon", "python_bridge"):
+        p = os.path.join(src, sub)
+        if p not in sys.path:
+            sys.path.insert(0, p)
+    addon_utils.enable("io_scene_gltf2", default_set=True)
+    addon_utils.enable("photonlm_blender", default_set=True, handle_error=lambda e: print("ENABLE ERROR", e))
+    return setup_paths()
+
+
+def principled_materials():
+    """Every mesh object's Diffuse BSDF material swapped for a Principled BSDF of its colour (what
+    Blender's glTF exporter writes as a base colour)."""
+    for obj in bpy.context.scene.objects:
+        if obj.type != 'MESH':
+            continue
+        for slot in obj.material_slots:
+            old = slot.material
+            diffuse = [n for n in old.node_tree.nodes if n.bl_idname == 'ShaderNodeBsdfDiffuse']
+            if diffuse:
+                color = tuple(diffuse[0].inputs["Color"].default_value)[:3]
+                slot.material = diffuse_material(old.name + "_principled", color, principled=True)
+
+
 def out_dir(name):
     base = os.environ.get("PHOTONLM_TEST_OUT") or os.path.join("/tmp", "photonlm_test_out")
     d = os.path.join(base, name)

@@ -17,34 +17,10 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import scenes  # noqa: E402
 
-import addon_utils  # noqa: E402
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 
 WIDTH, HEIGHT = 160, 120
-
-
-def enable_addons():
-    src = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    for sub in ("addon", "python_bridge"):
-        p = os.path.join(src, sub)
-        if p not in sys.path:
-            sys.path.insert(0, p)
-    addon_utils.enable("io_scene_gltf2", default_set=True)
-    addon_utils.enable("photonlm_blender", default_set=True, handle_error=lambda e: print("ENABLE ERROR", e))
-    return scenes.setup_paths()
-
-
-def principled_materials():
-    for obj in bpy.context.scene.objects:
-        if obj.type != 'MESH':
-            continue
-        for slot in obj.material_slots:
-            old = slot.material
-            diffuse = [n for n in old.node_tree.nodes if n.bl_idname == 'ShaderNodeBsdfDiffuse']
-            if diffuse:
-                color = tuple(diffuse[0].inputs["Color"].default_value)[:3]
-                slot.material = scenes.diffuse_material(old.name + "_principled", color, principled=True)
 
 
 def render(path):
@@ -75,14 +51,13 @@ def render(path):
 
 def main():
     checks = scenes.Checks("gltf_round_trip")
-    enable_addons()
-    from photonlm_blender.gltf import rgbm
+    scenes.enable_gltf_addons()
     out = scenes.out_dir("gltf_round_trip")
     scenes.clear_scene()
     objs = scenes.cornell_box(resolution=16)
     objs.pop("light")
     scenes.cornell_camera()
-    principled_materials()
+    scenes.principled_materials()
     bpy.context.scene.photonlm.output_dir = out
     last = scenes.photonlm_bake(2_000_000, 16, seed=5, target_error=0.02)
     original = render(os.path.join(out, "original.exr"))

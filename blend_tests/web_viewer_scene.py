@@ -29,35 +29,8 @@ import time
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import scenes  # noqa: E402
 
-import addon_utils  # noqa: E402
 import bpy  # noqa: E402
 from mathutils import Vector  # noqa: E402
-
-
-def enable_addons():
-    """Blender's glTF exporter finds the add-on's hook among enabled add-ons: enable both as
-    Preferences does."""
-    src = os.environ.get("PHOTONLM_SOURCE_DIR") or os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    for sub in ("addon", "python_bridge"):
-        p = os.path.join(src, sub)
-        if p not in sys.path:
-            sys.path.insert(0, p)
-    addon_utils.enable("io_scene_gltf2", default_set=True)
-    addon_utils.enable("photonlm_blender", default_set=True, handle_error=lambda e: print("ENABLE ERROR", e))
-    return scenes.setup_paths()
-
-
-def principled_materials():
-    """Every object's Diffuse BSDF material swapped for a Principled BSDF of its colour."""
-    for obj in bpy.context.scene.objects:
-        if obj.type != 'MESH':
-            continue
-        for slot in obj.material_slots:
-            old = slot.material
-            diffuse = [n for n in old.node_tree.nodes if n.bl_idname == 'ShaderNodeBsdfDiffuse']
-            if diffuse:
-                color = tuple(diffuse[0].inputs["Color"].default_value)[:3]
-                slot.material = scenes.diffuse_material(old.name + "_principled", color, principled=True)
 
 
 def build(kind):
@@ -93,7 +66,7 @@ def build(kind):
         bake = dict(max_bounces=8, target_error=0.01, direct_samples=16)
     else:
         raise SystemExit("web_viewer_scene: unknown scene '%s' (cornell, room, groups or artist)" % kind)
-    principled_materials()
+    scenes.principled_materials()
     return bake
 
 
@@ -165,7 +138,7 @@ def main():
     width, height = (int(argv[2]), int(argv[3])) if len(argv) > 3 else (320, 240)
     photons = int(argv[4]) if len(argv) > 4 else 20_000_000
     os.makedirs(out, exist_ok=True)
-    enable_addons()
+    scenes.enable_gltf_addons()
     bake = build(kind)
     bpy.context.scene.photonlm.output_dir = os.path.join(out, "lightmaps")
     last = scenes.photonlm_bake(photons, seed=1, **bake)

@@ -116,6 +116,22 @@ Parts mesh_parts(const Estimator& est, size_t i, uint64_t photons, uint32_t firs
   return p;
 }
 
+// The direct and gather sums a lightmap's split reads: the direct pass's
+// where the estimate has direct light and the sums a split, the gather's
+// where the estimate blends photons with it (Parts::photon_weight); else null.
+struct SplitSources {
+  const DirectResult* direct = nullptr;
+  const GatherResult* gather = nullptr;
+};
+SplitSources split_sources(const Estimator& est, const Parts& parts) {
+  SplitSources s;
+  const DirectResult* dr = est.direct_result;
+  if (!est.direct.empty() && dr && !dr->split_rgb.empty()) s.direct = dr;
+  const GatherResult* gr = est.gather;
+  if (gr && gr->slots == est.acc.slots && !gr->split_rgb.empty() && !parts.photon_weight.empty()) s.gather = gr;
+  return s;
+}
+
 }  // namespace
 
 void layer_texels(const Estimator& est, size_t i, uint64_t photons, const std::vector<float>& values,
@@ -126,12 +142,10 @@ void layer_texels(const Estimator& est, size_t i, uint64_t photons, const std::v
   layers_out.assign(layers, std::vector<float>(4 * n, 0.0f));
   if (layers == 0) return;
   const Parts parts = mesh_parts(est, i, photons, 0, layers);
-  const DirectResult* dr = est.direct_result;
-  const bool direct = !est.direct.empty() && dr && !dr->split_rgb.empty();
-  const GatherResult* gr = est.gather && est.gather->slots == slots && !est.gather->split_rgb.empty() &&
-                                   !parts.photon_weight.empty()
-                               ? est.gather
-                               : nullptr;
+  const SplitSources src = split_sources(est, parts);
+  const DirectResult* dr = src.direct;
+  const bool direct = dr != nullptr;
+  const GatherResult* gr = src.gather;
   Shares direct_share, photon_share, gather_share;
   std::vector<double> raw(3 * size_t(layers), 0.0), gathered(3 * size_t(layers), 0.0);
   for (size_t t = 0, k = est.space.covered_begin[i]; t < n; ++t) {
@@ -208,12 +222,10 @@ void direction_texels(const Estimator& est, size_t i, uint64_t photons, const st
   axes.assign(3, std::vector<float>(4 * n, 0.0f));
   if (!split.directional) return;
   const Parts parts = mesh_parts(est, i, photons, first, 3, true);  // the slots hold caustic hits too
-  const DirectResult* dr = est.direct_result;
-  const bool direct = !est.direct.empty() && dr && !dr->split_rgb.empty();
-  const GatherResult* gr = est.gather && est.gather->slots == slots && !est.gather->split_rgb.empty() &&
-                                   !parts.photon_weight.empty()
-                               ? est.gather
-                               : nullptr;
+  const SplitSources src = split_sources(est, parts);
+  const DirectResult* dr = src.direct;
+  const bool direct = dr != nullptr;
+  const GatherResult* gr = src.gather;
   // A part's moment over its light, per axis and channel (0 where it has no light).
   auto ratio = [](double part, double whole) { return whole > 0.0 ? part / whole : 0.0; };
   for (size_t t = 0, k = est.space.covered_begin[i]; t < n; ++t) {
