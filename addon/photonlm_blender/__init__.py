@@ -17,12 +17,12 @@ its own package; nothing imports upwards):
     uv/             lightmap UV maps (uvmaps), their measures (uvcheck), atlas packing (atlas_pack)
     writeback/      a result -> Blender: apply (the one write-back), images (EXRs, heat maps),
                     atlas pages, material wiring and its preview closures, the light groups' mix,
-                    L-system light, record
+                    directional lightmaps' bands and their node group, L-system light, record
                     (the last bake's statistics, on the scene)
     bake/           one bake run here (job), a bake folder from a farm (folder), a scene file
                     for batch machines (scene_file)
-    gltf/           a .glb with the lightmaps through Blender's glTF exporter (export) and their
-                    8-bit encoding (rgbm)
+    gltf/           a .glb with the lightmaps through Blender's glTF exporter (export), their
+                    8-bit encoding (rgbm), and such a file imported with its lightmaps (rewire)
     preview/        the lightmaps shown while a bake runs (live)
     properties/     scene and object settings
     operators/      bake, remove preview, L-system, scene-file export, bake-folder import, glTF export
