@@ -215,6 +215,46 @@ TEST(Directional, CausticPhotonsKeepTheirDirection) {
   EXPECT_LT(angle_deg(light, sun), 3.0);
 }
 
+// In a furnace (a closed box whose faces all emit and reflect alike) light
+// comes from everywhere alike: every texel's moment is V n / 2 (its part
+// across the face 0). The final gather's rays carry the control variate of
+// their directions (final_gather.cpp), so their geometric spread adds no
+// noise: the parts across the faces stay within the photons' noise.
+TEST(Directional, AFurnaceHasNoDirection) {
+  plm_demo::SceneBuilder b;
+  plm_demo::build_furnace(b, 0.5f, 1.0f, 16);
+  plm_bake_settings s = directional_settings(0, 16);
+  s.target_error = 0.02;
+  BakeResult r;
+  plm_test::bake(b, s, r);
+  double sq_t = 0.0, normal = 0.0, v_sum = 0.0;
+  size_t count = 0;
+  for (uint32_t m = 0; m < b.mesh_names.size(); ++m) {
+    const Sh sh = sh_of(r, m);
+    const plm_test::Map map = r.map(m);
+    for (size_t t = 0; t < size_t(sh.w) * sh.h; ++t) {
+      if (!(map.coverage[t] > 0.0f)) continue;
+      for (int c = 0; c < 3; ++c) {
+        double d[3];
+        sh.moment(t, c, d);
+        const double v = sh.value(t, c);
+        // The face's normal is the axis along which |D| is largest.
+        int axis = 0;
+        for (int a = 1; a < 3; ++a)
+          if (std::fabs(d[a]) > std::fabs(d[axis])) axis = a;
+        for (int a = 0; a < 3; ++a)
+          if (a != axis) sq_t += d[a] * d[a] / (v * v);
+        normal += std::fabs(d[axis]);
+        v_sum += v;
+        ++count;
+      }
+    }
+  }
+  ASSERT_GT(count, 1000u);
+  EXPECT_NEAR(normal / v_sum, 0.5, 0.01);
+  EXPECT_LT(std::sqrt(sq_t / double(count)), 0.05);
+}
+
 TEST(Directional, BadRequestsAreRefusedNamingWhatIsWrong) {
   plm_demo::SceneBuilder b;
   floor_scene(b, true, 0.5, false);

@@ -113,8 +113,13 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
   // lanes are marked with a negative tfar and not traced.
   RayPacket packet;
   uint32_t lane_sample[RayPacket::kLanes];
-  Vec3 lane_dir[RayPacket::kLanes], lane_u[RayPacket::kLanes] = {};
+  Vec3 lane_dir[RayPacket::kLanes], lane_u[RayPacket::kLanes] = {}, lane_n[RayPacket::kLanes] = {};
   float lane_weight[RayPacket::kLanes];
+  // Directional lightmaps: the rays' light (all of them, zeros too) and the sum of their
+  // direction weights less those weights' mean for cosine-sampled rays (n / 2 each: the control
+  // variate below).
+  const bool directional = split && source.directional;
+  double light_sum[3] = {0, 0, 0}, control[3] = {0, 0, 0};
   for (uint32_t j0 = 0; j0 < n; j0 += RayPacket::kLanes) {
     uint32_t zero_lanes = 0, contact_lanes = 0;  // bit l: lane l is a known zero; ... a point in contact
     for (uint32_t j = j0; j < std::min(n, j0 + RayPacket::kLanes); ++j) {
@@ -132,7 +137,10 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
       make_frame(shading, t, b);
       lane_sample[packet.size] = j;
       lane_dir[packet.size] = t * local.x + b * local.y + shading * local.z;
-      if (split && source.directional) lane_u[packet.size] = direction_weight(lane_dir[packet.size], shading);
+      if (directional) {
+        lane_u[packet.size] = direction_weight(lane_dir[packet.size], shading);
+        lane_n[packet.size] = shading;
+      }
       lane_weight[packet.size] = burley && burley[tri] >= 0.0f ? bsdf::burley_receive(local.z, burley[tri]) : 1.0f;
       if (contact && contact[texel] && in_contact(rtc_, surfaces_, p, normal, mesh_id, tri, offset_scale_))
         contact_lanes |= 1u << packet.size;
@@ -217,7 +225,20 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
       }
       ++rays;
       pairs.add(j, sums.add(e), sums);
+      if (directional) {
+        for (int c = 0; c < 3; ++c) light_sum[c] += e[c];
+        for (int a = 0; a < 3; ++a) control[a] += double(lane_u[l][a]) - 0.5 * double(lane_n[l][a]);
+      }
     }
+  }
+  // The rays' moment with the control variate of their directions: a cosine-sampled ray's weight
+  // u has mean n / 2, so sum(e u) - mean(e) sum(u - n / 2) keeps the moment's expectation and
+  // drops the part of its noise that comes from where the rays went, not from what they saw (a
+  // texel under light alike from everywhere reads n / 2 exactly).
+  if (directional && rays) {
+    float* d = split + 3 * size_t(source.layers);
+    for (int a = 0; a < 3; ++a)
+      for (int c = 0; c < 3; ++c) d[3 * a + c] -= float(light_sum[c] / double(rays) * control[a]);
   }
   // Many backs lit from behind are a surface whose light no lightmap holds
   // (lightmaps are one-sided).
