@@ -328,26 +328,12 @@ def _sh_pages(plm, page_file, page_image, changed, kept, sh_blocks, lightmaps, p
             reports.warning("atlas page '%s' has no directional bands (it was baked without Directional): the "
                             "preview of its other objects shows half their light; bake all objects (Bake "
                             "Lightmaps)" % page_image)
-        if not changed:
-            image = bpy.data.images.get(name)
-            if image is None and os.path.isfile(path):
-                image = load_image(name, path, pack)
-            if image is None:
-                return []
-            out.append(image)
-            continue
-        page = _blank(size)
-        if kept and os.path.isfile(path):
-            old = plm.read_lightmap_exr(path)
-            if old.rgb.shape[:2] == (size, size):
-                page = (old.rgb, old.error, old.hits)
-        for n, bands in sh_blocks.items():
-            p = placements[n]
-            if p.page == k:
-                hits = lightmaps[n].hits
-                paste(page, _Block(bands[band], np.zeros_like(hits), hits), p, pad)
-        plm.write_lightmap_exr(path, *page)
-        out.append(load_image(name, path, pack))
+        blocks = {n: _Block(bands[band], np.zeros_like(lightmaps[n].hits), lightmaps[n].hits)
+                  for n, bands in sh_blocks.items()}
+        image = _part_page(plm, path, name, changed, kept, blocks, placements, k, size, pad, pack)
+        if image is None:
+            return []
+        out.append(image)
     return out
 
 
@@ -363,26 +349,34 @@ def _layer_pages(plm, page_file, page_image, changed, kept, layers, layer_blocks
             reports.warning("atlas page '%s' has no layer '%s' (it was baked without that light group): the "
                             "preview of its other objects lacks that group's light; bake all objects (Bake "
                             "Lightmaps)" % (page_image, layer))
-        if not changed:
-            image = bpy.data.images.get(name)
-            if image is None and os.path.isfile(path):
-                image = load_image(name, path, pack)
-            if image is not None:
-                out.append((layer, image))
-            continue
-        page = _blank(size)
-        if kept and os.path.isfile(path):
-            old = plm.read_lightmap_exr(path)
-            if old.rgb.shape[:2] == (size, size):
-                page = (old.rgb, old.error, old.hits)
-        for n, blocks in layer_blocks.items():
-            p = placements[n]
-            if p.page == k:
-                rgb, err = blocks[i]
-                paste(page, _Block(rgb, err, lightmaps[n].hits), p, pad)
-        plm.write_lightmap_exr(path, *page)
-        out.append((layer, load_image(name, path, pack)))
+        blocks = {n: _Block(*b[i], lightmaps[n].hits) for n, b in layer_blocks.items()}
+        image = _part_page(plm, path, name, changed, kept, blocks, placements, k, size, pad, pack)
+        if image is not None:
+            out.append((layer, image))
     return out
+
+
+def _part_page(plm, path, name, changed, kept, blocks, placements, k, size, pad, pack):
+    """One part (a light-group layer, an SH band) of page k as image `name` from file `path`: an
+    unchanged page's as it is (None if neither image nor file is there); a changed page's written
+    from the blocks ({object: _Block}) of its objects, over the earlier file where Bake Selected
+    keeps the page's other objects."""
+    if not changed:
+        image = bpy.data.images.get(name)
+        if image is None and os.path.isfile(path):
+            image = load_image(name, path, pack)
+        return image
+    page = _blank(size)
+    if kept and os.path.isfile(path):
+        old = plm.read_lightmap_exr(path)
+        if old.rgb.shape[:2] == (size, size):
+            page = (old.rgb, old.error, old.hits)
+    for n, block in blocks.items():
+        p = placements[n]
+        if p.page == k:
+            paste(page, block, p, pad)
+    plm.write_lightmap_exr(path, *page)
+    return load_image(name, path, pack)
 
 
 class _Block:
