@@ -4,14 +4,17 @@ docs/make_web_screenshots.py: a scene baked with the add-on, exported with its l
 under the Standard view transform, the view the page must reproduce.
 
     scripts/blender.sh 5.2 -b --factory-startup --python-exit-code 1 \\
-        --python blend_tests/web_viewer_scene.py -- OUT_DIR [cornell|room|groups|artist] [WIDTH HEIGHT [PHOTONS]]
+        --python blend_tests/web_viewer_scene.py -- OUT_DIR [cornell|room|groups|artist|bricks] [WIDTH HEIGHT [PHOTONS]]
 
 Scenes: `cornell`, the Cornell box (32 x 32 texels per object); `room`, the sunlit room of
 scenes.light_groups_room without its light groups (64 x 64); `groups`, that room with its light
 groups (sun and sky "day", two lamps "night", 32 x 32), mixed as GROUPS_MIX says before the
 export and the render (the file carries the mix; the page mixes the layers as the preview does);
 `artist`, the artist's room (scenes.artist_room: Blender's default materials, a modifier stack, an
-image texture, smooth shading, a sun through a Boolean window) from inside. Their Diffuse BSDFs are swapped for
+image texture, smooth shading, a sun through a Boolean window) from inside; `bricks`, the brick wall of
+blend_tests/test_directional.py (a normal map of bevelled bricks, a sun 55 degrees from its normal and
+a sky) baked with Directional: the page evaluates the SH bands at the normal map's normals as the
+preview does. Their Diffuse BSDFs are swapped for
 Principled BSDFs of the same colour (no specular, roughness 1), which Blender's glTF exporter
 writes as base colours. Writes into OUT_DIR:
 - scene.glb, the export;
@@ -61,11 +64,29 @@ def build(kind):
         cam.rotation_euler = (target - eye).to_track_quat('-Z', 'Y').to_euler()
         bpy.context.scene.camera = cam
         bake = dict(max_bounces=8, target_error=0.01)
+    elif kind == "bricks":
+        scenes.clear_scene()
+        normals = scenes.brick_normals(96)
+        scenes.brick_wall(96, scenes.brick_material("mat_wall", scenes.normal_map_image("bricks_normal", normals)))
+        d = Vector((math.sin(math.radians(55.0)) * math.sqrt(0.5), -math.cos(math.radians(55.0)),
+                    math.sin(math.radians(55.0)) * math.sqrt(0.5)))  # towards the sun
+        scenes.add_light("sun", 'SUN', (0.0, -3.0, 3.0), tuple(d.to_track_quat('Z', 'Y').to_euler()), energy=3.0,
+                         angle=0.0)
+        scenes.set_world_color((0.35, 0.45, 0.6), 1.0)
+        cam_data = bpy.data.cameras.new("camera")
+        cam_data.lens, cam_data.sensor_width, cam_data.sensor_fit = 35.0, 36.0, 'AUTO'
+        cam = bpy.data.objects.new("camera", cam_data)
+        bpy.context.scene.collection.objects.link(cam)
+        eye, target = Vector((0.3, -3.2, 1.2)), Vector((0.0, 0.0, 1.0))
+        cam.location = eye
+        cam.rotation_euler = (target - eye).to_track_quat('-Z', 'Y').to_euler()
+        bpy.context.scene.camera = cam
+        bake = dict(max_bounces=4, target_error=0.0, directional=True, direct_samples=64, photons=1_000_000)
     elif kind == "groups":
         scenes.light_groups_room(32, (0.45, 0.6, 1.0))
         bake = dict(max_bounces=8, target_error=0.01, direct_samples=16)
     else:
-        raise SystemExit("web_viewer_scene: unknown scene '%s' (cornell, room, groups or artist)" % kind)
+        raise SystemExit("web_viewer_scene: unknown scene '%s' (cornell, room, groups, artist or bricks)" % kind)
     scenes.principled_materials()
     return bake
 
@@ -141,7 +162,7 @@ def main():
     scenes.enable_gltf_addons()
     bake = build(kind)
     bpy.context.scene.photonlm.output_dir = os.path.join(out, "lightmaps")
-    last = scenes.photonlm_bake(photons, seed=1, **bake)
+    last = scenes.photonlm_bake(bake.pop("photons", photons), seed=1, **bake)
     print("web_viewer_scene: baked %d objects in %.1f s" % (len(last["objects"]), last["wall_seconds"]), flush=True)
 
     if kind == "groups":
@@ -153,7 +174,10 @@ def main():
     seconds = time.perf_counter() - t0
     lightmaps = {}
     for name, tex in summary["textures"].items():
-        w, h = bpy.data.images[name].size
+        image = bpy.data.images.get(name)  # the SH bands' textures have no image of that name
+        if image is None:
+            continue
+        w, h = image.size
         lightmaps[name] = dict(texels=w * h, png_bytes=tex["png_bytes"], range=tex["range"])
     render(os.path.join(out, "blender.png"), width, height)
     view = camera_view(width, height)

@@ -203,7 +203,8 @@ def gltf_export(args):
     t0 = time.perf_counter()
     summary = export_glb(bpy.context, path)
     seconds = time.perf_counter() - t0
-    texels = sum(bpy.data.images[name].size[0] * bpy.data.images[name].size[1] for name in summary["textures"])
+    texels = sum(bpy.data.images[name].size[0] * bpy.data.images[name].size[1] for name in summary["textures"]
+                 if name in bpy.data.images)
     png = sum(t["png_bytes"] for t in summary["textures"].values())
     out = dict(seconds=seconds, bytes=summary["size"], objects=len(summary["objects"]), texels=texels, png_bytes=png)
     print("glTF: %d objects in %.1f s, %.1f MB (lightmap PNGs %.2f MB per million texels)"

@@ -6,12 +6,14 @@ docs/gltf.md (the difference on the lit pixels, the export's time and sizes, the
 its first frame over a few loads).
 
     (cd web && npm ci && npm run build)
-    /usr/bin/python3 docs/make_web_screenshots.py [artist|room|cornell] [OUT_DIR]
+    /usr/bin/python3 docs/make_web_screenshots.py [artist|room|cornell|bricks] [OUT_DIR]
 
 writes blender.png, browser.png, side_by_side.png, difference.png and numbers.json into OUT_DIR
 (default /tmp/web_shots/<scene>), and with PHOTONLM_DOC_SAVE=1 copies side_by_side.png to
 docs/images/web_vs_blender.png. The scene is the artist's room (default), the sunlit room of the
-light groups test without its groups or the Cornell box (blend_tests/web_viewer_scene.py), 640 x 480.
+light groups test without its groups, the Cornell box or the directional brick wall
+(blend_tests/web_viewer_scene.py; docs/images/web_vs_blender_directional.png is its side_by_side.png),
+640 x 480.
 """
 import json
 import os

@@ -31,6 +31,19 @@ async function decodeRgbm(parser, textureIndex) {
   return { width, height, values };
 }
 
+/** A signed RGBM texture's values (value = (2 rgb - 1) x a x range: the SH bands), 4 floats a texel. */
+async function decodeSignedRgbm(parser, textureIndex, range) {
+  const textureDef = parser.json.textures[textureIndex];
+  const { width, height, data } = await decodePng(await imageBytes(parser, textureDef.source));
+  const values = new Float32Array(width * height * 4);
+  for (let i = 0; i < width * height; i++) {
+    const m = (data[4 * i + 3] / 255) * range;
+    for (let c = 0; c < 3; c++) values[4 * i + c] = (2 * (data[4 * i + c] / 255) - 1) * m;
+    values[4 * i + 3] = 1;
+  }
+  return { width, height, values };
+}
+
 /** A half-float texture of `values` (4 floats a texel), sampled as the file says, on UV set `texCoord`. */
 function halfTexture(width, height, values, info) {
   const half = new Uint16Array(values.length);
@@ -123,18 +136,58 @@ export function mixLayers(textures, groups) {
 
 /**
  * The material that shows `source` (GLTFLoader's) with `lightMap`: a Lambert material keeps its base
- * colour (factor, texture, vertex colours), alpha and emission; with no lights in the scene it
+ * colour (factor, texture, vertex colours), alpha, emission and normal map (which directional
+ * lightmaps' bands are evaluated at); with no lights in the scene it
  * shades lightMap x lightMapIntensity x albedo / pi (three.js's lightmap is irradiance), which for
  * intensity = pi x range is albedo x the lightmap's value, Blender's preview.
  */
-function lambertWith(source, lightMap, info) {
+// Directional lightmaps (extras' `sh`, docs/gltf.md): the lightmap's irradiance term becomes
+// pi x value(n) = pi (V / 2 + 0.32573 (L1_1 n.x + L1_-1 n.y + L1_0 n.z)), n the shaded normal (normal
+// map included) in world space (glTF's axes, three.js's), clamped at 0.
+const SH_TARGET = 'vec3 lightMapIrradiance = lightMapTexel.rgb * lightMapIntensity;';
+const SH_UNIFORMS = 'uniform sampler2D photonlmShX;\nuniform sampler2D photonlmShY;\nuniform sampler2D photonlmShZ;\n';
+const SH_IRRADIANCE = `vec3 photonlmN = normalize( ( vec4( geometryNormal, 0.0 ) * viewMatrix ).xyz );
+		vec3 lightMapIrradiance = max( lightMapTexel.rgb * lightMapIntensity * 0.5 + ${(Math.PI * 0.32573500793527993).toFixed(9)} * (
+			texture2D( photonlmShX, vLightMapUv ).rgb * photonlmN.x + texture2D( photonlmShY, vLightMapUv ).rgb * photonlmN.y +
+			texture2D( photonlmShZ, vLightMapUv ).rgb * photonlmN.z ), vec3( 0.0 ) );`;
+
+/** The SH bands of `info` (extras' `sh`) as textures along x, y and z, or null. */
+async function shTextures(parser, info) {
+  if (!info.sh) return null;
+  const byM = new Map(info.sh.bands.map((b) => [b.m, b]));
+  const axes = [1, -1, 0].map((m) => byM.get(m));  // x: L1_1, y: L1_-1, z: L1_0
+  if (axes.some((b) => !b)) throw new Error(`lightmap ${info.image}: its SH lacks a band`);
+  return Promise.all(axes.map(async (b) => {
+    const { width, height, values } = await decodeSignedRgbm(parser, b.texture, b.range);
+    return halfTexture(width, height, values, info);
+  }));
+}
+
+function lambertWith(source, lightMap, info, sh) {
   const material = new THREE.MeshLambertMaterial({
     name: source.name, color: source.color, map: source.map, vertexColors: source.vertexColors,
     side: source.side, transparent: source.transparent, opacity: source.opacity, alphaTest: source.alphaTest,
     alphaMap: source.alphaMap, emissive: source.emissive, emissiveMap: source.emissiveMap,
     emissiveIntensity: source.emissiveIntensity, lightMap, lightMapIntensity: info.intensity,
+    normalMap: source.normalMap, normalMapType: source.normalMapType, normalScale: source.normalScale,
+    bumpMap: source.bumpMap, bumpScale: source.bumpScale,
   });
   material.userData = source.userData;
+  if (sh) {
+    if (!THREE.ShaderChunk.lights_fragment_maps.includes(SH_TARGET)) {
+      throw new Error('this three.js shades lightmaps otherwise: directional lightmaps need its lights_fragment_maps');
+    }
+    material.onBeforeCompile = (shader) => {
+      shader.uniforms.photonlmShX = { value: sh[0] };
+      shader.uniforms.photonlmShY = { value: sh[1] };
+      shader.uniforms.photonlmShZ = { value: sh[2] };
+      shader.fragmentShader = SH_UNIFORMS + shader.fragmentShader.replace(
+        '#include <lights_fragment_maps>',
+        THREE.ShaderChunk.lights_fragment_maps.replace(
+          SH_TARGET, SH_IRRADIANCE));
+    };
+    material.customProgramCacheKey = () => 'photonlm-sh';
+  }
   return material;
 }
 
@@ -156,7 +209,9 @@ export async function applyLightmaps(gltf) {
       if (info.encoding !== 'RGBM') throw new Error(`lightmap encoding ${info.encoding} is not RGBM`);
       if (!materials.has(source.uuid)) {
         if (!textures.has(info.texture)) textures.set(info.texture, lightmapTexture(gltf.parser, info));
-        materials.set(source.uuid, textures.get(info.texture).then((t) => lambertWith(source, t, info)));
+        const sh = shTextures(gltf.parser, info);
+        materials.set(source.uuid, Promise.all([textures.get(info.texture), sh])
+          .then(([t, bands]) => lambertWith(source, t, info, bands)));
       }
       return materials.get(source.uuid);
     }));

@@ -39,6 +39,7 @@ from chromium import Chromium, serve  # noqa: E402
 
 SRC = os.environ.get("PHOTONLM_SOURCE_DIR") or os.path.dirname(os.path.dirname(HERE))
 MAX_MEAN_DIFFERENCE = 0.02
+MAX_MEAN_DIFFERENCE_BRICKS = 0.04  # measured 2.2 %: the bricks' sharp edges, a pixel off between renderers
 MAX_BIAS = 0.01
 LIT = 0.02        # linear grey a pixel must exceed in both images to count as lit
 MARGIN = 2        # pixels kept away from the background
@@ -70,8 +71,10 @@ def compare(browser_png, blender_png):
         raise AssertionError("the screenshot is %s, the render %s" % (a.shape, b.shape))
     mask = lit_mask(a, b)
     per_pixel = np.abs(a - b).sum(axis=2) / np.maximum(b.sum(axis=2), 1e-6)
+    # The spread of the lit pixels' brightness, relative to their mean (a normal map's relief).
+    spread = [float(x.mean(axis=2)[mask].std() / x.mean(axis=2)[mask].mean()) for x in (a, b)]
     return dict(mean_difference=float(per_pixel[mask].mean()), bias=float(a[mask].mean() / b[mask].mean() - 1.0),
-                pixels=int(mask.sum()), per_pixel=np.where(mask, per_pixel, 0.0))
+                pixels=int(mask.sum()), per_pixel=np.where(mask, per_pixel, 0.0), spread=spread)
 
 
 def side_by_side(left_png, right_png, path, labels=("Blender: EEVEE, lightmap preview", "Chromium: web viewer")):
@@ -162,13 +165,24 @@ def main():
     groups_out = os.path.join(base, "web_viewer_groups")
     os.makedirs(groups_out, exist_ok=True)
     compare_scene(groups_out, bake_and_render(groups_out, scene="groups"), check, "light groups mixed: ")
+    # A brick wall's normal map under directional lightmaps: the page evaluates the SH bands at the
+    # normal map's normals as the preview does (the bricks' edges, sampled nearest, differ by a pixel).
+    bricks_out = os.path.join(base, "web_viewer_bricks")
+    os.makedirs(bricks_out, exist_ok=True)
+    result = compare_scene(bricks_out, bake_and_render(bricks_out, "bricks", 640, 480), check, "directional: ",
+                           max_mean=MAX_MEAN_DIFFERENCE_BRICKS, min_lit=0.2)
+    browser_spread, blender_spread = result["spread"]
+    check(blender_spread > 0.05 and 0.8 <= browser_spread / blender_spread <= 1.25,
+          "directional: the bricks' relief, the lit pixels' spread, browser %.3f against Blender %.3f"
+          % (browser_spread, blender_spread))
     print("web_viewer: %d checks, %d failed (images in %s)" % (checks[0], len(failed), out))
     if failed:
         raise SystemExit("web_viewer FAILED: " + "; ".join(failed))
 
 
-def compare_scene(out, view, check, what=""):
-    """The page's screenshot of out/scene.glb against Blender's render out/blender.png."""
+def compare_scene(out, view, check, what="", max_mean=MAX_MEAN_DIFFERENCE, min_lit=0.5):
+    """The page's screenshot of out/scene.glb against Blender's render out/blender.png; returns the
+    comparison (compare)."""
     texels = sum(v["texels"] for v in view["lightmaps"].values())
     png_bytes = sum(v["png_bytes"] for v in view["lightmaps"].values())
     print("web viewer: export %.2f s, %d bytes; lightmap PNGs %d bytes for %d texels (%.0f bytes per texel)"
@@ -180,16 +194,17 @@ def compare_scene(out, view, check, what=""):
           "(%.1f s with Chromium's start)" % (first_frame or -1, time.perf_counter() - t0))
     check(not console, what + "the page's console has no warnings or errors (%s)" % ("; ".join(console) or "none"))
     result = compare(browser_png, blender_png)
-    check(result["pixels"] > 0.5 * view["width"] * view["height"],
+    check(result["pixels"] > min_lit * view["width"] * view["height"],
           what + "%d lit pixels compared (of %d)" % (result["pixels"], view["width"] * view["height"]))
-    check(result["mean_difference"] <= MAX_MEAN_DIFFERENCE,
+    check(result["mean_difference"] <= max_mean,
           what + "mean relative difference browser vs Blender on the lit pixels: %.2f %% (bound %.0f %%)"
-          % (100 * result["mean_difference"], 100 * MAX_MEAN_DIFFERENCE))
+          % (100 * result["mean_difference"], 100 * max_mean))
     check(abs(result["bias"]) <= MAX_BIAS, what + "mean brightness browser / Blender - 1: %+.2f %% (bound %.0f %%)"
           % (100 * result["bias"], 100 * MAX_BIAS))
     side_by_side(blender_png, browser_png, os.path.join(out, "side_by_side.png"))
     Image.fromarray((np.clip(result["per_pixel"] * 10.0, 0, 1) * 255).astype(np.uint8)).save(
         os.path.join(out, "difference.png"))
+    return result
 
 
 if __name__ == "__main__":
