@@ -22,6 +22,25 @@ inline void add_gathered(const GatherSource& source, uint64_t texel, Vec3 e, Vec
   if (source.directional) add_split(split + 3 * size_t(source.layers), SplitLayout{0, true}, 0, e, u);
 }
 
+// Directional lightmaps: a texel's rays' moment with the control variate of
+// their directions. A cosine-sampled ray's weight u has mean n / 2, so
+// sum(e u) - mean(e) sum(u - n / 2) keeps the moment's expectation and drops
+// the part of its noise that comes from where the rays went, not from what
+// they saw (under light alike from everywhere the moment is n / 2 exactly).
+struct DirectionControl {
+  double light[3] = {0, 0, 0}, control[3] = {0, 0, 0};
+  // A ray (every one, zeros too): its light e, weight u and the normal n it was sampled about.
+  void add(Vec3 e, Vec3 u, Vec3 n) {
+    for (int c = 0; c < 3; ++c) light[c] += e[c];
+    for (int a = 0; a < 3; ++a) control[a] += double(u[a]) - 0.5 * double(n[a]);
+  }
+  // The correction of the moment d (3 axes x RGB) the texel's `rays` rays added up.
+  void apply(float* d, uint32_t rays) const {
+    for (int a = 0; a < 3; ++a)
+      for (int c = 0; c < 3; ++c) d[3 * a + c] -= float(light[c] / double(rays) * control[a]);
+  }
+};
+
 constexpr uint32_t kCellCapacity = kMaxGatherSamples;  // rays whose cells a texel keeps apart
 constexpr uint32_t kCalibrationRound = 0xFF;            // the replicates' key (the gather's rounds count from 0)
 constexpr uint32_t kOpenRound = 0xFE;                   // open_share's points
@@ -31,6 +50,19 @@ struct CellShare {
   uint64_t cell;
   double share;
 };
+
+// The sum over cells of each cell's share squared (the rays that look up one cell share its error).
+double cell_shares_sq(CellShare* cells, uint32_t count) {
+  std::sort(cells, cells + count, [](const CellShare& a, const CellShare& b) { return a.cell < b.cell; });
+  double sq = 0.0;
+  for (uint32_t i = 0; i < count;) {
+    double share = 0.0;
+    const uint64_t cell = cells[i].cell;
+    for (; i < count && cells[i].cell == cell; ++i) share += cells[i].share;
+    sq += share * share;
+  }
+  return sq;
+}
 
 }  // namespace
 
@@ -115,11 +147,8 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
   uint32_t lane_sample[RayPacket::kLanes];
   Vec3 lane_dir[RayPacket::kLanes], lane_u[RayPacket::kLanes] = {}, lane_n[RayPacket::kLanes] = {};
   float lane_weight[RayPacket::kLanes];
-  // Directional lightmaps: the rays' light (all of them, zeros too) and the sum of their
-  // direction weights less those weights' mean for cosine-sampled rays (n / 2 each: the control
-  // variate below).
   const bool directional = split && source.directional;
-  double light_sum[3] = {0, 0, 0}, control[3] = {0, 0, 0};
+  DirectionControl control;
   for (uint32_t j0 = 0; j0 < n; j0 += RayPacket::kLanes) {
     uint32_t zero_lanes = 0, contact_lanes = 0;  // bit l: lane l is a known zero; ... a point in contact
     for (uint32_t j = j0; j < std::min(n, j0 + RayPacket::kLanes); ++j) {
@@ -137,10 +166,8 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
       make_frame(shading, t, b);
       lane_sample[packet.size] = j;
       lane_dir[packet.size] = t * local.x + b * local.y + shading * local.z;
-      if (directional) {
-        lane_u[packet.size] = direction_weight(lane_dir[packet.size], shading);
-        lane_n[packet.size] = shading;
-      }
+      if (directional) lane_u[packet.size] = direction_weight(lane_dir[packet.size], shading);
+      lane_n[packet.size] = shading;
       lane_weight[packet.size] = burley && burley[tri] >= 0.0f ? bsdf::burley_receive(local.z, burley[tri]) : 1.0f;
       if (contact && contact[texel] && in_contact(rtc_, surfaces_, p, normal, mesh_id, tri, offset_scale_))
         contact_lanes |= 1u << packet.size;
@@ -225,33 +252,15 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
       }
       ++rays;
       pairs.add(j, sums.add(e), sums);
-      if (directional) {
-        for (int c = 0; c < 3; ++c) light_sum[c] += e[c];
-        for (int a = 0; a < 3; ++a) control[a] += double(lane_u[l][a]) - 0.5 * double(lane_n[l][a]);
-      }
+      if (directional) control.add(e, lane_u[l], lane_n[l]);
     }
   }
-  // The rays' moment with the control variate of their directions: a cosine-sampled ray's weight
-  // u has mean n / 2, so sum(e u) - mean(e) sum(u - n / 2) keeps the moment's expectation and
-  // drops the part of its noise that comes from where the rays went, not from what they saw (a
-  // texel under light alike from everywhere reads n / 2 exactly).
-  if (directional && rays) {
-    float* d = split + 3 * size_t(source.layers);
-    for (int a = 0; a < 3; ++a)
-      for (int c = 0; c < 3; ++c) d[3 * a + c] -= float(light_sum[c] / double(rays) * control[a]);
-  }
+  if (directional && rays) control.apply(split + 3 * size_t(source.layers), rays);
   // Many backs lit from behind are a surface whose light no lightmap holds
   // (lightmaps are one-sided).
   if (4 * back > rays) info.unknown += back;
   if (rays) {
-    std::sort(cells, cells + cell_count, [](const CellShare& a, const CellShare& b) { return a.cell < b.cell; });
-    double cells_sq = 0.0;
-    for (uint32_t i = 0; i < cell_count;) {
-      double share = 0.0;
-      const uint64_t cell = cells[i].cell;
-      for (; i < cell_count && cells[i].cell == cell; ++i) share += cells[i].share;
-      cells_sq += share * share;
-    }
+    const double cells_sq = cell_shares_sq(cells, cell_count);
     const double n_sq = double(rays) * double(rays);
     info.lookup_all = local_sum * local_sum / n_sq;
     info.lookup_cells = cells_sq / n_sq;
