@@ -18,7 +18,6 @@ struct SplitLayout {
   uint32_t layers = 0;       // light-group layers (0 without groups)
   bool directional = false;  // the direction moment's three slots follow the layers
   uint32_t slots() const { return layers + (directional ? 3u : 0u); }
-  size_t floats() const { return 3 * size_t(slots()); }
   uint32_t axis_slot(uint32_t axis) const { return layers + axis; }
 };
 
@@ -32,7 +31,7 @@ inline Vec3 direction_weight(Vec3 dir, Vec3 n) {
 }
 
 // Adds `light` of layer `layer`, arriving with direction weight u, to a
-// texel's split (split.floats() floats; null: nothing is kept).
+// texel's split (3 x s.slots() floats; null: nothing is kept).
 inline void add_split(float* split, const SplitLayout& s, uint32_t layer, Vec3 light, Vec3 u) {
   if (!split) return;
   if (s.layers)

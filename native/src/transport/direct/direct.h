@@ -67,7 +67,7 @@ class DirectPass {
   // Adds `samples` (rounded up to a square) stratified samples of round `round`
   // to texel `texel` of mesh `mesh`; mesh = mesh count + c means sub-texel
   // `texel` of CSG solid c. Thread-safe for distinct texels. With light
-  // groups or directional lightmaps, split (split().floats(), or null) gets
+  // groups or directional lightmaps, split (3 x split().slots() floats, or null) gets
   // the samples' light split by the lights' layers and its direction moment
   // (transport/context/split.h; the same light as sums.rgb).
   void sample_texel(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, DirectSums& sums,

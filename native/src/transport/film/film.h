@@ -74,7 +74,7 @@ class Accumulators {
   Accumulators(uint64_t texels, size_t meshes, bool caustics = false, FluxQuantum quantum_in = {},
                SplitLayout split_in = {})
       : sum(3 * texels, 0.0), sum_sq(texels, 0.0), hits(texels, 0), back_lit(meshes, 0), quantum(quantum_in),
-        split(split_in), slots(split_in.slots()), split_sum(size_t(3) * slots * texels, 0.0) {
+        split(split_in), split_sum(size_t(3) * split_in.slots() * texels, 0.0) {
     if (caustics) caustic.resize(texels);
   }
   std::vector<double> sum, sum_sq;  // flux / pick probability (not yet divided by the photon count)
@@ -91,8 +91,8 @@ class Accumulators {
   // direction weight), so that the layers add up to sum + caustic.sum exactly
   // and the sums do not depend on the order of addition.
   SplitLayout split;
-  uint32_t slots = 0;
   std::vector<double> split_sum;
+  uint32_t slots() const { return split.slots(); }
   const double* slot_flux(uint32_t slot, uint64_t texel) const {
     return &split_sum[3 * (size_t(slot) * hits.size() + texel)];
   }
@@ -128,7 +128,7 @@ class Accumulators {
   // is hit i's layer; with directional lightmaps, u[3 i ..] its direction weight.
   uint64_t add_hits(const Hit* h, const Hit* end, bool caustic_hits, const uint32_t* layer = nullptr,
                     const float* u = nullptr) {
-    if (!slots) return add_hits_to<false>(h, end, caustic_hits, nullptr, nullptr);
+    if (!slots()) return add_hits_to<false>(h, end, caustic_hits, nullptr, nullptr);
     return add_hits_to<true>(h, end, caustic_hits, layer, u);
   }
   // Counts `count` hits whose squared fluxes sum to sq_q quanta.

@@ -223,7 +223,7 @@ void write_lightmaps(tbb::task_arena& arena, const Scene& scene, const Estimator
         }
       }
       const std::vector<uint8_t> covered = filled;
-      const std::vector<float> undilated = est.acc.slots ? values : std::vector<float>();
+      const std::vector<float> undilated = est.acc.slots() ? values : std::vector<float>();
       dilate(values, 4, filled, img.width, img.height, dilation);
       if (!seams.joint[i]) stitch_seams(seams.within[i], covered, values, 4, img.width, img.height);
       const std::vector<SeamEdge>* within = seams.joint[i] ? nullptr : &seams.within[i];

@@ -63,7 +63,7 @@ struct Parts {
 // with `caustics`, also the caustic photons pooled alike (Parts::caustic_value).
 Parts mesh_parts(const Estimator& est, size_t i, uint64_t photons, uint32_t first, uint32_t layers,
                  bool caustics = false) {
-  const uint32_t slots = est.acc.slots;
+  const uint32_t slots = est.acc.slots();
   const TexelAreas& ta = est.space.areas[i];
   const Mesh& mesh = *est.space.views[i].mesh;
   const size_t n = ta.area.size();
@@ -128,7 +128,7 @@ SplitSources split_sources(const Estimator& est, const Parts& parts) {
   const DirectResult* dr = est.direct_result;
   if (!est.direct.empty() && dr && !dr->split_rgb.empty()) s.direct = dr;
   const GatherResult* gr = est.gather;
-  if (gr && gr->slots == est.acc.slots && !gr->split_rgb.empty() && !parts.photon_weight.empty()) s.gather = gr;
+  if (gr && gr->slots == est.acc.slots() && !gr->split_rgb.empty() && !parts.photon_weight.empty()) s.gather = gr;
   return s;
 }
 
@@ -136,7 +136,7 @@ SplitSources split_sources(const Estimator& est, const Parts& parts) {
 
 void layer_texels(const Estimator& est, size_t i, uint64_t photons, const std::vector<float>& values,
                   std::vector<std::vector<float>>& layers_out) {
-  const uint32_t layers = est.acc.split.layers, slots = est.acc.slots;
+  const uint32_t layers = est.acc.split.layers, slots = est.acc.slots();
   const TexelAreas& ta = est.space.areas[i];
   const size_t n = ta.area.size();
   layers_out.assign(layers, std::vector<float>(4 * n, 0.0f));
@@ -216,7 +216,7 @@ void layer_texels(const Estimator& est, size_t i, uint64_t photons, const std::v
 void direction_texels(const Estimator& est, size_t i, uint64_t photons, const std::vector<float>& values,
                       std::vector<std::vector<float>>& axes) {
   const SplitLayout& split = est.acc.split;
-  const uint32_t slots = est.acc.slots, first = split.layers;
+  const uint32_t slots = est.acc.slots(), first = split.layers;
   const TexelAreas& ta = est.space.areas[i];
   const size_t n = ta.area.size();
   axes.assign(3, std::vector<float>(4 * n, 0.0f));
