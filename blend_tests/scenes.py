@@ -132,6 +132,29 @@ def enable_gltf_addons():
     return setup_paths()
 
 
+def render_lightmap_preview(path, width, height):
+    """Render the scene to `path` in its render file format as the lightmap preview shows it: EEVEE
+    (16 samples), the Standard view transform, the world black and the lights off (the preview is
+    emission: the light is the lightmap's)."""
+    scene = bpy.context.scene
+    r = scene.render
+    r.engine = eevee_engine()
+    r.resolution_x, r.resolution_y, r.resolution_percentage = width, height, 100
+    r.film_transparent = False
+    scene.eevee.taa_render_samples = 16
+    vs = scene.view_settings
+    vs.view_transform, vs.look, vs.exposure, vs.gamma = 'Standard', 'None', 0.0, 1.0
+    scene.display_settings.display_device = 'sRGB'
+    if scene.world is not None and scene.world.use_nodes:
+        scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
+    for obj in scene.objects:
+        if obj.type == 'LIGHT':
+            obj.hide_render = True
+    scene.photonlm.preview_mode = 'LIGHTMAP'
+    r.filepath = path
+    bpy.ops.render.render(write_still=True)
+
+
 def principled_materials():
     """Every mesh object's Diffuse BSDF material swapped for a Principled BSDF of its colour (what
     Blender's glTF exporter writes as a base colour)."""
@@ -882,6 +905,19 @@ def brick_material(name, image, color=(0.6, 0.3, 0.2)):
     nt.links.new(nmap.outputs["Normal"], bsdf.inputs["Normal"])
     tex.location, uv.location, nmap.location = (-900, -300), (-1100, -300), (-550, -300)
     return mat
+
+
+# The brick wall's light: towards the sun 55 degrees from the wall's normal (0, -1, 0), from 45 degrees
+# between +x and +z; a uniform sky.
+BRICK_SUN = (math.sin(math.radians(55.0)) * math.sqrt(0.5), -math.cos(math.radians(55.0)),
+             math.sin(math.radians(55.0)) * math.sqrt(0.5))
+BRICK_SKY = (0.35, 0.45, 0.6)
+
+
+def add_sun(direction, strength, angle=0.0):
+    """A sun lamp 'sun' shining from `direction` (towards the sun, any length)."""
+    rot = Vector(direction).normalized().to_track_quat('Z', 'Y').to_euler()
+    return add_light("sun", 'SUN', (0.0, -3.0, 3.0), tuple(rot), energy=strength, angle=angle)
 
 
 def brick_wall(res, mat):

@@ -47,22 +47,15 @@ import scenes  # noqa: E402
 
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
-from mathutils import Vector  # noqa: E402
 
 FLOOR_RES = 32
 WALL_RES = 96
 WALL_SAMPLES = 256        # direct samples per texel of the wall's bakes
 SUN_FLOOR = (math.sin(math.radians(40.0)), 0.0, math.cos(math.radians(40.0)))
-# Towards the sun: 55 degrees from the wall's normal (0, -1, 0), from 45 degrees between +x and +z.
-SUN_WALL = (math.sin(math.radians(55.0)) * math.sqrt(0.5), -math.cos(math.radians(55.0)),
-            math.sin(math.radians(55.0)) * math.sqrt(0.5))
-SKY = (0.35, 0.45, 0.6)
+SUN_WALL = scenes.BRICK_SUN
+SKY = scenes.BRICK_SKY
 SH_L1 = 0.32573
-
-
-def add_sun(direction, strength):
-    rot = Vector(direction).normalized().to_track_quat('Z', 'Y').to_euler()
-    return scenes.add_light("sun", 'SUN', (0.0, -3.0, 3.0), tuple(rot), energy=strength, angle=0.0)
+add_sun = scenes.add_sun
 
 
 def pixels(image):

@@ -131,19 +131,11 @@ class Glb:
 
 
 def png_pixels(data, name):
-    """An 8-bit PNG's RGBA as Blender loads it, (h, w, 4) uint8 (row 0 = bottom)."""
-    path = os.path.join(scenes.out_dir("gltf_export"), name + ".png")
-    with open(path, "wb") as f:
+    """An 8-bit PNG's RGBA as Blender loads it, (h, w, 4) uint8 (row 0 = bottom); kept as <name>.png."""
+    from photonlm_blender.gltf.rewire import png_rgba
+    with open(os.path.join(scenes.out_dir("gltf_export"), name + ".png"), "wb") as f:
         f.write(data)
-    image = bpy.data.images.load(path, check_existing=False)
-    try:
-        image.colorspace_settings.name = 'Non-Color'
-        w, h = image.size
-        px = np.empty(w * h * 4, np.float32)
-        image.pixels.foreach_get(px)
-        return np.rint(px.reshape(h, w, 4) * 255.0).astype(np.uint8)
-    finally:
-        bpy.data.images.remove(image)
+    return png_rgba(data)
 
 
 def check_file(checks, glb, objs, lightmap_of, rgbm):

@@ -24,29 +24,12 @@ WIDTH, HEIGHT = 160, 120
 
 
 def render(path):
-    """EEVEE with the lightmap preview, Standard, the world black and the lights off: (h, w, 3) linear."""
-    scene = bpy.context.scene
-    r = scene.render
-    r.engine = scenes.eevee_engine()
-    r.resolution_x, r.resolution_y, r.resolution_percentage = WIDTH, HEIGHT, 100
-    r.film_transparent = False
+    """The lightmap preview (scenes.render_lightmap_preview) as a float EXR: (h, w, 3) linear."""
+    r = bpy.context.scene.render
     r.image_settings.file_format = 'OPEN_EXR'
     r.image_settings.color_depth = '32'
-    scene.eevee.taa_render_samples = 16
-    scene.view_settings.view_transform = 'Standard'
-    if scene.world is not None and scene.world.use_nodes:
-        scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
-    for obj in scene.objects:
-        if obj.type == 'LIGHT':
-            obj.hide_render = True
-    scene.photonlm.preview_mode = 'LIGHTMAP'
-    r.filepath = path
-    bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(path, check_existing=False)
-    px = np.empty(WIDTH * HEIGHT * 4, np.float32)
-    image.pixels.foreach_get(px)
-    bpy.data.images.remove(image)
-    return px.reshape(HEIGHT, WIDTH, 4)[..., :3]
+    scenes.render_lightmap_preview(path, WIDTH, HEIGHT)
+    return scenes.exr_rgb(path)
 
 
 def main():

@@ -36,6 +36,17 @@ import bpy  # noqa: E402
 from mathutils import Vector  # noqa: E402
 
 
+def look_from(eye, target, lens):
+    """The scene's camera at `eye` looking at `target` (lens in mm, a 36 mm sensor fitted automatically)."""
+    data = bpy.data.cameras.new("camera")
+    data.lens, data.sensor_width, data.sensor_fit = lens, 36.0, 'AUTO'
+    cam = bpy.data.objects.new("camera", data)
+    bpy.context.scene.collection.objects.link(cam)
+    cam.location = eye
+    cam.rotation_euler = (Vector(target) - Vector(eye)).to_track_quat('-Z', 'Y').to_euler()
+    bpy.context.scene.camera = cam
+
+
 def build(kind):
     """The scene to bake and its camera; returns (bake settings)."""
     if kind == "cornell":
@@ -55,32 +66,15 @@ def build(kind):
     elif kind == "artist":
         scenes.clear_scene()
         scenes.artist_room(scenes.out_dir("web_viewer_artist"))
-        cam_data = bpy.data.cameras.new("camera")
-        cam_data.lens, cam_data.sensor_width, cam_data.sensor_fit = 18.0, 36.0, 'AUTO'
-        cam = bpy.data.objects.new("camera", cam_data)
-        bpy.context.scene.collection.objects.link(cam)
-        eye, target = Vector((-2.85, -1.5, 1.65)), Vector((1.8, 0.5, 0.8))
-        cam.location = eye
-        cam.rotation_euler = (target - eye).to_track_quat('-Z', 'Y').to_euler()
-        bpy.context.scene.camera = cam
+        look_from((-2.85, -1.5, 1.65), (1.8, 0.5, 0.8), 18.0)
         bake = dict(max_bounces=8, target_error=0.01)
     elif kind == "bricks":
         scenes.clear_scene()
         normals = scenes.brick_normals(96)
         scenes.brick_wall(96, scenes.brick_material("mat_wall", scenes.normal_map_image("bricks_normal", normals)))
-        d = Vector((math.sin(math.radians(55.0)) * math.sqrt(0.5), -math.cos(math.radians(55.0)),
-                    math.sin(math.radians(55.0)) * math.sqrt(0.5)))  # towards the sun
-        scenes.add_light("sun", 'SUN', (0.0, -3.0, 3.0), tuple(d.to_track_quat('Z', 'Y').to_euler()), energy=3.0,
-                         angle=0.0)
-        scenes.set_world_color((0.35, 0.45, 0.6), 1.0)
-        cam_data = bpy.data.cameras.new("camera")
-        cam_data.lens, cam_data.sensor_width, cam_data.sensor_fit = 35.0, 36.0, 'AUTO'
-        cam = bpy.data.objects.new("camera", cam_data)
-        bpy.context.scene.collection.objects.link(cam)
-        eye, target = Vector((0.3, -3.2, 1.2)), Vector((0.0, 0.0, 1.0))
-        cam.location = eye
-        cam.rotation_euler = (target - eye).to_track_quat('-Z', 'Y').to_euler()
-        bpy.context.scene.camera = cam
+        scenes.add_sun(scenes.BRICK_SUN, 3.0)
+        scenes.set_world_color(scenes.BRICK_SKY, 1.0)
+        look_from((0.3, -3.2, 1.2), (0.0, 0.0, 1.0), 35.0)
         bake = dict(max_bounces=4, target_error=0.0, directional=True, direct_samples=64, photons=1_000_000)
     elif kind == "groups":
         scenes.light_groups_room(32, (0.45, 0.6, 1.0))
@@ -125,28 +119,13 @@ def camera_view(width, height):
 
 
 def render(path, width, height):
-    """EEVEE, the lightmap preview, Standard view transform, no dither; the world black and the
-    lights off for the render (the preview is emission: the light is the lightmap's)."""
-    scene = bpy.context.scene
-    r = scene.render
-    r.engine = scenes.eevee_engine()
-    r.resolution_x, r.resolution_y, r.resolution_percentage = width, height, 100
-    r.film_transparent = False
+    """The lightmap preview (scenes.render_lightmap_preview) as an 8-bit PNG, no dither."""
+    r = bpy.context.scene.render
     r.dither_intensity = 0.0
     r.image_settings.file_format = 'PNG'
     r.image_settings.color_mode = 'RGB'
     r.image_settings.color_depth = '8'
-    scene.eevee.taa_render_samples = 16
-    vs = scene.view_settings
-    vs.view_transform, vs.look, vs.exposure, vs.gamma = 'Standard', 'None', 0.0, 1.0
-    scene.display_settings.display_device = 'sRGB'
-    scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
-    for obj in scene.objects:
-        if obj.type == 'LIGHT':
-            obj.hide_render = True
-    scene.photonlm.preview_mode = 'LIGHTMAP'
-    r.filepath = path
-    bpy.ops.render.render(write_still=True)
+    scenes.render_lightmap_preview(path, width, height)
 
 
 def main():

@@ -13,7 +13,6 @@ and the directional one (the node group 'PhotonLM Directional' at the normal map
 Writes directional_off_on.png into OUT_DIR (default docs/images): the viewport without and with
 the directions, the middle of each, side by side.
 """
-import math
 import os
 import sys
 
@@ -28,8 +27,6 @@ from window_shots import fail  # noqa: E402
 ws.NAME = "make_directional_screenshots"
 OUT = sys.argv[sys.argv.index("--") + 1] if "--" in sys.argv[:-1] else os.path.join(HERE, "images")
 SHADER_WAIT = float(os.environ.get("PHOTONLM_DOC_WAIT", 20.0))  # EEVEE compiles the preview's shaders
-SUN = (math.sin(math.radians(55.0)) * math.sqrt(0.5), -math.cos(math.radians(55.0)),
-       math.sin(math.radians(55.0)) * math.sqrt(0.5))
 EYE, TARGET, LENS = (0.9, -2.3, 1.45), (0.0, 0.0, 0.85), 36.0
 KEEP = 0.62  # the middle share of each shot's width in the side-by-side picture
 GAP = 8      # white pixels between the two
@@ -37,16 +34,14 @@ GAP = 8      # white pixels between the two
 
 def build():
     import scenes
-    from mathutils import Vector
     scene = scenes.clear_scene()
     mat = scenes.brick_material("bricks", scenes.normal_map_image("bricks_normal", scenes.brick_normals(96)))
     next(n for n in mat.node_tree.nodes if n.bl_idname == 'ShaderNodeTexImage').interpolation = 'Linear'
     scenes.brick_wall(96, mat)
     scenes.quads_object("floor", [((-1.5, -2.5, 0), (1.5, -2.5, 0), (1.5, 0, 0), (-1.5, 0, 0), (0, 0, 1, 1))],
                         scenes.diffuse_material("floor", (0.55, 0.55, 0.5)), 64)
-    rot = Vector(SUN).to_track_quat('Z', 'Y').to_euler()
-    scenes.add_light("sun", 'SUN', (0.0, -3.0, 3.0), tuple(rot), energy=3.0, angle=0.01)
-    scenes.set_world_color((0.35, 0.45, 0.6), 1.0)
+    scenes.add_sun(scenes.BRICK_SUN, 3.0, angle=0.01)
+    scenes.set_world_color(scenes.BRICK_SKY, 1.0)
     scene.view_settings.view_transform = 'Standard'
     return scene, mat
 

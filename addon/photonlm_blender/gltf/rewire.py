@@ -51,8 +51,8 @@ def png_bytes(doc, binary, texture):
     return binary[v.get("byteOffset", 0):v.get("byteOffset", 0) + v["byteLength"]]
 
 
-def decoded_image(name, data, value_range):
-    """A packed float image `name` holding the RGBM PNG `data` decoded (linear; row 0 = bottom)."""
+def png_rgba(data):
+    """An 8-bit PNG's bytes as Blender reads them: (h, w, 4) uint8, row 0 = bottom."""
     fd, path = tempfile.mkstemp(suffix=".png")
     try:
         with os.fdopen(fd, "wb") as f:
@@ -67,8 +67,13 @@ def decoded_image(name, data, value_range):
             bpy.data.images.remove(png)
     finally:
         os.remove(path)
-    encoded = np.rint(px.reshape(h, w, 4) * 255.0).astype(np.uint8)
-    value = rgbm.decode(encoded, value_range)
+    return np.rint(px.reshape(h, w, 4) * 255.0).astype(np.uint8)
+
+
+def decoded_image(name, data, value_range):
+    """A packed float image `name` holding the RGBM PNG `data` decoded (linear; row 0 = bottom)."""
+    value = rgbm.decode(png_rgba(data), value_range)
+    h, w = value.shape[:2]
     # A new image (Blender numbers the name if it is taken: a bake's own images stay as they are).
     image = bpy.data.images.new(name, w, h, float_buffer=True, alpha=False)
     out = np.ones((h, w, 4), np.float32)
