@@ -162,12 +162,27 @@ TEST(Scheduler, FurtherGathersHaveMoreRaysWhileTheirPartIsLarge) {
   EXPECT_EQ(gather_samples(0.01, 2), kMaxGatherSamples);
   ErrorParts e;
   e.relative = 0.06, e.direct = 0.02, e.gather = 0.03;
-  EXPECT_TRUE(regather(1, e, 0.05));   // 3 % > half of 5 %
-  EXPECT_FALSE(regather(kMaxGathers, e, 0.05));
+  EXPECT_TRUE(regather(1, {e}, 0.05));   // 3 % > half of 5 %
+  EXPECT_FALSE(regather(kMaxGathers, {e}, 0.05));
   e.gather = 0.02;
-  EXPECT_FALSE(regather(1, e, 0.05));
+  EXPECT_FALSE(regather(1, {e}, 0.05));
   e.relative = 0.045, e.gather = 0.03;  // the target is met: no further gather
-  EXPECT_FALSE(regather(1, e, 0.05));
+  EXPECT_FALSE(regather(1, {e}, 0.05));
+  // Judged per object: one object that needs it is enough.
+  ErrorParts needs = e;
+  needs.relative = 0.06;
+  EXPECT_TRUE(regather(1, {e, needs}, 0.05));
+  EXPECT_FALSE(regather(1, {e, e}, 0.05));
+}
+
+// The target holds for every judged group: a bright object under the target
+// does not hide a dim one above it.
+TEST(Scheduler, TargetJudgesEveryGroup) {
+  const double target = 0.02;
+  const ErrorParts met{0.015, 0.01, 0.0}, missed{0.03, 0.01, 0.0}, direct_misses{0.03, 0.04, 0.0};
+  EXPECT_TRUE(target_reached(std::vector<ErrorParts>{met, met}, target));
+  EXPECT_FALSE(target_reached(std::vector<ErrorParts>{met, missed}, target));
+  EXPECT_TRUE(target_reached(std::vector<ErrorParts>{met, direct_misses}, target));
 }
 
 // Texels after a round: n samples each, variance of the mean v.

@@ -402,11 +402,15 @@ int write_bake_outputs(plm_result* r, const plm::SceneFile& scene, const plm_bak
                      {"median", stats.error_median},
                      {"p95", stats.error_p95},
                      {"above_twice_target", stats.error_above},
-                     {"memory_estimate", stats.memory_estimate}};
+                     {"memory_estimate", stats.memory_estimate},
+                     {"worst_object_error", stats.error_worst},
+                     {"worst_object", ordered_json()}};
+  for (const plm::SceneFileMesh& m : scene.meshes)
+    if (m.id == stats.error_worst_mesh) report["stats"]["worst_object"] = m.name;
   if (check_target > 0.0)
     report["target"] = {{"error", check_target},
-                        {"estimate", stats.error_estimate},
-                        {"met", stats.error_estimate <= check_target}};
+                        {"estimate", stats.error_worst},
+                        {"met", stats.error_worst <= check_target}};
   ordered_json warnings = ordered_json::array();
   for (uint32_t i = 0; i < plm_result_warning_count(r); ++i) {
     const char* w = plm_result_warning(r, i);
@@ -440,6 +444,7 @@ int write_bake_outputs(plm_result* r, const plm::SceneFile& scene, const plm_bak
     std::vector<float> rgb(3 * n), error(n), coverage(n);
     double sum[3] = {0, 0, 0}, area = 0;
     uint64_t texels = 0, above = 0;
+    double value_sum = 0.0, var_sum = 0.0;  // the object's relative RMS error, as the target judges it
     if (plm_result_copy_lightmap(r, m.id, rgb.data(), error.data(), nullptr, coverage.data()) == PLM_OK) {
       for (size_t t = 0; t < n; ++t) {
         if (coverage[t] <= 0) continue;
@@ -448,6 +453,7 @@ int write_bake_outputs(plm_result* r, const plm::SceneFile& scene, const plm_bak
         // The add-on's per-object count (bake.py): relative error = error / mean RGB, in float.
         const float value = (rgb[3 * t] + rgb[3 * t + 1] + rgb[3 * t + 2]) / 3.0f;
         ++texels;
+        value_sum += value, var_sum += double(error[t]) * error[t];
         if (value > 0.0f && error[t] / value > above_limit) ++above;
       }
     }
@@ -460,6 +466,7 @@ int write_bake_outputs(plm_result* r, const plm::SceneFile& scene, const plm_bak
     jm["mean_value"] = (sum[0] + sum[1] + sum[2]) * k / 3.0;
     jm["texels"] = texels;
     jm["texels_above_twice_target"] = above;
+    jm["error"] = value_sum > 0.0 ? std::sqrt(var_sum / double(texels)) / (value_sum / double(texels)) : 0.0;
     jm["ol_group"] = m.ol_group >= 0 ? ordered_json(scene.ol_groups[size_t(m.ol_group)].name) : ordered_json();
     // Light groups: each layer beside the lightmap, <mesh>_lightmap.<group>.exr.
     if (plm_result_layer_count(r) > 0) {
@@ -535,9 +542,10 @@ int write_bake_outputs(plm_result* r, const plm::SceneFile& scene, const plm_bak
     std::fprintf(stderr, "photonlm: cannot write the report: %s\n", error.c_str());
     return abandon(kBakeFailed);
   }
-  std::printf("photons %llu, %.3f s, error estimate %.4f (median %.4f, p95 %.4f) -> %sreport.json\n",
+  std::printf("photons %llu, %.3f s, error estimate %.4f (median %.4f, p95 %.4f, noisiest object %.4f) -> "
+              "%sreport.json\n",
               (unsigned long long)stats.photons_emitted, stats.seconds_total, stats.error_estimate, stats.error_median,
-              stats.error_p95, dir.c_str());
+              stats.error_p95, stats.error_worst, dir.c_str());
   return kOk;
 }
 

@@ -923,7 +923,8 @@ def read_lightmap_exr(path):
 
 _STAT_KEYS = ("photons_emitted", "photon_hits", "rays_traced", "paths_truncated", "emitted_power",
               "seconds_setup", "seconds_trace", "seconds_total", "direct_samples", "seconds_direct",
-              "error_estimate", "error_direct", "error_median", "error_p95", "error_above", "memory_estimate")
+              "error_estimate", "error_direct", "error_median", "error_p95", "error_above", "memory_estimate",
+              "error_worst", "error_worst_mesh")
 
 
 # Scene.bake's arguments -> plm_bake_settings fields, and the names of the enumerated ones.
@@ -961,10 +962,15 @@ class Result(_Handle):
         """dict: photons_emitted, photon_hits, rays_traced, paths_truncated, emitted_power (W),
         seconds_setup, seconds_trace, seconds_total, direct_samples, seconds_direct, error_estimate
         (relative RMS), error_direct, error_median and error_p95 (of the per-texel relative errors),
-        error_above (the share of texels above twice the target error), memory_estimate (bytes)."""
+        error_above (the share of texels above twice the target error), memory_estimate (bytes),
+        error_worst (the largest relative RMS error of one object, relative to its own mean: what
+        target_error bounds) and error_worst_mesh (that object's mesh id, None if none)."""
         s = _lib.plm_bake_stats()
         _check(_C.plm_result_stats(self._h, ctypes.byref(s)))
-        return {k: getattr(s, k) for k in _STAT_KEYS}
+        out = {k: getattr(s, k) for k in _STAT_KEYS}
+        if out["error_worst_mesh"] == 0xFFFFFFFF:
+            out["error_worst_mesh"] = None
+        return out
 
     @property
     def warnings(self):

@@ -151,6 +151,8 @@ class plm_bake_stats(_Sized):
         ("error_p95", c_double),
         ("error_above", c_double),
         ("memory_estimate", c_uint64),
+        ("error_worst", c_double),
+        ("error_worst_mesh", c_uint32),
     ]
 
 

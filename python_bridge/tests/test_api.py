@@ -285,9 +285,12 @@ def test_stats_keys():
     assert set(stats) == {"photons_emitted", "photon_hits", "rays_traced", "paths_truncated", "emitted_power",
                           "seconds_setup", "seconds_trace", "seconds_total", "direct_samples", "seconds_direct",
                           "error_estimate", "error_direct", "error_median", "error_p95", "error_above",
-                          "memory_estimate"}
+                          "memory_estimate", "error_worst", "error_worst_mesh"}
     assert stats["photons_emitted"] == 5000
     assert 0 <= stats["error_above"] <= 1 and stats["memory_estimate"] > 0
+    # One object: the noisiest is it, its error the whole's.
+    assert stats["error_worst_mesh"] == 0
+    assert stats["error_worst"] == pytest.approx(stats["error_estimate"], rel=1e-9)
     assert stats["rays_traced"] >= stats["photons_emitted"]
     assert 0 <= stats["seconds_setup"] <= stats["seconds_total"] and 0 <= stats["seconds_trace"] <= stats["seconds_total"]
 

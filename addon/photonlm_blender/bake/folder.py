@@ -97,7 +97,10 @@ def result_stats(report, path):
                 error_estimate=float(n("stats", "error_estimate")), error_direct=float(n("stats", "error_direct")),
                 error_median=float(n("stats", "median")), error_p95=float(n("stats", "p95")),
                 error_above=float(n("stats", "above_twice_target")),
-                memory_estimate=float(n("stats", "memory_estimate")))
+                memory_estimate=float(n("stats", "memory_estimate")),
+                # The noisiest object by name (reports of older versions have none).
+                error_worst=float(report["stats"].get("worst_object_error") or 0.0),
+                worst_object=report["stats"].get("worst_object") or "")
 
 
 def coverage_mask(hits):

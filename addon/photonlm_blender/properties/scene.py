@@ -85,12 +85,12 @@ def _noisy_hint_get(self):
 
 
 def _noisiest_get(self):
-    """'Sphere (72 %)': the noisy object holding the most noisy texels, with its share of them."""
+    """'Sphere (3.2 %)': the object with the largest relative RMS error (relative to its own mean: what
+    the target error bounds), with that error."""
     stats = record.stats(self.id_data)
-    if not stats or not stats.get("noisiest"):
+    if not stats or not stats.get("worst_object"):
         return ""
-    share = stats.get("noisiest_above")
-    return "%s (%.0f %%)" % (stats["noisiest"], 100.0 * float(share)) if share is not None else str(stats["noisiest"])
+    return "%s (%s)" % (stats["worst_object"], _fmt_percent(float(stats.get("error_worst", 0.0))))
 
 
 def _light_group_update(self, context):
@@ -210,7 +210,8 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
     # Read-only statistics of the last bake (stored on the scene: writeback/record.py).
     last_photons: StringProperty(name="Photons", get=_stat_getter("photons_emitted", _fmt_count))
     last_time: StringProperty(name="Time", get=_stat_getter("seconds_total", _fmt_seconds))
-    last_error: StringProperty(name="Error", description="Estimated relative RMS error over all texels",
+    last_error: StringProperty(name="Error", description="Estimated relative RMS error over all texels (each "
+                               "object's own is at most the Target Error: see Noisiest)",
                                get=_stat_getter("error_estimate", _fmt_percent))
     last_error_above: StringProperty(
         name="Above 2x", description="Share of the lightmap texels whose relative error is above twice the "
@@ -225,8 +226,9 @@ class PhotonlmSceneSettings(bpy.types.PropertyGroup):
     last_hint: StringProperty(name="Hint", description="What to do when much of the lightmap is above twice "
                               "the target error: lower the Resolution of the noisiest objects, or give the bake "
                               "more time (Time Budget, Max Photons) or a lower Target Error", get=_noisy_hint_get)
-    last_noisiest: StringProperty(name="Noisiest", description="The noisy object holding the most texels above "
-                                  "twice the target error, with the share of its texels above", get=_noisiest_get)
+    last_noisiest: StringProperty(name="Noisiest", description="The object with the largest estimated relative "
+                                  "RMS error (relative to its own mean light), with that error: the Target Error "
+                                  "holds for every object", get=_noisiest_get)
     last_rate: StringProperty(name="Photon Speed", description="Photons per second of the photon pass",
                               get=_stat_getter("photons_per_second", _fmt_rate))
     last_warnings: StringProperty(name="Warnings", get=_stat_getter("warning_count", _fmt_count))

@@ -118,8 +118,7 @@ class PHOTONLM_PT_last_bake(_Sub, bpy.types.Panel):
         if "error_above" in stats and float(stats.get("error_target", 0.0)) > 1e-9:  # not for an exact bake
             rows += [("Above %.3g %%" % (200.0 * float(stats.get("error_target", 0.0))), "last_error_above"),
                      ("Percentile 95", "last_error_p95")]
-        if settings.last_hint:
-            rows.append(("Noisiest", "last_noisiest"))
+        rows.append(("Noisiest", "last_noisiest"))
         rows += [("Memory", "last_memory"), ("Photon Speed", "last_rate"), ("Warnings", "last_warnings")]
         for label, prop in rows:
             value = getattr(settings, prop)

@@ -113,7 +113,8 @@ def apply(context, manifest, result, reports, stage_seconds, figures=None, outpu
                                                  coverage=lm.coverage, rgb=lm.rgb if small else None,
                                                  error=lm.error if small else None, error_path=error_path,
                                                  texels=texels, texels_above=above,
-                                                 error_above=above / texels if texels else 0.0)
+                                                 error_above=above / texels if texels else 0.0,
+                                                 relative_error=object_error(lm))
             for w in writes:
                 w.result()  # the first failure, if any, as the call raised it
         for name, (path, error_path) in paths.items():
@@ -175,6 +176,7 @@ def apply(context, manifest, result, reports, stage_seconds, figures=None, outpu
     photons_per_second = stats["photons_emitted"] / max(stats["seconds_trace"], 1e-9) \
         if stats["photons_emitted"] else 0.0
     noisiest = noisiest_objects(per_object)
+    worst_name, worst_error = worst_object(stats, per_object)
     if float(stats["error_above"]) > record.NOISY_SHARE:
         notices.append(noisy_message(stats, noisiest, per_object, target_error > 0.0))
     shown_warnings = warning_lines(reports.items, notices)
@@ -197,6 +199,7 @@ def apply(context, manifest, result, reports, stage_seconds, figures=None, outpu
         memory_estimate=float(stats["memory_estimate"]),
         noisiest=noisiest[0] if noisiest else "",
         noisiest_above=float(per_object[noisiest[0]]["error_above"]) if noisiest else 0.0,
+        worst_object=worst_name, error_worst=worst_error,
         direct_samples=int(stats["direct_samples"]),
         triangles=int(manifest.triangles), **times, light_layers=",".join(layers), directional=int(with_sh),
         light_layer_errors=",".join("%.6g" % e for e in layer_errors),
@@ -226,6 +229,30 @@ def noisy_layer_notices(layers, errors, whole_error, target):
             "a small share of the light is noisier relative to its own light; lower the Target Error for a "
             "clean layer" % ("Other Lights" if name == "default" else name, 100.0 * e, 100.0 * whole_error)
             for name, e in zip(layers, errors) if limit > 0.0 and e > limit]
+
+
+def object_error(lm):
+    """An object's estimated relative RMS error over its covered texels, relative to its own mean
+    (what the target error bounds): sqrt(mean(error^2)) / mean(value)."""
+    covered = lm.coverage > 0.0
+    if not np.any(covered):
+        return 0.0
+    mean = float(np.mean(lm.rgb[covered]))
+    return float(np.sqrt(np.mean(np.square(lm.error[covered], dtype=np.float64))) / mean) if mean > 0.0 else 0.0
+
+
+def worst_object(stats, per_object):
+    """(name, relative error) of the noisiest object: the one the engine names (stats error_worst_mesh,
+    or a bake folder's worst_object), else the baked object with the largest relative_error; ('', 0)
+    without objects."""
+    mesh = stats.get("error_worst_mesh")
+    for name, o in per_object.items():
+        if (mesh is not None and o["mesh_id"] == mesh) or name == stats.get("worst_object"):
+            return name, float(stats.get("error_worst") or o["relative_error"])
+    if not per_object:
+        return "", 0.0
+    name = max(per_object, key=lambda n: (per_object[n]["relative_error"], n))
+    return name, float(per_object[name]["relative_error"])
 
 
 def texel_counts(lm, relative, target):

@@ -637,6 +637,11 @@ typedef struct plm_bake_stats {
   uint64_t memory_estimate;  /* bytes the bake was estimated to need before it began; a bake
                                 estimated to need more than the memory free is refused
                                 (PLM_ERROR_OUT_OF_MEMORY, naming the largest lightmap) */
+  double error_worst;        /* the largest estimated relative RMS error of one object, relative to
+                                its own mean (objects under 64 covered texels are judged together
+                                with their neighbours): what target_error bounds */
+  uint32_t error_worst_mesh; /* that object's mesh id (of a group of small objects, the one with
+                                most texels; of a CSG solid, its carrier); UINT32_MAX: none */
 } plm_bake_stats;
 
 PLM_API plm_status plm_result_stats(const plm_result* result, plm_bake_stats* out_stats);

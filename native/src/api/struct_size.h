@@ -36,7 +36,7 @@ struct Layouts;
 PLM_LAYOUTS(plm_bake_settings, size_before<plm_bake_settings>(offsetof(plm_bake_settings, texel_value)),
             size_before<plm_bake_settings>(offsetof(plm_bake_settings, directional)), uint32_t(sizeof(plm_bake_settings)));
 PLM_LAYOUTS(plm_bake_stats, size_before<plm_bake_stats>(offsetof(plm_bake_stats, error_above)),
-            uint32_t(sizeof(plm_bake_stats)));
+            size_before<plm_bake_stats>(offsetof(plm_bake_stats, error_worst)), uint32_t(sizeof(plm_bake_stats)));
 PLM_LAYOUTS(plm_lobe, size_before<plm_lobe>(offsetof(plm_lobe, weight)), uint32_t(sizeof(plm_lobe)));
 PLM_LAYOUTS(plm_light, uint32_t(sizeof(plm_light)));
 PLM_LAYOUTS(plm_csg_primitive, uint32_t(sizeof(plm_csg_primitive)));

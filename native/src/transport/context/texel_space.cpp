@@ -2,6 +2,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "transport/plan/validate.h"
@@ -18,7 +19,68 @@ double carrier_texel_size(const TexelAreas& areas, Vec3d extent) {
   return 0.01 * std::max({extent.x, extent.y, extent.z, 1e-30});
 }
 
+// Morton code of p in [lo, hi]: 10 bits an axis, interleaved.
+uint32_t morton(Vec3d p, Vec3d lo, Vec3d hi) {
+  auto spread = [](uint32_t v) {  // 10 bits to every third of 30
+    v = (v | (v << 16)) & 0x030000FFu;
+    v = (v | (v << 8)) & 0x0300F00Fu;
+    v = (v | (v << 4)) & 0x030C30C3u;
+    return (v | (v << 2)) & 0x09249249u;
+  };
+  auto cell = [](double x, double a, double b) {
+    const double f = b > a ? (x - a) / (b - a) : 0.0;
+    return uint32_t(std::clamp(f, 0.0, 1.0) * 1023.0);
+  };
+  return spread(cell(p.x, lo.x, hi.x)) | spread(cell(p.y, lo.y, hi.y)) << 1 | spread(cell(p.z, lo.z, hi.z)) << 2;
+}
+
 }  // namespace
+
+void judge_groups(const Scene& scene, TexelSpace& s) {
+  const size_t units = s.covered_begin.size();
+  s.judged.assign(units, kNoGroup);
+  s.judged_groups = 0;
+  // Each unit's covered texels and the centre of its bounding box.
+  std::vector<uint64_t> texels(units, 0);
+  for (size_t u = 0; u < units; ++u)
+    texels[u] = (u + 1 < units ? s.covered_begin[u + 1] : s.covered.size()) - s.covered_begin[u];
+  std::vector<Vec3d> centre(units, Vec3d{0, 0, 0});
+  Vec3d lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+  for (size_t u = 0; u < units; ++u) {
+    Vec3d a{1e300, 1e300, 1e300}, b{-1e300, -1e300, -1e300};
+    if (u < scene.meshes.size()) {
+      const Mesh& m = scene.meshes[u];
+      for (uint32_t v = 0; v < m.vertex_count; ++v) a = min(a, to_double(m.positions[v])), b = max(b, to_double(m.positions[v]));
+    } else {
+      const csg::CsgObject& o = *scene.csgs[u - scene.meshes.size()].object;
+      a = o.bounds_lo(), b = o.bounds_hi();
+    }
+    if (!(a.x <= b.x)) continue;
+    centre[u] = (a + b) * 0.5;
+    lo = min(lo, centre[u]), hi = max(hi, centre[u]);
+  }
+  std::vector<std::pair<uint32_t, uint32_t>> small;  // (Morton code, unit)
+  for (size_t u = 0; u < units; ++u) {
+    if (texels[u] == 0) continue;
+    if (texels[u] >= kJudgedTexels) s.judged[u] = s.judged_groups++;
+    else small.push_back({morton(centre[u], lo, hi), uint32_t(u)});
+  }
+  std::sort(small.begin(), small.end());
+  uint64_t in_group = 0;
+  uint32_t first_small = s.judged_groups;
+  for (const auto& [code, u] : small) {
+    if (in_group == 0 || in_group >= kJudgedTexels) s.judged[u] = s.judged_groups++, in_group = 0;
+    else s.judged[u] = s.judged_groups - 1;
+    in_group += texels[u];
+  }
+  // A last short group joins the one before it (if there is one among the small).
+  if (in_group > 0 && in_group < kJudgedTexels && s.judged_groups >= first_small + 2) {
+    const uint32_t last = s.judged_groups - 1;
+    for (const auto& [code, u] : small)
+      if (s.judged[u] == last) s.judged[u] = last - 1;
+    --s.judged_groups;
+  }
+}
 
 TexelSpace build_texel_space(const Scene& scene, std::vector<std::string>& warnings) {
   TexelSpace s;
@@ -80,6 +142,7 @@ TexelSpace build_texel_space(const Scene& scene, std::vector<std::string>& warni
     for (uint32_t t = 0; t < subs; ++t) s.covered.push_back({uint32_t(scene.meshes.size() + c), t});
     s.texel_count += subs;
   }
+  judge_groups(scene, s);
   return s;
 }
 

@@ -41,7 +41,27 @@ struct TexelSpace {
   std::vector<CoveredTexel> covered;
   std::vector<size_t> covered_begin;  // per mesh, then per CSG solid: index of its first covered texel
   uint64_t texel_count = 0;
+  // Per mesh, then per CSG solid: the group whose error the target judges
+  // it in (judge_groups below), kNoGroup without covered texels.
+  std::vector<uint32_t> judged;
+  uint32_t judged_groups = 0;
+
+  // The group of covered texel k.
+  uint32_t group_of(size_t k) const { return judged[covered[k].mesh]; }
 };
+
+constexpr uint32_t kNoGroup = ~0u;
+
+// An object with at least this many covered texels is judged alone: the
+// target error holds for its relative RMS error (relative to its own mean).
+// Smaller ones are judged with their neighbours: objects in the order of a
+// Morton curve through their bounding boxes' centres, joined until a group
+// has kJudgedTexels (a last short group joins the one before), so a handful
+// of noisy texels on a tiny object neither decides the bake nor hides.
+constexpr uint32_t kJudgedTexels = 64;
+
+// Sets s.judged and s.judged_groups from s.covered.
+void judge_groups(const Scene& scene, TexelSpace& s);
 
 // Texel areas of every lightmap (OL meshes' lightmaps are resolved from
 // their OL, CSG carriers' from their solid: they have no texels here) and

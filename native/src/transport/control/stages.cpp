@@ -143,17 +143,17 @@ bool after_photon_group(const BakeScene& ctx, BakeRun& run, PhotonBatches& batch
   }
   if (s.targeted() && loop.checks.due(end)) {
     estimate(ctx.arena, est, run.photons, run.last);
-    loop.done = target_reached(run.last.error, s.target_error);
+    loop.done = target_reached(run.last.error.groups, s.target_error);
     if (!loop.done && s.gather && !run.gathered) {
       // Again while the gather's own part is large: each gather looks up the estimate the one
       // before it improved (transport/plan/scheduler.h, regather).
       do {
         gather(ctx, run);
         estimate(ctx.arena, est, run.photons, run.last);
-      } while (regather(run.gathers, run.last.error, s.target_error));
-      loop.done = target_reached(run.last.error, s.target_error);
+      } while (regather(run.gathers, run.last.error.groups, s.target_error));
+      loop.done = target_reached(run.last.error.groups, s.target_error);
     }
-    fraction = std::max(fraction, target_progress(run.last.error.relative, s.target_error));
+    fraction = std::max(fraction, target_progress(worst_relative(run.last.error), s.target_error));
   }
   if (!loop.done) run.live.check(ctx.arena, ctx.scene, est, run.photons, s.dilation);
   if (run.budget.seconds() > 0.0) fraction = std::max(fraction, run.budget.elapsed() / run.budget.seconds());
@@ -314,6 +314,30 @@ void final_gather(const BakeScene& ctx, BakeRun& run, CoveredSlice slice) {
                                 slice);
 }
 
+namespace {
+
+// Judged group g in words, and the mesh that stands for it: its unit with the
+// most covered texels (a CSG solid by its carrier).
+std::string group_name(const BakeScene& ctx, uint32_t g, uint32_t& mesh) {
+  const TexelSpace& space = ctx.space;
+  const size_t meshes = ctx.scene.meshes.size();
+  size_t best = 0, units = 0, most = 0;
+  for (size_t u = 0; u < space.judged.size(); ++u) {
+    if (space.judged[u] != g) continue;
+    const size_t end = u + 1 < space.covered_begin.size() ? space.covered_begin[u + 1] : space.covered.size();
+    const size_t texels = end - space.covered_begin[u];
+    ++units;
+    if (texels > most) most = texels, best = u;
+  }
+  mesh = best < meshes ? uint32_t(best) : uint32_t(ctx.scene.csgs[best - meshes].carrier);
+  const std::string name = best < meshes ? "mesh '" + ctx.scene.meshes[best].name + "'"
+                                         : "CSG solid '" + ctx.scene.csgs[best - meshes].object->name() + "'";
+  if (units == 1) return name;
+  return std::to_string(units) + " small objects judged together (" + name + " and its neighbours)";
+}
+
+}  // namespace
+
 void estimate_result(const BakeScene& ctx, BakeRun& run) {
   const BakeSettings& s = ctx.settings;
   if (!run.last.current(run.photons, run.gather)) estimate(ctx.arena, estimator(ctx, run), run.photons, run.last);
@@ -324,12 +348,17 @@ void estimate_result(const BakeScene& ctx, BakeRun& run) {
   stats.error_median = err.median;
   stats.error_p95 = err.p95;
   stats.error_above = share_above(err, 2.0 * (s.targeted() ? s.target_error : err.relative));
-  if (s.targeted() && err.relative > s.target_error)
-    run.out.warnings.push_back("the target error " + std::to_string(100.0 * s.target_error) +
-                               "% was not reached (estimated " + std::to_string(100.0 * err.relative) + "% after " +
+  stats.error_worst = worst_relative(err);
+  stats.error_worst_mesh = UINT32_MAX;
+  std::string worst = "the lightmaps";
+  if (err.worst != kNoGroup) worst = group_name(ctx, err.worst, stats.error_worst_mesh);
+  if (s.targeted() && stats.error_worst > s.target_error)
+    run.out.warnings.push_back("the target error " + std::to_string(100.0 * s.target_error) + "% was not reached on " +
+                               worst + " (estimated " + std::to_string(100.0 * stats.error_worst) + "%, " +
+                               std::to_string(100.0 * err.relative) + "% over all texels, after " +
                                std::to_string(run.photons) + " photons" +
                                (run.budget.spent(kPhotonBudgetShare) ? ", time budget spent" : "") +
-                               "); lower the lightmap resolution or allow more time");
+                               "); lower its lightmap resolution or allow more time");
 }
 
 // The layers' names and their estimated errors, from the images.

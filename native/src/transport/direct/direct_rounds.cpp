@@ -73,11 +73,13 @@ std::vector<DirectCalibration> calibrate_direct(tbb::task_arena& arena, const Di
 // has too few texels.
 struct WholeEstimate {
   double mean = -1.0, typical = 0.0;
+  std::vector<double> group_mean;  // per judged group, -1 where none of its texels was sampled
 };
 
-WholeEstimate estimate_whole(tbb::task_arena& arena, const DirectPass& pass, const std::vector<CoveredTexel>& covered,
+WholeEstimate estimate_whole(tbb::task_arena& arena, const DirectPass& pass, const TexelSpace& space,
                              uint32_t samples) {
   constexpr uint32_t kMeanRound = 0xFE;  // a key neither refinement rounds nor the calibration use
+  const std::vector<CoveredTexel>& covered = space.covered;
   const size_t step = std::max<size_t>(4, covered.size() / 1024);
   const size_t m = covered.size() / step;
   if (m == 0) return {};
@@ -88,9 +90,40 @@ WholeEstimate estimate_whole(tbb::task_arena& arena, const DirectPass& pass, con
       pass.sample_texel(c.mesh, c.texel, kMeanRound, samples, sums[k]);
     });
   });
-  double mean = 0.0;
-  for (const DirectSums& d : sums) mean += d.mean();
-  return {mean / double(m), typical_sample(sums)};
+  WholeEstimate out{0.0, typical_sample(sums), std::vector<double>(space.judged_groups, 0.0)};
+  std::vector<double> count(space.judged_groups, 0.0);
+  for (size_t k = 0; k < m; ++k) {
+    out.mean += sums[k].mean();
+    if (space.judged_groups == 0) continue;
+    const uint32_t g = space.group_of(k * step);
+    out.group_mean[g] += sums[k].mean(), count[g] += 1.0;
+  }
+  out.mean /= double(m);
+  for (size_t g = 0; g < count.size(); ++g) out.group_mean[g] = count[g] > 0.0 ? out.group_mean[g] / count[g] : -1.0;
+  return out;
+}
+
+// The judged groups of the slice's texels and their means: each group's own
+// texels' mean (the whole's estimate where it has one: a texel range judges
+// an object by all of it), floored at kDirectJudgedFloor x the whole's mean.
+DirectGroups direct_groups(const TexelSpace& space, size_t first, const std::vector<DirectSums>& direct,
+                           const WholeEstimate& aim) {
+  std::vector<double> mean(std::max(space.judged_groups, 1u), 0.0), count(mean.size(), 0.0);
+  std::vector<uint32_t> of(direct.size(), 0);
+  double whole = 0.0;
+  for (size_t i = 0; i < direct.size(); ++i) {
+    if (space.judged_groups > 0) of[i] = space.group_of(first + i);
+    mean[of[i]] += direct[i].mean(), count[of[i]] += 1.0;
+    whole += direct[i].mean();
+  }
+  whole = aim.mean >= 0.0 ? aim.mean : whole / double(std::max<size_t>(direct.size(), 1));
+  for (size_t g = 0; g < mean.size(); ++g) {
+    const double own = g < aim.group_mean.size() && aim.group_mean[g] >= 0.0 ? aim.group_mean[g]
+                       : count[g] > 0.0                                     ? mean[g] / count[g]
+                                                                            : 0.0;
+    mean[g] = std::max(own, DirectSchedule::kDirectJudgedFloor * whole);
+  }
+  return {std::move(mean), std::move(of)};
 }
 
 }  // namespace
@@ -133,7 +166,7 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
   std::vector<DirectTexelNoise> noise(direct.size());
   const bool whole = slice.begin == 0 && slice.end == covered.size();
   const WholeEstimate aim =
-      settings.targeted() && !whole ? estimate_whole(arena, pass, covered, schedule.first()) : WholeEstimate();
+      settings.targeted() && !whole ? estimate_whole(arena, pass, space, schedule.first()) : WholeEstimate();
   for (uint32_t round = 0; round < rounds && !todo.empty(); ++round) {
     run_in_groups(
         arena, todo.size(), 64,
@@ -149,9 +182,6 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
           control.progress((double(round) + double(done) / double(todo.size())) / rounds);
           return !control.stop();
         });
-    double mean = 0.0;
-    for (const DirectSums& d : direct) mean += d.mean();
-    mean /= double(std::max<size_t>(direct.size(), 1));
     out.noise.typical = typical_sample(direct);
     if (round == 0 && settings.sobol) {
       out.calibration = calibrate_direct(arena, pass, covered, slice.begin, out,
@@ -167,10 +197,10 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
       const DirectSums& d = direct[i];
       noise[i] = {d.count, out.values.variance[i], out.values.phantom[i]};
     }
-    const double aim_mean = aim.mean >= 0.0 ? aim.mean : mean;
+    const DirectGroups groups = direct_groups(space, slice.begin, direct, aim);
     if (probing) {
       probing = false;
-      if (schedule.refines(aim_mean, noise) && !control.stop()) {  // round 0 again, with first() samples
+      if (schedule.refines(groups, noise) && !control.stop()) {  // round 0 again, with first() samples
         for (DirectSums& d : direct) dropped += d.count, d = DirectSums();
         std::fill(out.split_rgb.begin(), out.split_rgb.end(), 0.0f);
         out.calibration.clear();
@@ -179,7 +209,7 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
         continue;
       }
     }
-    todo = schedule.next_round(round, aim_mean, noise, want);
+    todo = schedule.next_round(round, groups, noise, want);
     if (control.round_done) control.round_done(round, out);
     if (control.stop()) break;
   }

@@ -293,10 +293,17 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
   // Lightmaps in parallel (for_lightmaps; their reconstructions run in
   // parallel too), each with its own sums, added in order: the same for any
   // thread count.
+  // Per mesh, then per CSG solid.
   struct Sums {
-    double value = 0.0, var = 0.0, var_gather = 0.0, count = 0.0;
+    double value = 0.0, var = 0.0, var_gather = 0.0, var_direct = 0.0, count = 0.0;
     size_t dark = 0;
     std::vector<double> per_texel;
+    ErrorParts parts() const {
+      if (!(count > 0.0 && value > 0.0)) return {};
+      const double mean = value / count;
+      return {std::sqrt(var / count) / mean, std::sqrt(var_direct / count) / mean,
+              std::sqrt(var_gather / count) / mean};
+    }
   };
   std::vector<Sums> sums(meshes);
   tbb::enumerable_thread_specific<EstimateBuffers> buffers;
@@ -345,33 +352,47 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
     });
   });
   if (part) part->photons = photons;
-  double var_sum = 0.0, value_sum = 0.0, var_direct = 0.0, var_gather = 0.0, count = 0.0;
-  std::vector<double> per_texel;
-  for (const Sums& s : sums) {
-    value_sum += s.value, var_sum += s.var, var_gather += s.var_gather, count += s.count;
-    e.dark_texels += s.dark;
-    per_texel.insert(per_texel.end(), s.per_texel.begin(), s.per_texel.end());
-  }
-  for (size_t c = 0; c < est.space.csg_views.size(); ++c) {
-    if (!est.space.csg_views[c].lightmap) continue;
-    for (uint32_t sub = 0; sub < est.space.csg_views[c].lightmap->sub_texel_count(); ++sub) {
+  const TexelSpace& space = est.space;
+  sums.resize(meshes + space.csg_views.size());
+  for (size_t c = 0; c < space.csg_views.size(); ++c) {
+    if (!space.csg_views[c].lightmap) continue;
+    Sums& s = sums[meshes + c];
+    for (uint32_t sub = 0; sub < space.csg_views[c].lightmap->sub_texel_count(); ++sub) {
       double v3[3];
       const double var = est.csg_texel(c, sub, photons, v3);
       const double v = (v3[0] + v3[1] + v3[2]) / 3.0;
-      value_sum += v;
-      var_sum += var;
-      count += 1.0;
-      if (v > 0.0) per_texel.push_back(std::sqrt(var) / v);
-      else ++e.dark_texels;
+      s.value += v;
+      s.var += var;
+      s.count += 1.0;
+      if (v > 0.0) s.per_texel.push_back(std::sqrt(var) / v);
+      else ++s.dark;
     }
   }
-  for (const double v : est.direct.variance) var_direct += v;
-  if (count > 0.0 && value_sum > 0.0) {
-    const double mean = value_sum / count;
-    e.relative = std::sqrt(var_sum / count) / mean;
-    e.direct = std::sqrt(var_direct / count) / mean;
-    e.gather = std::sqrt(var_gather / count) / mean;
+  // The whole, then each judged group: its units' sums and its texels' direct variance.
+  Sums whole;
+  std::vector<Sums> groups(space.judged_groups);
+  std::vector<double> per_texel;
+  for (size_t u = 0; u < sums.size(); ++u) {
+    const Sums& s = sums[u];
+    whole.value += s.value, whole.var += s.var, whole.var_gather += s.var_gather, whole.count += s.count;
+    e.dark_texels += s.dark;
+    per_texel.insert(per_texel.end(), s.per_texel.begin(), s.per_texel.end());
+    if (u >= space.judged.size() || space.judged[u] == kNoGroup) continue;
+    Sums& g = groups[space.judged[u]];
+    g.value += s.value, g.var += s.var, g.var_gather += s.var_gather, g.count += s.count;
   }
+  std::vector<double> var_direct(groups.size(), 0.0);
+  const bool direct_per_texel = space.judged_groups > 0 && est.direct.variance.size() == space.covered.size();
+  for (size_t k = 0; k < est.direct.variance.size(); ++k) {
+    whole.var_direct += est.direct.variance[k];
+    if (direct_per_texel) groups[space.group_of(k)].var_direct += est.direct.variance[k];
+  }
+  static_cast<ErrorParts&>(e) = whole.parts();
+  for (const Sums& g : groups) e.groups.push_back(g.parts());
+  if (e.groups.empty()) e.groups.push_back(e);
+  for (uint32_t g = 0; g < e.groups.size() && !groups.empty(); ++g)
+    if (e.groups[g].relative > 0.0 && (e.worst == kNoGroup || e.groups[g].relative > e.groups[e.worst].relative))
+      e.worst = g;
   e.median = percentile(per_texel, 0.5);
   e.p95 = percentile(per_texel, 0.95);
   e.per_texel.swap(per_texel);

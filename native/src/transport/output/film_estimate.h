@@ -85,12 +85,23 @@ struct Estimator {
 
 // Estimated error over all covered texels: sqrt(mean variance) / mean value,
 // texels weighted equally; direct and gather: the same with the direct
-// variance alone and with the final gather's part alone.
+// variance alone and with the final gather's part alone. The target judges
+// each group of TexelSpace::judged apart: the same three relative to the
+// group's own mean.
 struct ErrorEstimate : ErrorParts {
+  // Per judged group; the whole's parts alone where there are none (every
+  // texel resolved from an OL or a CSG solid without a carrier).
+  std::vector<ErrorParts> groups;
+  uint32_t worst = kNoGroup;       // the group with the largest relative error (kNoGroup: none)
   double median = 0.0, p95 = 0.0;  // of the per-texel relative errors
   std::vector<double> per_texel;    // the per-texel relative errors (of texels with light)
   size_t dark_texels = 0;           // covered texels with no light (no relative error)
 };
+
+// The relative error of the worst judged group (the whole's without groups).
+inline double worst_relative(const ErrorEstimate& e) {
+  return e.worst == kNoGroup ? e.relative : e.groups[e.worst].relative;
+}
 
 // The ordinary lightmaps' texels at one state of the bake: per mesh with own
 // texels R, G, B and error per texel (the images before dilation, 0 where

@@ -1,5 +1,6 @@
 #include "transport/plan/scheduler.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "photonlm/photonlm.h"
@@ -53,50 +54,84 @@ DirectSchedule::DirectSchedule(double target_error, uint32_t direct_samples)
   probe_ = side * side < first_ ? side * side : 0;
 }
 
-bool DirectSchedule::refines(double mean, const std::vector<DirectTexelNoise>& texels) const {
-  double mean_var = 0.0;
-  for (const DirectTexelNoise& d : texels) mean_var += d.variance;
-  return above_share(mean, mean_var / double(std::max<size_t>(texels.size(), 1)));
+namespace {
+
+// Per group: its texels, their mean variance, mean phantom variance and
+// allocation weights' sum (DirectSchedule::next_round).
+struct GroupNoise {
+  double count = 0.0, mean_var = 0.0, phantom_var = 0.0, sum_weight = 0.0;
+};
+
+std::vector<GroupNoise> group_noise(const DirectGroups& groups, const std::vector<DirectTexelNoise>& texels,
+                                    const std::vector<double>* weight) {
+  std::vector<GroupNoise> out(groups.mean.size());
+  for (size_t i = 0; i < texels.size(); ++i) {
+    GroupNoise& g = out[groups.of(i)];
+    g.count += 1.0;
+    g.mean_var += texels[i].variance;
+    g.phantom_var += texels[i].phantom;
+    if (weight) g.sum_weight += (*weight)[i];
+  }
+  for (GroupNoise& g : out) {
+    g.mean_var /= std::max(g.count, 1.0);
+    g.phantom_var /= std::max(g.count, 1.0);
+  }
+  return out;
 }
 
-std::vector<uint32_t> DirectSchedule::next_round(uint32_t round, double mean,
+}  // namespace
+
+bool DirectSchedule::refines(const DirectGroups& groups, const std::vector<DirectTexelNoise>& texels) const {
+  const std::vector<GroupNoise> noise = group_noise(groups, texels, nullptr);
+  for (size_t g = 0; g < noise.size(); ++g)
+    if (noise[g].count > 0.0 && above_share(groups.mean[g], noise[g].mean_var)) return true;
+  return false;
+}
+
+std::vector<uint32_t> DirectSchedule::next_round(uint32_t round, const DirectGroups& groups,
                                                  const std::vector<DirectTexelNoise>& texels,
                                                  std::vector<uint32_t>& want) const {
   constexpr double a = kDirectConvergence;
-  const double count = double(std::max<size_t>(texels.size(), 1));
-  double mean_var = 0.0, phantom_var = 0.0, sum_weight = 0.0;
   std::vector<double> weight(texels.size());
   for (size_t i = 0; i < texels.size(); ++i) {
     const DirectTexelNoise& d = texels[i];
-    mean_var += d.variance;
-    phantom_var += d.phantom;
     weight[i] = std::pow(d.variance * std::pow(double(std::max(d.count, 1u)), a), 1.0 / (a + 1.0));
-    sum_weight += weight[i];
   }
-  mean_var /= count;
-  phantom_var /= count;
-  const double allowed = kDirectShareOfTarget * target_ * mean;
-  const bool refine = above_share(mean, mean_var);
-  // Far from the target a round aims at twice the allowed variance (the rest
-  // is left to the next round's new estimate).
-  const double aim = mean_var > 4.0 * allowed * allowed ? 2.0 : 1.0;
-  const double budget = aim * allowed * allowed * count;
-  const double max_total = double(std::max(first_, direct_samples_)) * kMaxDirectGrowth;
+  // Each group's share of the fewest samples that bring it to the target.
+  struct Plan {
+    bool refine = false, top_up = false;
+    double scale = 0.0;  // texel i gets weight[i] x scale samples in all
+  };
+  const std::vector<GroupNoise> noise = group_noise(groups, texels, &weight);
+  std::vector<Plan> plans(noise.size());
   // First up to kTopUpGrowth x first (at most direct_samples) everywhere
   // where the phantom sample is most of the estimate: it is no measure of a
   // texel's own noise to allocate by (dark texels of an interior), and it
   // falls as 1 / n^2. All the way to direct_samples at once cost open scenes
   // 1.6x the time to a 2 % target once the sky light was pooled.
   const uint32_t top_up_to = std::min(direct_samples_, kTopUpGrowth * first_);
-  const bool top_up = refine && round == 0 && first_ < top_up_to && phantom_var > 0.5 * mean_var;
+  for (size_t g = 0; g < noise.size(); ++g) {
+    const GroupNoise& n = noise[g];
+    Plan& p = plans[g];
+    const double allowed = kDirectShareOfTarget * target_ * groups.mean[g];
+    p.refine = n.count > 0.0 && above_share(groups.mean[g], n.mean_var);
+    // Far from the target a round aims at twice the allowed variance (the rest
+    // is left to the next round's new estimate).
+    const double aim = n.mean_var > 4.0 * allowed * allowed ? 2.0 : 1.0;
+    const double budget = aim * allowed * allowed * n.count;
+    p.top_up = p.refine && round == 0 && first_ < top_up_to && n.phantom_var > 0.5 * n.mean_var;
+    if (p.refine && budget > 0.0) p.scale = std::pow(n.sum_weight / budget, 1.0 / a);
+  }
+  const double max_total = double(std::max(first_, direct_samples_)) * kMaxDirectGrowth;
   std::vector<uint32_t> next;
   for (uint32_t i = 0; i < texels.size(); ++i) {
     const DirectTexelNoise& d = texels[i];
+    const Plan& p = plans[groups.of(i)];
     double extra = 0.0;
-    if (top_up) {
+    if (p.top_up) {
       extra = double(top_up_to - first_);
-    } else if (refine) {
-      extra = weight[i] * std::pow(sum_weight / budget, 1.0 / a) - double(d.count);
+    } else if (p.refine) {
+      extra = weight[i] * p.scale - double(d.count);
       extra = std::min({extra, kMaxRoundGrowth * std::max(d.count, first_), max_total - double(d.count)});
       if (extra < 1.0) extra = 0.0;
     }

@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <utility>
 #include <vector>
 
 namespace plm {
@@ -148,6 +149,11 @@ struct ErrorParts {
 // direct part alone misses it, or all but the direct part is under
 // kPhotonShareOfTarget x the target.
 bool target_reached(const ErrorParts& e, double target);
+// The same for every group the target judges apart (each object, small ones
+// with their neighbours: transport/context/texel_space.h, judge_groups).
+inline bool target_reached(const std::vector<ErrorParts>& groups, double target) {
+  return std::all_of(groups.begin(), groups.end(), [&](const ErrorParts& e) { return target_reached(e, target); });
+}
 
 // Progress towards the target at a check: (target / error)^2 (the error falls
 // as 1 / sqrt(photons)), at most 1.
@@ -184,9 +190,13 @@ uint32_t gather_samples(double target_error, uint32_t gathers_before = 0);
 // they look up (other objects, the ground; taken as fully correlated), which
 // photons do not lower. Each gather has 4x the rays of the one before and
 // looks up the estimate it improved.
+// Judged per group (each object, small ones with their neighbours): the gather
+// runs again while one of them needs it.
 constexpr uint32_t kMaxGathers = 3;
-inline bool regather(uint32_t gathers, const ErrorParts& e, double target) {
-  return gathers < kMaxGathers && e.relative > target && e.gather > kPhotonShareOfTarget * target;
+inline bool regather(uint32_t gathers, const std::vector<ErrorParts>& groups, double target) {
+  return gathers < kMaxGathers && std::any_of(groups.begin(), groups.end(), [&](const ErrorParts& e) {
+           return e.relative > target && e.gather > kPhotonShareOfTarget * target;
+         });
 }
 
 // ---- Direct pass --------------------------------------------------------------
@@ -197,15 +207,27 @@ struct DirectTexelNoise {
   double variance = 0.0, phantom = 0.0;
 };
 
+// The groups the direct pass's target judges apart (each object, small ones
+// with their neighbours: TexelSpace::judged): each group's mean texel value
+// and each texel's group. One group of mean `mean` holding every texel by default.
+struct DirectGroups {
+  std::vector<double> mean;        // per group
+  std::vector<uint32_t> of_texel;  // per texel (empty: all in group 0)
+  DirectGroups(double whole_mean) : mean{whole_mean} {}  // NOLINT: one group is the plain case
+  DirectGroups(std::vector<double> means, std::vector<uint32_t> groups)
+      : mean(std::move(means)), of_texel(std::move(groups)) {}
+  uint32_t of(size_t texel) const { return of_texel.empty() ? 0u : of_texel[texel]; }
+};
+
 // How many direct samples each texel gets in each round. Round 0 gives every
 // texel direct_samples (with a target at most kFirstTargetSamples: loose
 // targets keep them, since the calibration of the variance estimate depends on
 // the count -- Sobol pairs of 8 samples overstate their variance 1.35x, of 16
 // samples 2.6x on the 21-monkey courtyard -- and a first round of 8 took it
-// 2.2x the samples to 3 %). Then, with
-// a target, while the direct part's RMS error is above kDirectShareOfTarget x
-// target (the rest is the photons'), each texel gets its share of the fewest
-// samples that reach it, re-estimated after each round: a texel's variance v_i
+// 2.2x the samples to 3 %). Then, with a target, while a group's direct
+// part's RMS error is above kDirectShareOfTarget x target relative to the
+// group's mean (the rest is the photons'), each of its texels gets its share
+// of the fewest samples that reach it, re-estimated after each round: a texel's variance v_i
 // after n_i samples is taken to fall as n^-a (a = kDirectConvergence), so
 // sum_i v_i (n_i / m_i)^a = budget is met with the fewest samples by
 // m_i = c w_i, w_i = (v_i n_i^a)^(1 / (a + 1)), c = (sum_j w_j / budget)^(1 / a)
@@ -223,6 +245,11 @@ class DirectSchedule {
   // Stratified samples over a shadow edge: n^-1.5; plain noise: n^-1.
   static constexpr double kDirectConvergence = 1.5;
   static constexpr double kDirectShareOfTarget = 0.7;
+  // A group is judged relative to at least this share of the whole's mean
+  // direct light: one the direct light hardly reaches (lit by bounces, or not
+  // at all) would otherwise be held to a tiny allowance its phantom sample
+  // alone exceeds; its noise there is small beside its indirect light.
+  static constexpr double kDirectJudgedFloor = 0.1;
   // A texel gets at most this many times max(first, direct_samples) in all
   // (a target far out of reach ends) ...
   static constexpr double kMaxDirectGrowth = 2048.0;
@@ -245,14 +272,14 @@ class DirectSchedule {
   // as one of 16, and a courtyard of 21 subdivided monkeys took 1.45x the
   // time to 3 %. The dropped probe costs that courtyard about 15 % at 5 %.
   uint32_t probe() const { return probe_; }
-  // Whether the texels' noise after a round is above the direct pass's share
-  // of the target (next_round then refines).
-  bool refines(double mean, const std::vector<DirectTexelNoise>& texels) const;
-  // After round `round`: `mean` is the mean texel value, `texels` every
-  // covered texel's noise. Sets want[i] for the texels that get more samples
-  // and returns them in order.
-  std::vector<uint32_t> next_round(uint32_t round, double mean, const std::vector<DirectTexelNoise>& texels,
-                                   std::vector<uint32_t>& want) const;
+  // Whether the noise of some group's texels after a round is above the
+  // direct pass's share of the target (next_round then refines).
+  bool refines(const DirectGroups& groups, const std::vector<DirectTexelNoise>& texels) const;
+  // After round `round`: `groups` holds the groups' mean texel values,
+  // `texels` every covered texel's noise. Sets want[i] for the texels that
+  // get more samples and returns them in order.
+  std::vector<uint32_t> next_round(uint32_t round, const DirectGroups& groups,
+                                   const std::vector<DirectTexelNoise>& texels, std::vector<uint32_t>& want) const;
 
  private:
   // Whether a mean texel variance mean_var is above the direct pass's share of the target.
