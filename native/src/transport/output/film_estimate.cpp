@@ -381,7 +381,6 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
     Sums& g = groups[space.judged[u]];
     g.value += s.value, g.var += s.var, g.var_gather += s.var_gather, g.count += s.count;
   }
-  std::vector<double> var_direct(groups.size(), 0.0);
   const bool direct_per_texel = space.judged_groups > 0 && est.direct.variance.size() == space.covered.size();
   for (size_t k = 0; k < est.direct.variance.size(); ++k) {
     whole.var_direct += est.direct.variance[k];
