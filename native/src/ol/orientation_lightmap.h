@@ -7,14 +7,17 @@
 // the same normal then shows the same lighting. Energy is neither lost nor
 // made: sum over bins of radiosity * pi * area = flux / photon count.
 //
-// Triangles of known normal (the meshes of an OL group) are splatted instead:
+// Triangles of known normal (the meshes of an OL group,
+// transport/output/ol_film.h) are splatted instead (add_splat_hit):
 // a triangle's area and each hit on it go to the four bins lookup() reads at
 // its normal, with lookup's weights (Splat). Then sum over triangles of
 // area * lookup(normal) is the flux the OL received / (pi * photon count)
-// exactly, and a uniform field stays uniform. With nearest bins only, a
-// lookup between bins of unequal area (a coarse mesh's bins differ by 1.6x)
-// does not return the light the bins received: a 32 x 16 UV sphere in a
-// 16 x 16 OL under a sun read 2.3 % too bright, whatever the photon count.
+// exactly, and a uniform field stays uniform. With each triangle in its
+// nearest bin alone, a lookup between bins of unequal area (a coarse mesh's
+// differ by 1.6x) does not give back the light the bins received: a 32 x 16
+// UV sphere in a 16 x 16 OL under a tilted sun reads 2.3 % too bright that
+// way, whatever the photon count (ol_bake_test). Hits by normal (add_hit:
+// L-system OLs, OlTree) and estimated areas stay in the nearest bin.
 //
 // Values are irradiance / pi, like every texel of the engine
 // (docs/design/texels.md, "Irradiance / pi, as a Cycles DIFFUSE bake").
@@ -39,13 +42,14 @@ struct Splat {
   uint32_t bin[4];
   float weight[4];
 
-  // The taps at a unit normal; all weight on the nearest bin alone.
+  // The taps at a unit normal.
   static Splat bilinear(const OctGrid& grid, Vec3d normal) {
     const Taps t = grid.taps(normal);
     return {grid.bin(normal),
             {t.bin[0], t.bin[1], t.bin[2], t.bin[3]},
             {float(t.weight[0]), float(t.weight[1]), float(t.weight[2]), float(t.weight[3])}};
   }
+  // All weight on one bin, for areas that are known per bin only (estimates).
   static Splat nearest_only(uint32_t bin) { return {bin, {bin, bin, bin, bin}, {1.0f, 0.0f, 0.0f, 0.0f}}; }
   // Adds `value` (an area) to per-bin sums with the weights.
   void add_to(std::vector<double>& bins, double value) const {
