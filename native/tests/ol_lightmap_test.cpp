@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 #include "ol/area_estimation.h"
@@ -216,6 +217,58 @@ TEST(OlLightmap, MergedCopiesEqualOneLightmap) {
     EXPECT_EQ(whole.hits(b), parts[0].hits(b));
     EXPECT_NEAR(whole.radiosity(b, 1), parts[0].radiosity(b, 1), 1e-12);
     EXPECT_NEAR(whole.radiosity_error(b), parts[0].radiosity_error(b), 1e-12);
+  }
+}
+
+// Triangles of scattered normals and areas, their areas and hits splatted
+// (Splat::bilinear): the lookup at each triangle's normal, weighted by its
+// area, gives back all the flux the OL received, and a uniform field reads
+// the same in every bin. The same triangles in nearest bins do neither.
+TEST(OlSplat, LookupAtTheTrianglesReturnsTheirFlux) {
+  const OctGrid grid(16);
+  std::mt19937_64 gen(12);
+  std::uniform_real_distribution<double> area_of(0.02, 0.2);
+  std::vector<Vec3d> normal(200);
+  std::vector<double> area(normal.size());
+  for (size_t t = 0; t < normal.size(); ++t) normal[t] = random_direction(gen), area[t] = area_of(gen);
+  const Vec3d sun = normalize(Vec3d{0.3, -0.2, 1.0});
+  for (bool splat : {true, false}) {
+    for (bool uniform : {false, true}) {
+      OrientationLightmap ol(16, 4);
+      std::vector<double> bin_area(ol.bins(), 0.0);
+      std::vector<Splat> splats;
+      for (size_t t = 0; t < normal.size(); ++t) {
+        splats.push_back(splat ? Splat::bilinear(grid, normal[t]) : Splat::nearest_only(grid.bin(normal[t])));
+        splats.back().add_to(bin_area, area[t]);
+      }
+      ol.set_area(bin_area, std::vector<double>(ol.bins(), 0.0));
+      // Radiosity f on each triangle: flux f pi A (photon count 1) in 4 hits.
+      double flux = 0.0;
+      for (size_t t = 0; t < normal.size(); ++t) {
+        const double f = uniform ? 0.5 : std::max(0.0, dot(normal[t], sun));
+        flux += f * kPiD * area[t];
+        const float hit = float(f * kPiD * area[t] / 4.0);
+        for (uint32_t k = 0; k < 4; ++k) ol.add_splat_hit(splats[t], {hit, hit, hit}, k);
+      }
+      ol.finalize(1);
+      double resolved = 0.0;
+      for (size_t t = 0; t < normal.size(); ++t) resolved += area[t] * kPiD * ol.lookup(to_float(normal[t])).x;
+      double lo = 1e30, hi = 0.0;
+      for (uint32_t b = 0; b < ol.bins(); ++b)
+        if (ol.area(b) > 0.0) lo = std::min(lo, ol.radiosity(b, 0)), hi = std::max(hi, ol.radiosity(b, 0));
+      std::printf("[ %s, %s field ] resolved / received flux %.6f, bins %.6f..%.6f\n",
+                  splat ? "splatted" : "nearest bins", uniform ? "uniform" : "cosine", resolved / flux, lo, hi);
+      EXPECT_EQ(ol.orphan_flux(), 0.0);
+      if (uniform) {  // radiosity 0.5 everywhere: both ways read it in every bin
+        EXPECT_NEAR(lo, 0.5, 1e-6);
+        EXPECT_NEAR(hi, 0.5, 1e-6);
+      }
+      if (splat) {
+        EXPECT_NEAR(resolved, flux, 1e-6 * flux);
+      } else if (!uniform) {
+        EXPECT_GT(std::fabs(resolved / flux - 1.0), 1e-3);  // the lookup loses the balance
+      }
+    }
   }
 }
 

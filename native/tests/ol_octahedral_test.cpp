@@ -132,6 +132,58 @@ TEST(OlOctahedral, WrapFindsTheNeighbourAcrossTheFold) {
   EXPECT_EQ(grid.wrap(n, n), grid.index(0, 0));
 }
 
+// The taps of a direction are the bilinear weights of the four surrounding
+// bin centres: >= 0, summing to 1, all on the bin at a bin centre, the
+// nearest bin among them with the largest share, and inside the square they
+// reproduce the direction's (u, v) from the taps' centres (what bilinear
+// weights are).
+TEST(OlOctahedral, TapsAreBilinearWeightsOfTheSurroundingCentres) {
+  for (uint32_t n : {1u, 5u, 16u}) {
+    const OctGrid grid(n);
+    for (uint32_t b = 0; b < grid.bins(); ++b) {
+      const Taps t = grid.taps(grid.centre(b));
+      double own = 0.0;
+      for (int k = 0; k < 4; ++k) own += t.bin[k] == b ? t.weight[k] : 0.0;
+      EXPECT_NEAR(own, 1.0, 1e-9) << "N " << n << " bin " << b;
+    }
+    std::mt19937_64 gen(n);
+    int inside = 0;
+    for (int i = 0; i < 20000; ++i) {
+      const Vec3d d = random_direction(gen);
+      const Taps t = grid.taps(d);
+      double sum = 0.0, nearest = 0.0, largest = 0.0, u = 0.0, v = 0.0;
+      double share[4] = {0, 0, 0, 0};
+      for (int k = 0; k < 4; ++k) {
+        ASSERT_GE(t.weight[k], 0.0);
+        ASSERT_LT(t.bin[k], grid.bins());
+        sum += t.weight[k];
+        for (int j = 0; j < 4; ++j) share[j] += t.bin[k] == t.bin[j] ? t.weight[k] : 0.0;
+        u += t.weight[k] * (t.bin[k] % n + 0.5) / n;
+        v += t.weight[k] * (t.bin[k] / n + 0.5) / n;
+      }
+      for (int k = 0; k < 4; ++k) {
+        largest = std::max(largest, share[k]);
+        if (t.bin[k] == grid.bin(d)) nearest = share[k];
+      }
+      EXPECT_NEAR(sum, 1.0, 1e-12);
+      EXPECT_GT(nearest, 0.0) << "N " << n;
+      double du, dv;
+      oct_encode(d, du, dv);
+      const bool interior = du * n >= 0.5 && du * n <= n - 0.5 && dv * n >= 0.5 && dv * n <= n - 0.5;
+      // Across the fold the taps' centres lie mirrored, and a bin may be
+      // tapped twice (then it can outweigh the nearest one).
+      if (!interior) continue;
+      ++inside;
+      EXPECT_NEAR(nearest, largest, 1e-12) << "N " << n;
+      EXPECT_NEAR(u, du, 1e-12);
+      EXPECT_NEAR(v, dv, 1e-12);
+    }
+    if (n > 1) {
+      EXPECT_GT(inside, 1000);
+    }
+  }
+}
+
 // The solid angles are made once per process and resolution (OctGrid's
 // constructor), then copied: grids made at the same time on several threads
 // agree bit for bit, each resolution keeps its own values, and a second grid

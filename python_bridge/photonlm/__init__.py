@@ -871,8 +871,9 @@ class Preview:
 OrientationLightmap = collections.namedtuple("OrientationLightmap", "rgb error resolution area hits")
 OrientationLightmap.__doc__ = """One OL group's map as float32 arrays over the octahedral square,
 row = v bin, column = u bin (photonlm.h): rgb (N, N, 3) irradiance/pi; error (N, N) standard
-error of the bin's mean RGB; resolution N; area (N, N) covered surface area per bin (m^2);
-hits (N, N) photon hits."""
+error of the bin's mean RGB; resolution N; area (N, N) covered surface area per bin (m^2: each
+triangle's area shared among the four bins a lookup at its normal interpolates, by the lookup's
+bilinear weights); hits (N, N) photon hits (each in the bin of its normal)."""
 
 Lightmap = collections.namedtuple("Lightmap", "rgb error hits coverage")
 Lightmap.__doc__ = """One mesh's lightmap as float32 arrays, row 0 = bottom (v near 0):

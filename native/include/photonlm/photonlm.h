@@ -823,8 +823,12 @@ PLM_API plm_status plm_scene_set_ol_group_limit_area(plm_scene* scene, uint32_t 
 PLM_API plm_status plm_result_ol(const plm_result* result, uint32_t group, const float** rgb,
                                  const float** error, uint32_t* resolution);
 
-/* Per-bin covered area (m^2; exact sums of triangle areas) and photon hits,
- * resolution^2 floats each, valid as long as the result; either may be NULL. */
+/* Per-bin covered area (m^2) and photon hits, resolution^2 floats each, valid
+ * as long as the result; either may be NULL. The area is what the bin's flux
+ * is divided by: each triangle's exact area shared among the (up to) four bins
+ * a lookup at its normal interpolates, by the lookup's bilinear weights, as
+ * its hits' flux is (limit-area subdivision meshes: their limit surface's area
+ * in the bin of its normal). A hit is counted in the bin of its normal. */
 PLM_API plm_status plm_result_ol_bins(const plm_result* result, uint32_t group, const float** area,
                                       const float** hits);
 

@@ -55,6 +55,16 @@ inline Vec3d oct_decode(double u, double v) {
   return {std::copysign(std::cos(phi), a) * s, std::copysign(std::sin(phi), b) * s, z};
 }
 
+// The four bins a bilinear interpolation at a direction reads, and their
+// weights (>= 0, summing to 1 up to rounding): the bins whose centres
+// surround the direction's (u, v), found across the fold (OctGrid::wrap)
+// within half a bin of the square's edge. A bin may appear twice there (the
+// fold's mirror neighbour), and every tap is bin 0 at N = 1.
+struct Taps {
+  uint32_t bin[4];
+  double weight[4];
+};
+
 // An N x N grid of bins over the octahedral square; bin = row * N + column,
 // row along v. Holds the exact solid angle of every bin.
 class OctGrid {
@@ -76,6 +86,23 @@ class OctGrid {
     return oct_decode((bin % n_ + 0.5) / n_, (bin / n_ + 0.5) / n_);
   }
   double solid_angle(uint32_t bin) const { return omega_[bin]; }
+
+  // Bilinear taps of a unit direction (not checked): bin centres sit at
+  // integer (u N - 1/2, v N - 1/2), so a centre has weight 1 on its own bin.
+  Taps taps(Vec3d d) const {
+    double u, v;
+    oct_encode(d, u, v);
+    const double s = u * n_ - 0.5, t = v * n_ - 0.5;
+    const double i0 = std::floor(s), j0 = std::floor(t);
+    const double fx = s - i0, fy = t - j0;
+    Taps out;
+    for (int k = 0; k < 4; ++k) {
+      const int di = k & 1, dj = k >> 1;
+      out.weight[k] = (di ? fx : 1.0 - fx) * (dj ? fy : 1.0 - fy);
+      out.bin[k] = wrap(int64_t(i0) + di, int64_t(j0) + dj);
+    }
+    return out;
+  }
 
   // Bin of column i, row j, where i and j may lie one step outside [0, N):
   // the square's edges are glued as the octahedron folds, (0, v) to (0, 1 - v)

@@ -74,6 +74,25 @@ void OrientationLightmap::add_hit(Vec3 normal, Vec3 rgb, uint32_t batch) {
   batch_flux_[size_t(b) * batches_ + batch] += (double(rgb.x) + rgb.y + rgb.z) / 3.0;
 }
 
+void OrientationLightmap::add_splat_hit(const Splat& splat, Vec3 rgb, uint32_t batch) {
+  if (batch >= batches_)
+    fail(PLM_ERROR_INVALID_ARGUMENT, "orientation lightmap: batch ", batch, " is out of range 0..", batches_ - 1);
+  if (!is_finite(rgb)) fail(PLM_ERROR_INVALID_ARGUMENT, "orientation lightmap: hit flux is not finite");
+  if (splat.nearest >= bins())
+    fail(PLM_ERROR_INVALID_ARGUMENT, "orientation lightmap: bin ", splat.nearest, " is out of range 0..", bins() - 1);
+  const double mean = (double(rgb.x) + rgb.y + rgb.z) / 3.0;
+  for (int k = 0; k < 4; ++k) {
+    const double w = splat.weight[k];
+    if (w == 0.0) continue;  // a nearest-bin splat touches one bin only
+    const size_t b = splat.bin[k];
+    flux_[3 * b] += w * rgb.x;
+    flux_[3 * b + 1] += w * rgb.y;
+    flux_[3 * b + 2] += w * rgb.z;
+    batch_flux_[b * batches_ + batch] += w * mean;
+  }
+  ++hits_[splat.nearest];
+}
+
 OrientationLightmap OrientationLightmap::empty_copy() const {
   OrientationLightmap o(resolution(), batches_);
   o.area_ = area_;
@@ -169,17 +188,11 @@ void OrientationLightmap::finalize(uint64_t photon_count) {
 
 Vec3 OrientationLightmap::lookup(Vec3 normal) const {
   if (!finalized()) fail(PLM_ERROR_INVALID_ARGUMENT, "orientation lightmap lookup before finalize");
-  double u, v;
-  oct_encode(unit_normal(normal), u, v);
-  const double n = resolution();
-  const double s = u * n - 0.5, t = v * n - 0.5;  // bin centres sit at integers
-  const double i0 = std::floor(s), j0 = std::floor(t);
-  const double fx = s - i0, fy = t - j0;
+  const Taps taps = grid_.taps(unit_normal(normal));
   double acc[3] = {0, 0, 0}, wsum = 0.0;
   for (int k = 0; k < 4; ++k) {
-    const int di = k & 1, dj = k >> 1;
-    const double w = (di ? fx : 1.0 - fx) * (dj ? fy : 1.0 - fy);
-    const uint32_t b = grid_.wrap(int64_t(i0) + di, int64_t(j0) + dj);
+    const double w = taps.weight[k];
+    const uint32_t b = taps.bin[k];
     if (!(area_[b] > 0.0) || w == 0.0) continue;
     for (int c = 0; c < 3; ++c) acc[c] += w * radiosity_[3 * b + c];
     wsum += w;

@@ -7,6 +7,18 @@
 // the same normal then shows the same lighting. Energy is neither lost nor
 // made: sum over bins of radiosity * pi * area = flux / photon count.
 //
+// Triangles of known normal (the meshes of an OL group,
+// transport/output/ol_film.h) are splatted instead (add_splat_hit):
+// a triangle's area and each hit on it go to the four bins lookup() reads at
+// its normal, with lookup's weights (Splat). Then sum over triangles of
+// area * lookup(normal) is the flux the OL received / (pi * photon count)
+// exactly, and a uniform field stays uniform. With each triangle in its
+// nearest bin alone, a lookup between bins of unequal area (a coarse mesh's
+// differ by 1.6x) does not give back the light the bins received: a 32 x 16
+// UV sphere in a 16 x 16 OL under a tilted sun reads 2.3 % too bright that
+// way, whatever the photon count (ol_bake_test). Hits by normal (add_hit:
+// L-system OLs, OlTree) and estimated areas stay in the nearest bin.
+//
 // Values are irradiance / pi, like every texel of the engine
 // (docs/design/texels.md, "Irradiance / pi, as a Cycles DIFFUSE bake").
 #pragma once
@@ -21,6 +33,30 @@ namespace plm::ol {
 
 struct AreaEstimate;
 
+// Where the hits and area of a triangle with a given unit normal go: the taps
+// of lookup() at that normal (OctGrid::taps, weights rounded to float: area
+// and hits share them, so the rounding cancels in their ratio) and the
+// nearest bin, which counts the hits (hits(), OlTree::choose). 36 bytes.
+struct Splat {
+  uint32_t nearest;
+  uint32_t bin[4];
+  float weight[4];
+
+  // The taps at a unit normal.
+  static Splat bilinear(const OctGrid& grid, Vec3d normal) {
+    const Taps t = grid.taps(normal);
+    return {grid.bin(normal),
+            {t.bin[0], t.bin[1], t.bin[2], t.bin[3]},
+            {float(t.weight[0]), float(t.weight[1]), float(t.weight[2]), float(t.weight[3])}};
+  }
+  // All weight on one bin, for areas that are known per bin only (estimates).
+  static Splat nearest_only(uint32_t bin) { return {bin, {bin, bin, bin, bin}, {1.0f, 0.0f, 0.0f, 0.0f}}; }
+  // Adds `value` (an area) to per-bin sums with the weights.
+  void add_to(std::vector<double>& bins, double value) const {
+    for (int k = 0; k < 4; ++k) bins[bin[k]] += double(weight[k]) * value;
+  }
+};
+
 class OrientationLightmap {
  public:
   // batches: independent photon groups (2..256) whose spread gives the error.
@@ -31,7 +67,9 @@ class OrientationLightmap {
   size_t bins() const { return grid_.bins(); }
   uint32_t batches() const { return batches_; }
 
-  // Covered area per bin (m^2) and the variance of that estimate (m^4).
+  // Covered area per bin (m^2) and the variance of that estimate (m^4): the
+  // area each bin's flux is divided by, nearest-bin (an estimate) or
+  // splatted (Splat::add_to), as the hits are.
   void set_area(const AreaEstimate& estimate);
   void set_area(std::vector<double> area, std::vector<double> variance);
   // Adds another OL's area: a parent covering the union of its children.
@@ -42,6 +80,9 @@ class OrientationLightmap {
   // photon batch `batch`. No allocation; not thread-safe: give each thread an
   // empty copy (empty_copy) and merge them once, in a fixed order.
   void add_hit(Vec3 normal, Vec3 rgb, uint32_t batch);
+  // A hit on a triangle whose area was splatted with `splat`: its flux goes
+  // to the taps by weight, the hit is counted in the nearest bin.
+  void add_splat_hit(const Splat& splat, Vec3 rgb, uint32_t batch);
   // Bin of a surface normal; throws plm::Error for zero or non-finite normals.
   uint32_t bin_of(Vec3 normal) const;
   // Same grid, batches and area; no hits.
@@ -67,7 +108,8 @@ class OrientationLightmap {
   // elsewhere to second order.
   Vec3 lookup(Vec3 normal) const;
 
-  // Per bin.
+  // Per bin: the area set (set_area), the hits whose nearest bin it is, and
+  // the flux it received (splatted hits: their share).
   double area(uint32_t b) const { return area_[b]; }
   double area_variance(uint32_t b) const { return area_var_[b]; }
   uint64_t hits(uint32_t b) const { return hits_[b]; }

@@ -15,6 +15,7 @@
 #include "accel/embree_scene.h"
 #include "lsystem/lsystem_object.h"
 #include "ol/octahedral.h"
+#include "ol/orientation_lightmap.h"
 #include "scene/scene.h"
 #include "scene/texture.h"
 #include "transport/context/texel_space.h"
@@ -29,11 +30,12 @@ namespace plm {
 
 constexpr uint32_t kNoBin = ~0u;
 
-// A mesh as the photon tracer sees its OL group: group -1 for none, else the
-// OL bin of each triangle's normal (kNoBin for degenerate triangles).
+// A mesh as the photon tracer sees its OL group: group -1 for none, else
+// where each triangle's hits go in the group's OL (Splat::nearest kNoBin for
+// degenerate triangles).
 struct OlMeshView {
   int32_t group = -1;
-  const uint32_t* bins = nullptr;
+  const ol::Splat* splats = nullptr;
   bool backup = false;  // a backup OL: it records what the mesh's texels record (the indirect hits)
 };
 
@@ -63,7 +65,7 @@ struct BakeScene {
   std::vector<std::vector<uint8_t>> contact;   // per mesh: texels that may be pressed against another surface
   std::vector<std::vector<float>> burley;      // per mesh, per triangle: Burley roughness, < 0 for Lambert
   SurfaceMap surfaces;
-  std::vector<OlMeshView> ol_views;  // per mesh (bins owned by the OL groups, transport/output/ol_film.h)
+  std::vector<OlMeshView> ol_views;  // per mesh (splats owned by the OL groups, transport/output/ol_film.h)
   LSystemOls ls_ols;
 
   std::unique_ptr<TextureSet> textures;  // null unless a material names an image

@@ -9,53 +9,47 @@
 namespace plm {
 
 OlGroups build_ol_groups(const Scene& scene, std::vector<std::string>& warnings) {
-  constexpr size_t kChunk = 1 << 16;  // triangles per estimate_area call: bounds the Patch buffer
   OlGroups out;
   std::vector<ol::OrientationLightmap>& ols = out.maps;
-  std::vector<std::vector<uint32_t>>& bins = out.bins;
+  std::vector<std::vector<ol::Splat>>& splats = out.splats;
   std::vector<uint32_t>& mesh_counts = out.mesh_counts;
-  bins.assign(scene.meshes.size(), {});
+  splats.assign(scene.meshes.size(), {});
   mesh_counts.assign(scene.ol_groups.size(), 0);
   for (size_t g = 0; g < scene.ol_groups.size(); ++g) {
     const OlGroup& group = scene.ol_groups[g];
     ols.emplace_back(group.resolution ? group.resolution : kAutoOlResolution, kOlBatches);
     ol::OrientationLightmap& map = ols.back();
+    const ol::OctGrid& grid = map.grid();
     std::vector<double> area(map.bins(), 0.0), area_var(map.bins(), 0.0);
-    std::vector<ol::Patch> parts;
-    auto flush = [&] {
-      if (parts.empty()) return;
-      const ol::AreaEstimate e = ol::estimate_area(map.grid(), parts);
-      for (size_t b = 0; b < area.size(); ++b) area[b] += e.area[b];
-      parts.clear();
-    };
     for (size_t i = 0; i < scene.meshes.size(); ++i) {
       const Mesh& mesh = scene.meshes[i];
       if (mesh.ol_group != int32_t(g)) continue;
       ++mesh_counts[g];
-      bins[i].assign(mesh.triangle_count(), kNoBin);
+      splats[i].assign(mesh.triangle_count(), ol::Splat::nearest_only(kNoBin));
       const bool limit = group.limit_area && mesh.cage;
       std::vector<double> cage_tri_area(limit ? map.bins() : 0, 0.0);
       for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
         const Vec3d p0 = to_double(mesh.vertex(t, 0)), p1 = to_double(mesh.vertex(t, 1)), p2 = to_double(mesh.vertex(t, 2));
-        // The normal exactly as estimate_area's exact-triangle path computes it.
         const Vec3d n = cross(p1 - p0, p2 - p0);
         const double len = length(n);
-        if (len > 0.0) bins[i][t] = map.grid().bin(n * (1.0 / len));
+        if (!(len > 0.0)) continue;  // degenerate: no normal, no area, no hits
+        const Vec3d unit = n * (1.0 / len);
+        ol::Splat& s = splats[i][t];
         if (limit) {
-          if (len > 0.0) cage_tri_area[bins[i][t]] += 0.5 * len;
-          continue;
+          s = ol::Splat::nearest_only(grid.bin(unit));
+          cage_tri_area[s.nearest] += 0.5 * len;
+        } else {
+          s = ol::Splat::bilinear(grid, unit);
+          s.add_to(area, 0.5 * len);
         }
-        parts.push_back(ol::Patch::triangle(p0, p1, p2));
-        if (parts.size() == kChunk) flush();
       }
       if (limit) {  // a subdivision mesh: the areas of its limit surface (subdiv/limit_area.h)
         const ol::AreaEstimate e = subdiv::mesh_limit_area("mesh '" + mesh.name + "' (" + std::to_string(i) + ")",
-                                                           *mesh.cage, map.grid(), cage_tri_area,
+                                                           *mesh.cage, grid, cage_tri_area,
                                                            {subdiv::kLimitAreaSamples, i + 1});
         for (size_t b = 0; b < area.size(); ++b) area[b] += e.area[b], area_var[b] += e.variance[b];
       }
     }
-    flush();
     map.set_area(std::move(area), std::move(area_var));
     if (mesh_counts[g] == 0)
       warnings.push_back("OL group '" + group.name + "' (" + std::to_string(g) +
@@ -64,7 +58,7 @@ OlGroups build_ol_groups(const Scene& scene, std::vector<std::string>& warnings)
   out.views.resize(scene.meshes.size());
   for (size_t i = 0; i < scene.meshes.size(); ++i) {
     const int32_t g = scene.meshes[i].ol_group;
-    if (g >= 0) out.views[i] = {g, bins[i].data(), scene.ol_groups[size_t(g)].backup};
+    if (g >= 0) out.views[i] = {g, splats[i].data(), scene.ol_groups[size_t(g)].backup};
   }
   return out;
 }
@@ -94,9 +88,8 @@ uint64_t merge_ol_hits(uint64_t batch, const BatchOutput& bo, OlGroups& groups, 
                        std::vector<LSystemOutput>& lsystems) {
   const uint32_t replicate = uint32_t(batch % kOlBatches);
   for (const OlHit& h : bo.ol_hits) {
-    ol::OrientationLightmap& map = groups.maps[h.group];
-    const Vec3d c = map.grid().centre(h.bin);  // falls back into bin h.bin
-    map.add_hit(to_float(c), {h.r, h.g, h.b}, replicate);
+    const OlMeshView& view = groups.views[h.mesh];
+    groups.maps[size_t(view.group)].add_splat_hit(view.splats[h.prim], {h.r, h.g, h.b}, replicate);
   }
   for (const LsHit& h : bo.ls_hits) {
     LSystemOutput& lo = lsystems[h.object];

@@ -114,8 +114,7 @@ void PhotonTracer::build_hit_tables() {
     const OlMeshView& ol = ol_views_[m];
     HitMesh& hm = hit_meshes_[m];
     hm = {hit_tris_.data() + t0, mesh.uv.data(), mesh.smooth() ? mesh.normals.data() : nullptr, v.contact,
-          mesh.smooth() || v.contact, nullptr, v.texel_offset, mesh.lightmap_width, mesh.lightmap_height, ol.group,
-          ol.backup};
+          mesh.smooth() || v.contact, nullptr, v.texel_offset, mesh.lightmap_width, mesh.lightmap_height, ol.backup};
     normals[m] = &hit_tris_[t0].normal;
     for (uint32_t t = 0; t < mesh.triangle_count(); ++t) {
       HitTri& h = hit_tris_[t0 + t];
@@ -125,7 +124,7 @@ void PhotonTracer::build_hit_tables() {
       const Vec3 albedo = material(mesh, t).albedo;
       h.roulette = std::fmin(1.0f, max_component(albedo));
       h.bounce = h.roulette > 0.0f ? albedo / h.roulette : Vec3{};
-      h.ol_bin = ol.group >= 0 ? ol.bins[t] : kNoBin;
+      h.ol_bin = ol.group >= 0 ? ol.splats[t].nearest : kNoBin;
     }
     t0 += mesh.triangle_count();
     if (v.texel_area) {
@@ -236,7 +235,7 @@ void PhotonTracer::trace_photon(uint64_t index, lsystem::GraphHit& graph_hit, Ba
           const HitMesh& hm = hit_meshes_[h.index];
           const uint32_t bin = hm.tris[h.prim].ol_bin;
           if (bin != kNoBin && (!hm.ol_backup || depth >= first_recorded_))
-            out.ol_hits.push_back({uint32_t(hm.ol_group), bin, flux.x, flux.y, flux.z});
+            out.ol_hits.push_back({mesh, h.prim, flux.x, flux.y, flux.z});
         }
       }
     }
@@ -308,7 +307,7 @@ inline bool PhotonTracer::lobe_hit(uint64_t index, const SurfaceHit& h, const Hi
         const HitMesh& hm = hit_meshes_[h.index];
         const uint32_t bin = hm.tris[h.prim].ol_bin;
         if (bin != kNoBin && (!hm.ol_backup || wanted))
-          out.ol_hits.push_back({uint32_t(hm.ol_group), bin, seen.x, seen.y, seen.z});
+          out.ol_hits.push_back({mesh, h.prim, seen.x, seen.y, seen.z});
       }
     }
   }

@@ -30,9 +30,10 @@ struct Hit {
   float r, g, b;   // flux / pick probability; divided by the photon count at the end
 };
 
-// A hit on an OL mesh: the bin of the triangle's normal (OlMeshView::bins).
+// A hit on an OL mesh: the mesh and its triangle, whose splat
+// (OlMeshView::splats) says where the flux goes.
 struct OlHit {
-  uint32_t group, bin;
+  uint32_t mesh, prim;
   float r, g, b;
 };
 
@@ -109,7 +110,7 @@ class PhotonTracer {
     Vec3 frame_t, frame_b;  // make_frame(normal)
     Vec3 bounce;       // albedo / roulette: the flux factor of a surviving photon (untextured scenes)
     float roulette;    // survival probability min(1, max_component(albedo))
-    uint32_t ol_bin;   // OL bin of the normal, kNoBin if none
+    uint32_t ol_bin;   // nearest OL bin of the normal, kNoBin if none
     uint32_t degenerate;  // 1: the photon stops here
     uint32_t pad_;
   };
@@ -123,7 +124,6 @@ class PhotonTracer {
     const uint8_t* covered;  // per texel: area > 0; null when the mesh records no texel hits
     uint64_t texel_offset;
     uint32_t width, height;
-    int32_t ol_group;
     bool ol_backup;
   };
 
