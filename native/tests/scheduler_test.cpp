@@ -317,23 +317,5 @@ TEST(Scheduler, DirectRoundZeroTopsUpWhereThePhantomDominates) {
   EXPECT_GT(later[2], 0u);
 }
 
-// A group whose error stops falling as photons grow is no longer waited for;
-// one that falls as photons lower noise is.
-TEST(Scheduler, GroupsPhotonsNoLongerImproveAreNotWaitedFor) {
-  PhotonStalls stalls;
-  auto parts = [](double a, double b) { return std::vector<ErrorParts>{{a, 0.0, 0.0}, {b, 0.0, 0.0}}; };
-  stalls.update(1000, parts(0.10, 0.30));
-  EXPECT_EQ(stalls.waiting(parts(0.10, 0.30)).size(), 2u);
-  stalls.update(3000, parts(0.06, 0.30));  // too little growth to judge
-  EXPECT_EQ(stalls.waiting(parts(0.06, 0.30)).size(), 2u);
-  stalls.update(4000, parts(0.085, 0.29));  // over 4x: the first falls to 0.85, the second to 0.97
-  const std::vector<ErrorParts> left = stalls.waiting(parts(0.085, 0.29));
-  ASSERT_EQ(left.size(), 1u);
-  EXPECT_DOUBLE_EQ(left[0].relative, 0.085);
-  stalls.update(16000, parts(0.07, 0.10));  // stalled stays stalled
-  EXPECT_EQ(stalls.waiting(parts(0.07, 0.10)).size(), 1u);
-  EXPECT_TRUE(target_reached(stalls.waiting(parts(0.015, 0.30)), 0.02));
-}
-
 }  // namespace
 }  // namespace plm

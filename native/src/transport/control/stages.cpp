@@ -112,7 +112,6 @@ struct PhotonLoop {
   CheckSchedule checks;
   bool done = false;
   Clock::time_point last_report;
-  PhotonStalls stalls;
 };
 
 // After the batches before `end` are in the sums: OL hits and counts merged
@@ -153,11 +152,6 @@ bool after_photon_group(const BakeScene& ctx, BakeRun& run, PhotonBatches& batch
         estimate(ctx.arena, est, run.photons, run.last);
       } while (regather(run.gathers, run.last.error.groups, s.target_error));
       loop.done = target_reached(run.last.error.groups, s.target_error);
-    }
-    // Once the gathers are done, groups that photons no longer improve are not waited for.
-    if (!loop.done && (!s.gather || run.gathered)) {
-      loop.stalls.update(run.photons, run.last.error.groups);
-      loop.done = target_reached(loop.stalls.waiting(run.last.error.groups), s.target_error);
     }
     fraction = std::max(fraction, target_progress(worst_relative(run.last.error), s.target_error));
   }
@@ -243,7 +237,7 @@ void trace_photons(const BakeScene& ctx, BakeRun& run, const GatherStep& gather)
   const BakeSettings& s = ctx.settings;
   run.t_trace = Clock::now();
   PhotonLoop loop{(s.photon_cap + kBatchPhotons - 1) / kBatchPhotons, 0, CheckSchedule(first_check(s.target_error)),
-                  false, run.t_trace - std::chrono::seconds(1), {}};
+                  false, run.t_trace - std::chrono::seconds(1)};
   PhotonBatches batches(tracer(ctx, run), run.acc, ctx.threads, s.photon_cap);
   run_in_groups(
       ctx.arena, loop.batch_count, ctx.threads, [&](uint64_t first, uint64_t n) { batches.trace(first, n); },

@@ -155,41 +155,6 @@ inline bool target_reached(const std::vector<ErrorParts>& groups, double target)
   return std::all_of(groups.begin(), groups.end(), [&](const ErrorParts& e) { return target_reached(e, target); });
 }
 
-// Groups beyond the photons' reach: photons alone halve a group's error when
-// they grow fourfold; a group whose error fell by less than to kStallFall of
-// what it was over such a growth is held by what photons do not lower (the
-// gather's lookups, which photons lower only through the gather's weight).
-// It stays so, and the photon pass no longer waits for it: the bake stops
-// when the others reach the target, and names it. (A closed room lit by
-// bounces, gather-bound, falls from 5.5 % to 3.7 % over 20x the photons:
-// 0.85 over 4x, still waited for.)
-class PhotonStalls {
- public:
-  static constexpr double kStallFall = 0.95, kStallGrowth = 4.0;
-  // The groups' errors at a check after `photons` photons.
-  void update(uint64_t photons, const std::vector<ErrorParts>& groups) {
-    if (last_.size() != groups.size()) stalled_.assign(groups.size(), 0), last_.clear();
-    if (!last_.empty() && double(photons) < kStallGrowth * double(last_photons_)) return;
-    for (size_t g = 0; g < last_.size(); ++g)
-      if (groups[g].relative > kStallFall * last_[g]) stalled_[g] = 1;
-    last_.clear();
-    for (const ErrorParts& e : groups) last_.push_back(e.relative);
-    last_photons_ = photons;
-  }
-  // The groups the photon pass still waits for.
-  std::vector<ErrorParts> waiting(const std::vector<ErrorParts>& groups) const {
-    std::vector<ErrorParts> out;
-    for (size_t g = 0; g < groups.size(); ++g)
-      if (g >= stalled_.size() || !stalled_[g]) out.push_back(groups[g]);
-    return out;
-  }
-
- private:
-  std::vector<double> last_;
-  std::vector<uint8_t> stalled_;
-  uint64_t last_photons_ = 0;
-};
-
 // Progress towards the target at a check: (target / error)^2 (the error falls
 // as 1 / sqrt(photons)), at most 1.
 double target_progress(double relative, double target);
