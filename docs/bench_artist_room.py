@@ -49,7 +49,8 @@ Per object, over those texels, on grey values (the per-texel mean of R, G, B, wh
 estimate describes):
   estimate  the engine's own estimate for the object, from the lightmap's error channel (standard
             error of the texel's mean RGB): sqrt(mean(err^2)) / mean(value) (the add-on records
-            no per-object figure);
+            no per-object figure; the JSON's estimate_covered is the same over every texel the
+            engine covers at all, as the engine's error_worst is defined);
   measured  sqrt(mean((x - ref)^2)) / mean(ref), the reference's noise removed in quadrature;
   ratio     mean(x) / mean(ref) (bias);
   ref noise the reference's own relative RMS noise, sqrt(mean((a - b)^2 / 4)) / mean(ref).
