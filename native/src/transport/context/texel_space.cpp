@@ -40,10 +40,7 @@ void judge_groups(const Scene& scene, TexelSpace& s) {
   const size_t units = s.covered_begin.size();
   s.judged.assign(units, kNoGroup);
   s.judged_groups = 0;
-  // Each unit's covered texels and the centre of its bounding box.
-  std::vector<uint64_t> texels(units, 0);
-  for (size_t u = 0; u < units; ++u)
-    texels[u] = (u + 1 < units ? s.covered_begin[u + 1] : s.covered.size()) - s.covered_begin[u];
+  // Each unit's bounding box centre.
   std::vector<Vec3d> centre(units, Vec3d{0, 0, 0});
   Vec3d lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
   for (size_t u = 0; u < units; ++u) {
@@ -61,8 +58,9 @@ void judge_groups(const Scene& scene, TexelSpace& s) {
   }
   std::vector<std::pair<uint32_t, uint32_t>> small;  // (Morton code, unit)
   for (size_t u = 0; u < units; ++u) {
-    if (texels[u] == 0) continue;
-    if (texels[u] >= kJudgedTexels) s.judged[u] = s.judged_groups++;
+    const size_t texels = s.covered_count(u);
+    if (texels == 0) continue;
+    if (texels >= kJudgedTexels) s.judged[u] = s.judged_groups++;
     else small.push_back({morton(centre[u], lo, hi), uint32_t(u)});
   }
   std::sort(small.begin(), small.end());
@@ -71,7 +69,7 @@ void judge_groups(const Scene& scene, TexelSpace& s) {
   for (const auto& [code, u] : small) {
     if (in_group == 0 || in_group >= kJudgedTexels) s.judged[u] = s.judged_groups++, in_group = 0;
     else s.judged[u] = s.judged_groups - 1;
-    in_group += texels[u];
+    in_group += s.covered_count(u);
   }
   // A last short group joins the one before it (if there is one among the small).
   if (in_group > 0 && in_group < kJudgedTexels && s.judged_groups >= first_small + 2) {

@@ -48,6 +48,10 @@ struct TexelSpace {
 
   // The group of covered texel k.
   uint32_t group_of(size_t k) const { return judged[covered[k].mesh]; }
+  // The covered texels of a mesh, or of CSG solid c at unit mesh count + c.
+  size_t covered_count(size_t unit) const {
+    return (unit + 1 < covered_begin.size() ? covered_begin[unit + 1] : covered.size()) - covered_begin[unit];
+  }
 };
 
 constexpr uint32_t kNoGroup = ~0u;

@@ -324,8 +324,7 @@ std::string group_name(const BakeScene& ctx, uint32_t g, uint32_t& mesh) {
   size_t best = 0, units = 0, most = 0;
   for (size_t u = 0; u < space.judged.size(); ++u) {
     if (space.judged[u] != g) continue;
-    const size_t end = u + 1 < space.covered_begin.size() ? space.covered_begin[u + 1] : space.covered.size();
-    const size_t texels = end - space.covered_begin[u];
+    const size_t texels = space.covered_count(u);
     ++units;
     if (texels > most) most = texels, best = u;
   }
