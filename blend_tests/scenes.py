@@ -514,15 +514,25 @@ def layout_coverage(obj, res, sub=8):
     mesh.loop_triangles.foreach_get("loops", loops)
     uv = np.empty(len(mesh.loops) * 2, np.float32)
     mesh.uv_layers["lightmap"].data.foreach_get("uv", uv)
-    tri = uv.reshape(-1, 2)[loops].reshape(nt, 3, 2).astype(np.float64)
-    g = (np.arange(res * sub) + 0.5) / (res * sub)
-    U, V = np.meshgrid(g, g)
-    inside = np.zeros(U.shape, bool)
-    for a, b, c in tri:
+    return uv_coverage(uv.reshape(-1, 2)[loops].reshape(nt, 3, 2), res, sub)
+
+
+def uv_coverage(uv, res, sub=8):
+    """Fraction of each texel of a res x res map covered by the UV triangles uv (T, 3, 2),
+    supersampled sub x sub per texel at the sub-texels' centres; row 0 = v near 0. Each triangle is
+    rasterised over its own bounding box only."""
+    n = res * sub
+    inside = np.zeros((n, n), bool)
+    tri = uv.astype(np.float64) * n - 0.5  # fine-grid coordinates: sample k sits at k
+    lo = np.clip(np.floor(tri.min(axis=1)).astype(int), 0, n - 1)
+    hi = np.clip(np.ceil(tri.max(axis=1)).astype(int), 0, n - 1)
+    for (a, b, c), (x0, y0), (x1, y1) in zip(tri, lo, hi):
+        ys, xs = np.mgrid[y0:y1 + 1, x0:x1 + 1]
+
         def edge(p, q):
-            return (q[0] - p[0]) * (V - p[1]) - (q[1] - p[1]) * (U - p[0])
+            return (q[0] - p[0]) * (ys - p[1]) - (q[1] - p[1]) * (xs - p[0])
         e0, e1, e2 = edge(a, b), edge(b, c), edge(c, a)
-        inside |= ((e0 >= 0) & (e1 >= 0) & (e2 >= 0)) | ((e0 <= 0) & (e1 <= 0) & (e2 <= 0))
+        inside[y0:y1 + 1, x0:x1 + 1] |= ((e0 >= 0) & (e1 >= 0) & (e2 >= 0)) | ((e0 <= 0) & (e1 <= 0) & (e2 <= 0))
     return inside.reshape(res, sub, res, sub).mean(axis=(1, 3))
 
 

@@ -89,25 +89,6 @@ MIN_SAMPLES = 64    # the least reference samples per texel of any object
 
 # ---- coverage ------------------------------------------------------------------------------------
 
-def uv_coverage(uv, res, sub=8):
-    """Fraction of each texel of a res x res map covered by the UV triangles uv (T, 3, 2),
-    supersampled sub x sub per texel; row 0 = v near 0. Each triangle is rasterised over its own
-    bounding box only."""
-    n = res * sub
-    inside = np.zeros((n, n), bool)
-    tri = uv.astype(np.float64) * n - 0.5  # fine-grid coordinates: sample k sits at k
-    lo = np.clip(np.floor(tri.min(axis=1)).astype(int), 0, n - 1)
-    hi = np.clip(np.ceil(tri.max(axis=1)).astype(int), 0, n - 1)
-    for (a, b, c), (x0, y0), (x1, y1) in zip(tri, lo, hi):
-        ys, xs = np.mgrid[y0:y1 + 1, x0:x1 + 1]
-
-        def edge(p, q):
-            return (q[0] - p[0]) * (ys - p[1]) - (q[1] - p[1]) * (xs - p[0])
-        e0, e1, e2 = edge(a, b), edge(b, c), edge(c, a)
-        inside[y0:y1 + 1, x0:x1 + 1] |= ((e0 >= 0) & (e1 >= 0) & (e2 >= 0)) | ((e0 <= 0) & (e1 <= 0) & (e2 <= 0))
-    return inside.reshape(res, sub, res, sub).mean(axis=(1, 3))
-
-
 def evaluated_uvs(objects):
     """Each object's evaluated 'lightmap' UV triangles (T, 3, 2) (None where it has none)."""
     return {o.name: scenes.evaluated_lightmap_triangles(o, world=False)[1] for o in objects}
@@ -371,7 +352,7 @@ def main():
     missing = [n for n in NAMES if uvs[n] is None]
     if missing:
         raise RuntimeError("no evaluated 'lightmap' UV map on %s" % missing)
-    blender_cov = {n: uv_coverage(uvs[n], sizes[n][0]) for n in NAMES}
+    blender_cov = {n: scenes.uv_coverage(uvs[n], sizes[n][0]) for n in NAMES}
     masks = {n: (blender_cov[n] > FULL) & (engine_cov[n] > FULL) for n in NAMES}
 
     runs = []
