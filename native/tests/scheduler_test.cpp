@@ -152,27 +152,38 @@ TEST(Scheduler, GatherRaysGrowWithTheSquareOfTheTarget) {
   EXPECT_EQ(gather_samples(0.001), kMaxGatherSamples);
 }
 
-// A further gather has 4x the rays of the one before (at most
-// kMaxGatherSamples), and runs while the target is not met and the gather's
-// part of the error is above half the target, at most kMaxGathers in all.
+// A further gather has 4x the rays of the one before and runs while the
+// target is not met and the gather's part of the error is above half the
+// target, at most kMaxGathers in all and only while the rays grow.
 TEST(Scheduler, FurtherGathersHaveMoreRaysWhileTheirPartIsLarge) {
-  EXPECT_EQ(gather_samples(0.05, 1), 4 * kLeastGatherSamples);
-  EXPECT_EQ(gather_samples(0.05, 2), 16 * kLeastGatherSamples);
-  EXPECT_EQ(gather_samples(0.01, 1), 16 * kGatherSamples);
-  EXPECT_EQ(gather_samples(0.01, 2), kMaxGatherSamples);
   ErrorParts e;
   e.relative = 0.06, e.direct = 0.02, e.gather = 0.03;
-  EXPECT_TRUE(regather(1, {e}, 0.05));   // 3 % > half of 5 %
-  EXPECT_FALSE(regather(kMaxGathers, {e}, 0.05));
+  const std::vector<size_t> one{1000};
+  EXPECT_EQ(plan_regather(1, 4, {e}, one, 0.05).samples, 16u);  // 3 % > half of 5 %
+  EXPECT_EQ(plan_regather(2, 64, {e}, one, 0.05).samples, kMaxGatherSamples);
+  EXPECT_EQ(plan_regather(3, kMaxGatherSamples, {e}, one, 0.05).samples, 0u);  // the rays no longer grow
+  EXPECT_EQ(plan_regather(kMaxGathers, 4, {e}, one, 0.05).samples, 0u);
   e.gather = 0.02;
-  EXPECT_FALSE(regather(1, {e}, 0.05));
+  EXPECT_EQ(plan_regather(1, 4, {e}, one, 0.05).samples, 0u);
   e.relative = 0.045, e.gather = 0.03;  // the target is met: no further gather
-  EXPECT_FALSE(regather(1, {e}, 0.05));
-  // Judged per object: one object that needs it is enough.
-  ErrorParts needs = e;
-  needs.relative = 0.06;
-  EXPECT_TRUE(regather(1, {e, needs}, 0.05));
-  EXPECT_FALSE(regather(1, {e, e}, 0.05));
+  EXPECT_EQ(plan_regather(1, 4, {e}, one, 0.05).samples, 0u);
+}
+
+// Judged per object: one object that needs it is enough, and only its texels
+// are gathered again, with as many more rays as it has fewer texels than the
+// whole (the rays of one gather of every texel at kMaxGatherSamples), up to
+// kMaxGroupGatherSamples.
+TEST(Scheduler, RegatherRefinesTheGroupsThatNeedIt) {
+  ErrorParts met, needs;
+  met.relative = 0.045, met.gather = 0.03;
+  needs.relative = 0.3, needs.gather = 0.25;
+  EXPECT_EQ(plan_regather(1, 16, {met, met}, {100, 100}, 0.05).samples, 0u);
+  const RegatherPlan p = plan_regather(3, kMaxGatherSamples, {met, needs}, {900, 100}, 0.05);
+  EXPECT_EQ(p.groups, (std::vector<uint8_t>{0, 1}));
+  EXPECT_EQ(p.samples, 4 * kMaxGatherSamples);  // 10x fewer texels allow 2560 rays: 4x the last
+  EXPECT_EQ(plan_regather(4, 4 * kMaxGatherSamples, {met, needs}, {900, 100}, 0.05).samples,
+            10 * kMaxGatherSamples);
+  EXPECT_EQ(plan_regather(4, 1024, {met, needs}, {99900, 100}, 0.05).samples, kMaxGroupGatherSamples);
 }
 
 // The target holds for every judged group: a bright object under the target

@@ -52,6 +52,13 @@ struct TexelSpace {
   size_t covered_count(size_t unit) const {
     return (unit + 1 < covered_begin.size() ? covered_begin[unit + 1] : covered.size()) - covered_begin[unit];
   }
+  // The covered texels of each judged group.
+  std::vector<size_t> group_texels() const {
+    std::vector<size_t> n(judged_groups, 0);
+    for (size_t u = 0; u < judged.size(); ++u)
+      if (judged[u] < judged_groups) n[judged[u]] += covered_count(u);
+    return n;
+  }
 };
 
 constexpr uint32_t kNoGroup = ~0u;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <string>
 #include <thread>
 
@@ -150,7 +151,9 @@ bool after_photon_group(const BakeScene& ctx, BakeRun& run, PhotonBatches& batch
       do {
         gather(ctx, run);
         estimate(ctx.arena, est, run.photons, run.last);
-      } while (regather(run.gathers, run.last.error.groups, s.target_error));
+        run.next_gather = plan_regather(run.gathers, run.gather_samples, run.last.error.groups,
+                                        ctx.space.group_texels(), s.target_error);
+      } while (run.next_gather.samples > 0);
       loop.done = target_reached(run.last.error.groups, s.target_error);
     }
     fraction = std::max(fraction, target_progress(worst_relative(run.last.error), s.target_error));
@@ -305,16 +308,28 @@ void final_gather(const BakeScene& ctx, BakeRun& run, CoveredSlice slice) {
                             run.acc.back_lit.data(),
                             shares.empty() ? nullptr : &shares};
   const double end = direct_end(ctx.settings);
-  run.gather = run_final_gather(ctx, pass, lookup, run.open_shares,
-                                gather_samples(ctx.settings.target_error, run.gathers - 1),
+  // A gather after the first: the groups it refines, the rest keep their rays.
+  const RegatherPlan& plan = run.next_gather;
+  const bool refine = plan.samples > 0 && !run.gather.sums.empty();
+  const GatherResult before = refine ? std::move(run.gather) : GatherResult{};
+  const Regather again{refine ? &plan.groups : nullptr, &before};
+  run.gather_samples = plan.samples ? plan.samples : gather_samples(ctx.settings.target_error);
+  run.gather = run_final_gather(ctx, pass, lookup, run.open_shares, run.gather_samples,
                                 [&] {
                                   run.report(end, "final gather");
                                   return !run.budget.spent(kGatherBudgetShare);
                                 },
-                                slice);
+                                slice, again);
 }
 
 namespace {
+
+// A fraction as a percentage for messages ("3%", "37.77%").
+std::string percent(double fraction, const char* format = "%.2f%%") {
+  char text[32];
+  std::snprintf(text, sizeof text, format, 100.0 * fraction);
+  return text;
+}
 
 // Judged group g in words, and the mesh that stands for it: its unit with the
 // most covered texels (a CSG solid by its carrier).
@@ -352,10 +367,9 @@ void estimate_result(const BakeScene& ctx, BakeRun& run) {
   std::string worst = "the lightmaps";
   if (err.worst != kNoGroup) worst = group_name(ctx, err.worst, stats.error_worst_mesh);
   if (s.targeted() && stats.error_worst > s.target_error)
-    run.out.warnings.push_back("the target error " + std::to_string(100.0 * s.target_error) + "% was not reached on " +
-                               worst + " (estimated " + std::to_string(100.0 * stats.error_worst) + "%, " +
-                               std::to_string(100.0 * err.relative) + "% over all texels, after " +
-                               std::to_string(run.photons) + " photons" +
+    run.out.warnings.push_back("the target error " + percent(s.target_error, "%.3g%%") + " was not reached on " + worst +
+                               " (estimated " + percent(stats.error_worst) + ", " + percent(err.relative) +
+                               " over all texels, after " + std::to_string(run.photons) + " photons" +
                                (run.budget.spent(kPhotonBudgetShare) ? ", time budget spent" : "") +
                                "); lower its lightmap resolution or allow more time");
 }

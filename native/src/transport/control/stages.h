@@ -50,6 +50,8 @@ struct BakeRun {
   GatherResult gather;  // empty unless the final gather ran
   bool gathered = false;
   uint32_t gathers = 0;
+  uint32_t gather_samples = 0;  // rays per texel of the last gather
+  RegatherPlan next_gather;     // the gather after the last: the groups it refines (transport/plan/scheduler.h)
   OpenShares open_shares;  // the gathers' (transport/gather/final_gather.h), kept from one to the next
   uint64_t photons = 0;    // photons merged into acc
   Estimate last;           // the latest estimate

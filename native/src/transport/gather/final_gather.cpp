@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "transport/plan/scheduler.h"
+#include "scene/texture.h"
 #include "util/rng.h"
 #include "util/sobol.h"
 
@@ -41,7 +42,7 @@ struct DirectionControl {
   }
 };
 
-constexpr uint32_t kCellCapacity = kMaxGatherSamples;  // rays whose cells a texel keeps apart
+constexpr uint32_t kCellCapacity = kMaxGroupGatherSamples;  // rays whose cells a texel keeps apart
 constexpr uint32_t kCalibrationRound = 0xFF;            // the replicates' key (the gather's rounds count from 0)
 constexpr uint32_t kOpenRound = 0xFE;                   // open_share's points
 
@@ -73,7 +74,8 @@ FinalGather::FinalGather(const BakeScene& ctx)
       // A texel's photon pool reaches filter_radius texels (at least 1 where
       // barely covered): texels within a pool's width of each other share hits.
       cell_side_(2 * std::max(ctx.settings.filter_radius, 1u) + 1), passage_(ctx.passage.get()),
-      black_known_(ctx.lobes.any_lobes()), materials_(ctx.lobes.any_view_scale() ? &ctx.lobes : nullptr) {}
+      black_known_(ctx.lobes.any_lobes()), materials_(ctx.lobes.any_view_scale() ? &ctx.lobes : nullptr),
+      textures_(ctx.textures.get()) {}
 
 void FinalGather::sample_texel(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32_t samples,
                                const GatherSource& source, GatherSums& sums, GatherInfo& info,
@@ -220,7 +222,10 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
               const float* d = source.radiosity + 3 * (hv.texel_offset + ht);
               // The lit part's light: the texel's mean over its open share.
               const float open = source.open ? source.open[hv.texel_offset + ht] : 1.0f;
-              Vec3 a = kPassage ? (*source.albedo)[mesh][prim] * through : (*source.albedo)[mesh][prim];
+              // The albedo where the ray lands: a texture's there, else the triangle's.
+              Vec3 a = textures_ ? textures_->albedo(hm, hm.material_ids[prim], prim, h.u, h.v)
+                                 : (*source.albedo)[mesh][prim];
+              if (kPassage) a *= through;
               if (materials_) {  // the diffuse radiance toward the texel (layers, Burley)
                 const MaterialLobes& ml = materials_->material(hm.material_ids[prim]);
                 if (ml.view_scale != MaterialLobes::kNoLayer)
@@ -281,7 +286,7 @@ SurfaceHit FinalGather::passed(const RayPacket& packet, unsigned l, Vec3 dir, Ve
 
 GatherResult run_final_gather(const BakeScene& ctx, const FinalGather& gather, const GatherLookup& lookup,
                               OpenShares& open, uint32_t samples, const std::function<bool()>& after_group,
-                              CoveredSlice slice) {
+                              CoveredSlice slice, Regather again) {
   tbb::task_arena& arena = ctx.arena;
   const TexelSpace& space = ctx.space;
   const std::vector<std::vector<float>>& images = lookup.images;
@@ -346,6 +351,16 @@ GatherResult run_final_gather(const BakeScene& ctx, const FinalGather& gather, c
           for (uint64_t k = r.begin(); k < r.end(); ++k) {
             GatherSums& a = out.sums[k];
             GatherInfo& info = out.info[k];
+            if (again.groups) {
+              const uint32_t g = space.group_of(slice.begin + k);
+              if (g < again.groups->size() && !(*again.groups)[g]) {  // kept
+                a = again.before->sums[k];
+                info = again.before->info[k];
+                std::copy_n(again.before->split_rgb.begin() + 3 * k * slots, 3 * slots,
+                            out.split_rgb.begin() + 3 * k * slots);
+                continue;
+              }
+            }
             gather.sample_texel(covered[k].mesh, covered[k].texel, 0, samples, source, a, info,
                                 slots ? &out.split_rgb[3 * k * slots] : nullptr);
             if ((slice.begin + k) % step != 0 || info.unknown) continue;

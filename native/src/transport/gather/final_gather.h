@@ -125,6 +125,7 @@ class FinalGather {
   const PassageTracer* passage_;
   bool black_known_;
   const MaterialTable* materials_;
+  const TextureSet* textures_;  // null without image textures
 };
 
 // The gather of every covered texel, in the film's covered order.
@@ -180,8 +181,15 @@ struct GatherLookup {
   // (3 floats per layer), or null.
   const std::vector<std::vector<float>>* layer_shares = nullptr;
 };
+// A gather after the first (transport/plan/scheduler.h, plan_regather): the
+// texels of the judged groups marked in `groups` are gathered again, the
+// others keep what they had in `before` (the same slice's result).
+struct Regather {
+  const std::vector<uint8_t>* groups = nullptr;  // null: every texel is gathered
+  const GatherResult* before = nullptr;
+};
 GatherResult run_final_gather(const BakeScene& ctx, const FinalGather& gather, const GatherLookup& lookup,
                               OpenShares& open, uint32_t samples, const std::function<bool()>& after_group,
-                              CoveredSlice slice = {});
+                              CoveredSlice slice = {}, Regather again = {});
 
 }  // namespace plm

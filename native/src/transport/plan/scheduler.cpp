@@ -31,14 +31,32 @@ uint64_t first_check(double target_error) {
   return std::max(kLeastCheckBatches, uint64_t(std::lround(double(kCheckBatches) * loose_share(target_error))));
 }
 
-uint32_t gather_samples(double target_error, uint32_t gathers_before) {
-  const double more = std::pow(4.0, double(std::min(gathers_before, 4u)));
+uint32_t gather_samples(double target_error) {
   const double least = std::max(double(kLeastGatherSamples), std::round(kGatherSamples * loose_share(target_error)));
-  const double base = target_error > 0.0
-                          ? std::clamp(kGatherSamples * std::pow(kBaseTarget / target_error, 2.0), least,
-                                       double(kMaxGatherSamples))
-                          : double(kGatherSamples);
-  return uint32_t(std::min(base * more, double(kMaxGatherSamples)));
+  if (!(target_error > 0.0)) return kGatherSamples;
+  return uint32_t(
+      std::clamp(kGatherSamples * std::pow(kBaseTarget / target_error, 2.0), least, double(kMaxGatherSamples)));
+}
+
+RegatherPlan plan_regather(uint32_t gathers, uint32_t last_samples, const std::vector<ErrorParts>& groups,
+                           const std::vector<size_t>& texels, double target) {
+  RegatherPlan plan;
+  if (gathers >= kMaxGathers) return plan;
+  plan.groups.assign(groups.size(), 0);
+  double refined = 0.0, total = 0.0;
+  for (size_t g = 0; g < groups.size(); ++g) {
+    const ErrorParts& e = groups[g];
+    plan.groups[g] = e.relative > target && e.gather > kPhotonShareOfTarget * target;
+    const double n = g < texels.size() ? double(texels[g]) : 1.0;
+    total += n;
+    if (plan.groups[g]) refined += n;
+  }
+  if (!(refined > 0.0)) return plan;
+  const double most = std::clamp(double(kMaxGatherSamples) * total / refined, double(kMaxGatherSamples),
+                                 double(kMaxGroupGatherSamples));
+  const uint32_t samples = uint32_t(std::min(4.0 * double(last_samples), most));
+  if (samples > last_samples) plan.samples = samples;
+  return plan;
 }
 
 DirectSchedule::DirectSchedule(double target_error, uint32_t direct_samples)

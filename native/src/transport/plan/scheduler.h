@@ -177,27 +177,34 @@ class CheckSchedule {
 };
 
 // ---- Final gather -------------------------------------------------------------
-// Rays per texel: kGatherSamples, 4x as many for half the target error under
-// a target below 2 %, kGatherSamples x loose_share above it (at least
-// kLeastGatherSamples), and 4x as many again for each gather before (regather
-// below; at most kMaxGatherSamples).
+// Rays per texel of the first gather: kGatherSamples, 4x as many for half
+// the target error under a target below 2 % (at most kMaxGatherSamples),
+// kGatherSamples x loose_share above it (at least kLeastGatherSamples).
 constexpr uint32_t kGatherSamples = 16, kMaxGatherSamples = 256, kLeastGatherSamples = 4;
-uint32_t gather_samples(double target_error, uint32_t gathers_before = 0);
+uint32_t gather_samples(double target_error);
 // Under a target the gather runs at the first check the photons alone do not
-// pass, and at once again (kMaxGathers in all) while the target is not met and
-// the gather's own part of the error is above kPhotonShareOfTarget x the
-// target: that part is the spread of its rays and the error of the texels
-// they look up (other objects, the ground; taken as fully correlated), which
-// photons do not lower. Each gather has 4x the rays of the one before and
-// looks up the estimate it improved.
-// Judged per group (each object, small ones with their neighbours): the gather
-// runs again while one of them needs it.
-constexpr uint32_t kMaxGathers = 3;
-inline bool regather(uint32_t gathers, const std::vector<ErrorParts>& groups, double target) {
-  return gathers < kMaxGathers && std::any_of(groups.begin(), groups.end(), [&](const ErrorParts& e) {
-           return e.relative > target && e.gather > kPhotonShareOfTarget * target;
-         });
-}
+// pass, and at once again while the target is not met and the gather's own
+// part of the error is above kPhotonShareOfTarget x the target: that part is
+// the spread of its rays and the error of the texels they look up (other
+// objects, the ground; taken as fully correlated), which photons do not
+// lower. Each gather looks up the estimate the one before improved.
+// Judged per group (each object, small ones with their neighbours): a gather
+// after the first gathers again only the texels of the groups that need it
+// (the rest keep their rays), with 4x the rays of the one before, at most
+// kMaxGatherSamples where every texel is gathered again and as many more as
+// the share of the texels gathered is smaller (the same rays in all), up to
+// kMaxGroupGatherSamples: a dim object lit by bounce light from a small bright
+// patch needs thousands of rays a texel, the walls around it a few dozen.
+// At most kMaxGathers gathers in all, and only while the rays grow.
+constexpr uint32_t kMaxGathers = 6, kMaxGroupGatherSamples = 4096;
+struct RegatherPlan {
+  std::vector<uint8_t> groups;  // per group: its texels are gathered again
+  uint32_t samples = 0;         // rays per texel; 0: no gather
+};
+// After `gathers` gathers, the last of `last_samples` rays: the next one, if
+// any. `texels`: covered texels per group.
+RegatherPlan plan_regather(uint32_t gathers, uint32_t last_samples, const std::vector<ErrorParts>& groups,
+                           const std::vector<size_t>& texels, double target);
 
 // ---- Direct pass --------------------------------------------------------------
 // What the allocation of a texel's next samples reads: its sample count, its
