@@ -214,10 +214,11 @@ TEST(OlBake, FurnaceSphereErrorsAreHonest) {
   uint32_t g = 0;
   add_sphere(b, s, m, false, 8, &g);
   Baked r;
-  // 32 batches of 4096 photons for each of the OL's 16 replicates: the error
-  // takes the replicates as equal in size (with 2 M photons they hold 30 or 31
-  // batches, which spreads them apart more than their noise here).
-  bake(b, settings(2097152, 16), r);
+  // 2 M photons are 489 batches of 4096 (the last one short): the OL's 16
+  // replicates hold 30 or 31 of them, unequal groups whose sizes the error
+  // takes into account (taken as equal, their sizes alone spread them apart
+  // more than their noise here).
+  bake(b, settings(2000000, 16), r);
   expect_furnace_bins(read_ol(r, g), 1.0 / (1.0 - rho), 0.02, "inward sphere furnace");
 }
 

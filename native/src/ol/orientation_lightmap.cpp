@@ -155,30 +155,38 @@ void OrientationLightmap::spread_orphans(std::vector<double>& flux, std::vector<
   }
 }
 
-void OrientationLightmap::finalize(uint64_t photon_count) {
+void OrientationLightmap::finalize(uint64_t photon_count, uint64_t batch_photons) {
   if (photon_count == 0) fail(PLM_ERROR_INVALID_ARGUMENT, "orientation lightmap finalize: photon_count must be > 0");
   std::vector<double> flux = flux_, batch_flux = batch_flux_;
   spread_orphans(flux, batch_flux);
   radiosity_.assign(3 * bins(), 0.0);
   error_.assign(bins(), 0.0);
-  const double photons = double(photon_count), nb = batches_;
+  const double photons = double(photon_count);
+  // Each group's photons; groups that got none take no part.
+  std::vector<double> group(batches_, photons / batches_);
+  if (batch_photons > 0) {
+    std::fill(group.begin(), group.end(), 0.0);
+    for (uint64_t first = 0, b = 0; first < photon_count; first += batch_photons, ++b)
+      group[b % batches_] += double(std::min(batch_photons, photon_count - first));
+  }
+  const double used = double(std::count_if(group.begin(), group.end(), [](double n) { return n > 0.0; }));
   double sum[3] = {0, 0, 0};
   for (uint32_t b = 0; b < bins(); ++b) {
     for (int c = 0; c < 3; ++c) sum[c] += flux[3 * b + c];
     if (!(area_[b] > 0.0)) continue;
     const double scale = 1.0 / (photons * kPiD * area_[b]);
     for (int c = 0; c < 3; ++c) radiosity_[3 * b + c] = flux[3 * b + c] * scale;
-    // Batch t alone, with photon_count / batches photons, estimates the
-    // channel mean as batch_flux * batches * scale; their spread is the error.
+    // Group t's n_t photons hold n_t mu of the mean flux a photon brings, mu,
+    // give or take n_t s^2: s^2 = sum_t (f_t - n_t mu)^2 / n_t / (groups - 1),
+    // and the bin's mean over all photons varies by s^2 / photons.
     const double* bf = &batch_flux[size_t(b) * batches_];
-    double mean = 0.0, sq = 0.0;
-    for (uint32_t t = 0; t < batches_; ++t) mean += bf[t];
-    mean *= scale;
-    for (uint32_t t = 0; t < batches_; ++t) {
-      const double d = bf[t] * nb * scale - mean;
-      sq += d * d;
-    }
-    const double photon_var = sq / (nb - 1.0) / nb;
+    double mu = 0.0, sq = 0.0;
+    for (uint32_t t = 0; t < batches_; ++t) mu += bf[t];
+    mu /= photons;
+    for (uint32_t t = 0; t < batches_; ++t)
+      if (group[t] > 0.0) sq += (bf[t] - group[t] * mu) * (bf[t] - group[t] * mu) / group[t];
+    const double mean = mu * photons * scale;
+    const double photon_var = used > 1.0 ? sq / (used - 1.0) * photons * scale * scale : mean * mean;
     const double area_rel_var = area_var_[b] / (area_[b] * area_[b]);
     error_[b] = std::sqrt(photon_var + mean * mean * area_rel_var);
   }
@@ -231,8 +239,8 @@ void OlTree::merge(const OlTree& other) {
   for (size_t i = 0; i < nodes_.size(); ++i) nodes_[i].merge(other.nodes_[i]);
 }
 
-void OlTree::finalize(uint64_t photon_count) {
-  for (OrientationLightmap& ol : nodes_) ol.finalize(photon_count);
+void OlTree::finalize(uint64_t photon_count, uint64_t batch_photons) {
+  for (OrientationLightmap& ol : nodes_) ol.finalize(photon_count, batch_photons);
 }
 
 uint32_t OlTree::choose(uint32_t node, Vec3 normal, uint64_t min_hits) const {

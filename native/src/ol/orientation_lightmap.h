@@ -90,11 +90,13 @@ class OrientationLightmap {
   void merge(const OrientationLightmap& other);
 
   // Radiosity (irradiance / pi) and its standard error per bin. photon_count
-  // photons were traced, in `batches` groups of equal size. Hits that landed
+  // photons were traced, in `batches` groups: of equal size, or with
+  // batch_photons > 0 dealt out in batches of that many photons (the last one
+  // short), batch b to group b % batches, as the bake deals them. Hits that landed
   // in bins without area (the estimate found no surface with that normal)
   // are moved to the neighbouring bins with area, area-weighted, or to the
   // whole OL if none has area, so no energy is lost (orphan_flux counts it).
-  void finalize(uint64_t photon_count);
+  void finalize(uint64_t photon_count, uint64_t batch_photons = 0);
   bool finalized() const { return !radiosity_.empty(); }
 
   // Bilinear interpolation of the bins' radiosity at a normal, across the
@@ -159,7 +161,7 @@ class OlTree {
   void sum_areas_from_children();
   void add_hit(uint32_t node, Vec3 normal, Vec3 rgb, uint32_t batch);
   void merge(const OlTree& other);
-  void finalize(uint64_t photon_count);
+  void finalize(uint64_t photon_count, uint64_t batch_photons = 0);
 
   // The node used at `normal` for geometry of `node`: the first one on the
   // path to the root whose bin holds >= min_hits hits, else the root.

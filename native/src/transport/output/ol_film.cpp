@@ -5,6 +5,7 @@
 
 #include "ol/area_estimation.h"
 #include "subdiv/limit_area.h"
+#include "transport/photons/photon_sampler.h"
 
 namespace plm {
 
@@ -125,7 +126,7 @@ void finish_ol_groups(const Scene& scene, uint64_t photons, OlGroups& groups, st
     img.stats.resolution = img.resolution;
     img.stats.mesh_count = groups.mesh_counts[g];
     img.stats.area = map.total_area();
-    if (photons > 0) map.finalize(photons);
+    if (photons > 0) map.finalize(photons, kBatchPhotons);
     for (uint32_t b = 0; b < n; ++b) {
       img.area[b] = float(map.area(b));
       img.hits[b] = float(map.hits(b));
@@ -146,9 +147,9 @@ void finish_ol_groups(const Scene& scene, uint64_t photons, OlGroups& groups, st
 void finish_lsystems(uint64_t photons, std::vector<LSystemOutput>& lsystems) {
   for (LSystemOutput& lo : lsystems) {
     if (photons > 0) {
-      lo.root->finalize(photons);
+      lo.root->finalize(photons, kBatchPhotons);
       for (auto& [key, stub] : lo.stubs)
-        if (stub.total_area() > 0.0) stub.finalize(photons);
+        if (stub.total_area() > 0.0) stub.finalize(photons, kBatchPhotons);
     }
     lo.stats.stubs = lo.stubs.size();
     if (lo.root->finalized())
