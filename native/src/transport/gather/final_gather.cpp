@@ -222,10 +222,7 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
               const float* d = source.radiosity + 3 * (hv.texel_offset + ht);
               // The lit part's light: the texel's mean over its open share.
               const float open = source.open ? source.open[hv.texel_offset + ht] : 1.0f;
-              // The albedo where the ray lands: a texture's there, else the triangle's.
-              Vec3 a = textures_ ? textures_->albedo(hm, hm.material_ids[prim], prim, h.u, h.v)
-                                 : (*source.albedo)[mesh][prim];
-              if (kPassage) a *= through;
+              Vec3 a = kPassage ? albedo_at(h, source) * through : albedo_at(h, source);
               if (materials_) {  // the diffuse radiance toward the texel (layers, Burley)
                 const MaterialLobes& ml = materials_->material(hm.material_ids[prim]);
                 if (ml.view_scale != MaterialLobes::kNoLayer)
@@ -273,6 +270,12 @@ void FinalGather::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint3
     info.lookup_wide = wide_sum * wide_sum / n_sq;
   }
   if (inverse_distance > 0.0) info.hit_distance = float(rays / inverse_distance);
+}
+
+Vec3 FinalGather::albedo_at(const SurfaceHit& h, const GatherSource& source) const {
+  if (!textures_) return (*source.albedo)[h.index][h.prim];
+  const Mesh& mesh = *views_[h.index].mesh;
+  return textures_->albedo(mesh, mesh.material_ids[h.prim], h.prim, h.u, h.v);
 }
 
 SurfaceHit FinalGather::passed(const RayPacket& packet, unsigned l, Vec3 dir, Vec3& through) const {

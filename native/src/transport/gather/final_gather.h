@@ -111,6 +111,8 @@ class FinalGather {
   template <bool kPassage>
   void sample(uint32_t mesh, uint32_t texel, uint32_t round, uint32_t samples, const GatherSource& source,
               GatherSums& sums, GatherInfo& info, float* split) const;
+  // The albedo where a ray lands on a mesh triangle: the texture's there, else the triangle's.
+  Vec3 albedo_at(const SurfaceHit& h, const GatherSource& source) const;
   // Lane l's hit, continued through passable surfaces; through: their weight.
   SurfaceHit passed(const RayPacket& packet, unsigned l, Vec3 dir, Vec3& through) const;
 
