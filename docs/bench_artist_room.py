@@ -39,7 +39,9 @@ vanish, but removed in quadrature it leaves the measurement unbiased; its standa
 printed with it (the texels taken as independent: a lower bound). --ref-samples N gives every
 object N samples instead. The reference is cached in --out, keyed by --ref-seconds (or N) and the
 Blender version, with a hash of the UV maps and their sizes (a rerun with other targets reuses
-it; changed maps bake it again). Suzanne is refined by the engine (OpenSubdiv on the cage) and by
+it; changed maps bake it again). The automatic UV maps differ slightly each time they are made,
+so the first run also saves the room with its maps (artist_room_b<version>.blend in --out) and
+later runs open it instead of building the room again. Suzanne is refined by the engine (OpenSubdiv on the cage) and by
 Blender's Subdivision Surface for Cycles: the two surfaces differ slightly.
 
 Texels: those fully covered (coverage > 0.999) both in the evaluated mesh's lightmap UV map (what
@@ -335,9 +337,16 @@ def main():
     t_start = time.perf_counter()
     lib_info = bvc.snapshot_library(args.out)
     scenes.setup_paths()
-    scenes.clear_scene()
-    objs = scenes.artist_room(scenes.out_dir("artist_room_textures"))
-    objects = [objs[n] for n in NAMES]
+    # The room with the UV maps of the first run, so that the cached reference fits them (the
+    # automatic UV maps differ from one making to the next).
+    blend = os.path.join(args.out, "artist_room_b%s.blend" % bpy.app.version_string.split()[0])
+    if os.path.exists(blend):
+        bpy.ops.wm.open_mainfile(filepath=blend)
+        print("scene: %s (its UV maps)" % blend, flush=True)
+    else:
+        scenes.clear_scene()
+        scenes.artist_room(scenes.out_dir("artist_room_textures"))
+    objects = [bpy.data.objects[n] for n in NAMES]
     scene = bpy.context.scene
     scene.photonlm.output_dir = os.path.join(args.out, "lightmaps")
 
@@ -347,6 +356,8 @@ def main():
                   seconds_export=float(last["stats"]["seconds_export"]))
     print("warm-up bake (%d photons, UV maps made): %.1f s (export %.1f s)"
           % (WARMUP_PHOTONS, warmup["seconds"], warmup["seconds_export"]), flush=True)
+    if not os.path.exists(blend):
+        bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)
     sizes = {n: tuple(int(v) for v in last["objects"][n]["size"]) for n in NAMES}
     uvs = evaluated_uvs(objects)
     missing = [n for n in NAMES if uvs[n] is None]

@@ -154,7 +154,7 @@ TEST(Scheduler, GatherRaysGrowWithTheSquareOfTheTarget) {
 
 // A further gather has 4x the rays of the one before and runs while the
 // target is not met and the gather's part of the error is above half the
-// target, at most kMaxGathers in all and only while the rays grow.
+// target, at most kMaxGathers at a check and only while the rays grow.
 TEST(Scheduler, FurtherGathersHaveMoreRaysWhileTheirPartIsLarge) {
   ErrorParts e;
   e.relative = 0.06, e.direct = 0.02, e.gather = 0.03;
@@ -162,6 +162,8 @@ TEST(Scheduler, FurtherGathersHaveMoreRaysWhileTheirPartIsLarge) {
   EXPECT_EQ(plan_regather(1, 4, {e}, one, 0.05).samples, 16u);  // 3 % > half of 5 %
   EXPECT_EQ(plan_regather(2, 64, {e}, one, 0.05).samples, kMaxGatherSamples);
   EXPECT_EQ(plan_regather(3, kMaxGatherSamples, {e}, one, 0.05).samples, 0u);  // the rays no longer grow
+  // ... unless the photons have grown since: the same rays look up a better estimate.
+  EXPECT_EQ(plan_regather(0, kMaxGatherSamples, {e}, one, 0.05, true).samples, kMaxGatherSamples);
   EXPECT_EQ(plan_regather(kMaxGathers, 4, {e}, one, 0.05).samples, 0u);
   e.gather = 0.02;
   EXPECT_EQ(plan_regather(1, 4, {e}, one, 0.05).samples, 0u);

@@ -129,6 +129,11 @@ bool after_photon_group(const BakeScene& ctx, BakeRun& run, PhotonBatches& batch
     run.out.stats.rays_traced += bo.rays;
     run.out.stats.paths_truncated += bo.truncated;
     run.truncated_flux += run.acc.quantum.flux(bo.truncated_flux);
+    run.group_hits.resize(bo.group_hits.size());
+    for (size_t g = 0; g < bo.group_hits.size(); ++g) {
+      run.group_hits[g].hits += bo.group_hits[g].hits;
+      run.group_hits[g].hits_sq += bo.group_hits[g].hits_sq;
+    }
   }
   loop.merged = end;
   run.photons = std::min(s.photon_cap, end * kBatchPhotons);
@@ -145,15 +150,23 @@ bool after_photon_group(const BakeScene& ctx, BakeRun& run, PhotonBatches& batch
   if (s.targeted() && loop.checks.due(end)) {
     estimate(ctx.arena, est, run.photons, run.last);
     loop.done = target_reached(run.last.error.groups, s.target_error);
-    if (!loop.done && s.gather && !run.gathered) {
+    // Once the photons have grown kRegatherPhotonGrowth-fold since the last
+    // gather, the groups whose gather part is still large gather again: what
+    // their rays look up is better now.
+    const bool fresh = run.gathered && run.photons >= kRegatherPhotonGrowth * run.gather_photons;
+    if (fresh && !loop.done)
+      run.next_gather = plan_regather(0, run.gather_samples, run.last.error.groups, ctx.space.group_texels(),
+                                      s.target_error, true);
+    if (!loop.done && s.gather && (!run.gathered || (fresh && run.next_gather.samples > 0))) {
       // Again while the gather's own part is large: each gather looks up the estimate the one
-      // before it improved (transport/plan/scheduler.h, regather).
-      do {
+      // before it improved (transport/plan/scheduler.h, plan_regather).
+      for (uint32_t gathers = 1;; ++gathers) {
         gather(ctx, run);
         estimate(ctx.arena, est, run.photons, run.last);
-        run.next_gather = plan_regather(run.gathers, run.gather_samples, run.last.error.groups,
+        run.next_gather = plan_regather(gathers, run.gather_samples, run.last.error.groups,
                                         ctx.space.group_texels(), s.target_error);
-      } while (run.next_gather.samples > 0);
+        if (run.next_gather.samples == 0) break;
+      }
       loop.done = target_reached(run.last.error.groups, s.target_error);
     }
     fraction = std::max(fraction, target_progress(worst_relative(run.last.error), s.target_error));
@@ -211,8 +224,8 @@ std::unique_ptr<BakeScene> set_up(const Scene& scene, const BakeSettings& settin
 }
 
 Estimator estimator(const BakeScene& ctx, const BakeRun& run) {
-  return {ctx.space,           run.direct.values,     run.acc, ctx.settings.filter_radius, &run.gather,
-          ctx.settings.gather, &run.direct};
+  return {ctx.space,           run.direct.values, run.acc, ctx.settings.filter_radius, &run.gather,
+          ctx.settings.gather, &run.direct,       &run.group_hits};
 }
 
 void direct_pass(const BakeScene& ctx, BakeRun& run, CoveredSlice slice) {
@@ -314,6 +327,7 @@ void final_gather(const BakeScene& ctx, BakeRun& run, CoveredSlice slice) {
   const GatherResult before = refine ? std::move(run.gather) : GatherResult{};
   const Regather again{refine ? &plan.groups : nullptr, &before};
   run.gather_samples = plan.samples ? plan.samples : gather_samples(ctx.settings.target_error);
+  run.gather_photons = run.photons;
   run.gather = run_final_gather(ctx, pass, lookup, run.open_shares, run.gather_samples,
                                 [&] {
                                   run.report(end, "final gather");

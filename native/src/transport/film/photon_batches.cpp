@@ -94,6 +94,7 @@ void PhotonBatches::trace(uint64_t first, uint64_t n) {
       keep.rays = bo.rays;
       keep.truncated = bo.truncated;
       keep.truncated_flux = bo.truncated_flux;
+      keep.group_hits.swap(bo.group_hits);
     }
   });
 }

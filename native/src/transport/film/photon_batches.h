@@ -29,8 +29,8 @@ class PhotonBatches {
   // arena) and adds their texel and caustic hits, hit totals and back-lit
   // meshes to the sums.
   void trace(uint64_t first, uint64_t n);
-  // Batch first + i of the last trace: its OL and L-system hits, rays and
-  // truncated paths (its texel hits are already in the sums).
+  // Batch first + i of the last trace: its OL and L-system hits, rays,
+  // truncated paths and hits per judged group (its texel hits are already in the sums).
   const BatchOutput& kept(uint64_t i) const { return kept_[i]; }
 
  private:

@@ -194,6 +194,12 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
   }
 }
 
+double Estimator::level_variance(size_t i) const {
+  if (!group_hits || i >= space.judged.size() || space.judged[i] >= group_hits->size()) return 0.0;
+  const GroupHits& g = (*group_hits)[space.judged[i]];
+  return g.hits > 0 ? double(g.hits_sq) / (double(g.hits) * double(g.hits)) : 1.0;
+}
+
 const double* Estimator::guide(size_t i, std::vector<double>& buffer) const {
   if (direct.empty()) return nullptr;
   buffer.assign(space.areas[i].area.size(), 0.0);
@@ -335,14 +341,17 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
         out.lookup_local[i].assign(variance.size(), 0.0f);
         out.lookup_wide[i].assign(variance.size(), 0.0f);
       }
-      for (size_t t = 0; t < variance.size(); ++t) {
+      const double level = est.level_variance(i);
+      for (size_t t = 0, k = est.space.covered_begin[i]; t < variance.size(); ++t) {
         if (!(est.space.areas[i].area[t] > 0.0)) continue;
         store_texel(value3, variance, t, img.data());
-        if (est.lookups) {
-          out.lookup_local[i][t] = float(std::sqrt(b.lookup.local[t]));
-          out.lookup_wide[i][t] = float(std::sqrt(b.lookup.wide[t]));
-        }
         const double v = (value3[3 * t] + value3[3 * t + 1] + value3[3 * t + 2]) / 3.0;
+        if (est.lookups) {
+          const double indirect = std::max(0.0, v - (est.direct.empty() ? 0.0 : est.direct.mean(k)));
+          out.lookup_local[i][t] = float(std::sqrt(b.lookup.local[t]));
+          out.lookup_wide[i][t] = float(std::sqrt(b.lookup.wide[t] + indirect * indirect * level));
+        }
+        ++k;
         s.value += v;
         s.var += variance[t];
         s.count += 1.0;

@@ -1,5 +1,6 @@
 #include "transport/photons/photon_tracer.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <type_traits>
@@ -43,6 +44,43 @@ PhotonTracer::PhotonTracer(const BakeScene& ctx)
     lambda_offset_ = double(Rng(settings_.seed, ~0ull - 1).next_float());
   }
   build_hit_tables();
+  const TexelSpace& space = ctx.space;
+  judged_groups_ = space.judged_groups;
+  for (size_t u = 0; u < space.judged.size(); ++u) {
+    if (space.judged[u] == kNoGroup) continue;
+    const uint64_t first = u < views_.size() ? views_[u].texel_offset : csg_views_[u - views_.size()].texel_offset;
+    unit_texels_.push_back({first, space.judged[u]});
+  }
+  std::sort(unit_texels_.begin(), unit_texels_.end());
+}
+
+uint32_t PhotonTracer::group_of_texel(uint32_t texel) const {
+  auto it = std::upper_bound(unit_texels_.begin(), unit_texels_.end(), std::pair<uint64_t, uint32_t>{texel, kNoGroup});
+  return it == unit_texels_.begin() ? kNoGroup : std::prev(it)->second;
+}
+
+template <bool kMeshOnly, bool kLobes>
+void PhotonTracer::trace_counted(uint64_t index, lsystem::GraphHit& graph_hit, BatchOutput& out) const {
+  const size_t h0 = out.hits.size(), c0 = out.caustic_hits.size();
+  trace_photon<kMeshOnly, kLobes>(index, graph_hit, out);
+  if (judged_groups_ == 0 || (out.hits.size() == h0 && out.caustic_hits.size() == c0)) return;
+  constexpr uint32_t kMaxGroups = 8;  // a photon's first groups (a path seldom crosses more)
+  uint32_t group[kMaxGroups], hits[kMaxGroups], n = 0;
+  auto note = [&](const std::vector<Hit>& recorded, size_t first) {
+    for (size_t k = first; k < recorded.size(); ++k) {
+      const uint32_t g = group_of_texel(recorded[k].texel);
+      if (g == kNoGroup) continue;
+      const uint32_t i = uint32_t(std::find(group, group + n, g) - group);
+      if (i < n) ++hits[i];
+      else if (n < kMaxGroups) group[n] = g, hits[n++] = 1;
+    }
+  };
+  note(out.hits, h0);
+  note(out.caustic_hits, c0);
+  for (uint32_t i = 0; i < n; ++i) {
+    out.group_hits[group[i]].hits += hits[i];
+    out.group_hits[group[i]].hits_sq += uint64_t(hits[i]) * hits[i];
+  }
 }
 
 std::vector<std::vector<Vec3>> PhotonTracer::triangle_albedos() const {
@@ -68,30 +106,31 @@ void PhotonTracer::trace_batch(uint64_t first, uint64_t count, BatchOutput& out)
   out.caustic_u.clear();
   out.rays = out.truncated = 0;
   out.truncated_flux = 0.0;
+  out.group_hits.assign(judged_groups_, GroupHits{});
   lsystem::GraphHit graph_hit;
   if (layered_) return trace_layered_batch(first, count, graph_hit, out);
   if (lobes_) return trace_lobe_batch(first, count, graph_hit, out);
   if (mesh_only_)
-    for (uint64_t i = first; i < first + count; ++i) trace_photon<true, false>(i, graph_hit, out);
+    for (uint64_t i = first; i < first + count; ++i) trace_counted<true, false>(i, graph_hit, out);
   else
-    for (uint64_t i = first; i < first + count; ++i) trace_photon<false, false>(i, graph_hit, out);
+    for (uint64_t i = first; i < first + count; ++i) trace_counted<false, false>(i, graph_hit, out);
 }
 
 // Scenes with lobes: a function of its own, so that the plain loop above is compiled as without them.
 __attribute__((noinline)) void PhotonTracer::trace_lobe_batch(uint64_t first, uint64_t count,
                                                                lsystem::GraphHit& graph_hit, BatchOutput& out) const {
   if (mesh_only_)
-    for (uint64_t i = first; i < first + count; ++i) trace_photon<true, true>(i, graph_hit, out);
+    for (uint64_t i = first; i < first + count; ++i) trace_counted<true, true>(i, graph_hit, out);
   else
-    for (uint64_t i = first; i < first + count; ++i) trace_photon<false, true>(i, graph_hit, out);
+    for (uint64_t i = first; i < first + count; ++i) trace_counted<false, true>(i, graph_hit, out);
 }
 
 // Scenes with light groups: each photon's hits tagged with its layer.
 __attribute__((noinline)) void PhotonTracer::trace_layered_batch(uint64_t first, uint64_t count,
                                                                   lsystem::GraphHit& graph_hit, BatchOutput& out) const {
   for (uint64_t i = first; i < first + count; ++i) {
-    if (lobes_) mesh_only_ ? trace_photon<true, true>(i, graph_hit, out) : trace_photon<false, true>(i, graph_hit, out);
-    else mesh_only_ ? trace_photon<true, false>(i, graph_hit, out) : trace_photon<false, false>(i, graph_hit, out);
+    if (lobes_) mesh_only_ ? trace_counted<true, true>(i, graph_hit, out) : trace_counted<false, true>(i, graph_hit, out);
+    else mesh_only_ ? trace_counted<true, false>(i, graph_hit, out) : trace_counted<false, false>(i, graph_hit, out);
     out.hit_layers.resize(out.hits.size(), out.layer);
     out.caustic_layers.resize(out.caustic_hits.size(), out.layer);
   }

@@ -54,6 +54,10 @@ struct CausticPoint {
 };
 
 // What one batch of photons recorded, in photon order.
+struct GroupHits {
+  uint64_t hits = 0, hits_sq = 0;
+};
+
 struct BatchOutput {
   std::vector<Hit> hits;
   std::vector<Hit> caustic_hits;  // scenes with lobes: hits whose path's last event was specular
@@ -71,6 +75,11 @@ struct BatchOutput {
   uint64_t rays = 0;
   uint64_t truncated = 0;
   double truncated_flux = 0.0;
+  // Per judged group (TexelSpace::judged): the sums over photons of the hits k
+  // each left on it, and of k^2. One photon's hits share its fate (a path that
+  // ends early leaves none), so the level of a group's indirect light varies
+  // by sum k^2 / (sum k)^2 relative, not by the hits' own spread.
+  std::vector<GroupHits> group_hits;
 };
 
 class PhotonTracer {
@@ -181,6 +190,11 @@ class PhotonTracer {
                           Vec3 normal) const;
   // Hit h's direction weight into u (about the shading normal on smooth meshes).
   void add_direction(const SurfaceHit& h, Vec3 dir, Vec3 normal, std::vector<float>& u) const;
+  // Traces photon `index` and adds its recorded hits per group to out.group_hits.
+  template <bool kMeshOnly, bool kLobes>
+  void trace_counted(uint64_t index, lsystem::GraphHit& graph_hit, BatchOutput& out) const;
+  // The judged group of global texel `texel` (kNoGroup: none).
+  uint32_t group_of_texel(uint32_t texel) const;
 
   const Scene& scene_;
   const TextureSet* textures_;  // null for an untextured scene
@@ -207,6 +221,9 @@ class PhotonTracer {
   const MaterialTable* lobes_ = nullptr;  // null in scenes without lobes
   double lambda_offset_ = 0.0;            // rotation of the photons' stratified wavelengths
   bool keep_points_ = false;
+  // The first global texel of each unit with texels and its judged group, by texel.
+  std::vector<std::pair<uint64_t, uint32_t>> unit_texels_;
+  uint32_t judged_groups_ = 0;
 };
 
 }  // namespace plm

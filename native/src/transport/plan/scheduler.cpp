@@ -39,7 +39,7 @@ uint32_t gather_samples(double target_error) {
 }
 
 RegatherPlan plan_regather(uint32_t gathers, uint32_t last_samples, const std::vector<ErrorParts>& groups,
-                           const std::vector<size_t>& texels, double target) {
+                           const std::vector<size_t>& texels, double target, bool fresh) {
   RegatherPlan plan;
   if (gathers >= kMaxGathers) return plan;
   plan.groups.assign(groups.size(), 0);
@@ -55,7 +55,7 @@ RegatherPlan plan_regather(uint32_t gathers, uint32_t last_samples, const std::v
   const double most = std::clamp(double(kMaxGatherSamples) * total / refined, double(kMaxGatherSamples),
                                  double(kMaxGroupGatherSamples));
   const uint32_t samples = uint32_t(std::min(4.0 * double(last_samples), most));
-  if (samples > last_samples) plan.samples = samples;
+  if (samples > last_samples || (fresh && samples == last_samples)) plan.samples = samples;
   return plan;
 }
 

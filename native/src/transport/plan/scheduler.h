@@ -195,16 +195,20 @@ uint32_t gather_samples(double target_error);
 // the share of the texels gathered is smaller (the same rays in all), up to
 // kMaxGroupGatherSamples: a dim object lit by bounce light from a small bright
 // patch needs thousands of rays a texel, the walls around it a few dozen.
-// At most kMaxGathers gathers in all, and only while the rays grow.
-constexpr uint32_t kMaxGathers = 6, kMaxGroupGatherSamples = 4096;
+// At most kMaxGathers gathers at a check, and only while the rays grow. At
+// a later check, once the photons have grown kRegatherPhotonGrowth-fold since
+// the last gather (their error halved), the groups that still need it gather
+// again with as many rays as before or more: what they look up is better.
+constexpr uint32_t kMaxGathers = 6, kMaxGroupGatherSamples = 4096, kRegatherPhotonGrowth = 4;
 struct RegatherPlan {
   std::vector<uint8_t> groups;  // per group: its texels are gathered again
   uint32_t samples = 0;         // rays per texel; 0: no gather
 };
-// After `gathers` gathers, the last of `last_samples` rays: the next one, if
-// any. `texels`: covered texels per group.
+// After `gathers` gathers at this check, the last of `last_samples` rays: the
+// next one, if any. `texels`: covered texels per group. `fresh`: the photons
+// have grown since the last gather (as many rays as before will do).
 RegatherPlan plan_regather(uint32_t gathers, uint32_t last_samples, const std::vector<ErrorParts>& groups,
-                           const std::vector<size_t>& texels, double target);
+                           const std::vector<size_t>& texels, double target, bool fresh = false);
 
 // ---- Direct pass --------------------------------------------------------------
 // What the allocation of a texel's next samples reads: its sample count, its
