@@ -168,7 +168,8 @@ def _sun_disc(node, socket):
     the disc's angle beside a map rendered without it (see WorldRender)."""
     if node.bl_idname != 'ShaderNodeTexSky' or socket.name != 'Color' or node.sky_type in ('PREETHAM', 'HOSEK_WILKIE'):
         return None
-    if not getattr(node, "sun_disc", False) or node.inputs['Vector'].is_linked:
+    vector = node.inputs.get('Vector')
+    if not getattr(node, "sun_disc", False) or (vector is not None and vector.is_linked):
         return None
     if not node.sun_elevation - 0.5 * node.sun_size > 0.0 or not node.sun_size > 0.0:
         return None
