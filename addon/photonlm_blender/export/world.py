@@ -247,7 +247,7 @@ class WorldRender:
     def result(self, timeout=600):
         """(map, sun): the map, (H, W, 3) float32 radiance, top row first, in Blender's
         equirectangular convention; sun None, or where the render was asked to split off a sun disc,
-        the disc as a sun lamp (split_sun) and the map without it. Raises RuntimeError with the
+        the disc (split_sun; None where it is black) and the map without it. Raises RuntimeError with the
         child's message on failure. Removes the folder."""
         try:
             log, _ = self.process.communicate(timeout=timeout)
@@ -297,8 +297,9 @@ def pixel_directions(h, w):
 def split_sun(full, sky, angle):
     """(sky, Sun): the light of a sun disc as the difference of a world's renders with it (full) and
     without it (sky), both (H, W, 3) radiance: its irradiance that difference's integral over the
-    pixels within 2 degrees (and 3 pixels) of its brightest pixel, its direction their
-    light-weighted mean direction. The map that goes with it is `sky`."""
+    pixels within the disc's radius (angle / 2) plus 2 degrees (at least 3 pixels) of its brightest
+    pixel, its direction their light-weighted mean direction; None where that light is 0. The map
+    that goes with it is `sky`."""
     h, w, _ = full.shape
     diff = (full.astype(np.float64) - sky).mean(axis=2)
     d, solid = pixel_directions(h, w)
@@ -307,6 +308,8 @@ def split_sun(full, sky, angle):
     weight = np.where(near[..., None], full.astype(np.float64) - sky, 0.0) * solid[..., None]
     irradiance = weight.reshape(-1, 3).sum(axis=0)
     direction = (weight.mean(axis=2)[..., None] * d).reshape(-1, 3).sum(axis=0)
+    if not max(irradiance) > 0.0 or not np.linalg.norm(direction) > 0.0:  # a black sun (Sun Intensity 0)
+        return sky, None
     direction /= np.linalg.norm(direction)
     return sky, Sun(direction, irradiance, angle)
 
@@ -450,7 +453,7 @@ def set_world(plm, world, reports, pending=None):
         try:
             rgb, sun = pending.rgb()
             plm.set_world_map(rgb)
-            if sun is not None and max(sun.irradiance) > 0.0:
+            if sun is not None:
                 sun_light = _add_sun(plm, world, sun)
             if r is None:
                 reports.info("world '%s': the map rendered for the last bake is reused (%s)" % (world.name, w.why))
