@@ -596,6 +596,8 @@ def main():
     ap.add_argument("--supersample", type=int, default=4,
                     help="also bake a texel-average reference at k x k texels per texel (1 = off)")
     ap.add_argument("--reuse-ref", action="store_true", help="reuse a cached reference from --out")
+    ap.add_argument("--targets", help="photonlm's target errors, comma-separated (default 0.08,0.04,0.02,0.01,0.007; "
+                    "--quick: 0.08,0.04,0.02), each with a 60 s time budget (20 s with --quick)")
     ap.add_argument("--repeats", type=int, default=3,
                     help="time each bake under 2 s this many times and take the median (results are the same)")
     ap.add_argument("--markdown-only", metavar="JSON", help="only rewrite the tables from an earlier run's JSON")
@@ -625,6 +627,8 @@ def main():
                     photonlm=[(0.08, 60.0), (0.04, 60.0), (0.02, 60.0), (0.01, 60.0), (0.007, 60.0)])
     if args.ref_samples:
         plan["ref_samples"] = args.ref_samples
+    if args.targets:
+        plan["photonlm"] = [(float(t), 20.0 if args.quick else 60.0) for t in args.targets.split(",")]
     t0 = time.perf_counter()
     results = dict(machine=dict(cpus=os.cpu_count(), blender=bpy.app.version_string), library=lib_info,
                    quick=args.quick,

@@ -307,9 +307,11 @@ def export_scene(context, photonlm, reports, selected_only=False, times=None):
             with times("export_refine"):  # the engine refines every cage at once, on every core
                 plm.refine_subdiv_meshes()
         with times("export_world"):
-            world_export.set_world(plm, scene.world, reports, world)
+            sun_light = world_export.set_world(plm, scene.world, reports, world)
             if export.groups.of(scene.world):
                 plm.set_light_group(export.groups.of(scene.world), world=True)
+                if sun_light is not None:
+                    plm.set_light_group(export.groups.of(scene.world), light=sun_light)
     except BaseException:
         world.cancel()
         plm.close()

@@ -13,6 +13,7 @@
   there as a library file in a temporary folder, removed afterwards; the user's session gains
   nothing (no scene, camera or image; its Render Result keeps the last render).
 """
+import math
 import os
 import shutil
 import subprocess
@@ -29,6 +30,12 @@ RENDER_SIZE = (1024, 512)  # pixels of a rendered world: 0.35 degrees each
 # Box-filtered samples per pixel: 16 to 1024, adaptive (noise threshold 0.01), so the smooth sky
 # stops at 16 and the pixels a sun disc crosses go on until its share of each is found.
 RENDER_SAMPLES = 1024
+# Cycles draws a physical Sky Texture's sun disc limb-darkened, radiance ~ 0.4 + 0.6 sqrt(1 - (r/R)^2)
+# (svm_sky.h), whose mean squared radius is 0.45 R^2; a uniform disc of the same mean squared radius
+# (0.5 r^2 = 0.45 R^2) has sqrt(0.9) of its angle and casts the closest penumbra a sun lamp can (a
+# sun shadow edge in test_sky_sun_disc: largest column difference from Cycles 1.2 % of the lit
+# level, 2.5 % with the disc's own angle).
+LIMB_DARKENED_SUN_ANGLE = math.sqrt(0.9)
 
 
 def _source(socket):
@@ -47,7 +54,8 @@ def _source(socket):
 
 class WorldSource:
     """What the world is for the engine: kind 'NONE', 'UNIFORM' (radiance), 'IMAGE' (image,
-    rotation: 3x3 map -> world, strength) or 'RENDER' (why), with notes for the user."""
+    rotation: 3x3 map -> world, strength) or 'RENDER' (why; sun_disc: see _sun_disc), with notes for
+    the user."""
 
     def __init__(self, kind, **fields):
         self.kind = kind
@@ -56,6 +64,7 @@ class WorldSource:
         self.rotation = None
         self.strength = 1.0
         self.why = ""
+        self.sun_disc = None
         self.notes = []
         self.__dict__.update(fields)
 
@@ -123,7 +132,8 @@ def describe(world):
     if src is None:
         return WorldSource('UNIFORM', radiance=tuple(max(float(c), 0.0) * s for c in col.default_value[:3]))
     if src.bl_idname != 'ShaderNodeTexEnvironment':
-        return WorldSource('RENDER', why="its colour comes from '%s'" % src.bl_label)
+        return WorldSource('RENDER', why="its colour comes from '%s'" % src.bl_label,
+                           sun_disc=_sun_disc(src, sock))
     if sock.name != 'Color':
         return WorldSource('RENDER', why="the Background reads the Environment Texture's %s" % sock.name)
     if src.image is None:
@@ -149,6 +159,21 @@ def describe(world):
                      % (world.name, src.interpolation))
     # The engine's rotation takes the map's frame into the world: the lookup matrix's transpose.
     return WorldSource('IMAGE', image=src.image, rotation=lookup.T.copy(), strength=s, notes=notes)
+
+
+def _sun_disc(node, socket):
+    """(name, angular diameter) of a physical Sky Texture whose sun disc the Background shows as it is (its Color
+    straight into the Background, its Vector not linked) and which lies wholly above the horizon
+    (Cycles draws no disc below it); None otherwise. Such a sun goes to the engine as a sun lamp of
+    the disc's angle beside a map rendered without it (see WorldRender)."""
+    if node.bl_idname != 'ShaderNodeTexSky' or socket.name != 'Color' or node.sky_type in ('PREETHAM', 'HOSEK_WILKIE'):
+        return None
+    vector = node.inputs.get('Vector')
+    if not getattr(node, "sun_disc", False) or (vector is not None and vector.is_linked):
+        return None
+    if not node.sun_elevation - 0.5 * node.sun_size > 0.0 or not node.sun_size > 0.0:
+        return None
+    return node.name, float(node.sun_size)
 
 
 def emits(world):
@@ -199,8 +224,9 @@ class WorldRender:
     nothing and its Render Result keeps the last render. Started early (start()), so that the
     render runs beside the mesh export; result() waits for it."""
 
-    def __init__(self, world, size=RENDER_SIZE, samples=RENDER_SAMPLES):
+    def __init__(self, world, size=RENDER_SIZE, samples=RENDER_SAMPLES, sun_disc=None):
         self.size = size
+        self.sun_disc = sun_disc
         self.t0 = time.perf_counter()
         self.folder = tempfile.mkdtemp(prefix="photonlm_world_")
         self.process = None
@@ -211,20 +237,29 @@ class WorldRender:
             child = os.path.join(os.path.dirname(os.path.abspath(__file__)), "world_render_child.py")
             cmd = [bpy.app.binary_path, "-b", "--factory-startup", "-noaudio", "--python-exit-code", "1",
                    "--python", child, "--", lib, world.name, self.out, str(size[0]), str(size[1]), str(samples)]
+            if sun_disc is not None:  # a second render, without the sun disc
+                cmd.append(sun_disc[0])
             self.process = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         except BaseException:
             self.close()
             raise
 
     def result(self, timeout=600):
-        """(H, W, 3) float32 radiance, top row first, in Blender's equirectangular convention.
-        Raises RuntimeError with the child's message on failure. Removes the folder."""
+        """(map, sun): the map, (H, W, 3) float32 radiance, top row first, in Blender's
+        equirectangular convention; sun None, or where the render was asked to split off a sun disc,
+        the disc (split_sun; None where it is black) and the map without it. Raises RuntimeError with the
+        child's message on failure. Removes the folder."""
         try:
             log, _ = self.process.communicate(timeout=timeout)
-            if self.process.returncode != 0 or not os.path.isfile(self.out):
+            sky = os.path.splitext(self.out)[0] + "_sky.npy"
+            if self.process.returncode != 0 or not os.path.isfile(self.out) or \
+                    (self.sun_disc is not None and not os.path.isfile(sky)):
                 lines = [l for l in log.splitlines() if "rror" in l or "failed" in l]
                 raise RuntimeError(lines[-1] if lines else "Blender exited with code %d" % self.process.returncode)
-            return np.load(self.out)
+            full = np.load(self.out)
+            if self.sun_disc is None:
+                return full, None
+            return split_sun(full, np.load(sky), self.sun_disc[1])
         finally:
             self.close()
 
@@ -238,10 +273,51 @@ class WorldRender:
         shutil.rmtree(self.folder, ignore_errors=True)
 
 
+class Sun:
+    """A sun disc split off a rendered world: `direction` (unit, world, towards the sun), `irradiance`
+    (RGB, on a surface facing it) and `angle` (the disc's angular diameter, radians)."""
+
+    def __init__(self, direction, irradiance, angle):
+        self.direction, self.irradiance, self.angle = direction, irradiance, angle
+
+
+def pixel_directions(h, w):
+    """Unit directions of an equirectangular map's pixel centres (Blender's convention: the centre
+    column looks along +X, the top row is +Z) and each pixel's solid angle: ((h, w, 3), (h, 1))."""
+    elev = math.pi * (0.5 - (np.arange(h) + 0.5) / h)
+    azim = 2.0 * math.pi * (0.5 - (np.arange(w) + 0.5) / w)
+    ce = np.cos(elev)[:, None]
+    d = np.stack(np.broadcast_arrays(ce * np.cos(azim)[None, :], ce * np.sin(azim)[None, :],
+                                     np.sin(elev)[:, None]), axis=-1)
+    edges = math.pi * (0.5 - np.arange(h + 1) / h)
+    solid = (2.0 * math.pi / w) * (np.sin(edges[:-1]) - np.sin(edges[1:]))
+    return d, solid[:, None]
+
+
+def split_sun(full, sky, angle):
+    """(sky, Sun): the light of a sun disc as the difference of a world's renders with it (full) and
+    without it (sky), both (H, W, 3) radiance: its irradiance that difference's integral over the
+    pixels within the disc's radius (angle / 2) plus 2 degrees (at least 3 pixels) of its brightest
+    pixel, its direction their light-weighted mean direction; None where that light is 0. The map
+    that goes with it is `sky`."""
+    h, w, _ = full.shape
+    diff = (full.astype(np.float64) - sky).mean(axis=2)
+    d, solid = pixel_directions(h, w)
+    peak = d[np.unravel_index(int(np.argmax(diff)), diff.shape)]
+    near = d @ peak > math.cos(0.5 * angle + max(math.radians(2.0), 3.0 * 2.0 * math.pi / w))
+    weight = np.where(near[..., None], full.astype(np.float64) - sky, 0.0) * solid[..., None]
+    irradiance = weight.reshape(-1, 3).sum(axis=0)
+    direction = (weight.mean(axis=2)[..., None] * d).reshape(-1, 3).sum(axis=0)
+    if not max(irradiance) > 0.0 or not np.linalg.norm(direction) > 0.0:  # a black sun (Sun Intensity 0)
+        return sky, None
+    direction /= np.linalg.norm(direction)
+    return sky, Sun(direction, irradiance, angle)
+
+
 def render_world(world, size=RENDER_SIZE, samples=RENDER_SAMPLES):
     """Renders the world with Cycles into an equirectangular map in Blender's convention (the
     image's centre looks along +X, its top row is +Z): (H, W, 3) float32 radiance, top row first."""
-    return WorldRender(world, size, samples).result()
+    return WorldRender(world, size, samples).result()[0]
 
 
 # The last rendered world, by the fingerprint of what it depends on: bakes of an unchanged sky
@@ -319,10 +395,11 @@ class PendingWorld:
             self.key = fingerprint(world)
             self.cached = _RENDERED.get(self.key)
             if self.cached is None:
-                self.render = WorldRender(world)
+                self.render = WorldRender(world, sun_disc=self.source.sun_disc)
 
     def rgb(self):
-        """The rendered map (waits for the render; kept for the next bake)."""
+        """The rendered map and its sun (see WorldRender.result; waits for the render; kept for the
+        next bake)."""
         if self.cached is None:
             self.cached = self.render.result()
             _RENDERED.clear()
@@ -339,10 +416,27 @@ def start(world):
     return PendingWorld(world)
 
 
+def _add_sun(plm, world, sun):
+    """The sun disc split off a rendered world as a sun lamp (shining along its matrix's -Z), a uniform
+    disc as wide as the limb-darkened one (LIMB_DARKENED_SUN_ANGLE); its id."""
+    z = np.asarray(sun.direction, np.float64)
+    x = np.cross((0.0, 0.0, 1.0) if abs(z[2]) < 0.9 else (1.0, 0.0, 0.0), z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    matrix = [[x[i], y[i], z[i], 0.0] for i in range(3)] + [[0.0, 0.0, 0.0, 1.0]]
+    power = float(max(sun.irradiance))
+    color = tuple(float(max(c, 0.0)) / power for c in sun.irradiance)
+    return plm.add_light('SUN', name="%s (sun disc)" % world.name, color=color, power=power, matrix=matrix,
+                         angle=sun.angle * LIMB_DARKENED_SUN_ANGLE)
+
+
 def set_world(plm, world, reports, pending=None):
-    """Gives the engine the world: uniform, an image, or rendered (waits for start()'s render)."""
+    """Gives the engine the world: uniform, an image, or rendered (waits for start()'s render). Returns
+    the id of the sun lamp a rendered Sky Texture's sun disc became (it belongs to the world's light
+    group), or None."""
     pending = pending if pending is not None else start(world)
     w = pending.source
+    sun_light = None
     for note in w.notes:
         reports.warning(note)
     if w.kind == 'UNIFORM':
@@ -357,12 +451,17 @@ def set_world(plm, world, reports, pending=None):
     elif w.kind == 'RENDER':
         r = pending.render
         try:
-            plm.set_world_map(pending.rgb())
+            rgb, sun = pending.rgb()
+            plm.set_world_map(rgb)
+            if sun is not None:
+                sun_light = _add_sun(plm, world, sun)
             if r is None:
                 reports.info("world '%s': the map rendered for the last bake is reused (%s)" % (world.name, w.why))
             else:
-                reports.info("world '%s' rendered into a %d x %d map (%s): %.1f s"
-                             % (world.name, r.size[0], r.size[1], w.why, r.seconds()))
+                reports.info("world '%s' rendered into a %d x %d map (%s%s): %.1f s"
+                             % (world.name, r.size[0], r.size[1], w.why,
+                                "; its sun disc a sun lamp" if sun_light is not None else "", r.seconds()))
         except (RuntimeError, OSError, subprocess.SubprocessError) as e:
             reports.warning("world '%s' could not be rendered into a map (%s): the world is left out"
                             % (world.name, e))
+    return sun_light
