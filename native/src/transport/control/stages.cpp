@@ -129,11 +129,6 @@ bool after_photon_group(const BakeScene& ctx, BakeRun& run, PhotonBatches& batch
     run.out.stats.rays_traced += bo.rays;
     run.out.stats.paths_truncated += bo.truncated;
     run.truncated_flux += run.acc.quantum.flux(bo.truncated_flux);
-    run.group_hits.resize(bo.group_hits.size());
-    for (size_t g = 0; g < bo.group_hits.size(); ++g) {
-      run.group_hits[g].hits += bo.group_hits[g].hits;
-      run.group_hits[g].hits_sq += bo.group_hits[g].hits_sq;
-    }
   }
   loop.merged = end;
   run.photons = std::min(s.photon_cap, end * kBatchPhotons);
@@ -152,8 +147,10 @@ bool after_photon_group(const BakeScene& ctx, BakeRun& run, PhotonBatches& batch
     loop.done = target_reached(run.last.error.groups, s.target_error);
     // Once the photons have grown kRegatherPhotonGrowth-fold since the last
     // gather, the groups whose gather part is still large gather again: what
-    // their rays look up is better now.
-    const bool fresh = run.gathered && run.photons >= kRegatherPhotonGrowth * run.gather_photons;
+    // their rays look up is better now. Not while the gathers have traced
+    // more rays than the photons: then photons are what the bake lacks.
+    const bool fresh = run.gathered && run.photons >= kRegatherPhotonGrowth * run.gather_photons &&
+                       run.gather_rays <= run.out.stats.rays_traced;
     if (fresh && !loop.done)
       run.next_gather = plan_regather(0, run.gather_samples, run.last.error.groups, ctx.space.group_texels(),
                                       s.target_error, true);
@@ -225,7 +222,7 @@ std::unique_ptr<BakeScene> set_up(const Scene& scene, const BakeSettings& settin
 
 Estimator estimator(const BakeScene& ctx, const BakeRun& run) {
   return {ctx.space,           run.direct.values, run.acc, ctx.settings.filter_radius, &run.gather,
-          ctx.settings.gather, &run.direct,       &run.group_hits};
+          ctx.settings.gather, &run.direct};
 }
 
 void direct_pass(const BakeScene& ctx, BakeRun& run, CoveredSlice slice) {
@@ -328,6 +325,11 @@ void final_gather(const BakeScene& ctx, BakeRun& run, CoveredSlice slice) {
   const Regather again{refine ? &plan.groups : nullptr, &before};
   run.gather_samples = plan.samples ? plan.samples : gather_samples(ctx.settings.target_error);
   run.gather_photons = run.photons;
+  const std::vector<size_t> texels = ctx.space.group_texels();
+  double gathered = 0.0;  // texels gathered
+  for (size_t g = 0; g < texels.size(); ++g)
+    if (!again.groups || g >= again.groups->size() || (*again.groups)[g]) gathered += double(texels[g]);
+  run.gather_rays += uint64_t(gathered * run.gather_samples);
   run.gather = run_final_gather(ctx, pass, lookup, run.open_shares, run.gather_samples,
                                 [&] {
                                   run.report(end, "final gather");

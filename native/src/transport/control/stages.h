@@ -52,10 +52,10 @@ struct BakeRun {
   uint32_t gathers = 0;
   uint32_t gather_samples = 0;  // rays per texel of the last gather
   uint64_t gather_photons = 0;  // the photons whose estimate the last gather looked up
+  uint64_t gather_rays = 0;     // rays the gathers traced (about: texels x samples)
   RegatherPlan next_gather;     // the gather after the last: the groups it refines (transport/plan/scheduler.h)
   OpenShares open_shares;  // the gathers' (transport/gather/final_gather.h), kept from one to the next
   uint64_t photons = 0;    // photons merged into acc
-  std::vector<GroupHits> group_hits;  // of those, per judged group: their hits there (BatchOutput::group_hits)
   Estimate last;           // the latest estimate
   double truncated_flux = 0.0;
   uint64_t ol_hits = 0;

@@ -48,9 +48,9 @@ struct Cursor {
   }
 };
 
-uint64_t segment_bytes(uint64_t texels, uint32_t meshes, bool caustics, uint32_t layers) {
+uint64_t segment_bytes(uint64_t texels, uint32_t meshes, bool caustics, uint32_t layers, uint32_t groups) {
   const uint64_t sums = texels * (3 * 8 + 8 + 4);
-  return 9 * 8 + sums + meshes + (caustics ? sums : 0) + texels * layers * 3 * 8;
+  return 9 * 8 + sums + meshes + (caustics ? sums : 0) + texels * layers * 3 * 8 + uint64_t(groups) * 2 * 8;
 }
 
 // Texel parts' records: DirectSums, DirectCalibration, GatherSums + GatherInfo.
@@ -67,7 +67,8 @@ uint64_t payload_bytes_of(const PartHeader& h) {
   switch (h.kind) {
     case PartKind::kPhotons:
       return h.segment_count *
-             segment_bytes(h.layout.texel_count, h.layout.mesh_count, h.layout.caustics, h.layout.split.slots());
+             segment_bytes(h.layout.texel_count, h.layout.mesh_count, h.layout.caustics, h.layout.split.slots(),
+                           h.layout.judged_groups);
     case PartKind::kDirect:
       return texels * (kDirectTexelBytes + layer_bytes(h.layout.split.slots())) +
              uint64_t(h.calibration_count) * kCalibrationBytes;
@@ -159,6 +160,7 @@ void encode_header(const PartHeader& h, uint64_t payload_bytes, uint64_t payload
   c.put(h.direct_rounds);
   c.put(h.calibration_count);
   c.put(uint32_t(h.layout.split.directional));
+  c.put(h.layout.judged_groups);
   Cursor end{buf, kPartHeaderBytes - 8};
   end.put(hash_bytes(buf, kPartHeaderBytes - 8));
 }
@@ -208,6 +210,7 @@ PartHeader decode_header(unsigned char* buf, const std::string& path, uint64_t& 
   h.calibration_count = c.get<uint32_t>();
   h.layout.split.directional = c.get<uint32_t>() != 0;
   s.directional = h.layout.split.directional;
+  h.layout.judged_groups = c.get<uint32_t>();
   const bool texel_part = h.kind != PartKind::kPhotons;
   if (kind > 2 || h.shard_count == 0 || h.shard_index >= h.shard_count ||
       h.segment_count > (texel_part ? 0u : 2u) || h.range_begin > h.range_end || h.range_end > h.layout.covered)
@@ -377,6 +380,11 @@ void write_part_file(const std::string& path, const PartHeader& header, const st
         w.array(a.caustic.hits);
       }
       w.array(a.split_sum);
+      std::vector<uint64_t> k(h.layout.judged_groups, 0), k_sq(k);  // every group, hit or not
+      std::copy_n(a.group_hits.begin(), std::min(a.group_hits.size(), k.size()), k.begin());
+      std::copy_n(a.group_hits_sq.begin(), std::min(a.group_hits_sq.size(), k.size()), k_sq.begin());
+      w.array(k);
+      w.array(k_sq);
     }
   });
 }
@@ -549,6 +557,10 @@ PartHeader read_part_file(const std::string& path, std::vector<PhotonSegment>& s
         r.array(a.caustic.hits);
       }
       r.array(a.split_sum);
+      a.group_hits.resize(L.judged_groups);
+      a.group_hits_sq.resize(L.judged_groups);
+      r.array(a.group_hits);
+      r.array(a.group_hits_sq);
       a.total_sq = double(a.total_sq_q) * L.quantum.q2;
       a.caustic.total_sq = double(a.caustic.total_sq_q) * L.quantum.q2;
       segments.push_back(std::move(s));
@@ -581,8 +593,9 @@ std::string part_mismatch(const PartHeader& a, const PartHeader& b) {
       a.layout.covered != b.layout.covered ||
       a.layout.mesh_count != b.layout.mesh_count || a.layout.caustics != b.layout.caustics ||
       a.layout.quantum.q != b.layout.quantum.q || a.layout.quantum.q2 != b.layout.quantum.q2 ||
-      a.layout.split.layers != b.layout.split.layers || a.layout.split.directional != b.layout.split.directional)
-    return "sizes (batches, texels, meshes, light-group layers, directional lightmaps or flux quantum)";
+      a.layout.split.layers != b.layout.split.layers || a.layout.split.directional != b.layout.split.directional ||
+      a.layout.judged_groups != b.layout.judged_groups)
+    return "sizes (batches, texels, meshes, judged groups, light-group layers, directional lightmaps or flux quantum)";
   return "";
 }
 

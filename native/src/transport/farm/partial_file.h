@@ -19,7 +19,9 @@
 //     squared-flux quanta in all; per texel RGB flux sums (3 doubles), squared
 //     sums (double), hit counts (uint32); per mesh back-lit flags (byte);
 //     the same for caustic photons where the scene has specular lobes;
-//     with light groups, per layer per texel its RGB flux sums (3 doubles).
+//     with light groups, per layer per texel its RGB flux sums (3 doubles);
+//     per judged group its photons' hits and squared hit counts (uint64
+//     each: Accumulators::group_hits).
 //   payload of a direct part: per texel of the range its layer sums (3
 //     floats per layer, none without light groups) and its DirectSums (88
 //     bytes), then the calibration records (80 bytes each)
@@ -41,7 +43,7 @@
 
 namespace plm {
 
-constexpr uint32_t kPartFormatVersion = 4;
+constexpr uint32_t kPartFormatVersion = 5;
 constexpr size_t kPartHeaderBytes = 512;
 
 enum class PartKind : uint32_t { kPhotons = 0, kDirect = 1, kGather = 2 };

@@ -110,7 +110,7 @@ std::vector<PhotonSegment> trace_segments(tbb::task_arena& arena, const PhotonTr
 ShardLayout shard_layout(const Scene& scene, const BakeSettings& settings, const TexelSpace& space,
                          const Accumulators& acc) {
   return {scene_hash(scene),  (settings.photon_cap + kBatchPhotons - 1) / kBatchPhotons, space.texel_count, space.covered.size(),
-          uint32_t(scene.meshes.size()), !acc.caustic.empty(), acc.quantum, acc.split};
+          uint32_t(scene.meshes.size()), !acc.caustic.empty(), acc.quantum, acc.split, space.judged_groups};
 }
 
 void check_shardable(const Scene& scene, const BakeSettings& s, ShardJob::Mode mode) {

@@ -43,6 +43,7 @@ struct ShardLayout {
   bool caustics = false;
   FluxQuantum quantum;
   SplitLayout split;  // light-group layers and directional lightmaps' moments (transport/context/split.h)
+  uint32_t judged_groups = 0;  // TexelSpace::judged_groups: Accumulators::group_hits' size
 };
 
 // One part of a sharded bake (transport/jobs/bake_jobs.h): kTrace traces a

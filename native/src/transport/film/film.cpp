@@ -27,6 +27,7 @@ void Accumulators::add(const Accumulators& o) {
   add_sums(split_sum, o.split_sum);
   add_counts(hits, o.hits);
   for (size_t m = 0; m < back_lit.size(); ++m) back_lit[m] |= o.back_lit[m];
+  add_group_hits(o.group_hits, o.group_hits_sq);
   total_sq_q += o.total_sq_q;
   total_sq = double(total_sq_q) * quantum.q2;
   total_hits += o.total_hits;

@@ -92,6 +92,14 @@ class Accumulators {
   // and the sums do not depend on the order of addition.
   SplitLayout split;
   std::vector<double> split_sum;
+  // Per judged group (TexelSpace::judged): the sums over photons of the hits
+  // k each left there and of k^2 (BatchOutput::group_hits; empty until added).
+  std::vector<uint64_t> group_hits, group_hits_sq;
+  void add_group_hits(const std::vector<uint64_t>& k, const std::vector<uint64_t>& k_sq) {
+    group_hits.resize(std::max(group_hits.size(), k.size()), 0);
+    group_hits_sq.resize(group_hits.size(), 0);
+    for (size_t g = 0; g < k.size(); ++g) group_hits[g] += k[g], group_hits_sq[g] += k_sq[g];
+  }
   uint32_t slots() const { return split.slots(); }
   const double* slot_flux(uint32_t slot, uint64_t texel) const {
     return &split_sum[3 * (size_t(slot) * hits.size() + texel)];

@@ -83,6 +83,7 @@ void PhotonBatches::trace(uint64_t first, uint64_t n) {
       {
         tbb::spin_mutex::scoped_lock lock(totals_);
         acc_.add_totals(bo.hits.size(), sq, false);
+        acc_.add_group_hits(bo.group_hits, bo.group_hits_sq);
         if (!acc_.caustic.empty()) acc_.add_totals(bo.caustic_hits.size(), caustic_sq, true);
         for (const uint32_t m : bo.back_meshes) acc_.back_lit[m] = 1;
       }
@@ -94,7 +95,6 @@ void PhotonBatches::trace(uint64_t first, uint64_t n) {
       keep.rays = bo.rays;
       keep.truncated = bo.truncated;
       keep.truncated_flux = bo.truncated_flux;
-      keep.group_hits.swap(bo.group_hits);
     }
   });
 }

@@ -30,7 +30,7 @@ class PhotonBatches {
   // meshes to the sums.
   void trace(uint64_t first, uint64_t n);
   // Batch first + i of the last trace: its OL and L-system hits, rays,
-  // truncated paths and hits per judged group (its texel hits are already in the sums).
+  // truncated paths (its texel hits are already in the sums).
   const BatchOutput& kept(uint64_t i) const { return kept_[i]; }
 
  private:

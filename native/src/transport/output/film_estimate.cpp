@@ -195,9 +195,9 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
 }
 
 double Estimator::level_variance(size_t i) const {
-  if (!group_hits || i >= space.judged.size() || space.judged[i] >= group_hits->size()) return 0.0;
-  const GroupHits& g = (*group_hits)[space.judged[i]];
-  return g.hits > 0 ? double(g.hits_sq) / (double(g.hits) * double(g.hits)) : 1.0;
+  if (i >= space.judged.size() || space.judged[i] >= acc.group_hits.size()) return 0.0;
+  const double k = double(acc.group_hits[space.judged[i]]), k_sq = double(acc.group_hits_sq[space.judged[i]]);
+  return k > 0.0 ? k_sq / (k * k) : 1.0;
 }
 
 const double* Estimator::guide(size_t i, std::vector<double>& buffer) const {

@@ -17,7 +17,6 @@
 #include "transport/direct/direct_rounds.h"
 #include "transport/film/film.h"
 #include "transport/gather/final_gather.h"
-#include "transport/photons/photon_tracer.h"
 #include "transport/plan/scheduler.h"
 
 namespace plm {
@@ -56,14 +55,12 @@ struct Estimator {
   bool lookups = false;
   // With light groups: the direct pass's sums, per layer too (DirectResult::layer_rgb), or null.
   const DirectResult* direct_result = nullptr;
-  // Per judged group: the photons' hits there (BatchOutput::group_hits), or null.
-  const std::vector<GroupHits>* group_hits = nullptr;
-
   // The relative variance of the level of mesh i's indirect light, sum k^2 /
   // (sum k)^2 over the photons that left k hits on its group: each photon's
   // hits share its fate, so a mean over many of its texels -- what the final
   // gather's rays look up from afar -- varies by that much, whatever the
-  // hits' own spread says. A wide error of every lookup (0 without the sums).
+  // hits' own spread says (Accumulators::group_hits). A wide error of every
+  // lookup (0 without the sums).
   double level_variance(size_t i) const;
 
   // The guide of mesh i's photon reconstruction (its texels' direct light,

@@ -78,8 +78,8 @@ void PhotonTracer::trace_counted(uint64_t index, lsystem::GraphHit& graph_hit, B
   note(out.hits, h0);
   note(out.caustic_hits, c0);
   for (uint32_t i = 0; i < n; ++i) {
-    out.group_hits[group[i]].hits += hits[i];
-    out.group_hits[group[i]].hits_sq += uint64_t(hits[i]) * hits[i];
+    out.group_hits[group[i]] += hits[i];
+    out.group_hits_sq[group[i]] += uint64_t(hits[i]) * hits[i];
   }
 }
 
@@ -106,7 +106,8 @@ void PhotonTracer::trace_batch(uint64_t first, uint64_t count, BatchOutput& out)
   out.caustic_u.clear();
   out.rays = out.truncated = 0;
   out.truncated_flux = 0.0;
-  out.group_hits.assign(judged_groups_, GroupHits{});
+  out.group_hits.assign(judged_groups_, 0);
+  out.group_hits_sq.assign(judged_groups_, 0);
   lsystem::GraphHit graph_hit;
   if (layered_) return trace_layered_batch(first, count, graph_hit, out);
   if (lobes_) return trace_lobe_batch(first, count, graph_hit, out);

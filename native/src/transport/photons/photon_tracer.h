@@ -54,10 +54,6 @@ struct CausticPoint {
 };
 
 // What one batch of photons recorded, in photon order.
-struct GroupHits {
-  uint64_t hits = 0, hits_sq = 0;
-};
-
 struct BatchOutput {
   std::vector<Hit> hits;
   std::vector<Hit> caustic_hits;  // scenes with lobes: hits whose path's last event was specular
@@ -79,7 +75,7 @@ struct BatchOutput {
   // each left on it, and of k^2. One photon's hits share its fate (a path that
   // ends early leaves none), so the level of a group's indirect light varies
   // by sum k^2 / (sum k)^2 relative, not by the hits' own spread.
-  std::vector<GroupHits> group_hits;
+  std::vector<uint64_t> group_hits, group_hits_sq;
 };
 
 class PhotonTracer {

@@ -198,7 +198,8 @@ uint32_t gather_samples(double target_error);
 // At most kMaxGathers gathers at a check, and only while the rays grow. At
 // a later check, once the photons have grown kRegatherPhotonGrowth-fold since
 // the last gather (their error halved), the groups that still need it gather
-// again with as many rays as before or more: what they look up is better.
+// again with as many rays as before or more: what they look up is better
+// (while the gathers have traced no more rays than the photons).
 constexpr uint32_t kMaxGathers = 6, kMaxGroupGatherSamples = 4096, kRegatherPhotonGrowth = 4;
 struct RegatherPlan {
   std::vector<uint8_t> groups;  // per group: its texels are gathered again
