@@ -350,14 +350,18 @@ def main():
     scene = bpy.context.scene
     scene.photonlm.output_dir = os.path.join(args.out, "lightmaps")
 
-    cap = scene.photonlm.photons if args.photon_cap is None else args.photon_cap  # before the warm-up sets it
+    addon_photons = scene.photonlm.photons  # the add-on's Max Photons, before the warm-up sets its own
+    cap = addon_photons if args.photon_cap is None else args.photon_cap
     last, _, _, engine_cov = photonlm_bake(0.0, 999, WARMUP_PHOTONS)
     warmup = dict(photons=WARMUP_PHOTONS, seconds=last["wall_seconds"],
                   seconds_export=float(last["stats"]["seconds_export"]))
     print("warm-up bake (%d photons, UV maps made): %.1f s (export %.1f s)"
           % (WARMUP_PHOTONS, warmup["seconds"], warmup["seconds_export"]), flush=True)
     if not os.path.exists(blend):
+        photons = scene.photonlm.photons
+        scene.photonlm.photons = addon_photons  # the settings as before the warm-up
         bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)
+        scene.photonlm.photons = photons
     sizes = {n: tuple(int(v) for v in last["objects"][n]["size"]) for n in NAMES}
     uvs = evaluated_uvs(objects)
     missing = [n for n in NAMES if uvs[n] is None]
