@@ -217,6 +217,9 @@ PartHeader decode_header(unsigned char* buf, const std::string& path, uint64_t& 
     fail(PLM_ERROR_INVALID_ARGUMENT, path, ": a part of kind ", kind, ", shard or range ", h.shard_index, " of ",
          h.shard_count, " with ", h.segment_count, " segments and texels ", h.range_begin, "-", h.range_end,
          " is not a valid part");
+  if (h.layout.judged_groups > h.layout.covered)  // every judged group holds covered texels
+    fail(PLM_ERROR_INVALID_ARGUMENT, path, ": ", h.layout.judged_groups, " judged groups for ", h.layout.covered,
+         " covered texels: not a valid part");
   const uint64_t want = payload_bytes_of(h);
   if (payload_bytes != want)
     fail(PLM_ERROR_INVALID_ARGUMENT, path, ": the header gives ", payload_bytes, " payload bytes where its sizes need ",
