@@ -42,8 +42,8 @@ struct BakeSettings {
   bool steered() const { return target_error > 0.0 || time_budget > 0.0; }
 
   // Sets the decided fields from the requested ones and the scene. The final
-  // gather looks up radiosity on meshes: not in scenes with CSG solids,
-  // L-systems or textures, nor with few bounces.
+  // gather looks up radiosity on meshes: not in scenes with CSG solids or
+  // L-systems, nor with few bounces.
   void decide(const Scene& scene);
 };
 
