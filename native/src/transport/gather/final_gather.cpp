@@ -341,12 +341,14 @@ GatherResult run_final_gather(const BakeScene& ctx, const FinalGather& gather, c
   const uint32_t slots = layers + (ctx.split.directional ? 3u : 0u);
   slice = slice.clamped(space.covered.size());
   const CoveredTexel* const covered = space.covered.data() + slice.begin;
-  GatherResult out;
+  // A gather after the first starts from the one before: the texels it does
+  // not gather again, and those it has no time left for, keep their rays.
+  GatherResult out = again.groups ? *again.before : GatherResult{};
   const size_t step = gather_calibration_step(space.covered.size());
   out.sums.resize(slice.size());
   out.info.resize(slice.size());
   out.slots = slots;
-  out.split_rgb.assign(3 * size_t(slots) * slice.size(), 0.0f);
+  out.split_rgb.resize(3 * size_t(slots) * slice.size(), 0.0f);
   run_in_groups(
       arena, slice.size(), 64,
       [&](uint64_t first_texel, uint64_t n) {
@@ -356,13 +358,10 @@ GatherResult run_final_gather(const BakeScene& ctx, const FinalGather& gather, c
             GatherInfo& info = out.info[k];
             if (again.groups) {
               const uint32_t g = space.group_of(slice.begin + k);
-              if (g < again.groups->size() && !(*again.groups)[g]) {  // kept
-                a = again.before->sums[k];
-                info = again.before->info[k];
-                std::copy_n(again.before->split_rgb.begin() + 3 * k * slots, 3 * slots,
-                            out.split_rgb.begin() + 3 * k * slots);
-                continue;
-              }
+              if (g < again.groups->size() && !(*again.groups)[g]) continue;  // kept
+              a = GatherSums{};
+              info = GatherInfo{};
+              std::fill_n(out.split_rgb.begin() + 3 * k * slots, 3 * slots, 0.0f);
             }
             gather.sample_texel(covered[k].mesh, covered[k].texel, 0, samples, source, a, info,
                                 slots ? &out.split_rgb[3 * k * slots] : nullptr);

@@ -184,8 +184,9 @@ struct GatherLookup {
   const std::vector<std::vector<float>>* layer_shares = nullptr;
 };
 // A gather after the first (transport/plan/scheduler.h, plan_regather): the
-// texels of the judged groups marked in `groups` are gathered again, the
-// others keep what they had in `before` (the same slice's result).
+// texels of the judged groups marked in `groups` are gathered again; the
+// others, and those the time budget leaves no time for, keep what they had in
+// `before` (the same slice's result).
 struct Regather {
   const std::vector<uint8_t>* groups = nullptr;  // null: every texel is gathered
   const GatherResult* before = nullptr;
