@@ -150,7 +150,7 @@ bool after_photon_group(const BakeScene& ctx, BakeRun& run, PhotonBatches& batch
     // their rays look up is better now. Not while the gathers have traced
     // more rays than the photons: then photons are what the bake lacks.
     const bool fresh = run.gathered && run.photons >= kRegatherPhotonGrowth * run.gather_photons &&
-                       run.gather_rays <= run.out.stats.rays_traced;
+                       run.gather_rays <= run.out.stats.rays_traced && !run.budget.spent(kRegatherBudgetShare);
     if (fresh && !loop.done)
       run.next_gather = plan_regather(0, run.gather_samples, run.last.error.groups, ctx.space.group_texels(),
                                       s.target_error, true);
@@ -162,7 +162,7 @@ bool after_photon_group(const BakeScene& ctx, BakeRun& run, PhotonBatches& batch
         estimate(ctx.arena, est, run.photons, run.last);
         run.next_gather = plan_regather(gathers, run.gather_samples, run.last.error.groups,
                                         ctx.space.group_texels(), s.target_error);
-        if (run.next_gather.samples == 0) break;
+        if (run.next_gather.samples == 0 || run.budget.spent(kRegatherBudgetShare)) break;
       }
       loop.done = target_reached(run.last.error.groups, s.target_error);
     }
