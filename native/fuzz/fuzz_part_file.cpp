@@ -43,7 +43,7 @@ namespace {
 // encode_header; checked against the valid parts at start-up).
 constexpr size_t kHeaderBytes = 512, kTexelCount = 92, kMeshCount = 100, kCaustics = 104, kSegmentCount = 124,
                  kPayloadSum = 140, kKind = 404, kGathered = 408, kRangeBegin = 420, kRangeEnd = 428,
-                 kCalibrationCount = 448, kHeaderSum = kHeaderBytes - 8;
+                 kCalibrationCount = 448, kJudgedGroups = 456, kHeaderSum = kHeaderBytes - 8;
 constexpr size_t kChunk = 4096;  // texel records are checksummed this many at a time
 
 std::string g_dir;
@@ -95,6 +95,7 @@ uint64_t payload_sum(const std::vector<unsigned char>& f) {
           piece(texels * 4);
           if (k == 0) piece(field<uint32_t>(f, kMeshCount));
         }
+        for (int i = 0; i < 2; ++i) piece(uint64_t(field<uint32_t>(f, kJudgedGroups)) * 8);  // group hits, squared
       }
       break;
     case 1:

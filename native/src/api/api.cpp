@@ -70,6 +70,16 @@ const plm::LightmapImage& lightmap_of(const plm_result* r, uint32_t mesh_id, con
   return map;
 }
 
+const plm::LightmapImage& sh_lightmap_of(const plm_result* result, uint32_t mesh_id, uint32_t band,
+                                         const char* function) {
+  const plm::LightmapImage& img = lightmap_of(result, mesh_id, function);
+  if (!result->output.directional)
+    plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": the bake has no directional lightmaps (bake with "
+              "plm_bake_settings.directional = 1)");
+  if (band > 3) plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": band ", band, " is not 0 (L0) to 3 (L1_1)");
+  return img;
+}
+
 const plm::OlImage& ol_of(const plm_result* r, uint32_t group, const char* function) {
   require(r, function, "result");
   return result_item(r->output.ols, group, function, "OL group", "OL groups");
@@ -762,18 +772,6 @@ plm_status plm_result_write_layer_exr(const plm_result* result, uint32_t mesh_id
 uint32_t plm_result_directional(const plm_result* result) {
   return result && result->output.directional ? 1 : 0;
 }
-
-namespace {
-const plm::LightmapImage& sh_lightmap_of(const plm_result* result, uint32_t mesh_id, uint32_t band,
-                                         const char* function) {
-  const plm::LightmapImage& img = lightmap_of(result, mesh_id, function);
-  if (!result->output.directional)
-    plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": the bake has no directional lightmaps (bake with "
-              "plm_bake_settings.directional = 1)");
-  if (band > 3) plm::fail(PLM_ERROR_INVALID_ARGUMENT, function, ": band ", band, " is not 0 (L0) to 3 (L1_1)");
-  return img;
-}
-}  // namespace
 
 plm_status plm_result_copy_lightmap_sh(const plm_result* result, uint32_t mesh_id, uint32_t band, float* rgb) {
   return guarded("plm_result_copy_lightmap_sh", [&] {
