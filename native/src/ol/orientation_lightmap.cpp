@@ -164,10 +164,11 @@ void OrientationLightmap::finalize(uint64_t photon_count, uint64_t batch_photons
   const double photons = double(photon_count);
   // Each group's photons; groups that got none take no part.
   std::vector<double> group(batches_, photons / batches_);
-  if (batch_photons > 0) {
-    std::fill(group.begin(), group.end(), 0.0);
-    for (uint64_t first = 0, b = 0; first < photon_count; first += batch_photons, ++b)
-      group[b % batches_] += double(std::min(batch_photons, photon_count - first));
+  if (batch_photons > 0) {  // full batches dealt round-robin, then the short one
+    const uint64_t full = photon_count / batch_photons, rest = photon_count % batch_photons;
+    for (uint32_t t = 0; t < batches_; ++t)
+      group[t] = double((full / batches_ + (t < full % batches_ ? 1 : 0)) * batch_photons);
+    group[full % batches_] += double(rest);
   }
   const double used = double(std::count_if(group.begin(), group.end(), [](double n) { return n > 0.0; }));
   double sum[3] = {0, 0, 0};

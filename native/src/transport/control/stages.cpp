@@ -151,17 +151,16 @@ bool after_photon_group(const BakeScene& ctx, BakeRun& run, PhotonBatches& batch
     // more rays than the photons: then photons are what the bake lacks.
     const bool fresh = run.gathered && run.photons >= kRegatherPhotonGrowth * run.gather_photons &&
                        run.gather_rays <= run.out.stats.rays_traced && !run.budget.spent(kRegatherBudgetShare);
+    const std::vector<size_t> texels = ctx.space.group_texels();
     if (fresh && !loop.done)
-      run.next_gather = plan_regather(0, run.gather_samples, run.last.error.groups, ctx.space.group_texels(),
-                                      s.target_error, true);
+      run.next_gather = plan_regather(0, run.gather_samples, run.last.error.groups, texels, s.target_error, true);
     if (!loop.done && s.gather && (!run.gathered || (fresh && run.next_gather.samples > 0))) {
       // Again while the gather's own part is large: each gather looks up the estimate the one
       // before it improved (transport/plan/scheduler.h, plan_regather).
       for (uint32_t gathers = 1;; ++gathers) {
         gather(ctx, run);
         estimate(ctx.arena, est, run.photons, run.last);
-        run.next_gather = plan_regather(gathers, run.gather_samples, run.last.error.groups,
-                                        ctx.space.group_texels(), s.target_error);
+        run.next_gather = plan_regather(gathers, run.gather_samples, run.last.error.groups, texels, s.target_error);
         if (run.next_gather.samples == 0 || run.budget.spent(kRegatherBudgetShare)) break;
       }
       loop.done = target_reached(run.last.error.groups, s.target_error);
@@ -321,15 +320,10 @@ void final_gather(const BakeScene& ctx, BakeRun& run, CoveredSlice slice) {
   // A gather after the first: the groups it refines, the rest keep their rays.
   const RegatherPlan& plan = run.next_gather;
   const bool refine = plan.samples > 0 && !run.gather.sums.empty();
-  const GatherResult before = refine ? std::move(run.gather) : GatherResult{};
-  const Regather again{refine ? &plan.groups : nullptr, &before};
+  const Regather again{refine ? &plan.groups : nullptr, &run.gather};
   run.gather_samples = plan.samples ? plan.samples : gather_samples(ctx.settings.target_error);
   run.gather_photons = run.photons;
-  const std::vector<size_t> texels = ctx.space.group_texels();
-  double gathered = 0.0;  // texels gathered
-  for (size_t g = 0; g < texels.size(); ++g)
-    if (!again.groups || g >= again.groups->size() || (*again.groups)[g]) gathered += double(texels[g]);
-  run.gather_rays += uint64_t(gathered * run.gather_samples);
+  run.gather_rays += (refine ? plan.texels : ctx.space.covered.size()) * run.gather_samples;
   run.gather = run_final_gather(ctx, pass, lookup, run.open_shares, run.gather_samples,
                                 [&] {
                                   run.report(end, "final gather");

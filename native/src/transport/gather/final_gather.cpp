@@ -343,7 +343,7 @@ GatherResult run_final_gather(const BakeScene& ctx, const FinalGather& gather, c
   const CoveredTexel* const covered = space.covered.data() + slice.begin;
   // A gather after the first starts from the one before: the texels it does
   // not gather again, and those it has no time left for, keep their rays.
-  GatherResult out = again.groups ? *again.before : GatherResult{};
+  GatherResult out = again.groups ? std::move(*again.before) : GatherResult{};
   const size_t step = gather_calibration_step(space.covered.size());
   out.sums.resize(slice.size());
   out.info.resize(slice.size());

@@ -186,10 +186,10 @@ struct GatherLookup {
 // A gather after the first (transport/plan/scheduler.h, plan_regather): the
 // texels of the judged groups marked in `groups` are gathered again; the
 // others, and those the time budget leaves no time for, keep what they had in
-// `before` (the same slice's result).
+// `before` (the same slice's result, moved from).
 struct Regather {
   const std::vector<uint8_t>* groups = nullptr;  // null: every texel is gathered
-  const GatherResult* before = nullptr;
+  GatherResult* before = nullptr;
 };
 GatherResult run_final_gather(const BakeScene& ctx, const FinalGather& gather, const GatherLookup& lookup,
                               OpenShares& open, uint32_t samples, const std::function<bool()>& after_group,

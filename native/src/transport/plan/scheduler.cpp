@@ -52,6 +52,7 @@ RegatherPlan plan_regather(uint32_t gathers, uint32_t last_samples, const std::v
     if (plan.groups[g]) refined += n;
   }
   if (!(refined > 0.0)) return plan;
+  plan.texels = uint64_t(refined);
   const double most = std::clamp(double(kMaxGatherSamples) * total / refined, double(kMaxGatherSamples),
                                  double(kMaxGroupGatherSamples));
   const uint32_t samples = uint32_t(std::min(4.0 * double(last_samples), most));

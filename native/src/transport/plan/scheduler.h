@@ -206,6 +206,7 @@ uint32_t gather_samples(double target_error);
 constexpr uint32_t kMaxGathers = 6, kMaxGroupGatherSamples = 4096, kRegatherPhotonGrowth = 4;
 struct RegatherPlan {
   std::vector<uint8_t> groups;  // per group: its texels are gathered again
+  uint64_t texels = 0;          // their covered texels
   uint32_t samples = 0;         // rays per texel; 0: no gather
 };
 // After `gathers` gathers at this check, the last of `last_samples` rays: the
