@@ -419,15 +419,7 @@ def main():
                             **{"error_" + n: err[n].astype(np.float32) for n in NAMES},
                             **{"mask_" + n: masks[n] for n in NAMES})
     result["seconds_total"] = time.perf_counter() - t_start
-    path = os.path.join(args.out, "bench_artist_room.json")
-    with open(path + ".tmp", "w") as f:
-        json.dump(result, f, indent=1)
-    os.replace(path + ".tmp", path)
-    md = markdown(result)
-    with open(os.path.join(args.out, "bench_artist_room.md"), "w") as f:
-        f.write(md + "\n")
-    print("\n" + md)
-    print("\nwrote %s (%.0f s in all)" % (path, result["seconds_total"]), flush=True)
+    bvc.write_results(args.out, "bench_artist_room", result, markdown(result))
 
 
 if __name__ == "__main__":

@@ -28,7 +28,6 @@ relative RMSE over the fully covered texels, all channels; operator wall times, 
 method's (seconds, error) points, extrapolated as t ~ error^-2 past the last point (marked ~).
 """
 import argparse
-import json
 import os
 import sys
 import time
@@ -153,14 +152,7 @@ def main():
                    plan=dict(ref_samples=plan["ref_samples"], cycles_samples=list(plan["cycles_samples"]),
                              photonlm=[list(p) for p in plan["photonlm"]]),
                    scenes=dict(glazed=result), seconds_total=time.perf_counter() - t0)
-    path = os.path.join(args.out, "bench_glazed_room.json")
-    with open(path, "w") as f:
-        json.dump(results, f, indent=1)
-    md = bvc.markdown("glazed", result)
-    with open(os.path.join(args.out, "bench_glazed_room.md"), "w") as f:
-        f.write(md + "\n")
-    print("\n" + md)
-    print("\nwrote %s (%.0f s in all)" % (path, results["seconds_total"]), flush=True)
+    bvc.write_results(args.out, "bench_glazed_room", results, bvc.markdown("glazed", result))
 
 
 if __name__ == "__main__":

@@ -586,6 +586,24 @@ def snapshot_library(out):
     return info
 
 
+def write_json(path, results):
+    """results to `path`, written to a temporary name and renamed (a run cut short leaves the last whole file)."""
+    with open(path + ".tmp", "w") as f:
+        json.dump(results, f, indent=1)
+    os.replace(path + ".tmp", path)
+
+
+def write_results(out, stem, results, md):
+    """results as `stem`.json (write_json) and the tables `md` as `stem`.md into `out`; prints the
+    tables and where the JSON went."""
+    path = os.path.join(out, stem + ".json")
+    write_json(path, results)
+    with open(os.path.join(out, stem + ".md"), "w") as f:
+        f.write(md + "\n")
+    print("\n" + md)
+    print("\nwrote %s (%.0f s in all)" % (path, results["seconds_total"]), flush=True)
+
+
 def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     ap = argparse.ArgumentParser(prog="bench_vs_cycles.py")
@@ -635,20 +653,12 @@ def main():
                    plan=dict(ref_samples=plan["ref_samples"], cycles_samples=list(plan["cycles_samples"]),
                              photonlm=[list(p) for p in plan["photonlm"]]),
                    scenes={})
-    path = os.path.join(args.out, "bench_vs_cycles.json")
     for name in args.scenes.split(","):
         results["scenes"][name] = run_scene(name, args, plan)
-        with open(path + ".tmp", "w") as f:
-            json.dump(results, f, indent=1)
-        os.replace(path + ".tmp", path)
+        write_json(os.path.join(args.out, "bench_vs_cycles.json"), results)
     results["seconds_total"] = time.perf_counter() - t0
-    with open(path, "w") as f:
-        json.dump(results, f, indent=1)
-    md = "\n\n".join(markdown(n, r) for n, r in results["scenes"].items())
-    with open(os.path.join(args.out, "bench_vs_cycles.md"), "w") as f:
-        f.write(md + "\n")
-    print("\n" + md)
-    print("\nwrote %s (%.0f s in all)" % (path, results["seconds_total"]), flush=True)
+    write_results(args.out, "bench_vs_cycles", results,
+                  "\n\n".join(markdown(n, r) for n, r in results["scenes"].items()))
 
 
 if __name__ == "__main__":
