@@ -219,6 +219,9 @@ def main():
                  and images.error_image_pixels(big[:2048, :2048]).shape == (2048, 2048), "2048 x 2048 is kept as it is")
     dark = images.relative_error(np.zeros((2, 2, 3), np.float32), np.ones((2, 2), np.float32))
     checks.check(not dark.any(), "a texel without light has relative error 0 (counted below the target)")
+    residue = images.relative_error(np.full((2, 2, 3), 1e-40, np.float32), np.full((2, 2), 0.1, np.float32))
+    checks.check(np.isfinite(residue).all() and residue.max() == 65504.0,
+                 "a texel holding rounding residue reads the heat map's largest value, not inf or NaN")
     print("error_heatmap: %.1f s" % (time.perf_counter() - t_start))
     checks.finish()
 

@@ -501,7 +501,12 @@ def _transfer(obj, helper, stage, changes):
                 m.object = old_object
                 move_modifier(obj, m, old_index)
         changes.append(restore)
-    mod.object = helper
+    # Moved before it points at the helper: the move evaluates the object, and a Data Transfer at
+    # another place in the stack than the helper's copy reports a topology mismatch.
+    mod.object = helper  # what marks it as ours for _modifier_index
+    index = _modifier_index(obj, stage)
+    mod.object = None
+    move_modifier(obj, mod, index)
     mod.use_object_transform = False
     mod.use_loop_data = True
     mod.data_types_loops = {'UV'}
@@ -512,7 +517,7 @@ def _transfer(obj, helper, stage, changes):
     mod.mix_factor = 1.0
     mod.show_in_editmode = False
     mod.show_expanded = False
-    move_modifier(obj, mod, _modifier_index(obj, stage))
+    mod.object = helper
 
 
 def _new_helper(obj, mesh, changes, tag):

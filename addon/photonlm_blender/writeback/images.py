@@ -56,11 +56,14 @@ def output_directory(scene):
 
 def relative_error(rgb, error):
     """Per-texel relative error: standard error / mean RGB value, 0 where the value is not above 0
-    (a texel without light: the engine counts it as below any threshold)."""
+    (a texel without light: the engine counts it as below any threshold); at most 65504, the largest
+    half float of the heat-map files (a texel holding only rounding residue, inside another object,
+    may have an error 10^40 times its value)."""
     value = rgb.sum(axis=2, dtype=np.float32) / np.float32(3.0)
     out = np.zeros(value.shape, np.float32)
-    np.divide(error, value, out=out, where=value > 0.0)
-    return out
+    with np.errstate(over='ignore'):
+        np.divide(error, value, out=out, where=value > 0.0)
+    return np.minimum(out, np.float32(65504.0), out=out)
 
 
 def error_image_pixels(relative):

@@ -221,7 +221,7 @@ std::unique_ptr<BakeScene> set_up(const Scene& scene, const BakeSettings& settin
 
 Estimator estimator(const BakeScene& ctx, const BakeRun& run) {
   return {ctx.space,           run.direct.values, run.acc, ctx.settings.filter_radius, &run.gather,
-          ctx.settings.gather, &run.direct};
+          ctx.settings.gather, &run.direct,      &run.open_shares.share};
 }
 
 void direct_pass(const BakeScene& ctx, BakeRun& run, CoveredSlice slice) {
@@ -297,6 +297,10 @@ bool start_gather(BakeRun& run) {
   run.gathered = true;
   ++run.gathers;
   return !run.budget.spent(kGatherBudgetShare);
+}
+
+void find_open_shares(const BakeScene& ctx, BakeRun& run) {
+  update_open_shares(ctx.arena, FinalGather(ctx), ctx.space, run.acc.back_lit.data(), run.open_shares);
 }
 
 // Runs from run.last, the estimate at a fixed batch count (so it is

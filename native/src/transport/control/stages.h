@@ -109,6 +109,9 @@ bool start_gather(BakeRun& run);
 // The final gather over the covered texels of `slice` from run.last, replacing
 // run.gather.
 void final_gather(const BakeScene& ctx, BakeRun& run, CoveredSlice slice = {});
+// The texels' open shares a gather finds (final_gather.h, OpenShares), for
+// gathers made elsewhere (the texel ranges'): the estimate counts texels by them.
+void find_open_shares(const BakeScene& ctx, BakeRun& run);
 
 // ---- Estimate and output -----------------------------------------------------
 // The final estimate and its error figures (stats, a warning where the target

@@ -287,6 +287,28 @@ SurfaceHit FinalGather::passed(const RayPacket& packet, unsigned l, Vec3 dir, Ve
   return h;
 }
 
+void update_open_shares(tbb::task_arena& arena, const FinalGather& gather, const TexelSpace& space,
+                        const uint8_t* back_lit, OpenShares& open) {
+  // Where some texels may be partly closed: meshes whose backs no photon
+  // reached (a box standing on the floor) or faces in contact.
+  const size_t meshes = space.views.size();
+  if (std::equal(back_lit, back_lit + meshes, open.back_lit.begin(), open.back_lit.end())) return;
+  open.back_lit.assign(back_lit, back_lit + meshes);
+  open.share.clear();
+  bool closable = false;
+  for (size_t i = 0; i < meshes && !closable; ++i) closable = !back_lit[i] || space.views[i].contact;
+  if (!closable) return;
+  open.share.assign(space.texel_count, 1.0f);
+  arena.execute([&] {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, space.covered.size(), 64), [&](const auto& r) {
+      for (size_t k = r.begin(); k < r.end(); ++k) {
+        const CoveredTexel& c = space.covered[k];
+        open.share[space.views[c.mesh].texel_offset + c.texel] = gather.open_share(c.mesh, c.texel, back_lit);
+      }
+    });
+  });
+}
+
 GatherResult run_final_gather(const BakeScene& ctx, const FinalGather& gather, const GatherLookup& lookup,
                               OpenShares& open, uint32_t samples, const std::function<bool()>& after_group,
                               CoveredSlice slice, Regather again) {
@@ -308,26 +330,7 @@ GatherResult run_final_gather(const BakeScene& ctx, const FinalGather& gather, c
       wide_error[g0 + t] = wide[i][t];
     }
   }
-  // Open shares where some texels may be partly closed: meshes whose backs
-  // no photon reached (a box standing on the floor) or faces in contact.
-  const size_t meshes = space.views.size();
-  if (!std::equal(back_lit, back_lit + meshes, open.back_lit.begin(), open.back_lit.end())) {
-    open.back_lit.assign(back_lit, back_lit + meshes);
-    open.share.clear();
-    bool closable = false;
-    for (size_t i = 0; i < meshes && !closable; ++i) closable = !back_lit[i] || space.views[i].contact;
-    if (closable) {
-      open.share.assign(space.texel_count, 1.0f);
-      arena.execute([&] {
-        tbb::parallel_for(tbb::blocked_range<size_t>(0, space.covered.size(), 64), [&](const auto& r) {
-          for (size_t k = r.begin(); k < r.end(); ++k) {
-            const CoveredTexel& c = space.covered[k];
-            open.share[space.views[c.mesh].texel_offset + c.texel] = gather.open_share(c.mesh, c.texel, back_lit);
-          }
-        });
-      });
-    }
-  }
+  update_open_shares(arena, gather, space, back_lit, open);
   // With light groups: the layers' shares of every texel's light, in the global order.
   const uint32_t layers = lookup.layer_shares ? uint32_t(ctx.layers.size()) : 0;
   std::vector<float> layer_share(3 * size_t(layers) * (layers ? space.texel_count : 0), 0.0f);

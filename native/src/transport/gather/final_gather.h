@@ -139,6 +139,9 @@ struct OpenShares {
   std::vector<uint8_t> back_lit;  // per mesh, as the shares were made for
   std::vector<float> share;
 };
+// Makes `open` again where back_lit (per mesh) differs from what it was made for.
+void update_open_shares(tbb::task_arena& arena, const FinalGather& gather, const TexelSpace& space,
+                        const uint8_t* back_lit, OpenShares& open);
 
 struct GatherResult {
   std::vector<GatherSums> sums;  // empty: no gather

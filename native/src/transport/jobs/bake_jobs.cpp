@@ -152,7 +152,9 @@ BakeOutput bake_merge(Scene& scene, const std::vector<std::string>& parts, uint3
   GatherStep gather = [](const BakeScene& c, BakeRun& r) { final_gather(c, r); };
   if (!job.gather.empty())  // the texel ranges' gathers, joined
     gather = [&job](const BakeScene& c, BakeRun& r) {
-      if (start_gather(r)) r.gather = join_gather(job.gather, c.space.covered.size());
+      if (!start_gather(r)) return;
+      r.gather = join_gather(job.gather, c.space.covered.size());
+      find_open_shares(c, r);
     };
   check_segments(job);
   add_photon_segments(*ctx, run, job.segments, gather);

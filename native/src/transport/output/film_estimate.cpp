@@ -190,8 +190,12 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
       lookup->local[t] = w * w * lookup->local[t] + (1.0 - w) * (1.0 - w) * g_fit_var[t];
       lookup->wide[t] = w * w * (lookup->wide[t] + bias_sq) + (1.0 - w) * (1.0 - w) * (fit_bias_sq + v_lookups);
     }
-    if (gather_part) *gather_part += (1.0 - w) * (1.0 - w) * v_gather;
+    if (gather_part) *gather_part += open_weight(i, t) * (1.0 - w) * (1.0 - w) * v_gather;
   }
+}
+
+double Estimator::open_weight(size_t i, size_t t) const {
+  return open_share && !open_share->empty() ? double((*open_share)[space.views[i].texel_offset + t]) : 1.0;
 }
 
 double Estimator::level_variance(size_t i) const {
@@ -304,8 +308,10 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
     double value = 0.0, var = 0.0, var_gather = 0.0, var_direct = 0.0, count = 0.0;
     size_t dark = 0;
     std::vector<double> per_texel;
-    ErrorParts parts() const {
-      if (!(count > 0.0 && value > 0.0)) return {};
+    // None for sums without light or, for a judged group, with a mean at
+    // most dark_mean (kDarkGroupShare).
+    ErrorParts parts(double dark_mean = 0.0) const {
+      if (!(count > 0.0 && value > 0.0 && value / count > dark_mean)) return {};
       const double mean = value / count;
       return {std::sqrt(var / count) / mean, std::sqrt(var_direct / count) / mean,
               std::sqrt(var_gather / count) / mean};
@@ -352,9 +358,11 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
           out.lookup_wide[i][t] = float(std::sqrt(b.lookup.wide[t] + indirect * indirect * level));
         }
         ++k;
-        s.value += v;
-        s.var += variance[t];
-        s.count += 1.0;
+        const double w = est.open_weight(i, t);
+        if (!(w > 0.0)) continue;  // inside another object: never seen
+        s.value += w * v;
+        s.var += w * variance[t];
+        s.count += w;
         if (v > 0.0) s.per_texel.push_back(std::sqrt(variance[t]) / v);
         else ++s.dark;
       }
@@ -392,11 +400,14 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
   }
   const bool direct_per_texel = space.judged_groups > 0 && est.direct.variance.size() == space.covered.size();
   for (size_t k = 0; k < est.direct.variance.size(); ++k) {
-    whole.var_direct += est.direct.variance[k];
-    if (direct_per_texel) groups[space.group_of(k)].var_direct += est.direct.variance[k];
+    const double v =
+        (direct_per_texel ? est.open_weight(space.covered[k].mesh, space.covered[k].texel) : 1.0) * est.direct.variance[k];
+    whole.var_direct += v;
+    if (direct_per_texel) groups[space.group_of(k)].var_direct += v;
   }
   static_cast<ErrorParts&>(e) = whole.parts();
-  for (const Sums& g : groups) e.groups.push_back(g.parts());
+  const double dark_mean = whole.count > 0.0 ? kDarkGroupShare * whole.value / whole.count : 0.0;
+  for (const Sums& g : groups) e.groups.push_back(g.parts(dark_mean));
   if (e.groups.empty()) e.groups.push_back(e);
   for (uint32_t g = 0; g < e.groups.size() && !groups.empty(); ++g)
     if (e.groups[g].relative > 0.0 && (e.worst == kNoGroup || e.groups[g].relative > e.groups[e.worst].relative))

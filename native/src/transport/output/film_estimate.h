@@ -55,6 +55,12 @@ struct Estimator {
   bool lookups = false;
   // With light groups: the direct pass's sums, per layer too (DirectResult::layer_rgb), or null.
   const DirectResult* direct_result = nullptr;
+  // The share of each texel that light can reach, in the global texel order
+  // (the final gather's OpenShares::share), or null / empty: all open. The
+  // error counts texels by it: a texel inside another object is never seen.
+  const std::vector<float>* open_share = nullptr;
+  // Texel t of mesh i's open share (1 without shares).
+  double open_weight(size_t i, size_t t) const;
   // The relative variance of the level of mesh i's indirect light, sum k^2 /
   // (sum k)^2 over the photons that left k hits on its group: each photon's
   // hits share its fate, so a mean over many of its texels -- what the final
@@ -94,7 +100,14 @@ struct Estimator {
 // texels weighted equally; direct and gather: the same with the direct
 // variance alone and with the final gather's part alone. The target judges
 // each group of TexelSpace::judged apart: the same three relative to the
-// group's own mean.
+// group's own mean. Texels count by the share of them light can reach (once
+// a final gather has found it: Estimator::open_share). A group whose mean is at most kDarkGroupShare x the
+// whole's is dark, like one without light: an object buried in others (or
+// shut away from every light) holds only rounding residue and light leaked
+// along the seams, and its texels without a photon keep the variance of one
+// (the phantom hit), so relative to its own mean it would hold the bake to
+// the photon cap for what nobody sees (10 stops below the scene's mean).
+constexpr double kDarkGroupShare = 1e-3;
 struct ErrorEstimate : ErrorParts {
   // Per judged group; the whole's parts alone where there are none (every
   // texel resolved from an OL or a CSG solid without a carrier).
