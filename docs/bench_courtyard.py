@@ -112,10 +112,15 @@ def build(count, level, seed=7):
         bpy.context.scene.collection.objects.link(obj)
         objs.append(obj)
     bpy.data.meshes.remove(proto_mesh)
-    scenes.add_light("Sun", 'SUN', (0, 0, 10), rotation=(math.radians(50.0), 0.0, math.radians(30.0)),
+    sun_and_sky()
+    return objs
+
+
+def sun_and_sky(height=10.0):
+    """A sun lamp (strength 3, 40 degrees up) and a physical sky without its sun disc, strength 0.3."""
+    scenes.add_light("Sun", 'SUN', (0, 0, height), rotation=(math.radians(50.0), 0.0, math.radians(30.0)),
                      energy=3.0, angle=math.radians(1.0))
-    world = bpy.context.scene.world
-    nt = world.node_tree
+    nt = bpy.context.scene.world.node_tree
     sky = nt.nodes.new('ShaderNodeTexSky')
     sky.sky_type = scenes.physical_sky_type()
     sky.sun_disc = False  # the sun lamp is the sun
@@ -124,7 +129,6 @@ def build(count, level, seed=7):
     bg = nt.nodes['Background']
     nt.links.new(sky.outputs['Color'], bg.inputs['Color'])
     bg.inputs['Strength'].default_value = 0.3
-    return objs
 
 
 def evaluated_triangles(objs):
@@ -294,6 +298,7 @@ def bake_once(args, k):
         peak_rss=maxrss_bytes(), peak_rss_before_bake=rss_before, rss_at_bake_start=rss_now, rss_after_bake=rss_bytes(),
         memory_estimate=float(engine["memory_estimate"]),
         photons=int(engine["photons_emitted"]), photon_cap=photon_cap, time_budget=time_budget,
+        direct_samples=int(engine["direct_samples"]), rays_traced=int(engine["rays_traced"]),
         target_error=args.target, error_estimate=float(engine["error_estimate"]),
         error_p95=float(engine["error_p95"]),
         target_reached=reached,

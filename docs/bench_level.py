@@ -247,17 +247,7 @@ def build(scale=1.0, seed=11):
         inst.instance_collection = tree
         inst.location = (x, y, 0.0)
         coll.objects.link(inst)
-    scenes.add_light("Sun", 'SUN', (0, 0, 30), rotation=(math.radians(50.0), 0.0, math.radians(30.0)),
-                     energy=3.0, angle=math.radians(1.0))
-    nt = bpy.context.scene.world.node_tree
-    sky = nt.nodes.new('ShaderNodeTexSky')
-    sky.sky_type = scenes.physical_sky_type()
-    sky.sun_disc = False  # the sun lamp is the sun
-    sky.sun_elevation = math.radians(40.0)
-    sky.sun_rotation = math.radians(120.0)
-    bg = nt.nodes['Background']
-    nt.links.new(sky.outputs['Color'], bg.inputs['Color'])
-    bg.inputs['Strength'].default_value = 0.3
+    bench_courtyard.sun_and_sky(height=30.0)
     return objs, counts
 
 
