@@ -745,6 +745,12 @@ TEST(Bake, TargetErrorIsReachedAndHonest) {
   }
 }
 
+// An 8 x 8 m grey ground (res x res texels, mesh 0) under a sun 45 degrees up.
+void sunlit_ground(SceneBuilder& b, uint32_t res) {
+  b.quad("ground", {-4, -4, 0}, {8, 0, 0}, {0, 8, 0}, b.material("grey", {0.5f, 0.5f, 0.5f}), res);
+  b.light(plm_test::tilted_sun(4.0f, float(M_PI / 4.0)), "sun");
+}
+
 // The target holds for every object: a closed room lit by a lamp of 4 W
 // stands beside a sunlit ground. Photons go by power, so the room gets few
 // and its bounce light is noisy; judged with the ground's many bright texels
@@ -753,9 +759,8 @@ TEST(Bake, TargetErrorIsReachedAndHonest) {
 // keep theirs) until the room, too, is under the target.
 TEST(Bake, TargetHoldsForEveryObject) {
   auto scene = [](SceneBuilder& b) {
-    b.quad("ground", {-4, -4, 0}, {8, 0, 0}, {0, 8, 0}, b.material("grey", {0.5f, 0.5f, 0.5f}), 64);
+    sunlit_ground(b, 64);
     b.box("room", {8, 0, 1}, {2, 2, 2}, 0.0f, b.material("white", {0.8f, 0.8f, 0.8f}), 8, true);
-    b.light(plm_test::tilted_sun(4.0f, float(M_PI / 4.0)), "sun");
     plm_light lamp;
     plm_light_default(&lamp, PLM_LIGHT_POINT);
     lamp.power = 4.0f;
@@ -828,12 +833,11 @@ TEST(Bake, TargetHoldsForEveryObject) {
 // the ground's target.
 TEST(Bake, ObjectInTheDarkDoesNotHoldTheBake) {
   SceneBuilder b;
-  b.quad("ground", {-4, -4, 0}, {8, 0, 0}, {0, 8, 0}, b.material("grey", {0.5f, 0.5f, 0.5f}), 32);
+  sunlit_ground(b, 32);
   const uint32_t white = b.material("white", {0.8f, 0.8f, 0.8f});
   b.box("shed", {8, 0, 1}, {2, 2, 2}, 0.0f, white, 8);
   b.box("shed inside", {8, 0, 1}, {1.9f, 1.9f, 1.9f}, 0.0f, white, 8, true);
   b.box("crate", {8, 0, 0.3f}, {0.5f, 0.5f, 0.5f}, 0.0f, b.material("wood", {0.6f, 0.5f, 0.4f}), 8);
-  b.light(plm_test::tilted_sun(4.0f, float(M_PI / 4.0)), "sun");
   plm_light lamp;
   plm_light_default(&lamp, PLM_LIGHT_POINT);
   lamp.power = 4e-6f;
@@ -869,10 +873,9 @@ TEST(Bake, ObjectInTheDarkDoesNotHoldTheBake) {
 // error counts texels by it.
 TEST(Bake, TexelsInsideAnotherObjectAreNotJudged) {
   SceneBuilder b;
-  b.quad("ground", {-4, -4, 0}, {8, 0, 0}, {0, 8, 0}, b.material("grey", {0.5f, 0.5f, 0.5f}), 32);
+  sunlit_ground(b, 32);
   b.box("building", {0, 0, 1}, {2, 2, 2}, 0.0f, b.material("white", {0.8f, 0.8f, 0.8f}), 8);
   b.box("crate", {1.0f, 0.2f, 0.3f}, {0.6f, 0.6f, 0.6f}, 0.0f, b.material("wood", {0.6f, 0.5f, 0.4f}), 8);
-  b.light(plm_test::tilted_sun(4.0f, float(M_PI / 4.0)), "sun");
   plm_bake_settings s = settings(0);
   s.target_error = 0.05;
   s.photon_count = 16u << 20;  // the cap
