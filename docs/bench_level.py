@@ -206,7 +206,7 @@ def build(scale=1.0, seed=11):
     live_rocks = max(1, counts["rocks"] // 6)
     for i in range(counts["rocks"]):
         live = i < live_rocks
-        mesh = _primitive(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=3 if live else 5, radius=1.0)
+        mesh = _primitive(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=3 if live else 6, radius=1.0)
         mesh.name = "Rock%03d" % i
         co = np.empty(len(mesh.vertices) * 3, np.float32)
         mesh.vertices.foreach_get("co", co)
@@ -233,7 +233,7 @@ def build(scale=1.0, seed=11):
     tree = bpy.data.collections.new("Tree")
     trunk = _primitive(bpy.ops.mesh.primitive_cylinder_add, vertices=16, radius=0.25, depth=3.0)
     trunk.materials.append(mats[1])
-    crown = _primitive(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=6, radius=1.8)
+    crown = _primitive(bpy.ops.mesh.primitive_ico_sphere_add, subdivisions=7, radius=1.8)
     crown.materials.append(mats[3])
     _smooth(crown)
     for name, mesh, z in (("Trunk", trunk, 1.5), ("Crown", crown, 4.2)):
