@@ -16,8 +16,9 @@ The level (--scale 1; --scale f multiplies every count by f), on a ground of 10 
 - 340 crates: linked duplicates of one cube, each with a Bevel modifier, 32 x 32 (flat);
 - 560 monkeys: linked duplicates of one Suzanne subdivided twice (15,744 triangles), smooth, 32 x 32
   (the add-on's Auto gives each an orientation lightmap: more than 4 triangles a texel);
-- 300 rocks: displaced icospheres of their own, smooth: 250 of 20,480 triangles, 50 with a live
-  Subdivision Surface (viewport 1, render 2) on 1,280, refined by the engine; 64 x 64;
+- 300 rocks: displaced icospheres of their own, smooth: 250 of 20,480 triangles (orientation
+  lightmaps by Auto), 50 with a live Subdivision Surface (viewport 1, render 2) on 320, refined by
+  the engine; 64 x 64;
 - 50 pillars: linked duplicates of one cylinder with Bevel and Subdivision Surface, smooth, 32 x 32;
 - 50 trees: collection instances of one tree (a trunk and a crown of 81,920 triangles), geometry only.
 Props stand clear of the buildings; rocks, crates and monkeys may lean into each other. Materials:
