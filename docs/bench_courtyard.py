@@ -154,20 +154,26 @@ def rss_bytes():
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
+def bake_arguments(ap, out, bakes):
+    """The options bake_once and export_once read (args.out, target, photons, time_budget, profile),
+    with --bakes and --export-only."""
+    ap.add_argument("--out", default=out)
+    ap.add_argument("--target", type=float, default=0.05, help="the bake's Target Error")
+    ap.add_argument("--photons", type=int, default=0, help="Max Photons (0: the add-on's default)")
+    ap.add_argument("--time-budget", type=float, default=0.0, help="Time Budget in seconds (0: none)")
+    ap.add_argument("--bakes", type=int, default=bakes, help="bakes in a row (the first makes the UV maps)")
+    ap.add_argument("--profile", action="store_true", help="cProfile each bake into DIR/profile_<k>.txt")
+    ap.add_argument("--export-only", action="store_true", help="export only, no engine bake (export stages)")
+
+
 def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     ap = argparse.ArgumentParser(prog="bench_courtyard.py")
-    ap.add_argument("--out", default="/tmp/bench_courtyard")
+    bake_arguments(ap, "/tmp/bench_courtyard", bakes=2)
     ap.add_argument("--objects", type=int, default=128, help="monkeys on the ground")
     ap.add_argument("--level", type=int, default=2, help="subdivision level of the monkeys")
-    ap.add_argument("--target", type=float, default=0.05, help="the bake's Target Error")
     ap.add_argument("--blender-subdiv", action="store_true",
                     help="export Blender's subdivided meshes (Native Subdivision off)")
-    ap.add_argument("--photons", type=int, default=0, help="Max Photons (0: the add-on's default)")
-    ap.add_argument("--time-budget", type=float, default=0.0, help="Time Budget in seconds (0: none)")
-    ap.add_argument("--bakes", type=int, default=2, help="bakes in a row (the first makes the UV maps)")
-    ap.add_argument("--profile", action="store_true", help="cProfile each bake into DIR/profile_<k>.txt")
-    ap.add_argument("--export-only", action="store_true", help="export only, no engine bake (export stages)")
     ap.add_argument("--gltf", action="store_true",
                     help="after the bakes, File > Export > glTF with PhotonLM lightmaps: DIR/courtyard.glb, its time and size")
     ap.add_argument("--scene-file", action="store_true",

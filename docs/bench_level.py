@@ -275,14 +275,8 @@ def scaling(one, two, full, cores=(2, 16, 64)):
 def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     ap = argparse.ArgumentParser(prog="bench_level.py")
-    ap.add_argument("--out", default="/tmp/bench_level")
+    bench_courtyard.bake_arguments(ap, "/tmp/bench_level", bakes=1)
     ap.add_argument("--scale", type=float, default=1.0, help="multiplies every object count")
-    ap.add_argument("--target", type=float, default=0.05, help="the bake's Target Error")
-    ap.add_argument("--photons", type=int, default=0, help="Max Photons (0: the add-on's default)")
-    ap.add_argument("--time-budget", type=float, default=0.0, help="Time Budget in seconds (0: none)")
-    ap.add_argument("--bakes", type=int, default=1, help="bakes in a row (the first makes the UV maps)")
-    ap.add_argument("--profile", action="store_true", help="cProfile each bake into DIR/profile_<k>.txt")
-    ap.add_argument("--export-only", action="store_true", help="export only, no engine bake")
     ap.add_argument("--scene-file", action="store_true", help="also write DIR/scene/level.json (for `photonlm bake`)")
     ap.add_argument("--save", action="store_true", help="save the level with its UV maps to DIR/level.blend")
     ap.add_argument("--scaling", nargs=3, metavar=("ONE", "TWO", "FULL"),

@@ -101,12 +101,13 @@ struct Estimator {
 // variance alone and with the final gather's part alone. The target judges
 // each group of TexelSpace::judged apart: the same three relative to the
 // group's own mean. Texels count by the share of them light can reach (once
-// a final gather has found it: Estimator::open_share). A group whose mean is at most kDarkGroupShare x the
-// whole's is dark, like one without light: an object buried in others (or
-// shut away from every light) holds only rounding residue and light leaked
-// along the seams, and its texels without a photon keep the variance of one
-// (the phantom hit), so relative to its own mean it would hold the bake to
-// the photon cap for what nobody sees (10 stops below the scene's mean).
+// a final gather has found it: Estimator::open_share). A group whose mean is
+// at most kDarkGroupShare x the whole's is dark, like one without light: an
+// object buried in others (or shut away from every light) holds only
+// rounding residue and light leaked along the seams, and its texels without a
+// photon keep the variance of one (the phantom hit), so relative to its own
+// mean it would hold the bake to the photon cap for what nobody sees (10
+// stops below the scene's mean).
 constexpr double kDarkGroupShare = 1e-3;
 struct ErrorEstimate : ErrorParts {
   // Per judged group; the whole's parts alone where there are none (every
