@@ -58,15 +58,20 @@ def _material(name, color):
     return scenes.diffuse_material(name, color)
 
 
-def _box(name, center, size, color):
-    """A box object of `size` (x, y, z) centred at `center`, its own material, a 64 x 64 lightmap."""
+def box_mesh(name, size):
+    """A box mesh of `size` (x, y, z) centred at its origin."""
     mesh = bpy.data.meshes.new(name)
     hx, hy, hz = (s / 2.0 for s in size)
     verts = [(sx * hx, sy * hy, sz * hz) for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
     faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
     mesh.from_pydata(verts, [], faces)
     mesh.update()
-    obj = bpy.data.objects.new(name, mesh)
+    return mesh
+
+
+def _box(name, center, size, color):
+    """A box object of `size` (x, y, z) centred at `center`, its own material, a 64 x 64 lightmap."""
+    obj = bpy.data.objects.new(name, box_mesh(name, size))
     obj.location = center
     obj.data.materials.append(_material(name, color))
     obj.photonlm.enabled = True

@@ -59,16 +59,6 @@ COUNTS = dict(tiles=100, buildings=60, canopies=50, walls=40, crates=340, monkey
               trees=50)
 
 
-def _box_mesh(name, size):
-    mesh = bpy.data.meshes.new(name)
-    hx, hy, hz = (s / 2.0 for s in size)
-    verts = [(sx * hx, sy * hy, sz * hz) for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
-    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
-    mesh.from_pydata(verts, [], faces)
-    mesh.update()
-    return mesh
-
-
 def _grid_mesh(name, size, cuts):
     """A square of side `size` in z = 0, cuts x cuts quads, facing up."""
     mesh = bpy.data.meshes.new(name)
@@ -161,7 +151,7 @@ def build(scale=1.0, seed=11):
         r, c = divmod(plot, side)
         x, y = (c + 0.5) * TILE - half, (r + 0.5) * TILE - half
         footprints.append((x, y, math.hypot(w, d) / 2.0))
-        obj = place("Building%02d" % i, _box_mesh("Building%02d" % i, (w, d, h)), (x, y, h / 2.0), 128,
+        obj = place("Building%02d" % i, bench_courtyard.box_mesh("Building%02d" % i, (w, d, h)), (x, y, h / 2.0), 128,
                     rotation=(0.0, 0.0, rng.uniform(0, math.pi)))
         bevel = obj.modifiers.new("Bevel", 'BEVEL')
         bevel.width = 0.08
@@ -177,7 +167,7 @@ def build(scale=1.0, seed=11):
         bevel.width = 0.03
         scenes.add_light("Lamp%02d" % i, 'POINT', (x, y, z - 0.5), energy=300.0,
                          color=(1.0, rng.uniform(0.7, 0.9), rng.uniform(0.5, 0.7)), shadow_soft_size=0.1)
-    block = _box_mesh("WallBlock", (1.0, 0.3, 2.0))
+    block = bench_courtyard.box_mesh("WallBlock", (1.0, 0.3, 2.0))
     for i in range(counts["walls"]):
         x, y = spot(6.0, 3.5)
         obj = place("Wall%02d" % i, block.copy(), (x, y, 1.0), 64, rotation=(0.0, 0.0, rng.uniform(0, math.pi)))
@@ -191,7 +181,7 @@ def build(scale=1.0, seed=11):
         mirror.use_mirror_merge = False
         obj.data.transform(mathutils.Matrix.Translation((0.0, 0.6, 0.0)))  # two rows, mirrored in y
     bpy.data.meshes.remove(block)
-    crate = _box_mesh("Crate", (0.8, 0.8, 0.8))
+    crate = bench_courtyard.box_mesh("Crate", (0.8, 0.8, 0.8))
     for i in range(counts["crates"]):
         x, y = spot()
         obj = place("Crate%03d" % i, crate, (x, y, 0.4), 32, rotation=(0.0, 0.0, rng.uniform(0, math.pi)))
