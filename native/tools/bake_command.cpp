@@ -51,6 +51,7 @@ struct Args {
   double target_error = 0, time_budget = 0;
   uint64_t photons = 0;
   uint32_t seed = 0, threads = 0;
+  plm::SceneFileOptions read;  // --max-file-mb
 };
 
 int bad_input(const std::string& message) {
@@ -75,6 +76,26 @@ bool parse_seconds(const char* s, double& out) {
   out = v;
   return true;
 }
+
+}  // namespace
+
+std::string parse_max_file_mb(const std::string& value, plm::SceneFileOptions& options) {
+  uint64_t mb = 0;
+  if (!parse_u64(value.c_str(), uint64_t(1) << 30, mb) || mb == 0)
+    return "--max-file-mb: '" + value + "' is not an integer in [1, 2^30]";
+  options.limits.max_file_bytes = mb << 20;
+  return "";
+}
+
+bool read_scene(const std::string& path, const plm::SceneFileOptions& options, plm::SceneFile& scene,
+                std::string& error) {
+  if (plm::read_scene_file(path, options, scene, error)) return true;
+  if (error.find("larger than the limit of") != std::string::npos)
+    error += " (" + std::to_string(options.limits.max_file_bytes >> 20) + " MiB; --max-file-mb N raises it)";
+  return false;
+}
+
+namespace {
 
 // Returns "" or the error.
 std::string parse_args(int argc, char** argv, Args& a) {
@@ -125,6 +146,9 @@ std::string parse_args(int argc, char** argv, Args& a) {
       a.directional = text == "on" ? 1 : 0;
     } else if (opt == "--parts") {
       a.parts.push_back(v);
+    } else if (opt == "--max-file-mb") {
+      const std::string e = parse_max_file_mb(v, a.read);
+      if (!e.empty()) return e;
     } else if (opt == "--threads") {
       if (!parse_u64(v, 0xffffffffu, u)) return "--threads: '" + std::string(v) + "' is not an integer >= 0";
       a.threads = uint32_t(u);
@@ -271,7 +295,7 @@ int bake_command(int argc, char** argv) {
 
   plm::SceneFile scene;
   std::string error;
-  if (!plm::read_scene_file(a.scene, plm::SceneFileOptions{}, scene, error)) return bad_input(error);
+  if (!read_scene(a.scene, a.read, scene, error)) return bad_input(error);
   plm_bake_settings s = scene.settings;
   if (a.has_target) s.target_error = a.target_error;
   if (a.has_budget) s.time_budget = a.time_budget;

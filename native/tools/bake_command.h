@@ -16,6 +16,13 @@ namespace plm_cli {
 // returns false and a message naming the folder.
 bool make_output_folder(const std::string& dir, std::string& error);
 
+// --max-file-mb N (bake, merge, gltf): the largest scene, OBJ or glTF file
+// read, in MiB, into options. Returns "" or the error.
+std::string parse_max_file_mb(const std::string& value, plm::SceneFileOptions& options);
+// plm::read_scene_file, its message on an oversized file naming --max-file-mb.
+bool read_scene(const std::string& path, const plm::SceneFileOptions& options, plm::SceneFile& scene,
+                std::string& error);
+
 // argv: the arguments after "bake". Returns the process exit code:
 // 0 ok, 1 bad input, 2 bake failure, 130 interrupted (SIGINT / SIGTERM).
 // With --shard K/N (1 <= K <= N) it bakes shard K of N: DIR gets only the

@@ -27,6 +27,7 @@
 #define STB_IMAGE_WRITE_IMPLEMENTATION
 #include <stb/stb_image_write.h>
 
+#include "bake_command.h"
 #include "io/scene_file.h"
 #include "photonlm/photonlm.h"
 
@@ -186,11 +187,19 @@ Value number(double v) { return Value(v); }
 int gltf_command(int argc, char** argv) {
   std::vector<std::string> inputs;
   std::string out;
+  plm::SceneFileOptions options;
+  options.keep_geometry = true;
   for (int i = 0; i < argc; ++i) {
     const std::string opt = argv[i];
-    if (opt == "-o" || opt == "--out") {
+    if (opt == "-o" || opt == "--out" || opt == "--max-file-mb") {
       if (i + 1 >= argc) return fail(kBadInput, "option " + opt + " needs a value");
-      out = argv[++i];
+      const std::string v = argv[++i];
+      if (opt == "--max-file-mb") {
+        const std::string e = parse_max_file_mb(v, options);
+        if (!e.empty()) return fail(kBadInput, e);
+      } else {
+        out = v;
+      }
     } else if (!opt.empty() && opt[0] == '-') {
       return fail(kBadInput, "unknown option " + opt);
     } else {
@@ -202,11 +211,9 @@ int gltf_command(int argc, char** argv) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::string& scene_path = inputs[0];
   const std::string dir = inputs[1] + "/";
-  plm::SceneFileOptions options;
-  options.keep_geometry = true;
   plm::SceneFile scene;
   std::string error;
-  if (!plm::read_scene_file(scene_path, options, scene, error)) return fail(kBadInput, error);
+  if (!read_scene(scene_path, options, scene, error)) return fail(kBadInput, error);
   nlohmann::json report;
   {
     std::ifstream in(dir + "report.json");

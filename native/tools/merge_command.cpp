@@ -34,6 +34,7 @@ int merge_command(int argc, char** argv) {
   std::string out_dir, scene_path;
   uint64_t threads = 0;
   double target = 0.0;
+  plm::SceneFileOptions read;  // --max-file-mb
   for (int i = 0; i < argc; ++i) {
     const std::string opt = argv[i];
     if (opt.empty() || opt[0] != '-') {
@@ -51,6 +52,9 @@ int merge_command(int argc, char** argv) {
       target = std::strtod(v.c_str(), &end);
       if (v.empty() || *end || !(target > 0.0) || !std::isfinite(target))
         return bad_input("--target-error: '" + v + "' is not a number > 0");
+    } else if (opt == "--max-file-mb") {
+      const std::string e = parse_max_file_mb(v, read);
+      if (!e.empty()) return bad_input(e);
     } else if (opt == "--threads") {
       char* end = nullptr;
       threads = std::strtoull(v.c_str(), &end, 10);
@@ -76,7 +80,7 @@ int merge_command(int argc, char** argv) {
   if (scene_path.empty()) return bad_input(parts[0] + ": names no scene file; give one with --scene");
 
   plm::SceneFile scene;
-  if (!plm::read_scene_file(scene_path, plm::SceneFileOptions{}, scene, error)) return bad_input(error);
+  if (!read_scene(scene_path, read, scene, error)) return bad_input(error);
   if (!make_output_folder(out_dir, error)) return bad_input(error);
 
   const auto t0 = std::chrono::steady_clock::now();

@@ -4,8 +4,9 @@
 //   photonlm cornell [--photons N] [--res N] [--seed S] [-o DIR]
 //   photonlm bake SCENE.json -o DIR [--target-error X] [--time-budget S] [--photons N] [--seed N] [--threads N]
 //                 [--directional on|off] [--shard K/N | --direct K/N | --gather K/N [--parts PATH]...]
-//   photonlm merge PART... -o DIR [--scene SCENE.json] [--threads N] [--target-error X]
-//   photonlm gltf SCENE.json BAKE_DIR -o FILE.glb
+//                 [--max-file-mb N]
+//   photonlm merge PART... -o DIR [--scene SCENE.json] [--threads N] [--target-error X] [--max-file-mb N]
+//   photonlm gltf SCENE.json BAKE_DIR -o FILE.glb [--max-file-mb N]
 // furnace/cornell: progress goes to stderr; results (time, photons, error) to stdout.
 // bake (bake_command.cpp): see docs/scene-file.md; shards and merge (merge_command.cpp): docs/farm.md.
 #include <chrono>
@@ -38,9 +39,10 @@ int usage(const char* error) {
                "       photonlm cornell [--photons N] [--res N] [--seed S] [--threads T] [-o DIR]\n"
                "       photonlm bake SCENE.json -o DIR [--target-error X] [--time-budget S] [--photons N]\n"
                "                     [--seed N] [--threads N] [--directional on|off]\n"
-               "                     [--shard K/N | --direct K/N | --gather K/N [--parts P]]\n"
+               "                     [--shard K/N | --direct K/N | --gather K/N [--parts P]] [--max-file-mb N]\n"
                "       photonlm merge PART... -o DIR [--scene SCENE.json] [--threads N] [--target-error X]\n"
-               "       photonlm gltf SCENE.json BAKE_DIR -o FILE.glb\n"
+               "                     [--max-file-mb N]\n"
+               "       photonlm gltf SCENE.json BAKE_DIR -o FILE.glb [--max-file-mb N]\n"
                "furnace: closed box with uniform emission and albedo; the exact texel value is E/(1-R).\n"
                "cornell: Cornell box with a 200 W area light; writes one EXR per object with -o.\n"
                "bake: bakes a JSON scene file (docs/scene-file.md) into DIR: one EXR per lightmap and\n"
@@ -50,7 +52,8 @@ int usage(const char* error) {
                "      --gather K/N the final gather of texel range K of N over the photon and direct parts in\n"
                "      P (default DIR) into DIR/gather-K-of-N.plmpart.\n"
                "merge: adds the part files of all N shards (files or folders; direct and gather parts of\n"
-               "      every texel range too, if given) and writes what bake writes.\n");
+               "      every texel range too, if given) and writes what bake writes.\n"
+               "--max-file-mb N: read scene, OBJ and glTF files of up to N MiB (default 256).\n");
   return 2;
 }
 

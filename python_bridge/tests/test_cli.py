@@ -136,6 +136,24 @@ def test_bad_options_and_missing_file_exit_1(tmp_path):
     assert r.returncode == 1 and "--photons" in r.stderr
 
 
+def test_max_file_mb_raises_the_file_limit(tmp_path):
+    # A 1.5 MiB scene file (spaces after the JSON): over a 1 MiB limit, under a 2 MiB one.
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(small_scene()) + " " * (3 << 19))
+    out = tmp_path / "out"
+    for command in (["bake", str(path), "-o", str(out)], ["gltf", str(path), str(out), "-o", str(tmp_path / "x.glb")]):
+        r = subprocess.run([CLI] + command + ["--max-file-mb", "1"], capture_output=True, text=True, timeout=300)
+        assert r.returncode == 1, r.stderr
+        assert "larger than the limit of 1048576 bytes (1 MiB; --max-file-mb N raises it)" in r.stderr, r.stderr
+    r = subprocess.run([CLI, "bake", str(path), "-o", str(out), "--max-file-mb", "2"], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert (out / "report.json").exists()
+    for bad in ("0", "-1", "lots"):
+        r, _ = run_bake(tmp_path, small_scene(), "--max-file-mb", bad)
+        assert r.returncode == 1 and "--max-file-mb: '%s' is not an integer" % bad in r.stderr, r.stderr
+
+
 def test_interrupt_leaves_no_files(tmp_path):
     import signal
     import time
