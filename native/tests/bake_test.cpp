@@ -267,9 +267,9 @@ double point_irradiance(const std::vector<PointLight>& points, double x, double 
 }
 
 // Several lights add up, whichever way the direct pass shares its shadow rays
-// among them: one ray to each (up to 4 lights), or one to a light chosen by
-// its unoccluded irradiance at the texel among all lights (up to 32) or among
-// the 32 brightest there (more).
+// among them: one ray to each (up to 4 lights), or one to the sun and one to
+// a lamp chosen by its unoccluded irradiance at the texel among all lamps (up
+// to 32) or among the 32 brightest there (more).
 // Point lights of different powers and heights plus a tilted sun over a black
 // plane, against the sum of their closed forms, texel by texel.
 TEST(Bake, SeveralLightsAddUpWhateverTheLightChoice) {
@@ -303,6 +303,43 @@ TEST(Bake, SeveralLightsAddUpWhateverTheLightChoice) {
     // joined the point's Sobol point and its noise was modelled).
     EXPECT_LT(z2 / 100.0, 2.0) << "mean squared z";
   }
+}
+
+// Lamps in a sun's shadow: a black roof 3 m up shades half of a black
+// ground from a sun at the zenith (10 W/m^2), eight 100 W lamps 1 m up light
+// both halves. The sun's unoccluded irradiance is most of every texel's
+// guess, so when it was one of the lights to choose from, the shaded half
+// sent it most of its samples for nothing. Every sample now sends a ray to
+// the sun and chooses among the lamps. Against the closed forms at 64
+// samples a texel: the shaded half's relative RMS error is 0.45 % (31.7 %
+// with the sun among the lights to choose), the lit half's 0.17 % (0.56 %).
+TEST(Bake, LampsInASunsShadowGetTheSamples) {
+  SceneBuilder b;
+  const uint32_t m = b.material("black", {0, 0, 0});
+  b.quad("ground", {-10, -10, 0}, {20, 0, 0}, {0, 20, 0}, m, 20);
+  b.quad("roof", {-10.5, -10.5, 3}, {10.5, 0, 0}, {0, 21, 0}, m, 4);
+  std::vector<PointLight> points;
+  for (int k = 0; k < 8; ++k) points.push_back({-8.0 + 2.3 * k, -6.0 + 1.7 * (k % 5), 1.0, 100.0});
+  add_point_lights(b, points);
+  plm_light sun = plm_test::tilted_sun(10.0f, 0.0f);
+  sun.angle = 0.0f;
+  b.light(sun, "sun");
+  auto exact = [&](double x, double y) { return ((x > 0.0 ? 10.0 : 0.0) + point_irradiance(points, x, y)) / M_PI; };
+  Baked r;
+  bake(b, settings(1000, 0, 64), r);
+  const Lightmap lm = r.map(0);
+  double squared[2] = {0, 0}, z2 = 0.0;
+  for (uint32_t j = 0; j < 20; ++j)
+    for (uint32_t i = 0; i < 20; ++i) {
+      const double truth = texel_truth(exact, i, j, PLM_TEXEL_CYCLES), d = lm.value(j * 20 + i) - truth;
+      squared[i < 10 ? 0 : 1] += d * d / (truth * truth);
+      z2 += d * d / (double(lm.error[j * 20 + i]) * lm.error[j * 20 + i]);
+    }
+  const double shade = std::sqrt(squared[0] / 200.0), lit = std::sqrt(squared[1] / 200.0);
+  std::printf("relative RMS error: shaded half %.4f, lit half %.4f; mean squared z %.2f\n", shade, lit, z2 / 400.0);
+  EXPECT_LT(shade, 0.02);
+  EXPECT_LT(lit, 0.0035);
+  EXPECT_LT(z2 / 400.0, 2.0) << "mean squared z";
 }
 
 // Cycles 3.4 models a point light of radius r as a disk facing the receiver:

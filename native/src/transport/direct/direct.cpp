@@ -29,6 +29,23 @@ float irradiance_guess(const Emitter& e, Vec3 p, Vec3 n) {
   return g >= 0.0f && g < 1e30f ? g : 0.0f;
 }
 
+// DirectPass::distant_ for these emitters.
+std::vector<uint32_t> distant_lights(const std::vector<Emitter>& emitters, size_t all_lights, size_t max_choice) {
+  if (emitters.size() <= all_lights || emitters.size() > max_choice) return {};
+  std::vector<uint32_t> out;
+  for (uint32_t k = 0; k < emitters.size(); ++k)
+    if (emitters[k].kind == EmitterKind::Sun || emitters[k].kind == EmitterKind::World) out.push_back(k);
+  if (out.size() > all_lights || out.size() == emitters.size()) return {};
+  return out;
+}
+
+std::vector<uint8_t> emitter_flags(size_t count, const std::vector<uint32_t>& set) {
+  if (set.empty()) return {};
+  std::vector<uint8_t> flags(count, 0);
+  for (uint32_t k : set) flags[k] = 1;
+  return flags;
+}
+
 }  // namespace
 
 double DirectSums::pair_variance_of_mean() const { return pairs_of_mean(pair_sq, choice_sq); }
@@ -61,13 +78,20 @@ DirectPass::DirectPass(const BakeScene& ctx)
     : rtc_(ctx.rtc), surfaces_(ctx.surfaces), views_(ctx.space.views), csgs_(ctx.space.csg_views),
       emitters_(ctx.emitters), textures_(ctx.textures.get()), passage_(ctx.passage.get()),
       points_(ctx.space.views, ctx.space.areas, ctx.settings), seed_(ctx.settings.seed), sobol_(ctx.settings.sobol),
-      offset_scale_(1e-6f * ctx.extent), table_(ctx.emitters),
+      offset_scale_(1e-6f * ctx.extent), distant_(distant_lights(ctx.emitters, kAllLights, kMaxLocalChoice)),
+      is_distant_(emitter_flags(ctx.emitters.size(), distant_)), table_(ctx.emitters, is_distant_),
       all_lights_(ctx.emitters.size() <= kAllLights),
       local_choice_(!all_lights_ && ctx.emitters.size() <= kMaxLocalChoice), split_(ctx.split) {
   const std::vector<Emitter>& emitters = ctx.emitters;
   const std::vector<MeshView>& views = ctx.space.views;
-  if (!all_lights_ && emitters.size() <= kCandidates)
-    for (uint32_t k = 0; k < emitters.size(); ++k) all_candidates_.push_back(k);
+  if (!all_lights_ && emitters.size() - distant_.size() <= kCandidates) {
+    all_slot_.assign(emitters.size(), -1);
+    for (uint32_t k = 0; k < emitters.size(); ++k)
+      if (is_distant_.empty() || !is_distant_[k]) {
+        all_slot_[k] = int32_t(all_candidates_.size());
+        all_candidates_.push_back(k);
+      }
+  }
   is_sky_.assign(emitters.size(), 0);
   for (size_t k = 0; k < emitters.size(); ++k)
     if (emitters[k].kind == EmitterKind::World && emitters[k].map_part != 1 && emitters[k].portals.empty())
@@ -101,8 +125,8 @@ void DirectPass::select_candidates(Vec3 p, Vec3 n, uint32_t* chosen, ChoiceScrat
   std::vector<uint32_t>& order = scratch.order;
   guess.resize(emitters_.size());
   order.resize(emitters_.size());
-  for (uint32_t i = 0; i < emitters_.size(); ++i) {
-    guess[i] = irradiance_guess(emitters_[i], p, n);
+  for (uint32_t i = 0; i < emitters_.size(); ++i) {  // the distant_ lights last (-1): never candidates
+    guess[i] = !is_distant_.empty() && is_distant_[i] ? -1.0f : irradiance_guess(emitters_[i], p, n);
     order[i] = i;
   }
   std::nth_element(order.begin(), order.begin() + kCandidates, order.end(), [&](uint32_t a, uint32_t b) {
@@ -387,7 +411,7 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
   // The candidates of the local choice: all lights, or with more than
   // kCandidates the brightest (by unoccluded irradiance) at the texel's first
   // point, scratch.slot_of[k] their place (-1: not a candidate).
-  const bool select = local_choice_ && emitters_.size() > kCandidates;
+  const bool select = local_choice_ && emitters_.size() - distant_.size() > kCandidates;
   // The local choice's shares, from the lights' unoccluded irradiance at the
   // texel's first point (per point they cost far more for no lower error).
   bool chosen_here = false;
@@ -398,9 +422,9 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
   if (select && scratch.slot_of.size() < emitters_.size()) scratch.slot_of.resize(emitters_.size(), -1);
   // Every light is sampled with probability 1 in all-lights mode.
   auto probability = [&](size_t i) {
-    if (all_lights_) return 1.0f;
+    if (all_lights_ || (!is_distant_.empty() && is_distant_[i])) return 1.0f;
     if (!local_choice_) return table_.probability(i);
-    const int32_t slot = select ? scratch.slot_of[i] : int32_t(i);
+    const int32_t slot = select ? scratch.slot_of[i] : all_slot_[i];
     return (slot >= 0 ? share[slot] : 0.0f) + (1.0f - local) * table_.probability(i);
   };
   // Samples go in chunks: first their shadow rays, traced in packets, then
@@ -463,7 +487,10 @@ void DirectPass::sample(uint32_t mesh_id, uint32_t texel, uint32_t round, uint32
       }
       ps.k = k;
       ps.origin = offset_origin(p, normal, offset_scale_);
-      for (size_t kk = all_lights_ ? 0 : k, end = all_lights_ ? emitters_.size() : k + 1; kk < end; ++kk) {
+      // The lights the sample sends a shadow ray to: all, or the distant_ ones and the chosen one.
+      const size_t distant = distant_.size();
+      for (size_t r = 0, end = all_lights_ ? emitters_.size() : distant + 1; r < end; ++r) {
+        const size_t kk = all_lights_ ? r : r < distant ? distant_[r] : k;
         const Emitter& em = emitters_[kk];
         DirectSample ds = sample_direct(em, p, shading, u);
         // Light from below the triangle's own plane does not count (Cycles' reflection test on Ng).

@@ -175,7 +175,6 @@ class DirectPass {
   uint32_t seed_;
   bool sobol_;
   float offset_scale_;
-  EmitterTable table_;
   // Which light a sample's shadow ray goes to. Up to kAllLights emitters:
   // every sample point sends one to each (a sun and a sky: 2 rays, and no
   // noise from choosing between them). More: one,
@@ -184,6 +183,14 @@ class DirectPass {
   // share: no bias). The candidates are all lights up to kCandidates, else
   // the kCandidates brightest there (a cost of O(lights) per texel). Beyond
   // kMaxLocalChoice lights (emissive meshes), one chosen by power.
+  // With a choice, a sun and the world (up to kAllLights of them: distant_)
+  // still get a ray from every sample, and the choice is among the other
+  // lights: the unoccluded irradiance of a sun or a sky says nothing of
+  // shade, so in a building's shadow the sun took most of the samples and
+  // gave nothing, while the lamps there were seldom chosen.
+  std::vector<uint32_t> distant_;
+  std::vector<uint8_t> is_distant_;  // per emitter (empty without distant_)
+  EmitterTable table_;               // by power, the distant_ lights left out
   static constexpr size_t kAllLights = 4, kCandidates = 32, kMaxLocalChoice = 256;
   bool all_lights_;
   // All lights, a world among them, no passable materials: each sample's
@@ -193,7 +200,10 @@ class DirectPass {
   bool split_sky_ = false;
   std::vector<uint8_t> is_sky_;
   bool local_choice_;
-  std::vector<uint32_t> all_candidates_;  // 0 .. lights - 1 when there are at most kCandidates
+  // The candidates when there are at most kCandidates (every light not in
+  // distant_), and each emitter's place among them (-1: none).
+  std::vector<uint32_t> all_candidates_;
+  std::vector<int32_t> all_slot_;
   SplitLayout split_;
 };
 

@@ -91,14 +91,15 @@ Emitter light_emitter(const Light& light, int32_t conventions) {
 
 }  // namespace
 
-EmitterTable::EmitterTable(const std::vector<Emitter>& emitters) {
+EmitterTable::EmitterTable(const std::vector<Emitter>& emitters, const std::vector<uint8_t>& skip) {
+  auto pick = [&](size_t k) { return skip.empty() || !skip[k] ? double(emitters[k].pick) : 0.0; };
   double total = 0.0;
-  for (const Emitter& e : emitters) total += e.pick;
+  for (size_t k = 0; k < emitters.size(); ++k) total += pick(k);
   double running = 0.0;
-  for (const Emitter& e : emitters) {
-    running += e.pick;
+  for (size_t k = 0; k < emitters.size(); ++k) {
+    running += pick(k);
     cdf_.push_back(running / total);
-    pick_.push_back(float(e.pick / total));
+    pick_.push_back(float(pick(k) / total));
   }
   if (!cdf_.empty()) cdf_.back() = 1.0;
 }

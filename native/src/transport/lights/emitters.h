@@ -110,7 +110,8 @@ std::vector<Emitter> build_emitters(const Scene& scene, Vec3 scene_center, float
 // Chooses emitters in proportion to their power (mean RGB flux).
 class EmitterTable {
  public:
-  explicit EmitterTable(const std::vector<Emitter>& emitters);
+  // skip (empty, or one flag per emitter): emitters never chosen (probability 0).
+  explicit EmitterTable(const std::vector<Emitter>& emitters, const std::vector<uint8_t>& skip = {});
   // The emitter for a uniform number u in [0, 1).
   size_t choose(double u) const {
     if (cdf_.size() <= 1) return 0;  // one light: no search per photon
