@@ -186,8 +186,9 @@ class DirectPass {
   // With a choice, a sun and the world (up to kAllLights of them: distant_)
   // still get a ray from every sample, and the choice is among the other
   // lights: the unoccluded irradiance of a sun or a sky says nothing of
-  // shade, so in a building's shadow the sun took most of the samples and
-  // gave nothing, while the lamps there were seldom chosen.
+  // shade, so in a building's shadow a sun among the choices would take most
+  // of the samples and give nothing, while the lamps there would seldom be
+  // chosen.
   std::vector<uint32_t> distant_;
   std::vector<uint8_t> is_distant_;  // per emitter (empty without distant_)
   EmitterTable table_;               // by power, the distant_ lights left out
