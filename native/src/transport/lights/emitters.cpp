@@ -98,8 +98,8 @@ EmitterTable::EmitterTable(const std::vector<Emitter>& emitters, const std::vect
   double running = 0.0;
   for (size_t k = 0; k < emitters.size(); ++k) {
     running += pick(k);
-    cdf_.push_back(running / total);
-    pick_.push_back(float(pick(k) / total));
+    cdf_.push_back(total > 0.0 ? running / total : 1.0);
+    pick_.push_back(total > 0.0 ? float(pick(k) / total) : 0.0f);
   }
   if (!cdf_.empty()) cdf_.back() = 1.0;
 }
