@@ -151,6 +151,16 @@ def main():
                  "the export reports the cage, no fallback to Blender's mesh: %s"
                  % [t for t in texts if "blob" in t])
 
+    # ---- the command the export suggests reads the file whatever its size -----------------------------
+    command = scene_file_export.bake_command(scene_json)
+    big = os.path.join(out, "big.json")
+    with open(big, "wb") as f:
+        f.truncate(300 << 20)  # sparse: 300 MiB, over the CLI's 256 MiB
+    big_command = scene_file_export.bake_command(big)
+    os.remove(big)
+    checks.check(command.endswith("-o DIR") and big_command.endswith("-o DIR --max-file-mb 300"),
+                 "the suggested commands: %s; %s" % (command, big_command))
+
     # ---- the CLI bakes the files -----------------------------------------------------------------------
     for label, path in (("inline", scene_json), ("obj", obj_json)):
         cli_out = os.path.join(out, label, "baked")

@@ -19,6 +19,7 @@ Light groups (export/lightgroups.py) go into the file as its "light_groups" and 
 metadata lists the groups. With Directional on the file's settings say "directional": true and
 `photonlm bake` writes <mesh>_lightmap_sh0..3.exr beside each lightmap (report.json's "sh").
 """
+import os
 import types
 
 import bpy
@@ -32,6 +33,17 @@ from ..version import VERSION
 
 class ExportError(Exception):
     """The export could not be written; the message is for the user."""
+
+
+CLI_FILE_LIMIT_MB = 256  # the largest file `photonlm bake` reads without --max-file-mb
+
+
+def bake_command(path):
+    """The command that bakes the scene file at path: with --max-file-mb where the file is larger
+    than `photonlm bake` reads by default (inline meshes take about 300 bytes a triangle)."""
+    mb = -(-os.path.getsize(path) // (1 << 20))
+    return 'photonlm bake "%s" -o DIR%s' % (os.path.basename(path),
+                                            " --max-file-mb %d" % mb if mb > CLI_FILE_LIMIT_MB else "")
 
 
 def export_scene_file(context, path, reports=None, obj_threshold=200_000):

@@ -1,6 +1,4 @@
 """File > Export > PhotonLM scene (.json) (bake/scene_file.py writes it)."""
-import os
-
 import bpy
 from bpy.props import StringProperty
 from bpy_extras.io_utils import ExportHelper
@@ -40,8 +38,8 @@ class PHOTONLM_OT_export_scene_file(bpy.types.Operator, ExportHelper):
             self.report({'ERROR'}, "PhotonLM export failed: %s" % e)
             return {'CANCELLED'}
         report_all(self, reports)
-        self.report({'INFO'}, "Exported %d lightmaps to %s; bake with: photonlm bake \"%s\" -o DIR"
-                    % (len(meta["objects"]), path, os.path.basename(path)))
+        self.report({'INFO'}, "Exported %d lightmaps to %s; bake with: %s"
+                    % (len(meta["objects"]), path, scene_file.bake_command(path)))
         return {'FINISHED'}
 
 def menu_export(self, context):
