@@ -285,10 +285,33 @@ TEST(Reconstruct, LinearFitIsExactOnLinearFieldsEvenOneSided) {
     if (t == 5 * 16 + 5) continue;
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(value[3 * t + c], mean[3 * t + c], 1e-9) << "texel " << t;
   }
-  EXPECT_EQ(value[3 * (5 * 16 + 5)], 1000.0);
+  EXPECT_NEAR(value[3 * (5 * 16 + 5)], 1000.0, 1e-9);
   EXPECT_NEAR(out_var[10 * 16 + 3], 1.0 / 25.0, 1e-12);  // full window
   EXPECT_GT(out_var[10 * 16 + 7], 1.0 / 25.0);            // one-sided: fewer neighbours, more variance
   EXPECT_LT(out_var[10 * 16 + 7], 1.0);
+}
+
+// The fit keeps a lightmap's total where the field curves near its edges:
+// bounce light peaking inside a surface and falling towards its edges (a
+// ceiling over a sunlit patch), where the fits' windows are one-sided or
+// their radius changes from texel to texel (the gather's reach).
+TEST(Reconstruct, LinearFitKeepsTheTotal) {
+  const TexelAreas a = compute_texel_areas(square16());
+  std::vector<double> mean(3 * 256), var(256, 1.0), value, out_var;
+  std::vector<uint8_t> radius(256, 2);
+  double total = 0.0;
+  for (uint32_t t = 0; t < 256; ++t) {
+    const double x = t % 16 - 9.0, y = t / 16 - 6.0;
+    for (int c = 0; c < 3; ++c) mean[3 * t + c] = std::exp(-(x * x + y * y) / 30.0) * (1.0 + c);
+    total += mean[3 * t];
+    if (t % 16 == 0 || t / 16 == 15) radius[t] = 0;  // next to a wall
+  }
+  reconstruct_linear(a, 16, 16, mean.data(), var.data(), nullptr, 2, value, out_var, radius.data());
+  double kept = 0.0, kept_blue = 0.0;
+  for (uint32_t t = 0; t < 256; ++t) kept += value[3 * t], kept_blue += value[3 * t + 2];
+  std::printf("[ measured ] the fit keeps %.5f of the total\n", kept / total);
+  EXPECT_NEAR(kept / total, 1.0, 0.005);  // 0.955 without the scale
+  EXPECT_NEAR(kept_blue / kept, 3.0, 1e-12);  // the same scale for every channel of a grey field
 }
 
 TEST(Dilate, FillsRingsFromFilledNeighbours) {

@@ -210,14 +210,19 @@ void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, c
   const float reach = 1.5f * float(radius + 1) * texel_width;
   const double floor = guide ? guide_floor_of(ta, guide, n) : 0.0;
   const uint32_t r_max = std::min(radius, kMaxRadius);
+  auto radius_of = [&](uint32_t t) -> int64_t { return texel_radius ? std::min<uint32_t>(texel_radius[t], r_max) : r_max; };
+  // Texel k takes part in t's fit.
+  auto pools = [&](uint32_t t, uint32_t k) {
+    return k == t || (same_surface(ta, t, k, reach, min_cos) && (!guide || similar_guide(guide, k, t, floor)));
+  };
+  // Per texel, the fit's intercept weights (first row of the inverse of the
+  // normal equations): texel k's weight in t's value is area_k (e0 + e1 dx + e2 dy).
+  std::vector<double> coef(3 * n, 0.0);
   for_rows(height, [&](uint32_t, uint32_t row) {
     for (uint32_t t = row * width; t < (row + 1) * width; ++t) {
       if (!(ta.area[t] > 0.0)) continue;
-      const int64_t r = texel_radius ? std::min<uint32_t>(texel_radius[t], r_max) : r_max;
+      const int64_t r = radius_of(t);
       const int64_t x = t % width, y = t / width;
-      auto pools = [&](uint32_t k) {  // texel k takes part in t's fit
-        return k == t || (same_surface(ta, t, k, reach, min_cos) && (!guide || similar_guide(guide, k, t, floor)));
-      };
       // Normal equations of the fit v = a + b dx + c dy, weights = texel areas;
       // the texels that take part, in row order, for the second loop.
       double m[6] = {0, 0, 0, 0, 0, 0};  // s1, sx, sy, sxx, sxy, syy
@@ -226,7 +231,7 @@ void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, c
       for (int64_t yy = std::max<int64_t>(y - r, 0); yy <= std::min<int64_t>(y + r, int64_t(height) - 1); ++yy)
         for (int64_t xx = std::max<int64_t>(x - r, 0); xx <= std::min<int64_t>(x + r, int64_t(width) - 1); ++xx) {
           const uint32_t k = uint32_t(yy * width + xx);
-          if (!pools(k)) continue;
+          if (!pools(t, k)) continue;
           part[parts++] = k;
           const double w = ta.area[k], dx = double(xx - x), dy = double(yy - y);
           m[0] += w, m[1] += w * dx, m[2] += w * dy, m[3] += w * dx * dx, m[4] += w * dx * dy, m[5] += w * dy * dy;
@@ -236,7 +241,8 @@ void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, c
       const double det = m[0] * c0 + m[1] * c1 + m[2] * c2;
       // An ill-posed fit (neighbours along a line, or none): the weighted mean.
       const bool linear = det > 1e-6 * m[0] * m[0] * m[0];
-      double e[3] = {linear ? c0 / det : 1.0 / m[0], linear ? c1 / det : 0.0, linear ? c2 / det : 0.0};
+      double* e = &coef[3 * size_t(t)];
+      e[0] = linear ? c0 / det : 1.0 / m[0], e[1] = linear ? c1 / det : 0.0, e[2] = linear ? c2 / det : 0.0;
       double sum3[3] = {0, 0, 0}, var = 0.0, var2 = 0.0;
       for (size_t j = 0; j < parts; ++j) {
         const uint32_t k = part[j];
@@ -251,6 +257,41 @@ void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, c
       if (var2_out) (*var2_out)[t] = var2;
     }
   });
+  // The fits' total over the lightmap, sum_t area_t value_t, is sum_k area_k
+  // mean_k C_k with C_k = sum_t area_t (e0 + e1 dx + e2 dy) over the fits k
+  // takes part in: 1 where the windows are whole, not at a surface's edges
+  // or where the radius changes. There a field that curves (bounce light
+  // peaking inside a room's ceiling and falling to its edges) loses or gains
+  // light: the surfaces of a room lit through a window 1-4 %. So the fit is
+  // scaled to keep the total, with its own values standing in for the means'
+  // expectations (their noise would carry into the scale).
+  std::vector<double> column(n, 0.0);
+  for_rows(height, [&](uint32_t, uint32_t row) {
+    for (uint32_t k = row * width; k < (row + 1) * width; ++k) {
+      if (!(ta.area[k] > 0.0)) continue;
+      const int64_t x = k % width, y = k / width;
+      for (int64_t yy = std::max<int64_t>(y - r_max, 0); yy <= std::min<int64_t>(y + r_max, int64_t(height) - 1); ++yy)
+        for (int64_t xx = std::max<int64_t>(x - r_max, 0); xx <= std::min<int64_t>(x + r_max, int64_t(width) - 1); ++xx) {
+          const uint32_t t = uint32_t(yy * width + xx);
+          if (!(ta.area[t] > 0.0)) continue;
+          const int64_t r = radius_of(t);
+          if (std::abs(xx - x) > r || std::abs(yy - y) > r || !pools(t, k)) continue;
+          const double* e = &coef[3 * size_t(t)];
+          column[k] += ta.area[t] * (e[0] + e[1] * double(x - xx) + e[2] * double(y - yy));
+        }
+    }
+  });
+  double kept[3] = {0, 0, 0}, expected[3] = {0, 0, 0};
+  for (size_t t = 0; t < n; ++t)
+    for (int c = 0; c < 3; ++c) {
+      kept[c] += ta.area[t] * value3[3 * t + c];
+      expected[c] += ta.area[t] * column[t] * value3[3 * t + c];
+    }
+  for (int c = 0; c < 3; ++c) {
+    const double s = expected[c] > 0.0 ? kept[c] / expected[c] : 1.0;
+    if (!(s > 0.5 && s < 2.0)) continue;
+    for (size_t t = 0; t < n; ++t) value3[3 * t + c] *= s;
+  }
 }
 
 }  // namespace plm

@@ -221,7 +221,7 @@ std::unique_ptr<BakeScene> set_up(const Scene& scene, const BakeSettings& settin
 
 Estimator estimator(const BakeScene& ctx, const BakeRun& run) {
   return {ctx.space,           run.direct.values, run.acc, ctx.settings.filter_radius, &run.gather,
-          ctx.settings.gather, &run.direct,      &run.open_shares.share};
+          ctx.settings.gather, &run.direct,      &run.open_shares.share, ctx.settings.cycles_window};
 }
 
 void direct_pass(const BakeScene& ctx, BakeRun& run, CoveredSlice slice) {

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "lightmap/reconstruct.h"
 #include "util/math.h"
@@ -39,6 +40,24 @@ double percentile(std::vector<double>& v, double q) {
   const size_t k = std::min(v.size() - 1, size_t(q * double(v.size())));
   std::nth_element(v.begin(), v.begin() + k, v.end());
   return v[k];
+}
+
+// The mean of `value` over texel t's eight neighbours where it is a number
+// and takes_part holds; NaN where none.
+template <typename TakesPart>
+double neighbours_mean(const std::vector<double>& value, uint32_t width, uint32_t height, uint32_t t,
+                       TakesPart&& takes_part) {
+  const int64_t x = t % width, y = t / width;
+  double sum = 0.0;
+  uint32_t count = 0;
+  for (int64_t yy = std::max<int64_t>(y - 1, 0); yy <= std::min<int64_t>(y + 1, int64_t(height) - 1); ++yy)
+    for (int64_t xx = std::max<int64_t>(x - 1, 0); xx <= std::min<int64_t>(x + 1, int64_t(width) - 1); ++xx) {
+      const uint32_t m = uint32_t(yy * width + xx);
+      if (m == t || std::isnan(value[m]) || !takes_part(m)) continue;
+      sum += value[m];
+      ++count;
+    }
+  return count ? sum / double(count) : std::numeric_limits<double>::quiet_NaN();
 }
 
 }  // namespace
@@ -157,6 +176,27 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
                              : least_error_radius(n, radius.data(), fit_bias, is_usable, fit_variance);
   const double* g_value = fits[fit_r];
   const double* g_fit_var = fit_vars[fit_r];
+  // The gather's variance and, near walls, the photons' excess squared
+  // difference from the gather (see below), per texel.
+  std::vector<double>& v_gathers = b.v_gather;
+  std::vector<double>& excess = b.excess;
+  v_gathers.assign(n, 0.0);
+  excess.assign(n, std::numeric_limits<double>::quiet_NaN());
+  for (size_t t = 0, k = space.covered_begin[i]; t < n; ++t) {
+    if (!(space.areas[i].area[t] > 0.0)) continue;
+    const GatherInfo& info = gather->info[k++];
+    if (!usable[t]) continue;
+    const double v_lookups = (1.0 - rho) * fit_rays[fit_r][t] + rho * info.lookup_all + info.lookup_wide;
+    v_gathers[t] = g_fit_var[t] + fit_bias.sq[std::min<uint32_t>(radius[t], fit_r)] + v_lookups;
+    if (central_window && radius[t] < kGatherRadius) {
+      const double* pv = &value3[3 * t];
+      const double* gv = &g_value[3 * t];
+      const double diff = (pv[0] + pv[1] + pv[2] - gv[0] - gv[1] - gv[2]) / 3.0;
+      excess[t] = diff * diff - variance[t] - v_gathers[t];
+    }
+  }
+  const uint32_t width_i = mesh.lightmap_width, height_i = mesh.lightmap_height;
+  const float reach = float(3.0 * width);
   for (size_t t = 0, k = space.covered_begin[i]; t < n; ++t) {
     if (!(space.areas[i].area[t] > 0.0)) continue;
     const GatherInfo& info = gather->info[k++];
@@ -164,8 +204,8 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
     double v_photons = variance[t], bias_sq = 0.0;
     const double v_lookups = (1.0 - rho) * fit_rays[fit_r][t] + rho * info.lookup_all + info.lookup_wide;
     const double fit_bias_sq = fit_bias.sq[std::min<uint32_t>(radius[t], fit_r)];
-    const double v_gather = g_fit_var[t] + fit_bias_sq + v_lookups;
-    if (radius[t] < kGatherRadius) {
+    const double v_gather = v_gathers[t];
+    if (central_window && radius[t] < kGatherRadius) {
       // Near a wall the photons' mean over the whole texel is biased
       // against the value over the points the direct light and the gather
       // sample (the central square): where the two disagree by more than
@@ -173,10 +213,17 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
       // the squared bias) joins the photons' variance. (Joined to both, it
       // would set a floor under the error that no photon count lowers: the
       // 21-monkey courtyard took 3.3 M photons to 5 % instead of 16 k.)
-      const double* pv = &value3[3 * t];
-      const double* gv = &g_value[3 * t];
-      const double diff = (pv[0] + pv[1] + pv[2] - gv[0] - gv[1] - gv[2]) / 3.0;
-      bias_sq = std::max(0.0, diff * diff - v_photons - v_gather);
+      // The excess is the neighbours' along the wall, not the texel's own:
+      // a texel's own would lower the photons' weight exactly where their
+      // noise ran high, and photon counts are skewed (few texels far above
+      // their mean, many a little below), so the blend read low: the walls
+      // and ceiling of a room lit through a window 1.5-3.5 %
+      // (Bake.GatherBlendKeepsTheLight).
+      bias_sq = neighbours_mean(excess, width_i, height_i, uint32_t(t), [&](uint32_t m) {
+        return same_surface(space.areas[i], uint32_t(t), m, reach, 0.9f);
+      });
+      if (std::isnan(bias_sq)) bias_sq = excess[t];
+      bias_sq = std::max(0.0, bias_sq);
       v_photons += bias_sq;
     }
     const double w = v_photons + v_gather > 0.0 ? v_gather / (v_photons + v_gather) : 0.0;

@@ -29,6 +29,7 @@ struct EstimateBuffers {
   LookupError lookup;
   std::vector<double> guide;
   std::vector<double> g_guide, g_mean, g_var, g_value, g_fit_var, lookup_rays, rays_fit, fit1, var1, rays1;
+  std::vector<double> v_gather, excess;
   std::vector<uint8_t> usable, radius;
   // Per texel, the photons' weight w in the indirect light's blend with the
   // final gather (combine_gather; 1 where the gather is not used); empty
@@ -59,6 +60,9 @@ struct Estimator {
   // (the final gather's OpenShares::share), or null / empty: all open. The
   // error counts texels by it: a texel inside another object is never seen.
   const std::vector<float>* open_share = nullptr;
+  // The direct light and the gather sample texels' central squares (texel
+  // value CYCLES), the photons the whole texel: near walls they differ.
+  bool central_window = false;
   // Texel t of mesh i's open share (1 without shares).
   double open_weight(size_t i, size_t t) const;
   // The relative variance of the level of mesh i's indirect light, sum k^2 /
