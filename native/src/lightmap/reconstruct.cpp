@@ -289,7 +289,7 @@ void reconstruct_linear(const TexelAreas& ta, uint32_t width, uint32_t height, c
     }
   for (int c = 0; c < 3; ++c) {
     const double s = expected[c] > 0.0 ? kept[c] / expected[c] : 1.0;
-    if (!(s > 0.5 && s < 2.0)) continue;
+    if (!(s > 0.5 && s < 2.0)) continue;  // (a fit of mostly zeros, or of texels of mixed sign)
     for (size_t t = 0; t < n; ++t) value3[3 * t + c] *= s;
   }
 }

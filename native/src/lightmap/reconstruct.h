@@ -85,6 +85,9 @@ uint32_t reconstruct_indirect(const TexelAreas& ta, uint32_t width, uint32_t hei
 // the same-surface, similar-guide texels within `radius`: its value at the
 // texel's centre, and that value's variance. Unlike a mean, a linear fit has
 // no first-order bias where the neighbourhood is one-sided (a wall's foot).
+// The fits are scaled to keep the lightmap's total (sum of area x value,
+// per channel): one-sided windows and changing radii weigh some texels more
+// than others, which moves the total of a field that curves near the edges.
 // `texel_radius` (optional) caps the radius per texel; min_cos is the least
 // cosine between the normals of texels that fit together (same_surface).
 // With variance2 (optional), var2_out gets the fit's variance for those
