@@ -135,7 +135,7 @@ def build_open_sky():
     world = bpy.context.scene.world
     nt = world.node_tree
     sky = nt.nodes.new('ShaderNodeTexSky')
-    sky.sky_type = 'NISHITA'
+    sky.sky_type = scenes.physical_sky_type()
     sky.sun_elevation = math.radians(35.0)
     sky.sun_rotation = math.radians(60.0)
     nt.links.new(sky.outputs['Color'], nt.nodes['Background'].inputs['Color'])
