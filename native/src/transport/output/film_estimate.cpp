@@ -176,35 +176,32 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
                              : least_error_radius(n, radius.data(), fit_bias, is_usable, fit_variance);
   const double* g_value = fits[fit_r];
   const double* g_fit_var = fit_vars[fit_r];
-  // The gather's variance and, near walls, the photons' excess squared
-  // difference from the gather (see below), per texel.
-  std::vector<double>& v_gathers = b.v_gather;
+  auto lookups_variance = [&](size_t t, const GatherInfo& info) {
+    return (1.0 - rho) * fit_rays[fit_r][t] + rho * info.lookup_all + info.lookup_wide;
+  };
+  auto fit_bias_sq_of = [&](size_t t) { return fit_bias.sq[std::min<uint32_t>(radius[t], fit_r)]; };
+  // Under central-square values, near walls: the photons' excess squared
+  // difference from the gather over both variances, per texel (see below).
   std::vector<double>& excess = b.excess;
-  v_gathers.assign(n, 0.0);
-  excess.assign(n, std::numeric_limits<double>::quiet_NaN());
-  for (size_t t = 0, k = space.covered_begin[i]; t < n; ++t) {
+  excess.assign(central_window ? n : 0, std::numeric_limits<double>::quiet_NaN());
+  for (size_t t = 0, k = space.covered_begin[i]; central_window && t < n; ++t) {
     if (!(space.areas[i].area[t] > 0.0)) continue;
     const GatherInfo& info = gather->info[k++];
-    if (!usable[t]) continue;
-    const double v_lookups = (1.0 - rho) * fit_rays[fit_r][t] + rho * info.lookup_all + info.lookup_wide;
-    v_gathers[t] = g_fit_var[t] + fit_bias.sq[std::min<uint32_t>(radius[t], fit_r)] + v_lookups;
-    if (central_window && radius[t] < kGatherRadius) {
-      const double* pv = &value3[3 * t];
-      const double* gv = &g_value[3 * t];
-      const double diff = (pv[0] + pv[1] + pv[2] - gv[0] - gv[1] - gv[2]) / 3.0;
-      excess[t] = diff * diff - variance[t] - v_gathers[t];
-    }
+    if (!usable[t] || radius[t] >= kGatherRadius) continue;
+    const double* pv = &value3[3 * t];
+    const double* gv = &g_value[3 * t];
+    const double diff = (pv[0] + pv[1] + pv[2] - gv[0] - gv[1] - gv[2]) / 3.0;
+    excess[t] = diff * diff - variance[t] - (g_fit_var[t] + fit_bias_sq_of(t) + lookups_variance(t, info));
   }
-  const uint32_t width_i = mesh.lightmap_width, height_i = mesh.lightmap_height;
-  const float reach = float(3.0 * width);
+  const float reach = float(3.0 * width);  // the neighbours' (same_surface)
   for (size_t t = 0, k = space.covered_begin[i]; t < n; ++t) {
     if (!(space.areas[i].area[t] > 0.0)) continue;
     const GatherInfo& info = gather->info[k++];
     if (!usable[t]) continue;
     double v_photons = variance[t], bias_sq = 0.0;
-    const double v_lookups = (1.0 - rho) * fit_rays[fit_r][t] + rho * info.lookup_all + info.lookup_wide;
-    const double fit_bias_sq = fit_bias.sq[std::min<uint32_t>(radius[t], fit_r)];
-    const double v_gather = v_gathers[t];
+    const double v_lookups = lookups_variance(t, info);
+    const double fit_bias_sq = fit_bias_sq_of(t);
+    const double v_gather = g_fit_var[t] + fit_bias_sq + v_lookups;
     if (central_window && radius[t] < kGatherRadius) {
       // Near a wall the photons' mean over the whole texel is biased
       // against the value over the points the direct light and the gather
@@ -217,9 +214,9 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
       // a texel's own would lower the photons' weight exactly where their
       // noise ran high, and photon counts are skewed (few texels far above
       // their mean, many a little below), so the blend read low: the walls
-      // and ceiling of a room lit through a window 1.5-3.5 %
+      // and ceiling of a room lit through a window 1-3 %
       // (Bake.GatherBlendKeepsTheLight).
-      bias_sq = neighbours_mean(excess, width_i, height_i, uint32_t(t), [&](uint32_t m) {
+      bias_sq = neighbours_mean(excess, mesh.lightmap_width, mesh.lightmap_height, uint32_t(t), [&](uint32_t m) {
         return same_surface(space.areas[i], uint32_t(t), m, reach, 0.9f);
       });
       if (std::isnan(bias_sq)) bias_sq = excess[t];
