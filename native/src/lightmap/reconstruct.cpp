@@ -19,6 +19,18 @@ bool same_surface(const TexelAreas& ta, uint32_t a, uint32_t b, float reach, flo
   return dot(ta.normal[a], ta.normal[b]) >= min_cos && dot(gap, gap) <= reach * reach;
 }
 
+bool similar_guide(const double* guide, uint32_t m, uint32_t t, double floor) {
+  return guide[m] >= 0.0 && guide[t] >= 0.0 &&
+         std::fabs(guide[m] - guide[t]) <= 0.5 * std::max(guide[m], guide[t]) + floor;
+}
+
+double guide_floor_of(const TexelAreas& ta, const double* guide, size_t n) {
+  double sum = 0.0, count = 0.0;
+  for (size_t t = 0; t < n; ++t)
+    if (ta.area[t] > 0.0 && guide[t] >= 0.0) sum += guide[t], count += 1.0;
+  return count > 0.0 ? 0.05 * sum / count : 0.0;
+}
+
 namespace {
 
 constexpr uint32_t kMaxRadius = 16;
@@ -32,21 +44,6 @@ void for_rows(uint32_t height, Row&& row) {
   tbb::parallel_for(uint32_t(0), (height + kBlockRows - 1) / kBlockRows, [&](uint32_t b) {
     for (uint32_t y = b * kBlockRows; y < std::min(height, (b + 1) * kBlockRows); ++y) row(b, y);
   });
-}
-
-// Texels pool only where their guides (the direct light) differ by at most
-// half the larger one plus a floor; a negative (or NaN) guide pools with none.
-bool similar_guide(const double* guide, uint32_t m, uint32_t t, double floor) {
-  return guide[m] >= 0.0 && guide[t] >= 0.0 &&
-         std::fabs(guide[m] - guide[t]) <= 0.5 * std::max(guide[m], guide[t]) + floor;
-}
-
-// 5% of the guide's mean over covered texels (negative guides left out).
-double guide_floor_of(const TexelAreas& ta, const double* guide, size_t n) {
-  double sum = 0.0, count = 0.0;
-  for (size_t t = 0; t < n; ++t)
-    if (ta.area[t] > 0.0 && guide[t] >= 0.0) sum += guide[t], count += 1.0;
-  return count > 0.0 ? 0.05 * sum / count : 0.0;
 }
 
 struct Pooled {

@@ -56,6 +56,14 @@ double texel_width(const TexelAreas& ta);
 // world positions within `reach` (m).
 bool same_surface(const TexelAreas& ta, uint32_t a, uint32_t b, float reach, float min_cos = 0.9f);
 
+// Texels m and t pool only where their guides (the direct light) differ by at
+// most half the larger one plus `floor`; a negative (or NaN) guide pools with none.
+bool similar_guide(const double* guide, uint32_t m, uint32_t t, double floor);
+
+// 5 % of the guide's mean over the n covered texels (negative guides left out):
+// similar_guide's floor.
+double guide_floor_of(const TexelAreas& ta, const double* guide, size_t n);
+
 // The error that the final gather's lookups see per texel (squared), in two
 // parts by how far it is shared: `local` by the texels within a pool's reach
 // (the photons' noise, the direct light's), `wide` by the whole lightmap (the

@@ -14,6 +14,8 @@ namespace {
 
 // Radius (texels) of the local linear fit that smooths the gather (reconstruct_linear).
 constexpr uint32_t kGatherRadius = 2;
+// Radius (texels) over which the variances that weigh photons against the gather are summed.
+constexpr uint32_t kWeightRadius = 2;
 // A texel's fit reaches at most kGatherReach x the harmonic mean distance of
 // its gather rays' hits (docs/design/error-and-gather.md, "Final gather").
 constexpr double kGatherReach = 1.0;
@@ -42,22 +44,13 @@ double percentile(std::vector<double>& v, double q) {
   return v[k];
 }
 
-// The mean of `value` over texel t's eight neighbours where it is a number
-// and takes_part holds; NaN where none.
-template <typename TakesPart>
-double neighbours_mean(const std::vector<double>& value, uint32_t width, uint32_t height, uint32_t t,
-                       TakesPart&& takes_part) {
-  const int64_t x = t % width, y = t / width;
-  double sum = 0.0;
-  uint32_t count = 0;
-  for (int64_t yy = std::max<int64_t>(y - 1, 0); yy <= std::min<int64_t>(y + 1, int64_t(height) - 1); ++yy)
-    for (int64_t xx = std::max<int64_t>(x - 1, 0); xx <= std::min<int64_t>(x + 1, int64_t(width) - 1); ++xx) {
-      const uint32_t m = uint32_t(yy * width + xx);
-      if (m == t || std::isnan(value[m]) || !takes_part(m)) continue;
-      sum += value[m];
-      ++count;
-    }
-  return count ? sum / double(count) : std::numeric_limits<double>::quiet_NaN();
+// Calls fn(m) for every texel m within `radius` rows and columns of texel t, t included.
+template <typename Fn>
+void for_window(uint32_t width, uint32_t height, uint32_t t, uint32_t radius, Fn&& fn) {
+  const int64_t x = t % width, y = t / width, r = radius;
+  for (int64_t yy = std::max<int64_t>(y - r, 0); yy <= std::min<int64_t>(y + r, int64_t(height) - 1); ++yy)
+    for (int64_t xx = std::max<int64_t>(x - r, 0); xx <= std::min<int64_t>(x + r, int64_t(width) - 1); ++xx)
+      fn(uint32_t(yy * width + xx));
 }
 
 }  // namespace
@@ -180,61 +173,91 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
     return (1.0 - rho) * fit_rays[fit_r][t] + rho * info.lookup_all + info.lookup_wide;
   };
   auto fit_bias_sq_of = [&](size_t t) { return fit_bias.sq[std::min<uint32_t>(radius[t], fit_r)]; };
-  // Under central-square values, near walls: the photons' excess squared
-  // difference from the gather over both variances, per texel (see below).
-  std::vector<double>& excess = b.excess;
-  excess.assign(central_window ? n : 0, std::numeric_limits<double>::quiet_NaN());
-  for (size_t t = 0, k = space.covered_begin[i]; central_window && t < n; ++t) {
-    if (!(space.areas[i].area[t] > 0.0)) continue;
-    const GatherInfo& info = gather->info[k++];
-    if (!usable[t] || radius[t] >= kGatherRadius) continue;
-    const double* pv = &value3[3 * t];
-    const double* gv = &g_value[3 * t];
-    const double diff = (pv[0] + pv[1] + pv[2] - gv[0] - gv[1] - gv[2]) / 3.0;
-    excess[t] = diff * diff - variance[t] - (g_fit_var[t] + fit_bias_sq_of(t) + lookups_variance(t, info));
-  }
-  const float reach = float(3.0 * width);  // the neighbours' (same_surface)
+  const TexelAreas& ta = space.areas[i];
+  const uint32_t width_i = mesh.lightmap_width, height_i = mesh.lightmap_height;
+  // Per usable texel: the gather's variance, the photons' (their squared
+  // bias against the gather included) and that squared bias.
+  std::vector<double>& v_gather = b.v_gather;
+  std::vector<double>& v_photons = b.v_photons;
+  std::vector<double>& bias_sq = b.bias_sq;
+  v_gather.assign(n, 0.0);
+  v_photons.assign(n, 0.0);
+  bias_sq.assign(n, 0.0);
   for (size_t t = 0, k = space.covered_begin[i]; t < n; ++t) {
-    if (!(space.areas[i].area[t] > 0.0)) continue;
+    if (!(ta.area[t] > 0.0)) continue;
     const GatherInfo& info = gather->info[k++];
     if (!usable[t]) continue;
-    double v_photons = variance[t], bias_sq = 0.0;
-    const double v_lookups = lookups_variance(t, info);
-    const double fit_bias_sq = fit_bias_sq_of(t);
-    const double v_gather = g_fit_var[t] + fit_bias_sq + v_lookups;
-    if (central_window && radius[t] < kGatherRadius) {
-      // Near a wall the photons' mean over the whole texel is biased
-      // against the value over the points the direct light and the gather
-      // sample (the central square): where the two disagree by more than
-      // their noise, the excess squared difference (an unbiased estimate of
-      // the squared bias) joins the photons' variance. (Joined to both, it
-      // would set a floor under the error that no photon count lowers: the
-      // 21-monkey courtyard took 3.3 M photons to 5 % instead of 16 k.)
-      // The excess is the neighbours' along the wall, not the texel's own:
-      // a texel's own would lower the photons' weight exactly where their
-      // noise ran high, and photon counts are skewed (few texels far above
-      // their mean, many a little below), so the blend read low: the walls
-      // and ceiling of a room lit through a window 1-3 %
-      // (Bake.GatherBlendKeepsTheLight).
-      bias_sq = neighbours_mean(excess, mesh.lightmap_width, mesh.lightmap_height, uint32_t(t), [&](uint32_t m) {
-        return same_surface(space.areas[i], uint32_t(t), m, reach, 0.9f);
-      });
-      if (std::isnan(bias_sq)) bias_sq = excess[t];
-      bias_sq = std::max(0.0, bias_sq);
-      v_photons += bias_sq;
+    v_gather[t] = g_fit_var[t] + fit_bias_sq_of(t) + lookups_variance(t, info);
+    v_photons[t] = variance[t];
+  }
+  if (central_window) {
+    // Near a wall the photons' mean over the whole texel is biased against
+    // the value over the points the direct light and the gather sample (the
+    // central square): where the two disagree by more than their noise, the
+    // excess squared difference (an unbiased estimate of the squared bias)
+    // joins the photons' variance. (Joined to both, it would set a floor
+    // under the error that no photon count lowers: the 21-monkey courtyard
+    // took 3.3 M photons to 5 % instead of 16 k.) The excess is the
+    // neighbours' along the wall, not the texel's own: a texel's own would
+    // lower the photons' weight exactly where their noise ran high, and
+    // photon counts are skewed (few texels far above their mean, many a
+    // little below), so the blend read low.
+    std::vector<double>& excess = b.excess;
+    excess.assign(n, std::numeric_limits<double>::quiet_NaN());
+    for (size_t t = 0; t < n; ++t) {
+      if (!usable[t] || radius[t] >= kGatherRadius) continue;
+      const double* pv = &value3[3 * t];
+      const double* gv = &g_value[3 * t];
+      const double diff = (pv[0] + pv[1] + pv[2] - gv[0] - gv[1] - gv[2]) / 3.0;
+      excess[t] = diff * diff - v_photons[t] - v_gather[t];
     }
-    const double w = v_photons + v_gather > 0.0 ? v_gather / (v_photons + v_gather) : 0.0;
+    const float reach = float(3.0 * width);
+    for (size_t t = 0; t < n; ++t) {
+      if (!usable[t] || radius[t] >= kGatherRadius) continue;
+      double sum = 0.0;
+      uint32_t count = 0;
+      for_window(width_i, height_i, uint32_t(t), 1, [&](uint32_t m) {
+        if (m == t || std::isnan(excess[m]) || !same_surface(ta, uint32_t(t), m, reach, 0.9f)) return;
+        sum += excess[m];
+        ++count;
+      });
+      const double e = count ? sum / double(count) : excess[t];
+      bias_sq[t] = std::max(0.0, e);
+    }
+    for (size_t t = 0; t < n; ++t) v_photons[t] += bias_sq[t];
+  }
+  // The weights come from the variances of the texels around (kWeightRadius,
+  // same surface), not the texel's own alone: estimated from the same hits
+  // and rays as the values they weigh, its own are high where its values
+  // are (more photon hits, a ray on a bright patch), and weights that fall
+  // where a value is high read the light low (the walls of a room lit
+  // through a window 1-4 % at 250 k photons: docs/bench_window_gather.py).
+  // Texels whose gather pools with none (a negative guide: their rays met
+  // dark backs, or something they cannot look up) keep their own.
+  const float weight_reach = float(1.5 * (kWeightRadius + 1) * width);
+  const double floor = guide_floor_of(ta, guide.data(), n);
+  for (size_t t = 0; t < n; ++t) {
+    if (!usable[t]) continue;
+    double sum_photons = 0.0, sum_gather = 0.0;
+    for_window(width_i, height_i, uint32_t(t), kWeightRadius, [&](uint32_t m) {
+      if (!usable[m] || !(m == t || (same_surface(ta, uint32_t(t), m, weight_reach, 0.9f) &&
+                                     similar_guide(guide.data(), m, uint32_t(t), floor))))
+        return;
+      sum_photons += v_photons[m], sum_gather += v_gather[m];
+    });
+    const double w = sum_photons + sum_gather > 0.0 ? sum_gather / (sum_photons + sum_gather) : 0.0;
     for (int c = 0; c < 3; ++c) value3[3 * t + c] = w * value3[3 * t + c] + (1.0 - w) * g_value[3 * t + c];
     b.photon_weight[t] = w;
-    variance[t] = w * w * v_photons + (1.0 - w) * (1.0 - w) * v_gather;
+    variance[t] = w * w * v_photons[t] + (1.0 - w) * (1.0 - w) * v_gather[t];
     // What a later gather's lookups see: the gather's own noise is local (its
     // fit's reach); its fit's bias and what its lookups carried in from far
     // texels are wide.
     if (lookup) {
+      const double far = v_gather[t] - g_fit_var[t];  // the fit's bias and the lookups'
       lookup->local[t] = w * w * lookup->local[t] + (1.0 - w) * (1.0 - w) * g_fit_var[t];
-      lookup->wide[t] = w * w * (lookup->wide[t] + bias_sq) + (1.0 - w) * (1.0 - w) * (fit_bias_sq + v_lookups);
+      lookup->wide[t] = w * w * (lookup->wide[t] + bias_sq[t]) + (1.0 - w) * (1.0 - w) * far;
     }
-    if (gather_part) *gather_part += open_weight(i, t) * (1.0 - w) * (1.0 - w) * v_gather;
+    if (gather_part) *gather_part += open_weight(i, t) * (1.0 - w) * (1.0 - w) * v_gather[t];
   }
 }
 

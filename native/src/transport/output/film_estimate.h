@@ -29,7 +29,7 @@ struct EstimateBuffers {
   LookupError lookup;
   std::vector<double> guide;
   std::vector<double> g_guide, g_mean, g_var, g_value, g_fit_var, lookup_rays, rays_fit, fit1, var1, rays1;
-  std::vector<double> excess;
+  std::vector<double> excess, bias_sq, v_photons, v_gather;
   std::vector<uint8_t> usable, radius;
   // Per texel, the photons' weight w in the indirect light's blend with the
   // final gather (combine_gather; 1 where the gather is not used); empty
