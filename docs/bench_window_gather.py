@@ -1,7 +1,7 @@
 """The final gather's blend in a room lit through an open window: does it keep the light?
 
     PHOTONLM_LIBRARY=build/lib/libphotonlm.so PYTHONPATH=python_bridge \\
-        /usr/bin/python3 docs/bench_window_gather.py [--seeds 24] [--photons 8000000]
+        /usr/bin/python3 docs/bench_window_gather.py [--seeds 24] [--photons 8000000] [--reference 64000000]
 
 Scene: a room 4 x 4 x 2.5 m of one-sided quads facing inward (floor albedo 0.5, walls and ceiling
 0.6), its wall at x = 2 with an open window of 1.5 x 1 m (no pane), a sun of 3 W/m^2 35 degrees up
@@ -10,10 +10,11 @@ bounce light, which the final gather and the photons each estimate without bias.
 
 Prints, per surface, the mean of its covered texels from default bakes (the final gather blended
 with the photons; --photons photons, 64 direct samples) over --seeds seeds, relative to a reference
-of photons alone (2 seeds of 8x the photons, no pooling, no gather: max_bounces 63), with the
+of photons alone (2 seeds of --reference photons, no pooling, no gather: max_bounces 63), with the
 standard error of that mean over the seeds; for both texel values (AREA: whole-texel means, which
 the reference is; CYCLES: the central square, which on these surfaces, without direct light, differs
-from the whole-texel mean only by the bounce light's curvature).
+from the whole-texel mean only by the bounce light's curvature); and the same for photons alone at
+--photons (pooled as by default, no gather), one of the two estimates the blend weighs.
 """
 import argparse
 import time
@@ -67,11 +68,12 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--seeds", type=int, default=24)
     ap.add_argument("--photons", type=int, default=8_000_000)
+    ap.add_argument("--reference", type=int, default=64_000_000)
     args = ap.parse_args()
     t0 = time.perf_counter()
-    ref = np.mean([surface_means(100 + s, photons=8 * args.photons, max_bounces=63, filter_radius=0,
+    ref = np.mean([surface_means(100 + s, photons=args.reference, max_bounces=63, filter_radius=0,
                                  texel_value="AREA") for s in range(2)], axis=0)
-    print("reference: photons alone, 2 x %d photons, %.1f s" % (8 * args.photons, time.perf_counter() - t0))
+    print("reference: photons alone, 2 x %d photons, %.1f s" % (args.reference, time.perf_counter() - t0))
     rows = {}
     for value in ("AREA", "CYCLES"):
         t0 = time.perf_counter()
@@ -79,9 +81,12 @@ def main():
         rows[value] = (runs.mean(axis=0) / ref, runs.std(axis=0) / np.sqrt(args.seeds) / ref)
         print("%s: %d bakes of %d photons, %.2f s each" % (value, args.seeds, args.photons,
                                                            (time.perf_counter() - t0) / args.seeds))
-    print("%-18s %16s %16s" % ("surface", "AREA", "CYCLES"))
+    runs = np.array([surface_means(1 + s, photons=args.photons, max_bounces=63, texel_value="AREA")
+                     for s in range(args.seeds)])
+    rows["photons alone"] = (runs.mean(axis=0) / ref, runs.std(axis=0) / np.sqrt(args.seeds) / ref)
+    print("%-18s %16s %16s %16s" % ("surface", "AREA", "CYCLES", "photons alone"))
     for k, (name, *_) in enumerate(SURFACES):
-        print("%-18s" % name + "".join("   %.4f +- %.4f" % (rows[v][0][k], rows[v][1][k]) for v in ("AREA", "CYCLES")))
+        print("%-18s" % name + "".join("   %.4f +- %.4f" % (rows[v][0][k], rows[v][1][k]) for v in rows))
 
 
 if __name__ == "__main__":
