@@ -15,7 +15,8 @@ walls with a window, Array, Mirror, Bevel, Subdivision Surface, a textured floor
 window and a uniform sky; no lightmap UV maps of its own. The add-on makes them at the first bake
 (a warm-up of a fixed 1 M photons, timed and reported apart) and chooses each object's resolution
 from the scene's texel density; everything else is the add-on's default (Max Photons included:
---photon-cap changes it, 0 = none) but the target and the seed.
+--photon-cap changes it, 0 = none; --max-bounces 63 bakes from photons alone, without the final
+gather) but the target and the seed.
 
 Per target (--targets, default 0.03): the operator wall time of bpy.ops.photonlm.bake (export, UV
 maps reused, direct pass, photons, EXR write-back, material wiring) and the engine's figures,
@@ -327,6 +328,8 @@ def main():
     ap.add_argument("--ref-samples", type=int, default=0,
                     help="instead: this many reference samples per texel on every object (both halves together)")
     ap.add_argument("--quick", action="store_true", help="a small reference (development)")
+    ap.add_argument("--max-bounces", type=int, default=None,
+                    help="Max Bounces for the measured bakes (63: photons alone, no final gather)")
     ap.add_argument("--photon-cap", type=int, default=None,
                     help="Max Photons (default: the add-on's; 0 = none, the target decides)")
     args = ap.parse_args(argv)
@@ -370,6 +373,8 @@ def main():
     blender_cov = {n: scenes.uv_coverage(uvs[n], sizes[n][0]) for n in NAMES}
     masks = {n: (blender_cov[n] > FULL) & (engine_cov[n] > FULL) for n in NAMES}
 
+    if args.max_bounces is not None:
+        scene.photonlm.max_bounces = args.max_bounces
     runs = []
     for i, target in enumerate(targets):
         last, rgb, err, cov = photonlm_bake(target, 11 + i, cap)
@@ -395,7 +400,7 @@ def main():
                   coverage_texels={n: dict(blender=int((blender_cov[n] > FULL).sum()),
                                            engine=int((engine_cov[n] > FULL).sum()), both=int(masks[n].sum()))
                                    for n in NAMES},
-                  photon_cap=cap,
+                  photon_cap=cap, max_bounces=int(scene.photonlm.max_bounces),
                   reference=dict(ref_info, noise=ref.noise_all, noise_objects=ref.noise,
                                  mean={n: float(ref.grey[n].mean()) for n in NAMES}),
                   targets=[])
