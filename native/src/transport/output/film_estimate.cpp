@@ -53,6 +53,46 @@ void for_window(uint32_t width, uint32_t height, uint32_t t, uint32_t radius, Fn
       fn(uint32_t(yy * width + xx));
 }
 
+// Near a wall the photons' mean over the whole texel is biased against the
+// value over the points the direct light and the gather sample (the central
+// square, texel value CYCLES): where the two disagree by more than their
+// noise, the excess squared difference (an unbiased estimate of the squared
+// bias) joins the photons' variance, v_photons, and is kept in bias_sq.
+// (Joined to both, it would set a floor under the error that no photon count
+// lowers: the 21-monkey courtyard took 3.3 M photons to 5 % instead of 16 k.)
+// The excess is the neighbours' along the wall, not the texel's own: a
+// texel's own would lower the photons' weight exactly where their noise ran
+// high, and photon counts are skewed (few texels far above their mean, many
+// a little below), so the blend read low.
+void photons_bias_sq(const TexelAreas& ta, uint32_t width, uint32_t height, const std::vector<uint8_t>& usable,
+                     const std::vector<uint8_t>& radius, const std::vector<double>& value3, const double* g_value,
+                     const std::vector<double>& v_gather, std::vector<double>& excess, std::vector<double>& v_photons,
+                     std::vector<double>& bias_sq) {
+  const size_t n = usable.size();
+  auto near_wall = [&](size_t t) { return usable[t] && radius[t] < kGatherRadius; };
+  excess.assign(n, std::numeric_limits<double>::quiet_NaN());
+  for (size_t t = 0; t < n; ++t) {
+    if (!near_wall(t)) continue;
+    const double* pv = &value3[3 * t];
+    const double* gv = &g_value[3 * t];
+    const double diff = (pv[0] + pv[1] + pv[2] - gv[0] - gv[1] - gv[2]) / 3.0;
+    excess[t] = diff * diff - v_photons[t] - v_gather[t];
+  }
+  const float reach = float(3.0 * texel_width(ta));
+  for (size_t t = 0; t < n; ++t) {
+    if (!near_wall(t)) continue;
+    double sum = 0.0;
+    uint32_t count = 0;
+    for_window(width, height, uint32_t(t), 1, [&](uint32_t m) {
+      if (m == t || std::isnan(excess[m]) || !same_surface(ta, uint32_t(t), m, reach, 0.9f)) return;
+      sum += excess[m];
+      ++count;
+    });
+    bias_sq[t] = std::max(0.0, count ? sum / double(count) : excess[t]);
+    v_photons[t] += bias_sq[t];
+  }
+}
+
 }  // namespace
 
 double Estimator::csg_texel(size_t c, uint32_t sub, uint64_t photons, double value3[3]) const {
@@ -190,42 +230,8 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
     v_gather[t] = g_fit_var[t] + fit_bias_sq_of(t) + lookups_variance(t, info);
     v_photons[t] = variance[t];
   }
-  if (central_window) {
-    // Near a wall the photons' mean over the whole texel is biased against
-    // the value over the points the direct light and the gather sample (the
-    // central square): where the two disagree by more than their noise, the
-    // excess squared difference (an unbiased estimate of the squared bias)
-    // joins the photons' variance. (Joined to both, it would set a floor
-    // under the error that no photon count lowers: the 21-monkey courtyard
-    // took 3.3 M photons to 5 % instead of 16 k.) The excess is the
-    // neighbours' along the wall, not the texel's own: a texel's own would
-    // lower the photons' weight exactly where their noise ran high, and
-    // photon counts are skewed (few texels far above their mean, many a
-    // little below), so the blend read low.
-    std::vector<double>& excess = b.excess;
-    excess.assign(n, std::numeric_limits<double>::quiet_NaN());
-    for (size_t t = 0; t < n; ++t) {
-      if (!usable[t] || radius[t] >= kGatherRadius) continue;
-      const double* pv = &value3[3 * t];
-      const double* gv = &g_value[3 * t];
-      const double diff = (pv[0] + pv[1] + pv[2] - gv[0] - gv[1] - gv[2]) / 3.0;
-      excess[t] = diff * diff - v_photons[t] - v_gather[t];
-    }
-    const float reach = float(3.0 * width);
-    for (size_t t = 0; t < n; ++t) {
-      if (!usable[t] || radius[t] >= kGatherRadius) continue;
-      double sum = 0.0;
-      uint32_t count = 0;
-      for_window(width_i, height_i, uint32_t(t), 1, [&](uint32_t m) {
-        if (m == t || std::isnan(excess[m]) || !same_surface(ta, uint32_t(t), m, reach, 0.9f)) return;
-        sum += excess[m];
-        ++count;
-      });
-      const double e = count ? sum / double(count) : excess[t];
-      bias_sq[t] = std::max(0.0, e);
-    }
-    for (size_t t = 0; t < n; ++t) v_photons[t] += bias_sq[t];
-  }
+  if (central_window) photons_bias_sq(ta, width_i, height_i, usable, radius, value3, g_value, v_gather, b.excess,
+                                      v_photons, bias_sq);
   // The weights come from the variances of the texels around (kWeightRadius,
   // same surface), not the texel's own alone: estimated from the same hits
   // and rays as the values they weigh, its own are high where its values
