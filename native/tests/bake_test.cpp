@@ -1061,7 +1061,6 @@ TEST(Bake, ManyLightsAreChosenWhereTheyShine) {
   }
 }
 
-
 // The final gather's blend with the photons keeps the light: a room 4 x 4 x
 // 2.5 m lit by the sun through an open window of 1.5 x 1 m. The gather and
 // the photons each estimate the walls' and ceiling's bounce light without

@@ -209,10 +209,6 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
                              : least_error_radius(n, radius.data(), fit_bias, is_usable, fit_variance);
   const double* g_value = fits[fit_r];
   const double* g_fit_var = fit_vars[fit_r];
-  auto lookups_variance = [&](size_t t, const GatherInfo& info) {
-    return (1.0 - rho) * fit_rays[fit_r][t] + rho * info.lookup_all + info.lookup_wide;
-  };
-  auto fit_bias_sq_of = [&](size_t t) { return fit_bias.sq[std::min<uint32_t>(radius[t], fit_r)]; };
   const TexelAreas& ta = space.areas[i];
   const uint32_t width_i = mesh.lightmap_width, height_i = mesh.lightmap_height;
   // Per usable texel: the gather's variance, the photons' (their squared
@@ -227,7 +223,8 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
     if (!(ta.area[t] > 0.0)) continue;
     const GatherInfo& info = gather->info[k++];
     if (!usable[t]) continue;
-    v_gather[t] = g_fit_var[t] + fit_bias_sq_of(t) + lookups_variance(t, info);
+    const double v_lookups = (1.0 - rho) * fit_rays[fit_r][t] + rho * info.lookup_all + info.lookup_wide;
+    v_gather[t] = g_fit_var[t] + fit_bias.sq[std::min<uint32_t>(radius[t], fit_r)] + v_lookups;
     v_photons[t] = variance[t];
   }
   if (central_window) photons_bias_sq(ta, width_i, height_i, usable, radius, value3, g_value, v_gather, b.excess,
