@@ -115,6 +115,36 @@ struct PhotonLoop {
   Clock::time_point last_report;
 };
 
+// At a check: the judged groups whose direct part is above the direct pass's
+// share of the target relative to their whole light (direct and indirect)
+// get more direct samples (refine_direct), once that mean is known well
+// enough to aim at: the rest of the group's error spread over its
+// independent photon pools (kPoolTexels texels each) at most kKnownMean.
+// Returns whether samples were added.
+constexpr double kPoolTexels = 25.0, kKnownMean = 0.2;
+bool refine_direct_at_check(const BakeScene& ctx, BakeRun& run) {
+  const BakeSettings& s = ctx.settings;
+  if (!s.two_pass || run.direct.sums.size() != ctx.space.covered.size()) return false;
+  const std::vector<ErrorParts>& groups = run.last.error.groups;
+  const std::vector<size_t> texels = ctx.space.group_texels();
+  std::vector<double> mean(groups.size(), 0.0);
+  bool any = false;
+  for (size_t g = 0; g < groups.size() && g < texels.size(); ++g) {
+    const ErrorParts& e = groups[g];
+    if (!(e.direct > DirectSchedule::kDirectShareOfTarget * s.target_error && e.mean > 0.0)) continue;
+    const double rest = std::sqrt(std::max(0.0, e.relative * e.relative - e.direct * e.direct));
+    if (rest / std::sqrt(std::max(1.0, double(texels[g]) / kPoolTexels)) > kKnownMean) continue;
+    mean[g] = e.mean;
+    any = true;
+  }
+  if (!any) return false;
+  const DirectPass pass(ctx);
+  const uint64_t added = refine_direct(ctx.arena, pass, ctx.space, s, mean, run.direct,
+                                       [&] { return run.budget.spent(kPhotonBudgetShare); });
+  run.out.stats.direct_samples = run.direct.samples;
+  return added > 0;
+}
+
 // After the batches before `end` are in the sums: OL hits and counts merged
 // in batch order, the gather and the checks where due, a preview, progress.
 // Returns false once the target is met or the budget spent.
@@ -144,6 +174,10 @@ bool after_photon_group(const BakeScene& ctx, BakeRun& run, PhotonBatches& batch
   }
   if (s.targeted() && loop.checks.due(end)) {
     estimate(ctx.arena, est, run.photons, run.last);
+    if (refine_direct_at_check(ctx, run)) {
+      run.last.photon_part = PhotonPart();  // its guide, the direct light, changed
+      estimate(ctx.arena, est, run.photons, run.last);
+    }
     loop.done = target_reached(run.last.error.groups, s.target_error);
     // Once the photons have grown kRegatherPhotonGrowth-fold since the last
     // gather, the groups whose gather part is still large gather again: what

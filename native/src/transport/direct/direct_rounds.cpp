@@ -4,6 +4,8 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 
 #include "transport/plan/scheduler.h"
 
@@ -126,6 +128,26 @@ DirectGroups direct_groups(const TexelSpace& space, size_t first, const std::vec
   return {std::move(mean), std::move(of)};
 }
 
+// Round `round` of the texels `todo` (indices into texels and out's sums),
+// want[i] samples each; after each group of texels, more(share done) says
+// whether to go on.
+template <typename More>
+void sample_round(tbb::task_arena& arena, const DirectPass& pass, const CoveredTexel* texels,
+                  const std::vector<uint32_t>& todo, const std::vector<uint32_t>& want, uint32_t round,
+                  DirectResult& out, More&& more) {
+  run_in_groups(
+      arena, todo.size(), 64,
+      [&](uint64_t first_texel, uint64_t n) {
+        tbb::parallel_for(tbb::blocked_range<uint64_t>(first_texel, first_texel + n, 16), [&](const auto& r) {
+          for (uint64_t k = r.begin(); k < r.end(); ++k) {
+            const CoveredTexel& c = texels[todo[k]];
+            pass.sample_texel(c.mesh, c.texel, round, want[todo[k]], out.sums[todo[k]], out.split_sums(todo[k]));
+          }
+        });
+      },
+      [&](uint64_t done) { return more(double(done) / double(todo.size())); });
+}
+
 }  // namespace
 
 void calibrate(const std::vector<DirectCalibration>& records, DirectNoise& noise) {
@@ -168,20 +190,10 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
   const WholeEstimate aim =
       settings.targeted() && !whole ? estimate_whole(arena, pass, space, schedule.first()) : WholeEstimate();
   for (uint32_t round = 0; round < rounds && !todo.empty(); ++round) {
-    run_in_groups(
-        arena, todo.size(), 64,
-        [&](uint64_t first_texel, uint64_t n) {
-          tbb::parallel_for(tbb::blocked_range<uint64_t>(first_texel, first_texel + n, 16), [&](const auto& r) {
-            for (uint64_t k = r.begin(); k < r.end(); ++k) {
-              const CoveredTexel& c = texels[todo[k]];
-              pass.sample_texel(c.mesh, c.texel, round, want[todo[k]], direct[todo[k]], out.split_sums(todo[k]));
-            }
-          });
-        },
-        [&](uint64_t done) {
-          control.progress((double(round) + double(done) / double(todo.size())) / rounds);
-          return !control.stop();
-        });
+    sample_round(arena, pass, texels, todo, want, round, out, [&](double done) {
+      control.progress((double(round) + done) / rounds);
+      return !control.stop();
+    });
     out.noise.typical = typical_sample(direct);
     if (round == 0 && settings.sobol) {
       out.calibration = calibrate_direct(arena, pass, covered, slice.begin, out,
@@ -216,6 +228,42 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
   out.samples = dropped;  // a dropped probe's samples were traced too
   for (const DirectSums& d : direct) out.samples += d.count;
   return out;
+}
+
+
+uint64_t refine_direct(tbb::task_arena& arena, const DirectPass& pass, const TexelSpace& space,
+                       const BakeSettings& settings, const std::vector<double>& group_mean, DirectResult& out,
+                       const std::function<bool()>& stop) {
+  const size_t n = out.sums.size();
+  if (n != space.covered.size() || n == 0) return 0;
+  const DirectSchedule schedule(settings.target_error, settings.direct_samples);
+  // Groups left alone are judged against an infinite mean: next_round gives them nothing.
+  std::vector<double> mean(std::max<size_t>(group_mean.size(), 1), std::numeric_limits<double>::infinity());
+  for (size_t g = 0; g < group_mean.size(); ++g)
+    if (group_mean[g] > 0.0) mean[g] = group_mean[g];
+  std::vector<uint32_t> of(n, 0);
+  if (space.judged_groups > 0)
+    for (size_t i = 0; i < n; ++i) of[i] = space.group_of(i);
+  const DirectGroups groups{std::move(mean), std::move(of)};
+  std::vector<DirectTexelNoise> noise(n);
+  std::vector<uint32_t> want(n, 0);
+  uint64_t added = 0;
+  while (out.rounds > 0 && out.rounds < DirectSchedule::kMaxRefinedRounds && !stop()) {
+    for (size_t i = 0; i < n; ++i) noise[i] = {out.sums[i].count, out.values.variance[i], out.values.phantom[i]};
+    std::vector<uint32_t> todo = schedule.next_round(out.rounds - 1, groups, noise, want);
+    // Only the groups asked for (next_round also tops up texels without two samples anywhere).
+    todo.erase(std::remove_if(todo.begin(), todo.end(),
+                              [&](uint32_t i) { return std::isinf(groups.mean[groups.of(i)]); }),
+               todo.end());
+    if (todo.empty()) break;
+    for (uint32_t i : todo) added += want[i];
+    sample_round(arena, pass, space.covered.data(), todo, want, out.rounds, out, [&](double) { return !stop(); });
+    ++out.rounds;
+    out.noise.typical = typical_sample(out.sums);
+    arena.execute([&] { out.values = pool_direct(space, out.sums, 0, out.noise); });
+  }
+  out.samples += added;
+  return added;
 }
 
 }  // namespace plm

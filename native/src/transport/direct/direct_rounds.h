@@ -70,6 +70,20 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
                              const BakeSettings& settings, const DirectControl& control,
                              CoveredSlice slice = {});
 
+// More rounds of a whole direct pass (`out`, from run_direct_pass over every
+// covered texel) for the texels of the judged groups with group_mean[g] > 0,
+// each held to the direct pass's share of the target relative to that mean
+// (DirectSchedule): the group's mean texel value with its indirect light,
+// which the first rounds could not know. A dim object lit mostly by bounce
+// light needs its direct light far more precise than its share of the
+// whole's direct light says. Rounds go on while some of those texels need
+// samples, up to DirectSchedule::kMaxRefinedRounds in all, and end between groups of
+// texels once stop() is true. Updates out's sums, values and samples; returns
+// the samples added (0 for a slice's pass).
+uint64_t refine_direct(tbb::task_arena& arena, const DirectPass& pass, const TexelSpace& space,
+                       const BakeSettings& settings, const std::vector<double>& group_mean, DirectResult& out,
+                       const std::function<bool()>& stop);
+
 // true / pair-difference variance from calibration records in order (1 with
 // fewer than 32 used): noise.scale, and sky_scale and other_scale for the
 // parts of split samples.

@@ -143,8 +143,10 @@ double Estimator::csg_texel(size_t c, uint32_t sub, uint64_t photons, double val
 // neighbouring texels are taken to meet the same cells as one texel's rays.
 // An open scene's gather rays spread over many cells (rho 0.01-0.25); rays
 // in a room meet more of the same.
-// Adds the gather's part of the texels' variances, (1 - w)^2 var G, to *gather_part.
-void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part, LookupError* lookup) const {
+// Adds the gather's part of the texels' variances, (1 - w)^2 var G, to
+// gather_part->all, and of that the rays' own noise (the fit's variance) to
+// gather_part->rays.
+void Estimator::combine_gather(size_t i, EstimateBuffers& b, GatherPart* gather_part, LookupError* lookup) const {
   const Mesh& mesh = *space.views[i].mesh;
   std::vector<double>& value3 = b.value3;
   std::vector<double>& variance = b.variance;
@@ -260,7 +262,11 @@ void Estimator::combine_gather(size_t i, EstimateBuffers& b, double* gather_part
       lookup->local[t] = w * w * lookup->local[t] + (1.0 - w) * (1.0 - w) * g_fit_var[t];
       lookup->wide[t] = w * w * (lookup->wide[t] + bias_sq[t]) + (1.0 - w) * (1.0 - w) * far;
     }
-    if (gather_part) *gather_part += open_weight(i, t) * (1.0 - w) * (1.0 - w) * v_gather[t];
+    if (gather_part) {
+      const double share = open_weight(i, t) * (1.0 - w) * (1.0 - w);
+      gather_part->all += share * v_gather[t];
+      gather_part->rays += share * g_fit_var[t];
+    }
   }
 }
 
@@ -283,7 +289,7 @@ const double* Estimator::guide(size_t i, std::vector<double>& buffer) const {
   return buffer.data();
 }
 
-void Estimator::texels(size_t i, uint64_t photons, EstimateBuffers& b, double* gather_part, bool lookups,
+void Estimator::texels(size_t i, uint64_t photons, EstimateBuffers& b, GatherPart* gather_part, bool lookups,
                        PhotonPart* part) const {
   std::vector<double>& value3 = b.value3;
   std::vector<double>& variance = b.variance;
@@ -375,7 +381,8 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
   // thread count.
   // Per mesh, then per CSG solid.
   struct Sums {
-    double value = 0.0, var = 0.0, var_gather = 0.0, var_direct = 0.0, count = 0.0;
+    double value = 0.0, var = 0.0, var_direct = 0.0, count = 0.0;
+    GatherPart var_gather;
     size_t dark = 0;
     std::vector<double> per_texel;
     // None for sums without light or, for a judged group, with a mean at
@@ -384,7 +391,7 @@ void estimate(tbb::task_arena& arena, const Estimator& est, uint64_t photons, Es
       if (!(count > 0.0 && value > 0.0 && value / count > dark_mean)) return {};
       const double mean = value / count;
       return {std::sqrt(var / count) / mean, std::sqrt(var_direct / count) / mean,
-              std::sqrt(var_gather / count) / mean};
+              std::sqrt(var_gather.all / count) / mean, std::sqrt(var_gather.rays / count) / mean, mean};
     }
   };
   std::vector<Sums> sums(meshes);

@@ -45,6 +45,16 @@ struct PhotonPart {
   std::vector<double> value3, mse, local, wide;
 };
 
+// Sums of the final gather's part of texels' variances: all of it, and its
+// rays' own noise (what more rays lower; the rest is what they looked up).
+struct GatherPart {
+  double all = 0.0, rays = 0.0;
+  GatherPart& operator+=(const GatherPart& o) {
+    all += o.all, rays += o.rays;
+    return *this;
+  }
+};
+
 // Everything the estimate of a texel needs.
 struct Estimator {
   const TexelSpace& space;
@@ -86,16 +96,16 @@ struct Estimator {
 
   // Per texel of mesh i: irradiance / pi (3 values) and its estimated mean
   // squared error; the final gather's part of the variances is added to
-  // *gather_part. With `lookup`, also the mean squared error that the final
+  // *gather_part (all of it, and the rays' own noise). With `lookup`, also the mean squared error that the final
   // gather's lookups see (reconstruct.h: LookupError).
   // In `b`: value3 and variance; with `lookups`, b.lookup too. With `part`,
   // the photons' reconstruction is read from it if it holds `photons`, else
   // written to it (the caller then sets part->photons).
-  void texels(size_t i, uint64_t photons, EstimateBuffers& b, double* gather_part = nullptr, bool lookups = false,
+  void texels(size_t i, uint64_t photons, EstimateBuffers& b, GatherPart* gather_part = nullptr, bool lookups = false,
               PhotonPart* part = nullptr) const;
 
  private:
-  void combine_gather(size_t i, EstimateBuffers& b, double* gather_part, LookupError* lookup) const;
+  void combine_gather(size_t i, EstimateBuffers& b, GatherPart* gather_part, LookupError* lookup) const;
   void add_caustics(size_t i, uint64_t photons, std::vector<double>& value3, std::vector<double>& variance,
                     LookupError* lookup) const;
 };

@@ -46,7 +46,10 @@ RegatherPlan plan_regather(uint32_t gathers, uint32_t last_samples, const std::v
   double refined = 0.0, total = 0.0;
   for (size_t g = 0; g < groups.size(); ++g) {
     const ErrorParts& e = groups[g];
-    plan.groups[g] = e.relative > target && e.gather > kPhotonShareOfTarget * target;
+    // At the same photons more rays help only where the rays' own noise is
+    // large; what they look up gets better only with more photons (fresh).
+    const double part = fresh ? e.gather : e.gather_rays;
+    plan.groups[g] = e.relative > target && part > kPhotonShareOfTarget * target;
     const double n = g < texels.size() ? double(texels[g]) : 1.0;
     total += n;
     if (plan.groups[g]) refined += n;

@@ -146,6 +146,8 @@ struct ErrorParts {
   double relative = 0.0;  // all of it
   double direct = 0.0;    // the direct pass's part
   double gather = 0.0;    // the final gather's part
+  double gather_rays = 0.0;  // of that, its rays' own noise (more rays lower it; not what they looked up)
+  double mean = 0.0;      // the mean texel value (irradiance / pi) the parts are relative to
 };
 
 // Whether the photon pass stops at a check: the target is reached, the
@@ -186,11 +188,13 @@ class CheckSchedule {
 constexpr uint32_t kGatherSamples = 16, kMaxGatherSamples = 256, kLeastGatherSamples = 4;
 uint32_t gather_samples(double target_error);
 // Under a target the gather runs at the first check the photons alone do not
-// pass, and at once again while the target is not met and the gather's own
-// part of the error is above kPhotonShareOfTarget x the target: that part is
-// the spread of its rays and the error of the texels they look up (other
-// objects, the ground; taken as fully correlated), which photons do not
-// lower. Each gather looks up the estimate the one before improved.
+// pass, and at once again while the target is not met and its rays' own
+// noise is above kPhotonShareOfTarget x the target: more rays lower that part
+// of the error, not the error of the texels they look up (other objects,
+// the ground), which waits for more photons (a dim object at the first check
+// looks up a few thousand photon hits: five gathers of ever more rays there
+// cost 100 M rays and left its error as it was). Each gather looks up the
+// estimate the one before improved.
 // Judged per group (each object, small ones with their neighbours): a gather
 // after the first gathers again only the texels of the groups that need it
 // (the rest keep their rays), with 4x the rays of the one before, at most
@@ -200,9 +204,10 @@ uint32_t gather_samples(double target_error);
 // patch needs thousands of rays a texel, the walls around it a few dozen.
 // At most kMaxGathers gathers at a check, and only while the rays grow. At
 // a later check, once the photons have grown kRegatherPhotonGrowth-fold since
-// the last gather (their error halved), the groups that still need it gather
-// again with as many rays as before or more: what they look up is better
-// (while the gathers have traced no more rays than the photons).
+// the last gather (their error halved), the groups whose gather part, lookups
+// included, is still above kPhotonShareOfTarget x the target gather again
+// with as many rays as before or more: what they look up is better (while
+// the gathers have traced no more rays than the photons).
 constexpr uint32_t kMaxGathers = 6, kMaxGroupGatherSamples = 4096, kRegatherPhotonGrowth = 4;
 struct RegatherPlan {
   std::vector<uint8_t> groups;  // per group: its texels are gathered again
@@ -256,6 +261,9 @@ struct DirectGroups {
 class DirectSchedule {
  public:
   static constexpr uint32_t kMaxRounds = 16;
+  // Rounds in all with the later ones of refine_direct (a round's number keys
+  // its samples' random stream: below the calibration's and the mean's keys).
+  static constexpr uint32_t kMaxRefinedRounds = 0xF0;
   static constexpr uint32_t kFirstTargetSamples = 16, kProbeSamples = 9;
   static constexpr uint32_t kTopUpGrowth = 2;
   // Stratified samples over a shadow edge: n^-1.5; plain noise: n^-1.
