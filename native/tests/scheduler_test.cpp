@@ -172,16 +172,27 @@ TEST(Scheduler, FurtherGathersHaveMoreRaysWhileTheirPartIsLarge) {
 }
 
 // A gather part made of what the rays looked up (the photon estimate of the
-// surfaces they meet) does not fall with more rays at the same photons: the
-// gather runs again only once the photons have grown. (A dim object of the
-// artist's room at its first check: 0.24 of its mean from lookups, 0.011
-// from its rays; five gathers there traced 100 M rays for nothing.)
+// surfaces they meet) falls with more rays at the same photons only while the
+// gathers before improve what they look up (bounce light between gathered
+// surfaces): after the second gather at a check, a group whose gather part
+// fell by less than kGatherProgress waits for photons unless its rays' own
+// part is large. (A dim object of the artist's room at its first check: 0.24
+// of its mean from lookups, 0.011 from its rays; five gathers there traced
+// 100 M rays for nothing.)
 TEST(Scheduler, LookupErrorWaitsForPhotons) {
-  ErrorParts e;
-  e.relative = 0.3, e.direct = 0.02, e.gather = 0.24, e.gather_rays = 0.011;
+  ErrorParts before, e;
+  before.relative = 0.3, before.direct = 0.02, before.gather = 0.25, before.gather_rays = 0.02;
+  e = before;
+  e.gather = 0.24, e.gather_rays = 0.011;
   const std::vector<size_t> one{1000};
-  EXPECT_EQ(plan_regather(1, 16, {e}, one, 0.03).samples, 0u);
-  EXPECT_EQ(plan_regather(0, 16, {e}, one, 0.03, true).samples, 64u);
+  const std::vector<ErrorParts> was{before};
+  EXPECT_EQ(plan_regather(1, 16, {e}, one, 0.03, false, &was).samples, 64u);  // the first at a check: yes
+  EXPECT_EQ(plan_regather(2, 64, {e}, one, 0.03, false, &was).samples, 0u);   // no progress: wait
+  EXPECT_EQ(plan_regather(0, 64, {e}, one, 0.03, true).samples, 256u);        // the photons have grown
+  e.gather = 0.15;  // the lookups improved: gather on
+  EXPECT_EQ(plan_regather(2, 64, {e}, one, 0.03, false, &was).samples, 256u);
+  e.gather = 0.24, e.gather_rays = 0.02;  // the rays' own part is large
+  EXPECT_EQ(plan_regather(2, 64, {e}, one, 0.03, false, &was).samples, 256u);
 }
 
 // Judged per object: one object that needs it is enough, and only its texels

@@ -192,9 +192,11 @@ bool after_photon_group(const BakeScene& ctx, BakeRun& run, PhotonBatches& batch
       // Again while the gather's own part is large: each gather looks up the estimate the one
       // before it improved (transport/plan/scheduler.h, plan_regather).
       for (uint32_t gathers = 1;; ++gathers) {
+        const std::vector<ErrorParts> before = run.last.error.groups;
         gather(ctx, run);
         estimate(ctx.arena, est, run.photons, run.last);
-        run.next_gather = plan_regather(gathers, run.gather_samples, run.last.error.groups, texels, s.target_error);
+        run.next_gather =
+            plan_regather(gathers, run.gather_samples, run.last.error.groups, texels, s.target_error, false, &before);
         if (run.next_gather.samples == 0 || run.budget.spent(kRegatherBudgetShare)) break;
       }
       loop.done = target_reached(run.last.error.groups, s.target_error);

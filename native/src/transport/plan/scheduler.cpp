@@ -39,17 +39,22 @@ uint32_t gather_samples(double target_error) {
 }
 
 RegatherPlan plan_regather(uint32_t gathers, uint32_t last_samples, const std::vector<ErrorParts>& groups,
-                           const std::vector<size_t>& texels, double target, bool fresh) {
+                           const std::vector<size_t>& texels, double target, bool fresh,
+                           const std::vector<ErrorParts>* before) {
   RegatherPlan plan;
   if (gathers >= kMaxGathers) return plan;
   plan.groups.assign(groups.size(), 0);
   double refined = 0.0, total = 0.0;
   for (size_t g = 0; g < groups.size(); ++g) {
     const ErrorParts& e = groups[g];
-    // At the same photons more rays help only where the rays' own noise is
-    // large; what they look up gets better only with more photons (fresh).
-    const double part = fresh ? e.gather : e.gather_rays;
-    plan.groups[g] = e.relative > target && part > kPhotonShareOfTarget * target;
+    // At the same photons more rays lower the rays' own noise; what they
+    // look up gets better as the gathers before improve it (bounce light
+    // between gathered surfaces) while the gather part keeps falling, and
+    // otherwise only with more photons (fresh).
+    const double share = kPhotonShareOfTarget * target;
+    const bool falling = gathers <= 1 || fresh || !before || g >= before->size() ||
+                         e.gather < kGatherProgress * (*before)[g].gather;
+    plan.groups[g] = e.relative > target && e.gather > share && (falling || e.gather_rays > share);
     const double n = g < texels.size() ? double(texels[g]) : 1.0;
     total += n;
     if (plan.groups[g]) refined += n;

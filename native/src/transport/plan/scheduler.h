@@ -217,8 +217,13 @@ struct RegatherPlan {
 // After `gathers` gathers at this check, the last of `last_samples` rays: the
 // next one, if any. `texels`: covered texels per group. `fresh`: the photons
 // have grown since the last gather (as many rays as before will do).
+// `before`: the groups' parts before the last gather (after the second
+// gather at a check, a group whose gather part fell by less than
+// kGatherProgress goes on only while its rays' own part is large).
+constexpr double kGatherProgress = 0.8;
 RegatherPlan plan_regather(uint32_t gathers, uint32_t last_samples, const std::vector<ErrorParts>& groups,
-                           const std::vector<size_t>& texels, double target, bool fresh = false);
+                           const std::vector<size_t>& texels, double target, bool fresh = false,
+                           const std::vector<ErrorParts>* before = nullptr);
 
 // ---- Direct pass --------------------------------------------------------------
 // What the allocation of a texel's next samples reads: its sample count, its
