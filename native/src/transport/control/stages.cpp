@@ -120,8 +120,12 @@ struct PhotonLoop {
 // get more direct samples (refine_direct), once that mean is known well
 // enough to aim at: the rest of the group's error spread over its
 // independent photon pools (kPoolTexels texels each) at most kKnownMean.
-// Returns whether samples were added.
-constexpr double kPoolTexels = 25.0, kKnownMean = 0.2;
+// Where the rest is far above the target (a dim object that the photon cap
+// will leave at 14 %), the direct part aims at the share of kRestShare x the
+// rest instead: it adds little to the whole there, and a 1 % target's
+// direct part on the artist's room's dim objects cost 40x their samples for
+// nothing the artist could see. Returns whether samples were added.
+constexpr double kPoolTexels = 25.0, kKnownMean = 0.2, kRestShare = 0.5;
 bool refine_direct_at_check(const BakeScene& ctx, BakeRun& run) {
   const BakeSettings& s = ctx.settings;
   if (!s.two_pass || run.direct.sums.size() != ctx.space.covered.size()) return false;
@@ -131,10 +135,11 @@ bool refine_direct_at_check(const BakeScene& ctx, BakeRun& run) {
   bool any = false;
   for (size_t g = 0; g < groups.size() && g < texels.size(); ++g) {
     const ErrorParts& e = groups[g];
-    if (!(e.direct > DirectSchedule::kDirectShareOfTarget * s.target_error && e.mean > 0.0)) continue;
     const double rest = std::sqrt(std::max(0.0, e.relative * e.relative - e.direct * e.direct));
+    const double aim = std::max(s.target_error, kRestShare * rest);
+    if (!(e.direct > DirectSchedule::kDirectShareOfTarget * aim && e.mean > 0.0)) continue;
     if (rest / std::sqrt(std::max(1.0, double(texels[g]) / kPoolTexels)) > kKnownMean) continue;
-    mean[g] = e.mean;
+    mean[g] = e.mean * aim / s.target_error;  // the schedule's allowance: its share of the aim
     any = true;
   }
   if (!any) return false;
