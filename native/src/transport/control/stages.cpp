@@ -125,7 +125,7 @@ struct PhotonLoop {
 // rest instead: it adds little to the whole there, and a 1 % target's
 // direct part on the artist's room's dim objects cost 40x their samples for
 // nothing the artist could see. Returns whether samples were added.
-constexpr double kPoolTexels = 25.0, kKnownMean = 0.2, kRestShare = 0.5;
+constexpr double kPoolTexels = 25.0, kKnownMean = 0.2, kRestShare = 0.25;
 bool refine_direct_at_check(const BakeScene& ctx, BakeRun& run) {
   const BakeSettings& s = ctx.settings;
   if (!s.two_pass || run.direct.sums.size() != ctx.space.covered.size()) return false;
