@@ -175,8 +175,8 @@ TEST(Scheduler, FurtherGathersHaveMoreRaysWhileTheirPartIsLarge) {
 // surfaces they meet) falls with more rays at the same photons only while the
 // gathers before improve what they look up (bounce light between gathered
 // surfaces): after the second gather at a check, a group whose gather part
-// fell by less than kGatherProgress waits for photons unless its rays' own
-// part is large. (A dim object of the artist's room at its first check: 0.24
+// fell by less than kGatherProgress waits for photons unless quartering its
+// rays' own variance would lower it that much. (A dim object of the artist's room at its first check: 0.24
 // of its mean from lookups, 0.011 from its rays; five gathers there traced
 // 100 M rays for nothing.)
 TEST(Scheduler, LookupErrorWaitsForPhotons) {
@@ -191,7 +191,9 @@ TEST(Scheduler, LookupErrorWaitsForPhotons) {
   EXPECT_EQ(plan_regather(0, 64, {e}, one, 0.03, true).samples, 256u);        // the photons have grown
   e.gather = 0.15;  // the lookups improved: gather on
   EXPECT_EQ(plan_regather(2, 64, {e}, one, 0.03, false, &was).samples, 256u);
-  e.gather = 0.24, e.gather_rays = 0.02;  // the rays' own part is large
+  e.gather = 0.24, e.gather_rays = 0.05;  // more rays would lower it by 4 %: no
+  EXPECT_EQ(plan_regather(2, 64, {e}, one, 0.03, false, &was).samples, 0u);
+  e.gather = 0.05, e.gather_rays = 0.045;  // the rays' own noise is most of it: 4x the rays lower it by 37 %
   EXPECT_EQ(plan_regather(2, 64, {e}, one, 0.03, false, &was).samples, 256u);
 }
 

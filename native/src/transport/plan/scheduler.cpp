@@ -47,14 +47,16 @@ RegatherPlan plan_regather(uint32_t gathers, uint32_t last_samples, const std::v
   double refined = 0.0, total = 0.0;
   for (size_t g = 0; g < groups.size(); ++g) {
     const ErrorParts& e = groups[g];
-    // At the same photons more rays lower the rays' own noise; what they
-    // look up gets better as the gathers before improve it (bounce light
+    // At the same photons 4x the rays quarter the rays' own variance; what
+    // they look up gets better as the gathers before improve it (bounce light
     // between gathered surfaces) while the gather part keeps falling, and
-    // otherwise only with more photons (fresh).
+    // otherwise only with more photons (fresh). Either must lower the part
+    // by kGatherProgress.
     const double share = kPhotonShareOfTarget * target;
     const bool falling = gathers <= 1 || fresh || !before || g >= before->size() ||
                          e.gather < kGatherProgress * (*before)[g].gather;
-    plan.groups[g] = e.relative > target && e.gather > share && (falling || e.gather_rays > share);
+    const double with_rays = std::sqrt(std::max(0.0, e.gather * e.gather - 0.75 * e.gather_rays * e.gather_rays));
+    plan.groups[g] = e.relative > target && e.gather > share && (falling || with_rays < kGatherProgress * e.gather);
     const double n = g < texels.size() ? double(texels[g]) : 1.0;
     total += n;
     if (plan.groups[g]) refined += n;
@@ -64,7 +66,10 @@ RegatherPlan plan_regather(uint32_t gathers, uint32_t last_samples, const std::v
   const double most = std::clamp(double(kMaxGatherSamples) * total / refined, double(kMaxGatherSamples),
                                  double(kMaxGroupGatherSamples));
   const uint32_t samples = uint32_t(std::min(4.0 * double(last_samples), most));
-  if (samples > last_samples || (fresh && samples == last_samples)) plan.samples = samples;
+  if (samples > last_samples) plan.samples = samples;
+  // Fresh lookups: as many rays as before, or as many as the gather's ray
+  // budget allows where more groups need them now than then.
+  else if (fresh) plan.samples = samples;
   return plan;
 }
 

@@ -219,7 +219,8 @@ struct RegatherPlan {
 // have grown since the last gather (as many rays as before will do).
 // `before`: the groups' parts before the last gather (after the second
 // gather at a check, a group whose gather part fell by less than
-// kGatherProgress goes on only while its rays' own part is large).
+// kGatherProgress goes on only where quartering its rays' own variance
+// would lower the part by that much).
 constexpr double kGatherProgress = 0.8;
 RegatherPlan plan_regather(uint32_t gathers, uint32_t last_samples, const std::vector<ErrorParts>& groups,
                            const std::vector<size_t>& texels, double target, bool fresh = false,
