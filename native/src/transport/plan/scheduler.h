@@ -188,13 +188,18 @@ class CheckSchedule {
 constexpr uint32_t kGatherSamples = 16, kMaxGatherSamples = 256, kLeastGatherSamples = 4;
 uint32_t gather_samples(double target_error);
 // Under a target the gather runs at the first check the photons alone do not
-// pass, and at once again while the target is not met and its rays' own
-// noise is above kPhotonShareOfTarget x the target: more rays lower that part
-// of the error, not the error of the texels they look up (other objects,
-// the ground), which waits for more photons (a dim object at the first check
-// looks up a few thousand photon hits: five gathers of ever more rays there
-// cost 100 M rays and left its error as it was). Each gather looks up the
-// estimate the one before improved.
+// pass, and at once again while the target is not met and the gather's part
+// of the error is above kPhotonShareOfTarget x the target and falling. That
+// part is the spread of its rays, which 4x the rays quarter, and the error
+// of the texels they look up (other objects, the ground), which a gather
+// lowers only as the gathers before it improved what it looks up (bounce
+// light between gathered surfaces) and otherwise waits for more photons: a
+// dim object at the first check looks up a few thousand photon hits, and
+// five gathers of ever more rays there cost 100 M rays and left its error as
+// it was. So from the third gather at a check on, a group goes on only while
+// its part fell by kGatherProgress with the gather before or quartering its
+// rays' variance would lower it that much. Each gather looks up the estimate
+// the one before improved.
 // Judged per group (each object, small ones with their neighbours): a gather
 // after the first gathers again only the texels of the groups that need it
 // (the rest keep their rays), with 4x the rays of the one before, at most
@@ -206,8 +211,9 @@ uint32_t gather_samples(double target_error);
 // a later check, once the photons have grown kRegatherPhotonGrowth-fold since
 // the last gather (their error halved), the groups whose gather part, lookups
 // included, is still above kPhotonShareOfTarget x the target gather again
-// with as many rays as before or more: what they look up is better (while
-// the gathers have traced no more rays than the photons).
+// with as many rays as before, or as many as kMaxGatherSamples over every
+// texel allow where more groups need them now: what they look up is better
+// (while the gathers have traced no more rays than the photons).
 constexpr uint32_t kMaxGathers = 6, kMaxGroupGatherSamples = 4096, kRegatherPhotonGrowth = 4;
 struct RegatherPlan {
   std::vector<uint8_t> groups;  // per group: its texels are gathered again
@@ -216,7 +222,8 @@ struct RegatherPlan {
 };
 // After `gathers` gathers at this check, the last of `last_samples` rays: the
 // next one, if any. `texels`: covered texels per group. `fresh`: the photons
-// have grown since the last gather (as many rays as before will do).
+// have grown since the last gather (as many rays as before will do, or fewer
+// where the budget allows no more).
 // `before`: the groups' parts before the last gather (after the second
 // gather at a check, a group whose gather part fell by less than
 // kGatherProgress goes on only where quartering its rays' own variance
