@@ -230,7 +230,6 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
   return out;
 }
 
-
 uint64_t refine_direct(tbb::task_arena& arena, const DirectPass& pass, const TexelSpace& space,
                        const BakeSettings& settings, const std::vector<double>& group_mean, DirectResult& out,
                        const std::function<bool()>& stop) {

@@ -77,9 +77,9 @@ DirectResult run_direct_pass(tbb::task_arena& arena, const DirectPass& pass, con
 // which the first rounds could not know. A dim object lit mostly by bounce
 // light needs its direct light far more precise than its share of the
 // whole's direct light says. Rounds go on while some of those texels need
-// samples, up to DirectSchedule::kMaxRefinedRounds in all, and end between groups of
-// texels once stop() is true. Updates out's sums, values and samples; returns
-// the samples added (0 for a slice's pass).
+// samples, up to DirectSchedule::kMaxRefinedRounds in all, and end between
+// groups of texels once stop() is true. Updates out's sums, values and
+// samples; returns the samples added (0 for a slice's pass).
 uint64_t refine_direct(tbb::task_arena& arena, const DirectPass& pass, const TexelSpace& space,
                        const BakeSettings& settings, const std::vector<double>& group_mean, DirectResult& out,
                        const std::function<bool()>& stop);

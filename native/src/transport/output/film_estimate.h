@@ -96,8 +96,9 @@ struct Estimator {
 
   // Per texel of mesh i: irradiance / pi (3 values) and its estimated mean
   // squared error; the final gather's part of the variances is added to
-  // *gather_part (all of it, and the rays' own noise). With `lookup`, also the mean squared error that the final
-  // gather's lookups see (reconstruct.h: LookupError).
+  // *gather_part (all of it, and the rays' own noise). With `lookup`, also
+  // the mean squared error that the final gather's lookups see
+  // (reconstruct.h: LookupError).
   // In `b`: value3 and variance; with `lookups`, b.lookup too. With `part`,
   // the photons' reconstruction is read from it if it holds `photons`, else
   // written to it (the caller then sets part->photons).

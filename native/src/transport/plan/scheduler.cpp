@@ -66,10 +66,9 @@ RegatherPlan plan_regather(uint32_t gathers, uint32_t last_samples, const std::v
   const double most = std::clamp(double(kMaxGatherSamples) * total / refined, double(kMaxGatherSamples),
                                  double(kMaxGroupGatherSamples));
   const uint32_t samples = uint32_t(std::min(4.0 * double(last_samples), most));
-  if (samples > last_samples) plan.samples = samples;
   // Fresh lookups: as many rays as before, or as many as the gather's ray
   // budget allows where more groups need them now than then.
-  else if (fresh) plan.samples = samples;
+  if (samples > last_samples || fresh) plan.samples = samples;
   return plan;
 }
 

@@ -143,11 +143,11 @@ inline uint64_t next_check(uint64_t check) {
 
 // The parts of the estimated relative error (transport/output/film_estimate.h, ErrorEstimate).
 struct ErrorParts {
-  double relative = 0.0;  // all of it
-  double direct = 0.0;    // the direct pass's part
-  double gather = 0.0;    // the final gather's part
+  double relative = 0.0;     // all of it
+  double direct = 0.0;       // the direct pass's part
+  double gather = 0.0;       // the final gather's part
   double gather_rays = 0.0;  // of that, its rays' own noise (more rays lower it; not what they looked up)
-  double mean = 0.0;      // the mean texel value (irradiance / pi) the parts are relative to
+  double mean = 0.0;         // the mean texel value (irradiance / pi) the parts are relative to
 };
 
 // Whether the photon pass stops at a check: the target is reached, the
