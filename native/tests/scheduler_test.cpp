@@ -175,10 +175,11 @@ TEST(Scheduler, FurtherGathersHaveMoreRaysWhileTheirPartIsLarge) {
 // surfaces they meet) falls with more rays at the same photons only while the
 // gathers before improve what they look up (bounce light between gathered
 // surfaces): after the second gather at a check, a group whose gather part
-// fell by less than kGatherProgress waits for photons unless quartering its
-// rays' own variance would lower it that much. (A dim object of the artist's room at its first check: 0.24
-// of its mean from lookups, 0.011 from its rays; five gathers there traced
-// 100 M rays for nothing.)
+// fell by less than kGatherProgress waits for photons unless its rays' own
+// part is above half the target and a real share of the gather part. (A dim
+// object of the artist's room at its first check: 0.24 of its mean from
+// lookups, 0.011 from its rays; five gathers there traced 100 M rays for
+// nothing.)
 TEST(Scheduler, LookupErrorWaitsForPhotons) {
   ErrorParts before, e;
   before.relative = 0.3, before.direct = 0.02, before.gather = 0.25, before.gather_rays = 0.02;
@@ -191,10 +192,14 @@ TEST(Scheduler, LookupErrorWaitsForPhotons) {
   EXPECT_EQ(plan_regather(0, 64, {e}, one, 0.03, true).samples, 256u);        // the photons have grown
   e.gather = 0.15;  // the lookups improved: gather on
   EXPECT_EQ(plan_regather(2, 64, {e}, one, 0.03, false, &was).samples, 256u);
-  e.gather = 0.24, e.gather_rays = 0.05;  // more rays would lower it by 4 %: no
+  e.gather = 0.24, e.gather_rays = 0.05;  // above half the target, but 4x the rays lower it by 2 %: no
   EXPECT_EQ(plan_regather(2, 64, {e}, one, 0.03, false, &was).samples, 0u);
   e.gather = 0.05, e.gather_rays = 0.045;  // the rays' own noise is most of it: 4x the rays lower it by 37 %
   EXPECT_EQ(plan_regather(2, 64, {e}, one, 0.03, false, &was).samples, 256u);
+  e.gather = 0.02, e.gather_rays = 0.012;  // most of it, but under half the target
+  before.gather = 0.021;
+  const std::vector<ErrorParts> was_close{before};
+  EXPECT_EQ(plan_regather(2, 64, {e}, one, 0.03, false, &was_close).samples, 0u);
 }
 
 // Judged per object: one object that needs it is enough, and only its texels

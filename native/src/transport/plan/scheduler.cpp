@@ -50,13 +50,13 @@ RegatherPlan plan_regather(uint32_t gathers, uint32_t last_samples, const std::v
     // At the same photons 4x the rays quarter the rays' own variance; what
     // they look up gets better as the gathers before improve it (bounce light
     // between gathered surfaces) while the gather part keeps falling, and
-    // otherwise only with more photons (fresh). Either must lower the part
-    // by kGatherProgress.
+    // otherwise only with more photons (fresh).
     const double share = kPhotonShareOfTarget * target;
     const bool falling = gathers <= 1 || fresh || !before || g >= before->size() ||
                          e.gather < kGatherProgress * (*before)[g].gather;
     const double with_rays = std::sqrt(std::max(0.0, e.gather * e.gather - 0.75 * e.gather_rays * e.gather_rays));
-    plan.groups[g] = e.relative > target && e.gather > share && (falling || with_rays < kGatherProgress * e.gather);
+    const bool rays_help = e.gather_rays > share && with_rays < kRaysProgress * e.gather;
+    plan.groups[g] = e.relative > target && e.gather > share && (falling || rays_help);
     const double n = g < texels.size() ? double(texels[g]) : 1.0;
     total += n;
     if (plan.groups[g]) refined += n;

@@ -197,9 +197,10 @@ uint32_t gather_samples(double target_error);
 // dim object at the first check looks up a few thousand photon hits, and
 // five gathers of ever more rays there cost 100 M rays and left its error as
 // it was. So from the third gather at a check on, a group goes on only while
-// its part fell by kGatherProgress with the gather before or quartering its
-// rays' variance would lower it that much. Each gather looks up the estimate
-// the one before improved.
+// its part fell by kGatherProgress with the gather before, or while its
+// rays' own part is above kPhotonShareOfTarget x the target and a real share
+// of the gather part (kRaysProgress). Each gather looks up the estimate the
+// one before improved.
 // Judged per group (each object, small ones with their neighbours): a gather
 // after the first gathers again only the texels of the groups that need it
 // (the rest keep their rays), with 4x the rays of the one before, at most
@@ -226,9 +227,10 @@ struct RegatherPlan {
 // where the budget allows no more).
 // `before`: the groups' parts before the last gather (after the second
 // gather at a check, a group whose gather part fell by less than
-// kGatherProgress goes on only where quartering its rays' own variance
-// would lower the part by that much).
-constexpr double kGatherProgress = 0.8;
+// kGatherProgress goes on only where its rays' own part is above
+// kPhotonShareOfTarget x the target and quartering its variance would lower
+// the gather part below kRaysProgress of it).
+constexpr double kGatherProgress = 0.8, kRaysProgress = 0.95;
 RegatherPlan plan_regather(uint32_t gathers, uint32_t last_samples, const std::vector<ErrorParts>& groups,
                            const std::vector<size_t>& texels, double target, bool fresh = false,
                            const std::vector<ErrorParts>* before = nullptr);
