@@ -128,14 +128,14 @@ struct PhotonLoop {
 constexpr double kPoolTexels = 25.0, kKnownMean = 0.2, kRestShare = 0.25;
 bool refine_direct_at_check(const BakeScene& ctx, BakeRun& run) {
   const BakeSettings& s = ctx.settings;
-  if (!s.two_pass || run.direct.sums.size() != ctx.space.covered.size()) return false;
+  if (!s.two_pass) return false;
   const std::vector<ErrorParts>& groups = run.last.error.groups;
   const std::vector<size_t> texels = ctx.space.group_texels();
   std::vector<double> mean(groups.size(), 0.0);
   bool any = false;
   for (size_t g = 0; g < groups.size() && g < texels.size(); ++g) {
     const ErrorParts& e = groups[g];
-    const double rest = std::sqrt(std::max(0.0, e.relative * e.relative - e.direct * e.direct));
+    const double rest = e.rest();
     const double aim = std::max(s.target_error, kRestShare * rest);
     if (!(e.direct > DirectSchedule::kDirectShareOfTarget * aim && e.mean > 0.0)) continue;
     if (rest / std::sqrt(std::max(1.0, double(texels[g]) / kPoolTexels)) > kKnownMean) continue;

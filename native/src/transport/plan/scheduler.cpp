@@ -14,8 +14,7 @@ void Progress::operator()(double fraction, const char* stage) {
 }
 
 bool target_reached(const ErrorParts& e, double target) {
-  const double rest = std::sqrt(std::max(0.0, e.relative * e.relative - e.direct * e.direct));
-  return e.relative <= target || e.direct >= target || rest <= kPhotonShareOfTarget * target;
+  return e.relative <= target || e.direct >= target || e.rest() <= kPhotonShareOfTarget * target;
 }
 
 double target_progress(double relative, double target) {

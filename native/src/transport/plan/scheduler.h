@@ -148,6 +148,8 @@ struct ErrorParts {
   double gather = 0.0;       // the final gather's part
   double gather_rays = 0.0;  // of that, its rays' own noise (more rays lower it; not what they looked up)
   double mean = 0.0;         // the mean texel value (irradiance / pi) the parts are relative to
+  // All but the direct part (photons and gather).
+  double rest() const { return std::sqrt(std::max(0.0, relative * relative - direct * direct)); }
 };
 
 // Whether the photon pass stops at a check: the target is reached, the
